@@ -1,0 +1,28 @@
+//! HORT-serverless core: a pure ray tracing library and the HORT MapReduce stages as pure
+//! functions over bytes. No AWS, no async runtime, no platform libm in anything that reaches an
+//! output: the same inputs give the same bytes on every machine.
+#![forbid(unsafe_code)]
+
+pub mod error;
+
+// Scene input and the renderer.
+pub mod bvh;
+pub mod camera;
+pub mod render;
+pub mod sampling;
+pub mod scene;
+pub mod shading;
+pub mod triangle;
+
+// Outputs.
+pub mod hits;
+pub mod image;
+pub mod report;
+
+// Synthetic scenes for benchmarks.
+pub mod generate;
+
+// HORT pipeline building blocks.
+pub mod keys;
+pub mod shuffle;
+pub mod store;
