@@ -1,1 +1,211 @@
-//! (in progress)
+//! The object key layout: the one place that spells every key a job reads or writes.
+//!
+//! ```text
+//! jobs/{job}/manifest.json                       the job request, created once
+//! jobs/{job}/plan.json                           the job plan (splits, spans, tasks)
+//! jobs/{job}/splits/{split:05}.bin               one scene split with its BVH
+//! jobs/{job}/{stage}/{task:05}/part-{p:05}       one shuffle partition of one task's output
+//! jobs/{job}/out/image.{ext}                     the final image (png, pfm, exr)
+//! jobs/{job}/report.json                         the run report
+//! ```
+//!
+//! Indices are zero-padded to five digits so that, below 100 000, listing a prefix returns tasks
+//! and partitions in numeric order (lists are sorted by bytes). Larger indices still produce
+//! unique keys, with more digits. Keys contain only `[a-z0-9-./]` plus the image extension, all
+//! safe in S3 without escaping. Keys do not contain the attempt: every attempt of a task writes the
+//! same bytes to the same keys.
+
+use crate::ids::{JobId, PartitionId, SplitId, Stage, TaskId};
+
+/// `jobs/{job}/`: every object of the job, and nothing of any other job, starts with it.
+pub fn job_prefix(job: &JobId) -> String {
+    format!("jobs/{job}/")
+}
+
+/// `jobs/{job}/manifest.json`: the job request, written once with a conditional put.
+pub fn manifest_key(job: &JobId) -> String {
+    format!("jobs/{job}/manifest.json")
+}
+
+/// `jobs/{job}/plan.json`: the job plan.
+pub fn plan_key(job: &JobId) -> String {
+    format!("jobs/{job}/plan.json")
+}
+
+/// `jobs/{job}/splits/`: the prefix of every split object of the job, and of nothing else.
+pub fn splits_prefix(job: &JobId) -> String {
+    format!("jobs/{job}/splits/")
+}
+
+/// `jobs/{job}/splits/{split:05}.bin`: one scene split.
+pub fn split_key(job: &JobId, split: SplitId) -> String {
+    format!("jobs/{job}/splits/{:05}.bin", split.0)
+}
+
+/// `jobs/{job}/{stage}/`: the prefix of every partition written by the stage's tasks, and of
+/// nothing else (no stage name is a prefix of another followed by `/`).
+pub fn stage_prefix(job: &JobId, stage: Stage) -> String {
+    format!("jobs/{job}/{stage}/")
+}
+
+/// `jobs/{job}/{stage}/{task:05}/`: the prefix of every partition written by one task.
+pub fn task_prefix(job: &JobId, stage: Stage, task: TaskId) -> String {
+    format!("jobs/{job}/{stage}/{:05}/", task.0)
+}
+
+/// `jobs/{job}/{stage}/{task:05}/part-{p:05}`: partition `p` of the output of one task.
+/// [`parse_partition_key`] inverts it exactly.
+pub fn partition_key(job: &JobId, stage: Stage, task: TaskId, partition: PartitionId) -> String {
+    format!("jobs/{job}/{stage}/{:05}/part-{:05}", task.0, partition.0)
+}
+
+/// `jobs/{job}/out/image.png`: the final 8-bit sRGB image.
+pub fn image_key(job: &JobId) -> String {
+    image_key_with_ext(job, "png")
+}
+
+/// `jobs/{job}/out/image.{ext}`: the final image in another format; `ext` is given without the
+/// dot (`"pfm"`, `"exr"`). A leading dot, if present, is dropped so `".pfm"` gives the same key.
+pub fn image_key_with_ext(job: &JobId, ext: &str) -> String {
+    let ext = ext.strip_prefix('.').unwrap_or(ext);
+    format!("jobs/{job}/out/image.{ext}")
+}
+
+/// `jobs/{job}/report.json`: the run report.
+pub fn report_key(job: &JobId) -> String {
+    format!("jobs/{job}/report.json")
+}
+
+/// Parses a key made by [`partition_key`]; `None` for any other string.
+///
+/// Guarantee: `parse_partition_key(k) == Some(x)` exactly when `partition_key(x) == k`, so a
+/// listed key is accepted only in its canonical spelling (five or more digits, no extra zeros).
+pub fn parse_partition_key(key: &str) -> Option<(JobId, Stage, TaskId, PartitionId)> {
+    let mut parts = key.split('/');
+    let (jobs, job, stage, task, part) = (
+        parts.next()?,
+        parts.next()?,
+        parts.next()?,
+        parts.next()?,
+        parts.next()?,
+    );
+    if jobs != "jobs" || parts.next().is_some() {
+        return None;
+    }
+    let job = JobId::new(job).ok()?;
+    let stage = stage.parse::<Stage>().ok()?;
+    let task = parse_index(task)?;
+    let partition = parse_index(part.strip_prefix("part-")?)?;
+    Some((job, stage, TaskId(task), PartitionId(partition)))
+}
+
+/// A decimal index in the canonical `{:05}` spelling, else `None`.
+fn parse_index(text: &str) -> Option<u32> {
+    if !text.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    let index: u32 = text.parse().ok()?;
+    (format!("{index:05}") == text).then_some(index)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn job() -> JobId {
+        JobId::new("job-42").unwrap()
+    }
+
+    #[test]
+    fn keys_are_the_documented_strings() {
+        let j = job();
+        assert_eq!(job_prefix(&j), "jobs/job-42/");
+        assert_eq!(manifest_key(&j), "jobs/job-42/manifest.json");
+        assert_eq!(plan_key(&j), "jobs/job-42/plan.json");
+        assert_eq!(splits_prefix(&j), "jobs/job-42/splits/");
+        assert_eq!(split_key(&j, SplitId(1)), "jobs/job-42/splits/00001.bin");
+        assert_eq!(
+            split_key(&j, SplitId(123_456)),
+            "jobs/job-42/splits/123456.bin"
+        );
+        assert_eq!(stage_prefix(&j, Stage::CastMap), "jobs/job-42/cast-map/");
+        assert_eq!(
+            task_prefix(&j, Stage::TraceMap, TaskId(7)),
+            "jobs/job-42/trace-map/00007/"
+        );
+        assert_eq!(
+            partition_key(&j, Stage::CastMap, TaskId(3), PartitionId(12)),
+            "jobs/job-42/cast-map/00003/part-00012"
+        );
+        assert_eq!(image_key(&j), "jobs/job-42/out/image.png");
+        assert_eq!(image_key_with_ext(&j, "pfm"), "jobs/job-42/out/image.pfm");
+        assert_eq!(image_key_with_ext(&j, ".exr"), "jobs/job-42/out/image.exr");
+        assert_eq!(report_key(&j), "jobs/job-42/report.json");
+    }
+
+    #[test]
+    fn prefixes_contain_exactly_their_keys() {
+        let j = job();
+        let key = partition_key(&j, Stage::Expand, TaskId(2), PartitionId(0));
+        assert!(key.starts_with(&job_prefix(&j)));
+        assert!(key.starts_with(&stage_prefix(&j, Stage::Expand)));
+        assert!(key.starts_with(&task_prefix(&j, Stage::Expand, TaskId(2))));
+        for other in Stage::ALL.into_iter().filter(|s| *s != Stage::Expand) {
+            assert!(!key.starts_with(&stage_prefix(&j, other)));
+        }
+        let other_job = JobId::new("job-4").unwrap();
+        assert!(!manifest_key(&j).starts_with(&job_prefix(&other_job)));
+        assert!(!split_key(&j, SplitId(0)).starts_with(&stage_prefix(&j, Stage::Split)));
+    }
+
+    #[test]
+    fn padded_indices_list_in_numeric_order() {
+        let j = job();
+        let mut keys: Vec<String> = [10, 9, 99_999, 0, 100]
+            .into_iter()
+            .map(|p| partition_key(&j, Stage::CastReduce, TaskId(1), PartitionId(p)))
+            .collect();
+        keys.sort();
+        let order: Vec<u32> = keys
+            .iter()
+            .filter_map(|k| parse_partition_key(k))
+            .map(|(_, _, _, p)| p.0)
+            .collect();
+        assert_eq!(order, [0, 9, 10, 100, 99_999]);
+    }
+
+    #[test]
+    fn parse_partition_key_round_trips() {
+        let j = job();
+        for stage in Stage::ALL {
+            for (t, p) in [(0, 0), (1, 99_999), (100_000, 7), (u32::MAX, u32::MAX)] {
+                let key = partition_key(&j, stage, TaskId(t), PartitionId(p));
+                let parsed = parse_partition_key(&key);
+                assert_eq!(parsed, Some((j.clone(), stage, TaskId(t), PartitionId(p))));
+            }
+        }
+    }
+
+    #[test]
+    fn parse_partition_key_rejects_everything_else() {
+        for bad in [
+            "",
+            "jobs/job-42/cast-map/00003/part-00012/",
+            "jobs/job-42/cast-map/00003/part-00012/x",
+            "job/job-42/cast-map/00003/part-00012",
+            "jobs/Job/cast-map/00003/part-00012",
+            "jobs/job-42/castmap/00003/part-00012",
+            "jobs/job-42/cast-map/0003/part-00012",
+            "jobs/job-42/cast-map/000003/part-00012",
+            "jobs/job-42/cast-map/00003/part-0012",
+            "jobs/job-42/cast-map/00003/part-+0012",
+            "jobs/job-42/cast-map/00003/prt-00012",
+            "jobs/job-42/cast-map/-0003/part-00012",
+            "jobs/job-42/cast-map/4294967296/part-00012",
+            "jobs/job-42/splits/00001.bin",
+            "jobs/job-42/manifest.json",
+        ] {
+            assert_eq!(parse_partition_key(bad), None, "{bad}");
+        }
+    }
+}

@@ -23,6 +23,7 @@ pub mod report;
 pub mod generate;
 
 // HORT pipeline building blocks.
+pub mod ids;
 pub mod keys;
 pub mod shuffle;
 pub mod store;

@@ -1,1 +1,199 @@
-//! (in progress)
+//! The monolithic renderer (the paper's TRAD): one process, one BVH over the whole scene.
+//!
+//! The per-sample work ([`trace_sample`]) is separate from the loop that drives it over pixels
+//! and threads ([`render`]); the result does not depend on the thread count.
+
+use crate::bvh::{Bvh, ClosestHit};
+use crate::camera::Camera;
+use crate::error::SceneError;
+use crate::hits::Hit;
+use crate::image::Image;
+use crate::sampling::sample_offset;
+use crate::scene::{Mesh, NO_NORMAL, Scene, check_image_size};
+use crate::shading::{SurfacePoint, combine, shadow_test, surface_point};
+use crate::triangle::Ray;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::mpsc;
+use std::time::Instant;
+
+/// Image size, samples per pixel and worker threads of one render.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RenderSettings {
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    /// Worker threads; 0 means one per available core.
+    pub threads: usize,
+}
+
+/// Everything a render produces.
+#[derive(Clone, Debug)]
+pub struct RenderOutput {
+    /// Linear radiance, each pixel the mean of its samples.
+    pub image: Image,
+    /// Sample 0 of each pixel, row-major from the top-left.
+    pub hits: Vec<Hit>,
+    /// Counts of logical rays: one primary per sample, one shadow per hit sample and light.
+    pub rays: RayCounts,
+    /// Wall-clock seconds of ray work only (no loading, BVH build or output).
+    pub render_seconds: f64,
+}
+
+/// Logical ray counts of a render.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RayCounts {
+    pub primary: u64,
+    pub shadow: u64,
+}
+
+impl std::ops::AddAssign for RayCounts {
+    fn add_assign(&mut self, o: RayCounts) {
+        self.primary += o.primary;
+        self.shadow += o.shadow;
+    }
+}
+
+/// Builds the BVH over the whole scene; triangle ids are scene-order indices.
+pub fn build_scene_bvh(mesh: &Mesh) -> Bvh {
+    let n = mesh.triangle_count();
+    let triangles = (0..n).map(|i| mesh.corners(i)).collect();
+    Bvh::build(triangles, (0..n as u32).collect())
+}
+
+/// The shading data of a hit on the scene's triangle `hit.id`.
+pub fn surface_of(mesh: &Mesh, hit: &ClosestHit, ray: &Ray) -> SurfacePoint {
+    let id = hit.id as usize;
+    let normal_ids = mesh.triangle_normals[id];
+    let normals =
+        (normal_ids[0] != NO_NORMAL).then(|| normal_ids.map(|i| mesh.normals[i as usize]));
+    let kd = mesh.materials[mesh.triangle_materials[id] as usize].kd;
+    surface_point(hit.corners, hit.b, ray.dir, normals, kd)
+}
+
+/// Traces one camera sample at image position (px, py): returns its radiance, its hit and the
+/// logical rays it cast.
+pub fn trace_sample(
+    scene: &Scene,
+    bvh: &Bvh,
+    camera: &Camera,
+    px: f64,
+    py: f64,
+) -> ([f32; 3], Option<ClosestHit>, RayCounts) {
+    let ray = camera.ray(px, py);
+    let Some(hit) = bvh.closest_hit(&ray) else {
+        let rays = RayCounts {
+            primary: 1,
+            shadow: 0,
+        };
+        return (scene.background, None, rays);
+    };
+    let sp = surface_of(&scene.mesh, &hit, &ray);
+    let contributions = scene.lights.iter().filter_map(|light| {
+        let test = shadow_test(&sp, light)?;
+        (!bvh.occluded(&test.ray, test.t_max)).then_some(test.unoccluded)
+    });
+    let colour = combine(sp.kd, contributions, scene.ambient);
+    let rays = RayCounts {
+        primary: 1,
+        shadow: scene.lights.len() as u64,
+    };
+    (colour, Some(hit), rays)
+}
+
+/// Renders `scene` with one BVH over all its triangles.
+pub fn render(
+    scene: &Scene,
+    bvh: &Bvh,
+    settings: RenderSettings,
+) -> Result<RenderOutput, SceneError> {
+    let RenderSettings {
+        width,
+        height,
+        spp,
+        threads,
+    } = settings;
+    check_image_size(width, height, spp)?;
+    let camera = Camera::new(&scene.camera, width, height)?;
+    let threads = if threads == 0 {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    } else {
+        threads
+    };
+    let start = Instant::now();
+    let next_row = AtomicUsize::new(0);
+    let (tx, rx) = mpsc::channel();
+    let mut image = Image::new(width, height);
+    let mut hits = vec![Hit::MISS; width as usize * height as usize];
+    let mut rays = RayCounts::default();
+    std::thread::scope(|s| {
+        for _ in 0..threads {
+            let tx = tx.clone();
+            let next_row = &next_row;
+            let camera = &camera;
+            s.spawn(move || {
+                loop {
+                    let y = next_row.fetch_add(1, Ordering::Relaxed);
+                    if y >= height as usize {
+                        break;
+                    }
+                    let row = render_row(scene, bvh, camera, settings, y as u32);
+                    if tx.send((y, row)).is_err() {
+                        break;
+                    }
+                }
+            });
+        }
+        drop(tx);
+        for (y, row) in rx {
+            let range = y * width as usize..(y + 1) * width as usize;
+            image.pixels[range.clone()].copy_from_slice(&row.colours);
+            hits[range].copy_from_slice(&row.hits);
+            rays += row.rays;
+        }
+    });
+    Ok(RenderOutput {
+        image,
+        hits,
+        rays,
+        render_seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+struct Row {
+    colours: Vec<[f32; 3]>,
+    hits: Vec<Hit>,
+    rays: RayCounts,
+}
+
+fn render_row(scene: &Scene, bvh: &Bvh, camera: &Camera, s: RenderSettings, y: u32) -> Row {
+    let mut row = Row {
+        colours: Vec::with_capacity(s.width as usize),
+        hits: Vec::with_capacity(s.width as usize),
+        rays: RayCounts::default(),
+    };
+    for x in 0..s.width {
+        let pixel = u64::from(y) * u64::from(s.width) + u64::from(x);
+        let mut sum = [0.0f32; 3];
+        let mut first_hit = Hit::MISS;
+        for sample in 0..s.spp {
+            let (ox, oy) = sample_offset(pixel, sample, s.spp);
+            let px = f64::from(x) + ox;
+            let py = f64::from(y) + oy;
+            let (colour, hit, rays) = trace_sample(scene, bvh, camera, px, py);
+            for k in 0..3 {
+                sum[k] += colour[k];
+            }
+            if sample == 0 {
+                first_hit = hit.map_or(Hit::MISS, |h| Hit {
+                    triangle: h.id,
+                    t: h.t,
+                });
+            }
+            row.rays += rays;
+        }
+        let inv = s.spp as f32;
+        row.colours.push(sum.map(|v| v / inv));
+        row.hits.push(first_hit);
+    }
+    row
+}

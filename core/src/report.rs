@@ -1,1 +1,116 @@
-//! (in progress)
+//! The `--report` JSON of the command-line contract (DESIGN.md): one object with `width`,
+//! `height`, `triangles`, `rays {primary, shadow}`, `seconds {total, render}`, `stages[]`,
+//! `replication` and `cost_usd`. Fields that do not apply (monolithic mode) are null or empty.
+
+use serde::{Deserialize, Serialize};
+
+/// A render report. Field names are part of the contract; more fields may be added.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Report {
+    /// `"monolithic"` or `"pipeline"`.
+    pub mode: String,
+    pub scene: String,
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub triangles: u64,
+    pub threads: usize,
+    pub rays: RayReport,
+    pub seconds: Seconds,
+    pub stages: Vec<StageReport>,
+    /// Split bytes read / scene bytes; null when no splits exist.
+    pub replication: Option<f64>,
+    /// Estimated AWS cost of the render; null when it did not run as functions.
+    pub cost_usd: Option<f64>,
+}
+
+/// Logical ray counts: one primary ray per sample, one shadow ray per hit sample and light.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RayReport {
+    pub primary: u64,
+    pub shadow: u64,
+}
+
+/// Wall-clock seconds.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Seconds {
+    /// From start to finish of the command, loading and writing included.
+    pub total: f64,
+    /// Ray work only: no loading, BVH build, storage or image writing.
+    pub render: f64,
+    /// Scene loading (parse) time.
+    pub load: f64,
+    /// Acceleration structure build time.
+    pub build: f64,
+}
+
+/// One pipeline stage's measurements.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StageReport {
+    pub name: String,
+    pub tasks: u64,
+    pub attempts: u64,
+    pub seconds: f64,
+    pub bytes_read: u64,
+    /// Compressed bytes written.
+    pub bytes_written: u64,
+    /// Bytes written before compression.
+    pub bytes_written_raw: u64,
+}
+
+impl Report {
+    /// Pretty JSON text of the report.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn report_round_trips_and_has_contract_fields() {
+        let r = Report {
+            mode: "monolithic".into(),
+            scene: "x.obj".into(),
+            width: 64,
+            height: 48,
+            spp: 1,
+            triangles: 12,
+            threads: 2,
+            rays: RayReport {
+                primary: 3072,
+                shadow: 100,
+            },
+            seconds: Seconds {
+                total: 0.5,
+                render: 0.25,
+                load: 0.125,
+                build: 0.0625,
+            },
+            stages: vec![],
+            replication: None,
+            cost_usd: None,
+        };
+        let text = r.to_json();
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        for k in [
+            "width",
+            "height",
+            "triangles",
+            "rays",
+            "seconds",
+            "stages",
+            "replication",
+            "cost_usd",
+        ] {
+            assert!(v.get(k).is_some(), "missing {k}");
+        }
+        assert_eq!(v["rays"]["primary"], 3072);
+        assert_eq!(v["seconds"]["render"], 0.25);
+        assert!(v["replication"].is_null());
+        let back: Report = serde_json::from_str(&text).unwrap();
+        assert_eq!(back, r);
+    }
+}

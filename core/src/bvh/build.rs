@@ -1,0 +1,159 @@
+//! Binned SAH construction (Wald 2007): 16 bins per axis on centroid bounds, leaves of at most
+//! [`MAX_LEAF`] triangles unless the triangles' centroids coincide.
+
+use super::{Aabb, Bvh, Node};
+use glam::Vec3;
+
+const BINS: usize = 16;
+/// Largest leaf the SAH may choose; coincident centroids are split by index instead.
+const MAX_LEAF: u32 = 4;
+/// Cost of one traversal step relative to one triangle test.
+const TRAVERSAL_COST: f32 = 1.0;
+/// Deepest level a node may have; deeper subtrees become (large) leaves. Traversal stacks hold
+/// one entry per level, so this bounds them (see `traverse::STACK`).
+pub(super) const MAX_DEPTH: usize = 60;
+
+pub(super) fn build(triangles: Vec<[Vec3; 3]>, ids: Vec<u32>) -> Bvh {
+    let n = triangles.len();
+    if n == 0 {
+        return Bvh {
+            nodes: Vec::new(),
+            triangles,
+            ids,
+        };
+    }
+    let boxes: Vec<Aabb> = triangles.iter().map(Aabb::of_triangle).collect();
+    let centroids: Vec<Vec3> = boxes.iter().map(|b| (b.lo + b.hi) * 0.5).collect();
+    let mut order: Vec<u32> = (0..n as u32).collect();
+    let mut nodes = Vec::with_capacity(2 * n / MAX_LEAF as usize + 1);
+    nodes.push(Node {
+        bounds: Aabb::EMPTY,
+        first: 0,
+        count: 0,
+    });
+    let mut stack = vec![(0usize, 0usize, n, 0usize)];
+    while let Some((node, start, end, depth)) = stack.pop() {
+        let refs = &mut order[start..end];
+        let bounds = refs
+            .iter()
+            .fold(Aabb::EMPTY, |b, &i| b.union(boxes[i as usize]));
+        nodes[node].bounds = bounds;
+        let split = if depth + 1 >= MAX_DEPTH {
+            None
+        } else {
+            choose_split(refs, &boxes, &centroids, bounds)
+        };
+        match split {
+            None => {
+                nodes[node].first = start as u32;
+                nodes[node].count = (end - start) as u32;
+            }
+            Some(mid) => {
+                let left = nodes.len();
+                nodes.push(nodes[node]);
+                nodes.push(nodes[node]);
+                nodes[node].first = left as u32;
+                nodes[node].count = 0;
+                stack.push((left + 1, start + mid, end, depth + 1));
+                stack.push((left, start, start + mid, depth + 1));
+            }
+        }
+    }
+    let triangles_in_order = order.iter().map(|&i| triangles[i as usize]).collect();
+    let ids_in_order = order.iter().map(|&i| ids[i as usize]).collect();
+    Bvh {
+        nodes,
+        triangles: triangles_in_order,
+        ids: ids_in_order,
+    }
+}
+
+#[derive(Clone, Copy)]
+struct Bin {
+    bounds: Aabb,
+    count: u32,
+}
+
+/// Partitions `refs` and returns the split position, or `None` to make a leaf.
+fn choose_split(
+    refs: &mut [u32],
+    boxes: &[Aabb],
+    centroids: &[Vec3],
+    bounds: Aabb,
+) -> Option<usize> {
+    let count = refs.len();
+    if count <= 1 {
+        return None;
+    }
+    let cbounds = refs.iter().fold(Aabb::EMPTY, |b, &i| {
+        let c = centroids[i as usize];
+        b.union(Aabb { lo: c, hi: c })
+    });
+    let extent = cbounds.hi - cbounds.lo;
+    let mut best: Option<(f32, usize, usize)> = None; // (cost, axis, bins left of split)
+    for axis in 0..3 {
+        if extent[axis] <= 0.0 {
+            continue;
+        }
+        let scale = BINS as f32 / extent[axis];
+        let bin_of = |i: u32| {
+            let b = ((centroids[i as usize][axis] - cbounds.lo[axis]) * scale) as usize;
+            b.min(BINS - 1)
+        };
+        let mut bins = [Bin {
+            bounds: Aabb::EMPTY,
+            count: 0,
+        }; BINS];
+        for &i in refs.iter() {
+            let b = &mut bins[bin_of(i)];
+            b.bounds = b.bounds.union(boxes[i as usize]);
+            b.count += 1;
+        }
+        let mut right_cost = [0.0f32; BINS];
+        let (mut acc, mut n) = (Aabb::EMPTY, 0u32);
+        for k in (1..BINS).rev() {
+            acc = acc.union(bins[k].bounds);
+            n += bins[k].count;
+            right_cost[k] = acc.half_area() * n as f32;
+        }
+        let (mut acc, mut n) = (Aabb::EMPTY, 0u32);
+        for k in 1..BINS {
+            acc = acc.union(bins[k - 1].bounds);
+            n += bins[k - 1].count;
+            if n == 0 || n as usize == count {
+                continue;
+            }
+            let cost = acc.half_area() * n as f32 + right_cost[k];
+            if best.is_none_or(|(c, _, _)| cost < c) {
+                best = Some((cost, axis, k));
+            }
+        }
+    }
+    let Some((cost, axis, k)) = best else {
+        // All centroids coincide: split by index so leaves stay small.
+        return (count as u32 > MAX_LEAF).then_some(count / 2);
+    };
+    let leaf_cost = count as f32;
+    let split_cost = TRAVERSAL_COST + cost / bounds.half_area().max(f32::MIN_POSITIVE);
+    if count as u32 <= MAX_LEAF && leaf_cost <= split_cost {
+        return None;
+    }
+    let scale = BINS as f32 / extent[axis];
+    let goes_left = |i: u32| {
+        let b = ((centroids[i as usize][axis] - cbounds.lo[axis]) * scale) as usize;
+        b.min(BINS - 1) < k
+    };
+    Some(partition(refs, goes_left))
+}
+
+/// Moves the elements satisfying `pred` to the front (deterministically); returns their count.
+fn partition(refs: &mut [u32], pred: impl Fn(u32) -> bool) -> usize {
+    let mut mid = 0;
+    for i in 0..refs.len() {
+        if pred(refs[i]) {
+            refs.swap(i, mid);
+            mid += 1;
+        }
+    }
+    mid
+}

@@ -1,0 +1,98 @@
+//! A bounding volume hierarchy over triangles: binned-SAH build, flat node array, closest-hit
+//! and any-hit traversal.
+//!
+//! Guarantees:
+//! - [`Bvh::closest_hit`] returns exactly what a brute-force loop over all triangles returns with
+//!   the order "smaller t, then smaller triangle id" (same triangle, same t bits): box culling is
+//!   conservative and the triangle test ([`crate::triangle::intersect`]) is a pure function.
+//!   Hence the answer never depends on how triangles are grouped into BVHs or splits.
+//! - [`Bvh::occluded`] is true exactly when some triangle has a hit with `0 < t < t_max`.
+//! - Building is deterministic: the same triangles in the same order give the same nodes.
+
+mod build;
+mod traverse;
+
+pub use traverse::ClosestHit;
+
+use glam::Vec3;
+
+/// An axis-aligned box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Aabb {
+    pub lo: Vec3,
+    pub hi: Vec3,
+}
+
+impl Aabb {
+    /// The empty box (min = +inf, max = -inf); growing it by any point gives that point.
+    pub const EMPTY: Aabb = Aabb {
+        lo: Vec3::splat(f32::INFINITY),
+        hi: Vec3::splat(f32::NEG_INFINITY),
+    };
+
+    /// The smallest box holding the three corners.
+    pub fn of_triangle(t: &[Vec3; 3]) -> Aabb {
+        Aabb {
+            lo: t[0].min(t[1]).min(t[2]),
+            hi: t[0].max(t[1]).max(t[2]),
+        }
+    }
+
+    /// The smallest box holding both.
+    pub fn union(self, o: Aabb) -> Aabb {
+        Aabb {
+            lo: self.lo.min(o.lo),
+            hi: self.hi.max(o.hi),
+        }
+    }
+
+    /// Half the surface area (enough for SAH ratios); 0 for an empty box.
+    pub fn half_area(&self) -> f32 {
+        let d = (self.hi - self.lo).max(Vec3::ZERO);
+        d.x * d.y + d.y * d.z + d.z * d.x
+    }
+}
+
+/// One BVH node: its box and either two children (`count == 0`, children at `first` and
+/// `first + 1`) or a leaf of `count` triangles starting at `first` in leaf order.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Node {
+    pub bounds: Aabb,
+    pub first: u32,
+    pub count: u32,
+}
+
+/// A built BVH owning its triangles in leaf order with their scene-wide ids.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Bvh {
+    nodes: Vec<Node>,
+    triangles: Vec<[Vec3; 3]>,
+    ids: Vec<u32>,
+}
+
+impl Bvh {
+    /// Builds over `triangles`, where `ids[i]` is the scene-wide id of `triangles[i]` (used for
+    /// tie-breaks and reported in hits). Panics if the lengths differ.
+    pub fn build(triangles: Vec<[Vec3; 3]>, ids: Vec<u32>) -> Bvh {
+        assert_eq!(triangles.len(), ids.len(), "one id per triangle");
+        build::build(triangles, ids)
+    }
+
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// Number of nodes.
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Bounds of everything in the BVH ([`Aabb::EMPTY`] when empty).
+    pub fn bounds(&self) -> Aabb {
+        self.nodes.first().map_or(Aabb::EMPTY, |n| n.bounds)
+    }
+}
+
+#[cfg(test)]
+mod tests;

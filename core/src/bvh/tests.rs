@@ -1,0 +1,220 @@
+//! The BVH must agree exactly with brute force, and closed meshes must not leak.
+
+use super::*;
+use crate::triangle::{Ray, RayPrep, intersect};
+
+/// splitmix64, for reproducible test data.
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+    fn unit(&mut self) -> f32 {
+        (self.next() >> 40) as f32 / (1u64 << 24) as f32
+    }
+    fn vec(&mut self, lo: f32, hi: f32) -> Vec3 {
+        Vec3::new(self.unit(), self.unit(), self.unit()) * (hi - lo) + Vec3::splat(lo)
+    }
+}
+
+fn brute_force(tris: &[[Vec3; 3]], ray: &Ray) -> Option<(u32, u32)> {
+    let prep = RayPrep::new(ray);
+    let mut best: Option<(f32, u32)> = None;
+    for (i, t) in tris.iter().enumerate() {
+        if let Some(h) = intersect(&prep, t[0], t[1], t[2], f32::INFINITY) {
+            let better = best.is_none_or(|(bt, bi)| h.t < bt || (h.t == bt && (i as u32) < bi));
+            if better {
+                best = Some((h.t, i as u32));
+            }
+        }
+    }
+    best.map(|(t, i)| (i, t.to_bits()))
+}
+
+fn brute_occluded(tris: &[[Vec3; 3]], ray: &Ray, t_max: f32) -> bool {
+    let prep = RayPrep::new(ray);
+    tris.iter()
+        .any(|t| intersect(&prep, t[0], t[1], t[2], t_max).is_some())
+}
+
+fn bvh_of(tris: &[[Vec3; 3]]) -> Bvh {
+    Bvh::build(tris.to_vec(), (0..tris.len() as u32).collect())
+}
+
+fn check_against_brute_force(tris: &[[Vec3; 3]], rays: &[Ray]) {
+    let bvh = bvh_of(tris);
+    let mut hits = 0;
+    for (k, ray) in rays.iter().enumerate() {
+        let expected = brute_force(tris, ray);
+        let got = bvh.closest_hit(ray).map(|h| (h.id, h.t.to_bits()));
+        assert_eq!(got, expected, "ray {k}: {ray:?}");
+        hits += usize::from(expected.is_some());
+        if let Some((_, t)) = expected {
+            let t = f32::from_bits(t);
+            for t_max in [t * 0.999, t * 1.001, f32::INFINITY] {
+                assert_eq!(bvh.occluded(ray, t_max), brute_occluded(tris, ray, t_max));
+            }
+        }
+    }
+    assert!(
+        hits > rays.len() / 10,
+        "test rays should mostly hit ({hits})"
+    );
+}
+
+fn random_rays(rng: &mut Rng, n: usize, around: Vec3, radius: f32) -> Vec<Ray> {
+    (0..n)
+        .map(|_| {
+            let origin = around + rng.vec(-1.0, 1.0).normalize() * radius * 2.0;
+            let target = around + rng.vec(-0.6, 0.6) * radius;
+            Ray {
+                origin,
+                dir: (target - origin).normalize(),
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn closest_hit_equals_brute_force_on_random_triangle_soup() {
+    let mut rng = Rng(7);
+    let tris: Vec<[Vec3; 3]> = (0..3000)
+        .map(|_| {
+            let c = rng.vec(-10.0, 10.0);
+            [
+                c + rng.vec(-1.0, 1.0),
+                c + rng.vec(-1.0, 1.0),
+                c + rng.vec(-1.0, 1.0),
+            ]
+        })
+        .collect();
+    let rays = random_rays(&mut rng, 3000, Vec3::ZERO, 10.0);
+    check_against_brute_force(&tris, &rays);
+}
+
+#[test]
+fn equal_t_ties_go_to_the_smaller_id() {
+    // Many copies of one triangle, shuffled ids: the smallest id must win every time.
+    let tri = [
+        Vec3::new(-1.0, -1.0, 0.0),
+        Vec3::new(1.0, -1.0, 0.0),
+        Vec3::new(0.0, 1.0, 0.0),
+    ];
+    let tris = vec![tri; 50];
+    let ids: Vec<u32> = (0..50).map(|i| (i * 37 + 11) % 50 + 100).collect();
+    let bvh = Bvh::build(tris, ids);
+    let ray = Ray {
+        origin: Vec3::new(0.1, 0.0, 5.0),
+        dir: Vec3::new(0.0, 0.0, -1.0),
+    };
+    assert_eq!(bvh.closest_hit(&ray).map(|h| h.id), Some(100));
+}
+
+#[test]
+fn closest_hit_equals_brute_force_on_the_bunny() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/bunny/bunny.obj");
+    let mut warnings = Vec::new();
+    let mesh = crate::scene::parse_obj(
+        std::io::BufReader::new(std::fs::File::open(path).expect("bundled bunny")),
+        std::path::Path::new(path),
+        &mut warnings,
+    )
+    .expect("bunny parses");
+    let tris: Vec<[Vec3; 3]> = (0..mesh.triangle_count())
+        .map(|i| mesh.corners(i))
+        .collect();
+    let bounds = tris
+        .iter()
+        .fold(Aabb::EMPTY, |b, t| b.union(Aabb::of_triangle(t)));
+    let centre = (bounds.lo + bounds.hi) * 0.5;
+    let radius = (bounds.hi - bounds.lo).length() * 0.5;
+    let rays = random_rays(&mut Rng(3), 2000, centre, radius);
+    check_against_brute_force(&tris, &rays);
+}
+
+/// A closed, subdivided cube: every face is a grid of quads split into two triangles.
+fn closed_cube(n: usize) -> Vec<[Vec3; 3]> {
+    let mut tris = Vec::new();
+    for axis in 0..3 {
+        for side in [-1.0f32, 1.0] {
+            let point = |i: usize, j: usize| {
+                let u = -1.0 + 2.0 * i as f32 / n as f32;
+                let v = -1.0 + 2.0 * j as f32 / n as f32;
+                let mut p = [0.0; 3];
+                p[axis] = side;
+                p[(axis + 1) % 3] = u;
+                p[(axis + 2) % 3] = v;
+                Vec3::from(p)
+            };
+            for i in 0..n {
+                for j in 0..n {
+                    let (a, b, c, d) = (
+                        point(i, j),
+                        point(i + 1, j),
+                        point(i + 1, j + 1),
+                        point(i, j + 1),
+                    );
+                    tris.push([a, b, c]);
+                    tris.push([a, c, d]);
+                }
+            }
+        }
+    }
+    tris
+}
+
+#[test]
+fn rays_at_shared_edges_and_vertices_of_a_closed_mesh_never_miss() {
+    let tris = closed_cube(7);
+    let bvh = bvh_of(&tris);
+    let mut rng = Rng(11);
+    let mut targets: Vec<Vec3> = Vec::new();
+    for t in &tris {
+        targets.extend_from_slice(t); // vertices, exactly
+        targets.push((t[0] + t[1]) * 0.5); // points on shared edges
+        targets.push((t[1] + t[2]) * 0.5);
+        targets.push((t[0] + t[2]) * 0.5);
+    }
+    let mut tested = 0;
+    for target in targets {
+        for _ in 0..4 {
+            // The line through an interior point and the target must cross the closed surface:
+            // from outside (beyond the interior point) and from inside alike.
+            let interior = rng.vec(-0.5, 0.5);
+            let origin = interior + (interior - target) * 3.0;
+            let ray = Ray {
+                origin,
+                dir: (target - origin).normalize(),
+            };
+            assert!(
+                bvh.closest_hit(&ray).is_some(),
+                "ray at {target:?} from {origin:?} leaked"
+            );
+            let inside = Ray {
+                origin: interior,
+                dir: (target - interior).normalize(),
+            };
+            assert!(
+                bvh.closest_hit(&inside).is_some(),
+                "inside ray towards {target:?} leaked"
+            );
+            tested += 2;
+        }
+    }
+    assert!(tested > 5000);
+}
+
+#[test]
+fn empty_bvh_hits_nothing() {
+    let bvh = Bvh::build(Vec::new(), Vec::new());
+    let ray = Ray {
+        origin: Vec3::ZERO,
+        dir: Vec3::X,
+    };
+    assert!(bvh.closest_hit(&ray).is_none());
+    assert!(!bvh.occluded(&ray, f32::INFINITY));
+}

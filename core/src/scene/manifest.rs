@@ -1,0 +1,275 @@
+//! The JSON scene manifest: which OBJ files make the scene and how to view and light it.
+//! Every field but `meshes` is optional; what is left out takes the documented default.
+
+use super::framing::{default_camera, default_light, scene_bounds};
+use super::mesh::Mesh;
+use super::{CameraSpec, ImageSettings, Light, MAX_IMAGE_SIDE, MAX_SPP, Scene, obj};
+use crate::error::SceneError;
+use glam::DVec3;
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// The manifest schema, for `--help` and the docs.
+pub const MANIFEST_SCHEMA: &str = r#"{
+  "meshes": ["ground.obj", "bunny.obj"],       // required; OBJ paths relative to the manifest
+  "camera": {"eye": [x,y,z], "look_at": [x,y,z], "up": [0,1,0], "vfov": 45.0},
+  "lights": [{"kind": "point", "position": [x,y,z], "intensity": [r,g,b] | n},
+             {"kind": "directional", "direction": [x,y,z], "irradiance": [r,g,b] | n}],
+  "ambient": n | [r,g,b],  "background": [r,g,b],
+  "materials": {"mtl name or \"default\"": {"kd": [r,g,b]}},
+  "width": 960, "height": 540, "spp": 1
+}"#;
+
+/// A parsed manifest before its meshes are loaded.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Manifest {
+    pub meshes: Vec<String>,
+    pub camera: Option<ManifestCamera>,
+    pub lights: Option<Vec<ManifestLight>>,
+    pub ambient: Option<Rgb>,
+    pub background: Option<[f32; 3]>,
+    #[serde(default)]
+    pub materials: BTreeMap<String, ManifestMaterial>,
+    pub width: Option<u32>,
+    pub height: Option<u32>,
+    pub spp: Option<u32>,
+}
+
+/// Camera fields; `up` defaults to +y and `vfov` (vertical, degrees) to 45.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ManifestCamera {
+    pub eye: [f64; 3],
+    pub look_at: [f64; 3],
+    pub up: Option<[f64; 3]>,
+    pub vfov: Option<f64>,
+}
+
+/// A light, tagged by `kind`.
+#[derive(Debug, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum ManifestLight {
+    Point {
+        position: [f64; 3],
+        intensity: Rgb,
+    },
+    Directional {
+        direction: [f64; 3],
+        irradiance: Rgb,
+    },
+}
+
+/// A colour given as one grey number or an `[r, g, b]` triple.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(untagged)]
+pub enum Rgb {
+    Grey(f32),
+    Triple([f32; 3]),
+}
+
+impl Rgb {
+    fn to_array(self) -> [f32; 3] {
+        match self {
+            Rgb::Grey(v) => [v; 3],
+            Rgb::Triple(c) => c,
+        }
+    }
+}
+
+/// A material override.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ManifestMaterial {
+    pub kd: [f32; 3],
+}
+
+/// Loads a manifest and the OBJ files it names.
+pub(super) fn load_manifest_scene(path: &Path) -> Result<Scene, SceneError> {
+    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let manifest = parse_manifest(&text, path)?;
+    let bad = |field: &str, detail: String| SceneError::Manifest {
+        path: path.to_path_buf(),
+        field: field.to_string(),
+        detail,
+    };
+    if manifest.meshes.is_empty() {
+        return Err(bad("meshes", "lists no OBJ files".into()));
+    }
+    let base = path.parent().unwrap_or(Path::new("."));
+    let mut warnings = Vec::new();
+    let mut mesh = Mesh::default();
+    for file in &manifest.meshes {
+        mesh.append(obj::load_obj(&base.join(file), &mut warnings)?);
+    }
+    apply_material_overrides(&mut mesh, &manifest, path)?;
+    let (lo, hi) = scene_bounds(&mesh, path)?;
+    let camera = match &manifest.camera {
+        Some(c) => camera_from(c, path)?,
+        None => default_camera(lo, hi),
+    };
+    let lights = match &manifest.lights {
+        Some(list) => list
+            .iter()
+            .enumerate()
+            .map(|(i, l)| light_from(l, i, path))
+            .collect::<Result<Vec<_>, _>>()?,
+        None => vec![default_light(lo, hi)],
+    };
+    let ambient = colour(manifest.ambient.map(Rgb::to_array), "ambient", path)?;
+    let background = colour(manifest.background, "background", path)?;
+    let image = image_settings(&manifest, path)?;
+    Ok(Scene {
+        source: path.to_path_buf(),
+        mesh,
+        camera,
+        lights,
+        ambient,
+        background,
+        image,
+        warnings,
+    })
+}
+
+/// Parses manifest JSON; errors carry the JSON path of the offending field.
+pub fn parse_manifest(text: &str, path: &Path) -> Result<Manifest, SceneError> {
+    let de = &mut serde_json::Deserializer::from_str(text);
+    serde_path_to_error::deserialize(de).map_err(|e| {
+        let field = e.path().to_string();
+        SceneError::Manifest {
+            path: path.to_path_buf(),
+            field: if field == "." { "(root)".into() } else { field },
+            detail: e.into_inner().to_string(),
+        }
+    })
+}
+
+fn apply_material_overrides(
+    mesh: &mut Mesh,
+    manifest: &Manifest,
+    path: &Path,
+) -> Result<(), SceneError> {
+    for (name, m) in &manifest.materials {
+        let field = format!("materials.{name}.kd");
+        if m.kd.iter().any(|c| !c.is_finite() || *c < 0.0) {
+            return Err(SceneError::Manifest {
+                path: path.to_path_buf(),
+                field,
+                detail: "must be finite and non-negative".into(),
+            });
+        }
+        let mut found = false;
+        for mat in mesh.materials.iter_mut().filter(|mat| &mat.name == name) {
+            mat.kd = m.kd;
+            found = true;
+        }
+        if !found {
+            return Err(SceneError::Manifest {
+                path: path.to_path_buf(),
+                field: format!("materials.{name}"),
+                detail: "no mesh uses a material of that name".into(),
+            });
+        }
+    }
+    Ok(())
+}
+
+fn finite_vec(v: [f64; 3], field: &str, path: &Path) -> Result<DVec3, SceneError> {
+    if v.iter().all(|c| c.is_finite()) {
+        Ok(DVec3::from(v))
+    } else {
+        Err(SceneError::Manifest {
+            path: path.to_path_buf(),
+            field: field.to_string(),
+            detail: "must be finite numbers".into(),
+        })
+    }
+}
+
+fn camera_from(c: &ManifestCamera, path: &Path) -> Result<CameraSpec, SceneError> {
+    let vfov = c.vfov.unwrap_or(45.0);
+    if !(vfov > 0.0 && vfov < 180.0) {
+        return Err(SceneError::Manifest {
+            path: path.to_path_buf(),
+            field: "camera.vfov".into(),
+            detail: format!("{vfov} is not between 0 and 180 degrees"),
+        });
+    }
+    Ok(CameraSpec {
+        eye: finite_vec(c.eye, "camera.eye", path)?,
+        look_at: finite_vec(c.look_at, "camera.look_at", path)?,
+        up: finite_vec(c.up.unwrap_or([0.0, 1.0, 0.0]), "camera.up", path)?,
+        vfov_degrees: vfov,
+    })
+}
+
+fn light_from(l: &ManifestLight, i: usize, path: &Path) -> Result<Light, SceneError> {
+    match l {
+        ManifestLight::Point {
+            position,
+            intensity,
+        } => Ok(Light::Point {
+            position: finite_vec(*position, &format!("lights[{i}].position"), path)?,
+            intensity: colour(
+                Some(intensity.to_array()),
+                &format!("lights[{i}].intensity"),
+                path,
+            )?,
+        }),
+        ManifestLight::Directional {
+            direction,
+            irradiance,
+        } => {
+            let field = format!("lights[{i}].direction");
+            let d = finite_vec(*direction, &field, path)?;
+            if d.length() <= 0.0 {
+                return Err(SceneError::Manifest {
+                    path: path.to_path_buf(),
+                    field,
+                    detail: "must not be the zero vector".into(),
+                });
+            }
+            Ok(Light::Directional {
+                direction: d.normalize(),
+                irradiance: colour(
+                    Some(irradiance.to_array()),
+                    &format!("lights[{i}].irradiance"),
+                    path,
+                )?,
+            })
+        }
+    }
+}
+
+fn colour(c: Option<[f32; 3]>, field: &str, path: &Path) -> Result<[f32; 3], SceneError> {
+    let c = c.unwrap_or([0.0; 3]);
+    if c.iter().all(|v| v.is_finite() && *v >= 0.0) {
+        Ok(c)
+    } else {
+        Err(SceneError::Manifest {
+            path: path.to_path_buf(),
+            field: field.to_string(),
+            detail: "must be finite and non-negative".into(),
+        })
+    }
+}
+
+fn image_settings(m: &Manifest, path: &Path) -> Result<ImageSettings, SceneError> {
+    let check = |v: Option<u32>, field: &str, max: u32| match v {
+        Some(x) if x == 0 || x > max => Err(SceneError::Manifest {
+            path: path.to_path_buf(),
+            field: field.to_string(),
+            detail: format!("{x} is not between 1 and {max}"),
+        }),
+        _ => Ok(v),
+    };
+    Ok(ImageSettings {
+        width: check(m.width, "width", MAX_IMAGE_SIDE)?,
+        height: check(m.height, "height", MAX_IMAGE_SIDE)?,
+        spp: check(m.spp, "spp", MAX_SPP)?,
+    })
+}

@@ -1,0 +1,154 @@
+//! Scene input: triangle meshes from OBJ/MTL, an optional JSON manifest, and the documented
+//! defaults (framing camera, one point light) for whatever the manifest leaves out.
+//!
+//! Triangle order, which the hit buffer exposes, is: meshes in manifest order, then faces in
+//! file order, polygons fan-triangulated `(0, i, i + 1)` in place.
+
+mod framing;
+mod manifest;
+mod mesh;
+mod obj;
+
+pub use framing::{default_camera, default_light, scene_bounds};
+pub use manifest::{MANIFEST_SCHEMA, Manifest};
+pub use mesh::{Material, Mesh, NO_NORMAL};
+pub use obj::parse_obj;
+
+use crate::error::SceneError;
+use glam::DVec3;
+use std::path::{Path, PathBuf};
+
+/// Largest accepted image width or height, in pixels.
+pub const MAX_IMAGE_SIDE: u32 = 65_536;
+/// Largest accepted pixel count (width x height): 2^27, about 134 megapixels.
+pub const MAX_PIXELS: u64 = 1 << 27;
+/// Largest accepted samples per pixel.
+pub const MAX_SPP: u32 = 65_536;
+/// Largest accepted total sample count (pixels x spp): 2^34.
+pub const MAX_SAMPLES: u64 = 1 << 34;
+
+/// Default image size and sampling when neither flags nor manifest give them.
+pub const DEFAULT_WIDTH: u32 = 960;
+/// See [`DEFAULT_WIDTH`].
+pub const DEFAULT_HEIGHT: u32 = 540;
+
+/// A pinhole camera: eye, target, up and vertical field of view in degrees.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraSpec {
+    pub eye: DVec3,
+    pub look_at: DVec3,
+    pub up: DVec3,
+    pub vfov_degrees: f64,
+}
+
+/// A light source. Radiometry: Lambertian surfaces reflect `kd / pi * E`, where the irradiance
+/// `E` is `intensity * cos / r^2` for a point light and `irradiance * cos` for a directional one.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Light {
+    /// An isotropic point light with radiant intensity in W/sr per RGB channel.
+    Point {
+        position: DVec3,
+        intensity: [f32; 3],
+    },
+    /// A light at infinity; `direction` is the way its light travels (unit length), `irradiance`
+    /// is the irradiance on a surface facing it, per RGB channel.
+    Directional {
+        direction: DVec3,
+        irradiance: [f32; 3],
+    },
+}
+
+/// Image settings a manifest may fix; flags override them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ImageSettings {
+    pub width: Option<u32>,
+    pub height: Option<u32>,
+    pub spp: Option<u32>,
+}
+
+/// A loaded scene: geometry plus everything needed to light and view it.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// The file the scene came from (OBJ or manifest), for messages.
+    pub source: PathBuf,
+    pub mesh: Mesh,
+    pub camera: CameraSpec,
+    pub lights: Vec<Light>,
+    /// Constant ambient radiance factor per channel: adds `kd * ambient` to every hit.
+    pub ambient: [f32; 3],
+    /// Radiance of rays that hit nothing.
+    pub background: [f32; 3],
+    pub image: ImageSettings,
+    /// Things that were accepted but deserve a look (unknown material, missing MTL file).
+    pub warnings: Vec<String>,
+}
+
+/// Loads a scene from an OBJ file or a JSON manifest (chosen by the `.json` extension).
+pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
+    let is_json = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    if is_json {
+        manifest::load_manifest_scene(path)
+    } else {
+        load_obj_scene(path)
+    }
+}
+
+/// Loads a bare OBJ file and frames it with the documented defaults.
+fn load_obj_scene(path: &Path) -> Result<Scene, SceneError> {
+    let mut warnings = Vec::new();
+    let mesh = obj::load_obj(path, &mut warnings)?;
+    let (lo, hi) = scene_bounds(&mesh, path)?;
+    Ok(Scene {
+        source: path.to_path_buf(),
+        camera: default_camera(lo, hi),
+        lights: vec![default_light(lo, hi)],
+        mesh,
+        ambient: [0.0; 3],
+        background: [0.0; 3],
+        image: ImageSettings::default(),
+        warnings,
+    })
+}
+
+/// Checks image dimensions and sample count against the documented limits.
+pub fn check_image_size(width: u32, height: u32, spp: u32) -> Result<(), SceneError> {
+    let side = |what, v: u32| {
+        if v == 0 || v > MAX_IMAGE_SIDE {
+            Err(SceneError::OutOfRange {
+                what,
+                value: v.to_string(),
+                limit: format!("must be 1 to {MAX_IMAGE_SIDE}"),
+            })
+        } else {
+            Ok(())
+        }
+    };
+    side("width", width)?;
+    side("height", height)?;
+    let pixels = u64::from(width) * u64::from(height);
+    if pixels > MAX_PIXELS {
+        return Err(SceneError::OutOfRange {
+            what: "width x height",
+            value: pixels.to_string(),
+            limit: format!("at most {MAX_PIXELS} pixels"),
+        });
+    }
+    if spp == 0 || spp > MAX_SPP {
+        return Err(SceneError::OutOfRange {
+            what: "spp",
+            value: spp.to_string(),
+            limit: format!("must be 1 to {MAX_SPP}"),
+        });
+    }
+    let samples = pixels * u64::from(spp);
+    if samples > MAX_SAMPLES {
+        return Err(SceneError::OutOfRange {
+            what: "width x height x spp",
+            value: samples.to_string(),
+            limit: format!("at most {MAX_SAMPLES} samples"),
+        });
+    }
+    Ok(())
+}

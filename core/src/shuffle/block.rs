@@ -1,0 +1,351 @@
+//! The block codec: header, zstd payload, checksum.
+
+use std::io::Read;
+
+/// The first 8 bytes of every block.
+pub const BLOCK_MAGIC: [u8; 8] = *b"HORTBLK\0";
+/// The format version this build writes, and the only one it reads.
+pub const BLOCK_VERSION: u16 = 1;
+/// Header length in bytes; the zstd payload starts here.
+pub const BLOCK_HEADER_LEN: usize = 36;
+/// The largest raw (uncompressed) length a block may declare: 4 GiB. Larger declared lengths are
+/// rejected before any allocation.
+pub const MAX_RAW_LEN: u64 = 4 << 30;
+/// The zstd level of every payload (single-threaded, no dictionary).
+pub const ZSTD_LEVEL: i32 = 3;
+
+/// Offset of the raw-bytes CRC in the header.
+const RAW_CRC_AT: usize = 28;
+/// Offset of the block CRC in the header; it covers every header byte before it.
+const BLOCK_CRC_AT: usize = 32;
+
+/// What the records of a block are. The numeric values are part of the format: never reuse one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[repr(u16)]
+pub enum RecordKind {
+    /// CastMap output: candidate nearest hit per pixel sample against one split.
+    CastCandidate = 1,
+    /// CastReduce output: the nearest hit per pixel sample.
+    Hit = 2,
+    /// Expand output: a hit routed to a split for shadow testing.
+    ShadowQuery = 3,
+    /// TraceMap output: per hit and light, occluded or not by one split.
+    ShadowResult = 4,
+    /// TraceReduce output: shaded colour per pixel sample.
+    PixelColor = 5,
+}
+
+impl RecordKind {
+    /// Every kind, in numeric order.
+    pub const ALL: [RecordKind; 5] = [
+        RecordKind::CastCandidate,
+        RecordKind::Hit,
+        RecordKind::ShadowQuery,
+        RecordKind::ShadowResult,
+        RecordKind::PixelColor,
+    ];
+
+    /// The kind's number in the header.
+    pub const fn code(self) -> u16 {
+        self as u16
+    }
+
+    /// The kind with this number, if any.
+    pub fn from_code(code: u16) -> Option<Self> {
+        Self::ALL.into_iter().find(|kind| kind.code() == code)
+    }
+}
+
+impl std::fmt::Display for RecordKind {
+    /// The variant name and number, e.g. `Hit (2)`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{self:?} ({})", self.code())
+    }
+}
+
+/// A decoded block: its kind, its record count as written, and the raw record bytes, verified
+/// against the header's length and checksum.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Block {
+    /// The record kind from the header (always the expected kind).
+    pub kind: RecordKind,
+    /// The record count the producer declared; the codec does not interpret the raw bytes.
+    pub record_count: u64,
+    /// The uncompressed record bytes.
+    pub raw: Vec<u8>,
+}
+
+/// A block that cannot be decoded: which object, and what is wrong with it.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("shuffle block {key}: {problem}")]
+pub struct BlockError {
+    /// The object key the bytes came from.
+    pub key: String,
+    /// What is wrong.
+    pub problem: BlockProblem,
+}
+
+/// What is wrong with a block. Every variant means the bytes are corrupt, truncated, or from an
+/// incompatible producer; none is transient.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum BlockProblem {
+    /// Fewer bytes than the header.
+    #[error("truncated: {len} bytes, shorter than the {BLOCK_HEADER_LEN}-byte header")]
+    TooShort {
+        /// The length found.
+        len: usize,
+    },
+    /// The magic bytes are wrong.
+    #[error("not a HORT block: starts with \"{}\", expected \"HORTBLK\\0\"", .found.escape_ascii())]
+    BadMagic {
+        /// The first 8 bytes found.
+        found: [u8; 8],
+    },
+    /// A format version this build does not read.
+    #[error("unsupported format version {found}; this build reads version {supported}")]
+    UnsupportedVersion {
+        /// The version in the header.
+        found: u16,
+        /// The version this build reads.
+        supported: u16,
+    },
+    /// A record kind number this build does not know.
+    #[error("unknown record kind {found}, expected {expected}")]
+    UnknownKind {
+        /// The number in the header.
+        found: u16,
+        /// The kind the caller expected.
+        expected: RecordKind,
+    },
+    /// A known record kind, but not the one the caller expected.
+    #[error("unexpected record kind {found}, expected {expected}")]
+    UnexpectedKind {
+        /// The kind in the header.
+        found: RecordKind,
+        /// The kind the caller expected.
+        expected: RecordKind,
+    },
+    /// The header declares an absurd raw length.
+    #[error("declared raw length {len} bytes exceeds the {max}-byte limit")]
+    RawTooLarge {
+        /// The declared length.
+        len: u64,
+        /// [`MAX_RAW_LEN`].
+        max: u64,
+    },
+    /// The payload is not exactly one valid zstd frame.
+    #[error("zstd payload corrupt or truncated: {detail}")]
+    CorruptPayload {
+        /// What zstd or the frame check reported.
+        detail: String,
+    },
+    /// The payload decompresses to a different length than the header declares.
+    #[error("raw length mismatch: header declares {declared} bytes, payload holds {found}{}",
+        if .found > .declared { " or more" } else { "" })]
+    RawLengthMismatch {
+        /// The header's raw length.
+        declared: u64,
+        /// The decompressed length (decoding stops one byte past `declared`).
+        found: u64,
+    },
+    /// The CRC-32 of the stored header and payload differs from the block checksum: the object
+    /// was damaged after it was written.
+    #[error(
+        "block checksum mismatch (stored bytes damaged): header stores CRC-32 {stored:#010x}, \
+         bytes give {computed:#010x}"
+    )]
+    BlockChecksumMismatch {
+        /// The checksum in the header.
+        stored: u32,
+        /// The checksum of the bytes found.
+        computed: u32,
+    },
+    /// The CRC-32 of the decompressed bytes differs from the raw checksum: the payload does not
+    /// hold what the producer wrote.
+    #[error(
+        "raw checksum mismatch (decompressed bytes differ from those written): header stores \
+         CRC-32 {stored:#010x}, decompressed bytes give {computed:#010x}"
+    )]
+    RawChecksumMismatch {
+        /// The checksum in the header.
+        stored: u32,
+        /// The checksum of the bytes found.
+        computed: u32,
+    },
+}
+
+/// Encodes `raw` as a block of `kind` declaring `record_count` records.
+///
+/// Layout, all integers little-endian:
+///
+/// | bytes  | field |
+/// |--------|-------|
+/// | 0..8   | magic `b"HORTBLK\0"` |
+/// | 8..10  | format version, u16 = 1 |
+/// | 10..12 | record kind, u16 ([`RecordKind::code`]) |
+/// | 12..20 | record count, u64 |
+/// | 20..28 | raw length in bytes, u64 |
+/// | 28..32 | raw CRC: CRC-32 of the raw (uncompressed) bytes |
+/// | 32..36 | block CRC: CRC-32 of header bytes 0..32 followed by the zstd payload |
+/// | 36..   | one zstd frame of the raw bytes, level 3, single-threaded, no dictionary |
+///
+/// Both checksums are CRC-32 (IEEE 802.3 polynomial, as in zlib and PNG). The block CRC covers
+/// every stored byte, so any damage of up to 32 consecutive bits (in particular every single bit
+/// flip, even one zstd would decode harmlessly) is caught before decompressing; the raw CRC checks
+/// the decoded records end to end, independent of the codec. Output is deterministic: the same arguments give the same bytes on every machine
+/// running the same zstd version (pinned through Cargo.lock).
+///
+/// # Panics
+/// If `raw` is longer than [`MAX_RAW_LEN`] (a planning bug: blocks are bounded by span size), or
+/// if zstd cannot allocate its context.
+pub fn encode_block(kind: RecordKind, record_count: u64, raw: &[u8]) -> Vec<u8> {
+    let raw_len = raw.len() as u64;
+    assert!(
+        raw_len <= MAX_RAW_LEN,
+        "block of {raw_len} raw bytes exceeds {MAX_RAW_LEN}"
+    );
+    let payload = zstd::bulk::compress(raw, ZSTD_LEVEL)
+        .unwrap_or_else(|e| panic!("zstd compression failed: {e}"));
+    let mut block = Vec::with_capacity(BLOCK_HEADER_LEN + payload.len());
+    block.extend_from_slice(&BLOCK_MAGIC);
+    block.extend_from_slice(&BLOCK_VERSION.to_le_bytes());
+    block.extend_from_slice(&kind.code().to_le_bytes());
+    block.extend_from_slice(&record_count.to_le_bytes());
+    block.extend_from_slice(&raw_len.to_le_bytes());
+    block.extend_from_slice(&crc32fast::hash(raw).to_le_bytes());
+    let block_crc = checksum(&block, &payload);
+    block.extend_from_slice(&block_crc.to_le_bytes());
+    block.extend_from_slice(&payload);
+    block
+}
+
+/// Decodes a block read from `key`, demanding `expected_kind`.
+///
+/// Guarantees: never panics and never allocates more than a small multiple of the declared raw
+/// length (itself at most [`MAX_RAW_LEN`]); returns `Ok` only if magic, version and kind are
+/// right, the block CRC matches the stored bytes, the payload is exactly one complete zstd frame,
+/// it decompresses to exactly the declared length, and the raw CRC matches the result. Every error's message names `key` and the problem.
+pub fn decode_block(
+    key: &str,
+    bytes: &[u8],
+    expected_kind: RecordKind,
+) -> Result<Block, BlockError> {
+    decode(bytes, expected_kind).map_err(|problem| BlockError {
+        key: key.to_owned(),
+        problem,
+    })
+}
+
+fn decode(bytes: &[u8], expected: RecordKind) -> Result<Block, BlockProblem> {
+    let (head, payload) = bytes
+        .split_first_chunk::<BLOCK_HEADER_LEN>()
+        .ok_or(BlockProblem::TooShort { len: bytes.len() })?;
+    let (kind, record_count, raw_len) = parse_header(head, expected)?;
+    let stored = u32_at(head, BLOCK_CRC_AT);
+    let computed = checksum(&head[..BLOCK_CRC_AT], payload);
+    if stored != computed {
+        return Err(BlockProblem::BlockChecksumMismatch { stored, computed });
+    }
+    let raw = inflate(payload, raw_len)?;
+    let stored = u32_at(head, RAW_CRC_AT);
+    let computed = crc32fast::hash(&raw);
+    if stored != computed {
+        return Err(BlockProblem::RawChecksumMismatch { stored, computed });
+    }
+    Ok(Block {
+        kind,
+        record_count,
+        raw,
+    })
+}
+
+/// Checks magic, version, kind and raw length; returns (kind, record count, raw length).
+fn parse_header(
+    head: &[u8; BLOCK_HEADER_LEN],
+    expected: RecordKind,
+) -> Result<(RecordKind, u64, u64), BlockProblem> {
+    let (magic, rest) = head
+        .split_first_chunk::<8>()
+        .ok_or(BlockProblem::TooShort { len: 0 })?;
+    if *magic != BLOCK_MAGIC {
+        return Err(BlockProblem::BadMagic { found: *magic });
+    }
+    let version = u16::from_le_bytes([rest[0], rest[1]]);
+    if version != BLOCK_VERSION {
+        return Err(BlockProblem::UnsupportedVersion {
+            found: version,
+            supported: BLOCK_VERSION,
+        });
+    }
+    let code = u16::from_le_bytes([rest[2], rest[3]]);
+    let kind = RecordKind::from_code(code).ok_or(BlockProblem::UnknownKind {
+        found: code,
+        expected,
+    })?;
+    if kind != expected {
+        return Err(BlockProblem::UnexpectedKind {
+            found: kind,
+            expected,
+        });
+    }
+    let record_count = u64_at(head, 12);
+    let raw_len = u64_at(head, 20);
+    if raw_len > MAX_RAW_LEN {
+        return Err(BlockProblem::RawTooLarge {
+            len: raw_len,
+            max: MAX_RAW_LEN,
+        });
+    }
+    Ok((kind, record_count, raw_len))
+}
+
+fn u32_at(head: &[u8; BLOCK_HEADER_LEN], at: usize) -> u32 {
+    let mut word = [0u8; 4];
+    word.copy_from_slice(&head[at..at + 4]);
+    u32::from_le_bytes(word)
+}
+
+fn u64_at(head: &[u8; BLOCK_HEADER_LEN], at: usize) -> u64 {
+    let mut word = [0u8; 8];
+    word.copy_from_slice(&head[at..at + 8]);
+    u64::from_le_bytes(word)
+}
+
+/// Decompresses a payload that must be exactly one zstd frame of exactly `raw_len` bytes.
+fn inflate(payload: &[u8], raw_len: u64) -> Result<Vec<u8>, BlockProblem> {
+    let corrupt = |detail: String| BlockProblem::CorruptPayload { detail };
+    let frame_len = zstd::zstd_safe::find_frame_compressed_size(payload)
+        .map_err(|code| corrupt(zstd::zstd_safe::get_error_name(code).to_owned()))?;
+    if frame_len != payload.len() {
+        return Err(corrupt(format!(
+            "{} bytes follow the {frame_len}-byte frame",
+            payload.len().saturating_sub(frame_len)
+        )));
+    }
+    let decoder =
+        zstd::stream::read::Decoder::with_buffer(payload).map_err(|e| corrupt(e.to_string()))?;
+    // Grow as data arrives rather than trusting the declared length up front.
+    let mut raw = Vec::with_capacity(usize::try_from(raw_len.min(1 << 20)).unwrap_or(0));
+    decoder
+        .take(raw_len.saturating_add(1))
+        .read_to_end(&mut raw)
+        .map_err(|e| corrupt(e.to_string()))?;
+    let found = raw.len() as u64;
+    if found != raw_len {
+        return Err(BlockProblem::RawLengthMismatch {
+            declared: raw_len,
+            found,
+        });
+    }
+    Ok(raw)
+}
+
+fn checksum(header: &[u8], payload: &[u8]) -> u32 {
+    let mut hasher = crc32fast::Hasher::new();
+    hasher.update(header);
+    hasher.update(payload);
+    hasher.finalize()
+}
+
+#[cfg(test)]
+mod tests;

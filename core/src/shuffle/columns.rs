@@ -1,0 +1,305 @@
+//! Column-wise record layout for the raw bytes of a block, chosen so zstd compresses it well.
+//!
+//! A stage writes each field of its records as one column, in a fixed order, and reads them back
+//! in the same order. Each column is a tag byte, the value count as a LEB128 varint, then:
+//!
+//! | tag | writer | payload |
+//! |-----|--------|---------|
+//! | 1 | [`ColumnWriter::put_u32_sorted_delta`] | LEB128 varints of successive differences (mod 2^32) |
+//! | 2 | [`ColumnWriter::put_u32`] | byte planes: every value's byte 0, then every byte 1, ... (little-endian) |
+//! | 3 | [`ColumnWriter::put_f32`] | byte planes of the IEEE-754 bits (exact, NaN payloads kept) |
+//! | 4 | [`ColumnWriter::put_bytes`] | the bytes |
+//!
+//! Byte planes put the slowly varying high bytes (exponents, high id bits) next to each other,
+//! where zstd finds long runs. Reading never panics and never allocates more than the input
+//! length allows; errors carry no key (the caller adds it).
+
+/// Why a column could not be read. The column index counts from 0 in reading order.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ColumnError {
+    /// The input ends inside column `column`.
+    #[error("column {column}: truncated, needs {needed} more bytes, {available} left")]
+    Truncated {
+        /// Index of the column being read.
+        column: usize,
+        /// Bytes the column still needs (at least).
+        needed: u64,
+        /// Bytes left in the input.
+        available: usize,
+    },
+    /// The column has a different type than the reader asked for.
+    #[error("column {column}: holds tag {found}, expected {expected} (tag {expected_tag})")]
+    WrongType {
+        /// Index of the column being read.
+        column: usize,
+        /// The tag byte found.
+        found: u8,
+        /// The column type asked for.
+        expected: &'static str,
+        /// Its tag.
+        expected_tag: u8,
+    },
+    /// A varint is longer than its type allows.
+    #[error("column {column}: malformed varint")]
+    BadVarint {
+        /// Index of the column being read.
+        column: usize,
+    },
+    /// Bytes remain after the last column the caller read.
+    #[error("{count} unread bytes after column {columns_read}")]
+    TrailingBytes {
+        /// Number of unread bytes.
+        count: usize,
+        /// Number of columns read.
+        columns_read: usize,
+    },
+}
+
+const TAG_U32_SORTED_DELTA: u8 = 1;
+const TAG_U32: u8 = 2;
+const TAG_F32: u8 = 3;
+const TAG_BYTES: u8 = 4;
+
+/// Builds the raw bytes of a block one column at a time. Output is a pure function of the calls.
+#[derive(Debug, Clone, Default)]
+pub struct ColumnWriter {
+    bytes: Vec<u8>,
+}
+
+impl ColumnWriter {
+    /// An empty writer.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Appends a column of `u32`s as varint deltas: about one byte per value when the column is
+    /// non-decreasing with small steps (sorted pixel indices). Any column round-trips exactly;
+    /// an unsorted one just compresses worse (differences wrap modulo 2^32).
+    pub fn put_u32_sorted_delta(&mut self, values: &[u32]) {
+        self.header(TAG_U32_SORTED_DELTA, values.len());
+        let mut previous = 0u32;
+        for &value in values {
+            put_varint(&mut self.bytes, u64::from(value.wrapping_sub(previous)));
+            previous = value;
+        }
+    }
+
+    /// Appends a column of `u32`s, split into byte planes.
+    pub fn put_u32(&mut self, values: &[u32]) {
+        self.header(TAG_U32, values.len());
+        self.put_planes(values.iter().map(|v| v.to_le_bytes()), values.len());
+    }
+
+    /// Appends a column of `f32`s (their exact bits), split into byte planes.
+    pub fn put_f32(&mut self, values: &[f32]) {
+        self.header(TAG_F32, values.len());
+        self.put_planes(
+            values.iter().map(|v| v.to_bits().to_le_bytes()),
+            values.len(),
+        );
+    }
+
+    /// Appends a column of bytes as they are (flags, small enums, nested encodings).
+    pub fn put_bytes(&mut self, values: &[u8]) {
+        self.header(TAG_BYTES, values.len());
+        self.bytes.extend_from_slice(values);
+    }
+
+    /// Bytes written so far.
+    pub fn len(&self) -> usize {
+        self.bytes.len()
+    }
+
+    /// True before the first column.
+    pub fn is_empty(&self) -> bool {
+        self.bytes.is_empty()
+    }
+
+    /// The bytes written so far.
+    pub fn as_bytes(&self) -> &[u8] {
+        &self.bytes
+    }
+
+    /// The finished raw bytes.
+    pub fn into_bytes(self) -> Vec<u8> {
+        self.bytes
+    }
+
+    fn header(&mut self, tag: u8, count: usize) {
+        self.bytes.push(tag);
+        put_varint(&mut self.bytes, count as u64);
+    }
+
+    fn put_planes(&mut self, words: impl Iterator<Item = [u8; 4]> + Clone, count: usize) {
+        self.bytes.reserve(count * 4);
+        for plane in 0..4 {
+            self.bytes.extend(words.clone().map(|word| word[plane]));
+        }
+    }
+}
+
+/// Reads columns written by [`ColumnWriter`], in the order they were written.
+#[derive(Debug, Clone)]
+pub struct ColumnReader<'a> {
+    rest: &'a [u8],
+    column: usize,
+}
+
+impl<'a> ColumnReader<'a> {
+    /// A reader positioned at the first column of `bytes`.
+    pub fn new(bytes: &'a [u8]) -> Self {
+        Self {
+            rest: bytes,
+            column: 0,
+        }
+    }
+
+    /// Reads a [`ColumnWriter::put_u32_sorted_delta`] column.
+    pub fn read_u32_sorted_delta(&mut self) -> Result<Vec<u32>, ColumnError> {
+        let count = self.header(TAG_U32_SORTED_DELTA, "u32 sorted delta", 1)?;
+        let mut values = Vec::with_capacity(count);
+        let mut previous = 0u32;
+        for _ in 0..count {
+            let delta = self.varint()?;
+            let delta = u32::try_from(delta).map_err(|_| self.bad_varint())?;
+            previous = previous.wrapping_add(delta);
+            values.push(previous);
+        }
+        self.column += 1;
+        Ok(values)
+    }
+
+    /// Reads a [`ColumnWriter::put_u32`] column.
+    pub fn read_u32(&mut self) -> Result<Vec<u32>, ColumnError> {
+        let count = self.header(TAG_U32, "u32", 4)?;
+        let words = self.planes(count)?;
+        Ok(words.into_iter().map(u32::from_le_bytes).collect())
+    }
+
+    /// Reads a [`ColumnWriter::put_f32`] column, bit for bit.
+    pub fn read_f32(&mut self) -> Result<Vec<f32>, ColumnError> {
+        let count = self.header(TAG_F32, "f32", 4)?;
+        let words = self.planes(count)?;
+        Ok(words
+            .into_iter()
+            .map(|w| f32::from_bits(u32::from_le_bytes(w)))
+            .collect())
+    }
+
+    /// Reads a [`ColumnWriter::put_bytes`] column, borrowing from the input.
+    pub fn read_bytes(&mut self) -> Result<&'a [u8], ColumnError> {
+        let count = self.header(TAG_BYTES, "bytes", 1)?;
+        let values = self.take(count)?;
+        self.column += 1;
+        Ok(values)
+    }
+
+    /// Bytes not yet read.
+    pub fn remaining(&self) -> usize {
+        self.rest.len()
+    }
+
+    /// Succeeds only if every byte has been read: call after the last column.
+    pub fn finish(self) -> Result<(), ColumnError> {
+        match self.rest.len() {
+            0 => Ok(()),
+            count => Err(ColumnError::TrailingBytes {
+                count,
+                columns_read: self.column,
+            }),
+        }
+    }
+
+    /// Reads tag and count; checks the count fits in the input at `min_width` bytes per value.
+    fn header(
+        &mut self,
+        tag: u8,
+        name: &'static str,
+        min_width: u64,
+    ) -> Result<usize, ColumnError> {
+        let [found] = *self.take(1)? else {
+            return Err(self.truncated(1));
+        };
+        if found != tag {
+            return Err(ColumnError::WrongType {
+                column: self.column,
+                found,
+                expected: name,
+                expected_tag: tag,
+            });
+        }
+        let count = self.varint()?;
+        let needed = count.saturating_mul(min_width);
+        if needed > self.rest.len() as u64 {
+            return Err(self.truncated(needed));
+        }
+        // `count <= rest.len()`, so it fits in usize.
+        usize::try_from(count).map_err(|_| self.truncated(needed))
+    }
+
+    fn planes(&mut self, count: usize) -> Result<Vec<[u8; 4]>, ColumnError> {
+        let bytes = self.take(count.saturating_mul(4))?;
+        let mut words = vec![[0u8; 4]; count];
+        for (plane, plane_bytes) in bytes.chunks_exact(count.max(1)).enumerate() {
+            for (word, &byte) in words.iter_mut().zip(plane_bytes) {
+                if let Some(slot) = word.get_mut(plane) {
+                    *slot = byte;
+                }
+            }
+        }
+        self.column += 1;
+        Ok(words)
+    }
+
+    fn take(&mut self, n: usize) -> Result<&'a [u8], ColumnError> {
+        if n > self.rest.len() {
+            return Err(self.truncated(n as u64));
+        }
+        let (head, tail) = self.rest.split_at(n);
+        self.rest = tail;
+        Ok(head)
+    }
+
+    fn varint(&mut self) -> Result<u64, ColumnError> {
+        let mut value = 0u64;
+        for shift in (0..64).step_by(7) {
+            let [byte] = *self.take(1)? else {
+                return Err(self.truncated(1));
+            };
+            let bits = u64::from(byte & 0x7f);
+            if shift == 63 && bits > 1 {
+                return Err(self.bad_varint());
+            }
+            value |= bits << shift;
+            if byte & 0x80 == 0 {
+                return Ok(value);
+            }
+        }
+        Err(self.bad_varint())
+    }
+
+    fn truncated(&self, needed: u64) -> ColumnError {
+        ColumnError::Truncated {
+            column: self.column,
+            needed,
+            available: self.rest.len(),
+        }
+    }
+
+    fn bad_varint(&self) -> ColumnError {
+        ColumnError::BadVarint {
+            column: self.column,
+        }
+    }
+}
+
+fn put_varint(bytes: &mut Vec<u8>, mut value: u64) {
+    while value >= 0x80 {
+        bytes.push((value as u8 & 0x7f) | 0x80);
+        value >>= 7;
+    }
+    bytes.push(value as u8);
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,75 @@
+//! The command-line contract of DESIGN.md: names and meanings scripts rely on.
+
+use clap::{Args, Parser, Subcommand};
+use std::path::PathBuf;
+
+#[derive(Parser)]
+#[command(
+    name = "hort",
+    version,
+    about = "HORT-serverless: distributed ray tracing with MapReduce"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand)]
+pub enum Command {
+    /// Render an OBJ file or a JSON scene manifest.
+    Render(RenderArgs),
+    /// Scene tools.
+    Scene {
+        #[command(subcommand)]
+        command: SceneCommand,
+    },
+}
+
+#[derive(Subcommand)]
+pub enum SceneCommand {
+    /// Write a deterministic synthetic scene (ground plus scattered objects) as OBJ.
+    Generate(GenerateArgs),
+}
+
+#[derive(Args)]
+pub struct RenderArgs {
+    /// The scene: an OBJ file, or a JSON manifest (.json) naming OBJ files.
+    pub scene: PathBuf,
+    /// Image width in pixels (default: manifest, else 960).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Image height in pixels (default: manifest, else 540).
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Samples per pixel (default: manifest, else 1).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Render in one process with one BVH over the whole scene.
+    #[arg(long)]
+    pub monolithic: bool,
+    /// Worker threads of a monolithic render (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Output image: .png (8-bit sRGB), .pfm or .exr (linear). Default: SCENE's name with .png.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Write the hit buffer: per pixel a little-endian {u32 triangle, f32 t}.
+    #[arg(long)]
+    pub hits: Option<PathBuf>,
+    /// Write the JSON report.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+}
+
+#[derive(Args)]
+pub struct GenerateArgs {
+    /// Exact number of triangles (10k to 2M are the benchmark sizes).
+    #[arg(long)]
+    pub triangles: u64,
+    /// Seed: the same triangles and seed give the same bytes on every machine.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Output OBJ path.
+    #[arg(long)]
+    pub out: PathBuf,
+}
