@@ -142,7 +142,11 @@ pub fn parse_manifest(text: &str, path: &Path) -> Result<Manifest, SceneError> {
         let field = e.path().to_string();
         SceneError::Manifest {
             path: path.to_path_buf(),
-            field: if field == "." { "(root)".into() } else { field },
+            field: if field == "." || field == "?" {
+                "(root)".into()
+            } else {
+                field
+            },
             detail: e.into_inner().to_string(),
         }
     })

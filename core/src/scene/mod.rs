@@ -152,3 +152,6 @@ pub fn check_image_size(width: u32, height: u32, spp: u32) -> Result<(), SceneEr
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests;

@@ -221,8 +221,8 @@ pub fn encode_block(kind: RecordKind, record_count: u64, raw: &[u8]) -> Vec<u8> 
 
 /// Decodes a block read from `key`, demanding `expected_kind`.
 ///
-/// Guarantees: never panics and never allocates more than a small multiple of the declared raw
-/// length (itself at most [`MAX_RAW_LEN`]); returns `Ok` only if magic, version and kind are
+/// Guarantees: never panics; allocates the declared raw length (at most [`MAX_RAW_LEN`]) only
+/// after the block CRC has verified the header, so damaged bytes never cause a large allocation; returns `Ok` only if magic, version and kind are
 /// right, the block CRC matches the stored bytes, the payload is exactly one complete zstd frame,
 /// it decompresses to exactly the declared length, and the raw CRC matches the result. Every error's message names `key` and the problem.
 pub fn decode_block(
@@ -324,8 +324,9 @@ fn inflate(payload: &[u8], raw_len: u64) -> Result<Vec<u8>, BlockProblem> {
     }
     let decoder =
         zstd::stream::read::Decoder::with_buffer(payload).map_err(|e| corrupt(e.to_string()))?;
-    // Grow as data arrives rather than trusting the declared length up front.
-    let mut raw = Vec::with_capacity(usize::try_from(raw_len.min(1 << 20)).unwrap_or(0));
+    // The block CRC has vouched for the declared length (and it is <= MAX_RAW_LEN): allocate it
+    // once. On targets where it does not fit in usize, grow as data arrives instead.
+    let mut raw = Vec::with_capacity(usize::try_from(raw_len).unwrap_or(0));
     decoder
         .take(raw_len.saturating_add(1))
         .read_to_end(&mut raw)

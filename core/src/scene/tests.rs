@@ -1,0 +1,389 @@
+//! Every bad scene gets one clear message naming the file and line or JSON field.
+
+use super::*;
+use std::sync::atomic::{AtomicU32, Ordering};
+
+/// A fresh scratch folder per call.
+fn scratch() -> PathBuf {
+    static N: AtomicU32 = AtomicU32::new(0);
+    let dir = std::env::temp_dir().join(format!(
+        "hort-scene-tests-{}-{}",
+        std::process::id(),
+        N.fetch_add(1, Ordering::Relaxed)
+    ));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn write(dir: &Path, name: &str, text: &[u8]) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn error_of(name: &str, text: &str) -> (String, PathBuf) {
+    let dir = scratch();
+    let p = write(&dir, name, text.as_bytes());
+    let e = load_scene(&p).expect_err("must fail").to_string();
+    (e, p)
+}
+
+const TRIANGLE: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+
+#[test]
+fn missing_file_names_the_path() {
+    let p = scratch().join("nope.obj");
+    let e = load_scene(&p).unwrap_err().to_string();
+    assert!(
+        e.starts_with(&format!("cannot read {}: ", p.display())),
+        "{e}"
+    );
+}
+
+#[test]
+fn binary_data_is_not_an_obj() {
+    let dir = scratch();
+    let p = write(&dir, "x.obj", &[0x89, b'P', b'N', b'G', 0xff, 0xfe, b'\n']);
+    let e = load_scene(&p).unwrap_err().to_string();
+    assert_eq!(
+        e,
+        format!("{}:1: not an OBJ file: binary data", p.display())
+    );
+}
+
+#[test]
+fn unknown_statement_is_not_an_obj() {
+    let (e, p) = error_of("x.obj", "# hi\nv 0 0 0\n<html>\n");
+    assert_eq!(
+        e,
+        format!(
+            "{}:3: not an OBJ file: unknown statement \"<html>\"",
+            p.display()
+        )
+    );
+}
+
+#[test]
+fn face_index_out_of_range_names_line_and_counts() {
+    let (e, p) = error_of("x.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n");
+    assert_eq!(
+        e,
+        format!(
+            "{}:4: face refers to vertex 4, but only 3 vertexs are defined so far",
+            p.display()
+        )
+    );
+    let (e, p) = error_of("x.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -4 1 2\n");
+    assert_eq!(
+        e,
+        format!(
+            "{}:4: face refers to vertex -4, but only 3 vertexs are defined so far",
+            p.display()
+        )
+    );
+    let (e, p) = error_of("x.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n");
+    assert!(
+        e.starts_with(&format!("{}:4: face refers to vertex 0,", p.display())),
+        "{e}"
+    );
+    let (e, p) = error_of(
+        "x.obj",
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//2 3//1\n",
+    );
+    assert_eq!(
+        e,
+        format!(
+            "{}:5: face refers to normal 2, but only 1 normals are defined so far",
+            p.display()
+        )
+    );
+}
+
+#[test]
+fn non_finite_coordinates_name_the_line() {
+    for bad in ["nan", "inf", "-inf", "NaN"] {
+        let (e, p) = error_of("x.obj", &format!("v 0 0 0\nv 1 {bad} 0\n"));
+        assert_eq!(
+            e,
+            format!(
+                "{}:2: vertex has a non-finite coordinate ({bad})",
+                p.display()
+            )
+        );
+    }
+    let (e, p) = error_of("x.obj", "v 0 0 0\nv 1 1e39 0\n");
+    assert_eq!(
+        e,
+        format!(
+            "{}:2: vertex has a non-finite coordinate (1e39)",
+            p.display()
+        )
+    );
+}
+
+#[test]
+fn syntax_errors_name_the_line() {
+    let (e, p) = error_of("x.obj", "v 0 zero 0\n");
+    assert_eq!(
+        e,
+        format!(
+            "{}:1: vertex coordinate \"zero\" is not a number",
+            p.display()
+        )
+    );
+    let (e, p) = error_of("x.obj", "v 0 0\n");
+    assert_eq!(
+        e,
+        format!("{}:1: vertex needs 3 coordinates, found 2", p.display())
+    );
+    let (e, p) = error_of("x.obj", "v 0 0 0\nv 1 0 0\nf 1 2\n");
+    assert_eq!(
+        e,
+        format!("{}:3: face needs at least 3 corners, found 2", p.display())
+    );
+}
+
+#[test]
+fn zero_triangles_is_an_error() {
+    let (e, p) = error_of("x.obj", "# only vertices\nv 0 0 0\nv 1 0 0\n");
+    assert_eq!(
+        e,
+        format!("{}: the scene contains no triangles", p.display())
+    );
+}
+
+#[test]
+fn degenerate_scene_cannot_be_framed() {
+    let (e, p) = error_of("x.obj", "v 1 1 1\nv 1 1 1\nv 1 1 1\nf 1 2 3\n");
+    assert_eq!(
+        e,
+        format!(
+            "{}: the scene has no extent (all vertices coincide), so it cannot be framed",
+            p.display()
+        )
+    );
+}
+
+#[test]
+fn polygons_fan_triangulate_in_file_order() {
+    let dir = scratch();
+    let p = write(
+        &dir,
+        "x.obj",
+        b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nf 1 2 3 4\no b\nf 1 2 5\n",
+    );
+    let s = load_scene(&p).unwrap();
+    assert_eq!(s.mesh.triangles, vec![[0, 1, 2], [0, 2, 3], [0, 1, 4]]);
+}
+
+#[test]
+fn materials_come_from_mtl_and_unknown_ones_warn() {
+    let dir = scratch();
+    write(&dir, "m.mtl", b"newmtl red\nKd 0.8 0.1 0.1\n");
+    let p = write(
+        &dir,
+        "x.obj",
+        format!("mtllib m.mtl\n{TRIANGLE}usemtl red\nf 1 2 3\nusemtl blue\nf 1 2 3\n").as_bytes(),
+    );
+    let s = load_scene(&p).unwrap();
+    let kd: Vec<[f32; 3]> = s
+        .mesh
+        .triangle_materials
+        .iter()
+        .map(|&m| s.mesh.materials[m as usize].kd)
+        .collect();
+    assert_eq!(kd, vec![[0.7; 3], [0.8, 0.1, 0.1], [0.7; 3]]);
+    assert_eq!(s.warnings.len(), 1);
+    assert!(
+        s.warnings[0].contains(":8: material \"blue\" is not defined"),
+        "{:?}",
+        s.warnings
+    );
+}
+
+fn manifest_error(json: &str) -> (String, PathBuf) {
+    let dir = scratch();
+    write(&dir, "t.obj", TRIANGLE.as_bytes());
+    let p = write(&dir, "s.json", json.as_bytes());
+    (load_scene(&p).unwrap_err().to_string(), p)
+}
+
+#[test]
+fn malformed_manifest_names_the_json_path() {
+    let (e, p) = manifest_error(
+        r#"{"meshes": ["t.obj"], "camera": {"eye": [0, 0, "x"], "look_at": [0,0,0]}}"#,
+    );
+    assert!(
+        e.starts_with(&format!(
+            "{}: manifest field `camera.eye[2]`: invalid type: string \"x\"",
+            p.display()
+        )),
+        "{e}"
+    );
+    let (e, p) = manifest_error(r#"{"meshes": ["t.obj"], "widht": 5}"#);
+    assert!(
+        e.starts_with(&format!(
+            "{}: manifest field `widht`: unknown field `widht`",
+            p.display()
+        )),
+        "{e}"
+    );
+    let (e, p) = manifest_error(r#"{"meshes": ["t.obj"]"#);
+    assert!(
+        e.starts_with(&format!(
+            "{}: manifest field `(root)`: EOF while parsing",
+            p.display()
+        )),
+        "{e}"
+    );
+    let (e, p) = manifest_error(r#"{"meshes": []}"#);
+    assert_eq!(
+        e,
+        format!(
+            "{}: manifest field `meshes`: lists no OBJ files",
+            p.display()
+        )
+    );
+}
+
+#[test]
+fn unknown_light_kind_is_named() {
+    let (e, p) = manifest_error(
+        r#"{"meshes": ["t.obj"], "lights": [{"kind": "point", "position": [0,1,0], "intensity": 1}, {"kind": "spot"}]}"#,
+    );
+    assert!(
+        e.starts_with(&format!(
+            "{}: manifest field `lights[1].kind`: unknown variant `spot`, expected `point` or `directional`",
+            p.display()
+        )),
+        "{e}"
+    );
+}
+
+#[test]
+fn bad_manifest_values_are_named() {
+    let (e, p) = manifest_error(r#"{"meshes": ["t.obj"], "width": 0}"#);
+    assert_eq!(
+        e,
+        format!(
+            "{}: manifest field `width`: 0 is not between 1 and 65536",
+            p.display()
+        )
+    );
+    let (e, p) = manifest_error(
+        r#"{"meshes": ["t.obj"], "camera": {"eye": [0,0,1], "look_at": [0,0,0], "vfov": 180}}"#,
+    );
+    assert_eq!(
+        e,
+        format!(
+            "{}: manifest field `camera.vfov`: 180 is not between 0 and 180 degrees",
+            p.display()
+        )
+    );
+    let (e, p) = manifest_error(
+        r#"{"meshes": ["t.obj"], "lights": [{"kind": "directional", "direction": [0,0,0], "irradiance": 1}]}"#,
+    );
+    assert_eq!(
+        e,
+        format!(
+            "{}: manifest field `lights[0].direction`: must not be the zero vector",
+            p.display()
+        )
+    );
+    let (e, p) =
+        manifest_error(r#"{"meshes": ["t.obj"], "materials": {"steel": {"kd": [1,1,1]}}}"#);
+    assert_eq!(
+        e,
+        format!(
+            "{}: manifest field `materials.steel`: no mesh uses a material of that name",
+            p.display()
+        )
+    );
+}
+
+#[test]
+fn manifest_mesh_errors_name_the_obj() {
+    let (e, p) = manifest_error(r#"{"meshes": ["missing.obj"]}"#);
+    let obj = p.parent().unwrap().join("missing.obj");
+    assert!(
+        e.starts_with(&format!("cannot read {}: ", obj.display())),
+        "{e}"
+    );
+}
+
+#[test]
+fn manifest_overrides_defaults() {
+    let dir = scratch();
+    write(&dir, "t.obj", TRIANGLE.as_bytes());
+    let p = write(
+        &dir,
+        "s.json",
+        br#"{"meshes": ["t.obj", "t.obj"], "ambient": 0.25, "background": [0.1, 0.2, 0.3],
+            "materials": {"default": {"kd": [0.5, 0.5, 0.5]}}, "width": 64, "height": 48, "spp": 4,
+            "lights": [{"kind": "directional", "direction": [0, -2, 0], "irradiance": [1, 2, 3]}]}"#,
+    );
+    let s = load_scene(&p).unwrap();
+    assert_eq!(s.mesh.triangle_count(), 2);
+    assert_eq!(s.ambient, [0.25; 3]);
+    assert_eq!(s.background, [0.1, 0.2, 0.3]);
+    assert!(s.mesh.materials.iter().all(|m| m.kd == [0.5; 3]));
+    assert_eq!(
+        s.image,
+        ImageSettings {
+            width: Some(64),
+            height: Some(48),
+            spp: Some(4)
+        }
+    );
+    assert_eq!(
+        s.lights,
+        vec![Light::Directional {
+            direction: DVec3::new(0.0, -1.0, 0.0),
+            irradiance: [1.0, 2.0, 3.0]
+        }]
+    );
+}
+
+#[test]
+fn absurd_sizes_are_refused() {
+    assert_eq!(
+        check_image_size(0, 10, 1).unwrap_err().to_string(),
+        "width = 0 is out of range: must be 1 to 65536"
+    );
+    assert_eq!(
+        check_image_size(65536, 65536, 1).unwrap_err().to_string(),
+        "width x height = 4294967296 is out of range: at most 134217728 pixels"
+    );
+    assert_eq!(
+        check_image_size(64, 48, 0).unwrap_err().to_string(),
+        "spp = 0 is out of range: must be 1 to 65536"
+    );
+    assert_eq!(
+        check_image_size(16384, 8192, 65536)
+            .unwrap_err()
+            .to_string(),
+        "width x height x spp = 8796093022208 is out of range: at most 17179869184 samples"
+    );
+    assert!(check_image_size(960, 540, 1).is_ok());
+}
+
+#[test]
+fn bare_obj_is_framed_as_documented() {
+    let dir = scratch();
+    let p = write(&dir, "x.obj", b"v 0 0 0\nv 2 0 0\nv 0 2 2\nf 1 2 3\n");
+    let s = load_scene(&p).unwrap();
+    let c = DVec3::new(1.0, 1.0, 1.0);
+    let d = 12f64.sqrt();
+    assert_eq!(s.camera.eye, c + DVec3::new(0.0, 0.5, 1.25) * d);
+    assert_eq!(s.camera.look_at, c);
+    assert_eq!(s.camera.vfov_degrees, 45.0);
+    let light = c + DVec3::new(0.5, 1.0, 0.8) * d;
+    let i = (std::f64::consts::PI * (light - c).length_squared()) as f32;
+    assert_eq!(
+        s.lights,
+        vec![Light::Point {
+            position: light,
+            intensity: [i; 3]
+        }]
+    );
+}
