@@ -108,7 +108,7 @@ pub fn intersect(r: &RayPrep, p0: Vec3, p1: Vec3, p2: Vec3, t_max: f32) -> Optio
     }
     let inv_det = 1.0 / det;
     let t = t_scaled * inv_det;
-    if !(t < t_max) {
+    if t.is_nan() || t >= t_max {
         return None;
     }
     // Conservative t > 0 (pbrt-v4 section 6.8.6): reject hits whose t is within its rounding

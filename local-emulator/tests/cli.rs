@@ -1,0 +1,155 @@
+//! The `hort` command as users and scripts call it: files it writes and errors it prints.
+
+use hort_core::hits::decode_hits;
+use hort_core::image::decode_pfm;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+const HORT: &str = env!("CARGO_BIN_EXE_hort");
+
+fn scene(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes").join(rel)
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("hort-cli-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn hort(args: &[&str]) -> std::process::Output {
+    Command::new(HORT).args(args).output().expect("hort runs")
+}
+
+fn render(scene_file: &Path, dir: &Path, extra: &[&str]) -> (Vec<u8>, Vec<u8>, serde_json::Value) {
+    let (out, hits, report) = (dir.join("o.pfm"), dir.join("h.bin"), dir.join("r.json"));
+    let mut args = vec![
+        "render",
+        scene_file.to_str().unwrap(),
+        "--monolithic",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--out",
+        out.to_str().unwrap(),
+        "--hits",
+        hits.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    let o = hort(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(report).unwrap()).unwrap();
+    (std::fs::read(out).unwrap(), std::fs::read(hits).unwrap(), report)
+}
+
+#[test]
+fn monolithic_render_writes_contract_files() {
+    let dir = scratch("contract");
+    let (pfm, hits, report) = render(&scene("bunny/bunny.json"), &dir, &["--spp", "2"]);
+    let image = decode_pfm(&pfm).unwrap();
+    assert_eq!((image.width, image.height), (64, 48));
+    let hits = decode_hits(&hits, 64, 48).unwrap();
+    let triangles = report["triangles"].as_u64().unwrap();
+    assert_eq!(triangles, 3676);
+    let hit_count = hits.iter().filter(|h| !h.is_miss()).count() as u64;
+    assert!(hit_count > 500, "the bunny on its ground fills part of the frame");
+    assert!(hits.iter().all(|h| h.is_miss() || (u64::from(h.triangle) < triangles && h.t > 0.0)));
+    assert!(hits.iter().filter(|h| h.is_miss()).all(|h| h.t == f32::INFINITY));
+    assert_eq!(report["width"], 64);
+    assert_eq!(report["height"], 48);
+    assert_eq!(report["rays"]["primary"], 64 * 48 * 2);
+    // One shadow ray per hit sample and light (one light): at least the sample-0 hits.
+    assert!(report["rays"]["shadow"].as_u64().unwrap() >= hit_count);
+    assert!(report["seconds"]["render"].as_f64().unwrap() <= report["seconds"]["total"].as_f64().unwrap());
+    assert_eq!(report["stages"], serde_json::json!([]));
+    assert!(report["replication"].is_null() && report["cost_usd"].is_null());
+}
+
+#[test]
+fn thread_count_does_not_change_a_byte() {
+    let dir1 = scratch("threads1");
+    let dir3 = scratch("threads3");
+    let a = render(&scene("cornell/cornell.json"), &dir1, &["--threads", "1", "--spp", "3"]);
+    let b = render(&scene("cornell/cornell.json"), &dir3, &["--threads", "3", "--spp", "3"]);
+    assert_eq!(a.0, b.0, "image");
+    assert_eq!(a.1, b.1, "hit buffer");
+}
+
+#[test]
+fn png_output_has_the_png_signature() {
+    let dir = scratch("png");
+    let out = dir.join("img.png");
+    let o = hort(&[
+        "render",
+        scene("teapot/teapot.json").to_str().unwrap(),
+        "--monolithic",
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    let bytes = std::fs::read(out).unwrap();
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+}
+
+#[test]
+fn bad_input_prints_one_error_line_and_fails() {
+    let dir = scratch("bad");
+    let bad = dir.join("bad.obj");
+    std::fs::write(&bad, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n").unwrap();
+    let o = hort(&["render", bad.to_str().unwrap(), "--monolithic"]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8(o.stderr).unwrap();
+    assert_eq!(
+        err,
+        format!(
+            "error: {}:4: face refers to vertex 9, but only 3 vertexs are defined so far\n",
+            bad.display()
+        )
+    );
+    let o = hort(&[
+        "render",
+        scene("bunny/bunny.obj").to_str().unwrap(),
+        "--monolithic",
+        "--width",
+        "70000",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(
+        String::from_utf8(o.stderr).unwrap(),
+        "error: width = 70000 is out of range: must be 1 to 65536\n"
+    );
+    let o = hort(&[
+        "render",
+        scene("bunny/bunny.obj").to_str().unwrap(),
+        "--monolithic",
+        "--out",
+        dir.join("x.jpg").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8(o.stderr).unwrap();
+    assert!(err.starts_with("error: unsupported image extension \"jpg\""), "{err}");
+}
+
+#[test]
+fn scene_generate_is_deterministic_and_exact() {
+    let dir = scratch("generate");
+    let (a, b) = (dir.join("a.obj"), dir.join("b.obj"));
+    for p in [&a, &b] {
+        let o = hort(&["scene", "generate", "--triangles", "10000", "--seed", "5", "--out", p.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let text = std::fs::read(&a).unwrap();
+    assert_eq!(text, std::fs::read(&b).unwrap());
+    let faces = text.split(|&c| c == b'\n').filter(|l| l.starts_with(b"f ")).count();
+    assert_eq!(faces, 10_000);
+    let o = hort(&["scene", "generate", "--triangles", "0", "--out", dir.join("z.obj").to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1));
+}
