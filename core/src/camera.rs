@@ -49,12 +49,23 @@ impl Camera {
         })
     }
 
+    /// The eye position.
+    pub fn eye(&self) -> DVec3 {
+        self.eye
+    }
+
+    /// The (not normalized) direction through image position (px, py), in f64.
+    #[inline]
+    pub fn direction(&self, px: f64, py: f64) -> DVec3 {
+        let sx = (2.0 * px / self.width - 1.0) * self.tan_half * self.width / self.height;
+        let sy = (1.0 - 2.0 * py / self.height) * self.tan_half;
+        self.forward + sx * self.right + sy * self.up
+    }
+
     /// The ray through image position (px, py) in pixel units (pixel x's centre is x + 0.5).
     #[inline]
     pub fn ray(&self, px: f64, py: f64) -> Ray {
-        let sx = (2.0 * px / self.width - 1.0) * self.tan_half * self.width / self.height;
-        let sy = (1.0 - 2.0 * py / self.height) * self.tan_half;
-        let d = self.forward + sx * self.right + sy * self.up;
+        let d = self.direction(px, py);
         let d = d / (d.x * d.x + d.y * d.y + d.z * d.z).sqrt();
         Ray {
             origin: self.eye.as_vec3(),

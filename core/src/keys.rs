@@ -5,7 +5,9 @@
 //! jobs/{job}/plan.json                           the job plan (splits, spans, tasks)
 //! jobs/{job}/splits/{split:05}.bin               one scene split with its BVH
 //! jobs/{job}/{stage}/{task:05}/part-{p:05}       one shuffle partition of one task's output
+//! jobs/{job}/items/{stage}.json                 the task items of one Map state
 //! jobs/{job}/out/image.{ext}                     the final image (png, pfm, exr)
+//! jobs/{job}/out/hits.bin                        the hit buffer
 //! jobs/{job}/report.json                         the run report
 //! ```
 //!
@@ -69,6 +71,16 @@ pub fn image_key(job: &JobId) -> String {
 pub fn image_key_with_ext(job: &JobId, ext: &str) -> String {
     let ext = ext.strip_prefix('.').unwrap_or(ext);
     format!("jobs/{job}/out/image.{ext}")
+}
+
+/// `jobs/{job}/out/hits.bin`: the hit buffer of the command-line contract.
+pub fn hits_key(job: &JobId) -> String {
+    format!("jobs/{job}/out/hits.bin")
+}
+
+/// `jobs/{job}/items/{stage}.json`: the JSON array of task items a Map state reads.
+pub fn items_key(job: &JobId, stage: Stage) -> String {
+    format!("jobs/{job}/items/{stage}.json")
 }
 
 /// `jobs/{job}/report.json`: the run report.
@@ -141,6 +153,11 @@ mod tests {
         assert_eq!(image_key_with_ext(&j, "pfm"), "jobs/job-42/out/image.pfm");
         assert_eq!(image_key_with_ext(&j, ".exr"), "jobs/job-42/out/image.exr");
         assert_eq!(report_key(&j), "jobs/job-42/report.json");
+        assert_eq!(hits_key(&j), "jobs/job-42/out/hits.bin");
+        assert_eq!(
+            items_key(&j, Stage::TraceMap),
+            "jobs/job-42/items/trace-map.json"
+        );
     }
 
     #[test]

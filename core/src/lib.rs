@@ -25,5 +25,6 @@ pub mod generate;
 // HORT pipeline building blocks.
 pub mod ids;
 pub mod keys;
+pub mod pipeline;
 pub mod shuffle;
 pub mod store;

@@ -12,6 +12,7 @@ use crate::sampling::sample_offset;
 use crate::scene::{Mesh, NO_NORMAL, Scene, check_image_size};
 use crate::shading::{SurfacePoint, combine, shadow_test, surface_point};
 use crate::triangle::Ray;
+use glam::Vec3;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::mpsc;
 use std::time::Instant;
@@ -60,13 +61,19 @@ pub fn build_scene_bvh(mesh: &Mesh) -> Bvh {
     Bvh::build(triangles, (0..n as u32).collect())
 }
 
-/// The shading data of a hit on the scene's triangle `hit.id`.
-pub fn surface_of(mesh: &Mesh, hit: &ClosestHit, ray: &Ray) -> SurfacePoint {
-    let id = hit.id as usize;
+/// The vertex normals (if any) and diffuse reflectance of the scene's triangle `id`.
+pub fn shading_of(mesh: &Mesh, id: u32) -> (Option<[Vec3; 3]>, [f32; 3]) {
+    let id = id as usize;
     let normal_ids = mesh.triangle_normals[id];
     let normals =
         (normal_ids[0] != NO_NORMAL).then(|| normal_ids.map(|i| mesh.normals[i as usize]));
     let kd = mesh.materials[mesh.triangle_materials[id] as usize].kd;
+    (normals, kd)
+}
+
+/// The shading data of a hit on the scene's triangle `hit.id`.
+pub fn surface_of(mesh: &Mesh, hit: &ClosestHit, ray: &Ray) -> SurfacePoint {
+    let (normals, kd) = shading_of(mesh, hit.id);
     surface_point(hit.corners, hit.b, ray.dir, normals, kd)
 }
 

@@ -1,8 +1,17 @@
 //! AWS-facing adapters of HORT-serverless: the S3 object store and the Lambda handlers.
 //!
 //! The stage functions themselves live in `hort-core` as pure functions over bytes; this crate
-//! only moves bytes between them and AWS. It is filled in by the local-emulator issue; until
-//! then it re-exports the core so that downstream crates already depend on the right name.
+//! only moves bytes between them and AWS.
+//!
+//! - [`S3Store`] ([`s3_store`]): the core's `BlobStore` over AWS S3 or any S3-compatible server,
+//!   configured by [`S3Config`] ([`s3_config`]); SDK errors are classified in [`s3_errors`].
 #![forbid(unsafe_code)]
 
 pub use hort_core as core;
+
+pub mod s3_config;
+pub mod s3_errors;
+pub mod s3_store;
+
+pub use s3_config::{S3Config, S3Credentials};
+pub use s3_store::S3Store;

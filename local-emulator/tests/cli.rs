@@ -8,7 +8,9 @@ use std::process::Command;
 const HORT: &str = env!("CARGO_BIN_EXE_hort");
 
 fn scene(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes").join(rel)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../scenes")
+        .join(rel)
 }
 
 fn scratch(name: &str) -> PathBuf {
@@ -43,7 +45,11 @@ fn render(scene_file: &Path, dir: &Path, extra: &[&str]) -> (Vec<u8>, Vec<u8>, s
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(report).unwrap()).unwrap();
-    (std::fs::read(out).unwrap(), std::fs::read(hits).unwrap(), report)
+    (
+        std::fs::read(out).unwrap(),
+        std::fs::read(hits).unwrap(),
+        report,
+    )
 }
 
 #[test]
@@ -56,15 +62,28 @@ fn monolithic_render_writes_contract_files() {
     let triangles = report["triangles"].as_u64().unwrap();
     assert_eq!(triangles, 3676);
     let hit_count = hits.iter().filter(|h| !h.is_miss()).count() as u64;
-    assert!(hit_count > 500, "the bunny on its ground fills part of the frame");
-    assert!(hits.iter().all(|h| h.is_miss() || (u64::from(h.triangle) < triangles && h.t > 0.0)));
-    assert!(hits.iter().filter(|h| h.is_miss()).all(|h| h.t == f32::INFINITY));
+    assert!(
+        hit_count > 500,
+        "the bunny on its ground fills part of the frame"
+    );
+    assert!(
+        hits.iter()
+            .all(|h| h.is_miss() || (u64::from(h.triangle) < triangles && h.t > 0.0))
+    );
+    assert!(
+        hits.iter()
+            .filter(|h| h.is_miss())
+            .all(|h| h.t == f32::INFINITY)
+    );
     assert_eq!(report["width"], 64);
     assert_eq!(report["height"], 48);
     assert_eq!(report["rays"]["primary"], 64 * 48 * 2);
     // One shadow ray per hit sample and light (one light): at least the sample-0 hits.
     assert!(report["rays"]["shadow"].as_u64().unwrap() >= hit_count);
-    assert!(report["seconds"]["render"].as_f64().unwrap() <= report["seconds"]["total"].as_f64().unwrap());
+    assert!(
+        report["seconds"]["render"].as_f64().unwrap()
+            <= report["seconds"]["total"].as_f64().unwrap()
+    );
     assert_eq!(report["stages"], serde_json::json!([]));
     assert!(report["replication"].is_null() && report["cost_usd"].is_null());
 }
@@ -73,8 +92,16 @@ fn monolithic_render_writes_contract_files() {
 fn thread_count_does_not_change_a_byte() {
     let dir1 = scratch("threads1");
     let dir3 = scratch("threads3");
-    let a = render(&scene("cornell/cornell.json"), &dir1, &["--threads", "1", "--spp", "3"]);
-    let b = render(&scene("cornell/cornell.json"), &dir3, &["--threads", "3", "--spp", "3"]);
+    let a = render(
+        &scene("cornell/cornell.json"),
+        &dir1,
+        &["--threads", "1", "--spp", "3"],
+    );
+    let b = render(
+        &scene("cornell/cornell.json"),
+        &dir3,
+        &["--threads", "3", "--spp", "3"],
+    );
     assert_eq!(a.0, b.0, "image");
     assert_eq!(a.1, b.1, "hit buffer");
 }
@@ -135,7 +162,10 @@ fn bad_input_prints_one_error_line_and_fails() {
     ]);
     assert_eq!(o.status.code(), Some(1));
     let err = String::from_utf8(o.stderr).unwrap();
-    assert!(err.starts_with("error: unsupported image extension \"jpg\""), "{err}");
+    assert!(
+        err.starts_with("error: unsupported image extension \"jpg\""),
+        "{err}"
+    );
 }
 
 #[test]
@@ -143,13 +173,32 @@ fn scene_generate_is_deterministic_and_exact() {
     let dir = scratch("generate");
     let (a, b) = (dir.join("a.obj"), dir.join("b.obj"));
     for p in [&a, &b] {
-        let o = hort(&["scene", "generate", "--triangles", "10000", "--seed", "5", "--out", p.to_str().unwrap()]);
+        let o = hort(&[
+            "scene",
+            "generate",
+            "--triangles",
+            "10000",
+            "--seed",
+            "5",
+            "--out",
+            p.to_str().unwrap(),
+        ]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     }
     let text = std::fs::read(&a).unwrap();
     assert_eq!(text, std::fs::read(&b).unwrap());
-    let faces = text.split(|&c| c == b'\n').filter(|l| l.starts_with(b"f ")).count();
+    let faces = text
+        .split(|&c| c == b'\n')
+        .filter(|l| l.starts_with(b"f "))
+        .count();
     assert_eq!(faces, 10_000);
-    let o = hort(&["scene", "generate", "--triangles", "0", "--out", dir.join("z.obj").to_str().unwrap()]);
+    let o = hort(&[
+        "scene",
+        "generate",
+        "--triangles",
+        "0",
+        "--out",
+        dir.join("z.obj").to_str().unwrap(),
+    ]);
     assert_eq!(o.status.code(), Some(1));
 }

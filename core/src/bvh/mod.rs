@@ -10,9 +10,11 @@
 //! - Building is deterministic: the same triangles in the same order give the same nodes.
 
 mod build;
+mod parts;
 mod traverse;
 
-pub use traverse::ClosestHit;
+pub use parts::BvhPartsError;
+pub use traverse::{ClosestHit, segment_may_hit};
 
 use glam::Vec3;
 

@@ -22,6 +22,9 @@ pub struct ClosestHit {
     pub b: [f32; 3],
     /// The triangle's corners (as stored in the BVH), for shading without another lookup.
     pub corners: [Vec3; 3],
+    /// The triangle's position in the BVH's leaf order (indexes per-triangle data stored in
+    /// that order, as split objects do).
+    pub index: u32,
 }
 
 struct SlabRay {
@@ -66,6 +69,14 @@ impl SlabRay {
     }
 }
 
+/// Whether a shadow segment (`0 < t < t_max` along `ray`) can meet a BVH with root `bounds`:
+/// exactly the root test of [`Bvh::occluded`], so `false` here guarantees `occluded` is false.
+pub fn segment_may_hit(bounds: &Aabb, ray: &Ray, t_max: f32) -> bool {
+    SlabRay::new(ray)
+        .entry(bounds, t_max * CULL_MARGIN)
+        .is_some()
+}
+
 impl Bvh {
     /// The nearest hit with `t > 0`: smaller t wins, equal t goes to the smaller id.
     pub fn closest_hit(&self, ray: &Ray) -> Option<ClosestHit> {
@@ -99,6 +110,7 @@ impl Bvh {
                             t: h.t,
                             b: h.b,
                             corners: [p0, p1, p2],
+                            index: i as u32,
                         });
                     }
                 }
@@ -148,12 +160,12 @@ impl Bvh {
         let Some(root) = self.nodes.first() else {
             return false;
         };
+        if !segment_may_hit(&root.bounds, ray, t_max) {
+            return false;
+        }
         let prep = RayPrep::new(ray);
         let slab = SlabRay::new(ray);
         let limit = t_max * CULL_MARGIN;
-        if slab.entry(&root.bounds, limit).is_none() {
-            return false;
-        }
         let mut stack = [0u32; STACK];
         let mut depth = 0usize;
         let mut node = 0usize;

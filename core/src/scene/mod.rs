@@ -33,7 +33,7 @@ pub const DEFAULT_WIDTH: u32 = 960;
 pub const DEFAULT_HEIGHT: u32 = 540;
 
 /// A pinhole camera: eye, target, up and vertical field of view in degrees.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct CameraSpec {
     pub eye: DVec3,
     pub look_at: DVec3,
@@ -43,7 +43,8 @@ pub struct CameraSpec {
 
 /// A light source. Radiometry: Lambertian surfaces reflect `kd / pi * E`, where the irradiance
 /// `E` is `intensity * cos / r^2` for a point light and `irradiance * cos` for a directional one.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase")]
 pub enum Light {
     /// An isotropic point light with radiant intensity in W/sr per RGB channel.
     Point {

@@ -33,16 +33,19 @@ pub enum RecordKind {
     ShadowResult = 4,
     /// TraceReduce output: shaded colour per pixel sample.
     PixelColor = 5,
+    /// A scene split: its triangles, shading data and prebuilt BVH.
+    SplitObject = 6,
 }
 
 impl RecordKind {
     /// Every kind, in numeric order.
-    pub const ALL: [RecordKind; 5] = [
+    pub const ALL: [RecordKind; 6] = [
         RecordKind::CastCandidate,
         RecordKind::Hit,
         RecordKind::ShadowQuery,
         RecordKind::ShadowResult,
         RecordKind::PixelColor,
+        RecordKind::SplitObject,
     ];
 
     /// The kind's number in the header.

@@ -1,0 +1,168 @@
+//! The in-process driver: plans a job, then runs every stage's tasks on N worker threads over
+//! any [`BlobStore`], stage after stage, and collects the per-stage metrics of the report.
+
+use super::PipelineError;
+use super::plan::{JobPlan, PlanRequest, plan_job, resolve_counts};
+use super::runner::{TaskMetrics, run_task};
+use super::split::split_scene;
+use crate::hits::{Hit, decode_hits};
+use crate::ids::{JobId, SplitId, Stage};
+use crate::image::{Image, decode_pfm};
+use crate::keys::{hits_key, image_key_with_ext, plan_key, split_key};
+use crate::report::StageReport;
+use crate::scene::Scene;
+use crate::store::BlobStore;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::time::Instant;
+
+/// The stages run after planning, in order.
+pub const TASK_STAGES: [Stage; 6] = [
+    Stage::CastMap,
+    Stage::CastReduce,
+    Stage::Expand,
+    Stage::TraceMap,
+    Stage::TraceReduce,
+    Stage::Combine,
+];
+
+/// How to run a job in process.
+#[derive(Clone, Debug)]
+pub struct PipelineOptions {
+    pub job: JobId,
+    /// Worker threads running tasks concurrently (at least 1).
+    pub workers: usize,
+}
+
+/// A finished job.
+#[derive(Clone, Debug)]
+pub struct PipelineRun {
+    pub plan: JobPlan,
+    pub image: Image,
+    pub hits: Vec<Hit>,
+    /// Per stage: `split` (the plan step) then the task stages in order.
+    pub stages: Vec<StageReport>,
+    /// Summed task metrics per stage, same order as `stages`.
+    pub metrics: Vec<TaskMetrics>,
+    pub primary_rays: u64,
+    pub shadow_rays: u64,
+    /// Split bytes read by all tasks / bytes of all splits.
+    pub replication: f64,
+    /// Wall-clock seconds of the task stages (cast-map to combine).
+    pub render_seconds: f64,
+}
+
+/// Number of tasks of `stage` in `plan`.
+pub fn task_count(plan: &JobPlan, stage: Stage) -> usize {
+    match stage {
+        Stage::CastMap => plan.cast_tasks.len(),
+        Stage::TraceMap => plan.trace_tasks.len(),
+        Stage::CastReduce | Stage::Expand | Stage::TraceReduce => plan.spans.len(),
+        Stage::Combine | Stage::Split => 1,
+    }
+}
+
+/// Splits and plans `scene` into `store`, runs every stage, and reads back the outputs.
+pub fn run_pipeline(
+    store: &dyn BlobStore,
+    scene: &Scene,
+    request: PlanRequest,
+    options: &PipelineOptions,
+) -> Result<PipelineRun, PipelineError> {
+    let job = &options.job;
+    let started = Instant::now();
+    let (k, s) = resolve_counts(&request, scene.mesh.triangle_count() as u64)?;
+    let infos = split_scene(&scene.mesh, k as usize, request.mode, |split, bytes| {
+        store.put(&split_key(job, SplitId(split)), &bytes)
+    })?;
+    let plan = plan_job(scene, &request, infos, s)?;
+    let plan_json = serde_json::to_vec_pretty(&plan)
+        .map_err(|e| PipelineError::BadInput(format!("cannot encode the plan: {e}")))?;
+    store.put(&plan_key(job), &plan_json)?;
+    let split_bytes = plan.scene_bytes();
+    let mut stages = vec![StageReport {
+        name: Stage::Split.to_string(),
+        tasks: 1,
+        attempts: 1,
+        seconds: started.elapsed().as_secs_f64(),
+        bytes_read: 0,
+        bytes_written: split_bytes + plan_json.len() as u64,
+        bytes_written_raw: split_bytes + plan_json.len() as u64,
+    }];
+    let mut metrics = vec![TaskMetrics::default()];
+    let render_start = Instant::now();
+    for stage in TASK_STAGES {
+        let stage_start = Instant::now();
+        let tasks = task_count(&plan, stage);
+        let m = run_stage(store, job, &plan, stage, tasks, options.workers.max(1))?;
+        stages.push(StageReport {
+            name: stage.to_string(),
+            tasks: tasks as u64,
+            attempts: tasks as u64,
+            seconds: stage_start.elapsed().as_secs_f64(),
+            bytes_read: m.bytes_read,
+            bytes_written: m.bytes_written,
+            bytes_written_raw: m.bytes_written_raw,
+        });
+        metrics.push(m);
+    }
+    let render_seconds = render_start.elapsed().as_secs_f64();
+    let image_key = image_key_with_ext(job, "pfm");
+    let image = decode_pfm(&store.get(&image_key)?)
+        .map_err(|e| PipelineError::Corrupt(format!("{image_key}: {e}")))?;
+    let hits = decode_hits(&store.get(&hits_key(job))?, plan.width, plan.height)
+        .map_err(|e| PipelineError::Corrupt(format!("{}: {e}", hits_key(job))))?;
+    let split_read: u64 = metrics.iter().map(|m| m.split_bytes_read).sum();
+    Ok(PipelineRun {
+        primary_rays: u64::from(plan.width) * u64::from(plan.height) * u64::from(plan.spp),
+        shadow_rays: metrics.iter().map(|m| m.shadow_rays).sum(),
+        replication: split_read as f64 / split_bytes.max(1) as f64,
+        plan,
+        image,
+        hits,
+        stages,
+        metrics,
+        render_seconds,
+    })
+}
+
+/// Runs tasks `0..tasks` of `stage` on `workers` threads; the first error stops the stage.
+fn run_stage(
+    store: &dyn BlobStore,
+    job: &JobId,
+    plan: &JobPlan,
+    stage: Stage,
+    tasks: usize,
+    workers: usize,
+) -> Result<TaskMetrics, PipelineError> {
+    let next = AtomicUsize::new(0);
+    let failed = AtomicBool::new(false);
+    let total = Mutex::new(TaskMetrics::default());
+    let first_error: Mutex<Option<PipelineError>> = Mutex::new(None);
+    std::thread::scope(|scope| {
+        for _ in 0..workers.min(tasks) {
+            scope.spawn(|| {
+                while !failed.load(Ordering::Relaxed) {
+                    let task = next.fetch_add(1, Ordering::Relaxed);
+                    if task >= tasks {
+                        break;
+                    }
+                    match run_task(store, job, plan, stage, task as u32) {
+                        Ok(m) => *total.lock().unwrap_or_else(|e| e.into_inner()) += m,
+                        Err(e) => {
+                            failed.store(true, Ordering::Relaxed);
+                            first_error
+                                .lock()
+                                .unwrap_or_else(|e| e.into_inner())
+                                .get_or_insert(e);
+                        }
+                    }
+                }
+            });
+        }
+    });
+    match first_error.into_inner().unwrap_or_else(|e| e.into_inner()) {
+        Some(e) => Err(e),
+        None => Ok(total.into_inner().unwrap_or_else(|e| e.into_inner())),
+    }
+}

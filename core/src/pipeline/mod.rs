@@ -1,0 +1,72 @@
+//! The HORT pipeline: split, cast, reduce, expand, trace, reduce, combine, as pure functions over
+//! bytes plus a task runner and an in-process driver over any [`crate::store::BlobStore`].
+//!
+//! Dataflow for a scene cut into k splits and an image cut into s pixel spans:
+//!
+//! | stage | tasks | reads | writes |
+//! |---|---|---|---|
+//! | plan | 1 | scene | k split objects (triangles + BVH), `plan.json` |
+//! | cast-map | one per (span, split) pair whose bounds can meet | split | candidate hits of the span's samples (part = span) |
+//! | cast-reduce | one per span | the span's candidates | nearest hit per sample (part 0) |
+//! | expand | one per span | the span's hits | shadow queries per split (part = split) |
+//! | trace-map | one per (span, split) | queries, split (only if any) | occluded (sample, light) keys (part = span) |
+//! | trace-reduce | one per span | hits + occlusion of every split | shaded pixels + sample-0 hits (part 0) |
+//! | combine | 1 | every span's pixels | image and hit buffer |
+//!
+//! Guarantee: every task's output is a pure function of its inputs, and the nearest hit is
+//! chosen by (t, then global triangle id) with the same triangle test as the monolithic
+//! renderer, so the image and hit buffer equal the monolithic render's bit for bit for every
+//! k, s, split mode, spp and worker count.
+
+mod driver;
+mod frustum;
+mod plan;
+mod records;
+mod runner;
+mod split;
+mod split_object;
+mod stages;
+
+pub use driver::{PipelineOptions, PipelineRun, TASK_STAGES, run_pipeline, task_count};
+pub use frustum::span_may_meet_box;
+pub use plan::{
+    CastTask, JobPlan, MAX_SPANS, MAX_SPLITS, PLAN_FORMAT_VERSION, PlanRequest, Span, SplitInfo,
+    TraceTask, plan_job, resolve_counts,
+};
+pub use records::{Occluded, PixelBlock, ShadowQuery, SurfaceHit};
+pub use runner::{TaskMetrics, producer_of, run_task};
+pub use split::{SplitMode, assign_splits, split_scene};
+pub use split_object::TriangleShading;
+pub use split_object::{SPLIT_FORMAT_VERSION, SplitObject, decode_split, encode_split};
+pub use stages::{cast_map, cast_reduce, combine, expand, trace_map, trace_reduce};
+
+use crate::store::StoreError;
+
+/// Why a task or the pipeline failed. `Display` is one line naming the object or field.
+#[derive(Debug, thiserror::Error)]
+pub enum PipelineError {
+    /// Storage failed; retryable when the store says so.
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    /// A stored object is corrupt or of the wrong kind (recoverable from lineage for shuffle
+    /// blocks).
+    #[error("{0}")]
+    Corrupt(String),
+    /// The request or the plan cannot be executed (not retryable).
+    #[error("{0}")]
+    BadInput(String),
+    /// The scene could not be loaded or viewed.
+    #[error(transparent)]
+    Scene(#[from] crate::error::SceneError),
+}
+
+impl PipelineError {
+    /// Whether running the same task again may succeed.
+    pub fn is_retryable(&self) -> bool {
+        match self {
+            PipelineError::Store(e) => e.is_retryable(),
+            PipelineError::Corrupt(_) => true,
+            PipelineError::BadInput(_) | PipelineError::Scene(_) => false,
+        }
+    }
+}

@@ -1,0 +1,231 @@
+//! The job plan: everything the stage tasks need besides their input blocks, as serde data
+//! stored at `jobs/{job}/plan.json` and read by the orchestrator and every function.
+
+use super::PipelineError;
+use super::frustum::span_may_meet_box;
+use super::split::SplitMode;
+use crate::bvh::Aabb;
+use crate::camera::Camera;
+use crate::scene::{CameraSpec, Light, Scene, check_image_size};
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+/// Version of the plan's JSON layout; bump on any change.
+pub const PLAN_FORMAT_VERSION: u32 = 1;
+/// Most splits a job may have.
+pub const MAX_SPLITS: u32 = 4096;
+/// Most spans a job may have.
+pub const MAX_SPANS: u32 = 10_000;
+/// Triangles per split when the split count is chosen automatically.
+const AUTO_TRIANGLES_PER_SPLIT: u64 = 250_000;
+/// Samples per span when the span count is chosen automatically.
+const AUTO_SAMPLES_PER_SPAN: u64 = 65_536;
+
+/// What the user asked for; `None` means choose automatically.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PlanRequest {
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub splits: Option<u32>,
+    pub spans: Option<u32>,
+    pub mode: SplitMode,
+}
+
+/// A contiguous row-major range of pixels `[start, end)`; one reduce task each.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Span {
+    pub start: u64,
+    pub end: u64,
+}
+
+/// One split's summary: id, triangle count, bounds (the root box of its BVH) and stored size.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SplitInfo {
+    pub id: u32,
+    pub triangles: u64,
+    pub lo: [f32; 3],
+    pub hi: [f32; 3],
+    /// Bytes of the stored split object.
+    pub bytes: u64,
+}
+
+impl SplitInfo {
+    /// The split's bounding box.
+    pub fn bounds(&self) -> Aabb {
+        Aabb {
+            lo: Vec3::from(self.lo),
+            hi: Vec3::from(self.hi),
+        }
+    }
+}
+
+/// A CastMap task: the span's primary rays against one split.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct CastTask {
+    pub task: u32,
+    pub span: u32,
+    pub split: u32,
+}
+
+/// A TraceMap task: the span's shadow queries routed to one split. Task id = span · k + split.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TraceTask {
+    pub task: u32,
+    pub span: u32,
+    pub split: u32,
+}
+
+/// The whole plan of a job.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct JobPlan {
+    pub format: u32,
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub camera: CameraSpec,
+    pub lights: Vec<Light>,
+    pub ambient: [f32; 3],
+    pub background: [f32; 3],
+    pub triangles: u64,
+    pub split_mode: SplitMode,
+    pub splits: Vec<SplitInfo>,
+    pub spans: Vec<Span>,
+    /// Every (span, split) pair that can meet, span-major; pairs that cannot are absent.
+    pub cast_tasks: Vec<CastTask>,
+    /// Every (span, split) pair, span-major.
+    pub trace_tasks: Vec<TraceTask>,
+}
+
+impl JobPlan {
+    /// Number of splits k.
+    pub fn k(&self) -> u32 {
+        self.splits.len() as u32
+    }
+
+    /// The CastMap tasks of `span`.
+    pub fn cast_tasks_of(&self, span: u32) -> impl Iterator<Item = &CastTask> {
+        self.cast_tasks.iter().filter(move |t| t.span == span)
+    }
+
+    /// The TraceMap task of (span, split).
+    pub fn trace_task_id(&self, span: u32, split: u32) -> u32 {
+        span * self.k() + split
+    }
+
+    /// Total bytes of all split objects (the scene as stored).
+    pub fn scene_bytes(&self) -> u64 {
+        self.splits.iter().map(|s| s.bytes).sum()
+    }
+
+    /// Parses a stored plan, checking its version and internal consistency.
+    pub fn from_json(key: &str, bytes: &[u8]) -> Result<JobPlan, PipelineError> {
+        let plan: JobPlan = serde_json::from_slice(bytes)
+            .map_err(|e| PipelineError::Corrupt(format!("plan {key}: {e}")))?;
+        if plan.format != PLAN_FORMAT_VERSION {
+            return Err(PipelineError::Corrupt(format!(
+                "plan {key}: format {}, this build reads {PLAN_FORMAT_VERSION}",
+                plan.format
+            )));
+        }
+        let (k, s) = (plan.splits.len() as u32, plan.spans.len() as u32);
+        let task_ok = |span: u32, split: u32| span < s && split < k;
+        if !plan.cast_tasks.iter().all(|t| task_ok(t.span, t.split))
+            || !plan.trace_tasks.iter().all(|t| task_ok(t.span, t.split))
+        {
+            return Err(PipelineError::Corrupt(format!(
+                "plan {key}: a task names a span or split that does not exist"
+            )));
+        }
+        Ok(plan)
+    }
+}
+
+/// The split and span counts for `request` on a scene of `triangles` triangles: the given ones
+/// after range checks, else automatic (about 250k triangles per split, 64k samples per span).
+pub fn resolve_counts(request: &PlanRequest, triangles: u64) -> Result<(u32, u32), PipelineError> {
+    check_image_size(request.width, request.height, request.spp)?;
+    let pixels = u64::from(request.width) * u64::from(request.height);
+    let max_k = triangles.min(u64::from(MAX_SPLITS)) as u32;
+    let max_s = pixels.min(u64::from(MAX_SPANS)) as u32;
+    let k = match request.splits {
+        Some(k) if k == 0 || k > max_k => {
+            return Err(PipelineError::BadInput(format!(
+                "--splits {k} is out of range: the scene has {triangles} triangles, so use 1 to {max_k}"
+            )));
+        }
+        Some(k) => k,
+        None => triangles
+            .div_ceil(AUTO_TRIANGLES_PER_SPLIT)
+            .clamp(1, u64::from(max_k).min(64)) as u32,
+    };
+    let s = match request.spans {
+        Some(s) if s == 0 || s > max_s => {
+            return Err(PipelineError::BadInput(format!(
+                "--spans {s} is out of range: the image has {pixels} pixels, so use 1 to {max_s}"
+            )));
+        }
+        Some(s) => s,
+        None => {
+            let samples = pixels * u64::from(request.spp);
+            samples
+                .div_ceil(AUTO_SAMPLES_PER_SPAN)
+                .clamp(1, u64::from(max_s).min(100)) as u32
+        }
+    };
+    Ok((k, s))
+}
+
+/// The plan for `scene` cut into the given splits, with `s` spans. In spatial mode, CastMap
+/// pairs whose span cannot see the split's box are left out; naive mode keeps all pairs.
+pub fn plan_job(
+    scene: &Scene,
+    request: &PlanRequest,
+    splits: Vec<SplitInfo>,
+    s: u32,
+) -> Result<JobPlan, PipelineError> {
+    let camera = Camera::new(&scene.camera, request.width, request.height)?;
+    let pixels = u64::from(request.width) * u64::from(request.height);
+    let spans: Vec<Span> = (0..u64::from(s))
+        .map(|i| Span {
+            start: i * pixels / u64::from(s),
+            end: (i + 1) * pixels / u64::from(s),
+        })
+        .collect();
+    let mut cast_tasks = Vec::new();
+    let mut trace_tasks = Vec::new();
+    for (span_index, span) in spans.iter().enumerate() {
+        for split in &splits {
+            let visible = request.mode == SplitMode::Naive
+                || span_may_meet_box(&camera, request.width, span, &split.bounds());
+            if visible {
+                cast_tasks.push(CastTask {
+                    task: cast_tasks.len() as u32,
+                    span: span_index as u32,
+                    split: split.id,
+                });
+            }
+            trace_tasks.push(TraceTask {
+                task: trace_tasks.len() as u32,
+                span: span_index as u32,
+                split: split.id,
+            });
+        }
+    }
+    Ok(JobPlan {
+        format: PLAN_FORMAT_VERSION,
+        width: request.width,
+        height: request.height,
+        spp: request.spp,
+        camera: scene.camera,
+        lights: scene.lights.clone(),
+        ambient: scene.ambient,
+        background: scene.background,
+        triangles: scene.mesh.triangle_count() as u64,
+        split_mode: request.mode,
+        splits,
+        spans,
+        cast_tasks,
+        trace_tasks,
+    })
+}

@@ -1,0 +1,337 @@
+//! Record layouts of the shuffle blocks, column-wise (see [`crate::shuffle::columns`]): records
+//! are sorted by their key, the first key column is delta-encoded, floats are byte planes.
+
+use super::PipelineError;
+use crate::shading::SurfacePoint;
+use crate::shuffle::columns::{ColumnError, ColumnReader, ColumnWriter};
+use crate::shuffle::{RecordKind, decode_block, encode_block};
+use crate::triangle::Ray;
+use glam::Vec3;
+
+/// A camera sample's hit with the shading data of its surface. CastMap emits candidates (kind
+/// `CastCandidate`), CastReduce the nearest per sample (kind `Hit`). Key: (pixel, sample).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceHit {
+    pub pixel: u32,
+    pub sample: u32,
+    pub t: f32,
+    /// Global triangle id (scene order).
+    pub triangle: u32,
+    pub surface: SurfacePoint,
+}
+
+/// A shadow segment to test against one split. Key: (pixel, sample, light).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadowQuery {
+    pub pixel: u32,
+    pub sample: u32,
+    pub light: u32,
+    pub ray: Ray,
+    pub t_max: f32,
+}
+
+/// A (pixel, sample, light) whose shadow segment one split blocks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct Occluded {
+    pub pixel: u32,
+    pub sample: u32,
+    pub light: u32,
+}
+
+/// A span's finished pixels: the mean radiance of each and the hit of its sample 0.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PixelBlock {
+    /// First pixel (row-major index) of the span.
+    pub start: u64,
+    pub colours: Vec<[f32; 3]>,
+    /// Triangle id of sample 0, `u32::MAX` on a miss.
+    pub triangles: Vec<u32>,
+    /// Distance of sample 0, `+inf` on a miss.
+    pub ts: Vec<f32>,
+}
+
+fn corrupt(key: &str, e: ColumnError) -> PipelineError {
+    PipelineError::Corrupt(format!("shuffle block {key}: {e}"))
+}
+
+fn put_vec3s(w: &mut ColumnWriter, values: impl Iterator<Item = Vec3> + Clone) {
+    for axis in 0..3 {
+        w.put_f32(&values.clone().map(|v| v[axis]).collect::<Vec<_>>());
+    }
+}
+
+/// Reads three f32 columns of `n` values each as vectors.
+fn read_vec3s(r: &mut ColumnReader, n: usize, key: &str) -> Result<Vec<Vec3>, PipelineError> {
+    let mut axes = Vec::with_capacity(3);
+    for axis in ["x", "y", "z"] {
+        let values = r.read_f32().map_err(|e| corrupt(key, e))?;
+        check_len(key, axis, values.len(), n)?;
+        axes.push(values);
+    }
+    Ok((0..n)
+        .map(|i| Vec3::new(axes[0][i], axes[1][i], axes[2][i]))
+        .collect())
+}
+
+fn check_len(key: &str, what: &str, found: usize, expected: usize) -> Result<(), PipelineError> {
+    if found == expected {
+        Ok(())
+    } else {
+        Err(PipelineError::Corrupt(format!(
+            "shuffle block {key}: column {what} has {found} values, expected {expected}"
+        )))
+    }
+}
+
+/// Encodes surface hits (sorted by (pixel, sample)) as a block of `kind`.
+pub fn encode_surface_hits(kind: RecordKind, hits: &[SurfaceHit]) -> Vec<u8> {
+    let mut w = ColumnWriter::new();
+    w.put_u32_sorted_delta(&hits.iter().map(|h| h.pixel).collect::<Vec<_>>());
+    w.put_u32(&hits.iter().map(|h| h.sample).collect::<Vec<_>>());
+    w.put_f32(&hits.iter().map(|h| h.t).collect::<Vec<_>>());
+    w.put_u32(&hits.iter().map(|h| h.triangle).collect::<Vec<_>>());
+    let s = hits.iter().map(|h| h.surface);
+    put_vec3s(&mut w, s.clone().map(|s| s.p));
+    put_vec3s(&mut w, s.clone().map(|s| s.p_error));
+    put_vec3s(&mut w, s.clone().map(|s| s.n_geo));
+    put_vec3s(&mut w, s.clone().map(|s| s.n_shade));
+    put_vec3s(&mut w, s.map(|s| Vec3::from(s.kd)));
+    encode_block(kind, hits.len() as u64, w.as_bytes())
+}
+
+/// Decodes a block written by [`encode_surface_hits`]; `raw_len` receives the raw size.
+pub fn decode_surface_hits(
+    key: &str,
+    bytes: &[u8],
+    kind: RecordKind,
+) -> Result<(Vec<SurfaceHit>, u64), PipelineError> {
+    let block =
+        decode_block(key, bytes, kind).map_err(|e| PipelineError::Corrupt(e.to_string()))?;
+    let mut r = ColumnReader::new(&block.raw);
+    let c = |e| corrupt(key, e);
+    let pixels = r.read_u32_sorted_delta().map_err(c)?;
+    let n = pixels.len();
+    check_len(key, "pixel", n, block.record_count as usize)?;
+    let samples = r.read_u32().map_err(c)?;
+    let ts = r.read_f32().map_err(c)?;
+    let triangles = r.read_u32().map_err(c)?;
+    check_len(key, "sample", samples.len(), n)?;
+    check_len(key, "t", ts.len(), n)?;
+    check_len(key, "triangle", triangles.len(), n)?;
+    let p = read_vec3s(&mut r, n, key)?;
+    let p_error = read_vec3s(&mut r, n, key)?;
+    let n_geo = read_vec3s(&mut r, n, key)?;
+    let n_shade = read_vec3s(&mut r, n, key)?;
+    let kd = read_vec3s(&mut r, n, key)?;
+    r.finish().map_err(c)?;
+    let hits = (0..n)
+        .map(|i| SurfaceHit {
+            pixel: pixels[i],
+            sample: samples[i],
+            t: ts[i],
+            triangle: triangles[i],
+            surface: SurfacePoint {
+                p: p[i],
+                p_error: p_error[i],
+                n_geo: n_geo[i],
+                n_shade: n_shade[i],
+                kd: kd[i].to_array(),
+            },
+        })
+        .collect();
+    Ok((hits, block.raw.len() as u64))
+}
+
+/// Encodes shadow queries (sorted by (pixel, sample, light)).
+pub fn encode_queries(queries: &[ShadowQuery]) -> Vec<u8> {
+    let mut w = ColumnWriter::new();
+    w.put_u32_sorted_delta(&queries.iter().map(|q| q.pixel).collect::<Vec<_>>());
+    w.put_u32(&queries.iter().map(|q| q.sample).collect::<Vec<_>>());
+    w.put_u32(&queries.iter().map(|q| q.light).collect::<Vec<_>>());
+    put_vec3s(&mut w, queries.iter().map(|q| q.ray.origin));
+    put_vec3s(&mut w, queries.iter().map(|q| q.ray.dir));
+    w.put_f32(&queries.iter().map(|q| q.t_max).collect::<Vec<_>>());
+    encode_block(RecordKind::ShadowQuery, queries.len() as u64, w.as_bytes())
+}
+
+/// Decodes a block written by [`encode_queries`].
+pub fn decode_queries(key: &str, bytes: &[u8]) -> Result<(Vec<ShadowQuery>, u64), PipelineError> {
+    let block = decode_block(key, bytes, RecordKind::ShadowQuery)
+        .map_err(|e| PipelineError::Corrupt(e.to_string()))?;
+    let mut r = ColumnReader::new(&block.raw);
+    let c = |e| corrupt(key, e);
+    let pixels = r.read_u32_sorted_delta().map_err(c)?;
+    let n = pixels.len();
+    check_len(key, "pixel", n, block.record_count as usize)?;
+    let samples = r.read_u32().map_err(c)?;
+    let lights = r.read_u32().map_err(c)?;
+    check_len(key, "sample", samples.len(), n)?;
+    check_len(key, "light", lights.len(), n)?;
+    let origins = read_vec3s(&mut r, n, key)?;
+    let dirs = read_vec3s(&mut r, n, key)?;
+    let t_max = r.read_f32().map_err(c)?;
+    check_len(key, "t_max", t_max.len(), n)?;
+    r.finish().map_err(c)?;
+    let queries = (0..n)
+        .map(|i| ShadowQuery {
+            pixel: pixels[i],
+            sample: samples[i],
+            light: lights[i],
+            ray: Ray {
+                origin: origins[i],
+                dir: dirs[i],
+            },
+            t_max: t_max[i],
+        })
+        .collect();
+    Ok((queries, block.raw.len() as u64))
+}
+
+/// Encodes occluded keys (sorted).
+pub fn encode_occluded(keys: &[Occluded]) -> Vec<u8> {
+    let mut w = ColumnWriter::new();
+    w.put_u32_sorted_delta(&keys.iter().map(|k| k.pixel).collect::<Vec<_>>());
+    w.put_u32(&keys.iter().map(|k| k.sample).collect::<Vec<_>>());
+    w.put_u32(&keys.iter().map(|k| k.light).collect::<Vec<_>>());
+    encode_block(RecordKind::ShadowResult, keys.len() as u64, w.as_bytes())
+}
+
+/// Decodes a block written by [`encode_occluded`].
+pub fn decode_occluded(key: &str, bytes: &[u8]) -> Result<(Vec<Occluded>, u64), PipelineError> {
+    let block = decode_block(key, bytes, RecordKind::ShadowResult)
+        .map_err(|e| PipelineError::Corrupt(e.to_string()))?;
+    let mut r = ColumnReader::new(&block.raw);
+    let c = |e| corrupt(key, e);
+    let pixels = r.read_u32_sorted_delta().map_err(c)?;
+    let n = pixels.len();
+    check_len(key, "pixel", n, block.record_count as usize)?;
+    let samples = r.read_u32().map_err(c)?;
+    let lights = r.read_u32().map_err(c)?;
+    check_len(key, "sample", samples.len(), n)?;
+    check_len(key, "light", lights.len(), n)?;
+    r.finish().map_err(c)?;
+    let keys = (0..n)
+        .map(|i| Occluded {
+            pixel: pixels[i],
+            sample: samples[i],
+            light: lights[i],
+        })
+        .collect();
+    Ok((keys, block.raw.len() as u64))
+}
+
+/// Encodes a span's pixels.
+pub fn encode_pixels(block: &PixelBlock) -> Vec<u8> {
+    let mut w = ColumnWriter::new();
+    w.put_u32(&[(block.start >> 32) as u32, block.start as u32]);
+    put_vec3s(&mut w, block.colours.iter().map(|c| Vec3::from(*c)));
+    w.put_u32(&block.triangles);
+    w.put_f32(&block.ts);
+    encode_block(
+        RecordKind::PixelColor,
+        block.colours.len() as u64,
+        w.as_bytes(),
+    )
+}
+
+/// Decodes a block written by [`encode_pixels`].
+pub fn decode_pixels(key: &str, bytes: &[u8]) -> Result<(PixelBlock, u64), PipelineError> {
+    let block = decode_block(key, bytes, RecordKind::PixelColor)
+        .map_err(|e| PipelineError::Corrupt(e.to_string()))?;
+    let mut r = ColumnReader::new(&block.raw);
+    let c = |e| corrupt(key, e);
+    let start = r.read_u32().map_err(c)?;
+    check_len(key, "start", start.len(), 2)?;
+    let n = block.record_count as usize;
+    let colours = read_vec3s(&mut r, n, key)?;
+    let triangles = r.read_u32().map_err(c)?;
+    let ts = r.read_f32().map_err(c)?;
+    check_len(key, "triangle", triangles.len(), n)?;
+    check_len(key, "t", ts.len(), n)?;
+    r.finish().map_err(c)?;
+    Ok((
+        PixelBlock {
+            start: (u64::from(start[0]) << 32) | u64::from(start[1]),
+            colours: colours.into_iter().map(|v| v.to_array()).collect(),
+            triangles,
+            ts,
+        },
+        block.raw.len() as u64,
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn surface(i: u32) -> SurfacePoint {
+        let f = i as f32;
+        SurfacePoint {
+            p: Vec3::new(f, 2.0 * f, -f),
+            p_error: Vec3::splat(1e-6 * f),
+            n_geo: Vec3::Y,
+            n_shade: Vec3::new(0.0, 0.6, 0.8),
+            kd: [0.7, 0.5, f / 100.0],
+        }
+    }
+
+    #[test]
+    fn all_record_kinds_round_trip_bit_exactly() {
+        let hits: Vec<SurfaceHit> = (0..50)
+            .map(|i| SurfaceHit {
+                pixel: i * 3,
+                sample: i % 4,
+                t: 1.0 + i as f32 / 7.0,
+                triangle: 1000 - i,
+                surface: surface(i),
+            })
+            .collect();
+        let bytes = encode_surface_hits(RecordKind::Hit, &hits);
+        assert_eq!(
+            decode_surface_hits("k", &bytes, RecordKind::Hit).unwrap().0,
+            hits
+        );
+        let e = decode_surface_hits("k", &bytes, RecordKind::CastCandidate).unwrap_err();
+        assert!(e.to_string().contains("k"));
+
+        let queries: Vec<ShadowQuery> = (0..20)
+            .map(|i| ShadowQuery {
+                pixel: i,
+                sample: 0,
+                light: i % 2,
+                ray: Ray {
+                    origin: Vec3::splat(i as f32),
+                    dir: Vec3::X,
+                },
+                t_max: 0.9999,
+            })
+            .collect();
+        assert_eq!(
+            decode_queries("k", &encode_queries(&queries)).unwrap().0,
+            queries
+        );
+
+        let occluded: Vec<Occluded> = (0..30)
+            .map(|i| Occluded {
+                pixel: i / 2,
+                sample: i % 2,
+                light: 0,
+            })
+            .collect();
+        assert_eq!(
+            decode_occluded("k", &encode_occluded(&occluded)).unwrap().0,
+            occluded
+        );
+
+        let pixels = PixelBlock {
+            start: (1 << 33) + 5,
+            colours: vec![[0.1, 0.2, 0.3], [1.0, 0.0, f32::MIN_POSITIVE]],
+            triangles: vec![7, u32::MAX],
+            ts: vec![2.5, f32::INFINITY],
+        };
+        assert_eq!(
+            decode_pixels("k", &encode_pixels(&pixels)).unwrap().0,
+            pixels
+        );
+    }
+}

@@ -1,0 +1,293 @@
+//! Running one stage task over a [`BlobStore`]: read the inputs named by the plan, call the
+//! stage function, write the outputs with plain PUTs (same bytes on every attempt).
+//!
+//! Lineage: when an input shuffle block is missing or corrupt, the task recomputes it by running
+//! its producer task (a pure function of the producer's own inputs), which rewrites it, and goes
+//! on; [`TaskMetrics::recomputed`] counts these. Split objects come from the plan step and are
+//! not recomputed.
+
+use super::PipelineError;
+use super::plan::JobPlan;
+use super::records::{
+    decode_occluded, decode_pixels, decode_queries, decode_surface_hits, encode_occluded,
+    encode_pixels, encode_queries, encode_surface_hits,
+};
+use super::split_object::{SplitObject, decode_split};
+use super::stages;
+use crate::hits::encode_hits;
+use crate::ids::{JobId, PartitionId, SplitId, Stage, TaskId};
+use crate::image::{encode_pfm, encode_png};
+use crate::keys::{hits_key, image_key_with_ext, parse_partition_key, partition_key, split_key};
+use crate::shuffle::RecordKind;
+use crate::store::BlobStore;
+
+/// What one task did, for the stage metrics of the report.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TaskMetrics {
+    /// Bytes fetched from storage (compressed), split objects included.
+    pub bytes_read: u64,
+    /// Of `bytes_read`, bytes of split objects.
+    pub split_bytes_read: u64,
+    /// Bytes stored (compressed).
+    pub bytes_written: u64,
+    /// Bytes of the records before compression.
+    pub bytes_written_raw: u64,
+    /// Records written.
+    pub records: u64,
+    /// Input blocks recomputed from their lineage.
+    pub recomputed: u64,
+    /// Logical shadow rays (hit samples x lights), counted by TraceReduce.
+    pub shadow_rays: u64,
+    /// Whether a map task found no work and skipped loading its split.
+    pub skipped: bool,
+}
+
+impl std::ops::AddAssign for TaskMetrics {
+    fn add_assign(&mut self, o: TaskMetrics) {
+        self.bytes_read += o.bytes_read;
+        self.split_bytes_read += o.split_bytes_read;
+        self.bytes_written += o.bytes_written;
+        self.bytes_written_raw += o.bytes_written_raw;
+        self.records += o.records;
+        self.recomputed += o.recomputed;
+        self.shadow_rays += o.shadow_rays;
+        self.skipped |= o.skipped;
+    }
+}
+
+/// The task that writes partition `key`, if it is a shuffle partition of this job.
+pub fn producer_of(key: &str) -> Option<(Stage, u32)> {
+    parse_partition_key(key).map(|(_, stage, task, _)| (stage, task.0))
+}
+
+/// Runs task `task` of `stage` for `job` and writes its outputs.
+pub fn run_task(
+    store: &dyn BlobStore,
+    job: &JobId,
+    plan: &JobPlan,
+    stage: Stage,
+    task: u32,
+) -> Result<TaskMetrics, PipelineError> {
+    let mut ctx = Task {
+        store,
+        job,
+        plan,
+        metrics: TaskMetrics::default(),
+        depth: 0,
+    };
+    ctx.run(stage, task)?;
+    Ok(ctx.metrics)
+}
+
+struct Task<'a> {
+    store: &'a dyn BlobStore,
+    job: &'a JobId,
+    plan: &'a JobPlan,
+    metrics: TaskMetrics,
+    /// Nesting of lineage recomputation (bounded by the stage chain).
+    depth: u32,
+}
+
+impl Task<'_> {
+    fn run(&mut self, stage: Stage, task: u32) -> Result<(), PipelineError> {
+        let plan = self.plan;
+        let missing = |what: &str| {
+            PipelineError::BadInput(format!(
+                "{stage} task {task} does not exist in the plan ({what})"
+            ))
+        };
+        match stage {
+            Stage::CastMap => {
+                let t = *plan
+                    .cast_tasks
+                    .get(task as usize)
+                    .ok_or_else(|| missing("cast tasks"))?;
+                let span = plan.spans[t.span as usize];
+                let split = self.read_split(t.split)?;
+                let hits = stages::cast_map(plan, &span, &split)?;
+                self.write_hits(stage, task, t.span, RecordKind::CastCandidate, &hits)
+            }
+            Stage::CastReduce => {
+                let span = *plan
+                    .spans
+                    .get(task as usize)
+                    .ok_or_else(|| missing("spans"))?;
+                let mut inputs = Vec::new();
+                for t in plan.cast_tasks_of(task) {
+                    let key = self.key(Stage::CastMap, t.task, task);
+                    inputs.push(self.read(&key, |k, b| {
+                        decode_surface_hits(k, b, RecordKind::CastCandidate)
+                    })?);
+                }
+                let hits = stages::cast_reduce(inputs);
+                debug_assert!(
+                    hits.iter()
+                        .all(|h| u64::from(h.pixel) >= span.start && u64::from(h.pixel) < span.end)
+                );
+                self.write_hits(stage, task, 0, RecordKind::Hit, &hits)
+            }
+            Stage::Expand => {
+                plan.spans
+                    .get(task as usize)
+                    .ok_or_else(|| missing("spans"))?;
+                let hits = self.read_span_hits(task)?;
+                for (split, queries) in stages::expand(plan, &hits).iter().enumerate() {
+                    let raw = encode_queries(queries);
+                    self.write(&self.key(stage, task, split as u32), raw, queries.len())?;
+                }
+                Ok(())
+            }
+            Stage::TraceMap => {
+                let t = *plan
+                    .trace_tasks
+                    .get(task as usize)
+                    .ok_or_else(|| missing("trace tasks"))?;
+                let key = self.key(Stage::Expand, t.span, t.split);
+                let queries = self.read(&key, decode_queries)?;
+                let occluded = if queries.is_empty() {
+                    self.metrics.skipped = true;
+                    Vec::new()
+                } else {
+                    let split = self.read_split(t.split)?;
+                    stages::trace_map(&split, &queries)
+                };
+                let bytes = encode_occluded(&occluded);
+                self.write(&self.key(stage, task, t.span), bytes, occluded.len())
+            }
+            Stage::TraceReduce => {
+                let span = *plan
+                    .spans
+                    .get(task as usize)
+                    .ok_or_else(|| missing("spans"))?;
+                let hits = self.read_span_hits(task)?;
+                let mut occluded = Vec::new();
+                for split in 0..plan.k() {
+                    let key = self.key(Stage::TraceMap, plan.trace_task_id(task, split), task);
+                    occluded.push(self.read(&key, decode_occluded)?);
+                }
+                self.metrics.shadow_rays += hits.len() as u64 * plan.lights.len() as u64;
+                let block = stages::trace_reduce(plan, &span, &hits, occluded);
+                let n = block.colours.len();
+                self.write(&self.key(stage, task, 0), encode_pixels(&block), n)
+            }
+            Stage::Combine => {
+                let mut blocks = Vec::with_capacity(plan.spans.len());
+                for (i, span) in plan.spans.iter().enumerate() {
+                    let key = self.key(Stage::TraceReduce, i as u32, 0);
+                    let block = self.read(&key, decode_pixels)?;
+                    if block.start != span.start
+                        || block.colours.len() as u64 != span.end - span.start
+                    {
+                        return Err(PipelineError::Corrupt(format!(
+                            "shuffle block {key}: holds pixels {}..{}, the plan's span is {}..{}",
+                            block.start,
+                            block.start + block.colours.len() as u64,
+                            span.start,
+                            span.end
+                        )));
+                    }
+                    blocks.push(block);
+                }
+                let (image, hits) = stages::combine(plan, &blocks);
+                let png = encode_png(&image).map_err(|e| PipelineError::BadInput(e.to_string()))?;
+                self.put_output(&image_key_with_ext(self.job, "png"), png)?;
+                self.put_output(&image_key_with_ext(self.job, "pfm"), encode_pfm(&image))?;
+                self.put_output(&hits_key(self.job), encode_hits(&hits))?;
+                self.metrics.records += hits.len() as u64;
+                Ok(())
+            }
+            Stage::Split => Err(PipelineError::BadInput(
+                "the split stage runs in the plan step, not as a task".into(),
+            )),
+        }
+    }
+
+    fn key(&self, stage: Stage, task: u32, partition: u32) -> String {
+        partition_key(self.job, stage, TaskId(task), PartitionId(partition))
+    }
+
+    fn read_split(&mut self, split: u32) -> Result<SplitObject, PipelineError> {
+        let key = split_key(self.job, SplitId(split));
+        let bytes = self.store.get(&key)?;
+        self.metrics.bytes_read += bytes.len() as u64;
+        self.metrics.split_bytes_read += bytes.len() as u64;
+        decode_split(&key, &bytes)
+    }
+
+    fn read_span_hits(&mut self, span: u32) -> Result<Vec<super::SurfaceHit>, PipelineError> {
+        let key = self.key(Stage::CastReduce, span, 0);
+        self.read(&key, |k, b| decode_surface_hits(k, b, RecordKind::Hit))
+    }
+
+    /// Reads and decodes a shuffle block; recomputes it from its producer once when it is
+    /// missing or corrupt.
+    fn read<T>(
+        &mut self,
+        key: &str,
+        decode: impl Fn(&str, &[u8]) -> Result<(T, u64), PipelineError>,
+    ) -> Result<T, PipelineError> {
+        let first = self
+            .store
+            .get(key)
+            .map_err(PipelineError::from)
+            .and_then(|bytes| {
+                self.metrics.bytes_read += bytes.len() as u64;
+                decode(key, &bytes)
+            });
+        let lost = match &first {
+            Err(PipelineError::Store(e)) => e.is_not_found(),
+            Err(PipelineError::Corrupt(_)) => true,
+            _ => false,
+        };
+        if !lost {
+            return first.map(|(value, _)| value);
+        }
+        let Some((stage, task)) = producer_of(key) else {
+            return first.map(|(value, _)| value);
+        };
+        if self.depth >= 8 {
+            return first.map(|(value, _)| value);
+        }
+        self.depth += 1;
+        let result = self.run(stage, task);
+        self.depth -= 1;
+        result?;
+        self.metrics.recomputed += 1;
+        let bytes = self.store.get(key)?;
+        self.metrics.bytes_read += bytes.len() as u64;
+        decode(key, &bytes).map(|(value, _)| value)
+    }
+
+    fn write_hits(
+        &mut self,
+        stage: Stage,
+        task: u32,
+        partition: u32,
+        kind: RecordKind,
+        hits: &[super::SurfaceHit],
+    ) -> Result<(), PipelineError> {
+        let bytes = encode_surface_hits(kind, hits);
+        self.write(&self.key(stage, task, partition), bytes, hits.len())
+    }
+
+    fn write(&mut self, key: &str, block: Vec<u8>, records: usize) -> Result<(), PipelineError> {
+        let raw_len = raw_length(&block);
+        self.metrics.bytes_written_raw += raw_len;
+        self.metrics.records += records as u64;
+        self.put_output(key, block)
+    }
+
+    fn put_output(&mut self, key: &str, bytes: Vec<u8>) -> Result<(), PipelineError> {
+        self.metrics.bytes_written += bytes.len() as u64;
+        self.store.put(key, &bytes)?;
+        Ok(())
+    }
+}
+
+/// The raw (uncompressed) length recorded at bytes 20..28 of a block header we just encoded.
+fn raw_length(block: &[u8]) -> u64 {
+    block
+        .get(20..28)
+        .and_then(|b| b.try_into().ok())
+        .map_or(0, u64::from_le_bytes)
+}

@@ -1,0 +1,201 @@
+//! Cutting a scene into k splits: HORT's naive even index ranges, or spatial clusters (Morton
+//! order of triangle centroids cut into k equal runs: balanced to within one triangle, compact
+//! boxes). The splitter holds the parsed mesh and one split's buffers at a time; it never builds
+//! acceleration data for the whole scene.
+
+use super::split_object::{SplitObject, TriangleShading, encode_split};
+use crate::bvh::Bvh;
+use crate::render::shading_of;
+use crate::scene::Mesh;
+use serde::{Deserialize, Serialize};
+
+/// How triangles are grouped into splits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SplitMode {
+    /// The paper's splitter: k even ranges of scene order, no regard for position.
+    Naive,
+    /// Spatially compact clusters, so stages can skip (span, split) pairs that cannot meet.
+    Spatial,
+}
+
+impl std::str::FromStr for SplitMode {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "naive" => Ok(SplitMode::Naive),
+            "spatial" => Ok(SplitMode::Spatial),
+            other => Err(format!(
+                "unknown split mode \"{other}\": use spatial or naive"
+            )),
+        }
+    }
+}
+
+/// The global triangle ids of each of the `k` splits (`1 <= k <= triangles`), ascending within a
+/// split. Every triangle is in exactly one split; split sizes differ by at most one.
+pub fn assign_splits(mesh: &Mesh, k: usize, mode: SplitMode) -> Vec<Vec<u32>> {
+    let n = mesh.triangle_count();
+    let order: Vec<u32> = match mode {
+        SplitMode::Naive => (0..n as u32).collect(),
+        SplitMode::Spatial => morton_order(mesh),
+    };
+    (0..k)
+        .map(|i| {
+            let mut ids = order[i * n / k..(i + 1) * n / k].to_vec();
+            ids.sort_unstable();
+            ids
+        })
+        .collect()
+}
+
+/// Triangle ids sorted by the 63-bit Morton code of their centroid (ties by id).
+fn morton_order(mesh: &Mesh) -> Vec<u32> {
+    let centroid = |i: usize| {
+        let [a, b, c] = mesh.corners(i);
+        (a.as_dvec3() + b.as_dvec3() + c.as_dvec3()) / 3.0
+    };
+    let n = mesh.triangle_count();
+    let (mut lo, mut hi) = (
+        glam::DVec3::splat(f64::INFINITY),
+        glam::DVec3::splat(f64::NEG_INFINITY),
+    );
+    for i in 0..n {
+        let c = centroid(i);
+        lo = lo.min(c);
+        hi = hi.max(c);
+    }
+    let extent = (hi - lo).max(glam::DVec3::splat(f64::MIN_POSITIVE));
+    let scale = f64::from((1u32 << 21) - 1);
+    let mut keyed: Vec<(u64, u32)> = (0..n)
+        .map(|i| {
+            let q = ((centroid(i) - lo) / extent * scale).round();
+            let code = spread(q.x as u64) | (spread(q.y as u64) << 1) | (spread(q.z as u64) << 2);
+            (code, i as u32)
+        })
+        .collect();
+    keyed.sort_unstable();
+    keyed.into_iter().map(|(_, i)| i).collect()
+}
+
+/// Spreads the low 21 bits of `v` to every third bit.
+fn spread(v: u64) -> u64 {
+    let mut x = v & 0x1f_ffff;
+    x = (x | (x << 32)) & 0x001f_0000_0000_ffff;
+    x = (x | (x << 16)) & 0x001f_0000_ff00_00ff;
+    x = (x | (x << 8)) & 0x100f_00f0_0f00_f00f;
+    x = (x | (x << 4)) & 0x10c3_0c30_c30c_30c3;
+    x = (x | (x << 2)) & 0x1249_2492_4924_9249;
+    x
+}
+
+/// Builds each split (triangles, shading, BVH) one at a time and hands its encoded bytes to
+/// `emit` before building the next, so only one split's buffers are alive at once. Returns the
+/// decoded-side summary of each split (bounds, triangle count, encoded size).
+pub fn split_scene<E>(
+    mesh: &Mesh,
+    k: usize,
+    mode: SplitMode,
+    mut emit: impl FnMut(u32, Vec<u8>) -> Result<(), E>,
+) -> Result<Vec<super::SplitInfo>, E> {
+    let mut infos = Vec::with_capacity(k);
+    for (split, ids) in assign_splits(mesh, k, mode).into_iter().enumerate() {
+        let triangles = ids.iter().map(|&i| mesh.corners(i as usize)).collect();
+        let bvh = Bvh::build(triangles, ids);
+        let shading = bvh
+            .parts()
+            .2
+            .iter()
+            .map(|&id| {
+                let (normals, kd) = shading_of(mesh, id);
+                TriangleShading { normals, kd }
+            })
+            .collect();
+        let object = SplitObject {
+            split: split as u32,
+            bvh,
+            shading,
+        };
+        let bounds = object.bvh.bounds();
+        let triangles = object.bvh.triangle_count() as u64;
+        let bytes = encode_split(&object);
+        infos.push(super::SplitInfo {
+            id: split as u32,
+            triangles,
+            lo: bounds.lo.to_array(),
+            hi: bounds.hi.to_array(),
+            bytes: bytes.len() as u64,
+        });
+        drop(object);
+        emit(split as u32, bytes)?;
+    }
+    Ok(infos)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    fn grid_mesh(n: usize) -> Mesh {
+        let mut mesh = Mesh::default();
+        mesh.materials.push(crate::scene::Material {
+            name: "default".into(),
+            kd: [0.7; 3],
+        });
+        for i in 0..n {
+            let x = ((i * 7919) % n) as f32;
+            let base = mesh.positions.len() as u32;
+            mesh.positions.extend([
+                Vec3::new(x, 0.0, 0.0),
+                Vec3::new(x + 1.0, 0.0, 0.0),
+                Vec3::new(x, 1.0, 0.0),
+            ]);
+            mesh.triangles.push([base, base + 1, base + 2]);
+            mesh.triangle_normals.push([crate::scene::NO_NORMAL; 3]);
+            mesh.triangle_materials.push(0);
+        }
+        mesh
+    }
+
+    #[test]
+    fn every_triangle_lands_in_exactly_one_balanced_split() {
+        let mesh = grid_mesh(1003);
+        for mode in [SplitMode::Naive, SplitMode::Spatial] {
+            for k in [1, 2, 3, 7, 16] {
+                let splits = assign_splits(&mesh, k, mode);
+                assert_eq!(splits.len(), k);
+                let mut all: Vec<u32> = splits.iter().flatten().copied().collect();
+                all.sort_unstable();
+                assert_eq!(all, (0..1003).collect::<Vec<_>>());
+                let (min, max) = (
+                    splits.iter().map(Vec::len).min().unwrap(),
+                    splits.iter().map(Vec::len).max().unwrap(),
+                );
+                assert!(max - min <= 1, "{mode:?} k={k}: {min}..{max}");
+            }
+        }
+    }
+
+    #[test]
+    fn naive_splits_are_index_ranges_and_spatial_ones_are_compact() {
+        let mesh = grid_mesh(1000);
+        assert_eq!(
+            assign_splits(&mesh, 4, SplitMode::Naive)[1],
+            (250..500).collect::<Vec<_>>()
+        );
+        // Spatial: each split covers a contiguous x range, a quarter of the width.
+        for ids in assign_splits(&mesh, 4, SplitMode::Spatial) {
+            let xs: Vec<f32> = ids.iter().map(|&i| mesh.corners(i as usize)[0].x).collect();
+            let span = xs.iter().cloned().fold(f32::MIN, f32::max)
+                - xs.iter().cloned().fold(f32::MAX, f32::min);
+            assert!(span < 260.0, "split spans {span} of 1000");
+        }
+    }
+
+    #[test]
+    fn morton_spread_interleaves() {
+        assert_eq!(spread(0b11), 0b1001);
+        assert_eq!(spread(0x1f_ffff).count_ones(), 21);
+    }
+}

@@ -1,0 +1,181 @@
+//! The stage functions: pure, deterministic transformations of decoded records. The runner
+//! (`runner.rs`) moves their inputs and outputs through storage.
+
+use super::plan::{JobPlan, Span};
+use super::records::{Occluded, PixelBlock, ShadowQuery, SurfaceHit};
+use super::split::SplitMode;
+use super::split_object::SplitObject;
+use crate::bvh::segment_may_hit;
+use crate::camera::Camera;
+use crate::error::SceneError;
+use crate::hits::Hit;
+use crate::image::Image;
+use crate::sampling::sample_offset;
+use crate::shading::{combine as combine_light, shadow_test, surface_point};
+
+/// CastMap: every camera sample of `span` against one split; the split's nearest hit of each
+/// sample that hits it, sorted by (pixel, sample).
+pub fn cast_map(
+    plan: &JobPlan,
+    span: &Span,
+    split: &SplitObject,
+) -> Result<Vec<SurfaceHit>, SceneError> {
+    let camera = Camera::new(&plan.camera, plan.width, plan.height)?;
+    let width = u64::from(plan.width);
+    let mut out = Vec::new();
+    for pixel in span.start..span.end {
+        let (x, y) = ((pixel % width) as f64, (pixel / width) as f64);
+        for sample in 0..plan.spp {
+            let (ox, oy) = sample_offset(pixel, sample, plan.spp);
+            let ray = camera.ray(x + ox, y + oy);
+            let Some(hit) = split.bvh.closest_hit(&ray) else {
+                continue;
+            };
+            let shading = split.shading[hit.index as usize];
+            out.push(SurfaceHit {
+                pixel: pixel as u32,
+                sample,
+                t: hit.t,
+                triangle: hit.id,
+                surface: surface_point(hit.corners, hit.b, ray.dir, shading.normals, shading.kd),
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// CastReduce: the nearest candidate per (pixel, sample): smaller t, then smaller triangle id.
+/// The result does not depend on the order or grouping of the inputs.
+pub fn cast_reduce(inputs: Vec<Vec<SurfaceHit>>) -> Vec<SurfaceHit> {
+    let mut all: Vec<SurfaceHit> = inputs.into_iter().flatten().collect();
+    all.sort_unstable_by(|a, b| {
+        (a.pixel, a.sample)
+            .cmp(&(b.pixel, b.sample))
+            .then(a.t.total_cmp(&b.t))
+            .then(a.triangle.cmp(&b.triangle))
+    });
+    all.dedup_by_key(|h| (h.pixel, h.sample));
+    all
+}
+
+/// Expand: for each hit and light whose light can reach it, the shadow segment, routed to every
+/// split (naive mode, as HORT) or only to splits whose box the segment can meet (spatial mode).
+/// Returns one sorted query list per split.
+pub fn expand(plan: &JobPlan, hits: &[SurfaceHit]) -> Vec<Vec<ShadowQuery>> {
+    let boxes: Vec<_> = plan.splits.iter().map(|s| s.bounds()).collect();
+    let mut out = vec![Vec::new(); boxes.len()];
+    for hit in hits {
+        for (light_index, light) in plan.lights.iter().enumerate() {
+            let Some(test) = shadow_test(&hit.surface, light) else {
+                continue;
+            };
+            let query = ShadowQuery {
+                pixel: hit.pixel,
+                sample: hit.sample,
+                light: light_index as u32,
+                ray: test.ray,
+                t_max: test.t_max,
+            };
+            for (split, b) in boxes.iter().enumerate() {
+                if plan.split_mode == SplitMode::Naive
+                    || segment_may_hit(b, &query.ray, query.t_max)
+                {
+                    out[split].push(query);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// TraceMap: the queries this split blocks, in input order (so sorted when the input is).
+pub fn trace_map(split: &SplitObject, queries: &[ShadowQuery]) -> Vec<Occluded> {
+    queries
+        .iter()
+        .filter(|q| split.bvh.occluded(&q.ray, q.t_max))
+        .map(|q| Occluded {
+            pixel: q.pixel,
+            sample: q.sample,
+            light: q.light,
+        })
+        .collect()
+}
+
+/// TraceReduce: shades every sample of `span` (a light counts unless some split blocks it:
+/// the darkest contribution wins), averages each pixel's samples, and keeps sample 0's hit.
+/// `hits` must be sorted by (pixel, sample) as CastReduce writes them.
+pub fn trace_reduce(
+    plan: &JobPlan,
+    span: &Span,
+    hits: &[SurfaceHit],
+    occluded: Vec<Vec<Occluded>>,
+) -> PixelBlock {
+    let mut blocked: Vec<Occluded> = occluded.into_iter().flatten().collect();
+    blocked.sort_unstable();
+    blocked.dedup();
+    let n = (span.end - span.start) as usize;
+    let mut block = PixelBlock {
+        start: span.start,
+        colours: Vec::with_capacity(n),
+        triangles: Vec::with_capacity(n),
+        ts: Vec::with_capacity(n),
+    };
+    let mut next_hit = hits.iter().peekable();
+    for pixel in span.start..span.end {
+        let pixel = pixel as u32;
+        let mut sum = [0.0f32; 3];
+        let mut first = Hit::MISS;
+        for sample in 0..plan.spp {
+            let hit = next_hit.next_if(|h| h.pixel == pixel && h.sample == sample);
+            let colour = match hit {
+                None => plan.background,
+                Some(h) => {
+                    if sample == 0 {
+                        first = Hit {
+                            triangle: h.triangle,
+                            t: h.t,
+                        };
+                    }
+                    let contributions = plan.lights.iter().enumerate().filter_map(|(l, light)| {
+                        let test = shadow_test(&h.surface, light)?;
+                        let key = Occluded {
+                            pixel,
+                            sample,
+                            light: l as u32,
+                        };
+                        blocked
+                            .binary_search(&key)
+                            .is_err()
+                            .then_some(test.unoccluded)
+                    });
+                    combine_light(h.surface.kd, contributions, plan.ambient)
+                }
+            };
+            for k in 0..3 {
+                sum[k] += colour[k];
+            }
+        }
+        let spp = plan.spp as f32;
+        block.colours.push(sum.map(|v| v / spp));
+        block.triangles.push(first.triangle);
+        block.ts.push(first.t);
+    }
+    block
+}
+
+/// Combine: the image and the hit buffer from every span's pixels (in any order).
+pub fn combine(plan: &JobPlan, blocks: &[PixelBlock]) -> (Image, Vec<Hit>) {
+    let mut image = Image::new(plan.width, plan.height);
+    let mut hits = vec![Hit::MISS; plan.width as usize * plan.height as usize];
+    for b in blocks {
+        let start = b.start as usize;
+        for (i, colour) in b.colours.iter().enumerate() {
+            image.pixels[start + i] = *colour;
+            hits[start + i] = Hit {
+                triangle: b.triangles[i],
+                t: b.ts[i],
+            };
+        }
+    }
+    (image, hits)
+}

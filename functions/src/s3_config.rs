@@ -1,0 +1,118 @@
+//! Where and how [`crate::S3Store`] reaches S3: endpoint, bucket, region, credentials, timeouts.
+
+use std::fmt;
+use std::time::Duration;
+
+/// Default time to open a TCP (and TLS) connection.
+pub const DEFAULT_CONNECT_TIMEOUT: Duration = Duration::from_secs(3);
+/// Default time for one attempt of one request, body transfer included.
+pub const DEFAULT_ATTEMPT_TIMEOUT: Duration = Duration::from_secs(30);
+/// Default number of attempts per request (the first try plus retries), SDK standard mode.
+pub const DEFAULT_MAX_ATTEMPTS: u32 = 3;
+
+/// Where credentials come from.
+#[derive(Clone, PartialEq, Eq)]
+pub enum S3Credentials {
+    /// A fixed access key pair (local servers, tests).
+    Static {
+        /// The access key id.
+        access_key: String,
+        /// The secret access key; never printed by `Debug`.
+        secret_key: String,
+    },
+    /// The AWS SDK's default chain: environment variables (`AWS_ACCESS_KEY_ID`, ... as set on
+    /// Lambda), shared config and credentials files, `credential_process`, web identity, ECS and
+    /// EC2 instance metadata. Resolved lazily and refreshed by the SDK.
+    DefaultChain,
+}
+
+impl fmt::Debug for S3Credentials {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            S3Credentials::Static { access_key, .. } => f
+                .debug_struct("Static")
+                .field("access_key", access_key)
+                .field("secret_key", &"<redacted>")
+                .finish(),
+            S3Credentials::DefaultChain => f.write_str("DefaultChain"),
+        }
+    }
+}
+
+/// Everything needed to open an [`crate::S3Store`] on one bucket.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct S3Config {
+    /// `None`: AWS S3 itself. Otherwise the URL of an S3-compatible server, such as
+    /// `http://127.0.0.1:9000` (no trailing path).
+    pub endpoint: Option<String>,
+    /// The bucket every key lives in.
+    pub bucket: String,
+    /// The signing region; `None` takes it from the SDK's default chain (`AWS_REGION`, as set on
+    /// Lambda, or the profile). S3-compatible servers usually accept `us-east-1`.
+    pub region: Option<String>,
+    /// Where the credentials come from.
+    pub credentials: S3Credentials,
+    /// Address buckets as `ENDPOINT/bucket/key` instead of `bucket.ENDPOINT/key`; needed by
+    /// most servers on an IP address or `localhost`.
+    pub force_path_style: bool,
+    /// Time to open a connection before the attempt fails (retryable).
+    pub connect_timeout: Duration,
+    /// Time one attempt of one request may take, body included, before it fails (retryable).
+    pub attempt_timeout: Duration,
+    /// Attempts per request, at least 1; the SDK retries transient failures (connection errors,
+    /// timeouts, 5xx, throttling) with exponential backoff and jitter in between.
+    pub max_attempts: u32,
+}
+
+impl S3Config {
+    /// AWS S3: default credential chain, virtual-hosted addressing, default timeouts; `region`
+    /// `None` reads it from the environment.
+    pub fn aws(bucket: impl Into<String>, region: Option<String>) -> Self {
+        Self {
+            endpoint: None,
+            bucket: bucket.into(),
+            region,
+            credentials: S3Credentials::DefaultChain,
+            force_path_style: false,
+            connect_timeout: DEFAULT_CONNECT_TIMEOUT,
+            attempt_timeout: DEFAULT_ATTEMPT_TIMEOUT,
+            max_attempts: DEFAULT_MAX_ATTEMPTS,
+        }
+    }
+
+    /// An S3-compatible server at `endpoint` (MinIO, moto, the embedded server) with a static
+    /// key pair, region `us-east-1`, path-style addressing and default timeouts.
+    pub fn compatible(
+        endpoint: impl Into<String>,
+        bucket: impl Into<String>,
+        access_key: impl Into<String>,
+        secret_key: impl Into<String>,
+    ) -> Self {
+        Self {
+            endpoint: Some(endpoint.into()),
+            bucket: bucket.into(),
+            region: Some("us-east-1".to_owned()),
+            credentials: S3Credentials::Static {
+                access_key: access_key.into(),
+                secret_key: secret_key.into(),
+            },
+            force_path_style: true,
+            connect_timeout: DEFAULT_CONNECT_TIMEOUT,
+            attempt_timeout: DEFAULT_ATTEMPT_TIMEOUT,
+            max_attempts: DEFAULT_MAX_ATTEMPTS,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn debug_never_shows_the_secret() {
+        let config = S3Config::compatible("http://127.0.0.1:1", "b", "AKID", "hunter2");
+        let shown = format!("{config:?}");
+        assert!(shown.contains("AKID"), "{shown}");
+        assert!(!shown.contains("hunter2"), "{shown}");
+    }
+}

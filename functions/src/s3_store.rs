@@ -1,0 +1,611 @@
+//! [`S3Store`]: the [`BlobStore`] over AWS S3 or any S3-compatible server, through aws-sdk-s3.
+//!
+//! `BlobStore` is synchronous (the core has no async runtime), so every method blocks the
+//! calling thread on a tokio runtime with `Handle::block_on`. Call the methods from plain
+//! threads or from `tokio::task::spawn_blocking`, never from inside an async task: tokio panics
+//! when a runtime thread blocks on another future ("Cannot start a runtime from within a
+//! runtime"). The runtime must be multi-threaded, since its worker threads drive the sockets
+//! while the caller blocks.
+
+use std::ops::Range;
+
+use aws_config::BehaviorVersion;
+use aws_config::retry::RetryConfig;
+use aws_config::timeout::TimeoutConfig;
+use aws_sdk_s3::Client;
+use aws_sdk_s3::config::{
+    Credentials, Region, RequestChecksumCalculation, ResponseChecksumValidation,
+};
+use aws_sdk_s3::primitives::ByteStream;
+use aws_sdk_s3::types::{BucketLocationConstraint, CreateBucketConfiguration};
+use hort_core::store::{BlobStore, PutOutcome, StoreError};
+use tokio::runtime::{Handle, Runtime, RuntimeFlavor};
+
+use crate::s3_config::{S3Config, S3Credentials};
+use crate::s3_errors::{self, Request, Target};
+
+/// How often `put_if_absent` retries AWS S3's 409 `ConditionalRequestConflict` (another
+/// conditional write to the key was in flight); the retry then sees 412 or succeeds.
+const CONDITIONAL_CONFLICT_ATTEMPTS: u32 = 5;
+
+/// Bodies are preallocated from `Content-Length` up to this size, so a lying server cannot make
+/// the store reserve memory it never fills.
+const MAX_PREALLOCATION: usize = 64 << 20;
+
+/// A [`BlobStore`] on one S3 bucket.
+///
+/// Guarantees the [`BlobStore`] contract (it passes `hort_core::store::conformance`) on AWS S3
+/// and on servers that implement `If-None-Match: *` on PUT atomically; errors are classified
+/// once (see [`crate::s3_errors`]). Objects are sent with one PUT each (S3 caps those at 5 GiB)
+/// and read whole into memory. Each request is retried by the SDK (standard mode,
+/// [`S3Config::max_attempts`] attempts) on connection failures, timeouts, 5xx and throttling
+/// before an error is returned.
+pub struct S3Store {
+    client: Client,
+    target: Target,
+    region: Option<String>,
+    handle: Handle,
+    /// The runtime made by [`S3Store::open`], if this store owns one.
+    runtime: Option<Runtime>,
+}
+
+impl S3Store {
+    /// Builds the S3 client for `config` on the current tokio runtime, which must be
+    /// multi-threaded; fails with [`StoreError::Other`] on a malformed endpoint, a
+    /// current-thread runtime, or no region. Sends no request (see [`S3Store::check_bucket`]).
+    pub async fn connect(config: &S3Config) -> Result<Self, StoreError> {
+        let handle = Handle::current();
+        if handle.runtime_flavor() == RuntimeFlavor::CurrentThread {
+            return Err(StoreError::Other {
+                what: "S3Store needs a multi-threaded tokio runtime (its workers drive the \
+                       sockets while callers block), not a current-thread one"
+                    .to_owned(),
+            });
+        }
+        let endpoint = match &config.endpoint {
+            Some(endpoint) => Some(checked_endpoint(endpoint)?),
+            None => None,
+        };
+        let timeouts = TimeoutConfig::builder()
+            .connect_timeout(config.connect_timeout)
+            .operation_attempt_timeout(config.attempt_timeout)
+            .build();
+        let mut loader = aws_config::defaults(BehaviorVersion::latest())
+            .timeout_config(timeouts)
+            .retry_config(RetryConfig::standard().with_max_attempts(config.max_attempts.max(1)));
+        if let Some(region) = &config.region {
+            loader = loader.region(Region::new(region.clone()));
+        }
+        if let S3Credentials::Static {
+            access_key,
+            secret_key,
+        } = &config.credentials
+        {
+            let credentials = Credentials::new(access_key, secret_key, None, None, "hort-static");
+            loader = loader.credentials_provider(credentials);
+        }
+        if let Some(endpoint) = &endpoint {
+            loader = loader.endpoint_url(endpoint);
+        }
+        let sdk_config = loader.load().await;
+        let Some(region) = sdk_config.region().map(ToString::to_string) else {
+            return Err(StoreError::Other {
+                what: format!(
+                    "no AWS region for bucket {:?}: set AWS_REGION or the store's region",
+                    config.bucket
+                ),
+            });
+        };
+        let mut s3 = aws_sdk_s3::config::Builder::from(&sdk_config)
+            .force_path_style(config.force_path_style);
+        if endpoint.is_some() {
+            // Many S3-compatible servers reject the SDK's default CRC32 trailers; shuffle blocks
+            // carry their own checksum, so only send checksums where S3 demands them.
+            s3 = s3
+                .request_checksum_calculation(RequestChecksumCalculation::WhenRequired)
+                .response_checksum_validation(ResponseChecksumValidation::WhenRequired);
+        }
+        let label = endpoint.unwrap_or_else(|| format!("AWS S3 ({region})"));
+        let mut store = Self::from_client(
+            Client::from_conf(s3.build()),
+            &config.bucket,
+            label,
+            handle,
+        );
+        store.target.connect_timeout = config.connect_timeout;
+        store.target.attempt_timeout = config.attempt_timeout;
+        store.region = Some(region);
+        Ok(store)
+    }
+
+    /// Like [`S3Store::connect`], on a runtime of the store's own (two worker threads named
+    /// `hort-s3`), so callers need no runtime. Call it, and drop the store, outside async tasks.
+    pub fn open(config: &S3Config) -> Result<Self, StoreError> {
+        let runtime = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(2)
+            .thread_name("hort-s3")
+            .enable_all()
+            .build()
+            .map_err(|e| StoreError::Other {
+                what: format!("cannot start the S3 client's tokio runtime: {e}"),
+            })?;
+        let mut store = runtime.block_on(Self::connect(config))?;
+        store.runtime = Some(runtime);
+        Ok(store)
+    }
+
+    /// A store over an SDK client built elsewhere (for example once per Lambda environment, in
+    /// `main`). `endpoint` only names the server in error messages; `handle` must belong to a
+    /// multi-threaded runtime that outlives the store.
+    pub fn from_client(
+        client: Client,
+        bucket: impl Into<String>,
+        endpoint: impl Into<String>,
+        handle: Handle,
+    ) -> Self {
+        let region = client.config().region().map(ToString::to_string);
+        Self {
+            client,
+            target: Target {
+                bucket: bucket.into(),
+                endpoint: endpoint.into(),
+                connect_timeout: crate::s3_config::DEFAULT_CONNECT_TIMEOUT,
+                attempt_timeout: crate::s3_config::DEFAULT_ATTEMPT_TIMEOUT,
+            },
+            region,
+            handle,
+            runtime: None,
+        }
+    }
+
+    /// The bucket every key lives in.
+    pub fn bucket(&self) -> &str {
+        &self.target.bucket
+    }
+
+    /// The endpoint URL, or `AWS S3 (REGION)`, as named in error messages.
+    pub fn endpoint(&self) -> &str {
+        &self.target.endpoint
+    }
+
+    /// The SDK client, for operations the [`BlobStore`] trait does not cover.
+    pub fn client(&self) -> &Client {
+        &self.client
+    }
+
+    /// Checks that the bucket exists and the credentials are accepted (HeadBucket), so a
+    /// misconfiguration fails up front with the same one-line errors as later requests:
+    /// `Denied` for a missing bucket, refused credentials or permissions, `Unavailable` for an
+    /// unreachable endpoint.
+    pub fn check_bucket(&self) -> Result<(), StoreError> {
+        self.handle.block_on(self.check_bucket_async("check bucket"))
+    }
+
+    /// Creates the bucket unless it exists (in the store's region), then checks it as
+    /// [`S3Store::check_bucket`] does. For local servers and tests; production buckets come
+    /// from the infrastructure templates.
+    pub fn create_bucket_if_missing(&self) -> Result<(), StoreError> {
+        self.handle.block_on(async {
+            let request = Request {
+                op: "create bucket",
+                key: None,
+                object_read: false,
+            };
+            match self.check_bucket_async(request.op).await {
+                Err(StoreError::Denied { what }) if what.contains("does not exist") => {}
+                other => return other,
+            }
+            let mut create = self.client.create_bucket().bucket(&self.target.bucket);
+            if let Some(region) = self.region.as_deref().filter(|r| *r != "us-east-1") {
+                create = create.create_bucket_configuration(
+                    CreateBucketConfiguration::builder()
+                        .location_constraint(BucketLocationConstraint::from(region))
+                        .build(),
+                );
+            }
+            if let Err(err) = create.send().await {
+                let raced = matches!(
+                    aws_sdk_s3::error::ProvideErrorMetadata::code(&err),
+                    Some("BucketAlreadyOwnedByYou" | "BucketAlreadyExists")
+                );
+                if !raced {
+                    return Err(s3_errors::store_error(err, request, &self.target));
+                }
+            }
+            self.check_bucket_async(request.op).await
+        })
+    }
+
+    async fn check_bucket_async(&self, op: &str) -> Result<(), StoreError> {
+        let request = Request {
+            op,
+            key: None,
+            object_read: false,
+        };
+        let head = self
+            .client
+            .head_bucket()
+            .bucket(&self.target.bucket)
+            .send()
+            .await;
+        let Err(err) = head else {
+            return Ok(());
+        };
+        if s3_errors::lacks_code(&err) {
+            // A HEAD answer has no body, hence no error code: a GET tells which refusal it was.
+            let list = self
+                .client
+                .list_objects_v2()
+                .bucket(&self.target.bucket)
+                .max_keys(1)
+                .send()
+                .await;
+            if let Err(list_err) = list {
+                return Err(s3_errors::store_error(list_err, request, &self.target));
+            }
+        }
+        Err(s3_errors::store_error(err, request, &self.target))
+    }
+
+    /// The length of object `key` (HeadObject).
+    async fn object_len(&self, key: &str, op: &str) -> Result<u64, StoreError> {
+        let request = Request {
+            op,
+            key: Some(key),
+            object_read: true,
+        };
+        let head = self
+            .client
+            .head_object()
+            .bucket(&self.target.bucket)
+            .key(key)
+            .send()
+            .await
+            .map_err(|e| s3_errors::store_error(e, request, &self.target))?;
+        u64::try_from(head.content_length().unwrap_or(0)).map_err(|_| StoreError::Other {
+            what: format!(
+                "{op} {key:?}: S3 endpoint {} reported a negative length",
+                self.target.endpoint
+            ),
+        })
+    }
+
+    /// Reads `body` whole; `expected` is the announced length, checked at the end.
+    async fn collect(
+        &self,
+        mut body: ByteStream,
+        expected: Option<i64>,
+        request: Request<'_>,
+    ) -> Result<Vec<u8>, StoreError> {
+        let expected = expected.and_then(|n| usize::try_from(n).ok());
+        let mut bytes = Vec::with_capacity(expected.unwrap_or(0).min(MAX_PREALLOCATION));
+        let failed = |reason: String| StoreError::Unavailable {
+            what: format!(
+                "{} {:?}: reading the object from S3 endpoint {} failed ({reason})",
+                request.op,
+                request.key.unwrap_or_default(),
+                self.target.endpoint
+            ),
+        };
+        loop {
+            match body.try_next().await {
+                Ok(Some(chunk)) => bytes.extend_from_slice(&chunk),
+                Ok(None) => break,
+                Err(e) => return Err(failed(one_line_error(&e))),
+            }
+        }
+        match expected {
+            Some(n) if n != bytes.len() => Err(failed(format!(
+                "got {} of {n} announced bytes",
+                bytes.len()
+            ))),
+            _ => Ok(bytes),
+        }
+    }
+
+    async fn get_range_async(&self, key: &str, range: Range<u64>) -> Result<Vec<u8>, StoreError> {
+        let op = "get range";
+        let invalid = |len: u64| StoreError::InvalidRange {
+            key: key.to_owned(),
+            start: range.start,
+            end: range.end,
+            len,
+        };
+        if range.start >= range.end {
+            return Err(invalid(self.object_len(key, op).await?));
+        }
+        let request = Request {
+            op,
+            key: Some(key),
+            object_read: true,
+        };
+        let answer = self
+            .client
+            .get_object()
+            .bucket(&self.target.bucket)
+            .key(key)
+            .range(format!("bytes={}-{}", range.start, range.end - 1))
+            .send()
+            .await;
+        let out = match answer {
+            Ok(out) => out,
+            Err(err) if s3_errors::is_invalid_range(&err) => {
+                return Err(invalid(self.object_len(key, op).await?));
+            }
+            Err(err) => return Err(s3_errors::store_error(err, request, &self.target)),
+        };
+        let content_range = out.content_range().map(str::to_owned);
+        let bytes = self.collect(out.body, out.content_length, request).await?;
+        match content_range.as_deref().and_then(parse_content_range) {
+            Some((first, total)) => {
+                if range.start >= total {
+                    Err(invalid(total))
+                } else if first != range.start {
+                    Err(StoreError::Other {
+                        what: format!(
+                            "{op} {key:?}: S3 endpoint {} sent bytes from {first}, not from {}",
+                            self.target.endpoint, range.start
+                        ),
+                    })
+                } else {
+                    Ok(bytes)
+                }
+            }
+            // No Content-Range: the server sent the whole object; cut the range out here.
+            None => {
+                let len = bytes.len() as u64;
+                if range.start >= len {
+                    return Err(invalid(len));
+                }
+                // Both bounds are <= len, which fits in usize since the bytes are in memory.
+                let (start, end) = (range.start as usize, range.end.min(len) as usize);
+                Ok(bytes[start..end].to_vec())
+            }
+        }
+    }
+
+    async fn put_if_absent_async(&self, key: &str, bytes: &[u8]) -> Result<PutOutcome, StoreError> {
+        let request = Request {
+            op: "put if absent",
+            key: Some(key),
+            object_read: false,
+        };
+        let mut attempt = 0;
+        loop {
+            attempt += 1;
+            let answer = self
+                .client
+                .put_object()
+                .bucket(&self.target.bucket)
+                .key(key)
+                .if_none_match("*")
+                .content_length(len_i64(bytes))
+                .body(ByteStream::from(bytes.to_vec()))
+                .send()
+                .await;
+            match answer {
+                Ok(_) => return Ok(PutOutcome::Created),
+                Err(err) if s3_errors::is_precondition_failed(&err) => {
+                    return Ok(PutOutcome::AlreadyExists);
+                }
+                Err(err)
+                    if s3_errors::is_conditional_conflict(&err)
+                        && attempt < CONDITIONAL_CONFLICT_ATTEMPTS =>
+                {
+                    let backoff = 50u64 << attempt;
+                    tokio::time::sleep(std::time::Duration::from_millis(backoff)).await;
+                }
+                Err(err) => return Err(s3_errors::store_error(err, request, &self.target)),
+            }
+        }
+    }
+
+    async fn list_async(&self, prefix: &str) -> Result<Vec<String>, StoreError> {
+        let request = Request {
+            op: "list",
+            key: Some(prefix),
+            object_read: false,
+        };
+        let mut keys = Vec::new();
+        let mut token: Option<String> = None;
+        loop {
+            let page = self
+                .client
+                .list_objects_v2()
+                .bucket(&self.target.bucket)
+                .prefix(prefix)
+                .set_continuation_token(token.clone())
+                .send()
+                .await
+                .map_err(|e| s3_errors::store_error(e, request, &self.target))?;
+            keys.extend(
+                page.contents()
+                    .iter()
+                    .filter_map(|object| object.key().map(str::to_owned)),
+            );
+            if !page.is_truncated().unwrap_or(false) {
+                break;
+            }
+            match page.next_continuation_token() {
+                Some(next) if token.as_deref() != Some(next) => token = Some(next.to_owned()),
+                _ => {
+                    return Err(StoreError::Other {
+                        what: format!(
+                            "list {prefix:?}: S3 endpoint {} sent a truncated page without a \
+                             new continuation token",
+                            self.target.endpoint
+                        ),
+                    });
+                }
+            }
+        }
+        keys.sort_unstable();
+        keys.dedup();
+        Ok(keys)
+    }
+}
+
+impl BlobStore for S3Store {
+    fn get(&self, key: &str) -> Result<Vec<u8>, StoreError> {
+        let request = Request {
+            op: "get",
+            key: Some(key),
+            object_read: true,
+        };
+        self.handle.block_on(async {
+            let out = self
+                .client
+                .get_object()
+                .bucket(&self.target.bucket)
+                .key(key)
+                .send()
+                .await
+                .map_err(|e| s3_errors::store_error(e, request, &self.target))?;
+            self.collect(out.body, out.content_length, request).await
+        })
+    }
+
+    fn get_range(&self, key: &str, range: Range<u64>) -> Result<Vec<u8>, StoreError> {
+        self.handle.block_on(self.get_range_async(key, range))
+    }
+
+    fn put(&self, key: &str, bytes: &[u8]) -> Result<(), StoreError> {
+        let request = Request {
+            op: "put",
+            key: Some(key),
+            object_read: false,
+        };
+        self.handle.block_on(async {
+            self.client
+                .put_object()
+                .bucket(&self.target.bucket)
+                .key(key)
+                .content_length(len_i64(bytes))
+                .body(ByteStream::from(bytes.to_vec()))
+                .send()
+                .await
+                .map(drop)
+                .map_err(|e| s3_errors::store_error(e, request, &self.target))
+        })
+    }
+
+    /// Sends `If-None-Match: *`: HTTP 412 means [`PutOutcome::AlreadyExists`]. If an attempt
+    /// created the object but its answer was lost, the SDK's retry sees 412 and reports
+    /// `AlreadyExists` for the caller's own bytes; compare contents where that matters.
+    fn put_if_absent(&self, key: &str, bytes: &[u8]) -> Result<PutOutcome, StoreError> {
+        self.handle.block_on(self.put_if_absent_async(key, bytes))
+    }
+
+    fn list(&self, prefix: &str) -> Result<Vec<String>, StoreError> {
+        self.handle.block_on(self.list_async(prefix))
+    }
+
+    fn delete(&self, key: &str) -> Result<(), StoreError> {
+        let request = Request {
+            op: "delete",
+            key: Some(key),
+            object_read: false,
+        };
+        self.handle.block_on(async {
+            match self
+                .client
+                .delete_object()
+                .bucket(&self.target.bucket)
+                .key(key)
+                .send()
+                .await
+            {
+                Ok(_) => Ok(()),
+                // Some servers answer 404 NoSuchKey where S3 answers 204: same meaning.
+                Err(err) if aws_sdk_s3::error::ProvideErrorMetadata::code(&err) == Some("NoSuchKey") => {
+                    Ok(())
+                }
+                Err(err) => Err(s3_errors::store_error(err, request, &self.target)),
+            }
+        })
+    }
+}
+
+impl std::fmt::Debug for S3Store {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("S3Store")
+            .field("bucket", &self.target.bucket)
+            .field("endpoint", &self.target.endpoint)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Drop for S3Store {
+    fn drop(&mut self) {
+        // No request is in flight (they all borrow the store); idle connections may be. This
+        // does not block, so it is safe even inside an async context.
+        if let Some(runtime) = self.runtime.take() {
+            runtime.shutdown_background();
+        }
+    }
+}
+
+/// `endpoint` without trailing slashes, if it is an `http://` or `https://` URL with a host.
+fn checked_endpoint(endpoint: &str) -> Result<String, StoreError> {
+    let trimmed = endpoint.trim_end_matches('/');
+    let host = trimmed
+        .strip_prefix("http://")
+        .or_else(|| trimmed.strip_prefix("https://"));
+    match host {
+        Some(host) if !host.is_empty() && !host.contains('/') && !host.contains(' ') => {
+            Ok(trimmed.to_owned())
+        }
+        _ => Err(StoreError::Other {
+            what: format!(
+                "invalid S3 endpoint {endpoint:?}: expected http://HOST[:PORT] or https://HOST[:PORT]"
+            ),
+        }),
+    }
+}
+
+/// `(first byte, total length)` from `Content-Range: bytes FIRST-LAST/TOTAL`.
+fn parse_content_range(value: &str) -> Option<(u64, u64)> {
+    let (span, total) = value.strip_prefix("bytes ")?.split_once('/')?;
+    let (first, _last) = span.split_once('-')?;
+    Some((first.trim().parse().ok()?, total.trim().parse().ok()?))
+}
+
+fn len_i64(bytes: &[u8]) -> i64 {
+    i64::try_from(bytes.len()).unwrap_or(i64::MAX)
+}
+
+/// An error and its sources on one line, `: `-separated.
+fn one_line_error(err: &(dyn std::error::Error + 'static)) -> String {
+    let mut parts = vec![err.to_string()];
+    let mut source = err.source();
+    while let Some(e) = source {
+        parts.push(e.to_string());
+        source = e.source();
+    }
+    parts.join(": ").split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn content_range_gives_first_byte_and_total() {
+        assert_eq!(parse_content_range("bytes 2-4/10"), Some((2, 10)));
+        assert_eq!(parse_content_range("bytes */10"), None);
+        assert_eq!(parse_content_range("items 2-4/10"), None);
+    }
+
+    #[test]
+    fn endpoints_must_be_http_urls() {
+        assert_eq!(
+            checked_endpoint("http://127.0.0.1:9000/").unwrap(),
+            "http://127.0.0.1:9000"
+        );
+        assert!(checked_endpoint("https://s3.example.com").is_ok());
+        for bad in ["127.0.0.1:9000", "http://", "ftp://x", "http://h/path"] {
+            let err = checked_endpoint(bad).unwrap_err();
+            assert!(err.to_string().contains("invalid S3 endpoint"), "{err}");
+        }
+    }
+}

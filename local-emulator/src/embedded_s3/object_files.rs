@@ -1,0 +1,392 @@
+//! `s3s_fs::FileSystem` with S3 key semantics: the storage behind [`super::EmbeddedS3`].
+//!
+//! Plain `s3s-fs` stores key `a/b` at the path `bucket/a/b`, so `a` and `a/b` cannot both exist
+//! (one would be a file, the other needs a directory), and it checks `If-None-Match` before
+//! writing without a lock, so two racing conditional puts can both succeed. This wrapper
+//! - stores key `k` in the file named `k` + [`OBJECT_SUFFIX`] (a `~` in `k` is doubled first),
+//!   so no object file is ever a directory of another key;
+//! - serialises conditional puts against all other puts, so exactly one racer creates the object;
+//! - lists by itself (sorted by key bytes, with prefix, delimiter, start-after, continuation token
+//!   and max-keys as S3 defines them), since the stored names sort differently from the keys.
+//!
+//! Only the operations the project's S3 client uses are forwarded (bucket create/head/delete/
+//! list/location, object put/get/head/delete, ListObjects v1 and v2); the rest answer
+//! `NotImplemented`. Keys that path normalisation would alter (`a//b`, `./a`, `a/../b`) are
+//! outside the S3 subset this server supports.
+
+use std::collections::BTreeSet;
+
+use s3s::dto::{
+    CommonPrefix, CreateBucketInput, CreateBucketOutput, DeleteBucketInput, DeleteBucketOutput,
+    DeleteObjectInput, DeleteObjectOutput, GetBucketLocationInput, GetBucketLocationOutput,
+    GetObjectInput, GetObjectOutput, HeadBucketInput, HeadBucketOutput, HeadObjectInput,
+    HeadObjectOutput, ListBucketsInput, ListBucketsOutput, ListObjectsInput, ListObjectsOutput,
+    ListObjectsV2Input, ListObjectsV2Output, Object, PutObjectInput, PutObjectOutput,
+};
+use s3s::{S3, S3Request, S3Response, S3Result};
+use tokio::sync::RwLock;
+
+/// Appended to every object's file name; never the end of a directory name (see module docs).
+pub(crate) const OBJECT_SUFFIX: &str = "~obj";
+
+/// The most keys one list page returns, as on AWS S3.
+const MAX_KEYS_PER_PAGE: usize = 1000;
+
+/// The S3 service of the embedded server: `s3s_fs::FileSystem` plus key encoding, atomic
+/// conditional puts and exact listing.
+pub(crate) struct ObjectFiles {
+    files: s3s_fs::FileSystem,
+    /// Plain puts share it; conditional puts hold it alone, so check-then-write is atomic.
+    puts: RwLock<()>,
+}
+
+impl ObjectFiles {
+    pub(crate) fn new(files: s3s_fs::FileSystem) -> Self {
+        Self {
+            files,
+            puts: RwLock::new(()),
+        }
+    }
+
+    /// Every object under `prefix` as (key, size, last modified), sorted by key bytes.
+    async fn all_objects<T>(
+        &self,
+        req: S3Request<T>,
+        bucket: String,
+        prefix: &str,
+    ) -> S3Result<Vec<Object>> {
+        let inner = req.map_input(|_| ListObjectsV2Input {
+            bucket,
+            prefix: Some(escape(prefix)),
+            max_keys: Some(i32::MAX),
+            ..Default::default()
+        });
+        let listed = self.files.list_objects_v2(inner).await?.output;
+        let mut objects: Vec<Object> = listed
+            .contents
+            .unwrap_or_default()
+            .into_iter()
+            .filter_map(|mut object| {
+                let key = object.key.as_deref().and_then(key_of_file)?;
+                if !key.starts_with(prefix) {
+                    return None;
+                }
+                object.key = Some(key);
+                Some(object)
+            })
+            .collect();
+        objects.sort_by(|a, b| a.key.cmp(&b.key));
+        Ok(objects)
+    }
+}
+
+/// One page of a listing.
+struct Page {
+    objects: Vec<Object>,
+    common_prefixes: Vec<String>,
+    /// The last key or common prefix returned, if more follow.
+    next: Option<String>,
+}
+
+/// S3 listing over `objects` (sorted, all under `prefix`): keys whose remainder after `prefix`
+/// contains `delimiter` roll up into one common prefix each; entries at or before `after` are
+/// skipped; at most `max_keys` entries (keys and common prefixes together).
+fn page(
+    objects: Vec<Object>,
+    prefix: &str,
+    delimiter: Option<&str>,
+    after: Option<&str>,
+    max_keys: usize,
+) -> Page {
+    let mut page = Page {
+        objects: Vec::new(),
+        common_prefixes: Vec::new(),
+        next: None,
+    };
+    let mut seen_prefixes = BTreeSet::new();
+    let mut taken = 0;
+    for object in objects {
+        let key = object.key.as_deref().unwrap_or_default();
+        let rolled_up = delimiter
+            .filter(|d| !d.is_empty())
+            .and_then(|d| {
+                let rest = &key[prefix.len()..];
+                rest.find(d).map(|at| &key[..prefix.len() + at + d.len()])
+            })
+            .map(str::to_owned);
+        let name = rolled_up.as_deref().unwrap_or(key);
+        if after.is_some_and(|after| name <= after) {
+            continue;
+        }
+        if rolled_up
+            .as_ref()
+            .is_some_and(|p| seen_prefixes.contains(p))
+        {
+            continue;
+        }
+        if taken == max_keys {
+            // Something is left over: the page is truncated after the last entry taken.
+            page.next = page
+                .common_prefixes
+                .last()
+                .max(page.objects.last().and_then(|o| o.key.as_ref()))
+                .cloned();
+            break;
+        }
+        taken += 1;
+        match rolled_up {
+            Some(common) => {
+                seen_prefixes.insert(common.clone());
+                page.common_prefixes.push(common);
+            }
+            None => page.objects.push(object),
+        }
+    }
+    page
+}
+
+fn max_keys(requested: Option<i32>) -> usize {
+    requested.map_or(MAX_KEYS_PER_PAGE, |n| {
+        usize::try_from(n).unwrap_or(0).min(MAX_KEYS_PER_PAGE)
+    })
+}
+
+fn common_prefix_list(prefixes: Vec<String>) -> Option<Vec<CommonPrefix>> {
+    (!prefixes.is_empty()).then(|| {
+        prefixes
+            .into_iter()
+            .map(|prefix| CommonPrefix {
+                prefix: Some(prefix),
+            })
+            .collect()
+    })
+}
+
+/// `key` with every `~` doubled: prefix-preserving, and never ends in an odd run of `~`.
+fn escape(key: &str) -> String {
+    key.replace('~', "~~")
+}
+
+/// The stored name of object `key`.
+pub(crate) fn file_of_key(key: &str) -> String {
+    let mut name = escape(key);
+    name.push_str(OBJECT_SUFFIX);
+    name
+}
+
+/// The object key stored under `name`, or `None` if `name` is not an object file.
+pub(crate) fn key_of_file(name: &str) -> Option<String> {
+    let key = name.strip_suffix(OBJECT_SUFFIX)?.replace("~~", "~");
+    (file_of_key(&key) == name).then_some(key)
+}
+
+#[async_trait::async_trait]
+impl S3 for ObjectFiles {
+    async fn create_bucket(
+        &self,
+        req: S3Request<CreateBucketInput>,
+    ) -> S3Result<S3Response<CreateBucketOutput>> {
+        self.files.create_bucket(req).await
+    }
+
+    async fn delete_bucket(
+        &self,
+        req: S3Request<DeleteBucketInput>,
+    ) -> S3Result<S3Response<DeleteBucketOutput>> {
+        self.files.delete_bucket(req).await
+    }
+
+    async fn head_bucket(
+        &self,
+        req: S3Request<HeadBucketInput>,
+    ) -> S3Result<S3Response<HeadBucketOutput>> {
+        self.files.head_bucket(req).await
+    }
+
+    async fn get_bucket_location(
+        &self,
+        req: S3Request<GetBucketLocationInput>,
+    ) -> S3Result<S3Response<GetBucketLocationOutput>> {
+        self.files.get_bucket_location(req).await
+    }
+
+    async fn list_buckets(
+        &self,
+        req: S3Request<ListBucketsInput>,
+    ) -> S3Result<S3Response<ListBucketsOutput>> {
+        self.files.list_buckets(req).await
+    }
+
+    async fn get_object(
+        &self,
+        mut req: S3Request<GetObjectInput>,
+    ) -> S3Result<S3Response<GetObjectOutput>> {
+        req.input.key = file_of_key(&req.input.key);
+        self.files.get_object(req).await
+    }
+
+    async fn head_object(
+        &self,
+        mut req: S3Request<HeadObjectInput>,
+    ) -> S3Result<S3Response<HeadObjectOutput>> {
+        req.input.key = file_of_key(&req.input.key);
+        self.files.head_object(req).await
+    }
+
+    async fn put_object(
+        &self,
+        mut req: S3Request<PutObjectInput>,
+    ) -> S3Result<S3Response<PutObjectOutput>> {
+        req.input.key = file_of_key(&req.input.key);
+        if req.input.if_none_match.is_some() || req.input.if_match.is_some() {
+            let _alone = self.puts.write().await;
+            self.files.put_object(req).await
+        } else {
+            let _shared = self.puts.read().await;
+            self.files.put_object(req).await
+        }
+    }
+
+    async fn delete_object(
+        &self,
+        mut req: S3Request<DeleteObjectInput>,
+    ) -> S3Result<S3Response<DeleteObjectOutput>> {
+        req.input.key = file_of_key(&req.input.key);
+        self.files.delete_object(req).await
+    }
+
+    async fn list_objects_v2(
+        &self,
+        req: S3Request<ListObjectsV2Input>,
+    ) -> S3Result<S3Response<ListObjectsV2Output>> {
+        let input = req.input.clone();
+        let prefix = input.prefix.clone().unwrap_or_default();
+        let objects = self.all_objects(req, input.bucket.clone(), &prefix).await?;
+        let after = match (&input.continuation_token, &input.start_after) {
+            (Some(token), Some(start)) => Some(token.max(start)),
+            (token, start) => token.as_ref().or(start.as_ref()),
+        };
+        let max_keys = max_keys(input.max_keys);
+        let page = page(
+            objects,
+            &prefix,
+            input.delimiter.as_deref(),
+            after.map(String::as_str),
+            max_keys,
+        );
+        let key_count = page.objects.len() + page.common_prefixes.len();
+        Ok(S3Response::new(ListObjectsV2Output {
+            name: Some(input.bucket),
+            prefix: input.prefix,
+            max_keys: Some(i32::try_from(max_keys).unwrap_or(i32::MAX)),
+            key_count: Some(i32::try_from(key_count).unwrap_or(i32::MAX)),
+            continuation_token: input.continuation_token,
+            is_truncated: Some(page.next.is_some()),
+            next_continuation_token: page.next,
+            contents: (!page.objects.is_empty()).then_some(page.objects),
+            common_prefixes: common_prefix_list(page.common_prefixes),
+            delimiter: input.delimiter,
+            encoding_type: input.encoding_type,
+            start_after: input.start_after,
+            ..Default::default()
+        }))
+    }
+
+    async fn list_objects(
+        &self,
+        req: S3Request<ListObjectsInput>,
+    ) -> S3Result<S3Response<ListObjectsOutput>> {
+        let input = req.input.clone();
+        let prefix = input.prefix.clone().unwrap_or_default();
+        let objects = self.all_objects(req, input.bucket.clone(), &prefix).await?;
+        let max_keys = max_keys(input.max_keys);
+        let page = page(
+            objects,
+            &prefix,
+            input.delimiter.as_deref(),
+            input.marker.as_deref(),
+            max_keys,
+        );
+        Ok(S3Response::new(ListObjectsOutput {
+            name: Some(input.bucket),
+            prefix: input.prefix,
+            marker: input.marker,
+            max_keys: Some(i32::try_from(max_keys).unwrap_or(i32::MAX)),
+            is_truncated: Some(page.next.is_some()),
+            next_marker: page.next,
+            contents: (!page.objects.is_empty()).then_some(page.objects),
+            common_prefixes: common_prefix_list(page.common_prefixes),
+            delimiter: input.delimiter,
+            encoding_type: input.encoding_type,
+            ..Default::default()
+        }))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn objects(keys: &[&str]) -> Vec<Object> {
+        keys.iter()
+            .map(|k| Object {
+                key: Some((*k).to_owned()),
+                ..Default::default()
+            })
+            .collect()
+    }
+
+    fn keys(page: &Page) -> Vec<&str> {
+        page.objects
+            .iter()
+            .filter_map(|o| o.key.as_deref())
+            .collect()
+    }
+
+    #[test]
+    fn file_names_round_trip_and_never_collide_with_directories() {
+        for key in ["a", "a/b", "~", "a~", "x~obj", "x~obj/y", "~~obj", ""] {
+            let name = file_of_key(key);
+            assert_eq!(key_of_file(&name).as_deref(), Some(key), "{name}");
+        }
+        // A directory component (escaped, without suffix) is never an object file name.
+        for dir in ["x~~obj", "a", "~~", "obj"] {
+            assert_eq!(key_of_file(dir), None, "{dir}");
+        }
+        assert_eq!(file_of_key("jobs/j/part-1"), "jobs/j/part-1~obj");
+    }
+
+    #[test]
+    fn pages_resume_after_the_last_entry() {
+        let all = ["p/a", "p/b", "p/c", "p/d", "p/e"];
+        let first = page(objects(&all), "p/", None, None, 2);
+        assert_eq!(keys(&first), ["p/a", "p/b"]);
+        assert_eq!(first.next.as_deref(), Some("p/b"));
+        let second = page(objects(&all), "p/", None, first.next.as_deref(), 2);
+        assert_eq!(keys(&second), ["p/c", "p/d"]);
+        let last = page(objects(&all), "p/", None, second.next.as_deref(), 2);
+        assert_eq!(keys(&last), ["p/e"]);
+        assert_eq!(last.next, None);
+    }
+
+    #[test]
+    fn delimiter_rolls_up_common_prefixes_in_key_order() {
+        let all = ["a", "a/b", "a/c/d", "b/x", "c"];
+        let page = page(objects(&all), "", Some("/"), None, 1000);
+        assert_eq!(keys(&page), ["a", "c"]);
+        assert_eq!(page.common_prefixes, ["a/", "b/"]);
+        assert_eq!(page.next, None);
+    }
+
+    #[test]
+    fn a_page_ending_on_a_common_prefix_resumes_after_it() {
+        let all = ["a/1", "a/2", "b"];
+        let first = page(objects(&all), "", Some("/"), None, 1);
+        assert_eq!(first.common_prefixes, ["a/"]);
+        assert_eq!(first.next.as_deref(), Some("a/"));
+        let second = page(objects(&all), "", Some("/"), first.next.as_deref(), 1);
+        assert_eq!(keys(&second), ["b"]);
+        assert!(second.common_prefixes.is_empty());
+        assert_eq!(second.next, None);
+    }
+}

@@ -1,0 +1,285 @@
+//! The emulator's orchestrator: runs `infra/statemachine.asl.json` (Amazon States Language), the
+//! same definition AWS Step Functions runs, against in-process function handlers and a
+//! [`BlobStore`].
+//!
+//! # Why our own interpreter, not the `asl` crate
+//! crates.io `asl` 0.2.0 was evaluated first (as STACK.md asks). It parses Task, Pass, Wait,
+//! Choice, Succeed and Fail, but its executor treats Map (and Parallel) as a no-op, has no Retry
+//! (retriers parse but nothing retries, so no BackoffRate/MaxDelaySeconds/JitterStrategy), no
+//! TimeoutSeconds, and intrinsic functions return a placeholder string; its Map model
+//! (`deny_unknown_fields`) rejects `ItemReader`. Everything the HORT definition needs —
+//! Distributed Map over S3 items, retries with backoff and jitter, per-task timeouts, the
+//! `$$` context — would have to be written anyway, and wrapping it would add its dependencies
+//! (pest, chrono, jsonpath-rust, thiserror 1) for a parser we would bypass. So this module is a
+//! small interpreter of exactly the subset HORT uses; anything else is refused at load time
+//! with the state and field named (see [`definition`]).
+//!
+//! # Semantics (what the cloud does, and nothing it would not)
+//! See [`run`] for the state-by-state rules; in short: `Retry` per first matching retrier with
+//! counts per retrier, delay `IntervalSeconds * BackoffRate^n` capped at `MaxDelaySeconds`, FULL
+//! jitter uniform in `[0, delay)` (deterministic from [`OrchestratorOptions::seed`]); `Catch`
+//! after retries; Task `TimeoutSeconds` fails the attempt with `States.Timeout` while the
+//! invocation runs on as a zombie holding its slot; a failed Map item fails the Map with
+//! `States.ExceedToleratedFailureThreshold`.
+//!
+//! # Error contract of the functions
+//! A function signals failure with a [`TaskFailure`] whose `error` is the error type Step
+//! Functions sees (the Lambda `errorType`): [`RETRYABLE`] (`Hort.Retryable`: throttling,
+//! timeouts, 5xx, lost input that could not be recomputed yet) or [`BAD_INPUT`]
+//! (`Hort.BadInput`: bad scene, bad request; never retried). The definition retries
+//! `Hort.Retryable`, `States.Timeout` and Lambda's own transient errors, and nothing else.
+
+pub mod definition;
+pub mod events;
+pub mod paths;
+pub mod retry;
+mod run;
+mod slots;
+
+#[cfg(test)]
+mod tests;
+
+use std::collections::BTreeSet;
+use std::fmt;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+use hort_core::store::BlobStore;
+use serde_json::{Value, json};
+
+pub use definition::{DefinitionError, State, StateMachine};
+pub use events::{Event, EventLog, NoObserver, Observer};
+pub use retry::{Jitter, Retrier, backoff_seconds, retry_delay};
+pub use run::{CANCELLED, EXCEED_TOLERATED_FAILURE, ITEM_READER_FAILED, PANIC};
+
+/// The HORT state machine, `infra/statemachine.asl.json`, as compiled into this binary.
+pub const HORT_DEFINITION: &str = include_str!("../../../infra/statemachine.asl.json");
+
+/// The error type of a failure worth retrying (throttling, timeouts, 5xx, lost workers).
+pub const RETRYABLE: &str = "Hort.Retryable";
+/// The error type of a failure retrying cannot fix (bad scene, bad request).
+pub const BAD_INPUT: &str = "Hort.BadInput";
+/// The error of an attempt that ran past its `TimeoutSeconds`.
+pub const TIMEOUT: &str = retry::TIMEOUT;
+/// The error of a path or data error inside the interpreter (never retried or caught).
+pub const RUNTIME: &str = retry::RUNTIME;
+
+/// Runs functions for the emulator: the in-process stand-in for Lambda.
+pub trait TaskInvoker: Send + Sync {
+    /// Runs one task attempt synchronously. `resource` is the function placeholder name (e.g.
+    /// `"WorkerFunctionArn"` for `${WorkerFunctionArn}`); `input` is exactly the Lambda event
+    /// (the Task's `Parameters.Payload`). The returned value becomes the `Payload` of the
+    /// `lambda:invoke` result.
+    fn invoke(&self, resource: &str, input: Value) -> Result<Value, TaskFailure>;
+}
+
+/// A failed task attempt: the Lambda error type and message as Step Functions sees them.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{error}: {cause}")]
+pub struct TaskFailure {
+    /// The error name matched by `Retry`/`Catch`: [`RETRYABLE`], [`BAD_INPUT`], or another.
+    pub error: String,
+    /// A human-readable cause.
+    pub cause: String,
+}
+
+impl TaskFailure {
+    /// A failure with the given error name.
+    pub fn new(error: impl Into<String>, cause: impl Into<String>) -> Self {
+        Self {
+            error: error.into(),
+            cause: cause.into(),
+        }
+    }
+
+    /// A [`RETRYABLE`] failure.
+    pub fn retryable(cause: impl Into<String>) -> Self {
+        Self::new(RETRYABLE, cause)
+    }
+
+    /// A [`BAD_INPUT`] failure.
+    pub fn bad_input(cause: impl Into<String>) -> Self {
+        Self::new(BAD_INPUT, cause)
+    }
+}
+
+/// How the emulator runs an execution.
+#[derive(Debug, Clone)]
+pub struct OrchestratorOptions {
+    /// Invocations running at once at most, over the whole execution (like Lambda's
+    /// concurrency limit); at least 1. A Map runs min(MaxConcurrency, slots) items at once.
+    pub slots: usize,
+    /// Multiplies every wait and timeout (retry delays, `TimeoutSeconds`, the 5-minute EXPRESS
+    /// limit); 1.0 is real time, tests use e.g. 0.001. Finite and positive.
+    pub time_scale: f64,
+    /// Seed of the FULL jitter draws; the same seed gives the same delays.
+    pub seed: u64,
+    /// Set to stop: no new attempt starts and [`Orchestrator::run`] returns
+    /// [`CANCELLED`] within milliseconds (invocations in flight run on and are ignored).
+    pub cancel: Arc<AtomicBool>,
+}
+
+impl Default for OrchestratorOptions {
+    /// One slot per available core, real time, seed 0, not cancelled.
+    fn default() -> Self {
+        Self {
+            slots: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            time_scale: 1.0,
+            seed: 0,
+            cancel: Arc::new(AtomicBool::new(false)),
+        }
+    }
+}
+
+/// Why an execution did not succeed.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ExecutionFailure {
+    /// The error name (of the Fail state, or of the uncaught error).
+    pub error: String,
+    /// The cause.
+    pub cause: String,
+    /// The state (path) where the error arose: for a job that failed through a Catch into a
+    /// Fail state, the state that failed (e.g. `CastMap`), not the Fail state.
+    pub state: String,
+    /// For a failed Map, the item whose failure failed it.
+    pub item: Option<ItemFailure>,
+}
+
+/// The Map item whose failure failed a Map Run.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ItemFailure {
+    /// The Map state's path.
+    pub map_state: String,
+    /// The item's index in the items file.
+    pub index: usize,
+    /// The state inside the ItemProcessor that failed (e.g. `CastMap/CastMapTask`).
+    pub state: String,
+    /// Its error name (e.g. `Hort.BadInput`).
+    pub error: String,
+    /// Its cause.
+    pub cause: String,
+}
+
+impl fmt::Display for ExecutionFailure {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} failed with {}: {}", self.state, self.error, self.cause)
+    }
+}
+
+impl std::error::Error for ExecutionFailure {}
+
+/// A loaded state machine, ready to run executions.
+#[derive(Debug, Clone)]
+pub struct Orchestrator {
+    machine: StateMachine,
+    options: OrchestratorOptions,
+}
+
+impl Orchestrator {
+    /// Loads and checks an ASL definition; unsupported or malformed parts are errors naming the
+    /// state and field, and so are unusable options.
+    pub fn new(definition: &str, options: OrchestratorOptions) -> Result<Self, DefinitionError> {
+        if !(options.time_scale.is_finite() && options.time_scale > 0.0) {
+            return Err(DefinitionError::Machine {
+                within: None,
+                message: format!(
+                    "OrchestratorOptions.time_scale must be finite and positive, found {}",
+                    options.time_scale
+                ),
+            });
+        }
+        let machine = definition::load(definition)?;
+        Ok(Self { machine, options })
+    }
+
+    /// The HORT definition ([`HORT_DEFINITION`]).
+    pub fn hort(options: OrchestratorOptions) -> Result<Self, DefinitionError> {
+        Self::new(HORT_DEFINITION, options)
+    }
+
+    /// The checked definition.
+    pub fn machine(&self) -> &StateMachine {
+        &self.machine
+    }
+
+    /// The options executions run with.
+    pub fn options(&self) -> &OrchestratorOptions {
+        &self.options
+    }
+
+    /// Every function name the definition invokes (e.g. `PlanFunctionArn`,
+    /// `WorkerFunctionArn`), so a caller can check it has a handler for each before running.
+    pub fn functions(&self) -> BTreeSet<String> {
+        fn collect(machine: &StateMachine, out: &mut BTreeSet<String>) {
+            for state in machine.states.values() {
+                match state {
+                    State::Task(t) => {
+                        out.insert(t.function.clone());
+                    }
+                    State::Map(m) => collect(&m.processor, out),
+                    _ => {}
+                }
+            }
+        }
+        let mut out = BTreeSet::new();
+        collect(&self.machine, &mut out);
+        out
+    }
+
+    /// Runs one execution to its end and returns its output.
+    ///
+    /// `invoker` runs the functions (shared with invocation threads that may outlive a timed-out
+    /// attempt, hence the `Arc`); `store` is the bucket named by the input's `"bucket"` field,
+    /// the only bucket an `ItemReader` may read; `observer` sees progress from many threads.
+    pub fn run(
+        &self,
+        input: Value,
+        invoker: Arc<dyn TaskInvoker>,
+        store: &dyn BlobStore,
+        observer: &dyn Observer,
+    ) -> Result<Value, ExecutionFailure> {
+        let name = input
+            .get("job")
+            .and_then(Value::as_str)
+            .unwrap_or("local")
+            .to_owned();
+        let execution = run::Execution {
+            options: &self.options,
+            invoker: &invoker,
+            store,
+            observer,
+            slots: slots::Slots::new(self.options.slots),
+            context: json!({
+                "Execution": {
+                    "Id": format!("arn:aws:states:local:000000000000:execution:hort:{name}"),
+                    "Name": name,
+                    "Input": input.clone(),
+                },
+                "StateMachine": {
+                    "Id": "arn:aws:states:local:000000000000:stateMachine:hort",
+                    "Name": "hort",
+                },
+            }),
+            bucket: input
+                .get("bucket")
+                .and_then(Value::as_str)
+                .map(str::to_owned),
+        };
+        execution
+            .run(&self.machine, input)
+            .map_err(|stop| match stop {
+                run::Stop::Failed(f) => ExecutionFailure {
+                    error: f.error,
+                    cause: f.cause,
+                    state: f.state,
+                    item: f.item,
+                },
+                run::Stop::Halted(state) => ExecutionFailure {
+                    error: CANCELLED.into(),
+                    cause: format!("the execution was cancelled while in {state}"),
+                    state,
+                    item: None,
+                },
+            })
+    }
+}

@@ -1,0 +1,746 @@
+//! Executing a checked [`StateMachine`] as Step Functions does.
+//!
+//! Per state: `InputPath` → (`Parameters` | `ItemReader` + `ItemSelector`) → work →
+//! `ResultSelector` → `ResultPath` (into the raw input) → `OutputPath`. Work that fails goes
+//! through `Retry` (first matching retrier, counts per retrier) and then `Catch` (the error
+//! object `{"Error", "Cause"}` at the catcher's `ResultPath`). Path and data errors are
+//! `States.Runtime`: never retried, never caught.
+//!
+//! A Task attempt runs its invocation on a thread of its own holding a function slot. If it
+//! runs past `TimeoutSeconds`, the attempt fails with `States.Timeout` and the machine moves on;
+//! the invocation keeps running and keeps its slot until it returns, and its result is dropped
+//! (a zombie Lambda). The timeout clock starts when the invocation starts, not while it waits
+//! for a slot (Lambda would throttle instead, with `Lambda.TooManyRequestsException`).
+//!
+//! A Distributed Map runs its items on min(MaxConcurrency, slots, items) threads, each running
+//! one child execution at a time with `$$.Map.Item.{Index,Value}` available to `ItemSelector`.
+//! The first failed child (after its own retries) stops the Map Run (no new children start,
+//! children in flight stop at their next step), and the Map state fails with
+//! `States.ExceedToleratedFailureThreshold` (the tolerated failure count is 0), whose cause names
+//! the Map, the item and the child's error; the Map state's own Retry and Catch then apply.
+//! EXPRESS children fail with `States.Timeout` after 5 minutes, as Express executions do.
+
+use std::panic::{self, AssertUnwindSafe};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::mpsc::{self, RecvTimeoutError};
+use std::sync::{Arc, Mutex};
+use std::thread;
+use std::time::{Duration, Instant};
+
+use hort_core::store::BlobStore;
+use serde_json::{Value, json};
+
+use super::definition::{
+    FailState, MapState, Number, PassState, Selector, State, StateMachine, TaskState, Transition,
+};
+use super::events::{Event, Observer};
+use super::retry::{self, Catcher, Decision, Retrier, RetryState};
+use super::slots::Slots;
+use super::{ItemFailure, OrchestratorOptions, TaskFailure, TaskInvoker};
+
+/// The error of a Map Run that failed because an item failed.
+pub const EXCEED_TOLERATED_FAILURE: &str = "States.ExceedToleratedFailureThreshold";
+/// The error of a Map whose items could not be read.
+pub const ITEM_READER_FAILED: &str = "States.ItemReaderFailed";
+/// The error of an execution stopped through the cancel flag.
+pub const CANCELLED: &str = "States.Cancelled";
+/// The error a panicking invocation reports (what a Lambda whose process dies reports).
+pub const PANIC: &str = "Runtime.ExitError";
+/// The longest an EXPRESS child execution may run, in seconds (before time scaling).
+const EXPRESS_LIMIT_SECONDS: f64 = 300.0;
+/// How often waits re-check the cancel flag and deadlines.
+const POLL: Duration = Duration::from_millis(5);
+
+/// A failure travelling up: the state it was raised in and, for a Map, the item behind it.
+#[derive(Debug, Clone)]
+pub struct Failure {
+    pub error: String,
+    pub cause: String,
+    pub state: String,
+    pub item: Option<ItemFailure>,
+}
+
+/// Why a machine stopped without an output.
+#[derive(Debug)]
+pub enum Stop {
+    /// It failed (uncaught, or at a Fail state).
+    Failed(Failure),
+    /// It was halted by the cancel flag or by its Map Run failing; the state it was in.
+    Halted(String),
+}
+
+/// A chain of stop flags: the execution's cancel flag, then one per enclosing Map Run.
+#[derive(Clone, Copy)]
+struct Halt<'f> {
+    flag: &'f AtomicBool,
+    parent: Option<&'f Halt<'f>>,
+}
+
+impl Halt<'_> {
+    fn is_set(&self) -> bool {
+        self.flag.load(Ordering::SeqCst) || self.parent.is_some_and(|p| p.is_set())
+    }
+}
+
+/// Where a machine runs: the top level, or one Map iteration.
+#[derive(Clone, Copy)]
+struct Frame<'f> {
+    /// The enclosing Map state's path, for children.
+    map: Option<&'f str>,
+    item: Option<usize>,
+    halt: Halt<'f>,
+    /// The end of an EXPRESS child execution.
+    deadline: Option<Instant>,
+}
+
+impl Frame<'_> {
+    fn path(&self, name: &str) -> String {
+        match self.map {
+            Some(map) => format!("{map}/{name}"),
+            None => name.to_owned(),
+        }
+    }
+
+    fn expired(&self) -> bool {
+        self.deadline.is_some_and(|d| Instant::now() >= d)
+    }
+}
+
+/// What a state hands to the next one.
+struct Step<'m> {
+    output: Value,
+    next: Option<&'m str>,
+    caught: Option<Failure>,
+}
+
+/// One execution in progress.
+pub struct Execution<'a> {
+    pub options: &'a OrchestratorOptions,
+    pub invoker: &'a Arc<dyn TaskInvoker>,
+    pub store: &'a dyn BlobStore,
+    pub observer: &'a dyn Observer,
+    pub slots: Arc<Slots>,
+    /// `{"Execution": …, "StateMachine": …}` of the context object.
+    pub context: Value,
+    /// The execution input's `bucket`, the only bucket ItemReader may read.
+    pub bucket: Option<String>,
+}
+
+impl Execution<'_> {
+    /// Runs the top-level machine.
+    pub fn run(&self, machine: &StateMachine, input: Value) -> Result<Value, Stop> {
+        let frame = Frame {
+            map: None,
+            item: None,
+            halt: Halt {
+                flag: &self.options.cancel,
+                parent: None,
+            },
+            deadline: None,
+        };
+        self.machine(machine, input, &frame)
+    }
+
+    fn scaled(&self, seconds: f64) -> Duration {
+        Duration::try_from_secs_f64(seconds * self.options.time_scale).unwrap_or(Duration::MAX)
+    }
+
+    fn context(&self, state: &str, retry_count: u32, item: Option<(usize, &Value)>) -> Value {
+        let mut ctx = self.context.clone();
+        ctx["State"] = json!({"Name": state, "RetryCount": retry_count});
+        if let Some((index, value)) = item {
+            ctx["Map"] = json!({"Item": {"Index": index, "Value": value}});
+        }
+        ctx
+    }
+
+    fn emit(&self, e: Event) {
+        self.observer.event(&e);
+    }
+
+    fn runtime(path: &str, message: String) -> Failure {
+        Failure {
+            error: retry::RUNTIME.into(),
+            cause: format!("{path}: {message}"),
+            state: path.to_owned(),
+            item: None,
+        }
+    }
+
+    /// Fails the frame if its EXPRESS deadline passed, halts it if a stop flag is set.
+    fn check(&self, frame: &Frame, path: &str) -> Result<(), Stop> {
+        if frame.halt.is_set() {
+            return Err(Stop::Halted(path.to_owned()));
+        }
+        if frame.expired() {
+            return Err(Stop::Failed(Failure {
+                error: retry::TIMEOUT.into(),
+                cause: format!(
+                    "{path}: the EXPRESS child execution of item {} ran longer than {} s",
+                    frame.item.unwrap_or_default(),
+                    EXPRESS_LIMIT_SECONDS
+                ),
+                state: path.to_owned(),
+                item: None,
+            }));
+        }
+        Ok(())
+    }
+
+    fn sleep(&self, duration: Duration, frame: &Frame, path: &str) -> Result<(), Stop> {
+        let end = Instant::now() + duration;
+        loop {
+            self.check(frame, path)?;
+            let left = end.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return Ok(());
+            }
+            thread::sleep(left.min(POLL));
+        }
+    }
+
+    fn machine(&self, machine: &StateMachine, input: Value, frame: &Frame) -> Result<Value, Stop> {
+        let mut name = machine.start_at.as_str();
+        let mut input = input;
+        let mut caught: Option<Failure> = None;
+        loop {
+            let path = frame.path(name);
+            self.check(frame, &path)?;
+            let state = machine.states.get(name).ok_or_else(|| {
+                Stop::Failed(Self::runtime(&path, "no such state".into()))
+            })?;
+            self.emit(Event::StateEntered {
+                state: path.clone(),
+                item_index: frame.item,
+            });
+            let step = match state {
+                State::Task(task) => self.task(task, &path, name, input, frame)?,
+                State::Map(map) => self.map(map, &path, name, input, frame)?,
+                State::Pass(pass) => self.pass(pass, &path, name, input)?,
+                State::Succeed(succeed) => {
+                    let ctx = self.context(name, 0, None);
+                    let run = select(&succeed.io.input_path, input, &ctx)
+                        .and_then(|v| select(&succeed.io.output_path, v, &ctx));
+                    return run.map_err(|e| Stop::Failed(Self::runtime(&path, e)));
+                }
+                State::Fail(fail) => return Err(self.fail(fail, &path, name, &input, caught)),
+            };
+            if step.caught.is_some() {
+                caught = step.caught;
+            }
+            match step.next {
+                Some(next) => {
+                    name = next;
+                    input = step.output;
+                }
+                None => return Ok(step.output),
+            }
+        }
+    }
+
+    fn fail(
+        &self,
+        fail: &FailState,
+        path: &str,
+        name: &str,
+        input: &Value,
+        caught: Option<Failure>,
+    ) -> Stop {
+        let ctx = self.context(name, 0, None);
+        let text = |t: &Option<super::paths::Template>| -> Result<String, String> {
+            match t {
+                None => Ok(String::new()),
+                Some(t) => match t.eval(input, &ctx)? {
+                    Value::String(s) => Ok(s),
+                    Value::Null => Ok(String::new()),
+                    other => Ok(other.to_string()),
+                },
+            }
+        };
+        match (text(&fail.error), text(&fail.cause)) {
+            (Ok(error), Ok(cause)) => {
+                let (state, item) = match caught {
+                    Some(f) => (f.state, f.item),
+                    None => (path.to_owned(), None),
+                };
+                Stop::Failed(Failure {
+                    error,
+                    cause,
+                    state,
+                    item,
+                })
+            }
+            (Err(e), _) | (_, Err(e)) => Stop::Failed(Self::runtime(path, e)),
+        }
+    }
+
+    fn pass<'m>(
+        &self,
+        pass: &'m PassState,
+        path: &str,
+        name: &str,
+        raw: Value,
+    ) -> Result<Step<'m>, Stop> {
+        let ctx = self.context(name, 0, None);
+        let run = || -> Result<Value, String> {
+            let effective = select(&pass.io.input_path, raw.clone(), &ctx)?;
+            let result = match (&pass.result, &pass.parameters) {
+                (Some(result), _) => result.clone(),
+                (None, Some(params)) => params.eval(&effective, &ctx)?,
+                (None, None) => effective,
+            };
+            let out = pass.result_path.apply(raw.clone(), result)?;
+            select(&pass.io.output_path, out, &ctx)
+        };
+        let output = run().map_err(|e| Stop::Failed(Self::runtime(path, e)))?;
+        Ok(Step {
+            output,
+            next: next(&pass.transition),
+            caught: None,
+        })
+    }
+
+    fn task<'m>(
+        &self,
+        task: &'m TaskState,
+        path: &str,
+        name: &str,
+        raw: Value,
+        frame: &Frame,
+    ) -> Result<Step<'m>, Stop> {
+        let rt = |e: String| Stop::Failed(Self::runtime(path, e));
+        let ctx0 = self.context(name, 0, None);
+        let effective = select(&task.io.input_path, raw.clone(), &ctx0).map_err(rt)?;
+        let timeout = match &task.timeout {
+            None => None,
+            Some(n) => Some(self.scaled(positive(n, &effective, &ctx0, 1).map_err(rt)? as f64)),
+        };
+        let outcome = self.with_retries(&task.retry, path, frame, true, |attempt| {
+            let ctx = self.context(name, attempt, None);
+            let payload = match task.payload.eval(&effective, &ctx) {
+                Ok(p) => p,
+                Err(e) => return Ok(Err(Self::runtime(path, e))),
+            };
+            self.invoke(&task.function, payload, timeout, path, attempt, frame)
+        })?;
+        match outcome {
+            Ok((result, attempt)) => {
+                let ctx = self.context(name, attempt, None);
+                let wrapped = json!({
+                    "ExecutedVersion": "$LATEST",
+                    "Payload": result,
+                    "StatusCode": 200,
+                });
+                let finish = || -> Result<Value, String> {
+                    let selected = match &task.result_selector {
+                        Some(s) => s.eval(&wrapped, &ctx)?,
+                        None => wrapped.clone(),
+                    };
+                    let out = task.result_path.apply(raw.clone(), selected)?;
+                    select(&task.io.output_path, out, &ctx)
+                };
+                Ok(Step {
+                    output: finish().map_err(rt)?,
+                    next: next(&task.transition),
+                    caught: None,
+                })
+            }
+            Err(failure) => self.catch(&task.catch, path, raw, failure),
+        }
+    }
+
+    /// Runs attempts until one succeeds (its value and attempt number) or the retriers give up
+    /// (the last failure). `attempt` gets the attempt number (`$$.State.RetryCount`).
+    fn with_retries(
+        &self,
+        retriers: &[Retrier],
+        path: &str,
+        frame: &Frame,
+        task_events: bool,
+        mut attempt: impl FnMut(u32) -> Result<Result<Value, Failure>, Stop>,
+    ) -> Result<Result<(Value, u32), Failure>, Stop> {
+        let mut retry = RetryState::new(retriers.len());
+        loop {
+            self.check(frame, path)?;
+            let number = retry.total();
+            match attempt(number)? {
+                Ok(value) => {
+                    if task_events {
+                        self.emit(Event::TaskSucceeded {
+                            state: path.to_owned(),
+                            item_index: frame.item,
+                            attempt: number,
+                        });
+                    }
+                    return Ok(Ok((value, number)));
+                }
+                Err(failure) => {
+                    let decision =
+                        retry.decide(retriers, &failure.error, self.options.seed, path, frame.item);
+                    let delay = match decision {
+                        Decision::Retry(d) => Some(d.mul_f64(self.options.time_scale)),
+                        Decision::GiveUp => None,
+                    };
+                    if task_events {
+                        self.emit(Event::TaskAttemptFailed {
+                            state: path.to_owned(),
+                            item_index: frame.item,
+                            attempt: number,
+                            error: failure.error.clone(),
+                            cause: failure.cause.clone(),
+                            will_retry: delay.is_some(),
+                            retry_delay: delay.unwrap_or_default(),
+                        });
+                    }
+                    match delay {
+                        Some(delay) => self.sleep(delay, frame, path)?,
+                        None => return Ok(Err(failure)),
+                    }
+                }
+            }
+        }
+    }
+
+    fn catch<'m>(
+        &self,
+        catchers: &'m [Catcher],
+        path: &str,
+        raw: Value,
+        failure: Failure,
+    ) -> Result<Step<'m>, Stop> {
+        let index = retry::first_match(
+            catchers.iter().map(|c| c.error_equals.as_slice()),
+            &failure.error,
+        );
+        self.emit(Event::StateFailed {
+            state: path.to_owned(),
+            error: failure.error.clone(),
+            cause: failure.cause.clone(),
+            caught: index.is_some(),
+        });
+        let Some(index) = index else {
+            return Err(Stop::Failed(failure));
+        };
+        let catcher = &catchers[index];
+        let error = json!({"Error": failure.error, "Cause": failure.cause});
+        let output = catcher
+            .result_path
+            .apply(raw, error)
+            .map_err(|e| Stop::Failed(Self::runtime(path, e)))?;
+        Ok(Step {
+            output,
+            next: Some(&catcher.next),
+            caught: Some(failure),
+        })
+    }
+
+    /// One invocation on its own thread, holding a slot until the function returns.
+    fn invoke(
+        &self,
+        function: &str,
+        payload: Value,
+        timeout: Option<Duration>,
+        path: &str,
+        attempt: u32,
+        frame: &Frame,
+    ) -> Result<Result<Value, Failure>, Stop> {
+        let Some(slot) = self
+            .slots
+            .acquire(|| frame.halt.is_set() || frame.expired())
+        else {
+            self.check(frame, path)?;
+            return Err(Stop::Halted(path.to_owned()));
+        };
+        self.emit(Event::TaskAttemptStarted {
+            state: path.to_owned(),
+            item_index: frame.item,
+            attempt,
+        });
+        let failure = |error: &str, cause: String| Failure {
+            error: error.to_owned(),
+            cause,
+            state: path.to_owned(),
+            item: None,
+        };
+        let (tx, rx) = mpsc::channel();
+        let invoker = Arc::clone(self.invoker);
+        let function_name = function.to_owned();
+        let spawned = thread::Builder::new()
+            .name(format!("hort-invoke {path}"))
+            .spawn(move || {
+                let result =
+                    panic::catch_unwind(AssertUnwindSafe(|| invoker.invoke(&function_name, payload)));
+                drop(slot);
+                // The receiver is gone when the attempt timed out: the result is dropped.
+                let _ = tx.send(result);
+            });
+        if let Err(e) = spawned {
+            return Ok(Err(failure(
+                "Lambda.ServiceException",
+                format!("{path}: cannot start the invocation thread: {e}"),
+            )));
+        }
+        let deadline = timeout.map(|t| Instant::now() + t);
+        loop {
+            let mut wait = POLL;
+            if let Some(d) = deadline {
+                wait = wait.min(d.saturating_duration_since(Instant::now()));
+            }
+            match rx.recv_timeout(wait) {
+                Ok(Ok(Ok(value))) => return Ok(Ok(value)),
+                Ok(Ok(Err(TaskFailure { error, cause }))) => return Ok(Err(failure(&error, cause))),
+                Ok(Err(panic)) => {
+                    let message = panic
+                        .downcast_ref::<&str>()
+                        .map(|s| s.to_string())
+                        .or_else(|| panic.downcast_ref::<String>().cloned())
+                        .unwrap_or_else(|| "no message".into());
+                    return Ok(Err(failure(
+                        PANIC,
+                        format!("{path}: the function {function} panicked: {message}"),
+                    )));
+                }
+                Err(RecvTimeoutError::Disconnected) => {
+                    return Ok(Err(failure(
+                        PANIC,
+                        format!("{path}: the function {function} ended without a result"),
+                    )));
+                }
+                Err(RecvTimeoutError::Timeout) => {
+                    self.check(frame, path)?;
+                    if deadline.is_some_and(|d| Instant::now() >= d) {
+                        let limit = timeout.unwrap_or_default().as_secs_f64() / self.options.time_scale;
+                        return Ok(Err(failure(
+                            retry::TIMEOUT,
+                            format!(
+                                "{path}: attempt {attempt} ran longer than its timeout of {limit} s"
+                            ),
+                        )));
+                    }
+                }
+            }
+        }
+    }
+
+    fn map<'m>(
+        &self,
+        map: &'m MapState,
+        path: &str,
+        name: &str,
+        raw: Value,
+        frame: &Frame,
+    ) -> Result<Step<'m>, Stop> {
+        let ctx0 = self.context(name, 0, None);
+        let effective = select(&map.io.input_path, raw.clone(), &ctx0)
+            .map_err(|e| Stop::Failed(Self::runtime(path, e)))?;
+        let outcome = self.with_retries(&map.retry, path, frame, false, |attempt| {
+            self.map_run(map, path, name, &effective, attempt, frame)
+        })?;
+        match outcome {
+            Ok((results, attempt)) => {
+                let ctx = self.context(name, attempt, None);
+                let finish = || -> Result<Value, String> {
+                    let selected = match &map.result_selector {
+                        Some(s) => s.eval(&results, &ctx)?,
+                        None => results.clone(),
+                    };
+                    let out = map.result_path.apply(raw.clone(), selected)?;
+                    select(&map.io.output_path, out, &ctx)
+                };
+                Ok(Step {
+                    output: finish().map_err(|e| Stop::Failed(Self::runtime(path, e)))?,
+                    next: next(&map.transition),
+                    caught: None,
+                })
+            }
+            Err(failure) => self.catch(&map.catch, path, raw, failure),
+        }
+    }
+
+    /// Reads the items: `ItemReader.Parameters` must give `Bucket` (the execution's bucket)
+    /// and `Key` of a JSON array.
+    fn read_items(&self, map: &MapState, path: &str, input: &Value, ctx: &Value) -> Result<Vec<Value>, Failure> {
+        let params = map
+            .reader
+            .eval(input, ctx)
+            .map_err(|e| Self::runtime(path, format!("ItemReader.Parameters: {e}")))?;
+        let (Some(bucket), Some(key)) = (
+            params.get("Bucket").and_then(Value::as_str),
+            params.get("Key").and_then(Value::as_str),
+        ) else {
+            return Err(Self::runtime(
+                path,
+                format!("ItemReader.Parameters must give Bucket and Key strings, got {params}"),
+            ));
+        };
+        let reader_failed = |cause: String| Failure {
+            error: ITEM_READER_FAILED.into(),
+            cause: format!("{path}: {cause}"),
+            state: path.to_owned(),
+            item: None,
+        };
+        if self.bucket.as_deref() != Some(bucket) {
+            return Err(reader_failed(format!(
+                "ItemReader reads bucket {bucket:?}, but the emulator's store holds only the \
+                 execution input's bucket ({:?})",
+                self.bucket.as_deref().unwrap_or("none given")
+            )));
+        }
+        let bytes = self
+            .store
+            .get(key)
+            .map_err(|e| reader_failed(format!("cannot read items s3://{bucket}/{key}: {e}")))?;
+        match serde_json::from_slice::<Value>(&bytes) {
+            Ok(Value::Array(items)) => Ok(items),
+            Ok(_) => Err(reader_failed(format!(
+                "s3://{bucket}/{key} is not a JSON array"
+            ))),
+            Err(e) => Err(reader_failed(format!(
+                "s3://{bucket}/{key} is not valid JSON: {e}"
+            ))),
+        }
+    }
+
+    /// One Map Run: read the items, run the children, collect their outputs in item order.
+    fn map_run(
+        &self,
+        map: &MapState,
+        path: &str,
+        name: &str,
+        input: &Value,
+        attempt: u32,
+        frame: &Frame,
+    ) -> Result<Result<Value, Failure>, Stop> {
+        let ctx = self.context(name, attempt, None);
+        let items = match self.read_items(map, path, input, &ctx) {
+            Ok(items) => items,
+            Err(failure) => return Ok(Err(failure)),
+        };
+        let limit = match &map.max_concurrency {
+            None => 0,
+            Some(n) => match positive(n, input, &ctx, 0) {
+                Ok(n) => n,
+                Err(e) => return Ok(Err(Self::runtime(path, e))),
+            },
+        };
+        let limit = if limit == 0 { usize::MAX } else { usize::try_from(limit).unwrap_or(usize::MAX) };
+        let concurrency = limit.min(self.options.slots.max(1)).min(items.len());
+        self.emit(Event::MapStarted {
+            state: path.to_owned(),
+            items: items.len(),
+            concurrency,
+        });
+        let abort = AtomicBool::new(false);
+        let next_item = AtomicUsize::new(0);
+        let first_failure: Mutex<Option<(usize, Failure)>> = Mutex::new(None);
+        let outputs: Mutex<Vec<Value>> = Mutex::new(vec![Value::Null; items.len()]);
+        let halt = Halt {
+            flag: &abort,
+            parent: Some(&frame.halt),
+        };
+        thread::scope(|s| {
+            for _ in 0..concurrency {
+                s.spawn(|| {
+                    loop {
+                        if halt.is_set() {
+                            break;
+                        }
+                        let i = next_item.fetch_add(1, Ordering::SeqCst);
+                        let Some(item) = items.get(i) else { break };
+                        let child = Frame {
+                            map: Some(path),
+                            item: Some(i),
+                            halt,
+                            deadline: map
+                                .express
+                                .then(|| Instant::now() + self.scaled(EXPRESS_LIMIT_SECONDS)),
+                        };
+                        let child_ctx = self.context(name, attempt, Some((i, item)));
+                        let child_input = match &map.item_selector {
+                            Some(t) => t.eval(input, &child_ctx),
+                            None => Ok(item.clone()),
+                        };
+                        let result = match child_input {
+                            Ok(child_input) => self.machine(&map.processor, child_input, &child),
+                            Err(e) => Err(Stop::Failed(Self::runtime(
+                                path,
+                                format!("ItemSelector of item {i}: {e}"),
+                            ))),
+                        };
+                        match result {
+                            Ok(value) => lock(&outputs)[i] = value,
+                            Err(Stop::Failed(failure)) => {
+                                lock(&first_failure).get_or_insert((i, failure));
+                                abort.store(true, Ordering::SeqCst);
+                            }
+                            Err(Stop::Halted(_)) => {}
+                        }
+                    }
+                });
+            }
+        });
+        let failed = lock(&first_failure).take();
+        self.emit(Event::MapFinished {
+            state: path.to_owned(),
+            succeeded: failed.is_none() && !frame.halt.is_set(),
+        });
+        self.check(frame, path)?;
+        if let Some((index, failure)) = failed {
+            let cause = format!(
+                "{path}: the Map Run failed because item {index} failed in {} with {}: {} \
+                 (tolerated failures: 0)",
+                failure.state, failure.error, failure.cause
+            );
+            return Ok(Err(Failure {
+                error: EXCEED_TOLERATED_FAILURE.into(),
+                cause,
+                state: path.to_owned(),
+                item: Some(ItemFailure {
+                    map_state: path.to_owned(),
+                    index,
+                    state: failure.state,
+                    error: failure.error,
+                    cause: failure.cause,
+                }),
+            }));
+        }
+        Ok(Ok(Value::Array(
+            outputs.into_inner().unwrap_or_else(|p| p.into_inner()),
+        )))
+    }
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+fn next(t: &Transition) -> Option<&str> {
+    match t {
+        Transition::Next(n) => Some(n),
+        Transition::End => None,
+    }
+}
+
+fn select(selector: &Selector, value: Value, ctx: &Value) -> Result<Value, String> {
+    match selector {
+        Selector::Whole => Ok(value),
+        Selector::Empty => Ok(json!({})),
+        Selector::Path(p) => p.resolve(&value, ctx),
+    }
+}
+
+/// A `TimeoutSeconds(Path)` or `MaxConcurrency(Path)` value: an integer of at least `min`.
+fn positive(n: &Number, input: &Value, ctx: &Value, min: u64) -> Result<u64, String> {
+    match n {
+        Number::Fixed(v) => Ok(*v),
+        Number::Path(p) => {
+            let v = p.resolve(input, ctx)?;
+            v.as_u64().filter(|&v| v >= min).ok_or_else(|| {
+                format!(
+                    "the path {:?} must select an integer of at least {min}, found {v}",
+                    p.text
+                )
+            })
+        }
+    }
+}
