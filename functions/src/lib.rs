@@ -4,13 +4,14 @@
 //! only moves bytes between them and AWS.
 //!
 //! - [`S3Store`] ([`s3_store`]): the core's `BlobStore` over AWS S3 or any S3-compatible server,
-//!   configured by [`S3Config`] ([`s3_config`]); SDK errors are classified in [`s3_errors`].
+//!   configured by [`S3Config`] ([`s3_config`]); SDK errors are classified in one private
+//!   module, `s3_errors`, into the core's `StoreError` with one-line messages.
 #![forbid(unsafe_code)]
 
 pub use hort_core as core;
 
 pub mod s3_config;
-pub mod s3_errors;
+mod s3_errors;
 pub mod s3_store;
 
 pub use s3_config::{S3Config, S3Credentials};

@@ -9,9 +9,9 @@
 use std::error::Error;
 use std::time::Duration;
 
+use aws_sdk_s3::config::http::HttpResponse;
 use aws_sdk_s3::error::{ProvideErrorMetadata, SdkError};
 use aws_sdk_s3::operation::put_object::PutObjectError;
-use aws_sdk_s3::config::http::HttpResponse;
 use hort_core::store::StoreError;
 
 /// Error codes meaning the credentials themselves were refused.
@@ -96,7 +96,9 @@ pub(crate) fn is_invalid_range<E: ProvideErrorMetadata>(err: &SdkError<E, HttpRe
 /// has no body), so a GET would tell more.
 pub(crate) fn lacks_code<E: ProvideErrorMetadata>(err: &SdkError<E, HttpResponse>) -> bool {
     matches!(err, SdkError::ServiceError(_))
-        && err.code().is_none_or(|c| c == "Forbidden" || c == "BadRequest")
+        && err
+            .code()
+            .is_none_or(|c| c == "Forbidden" || c == "BadRequest")
 }
 
 /// Classifies `err`, the failure of `request` against `target`.
@@ -176,12 +178,13 @@ where
             what: format!("{op}: bucket {bucket:?} does not exist at {ep}"),
         };
     }
-    if status == 404 || code == "NoSuchKey" {
-        if let Some(key) = request.key.filter(|_| request.object_read) {
-            return StoreError::NotFound {
-                key: key.to_owned(),
-            };
-        }
+    if (status == 404 || code == "NoSuchKey")
+        && request.object_read
+        && let Some(key) = request.key
+    {
+        return StoreError::NotFound {
+            key: key.to_owned(),
+        };
     }
     if CREDENTIAL_CODES.contains(&code) {
         return StoreError::Denied {

@@ -36,7 +36,7 @@ const MAX_PREALLOCATION: usize = 64 << 20;
 ///
 /// Guarantees the [`BlobStore`] contract (it passes `hort_core::store::conformance`) on AWS S3
 /// and on servers that implement `If-None-Match: *` on PUT atomically; errors are classified
-/// once (see [`crate::s3_errors`]). Objects are sent with one PUT each (S3 caps those at 5 GiB)
+/// in one place (module `s3_errors`). Objects are sent with one PUT each (S3 caps those at 5 GiB)
 /// and read whole into memory. Each request is retried by the SDK (standard mode,
 /// [`S3Config::max_attempts`] attempts) on connection failures, timeouts, 5xx and throttling
 /// before an error is returned.
@@ -106,12 +106,8 @@ impl S3Store {
                 .response_checksum_validation(ResponseChecksumValidation::WhenRequired);
         }
         let label = endpoint.unwrap_or_else(|| format!("AWS S3 ({region})"));
-        let mut store = Self::from_client(
-            Client::from_conf(s3.build()),
-            &config.bucket,
-            label,
-            handle,
-        );
+        let mut store =
+            Self::from_client(Client::from_conf(s3.build()), &config.bucket, label, handle);
         store.target.connect_timeout = config.connect_timeout;
         store.target.attempt_timeout = config.attempt_timeout;
         store.region = Some(region);
@@ -178,7 +174,8 @@ impl S3Store {
     /// `Denied` for a missing bucket, refused credentials or permissions, `Unavailable` for an
     /// unreachable endpoint.
     pub fn check_bucket(&self) -> Result<(), StoreError> {
-        self.handle.block_on(self.check_bucket_async("check bucket"))
+        self.handle
+            .block_on(self.check_bucket_async("check bucket"))
     }
 
     /// Creates the bucket unless it exists (in the store's region), then checks it as
@@ -311,9 +308,16 @@ impl S3Store {
             end: range.end,
             len,
         };
-        if range.start >= range.end {
+        // No object is longer than i64::MAX bytes, and servers parse ranges as signed 64-bit.
+        let signed_max = i64::MAX as u64;
+        if range.start >= range.end || range.start > signed_max {
             return Err(invalid(self.object_len(key, op).await?));
         }
+        let header = if range.end > signed_max {
+            format!("bytes={}-", range.start)
+        } else {
+            format!("bytes={}-{}", range.start, range.end - 1)
+        };
         let request = Request {
             op,
             key: Some(key),
@@ -324,7 +328,7 @@ impl S3Store {
             .get_object()
             .bucket(&self.target.bucket)
             .key(key)
-            .range(format!("bytes={}-{}", range.start, range.end - 1))
+            .range(header)
             .send()
             .await;
         let out = match answer {
@@ -517,7 +521,9 @@ impl BlobStore for S3Store {
             {
                 Ok(_) => Ok(()),
                 // Some servers answer 404 NoSuchKey where S3 answers 204: same meaning.
-                Err(err) if aws_sdk_s3::error::ProvideErrorMetadata::code(&err) == Some("NoSuchKey") => {
+                Err(err)
+                    if aws_sdk_s3::error::ProvideErrorMetadata::code(&err) == Some("NoSuchKey") =>
+                {
                     Ok(())
                 }
                 Err(err) => Err(s3_errors::store_error(err, request, &self.target)),
@@ -582,7 +588,11 @@ fn one_line_error(err: &(dyn std::error::Error + 'static)) -> String {
         parts.push(e.to_string());
         source = e.source();
     }
-    parts.join(": ").split_whitespace().collect::<Vec<_>>().join(" ")
+    parts
+        .join(": ")
+        .split_whitespace()
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 #[cfg(test)]

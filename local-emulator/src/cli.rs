@@ -1,6 +1,7 @@
 //! The command-line contract of DESIGN.md: names and meanings scripts rely on.
 
 use clap::{Args, Parser, Subcommand};
+use hort_core::pipeline::SplitMode;
 use std::path::PathBuf;
 
 #[derive(Parser)]
@@ -23,6 +24,17 @@ pub enum Command {
         #[command(subcommand)]
         command: SceneCommand,
     },
+    /// Benchmarks: tables of ratios against a baseline measured in the same run.
+    Bench {
+        #[command(subcommand)]
+        command: BenchCommand,
+    },
+}
+
+#[derive(Subcommand)]
+pub enum BenchCommand {
+    /// The in-process pipeline against the monolithic renderer: time, skipped pairs, memory.
+    Pipeline(crate::bench::PipelineBenchArgs),
 }
 
 #[derive(Subcommand)]
@@ -50,6 +62,19 @@ pub struct RenderArgs {
     /// Worker threads of a monolithic render (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Scene splits k (default: about one per 250k triangles).
+    #[arg(long)]
+    pub splits: Option<u32>,
+    /// Pixel spans s, one reduce task each; HORT's d = s x k map inputs (default: about one per
+    /// 64k samples, at most 100).
+    #[arg(long)]
+    pub spans: Option<u32>,
+    /// How the scene is cut: spatial clusters (default) or the paper's naive index ranges.
+    #[arg(long, default_value = "spatial")]
+    pub split_mode: SplitMode,
+    /// Tasks run concurrently (default: all cores).
+    #[arg(long)]
+    pub workers: Option<usize>,
     /// Output image: .png (8-bit sRGB), .pfm or .exr (linear). Default: SCENE's name with .png.
     #[arg(long)]
     pub out: Option<PathBuf>,

@@ -95,7 +95,7 @@ impl EmbeddedS3 {
             what: format!("open data directory {}", data_dir.display()),
             cause: io::Error::other(describe_fs_error(e)),
         })?;
-        let mut builder = S3ServiceBuilder::new(ObjectFiles::new(files));
+        let mut builder = S3ServiceBuilder::new(ObjectFiles::new(files, data_dir.clone()));
         builder.set_auth(SingleKeyAuth {
             access_key: access_key.to_owned(),
             secret_key: SecretKey::from(secret_key),

@@ -3,3 +3,4 @@
 #![forbid(unsafe_code)]
 
 pub mod embedded_s3;
+pub mod orchestrator;

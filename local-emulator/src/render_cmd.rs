@@ -1,92 +1,168 @@
-//! `hort render`: load, render, write the image, hit buffer and report.
+//! `hort render`: load, render (monolithic or through the pipeline), write the image, hit
+//! buffer and report.
 
 use crate::cli::RenderArgs;
 use anyhow::{Context, Result, bail};
-use hort_core::hits::encode_hits;
-use hort_core::image::write_image;
+use hort_core::hits::{Hit, encode_hits};
+use hort_core::ids::JobId;
+use hort_core::image::{Image, write_image};
+use hort_core::pipeline::{PipelineOptions, PlanRequest, run_pipeline};
 use hort_core::render::{RenderSettings, build_scene_bvh, render};
-use hort_core::report::{RayReport, Report, Seconds};
-use hort_core::scene::{DEFAULT_HEIGHT, DEFAULT_WIDTH, load_scene};
+use hort_core::report::{RayReport, Report, Seconds, StageReport};
+use hort_core::scene::{DEFAULT_HEIGHT, DEFAULT_WIDTH, Scene, check_image_size, load_scene};
+use hort_core::store::MemoryStore;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+/// What either renderer hands back for writing.
+struct Rendered {
+    image: Image,
+    hits: Vec<Hit>,
+    rays: RayReport,
+    build_seconds: f64,
+    render_seconds: f64,
+    threads: usize,
+    stages: Vec<StageReport>,
+    replication: Option<f64>,
+}
+
 pub fn run(args: RenderArgs) -> Result<()> {
-    if !args.monolithic {
-        bail!(
-            "the distributed pipeline is not available in this build yet: add --monolithic to render in one process"
-        );
-    }
     let started = Instant::now();
+    if args.threads == Some(0) || args.workers == Some(0) {
+        bail!("--threads and --workers must be at least 1");
+    }
     let scene = load_scene(&args.scene)?;
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }
     let load_seconds = started.elapsed().as_secs_f64();
-    let settings = RenderSettings {
-        width: args.width.or(scene.image.width).unwrap_or(DEFAULT_WIDTH),
-        height: args.height.or(scene.image.height).unwrap_or(DEFAULT_HEIGHT),
-        spp: args.spp.or(scene.image.spp).unwrap_or(1),
-        threads: args.threads.unwrap_or(0),
-    };
-    if args.threads == Some(0) {
-        bail!("--threads must be at least 1");
-    }
-    hort_core::scene::check_image_size(settings.width, settings.height, settings.spp)?;
-    let build_start = Instant::now();
-    let bvh = build_scene_bvh(&scene.mesh);
-    let build_seconds = build_start.elapsed().as_secs_f64();
-    let output = render(&scene, &bvh, settings)?;
-
+    let width = args.width.or(scene.image.width).unwrap_or(DEFAULT_WIDTH);
+    let height = args.height.or(scene.image.height).unwrap_or(DEFAULT_HEIGHT);
+    let spp = args.spp.or(scene.image.spp).unwrap_or(1);
+    check_image_size(width, height, spp)?;
     let out = args.out.clone().unwrap_or_else(|| default_out(&args.scene));
-    write_image(&out, &output.image)?;
-    if let Some(path) = &args.hits {
-        write_file(path, &encode_hits(&output.hits))?;
-    }
-    let threads = if settings.threads == 0 {
-        std::thread::available_parallelism().map_or(1, |n| n.get())
+    let rendered = if args.monolithic {
+        render_monolithic(&scene, width, height, spp, args.threads)?
     } else {
-        settings.threads
+        render_pipeline(&scene, width, height, spp, &args)?
     };
+    write_image(&out, &rendered.image)?;
+    if let Some(path) = &args.hits {
+        write_file(path, &encode_hits(&rendered.hits))?;
+    }
     let report = Report {
-        mode: "monolithic".into(),
+        mode: if args.monolithic {
+            "monolithic"
+        } else {
+            "pipeline"
+        }
+        .into(),
         scene: args.scene.display().to_string(),
-        width: settings.width,
-        height: settings.height,
-        spp: settings.spp,
+        width,
+        height,
+        spp,
         triangles: scene.mesh.triangle_count() as u64,
-        threads,
-        rays: RayReport {
-            primary: output.rays.primary,
-            shadow: output.rays.shadow,
-        },
+        threads: rendered.threads,
+        rays: rendered.rays,
         seconds: Seconds {
             total: started.elapsed().as_secs_f64(),
-            render: output.render_seconds,
+            render: rendered.render_seconds,
             load: load_seconds,
-            build: build_seconds,
+            build: rendered.build_seconds,
         },
-        stages: Vec::new(),
-        replication: None,
+        stages: rendered.stages,
+        replication: rendered.replication,
         cost_usd: None,
     };
     if let Some(path) = &args.report {
         write_file(path, report.to_json().as_bytes())?;
     }
     let mrays =
-        (report.rays.primary + report.rays.shadow) as f64 / output.render_seconds.max(1e-9) / 1e6;
+        (report.rays.primary + report.rays.shadow) as f64 / rendered.render_seconds.max(1e-9) / 1e6;
     eprintln!(
-        "rendered {}x{} at {} spp, {} triangles: {:.3} s render ({:.2} Mrays/s on {} threads), {:.3} s total -> {}",
-        settings.width,
-        settings.height,
-        settings.spp,
+        "rendered {width}x{height} at {spp} spp ({}), {} triangles: {:.3} s render ({mrays:.2} Mrays/s on {} threads), {:.3} s total -> {}",
+        report.mode,
         report.triangles,
-        output.render_seconds,
-        mrays,
-        threads,
+        rendered.render_seconds,
+        rendered.threads,
         report.seconds.total,
         out.display()
     );
     Ok(())
+}
+
+fn cores() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+fn render_monolithic(
+    scene: &Scene,
+    width: u32,
+    height: u32,
+    spp: u32,
+    threads: Option<usize>,
+) -> Result<Rendered> {
+    let threads = threads.unwrap_or_else(cores);
+    let build_start = Instant::now();
+    let bvh = build_scene_bvh(&scene.mesh);
+    let build_seconds = build_start.elapsed().as_secs_f64();
+    let settings = RenderSettings {
+        width,
+        height,
+        spp,
+        threads,
+    };
+    let output = render(scene, &bvh, settings)?;
+    Ok(Rendered {
+        image: output.image,
+        hits: output.hits,
+        rays: RayReport {
+            primary: output.rays.primary,
+            shadow: output.rays.shadow,
+        },
+        build_seconds,
+        render_seconds: output.render_seconds,
+        threads,
+        stages: Vec::new(),
+        replication: None,
+    })
+}
+
+fn render_pipeline(
+    scene: &Scene,
+    width: u32,
+    height: u32,
+    spp: u32,
+    args: &RenderArgs,
+) -> Result<Rendered> {
+    let workers = args.workers.unwrap_or_else(cores);
+    let request = PlanRequest {
+        width,
+        height,
+        spp,
+        splits: args.splits,
+        spans: args.spans,
+        mode: args.split_mode,
+    };
+    let options = PipelineOptions {
+        job: JobId::new("local").context("job id")?,
+        workers,
+    };
+    let store = MemoryStore::new();
+    let run = run_pipeline(&store, scene, request, &options)?;
+    Ok(Rendered {
+        image: run.image,
+        hits: run.hits,
+        rays: RayReport {
+            primary: run.primary_rays,
+            shadow: run.shadow_rays,
+        },
+        build_seconds: run.stages.first().map_or(0.0, |s| s.seconds),
+        render_seconds: run.render_seconds,
+        threads: workers,
+        stages: run.stages,
+        replication: Some(run.replication),
+    })
 }
 
 fn default_out(scene: &Path) -> PathBuf {

@@ -1,22 +1,58 @@
-//! `hort scene generate`.
+//! `hort scene generate`: a deterministic synthetic OBJ plus a manifest whose camera the scene
+//! fills (the bare OBJ's default framing shows it small: it is wide and flat).
 
 use crate::cli::GenerateArgs;
 use anyhow::{Context, Result};
+use hort_core::scene::{load_scene, scene_bounds};
 use std::io::Write;
+use std::path::Path;
 
 pub fn generate(args: GenerateArgs) -> Result<()> {
-    hort_core::generate::check_triangle_count(args.triangles).map_err(anyhow::Error::msg)?;
-    let file = std::fs::File::create(&args.out)
-        .with_context(|| format!("cannot create {}", args.out.display()))?;
-    let mut out = std::io::BufWriter::new(file);
-    let summary = hort_core::generate::generate_scene(args.triangles, args.seed, &mut out)
-        .and_then(|s| out.flush().map(|()| s))
-        .with_context(|| format!("cannot write {}", args.out.display()))?;
+    let summary = write_generated(args.triangles, args.seed, &args.out)?;
     eprintln!(
-        "wrote {} triangles, {} vertices -> {}",
+        "wrote {} triangles, {} vertices -> {} (and {} with a camera the scene fills)",
         summary.triangles,
         summary.vertices,
-        args.out.display()
+        args.out.display(),
+        args.out.with_extension("json").display()
     );
     Ok(())
+}
+
+/// Writes the OBJ at `out` and its manifest beside it (`out` with extension `.json`).
+pub fn write_generated(
+    triangles: u64,
+    seed: u64,
+    out: &Path,
+) -> Result<hort_core::generate::GenerateSummary> {
+    hort_core::generate::check_triangle_count(triangles).map_err(anyhow::Error::msg)?;
+    let file =
+        std::fs::File::create(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let mut writer = std::io::BufWriter::new(file);
+    let summary = hort_core::generate::generate_scene(triangles, seed, &mut writer)
+        .and_then(|s| writer.flush().map(|()| s))
+        .with_context(|| format!("cannot write {}", out.display()))?;
+    write_manifest(out)?;
+    Ok(summary)
+}
+
+/// A manifest looking down at the scene from the front, so the ground fills the frame.
+fn write_manifest(obj: &Path) -> Result<()> {
+    let scene = load_scene(obj)?;
+    let (lo, hi) = scene_bounds(&scene.mesh, obj)?;
+    let c = (lo + hi) * 0.5;
+    let x = hi.x - lo.x;
+    let eye = [c.x, lo.y + 0.33 * x, hi.z + 0.28 * x];
+    let look_at = [c.x, lo.y + 0.03 * x, c.z + 0.02 * x];
+    let name = obj
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let manifest = serde_json::json!({
+        "meshes": [name],
+        "camera": {"eye": eye, "look_at": look_at, "up": [0.0, 1.0, 0.0], "vfov": 45.0},
+    });
+    let path = obj.with_extension("json");
+    let text = serde_json::to_string_pretty(&manifest).context("manifest")?;
+    std::fs::write(&path, text + "\n").with_context(|| format!("cannot write {}", path.display()))
 }

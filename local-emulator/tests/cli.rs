@@ -202,3 +202,87 @@ fn scene_generate_is_deterministic_and_exact() {
     ]);
     assert_eq!(o.status.code(), Some(1));
 }
+
+#[test]
+fn pipeline_render_equals_monolithic_byte_for_byte() {
+    let mono_dir = scratch("pipe-mono");
+    let mono = render(&scene("teapot/teapot.json"), &mono_dir, &[]);
+    for (k, s, mode, workers) in [
+        ("1", "16", "spatial", "2"),
+        ("5", "3", "naive", "1"),
+        ("7", "13", "spatial", "3"),
+    ] {
+        let dir = scratch(&format!("pipe-{k}-{s}-{mode}"));
+        let (out, hits, report) = (dir.join("o.pfm"), dir.join("h.bin"), dir.join("r.json"));
+        let o = hort(&[
+            "render",
+            scene("teapot/teapot.json").to_str().unwrap(),
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--splits",
+            k,
+            "--spans",
+            s,
+            "--split-mode",
+            mode,
+            "--workers",
+            workers,
+            "--out",
+            out.to_str().unwrap(),
+            "--hits",
+            hits.to_str().unwrap(),
+            "--report",
+            report.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert_eq!(
+            std::fs::read(&out).unwrap(),
+            mono.0,
+            "image, k={k} s={s} {mode}"
+        );
+        assert_eq!(
+            std::fs::read(&hits).unwrap(),
+            mono.1,
+            "hits, k={k} s={s} {mode}"
+        );
+        let r: serde_json::Value = serde_json::from_slice(&std::fs::read(report).unwrap()).unwrap();
+        assert_eq!(r["mode"], "pipeline");
+        let names: Vec<&str> = r["stages"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|s| s["name"].as_str().unwrap())
+            .collect();
+        assert_eq!(
+            names,
+            [
+                "split",
+                "cast-map",
+                "cast-reduce",
+                "expand",
+                "trace-map",
+                "trace-reduce",
+                "combine"
+            ]
+        );
+        assert_eq!(
+            r["stages"][2]["tasks"].as_u64().unwrap(),
+            s.parse::<u64>().unwrap()
+        );
+        assert!(r["replication"].as_f64().unwrap() > 0.0);
+        assert_eq!(r["rays"], mono.2["rays"]);
+    }
+    let o = hort(&[
+        "render",
+        scene("teapot/teapot.json").to_str().unwrap(),
+        "--splits",
+        "5000",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(
+        String::from_utf8(o.stderr).unwrap(),
+        "error: --splits 5000 is out of range: the scene has 994 triangles, so use 1 to 994\n"
+    );
+}

@@ -229,3 +229,72 @@ pub fn plan_job(
         trace_tasks,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn req(splits: Option<u32>, spans: Option<u32>) -> PlanRequest {
+        PlanRequest {
+            width: 64,
+            height: 48,
+            spp: 1,
+            splits,
+            spans,
+            mode: SplitMode::Spatial,
+        }
+    }
+
+    #[test]
+    fn counts_are_checked_with_clear_messages() {
+        assert_eq!(resolve_counts(&req(Some(3), Some(7)), 100).unwrap(), (3, 7));
+        assert_eq!(resolve_counts(&req(None, None), 100).unwrap(), (1, 1));
+        assert_eq!(resolve_counts(&req(None, None), 1_000_000).unwrap(), (4, 1));
+        assert_eq!(
+            resolve_counts(&req(Some(0), None), 100)
+                .unwrap_err()
+                .to_string(),
+            "--splits 0 is out of range: the scene has 100 triangles, so use 1 to 100"
+        );
+        assert_eq!(
+            resolve_counts(&req(Some(101), None), 100)
+                .unwrap_err()
+                .to_string(),
+            "--splits 101 is out of range: the scene has 100 triangles, so use 1 to 100"
+        );
+        assert_eq!(
+            resolve_counts(&req(None, Some(10_001)), 100)
+                .unwrap_err()
+                .to_string(),
+            "--spans 10001 is out of range: the image has 3072 pixels, so use 1 to 3072"
+        );
+    }
+
+    #[test]
+    fn spans_cover_every_pixel_once_and_the_plan_round_trips() {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../scenes/cornell/cornell.json"
+        );
+        let scene = crate::scene::load_scene(std::path::Path::new(path)).unwrap();
+        let infos =
+            super::super::split_scene(&scene.mesh, 3, SplitMode::Spatial, |_, _| Ok::<(), ()>(()))
+                .unwrap();
+        let plan = plan_job(&scene, &req(Some(3), Some(7)), infos, 7).unwrap();
+        assert_eq!(plan.spans.first().unwrap().start, 0);
+        assert_eq!(plan.spans.last().unwrap().end, 64 * 48);
+        assert!(plan.spans.windows(2).all(|w| w[0].end == w[1].start));
+        assert_eq!(plan.trace_tasks.len(), 21);
+        assert!(
+            plan.trace_tasks
+                .iter()
+                .all(|t| plan.trace_task_id(t.span, t.split) == t.task)
+        );
+        let json = serde_json::to_vec(&plan).unwrap();
+        assert_eq!(JobPlan::from_json("p", &json).unwrap(), plan);
+        let e = JobPlan::from_json("jobs/x/plan.json", b"{")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("plan jobs/x/plan.json: "), "{e}");
+    }
+}

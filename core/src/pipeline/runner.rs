@@ -38,8 +38,8 @@ pub struct TaskMetrics {
     pub recomputed: u64,
     /// Logical shadow rays (hit samples x lights), counted by TraceReduce.
     pub shadow_rays: u64,
-    /// Whether a map task found no work and skipped loading its split.
-    pub skipped: bool,
+    /// Map tasks that found no work and did not load their split.
+    pub skipped_tasks: u64,
 }
 
 impl std::ops::AddAssign for TaskMetrics {
@@ -51,7 +51,7 @@ impl std::ops::AddAssign for TaskMetrics {
         self.records += o.records;
         self.recomputed += o.recomputed;
         self.shadow_rays += o.shadow_rays;
-        self.skipped |= o.skipped;
+        self.skipped_tasks += o.skipped_tasks;
     }
 }
 
@@ -145,7 +145,7 @@ impl Task<'_> {
                 let key = self.key(Stage::Expand, t.span, t.split);
                 let queries = self.read(&key, decode_queries)?;
                 let occluded = if queries.is_empty() {
-                    self.metrics.skipped = true;
+                    self.metrics.skipped_tasks += 1;
                     Vec::new()
                 } else {
                     let split = self.read_split(t.split)?;
@@ -190,9 +190,9 @@ impl Task<'_> {
                 }
                 let (image, hits) = stages::combine(plan, &blocks);
                 let png = encode_png(&image).map_err(|e| PipelineError::BadInput(e.to_string()))?;
-                self.put_output(&image_key_with_ext(self.job, "png"), png)?;
-                self.put_output(&image_key_with_ext(self.job, "pfm"), encode_pfm(&image))?;
-                self.put_output(&hits_key(self.job), encode_hits(&hits))?;
+                self.write_plain(&image_key_with_ext(self.job, "png"), png)?;
+                self.write_plain(&image_key_with_ext(self.job, "pfm"), encode_pfm(&image))?;
+                self.write_plain(&hits_key(self.job), encode_hits(&hits))?;
                 self.metrics.records += hits.len() as u64;
                 Ok(())
             }
@@ -275,6 +275,12 @@ impl Task<'_> {
         self.metrics.bytes_written_raw += raw_len;
         self.metrics.records += records as u64;
         self.put_output(key, block)
+    }
+
+    /// Writes a final output (not a block): its raw size is its size.
+    fn write_plain(&mut self, key: &str, bytes: Vec<u8>) -> Result<(), PipelineError> {
+        self.metrics.bytes_written_raw += bytes.len() as u64;
+        self.put_output(key, bytes)
     }
 
     fn put_output(&mut self, key: &str, bytes: Vec<u8>) -> Result<(), PipelineError> {

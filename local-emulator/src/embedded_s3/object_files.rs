@@ -15,6 +15,7 @@
 //! outside the S3 subset this server supports.
 
 use std::collections::BTreeSet;
+use std::path::PathBuf;
 
 use s3s::dto::{
     CommonPrefix, CreateBucketInput, CreateBucketOutput, DeleteBucketInput, DeleteBucketOutput,
@@ -23,7 +24,7 @@ use s3s::dto::{
     HeadObjectOutput, ListBucketsInput, ListBucketsOutput, ListObjectsInput, ListObjectsOutput,
     ListObjectsV2Input, ListObjectsV2Output, Object, PutObjectInput, PutObjectOutput,
 };
-use s3s::{S3, S3Request, S3Response, S3Result};
+use s3s::{S3, S3Request, S3Response, S3Result, s3_error};
 use tokio::sync::RwLock;
 
 /// Appended to every object's file name; never the end of a directory name (see module docs).
@@ -36,15 +37,29 @@ const MAX_KEYS_PER_PAGE: usize = 1000;
 /// conditional puts and exact listing.
 pub(crate) struct ObjectFiles {
     files: s3s_fs::FileSystem,
+    /// The data directory `files` serves; bucket `b` is its subdirectory `b`.
+    root: PathBuf,
     /// Plain puts share it; conditional puts hold it alone, so check-then-write is atomic.
     puts: RwLock<()>,
 }
 
 impl ObjectFiles {
-    pub(crate) fn new(files: s3s_fs::FileSystem) -> Self {
+    /// Serves `files`, whose data directory is `root`.
+    pub(crate) fn new(files: s3s_fs::FileSystem, root: PathBuf) -> Self {
         Self {
             files,
+            root,
             puts: RwLock::new(()),
+        }
+    }
+
+    /// `NoSuchBucket` unless the bucket exists. `s3s-fs` alone answers `NoSuchKey` for a get
+    /// from a missing bucket and creates the bucket on a put, unlike S3.
+    fn require_bucket(&self, bucket: &str) -> S3Result<()> {
+        if s3s::path::check_bucket_name(bucket) && self.root.join(bucket).is_dir() {
+            Ok(())
+        } else {
+            Err(s3_error!(NoSuchBucket))
         }
     }
 
@@ -55,6 +70,7 @@ impl ObjectFiles {
         bucket: String,
         prefix: &str,
     ) -> S3Result<Vec<Object>> {
+        self.require_bucket(&bucket)?;
         let inner = req.map_input(|_| ListObjectsV2Input {
             bucket,
             prefix: Some(escape(prefix)),
@@ -221,6 +237,7 @@ impl S3 for ObjectFiles {
         &self,
         mut req: S3Request<GetObjectInput>,
     ) -> S3Result<S3Response<GetObjectOutput>> {
+        self.require_bucket(&req.input.bucket)?;
         req.input.key = file_of_key(&req.input.key);
         self.files.get_object(req).await
     }
@@ -229,6 +246,7 @@ impl S3 for ObjectFiles {
         &self,
         mut req: S3Request<HeadObjectInput>,
     ) -> S3Result<S3Response<HeadObjectOutput>> {
+        self.require_bucket(&req.input.bucket)?;
         req.input.key = file_of_key(&req.input.key);
         self.files.head_object(req).await
     }
@@ -237,6 +255,7 @@ impl S3 for ObjectFiles {
         &self,
         mut req: S3Request<PutObjectInput>,
     ) -> S3Result<S3Response<PutObjectOutput>> {
+        self.require_bucket(&req.input.bucket)?;
         req.input.key = file_of_key(&req.input.key);
         if req.input.if_none_match.is_some() || req.input.if_match.is_some() {
             let _alone = self.puts.write().await;
@@ -251,6 +270,7 @@ impl S3 for ObjectFiles {
         &self,
         mut req: S3Request<DeleteObjectInput>,
     ) -> S3Result<S3Response<DeleteObjectOutput>> {
+        self.require_bucket(&req.input.bucket)?;
         req.input.key = file_of_key(&req.input.key);
         self.files.delete_object(req).await
     }

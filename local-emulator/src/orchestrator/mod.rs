@@ -15,7 +15,7 @@
 //! with the state and field named (see [`definition`]).
 //!
 //! # Semantics (what the cloud does, and nothing it would not)
-//! See [`run`] for the state-by-state rules; in short: `Retry` per first matching retrier with
+//! `run.rs` documents the state-by-state rules; in short: `Retry` per first matching retrier with
 //! counts per retrier, delay `IntervalSeconds * BackoffRate^n` capped at `MaxDelaySeconds`, FULL
 //! jitter uniform in `[0, delay)` (deterministic from [`OrchestratorOptions::seed`]); `Catch`
 //! after retries; Task `TimeoutSeconds` fails the attempt with `States.Timeout` while the
@@ -31,6 +31,7 @@
 
 pub mod definition;
 pub mod events;
+pub mod intrinsic;
 pub mod paths;
 pub mod retry;
 mod run;
@@ -142,7 +143,7 @@ pub struct ExecutionFailure {
     /// Fail state, the state that failed (e.g. `CastMap`), not the Fail state.
     pub state: String,
     /// For a failed Map, the item whose failure failed it.
-    pub item: Option<ItemFailure>,
+    pub item: Option<Box<ItemFailure>>,
 }
 
 /// The Map item whose failure failed a Map Run.
@@ -162,7 +163,11 @@ pub struct ItemFailure {
 
 impl fmt::Display for ExecutionFailure {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{} failed with {}: {}", self.state, self.error, self.cause)
+        write!(
+            f,
+            "{} failed with {}: {}",
+            self.state, self.error, self.cause
+        )
     }
 }
 

@@ -172,8 +172,7 @@ impl RetryState {
         state: &str,
         item: Option<usize>,
     ) -> Decision {
-        let Some(i) = first_match(retriers.iter().map(|r| r.error_equals.as_slice()), error)
-        else {
+        let Some(i) = first_match(retriers.iter().map(|r| r.error_equals.as_slice()), error) else {
             return Decision::GiveUp;
         };
         let retrier = &retriers[i];
@@ -227,7 +226,10 @@ mod tests {
             for n in 0..6 {
                 let cap = backoff_seconds(&r, n);
                 let d = retry_delay(&r, n, 42, "CastMap/CastMapTask", Some(item));
-                assert!(d.as_secs_f64() < cap && d.as_secs_f64() >= 0.0, "{d:?} vs {cap}");
+                assert!(
+                    d.as_secs_f64() < cap && d.as_secs_f64() >= 0.0,
+                    "{d:?} vs {cap}"
+                );
                 assert_eq!(d, retry_delay(&r, n, 42, "CastMap/CastMapTask", Some(item)));
                 seen.push(d.as_secs_f64() / cap);
             }
@@ -263,7 +265,10 @@ mod tests {
         let mut st = RetryState::new(retriers.len());
         let mut decide = |e: &str| st.decide(&retriers, e, 0, "S", None);
         assert_eq!(decide("Hort.BadInput"), Decision::GiveUp);
-        assert_eq!(decide("Hort.Retryable"), Decision::Retry(Duration::from_secs(1)));
+        assert_eq!(
+            decide("Hort.Retryable"),
+            Decision::Retry(Duration::from_secs(1))
+        );
         assert_eq!(decide(TIMEOUT), Decision::Retry(Duration::from_secs(1)));
         assert_eq!(decide("Other"), Decision::Retry(Duration::from_secs(2)));
         // The third retrier is exhausted; the timeout one too, and nothing falls through.

@@ -20,9 +20,10 @@
 //! the Map, the item and the child's error; the Map state's own Retry and Catch then apply.
 //! EXPRESS children fail with `States.Timeout` after 5 minutes, as Express executions do.
 
-use std::panic::{self, AssertUnwindSafe};
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::mpsc::{self, RecvTimeoutError};
+mod invoke;
+mod map_run;
+
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread;
 use std::time::{Duration, Instant};
@@ -31,12 +32,12 @@ use hort_core::store::BlobStore;
 use serde_json::{Value, json};
 
 use super::definition::{
-    FailState, MapState, Number, PassState, Selector, State, StateMachine, TaskState, Transition,
+    FailState, Number, PassState, Selector, State, StateMachine, TaskState, Transition,
 };
 use super::events::{Event, Observer};
 use super::retry::{self, Catcher, Decision, Retrier, RetryState};
 use super::slots::Slots;
-use super::{ItemFailure, OrchestratorOptions, TaskFailure, TaskInvoker};
+use super::{ItemFailure, OrchestratorOptions, TaskInvoker};
 
 /// The error of a Map Run that failed because an item failed.
 pub const EXCEED_TOLERATED_FAILURE: &str = "States.ExceedToleratedFailureThreshold";
@@ -44,8 +45,9 @@ pub const EXCEED_TOLERATED_FAILURE: &str = "States.ExceedToleratedFailureThresho
 pub const ITEM_READER_FAILED: &str = "States.ItemReaderFailed";
 /// The error of an execution stopped through the cancel flag.
 pub const CANCELLED: &str = "States.Cancelled";
-/// The error a panicking invocation reports (what a Lambda whose process dies reports).
-pub const PANIC: &str = "Runtime.ExitError";
+/// The error a panicking invocation reports: Step Functions reports unhandled Lambda errors
+/// (crashes, out of memory, function timeouts) as `Lambda.Unknown`.
+pub const PANIC: &str = "Lambda.Unknown";
 /// The longest an EXPRESS child execution may run, in seconds (before time scaling).
 const EXPRESS_LIMIT_SECONDS: f64 = 300.0;
 /// How often waits re-check the cancel flag and deadlines.
@@ -57,7 +59,7 @@ pub struct Failure {
     pub error: String,
     pub cause: String,
     pub state: String,
-    pub item: Option<ItemFailure>,
+    pub item: Option<Box<ItemFailure>>,
 }
 
 /// Why a machine stopped without an output.
@@ -206,9 +208,10 @@ impl Execution<'_> {
         loop {
             let path = frame.path(name);
             self.check(frame, &path)?;
-            let state = machine.states.get(name).ok_or_else(|| {
-                Stop::Failed(Self::runtime(&path, "no such state".into()))
-            })?;
+            let state = machine
+                .states
+                .get(name)
+                .ok_or_else(|| Stop::Failed(Self::runtime(&path, "no such state".into())))?;
             self.emit(Event::StateEntered {
                 state: path.clone(),
                 item_index: frame.item,
@@ -375,8 +378,13 @@ impl Execution<'_> {
                     return Ok(Ok((value, number)));
                 }
                 Err(failure) => {
-                    let decision =
-                        retry.decide(retriers, &failure.error, self.options.seed, path, frame.item);
+                    let decision = retry.decide(
+                        retriers,
+                        &failure.error,
+                        self.options.seed,
+                        path,
+                        frame.item,
+                    );
                     let delay = match decision {
                         Decision::Retry(d) => Some(d.mul_f64(self.options.time_scale)),
                         Decision::GiveUp => None,
@@ -432,281 +440,6 @@ impl Execution<'_> {
             next: Some(&catcher.next),
             caught: Some(failure),
         })
-    }
-
-    /// One invocation on its own thread, holding a slot until the function returns.
-    fn invoke(
-        &self,
-        function: &str,
-        payload: Value,
-        timeout: Option<Duration>,
-        path: &str,
-        attempt: u32,
-        frame: &Frame,
-    ) -> Result<Result<Value, Failure>, Stop> {
-        let Some(slot) = self
-            .slots
-            .acquire(|| frame.halt.is_set() || frame.expired())
-        else {
-            self.check(frame, path)?;
-            return Err(Stop::Halted(path.to_owned()));
-        };
-        self.emit(Event::TaskAttemptStarted {
-            state: path.to_owned(),
-            item_index: frame.item,
-            attempt,
-        });
-        let failure = |error: &str, cause: String| Failure {
-            error: error.to_owned(),
-            cause,
-            state: path.to_owned(),
-            item: None,
-        };
-        let (tx, rx) = mpsc::channel();
-        let invoker = Arc::clone(self.invoker);
-        let function_name = function.to_owned();
-        let spawned = thread::Builder::new()
-            .name(format!("hort-invoke {path}"))
-            .spawn(move || {
-                let result =
-                    panic::catch_unwind(AssertUnwindSafe(|| invoker.invoke(&function_name, payload)));
-                drop(slot);
-                // The receiver is gone when the attempt timed out: the result is dropped.
-                let _ = tx.send(result);
-            });
-        if let Err(e) = spawned {
-            return Ok(Err(failure(
-                "Lambda.ServiceException",
-                format!("{path}: cannot start the invocation thread: {e}"),
-            )));
-        }
-        let deadline = timeout.map(|t| Instant::now() + t);
-        loop {
-            let mut wait = POLL;
-            if let Some(d) = deadline {
-                wait = wait.min(d.saturating_duration_since(Instant::now()));
-            }
-            match rx.recv_timeout(wait) {
-                Ok(Ok(Ok(value))) => return Ok(Ok(value)),
-                Ok(Ok(Err(TaskFailure { error, cause }))) => return Ok(Err(failure(&error, cause))),
-                Ok(Err(panic)) => {
-                    let message = panic
-                        .downcast_ref::<&str>()
-                        .map(|s| s.to_string())
-                        .or_else(|| panic.downcast_ref::<String>().cloned())
-                        .unwrap_or_else(|| "no message".into());
-                    return Ok(Err(failure(
-                        PANIC,
-                        format!("{path}: the function {function} panicked: {message}"),
-                    )));
-                }
-                Err(RecvTimeoutError::Disconnected) => {
-                    return Ok(Err(failure(
-                        PANIC,
-                        format!("{path}: the function {function} ended without a result"),
-                    )));
-                }
-                Err(RecvTimeoutError::Timeout) => {
-                    self.check(frame, path)?;
-                    if deadline.is_some_and(|d| Instant::now() >= d) {
-                        let limit = timeout.unwrap_or_default().as_secs_f64() / self.options.time_scale;
-                        return Ok(Err(failure(
-                            retry::TIMEOUT,
-                            format!(
-                                "{path}: attempt {attempt} ran longer than its timeout of {limit} s"
-                            ),
-                        )));
-                    }
-                }
-            }
-        }
-    }
-
-    fn map<'m>(
-        &self,
-        map: &'m MapState,
-        path: &str,
-        name: &str,
-        raw: Value,
-        frame: &Frame,
-    ) -> Result<Step<'m>, Stop> {
-        let ctx0 = self.context(name, 0, None);
-        let effective = select(&map.io.input_path, raw.clone(), &ctx0)
-            .map_err(|e| Stop::Failed(Self::runtime(path, e)))?;
-        let outcome = self.with_retries(&map.retry, path, frame, false, |attempt| {
-            self.map_run(map, path, name, &effective, attempt, frame)
-        })?;
-        match outcome {
-            Ok((results, attempt)) => {
-                let ctx = self.context(name, attempt, None);
-                let finish = || -> Result<Value, String> {
-                    let selected = match &map.result_selector {
-                        Some(s) => s.eval(&results, &ctx)?,
-                        None => results.clone(),
-                    };
-                    let out = map.result_path.apply(raw.clone(), selected)?;
-                    select(&map.io.output_path, out, &ctx)
-                };
-                Ok(Step {
-                    output: finish().map_err(|e| Stop::Failed(Self::runtime(path, e)))?,
-                    next: next(&map.transition),
-                    caught: None,
-                })
-            }
-            Err(failure) => self.catch(&map.catch, path, raw, failure),
-        }
-    }
-
-    /// Reads the items: `ItemReader.Parameters` must give `Bucket` (the execution's bucket)
-    /// and `Key` of a JSON array.
-    fn read_items(&self, map: &MapState, path: &str, input: &Value, ctx: &Value) -> Result<Vec<Value>, Failure> {
-        let params = map
-            .reader
-            .eval(input, ctx)
-            .map_err(|e| Self::runtime(path, format!("ItemReader.Parameters: {e}")))?;
-        let (Some(bucket), Some(key)) = (
-            params.get("Bucket").and_then(Value::as_str),
-            params.get("Key").and_then(Value::as_str),
-        ) else {
-            return Err(Self::runtime(
-                path,
-                format!("ItemReader.Parameters must give Bucket and Key strings, got {params}"),
-            ));
-        };
-        let reader_failed = |cause: String| Failure {
-            error: ITEM_READER_FAILED.into(),
-            cause: format!("{path}: {cause}"),
-            state: path.to_owned(),
-            item: None,
-        };
-        if self.bucket.as_deref() != Some(bucket) {
-            return Err(reader_failed(format!(
-                "ItemReader reads bucket {bucket:?}, but the emulator's store holds only the \
-                 execution input's bucket ({:?})",
-                self.bucket.as_deref().unwrap_or("none given")
-            )));
-        }
-        let bytes = self
-            .store
-            .get(key)
-            .map_err(|e| reader_failed(format!("cannot read items s3://{bucket}/{key}: {e}")))?;
-        match serde_json::from_slice::<Value>(&bytes) {
-            Ok(Value::Array(items)) => Ok(items),
-            Ok(_) => Err(reader_failed(format!(
-                "s3://{bucket}/{key} is not a JSON array"
-            ))),
-            Err(e) => Err(reader_failed(format!(
-                "s3://{bucket}/{key} is not valid JSON: {e}"
-            ))),
-        }
-    }
-
-    /// One Map Run: read the items, run the children, collect their outputs in item order.
-    fn map_run(
-        &self,
-        map: &MapState,
-        path: &str,
-        name: &str,
-        input: &Value,
-        attempt: u32,
-        frame: &Frame,
-    ) -> Result<Result<Value, Failure>, Stop> {
-        let ctx = self.context(name, attempt, None);
-        let items = match self.read_items(map, path, input, &ctx) {
-            Ok(items) => items,
-            Err(failure) => return Ok(Err(failure)),
-        };
-        let limit = match &map.max_concurrency {
-            None => 0,
-            Some(n) => match positive(n, input, &ctx, 0) {
-                Ok(n) => n,
-                Err(e) => return Ok(Err(Self::runtime(path, e))),
-            },
-        };
-        let limit = if limit == 0 { usize::MAX } else { usize::try_from(limit).unwrap_or(usize::MAX) };
-        let concurrency = limit.min(self.options.slots.max(1)).min(items.len());
-        self.emit(Event::MapStarted {
-            state: path.to_owned(),
-            items: items.len(),
-            concurrency,
-        });
-        let abort = AtomicBool::new(false);
-        let next_item = AtomicUsize::new(0);
-        let first_failure: Mutex<Option<(usize, Failure)>> = Mutex::new(None);
-        let outputs: Mutex<Vec<Value>> = Mutex::new(vec![Value::Null; items.len()]);
-        let halt = Halt {
-            flag: &abort,
-            parent: Some(&frame.halt),
-        };
-        thread::scope(|s| {
-            for _ in 0..concurrency {
-                s.spawn(|| {
-                    loop {
-                        if halt.is_set() {
-                            break;
-                        }
-                        let i = next_item.fetch_add(1, Ordering::SeqCst);
-                        let Some(item) = items.get(i) else { break };
-                        let child = Frame {
-                            map: Some(path),
-                            item: Some(i),
-                            halt,
-                            deadline: map
-                                .express
-                                .then(|| Instant::now() + self.scaled(EXPRESS_LIMIT_SECONDS)),
-                        };
-                        let child_ctx = self.context(name, attempt, Some((i, item)));
-                        let child_input = match &map.item_selector {
-                            Some(t) => t.eval(input, &child_ctx),
-                            None => Ok(item.clone()),
-                        };
-                        let result = match child_input {
-                            Ok(child_input) => self.machine(&map.processor, child_input, &child),
-                            Err(e) => Err(Stop::Failed(Self::runtime(
-                                path,
-                                format!("ItemSelector of item {i}: {e}"),
-                            ))),
-                        };
-                        match result {
-                            Ok(value) => lock(&outputs)[i] = value,
-                            Err(Stop::Failed(failure)) => {
-                                lock(&first_failure).get_or_insert((i, failure));
-                                abort.store(true, Ordering::SeqCst);
-                            }
-                            Err(Stop::Halted(_)) => {}
-                        }
-                    }
-                });
-            }
-        });
-        let failed = lock(&first_failure).take();
-        self.emit(Event::MapFinished {
-            state: path.to_owned(),
-            succeeded: failed.is_none() && !frame.halt.is_set(),
-        });
-        self.check(frame, path)?;
-        if let Some((index, failure)) = failed {
-            let cause = format!(
-                "{path}: the Map Run failed because item {index} failed in {} with {}: {} \
-                 (tolerated failures: 0)",
-                failure.state, failure.error, failure.cause
-            );
-            return Ok(Err(Failure {
-                error: EXCEED_TOLERATED_FAILURE.into(),
-                cause,
-                state: path.to_owned(),
-                item: Some(ItemFailure {
-                    map_state: path.to_owned(),
-                    index,
-                    state: failure.state,
-                    error: failure.error,
-                    cause: failure.cause,
-                }),
-            }));
-        }
-        Ok(Ok(Value::Array(
-            outputs.into_inner().unwrap_or_else(|p| p.into_inner()),
-        )))
     }
 }
 

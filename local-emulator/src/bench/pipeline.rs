@@ -1,0 +1,339 @@
+//! `hort bench pipeline`: the in-process HORT pipeline against the monolithic renderer on the
+//! same machine and threads (time ratios, extra traversal, shuffle bytes per pixel), the pairs
+//! spatial splits let stages skip, and per-task memory peaks against the monolithic render's.
+
+use super::MemoryMeter;
+use super::scenes::{bundled, generated};
+use super::table::{Table, f3};
+use anyhow::{Result, ensure};
+use hort_core::ids::{JobId, SplitId, Stage};
+use hort_core::keys::split_key;
+use hort_core::pipeline::{
+    PipelineOptions, PipelineRun, PlanRequest, SplitMode, plan_job, resolve_counts, run_pipeline,
+    run_task, split_scene, task_count,
+};
+use hort_core::render::{RenderSettings, build_scene_bvh, render};
+use hort_core::scene::{Scene, load_scene};
+use hort_core::store::{BlobStore, MemoryStore};
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Options of `hort bench pipeline`.
+#[derive(clap::Args, Clone, Debug)]
+pub struct PipelineBenchArgs {
+    /// Triangles of the generated scene for the time and skip tables.
+    #[arg(long, default_value_t = 1_000_000)]
+    pub triangles: u64,
+    /// Triangles of the generated scene for the memory table.
+    #[arg(long, default_value_t = 2_000_000)]
+    pub memory_triangles: u64,
+    #[arg(long, default_value_t = 1920)]
+    pub width: u32,
+    #[arg(long, default_value_t = 1080)]
+    pub height: u32,
+    /// Threads of the monolithic render and workers of the pipeline (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Append every table to this CSV file.
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+    /// Where generated scenes are cached.
+    #[arg(long, default_value = "target/bench-scenes")]
+    pub scene_dir: PathBuf,
+    /// Skip the memory table (it renders the large scene twice more).
+    #[arg(long)]
+    pub skip_memory: bool,
+}
+
+pub fn run_pipeline_bench(args: &PipelineBenchArgs, meter: &dyn MemoryMeter) -> Result<()> {
+    let threads = args
+        .threads
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let scene_path = generated(&args.scene_dir, args.triangles, 1)?;
+    let scene = load_scene(&scene_path)?;
+    let mut tables = vec![time_table(&scene, args, threads)?];
+    let bunny = load_scene(&bundled("bunny/bunny.json"))?;
+    tables.push(skip_table(
+        &[("bunny", &bunny), ("generated", &scene)],
+        args,
+        threads,
+    )?);
+    drop(scene);
+    if !args.skip_memory {
+        let path = generated(&args.scene_dir, args.memory_triangles, 1)?;
+        tables.push(memory_table(&path, args, threads, meter)?);
+    }
+    for t in &tables {
+        t.print();
+        if let Some(csv) = &args.csv {
+            t.append_csv(csv)?;
+        }
+    }
+    Ok(())
+}
+
+fn request(args: &PipelineBenchArgs, k: u32, s: u32, mode: SplitMode) -> PlanRequest {
+    PlanRequest {
+        width: args.width,
+        height: args.height,
+        spp: 1,
+        splits: Some(k),
+        spans: Some(s),
+        mode,
+    }
+}
+
+fn run(scene: &Scene, req: PlanRequest, workers: usize) -> Result<(PipelineRun, f64)> {
+    let store = MemoryStore::new();
+    let options = PipelineOptions {
+        job: JobId::new("bench")?,
+        workers,
+    };
+    let start = Instant::now();
+    let run = run_pipeline(&store, scene, req, &options)?;
+    Ok((run, start.elapsed().as_secs_f64()))
+}
+
+const SHUFFLE_STAGES: [Stage; 5] = [
+    Stage::CastMap,
+    Stage::CastReduce,
+    Stage::Expand,
+    Stage::TraceMap,
+    Stage::TraceReduce,
+];
+
+fn time_table(scene: &Scene, args: &PipelineBenchArgs, threads: usize) -> Result<Table> {
+    let mut table = Table::new(
+        &format!(
+            "pipeline vs monolithic: {} triangles, {}x{}, {threads} threads (ratio = time / monolithic time)",
+            scene.mesh.triangle_count(),
+            args.width,
+            args.height
+        ),
+        &[
+            "run",
+            "seconds",
+            "ratio",
+            "render s",
+            "render ratio",
+            "cast rays/ray",
+            "shadow tests/ray",
+            "B/px cast-map",
+            "B/px cast-reduce",
+            "B/px expand",
+            "B/px trace-map",
+            "B/px trace-reduce",
+            "identical",
+        ],
+    );
+    let start = Instant::now();
+    let bvh = build_scene_bvh(&scene.mesh);
+    let settings = RenderSettings {
+        width: args.width,
+        height: args.height,
+        spp: 1,
+        threads,
+    };
+    let mono = render(scene, &bvh, settings)?;
+    let mono_total = start.elapsed().as_secs_f64();
+    drop(bvh);
+    table.push(vec![
+        "monolithic".into(),
+        f3(mono_total),
+        "1.000".into(),
+        f3(mono.render_seconds),
+        "1.000".into(),
+        "1.000".into(),
+        "1.000".into(),
+        "-".into(),
+        "-".into(),
+        "-".into(),
+        "-".into(),
+        "-".into(),
+        "-".into(),
+    ]);
+    let pixels = f64::from(args.width) * f64::from(args.height);
+    for (name, k, s, mode) in [
+        ("MR1 k=1 s=16", 1, 16, SplitMode::Spatial),
+        ("MR2 k=8 s=16 spatial", 8, 16, SplitMode::Spatial),
+        ("MR2 k=8 s=16 naive", 8, 16, SplitMode::Naive),
+    ] {
+        let (run, seconds) = run(scene, request(args, k, s, mode), threads)?;
+        let identical = run.image.pixels == mono.image.pixels && run.hits == mono.hits;
+        ensure!(
+            identical,
+            "{name}: the pipeline image differs from the monolithic one"
+        );
+        let cast_samples: u64 = run
+            .plan
+            .cast_tasks
+            .iter()
+            .map(|t| run.plan.spans[t.span as usize].end - run.plan.spans[t.span as usize].start)
+            .sum();
+        let stage_metrics = |stage: Stage| {
+            run.stages
+                .iter()
+                .zip(&run.metrics)
+                .find(|(r, _)| r.name == stage.as_str())
+                .map(|(r, m)| (r.clone(), *m))
+        };
+        let queries = stage_metrics(Stage::Expand).map_or(0, |(_, m)| m.records);
+        let mut row = vec![
+            name.to_string(),
+            f3(seconds),
+            f3(seconds / mono_total),
+            f3(run.render_seconds),
+            f3(run.render_seconds / mono.render_seconds),
+            f3(cast_samples as f64 / pixels),
+            f3(queries as f64 / run.shadow_rays.max(1) as f64),
+        ];
+        for stage in SHUFFLE_STAGES {
+            let bytes = stage_metrics(stage).map_or(0, |(r, _)| r.bytes_written);
+            row.push(format!("{:.2}", bytes as f64 / pixels));
+        }
+        row.push("yes".into());
+        table.push(row);
+    }
+    Ok(table)
+}
+
+fn skip_table(
+    scenes: &[(&str, &Scene)],
+    args: &PipelineBenchArgs,
+    threads: usize,
+) -> Result<Table> {
+    let mut table = Table::new(
+        &format!(
+            "(span, split) pairs skipped by spatial splits, k=8 s=16, {}x{}",
+            args.width, args.height
+        ),
+        &[
+            "scene",
+            "mode",
+            "cast pairs run",
+            "cast skipped",
+            "trace pairs run",
+            "trace skipped",
+            "shuffle MB",
+            "saved vs naive",
+        ],
+    );
+    for (name, scene) in scenes {
+        let k = 8.min(scene.mesh.triangle_count() as u32);
+        let mut naive_bytes = 0u64;
+        for mode in [SplitMode::Naive, SplitMode::Spatial] {
+            let (run, _) = run(scene, request(args, k, 16, mode), threads)?;
+            let pairs = f64::from(k) * 16.0;
+            let trace = run.metrics[1 + hort_core::pipeline::TASK_STAGES
+                .iter()
+                .position(|s| *s == Stage::TraceMap)
+                .unwrap_or(0)];
+            let trace_run = run.plan.trace_tasks.len() as u64 - trace.skipped_tasks;
+            let bytes: u64 = run
+                .stages
+                .iter()
+                .filter(|s| SHUFFLE_STAGES.iter().any(|t| t.as_str() == s.name))
+                .map(|s| s.bytes_written)
+                .sum();
+            if mode == SplitMode::Naive {
+                naive_bytes = bytes;
+            }
+            table.push(vec![
+                name.to_string(),
+                format!("{mode:?}").to_lowercase(),
+                run.plan.cast_tasks.len().to_string(),
+                format!(
+                    "{:.1}%",
+                    100.0 * (1.0 - run.plan.cast_tasks.len() as f64 / pairs)
+                ),
+                trace_run.to_string(),
+                format!("{:.1}%", 100.0 * (1.0 - trace_run as f64 / pairs)),
+                format!("{:.2}", bytes as f64 / 1e6),
+                format!(
+                    "{:.1}%",
+                    100.0 * (1.0 - bytes as f64 / naive_bytes.max(1) as f64)
+                ),
+            ]);
+        }
+    }
+    Ok(table)
+}
+
+fn memory_table(
+    path: &std::path::Path,
+    args: &PipelineBenchArgs,
+    threads: usize,
+    meter: &dyn MemoryMeter,
+) -> Result<Table> {
+    let mb = |b: usize| format!("{:.1}", b as f64 / (1 << 20) as f64);
+    let base = meter.current();
+    meter.reset_peak();
+    let scene = load_scene(path)?;
+    let scene_mem = meter.current() - base;
+    // Monolithic: the parsed scene, its BVH, the render buffers.
+    let bvh = build_scene_bvh(&scene.mesh);
+    let settings = RenderSettings {
+        width: args.width,
+        height: args.height,
+        spp: 1,
+        threads,
+    };
+    let mono = render(&scene, &bvh, settings)?;
+    let mono_peak = meter.peak() - base;
+    drop((bvh, mono));
+    // Splitter: the parsed scene plus one split's buffers at a time.
+    let store = MemoryStore::new();
+    let job = JobId::new("memory")?;
+    let req = request(args, 16, 16, SplitMode::Spatial);
+    let (k, s) = resolve_counts(&req, scene.mesh.triangle_count() as u64)?;
+    meter.reset_peak();
+    let before_split = meter.current();
+    let infos = split_scene(&scene.mesh, k as usize, req.mode, |i, bytes| {
+        store.put(&split_key(&job, SplitId(i)), &bytes)
+    })?;
+    let stored: usize = infos.iter().map(|i| i.bytes as usize).sum();
+    let splitter_peak = meter.peak() - before_split - stored + scene_mem;
+    let plan = plan_job(&scene, &req, infos, s)?;
+    drop(scene);
+    // Map tasks, one at a time, each measured from its own start.
+    let mut peaks: Vec<(Stage, usize)> = Vec::new();
+    for stage in hort_core::pipeline::TASK_STAGES {
+        for task in 0..task_count(&plan, stage) {
+            let before = meter.current();
+            meter.reset_peak();
+            run_task(&store, &job, &plan, stage, task as u32)?;
+            peaks.push((stage, meter.peak() - before));
+        }
+    }
+    let mut table = Table::new(
+        &format!(
+            "memory: {} triangles, k={k} s={s}, {}x{} (allocation high-water marks; ratio = / monolithic)",
+            plan.triangles, args.width, args.height
+        ),
+        &["what", "peak MB", "ratio"],
+    );
+    table.push(vec![
+        "monolithic render (scene + BVH + buffers)".into(),
+        mb(mono_peak),
+        "1.000".into(),
+    ]);
+    table.push(vec![
+        "splitter (scene + one split)".into(),
+        mb(splitter_peak),
+        f3(splitter_peak as f64 / mono_peak as f64),
+    ]);
+    for stage in hort_core::pipeline::TASK_STAGES {
+        let of_stage: Vec<usize> = peaks
+            .iter()
+            .filter(|(s, _)| *s == stage)
+            .map(|(_, p)| *p)
+            .collect();
+        let max = of_stage.iter().copied().max().unwrap_or(0);
+        table.push(vec![
+            format!("{stage} task, max of {}", of_stage.len()),
+            mb(max),
+            f3(max as f64 / mono_peak as f64),
+        ]);
+    }
+    Ok(table)
+}

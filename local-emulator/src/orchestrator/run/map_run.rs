@@ -1,0 +1,216 @@
+//! Map states: reading the items file, running the children on at most
+//! min(MaxConcurrency, slots, items) threads, and failing the Map Run on the first failed item.
+
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::thread;
+use std::time::Instant;
+
+use serde_json::Value;
+
+use super::{
+    EXCEED_TOLERATED_FAILURE, EXPRESS_LIMIT_SECONDS, Execution, Failure, Frame, Halt,
+    ITEM_READER_FAILED, Step, Stop, lock, next, positive, select,
+};
+use crate::orchestrator::ItemFailure;
+use crate::orchestrator::definition::MapState;
+use crate::orchestrator::events::Event;
+
+impl Execution<'_> {
+    pub(super) fn map<'m>(
+        &self,
+        map: &'m MapState,
+        path: &str,
+        name: &str,
+        raw: Value,
+        frame: &Frame,
+    ) -> Result<Step<'m>, Stop> {
+        let ctx0 = self.context(name, 0, None);
+        let effective = select(&map.io.input_path, raw.clone(), &ctx0)
+            .map_err(|e| Stop::Failed(Self::runtime(path, e)))?;
+        let outcome = self.with_retries(&map.retry, path, frame, false, |attempt| {
+            self.map_run(map, path, name, &effective, attempt, frame)
+        })?;
+        match outcome {
+            Ok((results, attempt)) => {
+                let ctx = self.context(name, attempt, None);
+                let finish = || -> Result<Value, String> {
+                    let selected = match &map.result_selector {
+                        Some(s) => s.eval(&results, &ctx)?,
+                        None => results.clone(),
+                    };
+                    let out = map.result_path.apply(raw.clone(), selected)?;
+                    select(&map.io.output_path, out, &ctx)
+                };
+                Ok(Step {
+                    output: finish().map_err(|e| Stop::Failed(Self::runtime(path, e)))?,
+                    next: next(&map.transition),
+                    caught: None,
+                })
+            }
+            Err(failure) => self.catch(&map.catch, path, raw, failure),
+        }
+    }
+
+    /// Reads the items: `ItemReader.Parameters` must give `Bucket` (the execution's bucket)
+    /// and `Key` of a JSON array.
+    fn read_items(
+        &self,
+        map: &MapState,
+        path: &str,
+        input: &Value,
+        ctx: &Value,
+    ) -> Result<Vec<Value>, Failure> {
+        let params = map
+            .reader
+            .eval(input, ctx)
+            .map_err(|e| Self::runtime(path, format!("ItemReader.Parameters: {e}")))?;
+        let (Some(bucket), Some(key)) = (
+            params.get("Bucket").and_then(Value::as_str),
+            params.get("Key").and_then(Value::as_str),
+        ) else {
+            return Err(Self::runtime(
+                path,
+                format!("ItemReader.Parameters must give Bucket and Key strings, got {params}"),
+            ));
+        };
+        let reader_failed = |cause: String| Failure {
+            error: ITEM_READER_FAILED.into(),
+            cause: format!("{path}: {cause}"),
+            state: path.to_owned(),
+            item: None,
+        };
+        if self.bucket.as_deref() != Some(bucket) {
+            return Err(reader_failed(format!(
+                "ItemReader reads bucket {bucket:?}, but the emulator's store holds only the \
+                 execution input's bucket ({:?})",
+                self.bucket.as_deref().unwrap_or("none given")
+            )));
+        }
+        let bytes = self
+            .store
+            .get(key)
+            .map_err(|e| reader_failed(format!("cannot read items s3://{bucket}/{key}: {e}")))?;
+        match serde_json::from_slice::<Value>(&bytes) {
+            Ok(Value::Array(items)) => Ok(items),
+            Ok(_) => Err(reader_failed(format!(
+                "s3://{bucket}/{key} is not a JSON array"
+            ))),
+            Err(e) => Err(reader_failed(format!(
+                "s3://{bucket}/{key} is not valid JSON: {e}"
+            ))),
+        }
+    }
+
+    /// One Map Run: read the items, run the children, collect their outputs in item order.
+    fn map_run(
+        &self,
+        map: &MapState,
+        path: &str,
+        name: &str,
+        input: &Value,
+        attempt: u32,
+        frame: &Frame,
+    ) -> Result<Result<Value, Failure>, Stop> {
+        let ctx = self.context(name, attempt, None);
+        let items = match self.read_items(map, path, input, &ctx) {
+            Ok(items) => items,
+            Err(failure) => return Ok(Err(failure)),
+        };
+        let limit = match &map.max_concurrency {
+            None => 0,
+            Some(n) => match positive(n, input, &ctx, 0) {
+                Ok(n) => n,
+                Err(e) => return Ok(Err(Self::runtime(path, e))),
+            },
+        };
+        let limit = if limit == 0 {
+            usize::MAX
+        } else {
+            usize::try_from(limit).unwrap_or(usize::MAX)
+        };
+        let concurrency = limit.min(self.options.slots.max(1)).min(items.len());
+        self.emit(Event::MapStarted {
+            state: path.to_owned(),
+            items: items.len(),
+            concurrency,
+        });
+        let abort = AtomicBool::new(false);
+        let next_item = AtomicUsize::new(0);
+        let first_failure: Mutex<Option<(usize, Failure)>> = Mutex::new(None);
+        let outputs: Mutex<Vec<Value>> = Mutex::new(vec![Value::Null; items.len()]);
+        let halt = Halt {
+            flag: &abort,
+            parent: Some(&frame.halt),
+        };
+        thread::scope(|s| {
+            for _ in 0..concurrency {
+                s.spawn(|| {
+                    loop {
+                        if halt.is_set() {
+                            break;
+                        }
+                        let i = next_item.fetch_add(1, Ordering::SeqCst);
+                        let Some(item) = items.get(i) else { break };
+                        let child = Frame {
+                            map: Some(path),
+                            item: Some(i),
+                            halt,
+                            deadline: map
+                                .express
+                                .then(|| Instant::now() + self.scaled(EXPRESS_LIMIT_SECONDS)),
+                        };
+                        let child_ctx = self.context(name, attempt, Some((i, item)));
+                        let child_input = match &map.item_selector {
+                            Some(t) => t.eval(input, &child_ctx),
+                            None => Ok(item.clone()),
+                        };
+                        let result = match child_input {
+                            Ok(child_input) => self.machine(&map.processor, child_input, &child),
+                            Err(e) => Err(Stop::Failed(Self::runtime(
+                                path,
+                                format!("ItemSelector of item {i}: {e}"),
+                            ))),
+                        };
+                        match result {
+                            Ok(value) => lock(&outputs)[i] = value,
+                            Err(Stop::Failed(failure)) => {
+                                lock(&first_failure).get_or_insert((i, failure));
+                                abort.store(true, Ordering::SeqCst);
+                            }
+                            Err(Stop::Halted(_)) => {}
+                        }
+                    }
+                });
+            }
+        });
+        let failed = lock(&first_failure).take();
+        self.emit(Event::MapFinished {
+            state: path.to_owned(),
+            succeeded: failed.is_none() && !frame.halt.is_set(),
+        });
+        self.check(frame, path)?;
+        if let Some((index, failure)) = failed {
+            let cause = format!(
+                "{path}: the Map Run failed because item {index} failed in {} with {}: {} \
+                 (tolerated failures: 0)",
+                failure.state, failure.error, failure.cause
+            );
+            return Ok(Err(Failure {
+                error: EXCEED_TOLERATED_FAILURE.into(),
+                cause,
+                state: path.to_owned(),
+                item: Some(Box::new(ItemFailure {
+                    map_state: path.to_owned(),
+                    index,
+                    state: failure.state,
+                    error: failure.error,
+                    cause: failure.cause,
+                })),
+            }));
+        }
+        Ok(Ok(Value::Array(
+            outputs.into_inner().unwrap_or_else(|p| p.into_inner()),
+        )))
+    }
+}

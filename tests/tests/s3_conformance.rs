@@ -1,0 +1,89 @@
+//! The store conformance suite against `S3Store` over HTTP: always against the embedded S3
+//! server, and against an external S3-compatible server when `HORT_TEST_S3_ENDPOINT` is set
+//! (`bash tests/s3-servers/with-moto.sh cargo test -p hort-tests --test s3_conformance`).
+
+mod s3_support;
+
+use hort_core::store::{BlobStore, PutOutcome, conformance};
+use s3_support::{Embedded, external_config, unique_prefix};
+
+#[test]
+fn embedded_s3_passes_the_conformance_suite() {
+    let embedded = Embedded::start(Some("conformance"));
+    let store = embedded.store("conformance");
+    store.check_bucket().expect("bucket is reachable");
+    conformance::run_all(&store, "suite/");
+
+    // The bytes really went through this server: they are in its data directory.
+    store.put("suite-probe/k=v.bin", b"probe").expect("put");
+    let file = embedded
+        .server
+        .data_dir()
+        .join("conformance/suite-probe/k=v.bin~obj");
+    assert_eq!(std::fs::read(&file).expect("object file"), b"probe");
+    assert_eq!(store.list("").expect("list"), ["suite-probe/k=v.bin"]);
+}
+
+#[test]
+fn embedded_s3_lists_every_page() {
+    let embedded = Embedded::start(Some("pages"));
+    let store = embedded.store("pages");
+    conformance::list_returns_every_page(&store, "suite/");
+    assert_eq!(store.list("suite/").expect("list"), Vec::<String>::new());
+}
+
+#[test]
+fn embedded_s3_keeps_objects_across_restarts() {
+    let embedded = Embedded::start(Some("durable"));
+    embedded
+        .store("durable")
+        .put("jobs/j/manifest.json", b"{}")
+        .expect("put");
+    let Embedded { server, dir } = embedded;
+    drop(server);
+    let again = hort_local_emulator::embedded_s3::EmbeddedS3::start(
+        dir.path(),
+        s3_support::ACCESS_KEY,
+        s3_support::SECRET_KEY,
+    )
+    .expect("restart");
+    let again = Embedded { server: again, dir };
+    let store = again.store("durable");
+    assert_eq!(store.get("jobs/j/manifest.json").expect("get"), b"{}");
+    assert_eq!(
+        store.put_if_absent("jobs/j/manifest.json", b"[]"),
+        Ok(PutOutcome::AlreadyExists)
+    );
+}
+
+#[test]
+fn create_bucket_if_missing_creates_once_then_accepts_the_existing_bucket() {
+    let embedded = Embedded::start(None);
+    let store = embedded.store("fresh-bucket");
+    let before = store.check_bucket().expect_err("no bucket yet");
+    assert!(before.to_string().contains("does not exist"), "{before}");
+    store.create_bucket_if_missing().expect("created");
+    store.create_bucket_if_missing().expect("already there");
+    store.check_bucket().expect("bucket now exists");
+    store.put("k", b"v").expect("put");
+    assert_eq!(store.get("k").expect("get"), b"v");
+}
+
+#[test]
+fn external_s3_passes_the_conformance_suite() {
+    let Some(config) = external_config() else {
+        println!("skipped: set HORT_TEST_S3_ENDPOINT (see tests/s3-servers/with-moto.sh)");
+        return;
+    };
+    println!(
+        "external S3 endpoint: {} bucket: {}",
+        config.endpoint.as_deref().unwrap_or("AWS"),
+        config.bucket
+    );
+    let store = hort_functions::S3Store::open(&config).expect("S3 client");
+    store.create_bucket_if_missing().expect("bucket ready");
+    let prefix = unique_prefix("conformance");
+    conformance::run_all(&store, &prefix);
+    conformance::list_returns_every_page(&store, &prefix);
+    assert_eq!(store.list(&prefix).expect("list"), Vec::<String>::new());
+}
