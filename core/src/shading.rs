@@ -87,7 +87,7 @@ pub fn surface_point(
 /// The shadow test of `light` at `sp`, or `None` when the light cannot contribute (behind the
 /// surface as seen by the viewer, or at grazing angle), so no ray is needed.
 pub fn shadow_test(sp: &SurfacePoint, light: &Light) -> Option<ShadowTest> {
-    let (to_light, distance2, irradiance, t_max) = match *light {
+    let (to_light, irradiance) = match *light {
         Light::Point {
             position,
             intensity,
@@ -98,13 +98,12 @@ pub fn shadow_test(sp: &SurfacePoint, light: &Light) -> Option<ShadowTest> {
                 return None;
             }
             let wi = (v / r2.sqrt()).as_vec3();
-            let e = intensity.map(|i| (f64::from(i) / r2) as f32);
-            (wi, Some(v), e, 1.0 - SHADOW_EPSILON)
+            (wi, intensity.map(|i| (f64::from(i) / r2) as f32))
         }
         Light::Directional {
             direction,
             irradiance,
-        } => ((-direction).as_vec3(), None, irradiance, f32::INFINITY),
+        } => ((-direction).as_vec3(), irradiance),
     };
     let cos_geo = sp.n_geo.dot(to_light);
     let cos = sp.n_shade.dot(to_light);
@@ -112,13 +111,10 @@ pub fn shadow_test(sp: &SurfacePoint, light: &Light) -> Option<ShadowTest> {
         return None;
     }
     let origin = offset_origin(sp.p, sp.p_error, sp.n_geo, to_light);
-    let dir = match (distance2, light) {
-        (Some(_), Light::Point { position, .. }) => (*position - origin.as_dvec3()).as_vec3(),
-        _ => to_light,
-    };
+    let (ray, t_max) = shadow_ray(light, origin);
     let f = std::f32::consts::FRAC_1_PI * cos;
     Some(ShadowTest {
-        ray: Ray { origin, dir },
+        ray,
         t_max,
         unoccluded: [
             sp.kd[0] * f * irradiance[0],
@@ -126,6 +122,23 @@ pub fn shadow_test(sp: &SurfacePoint, light: &Light) -> Option<ShadowTest> {
             sp.kd[2] * f * irradiance[2],
         ],
     })
+}
+
+/// The shadow segment from `origin` to `light`: toward a point light, the ray reaches the light
+/// at t = 1 and occluders count for t < 1 - [`SHADOW_EPSILON`]; toward a directional light, the
+/// ray is unbounded. A pure function of (light, origin), so stages that carry only the origin
+/// rebuild the identical ray.
+pub fn shadow_ray(light: &Light, origin: Vec3) -> (Ray, f32) {
+    match *light {
+        Light::Point { position, .. } => {
+            let dir = (position - origin.as_dvec3()).as_vec3();
+            (Ray { origin, dir }, 1.0 - SHADOW_EPSILON)
+        }
+        Light::Directional { direction, .. } => {
+            let dir = (-direction).as_vec3();
+            (Ray { origin, dir }, f32::INFINITY)
+        }
+    }
 }
 
 /// The final radiance of a hit: the unblocked lights' contributions summed in light order,

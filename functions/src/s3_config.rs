@@ -3,6 +3,15 @@
 use std::fmt;
 use std::time::Duration;
 
+use aws_config::BehaviorVersion;
+use aws_config::retry::RetryConfig;
+use aws_config::timeout::TimeoutConfig;
+use aws_sdk_s3::Client;
+use aws_sdk_s3::config::{
+    Credentials, Region, RequestChecksumCalculation, ResponseChecksumValidation,
+};
+use hort_core::store::StoreError;
+
 /// Default time to open a TCP (and TLS) connection.
 pub const DEFAULT_CONNECT_TIMEOUT: Duration = Duration::from_secs(3);
 /// Default time for one attempt of one request, body transfer included.
@@ -102,6 +111,76 @@ impl S3Config {
             max_attempts: DEFAULT_MAX_ATTEMPTS,
         }
     }
+
+    /// The SDK client for this configuration and the endpoint's name for messages (the URL,
+    /// or `AWS S3 (REGION)`). Sends no request; fails with [`StoreError::Other`] on a
+    /// malformed endpoint or when no region is configured or found in the environment. Build it
+    /// once per process (a Lambda environment) and share it: clients pool connections.
+    pub async fn sdk_client(&self) -> Result<(Client, String), StoreError> {
+        let endpoint = match &self.endpoint {
+            Some(endpoint) => Some(checked_endpoint(endpoint)?),
+            None => None,
+        };
+        let timeouts = TimeoutConfig::builder()
+            .connect_timeout(self.connect_timeout)
+            .operation_attempt_timeout(self.attempt_timeout)
+            .build();
+        let mut loader = aws_config::defaults(BehaviorVersion::latest())
+            .timeout_config(timeouts)
+            .retry_config(RetryConfig::standard().with_max_attempts(self.max_attempts.max(1)));
+        if let Some(region) = &self.region {
+            loader = loader.region(Region::new(region.clone()));
+        }
+        if let S3Credentials::Static {
+            access_key,
+            secret_key,
+        } = &self.credentials
+        {
+            let credentials = Credentials::new(access_key, secret_key, None, None, "hort-static");
+            loader = loader.credentials_provider(credentials);
+        }
+        if let Some(endpoint) = &endpoint {
+            loader = loader.endpoint_url(endpoint);
+        }
+        let sdk_config = loader.load().await;
+        let Some(region) = sdk_config.region().map(ToString::to_string) else {
+            return Err(StoreError::Other {
+                what: format!(
+                    "no AWS region for bucket {:?}: set AWS_REGION or the store's region",
+                    self.bucket
+                ),
+            });
+        };
+        let mut s3 =
+            aws_sdk_s3::config::Builder::from(&sdk_config).force_path_style(self.force_path_style);
+        if endpoint.is_some() {
+            // Many S3-compatible servers reject the SDK's default CRC32 trailers; shuffle blocks
+            // carry their own checksum, so only send checksums where S3 demands them.
+            s3 = s3
+                .request_checksum_calculation(RequestChecksumCalculation::WhenRequired)
+                .response_checksum_validation(ResponseChecksumValidation::WhenRequired);
+        }
+        let label = endpoint.unwrap_or_else(|| format!("AWS S3 ({region})"));
+        Ok((Client::from_conf(s3.build()), label))
+    }
+}
+
+/// `endpoint` without trailing slashes, if it is an `http://` or `https://` URL with a host.
+fn checked_endpoint(endpoint: &str) -> Result<String, StoreError> {
+    let trimmed = endpoint.trim_end_matches('/');
+    let host = trimmed
+        .strip_prefix("http://")
+        .or_else(|| trimmed.strip_prefix("https://"));
+    match host {
+        Some(host) if !host.is_empty() && !host.contains('/') && !host.contains(' ') => {
+            Ok(trimmed.to_owned())
+        }
+        _ => Err(StoreError::Other {
+            what: format!(
+                "invalid S3 endpoint {endpoint:?}: expected http://HOST[:PORT] or https://HOST[:PORT]"
+            ),
+        }),
+    }
 }
 
 #[cfg(test)]
@@ -114,5 +193,18 @@ mod tests {
         let shown = format!("{config:?}");
         assert!(shown.contains("AKID"), "{shown}");
         assert!(!shown.contains("hunter2"), "{shown}");
+    }
+
+    #[test]
+    fn endpoints_must_be_http_urls() {
+        assert_eq!(
+            checked_endpoint("http://127.0.0.1:9000/").unwrap(),
+            "http://127.0.0.1:9000"
+        );
+        assert!(checked_endpoint("https://s3.example.com").is_ok());
+        for bad in ["127.0.0.1:9000", "http://", "ftp://x", "http://h/path"] {
+            let err = checked_endpoint(bad).unwrap_err();
+            assert!(err.to_string().contains("invalid S3 endpoint"), "{err}");
+        }
     }
 }

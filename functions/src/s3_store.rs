@@ -9,19 +9,13 @@
 
 use std::ops::Range;
 
-use aws_config::BehaviorVersion;
-use aws_config::retry::RetryConfig;
-use aws_config::timeout::TimeoutConfig;
 use aws_sdk_s3::Client;
-use aws_sdk_s3::config::{
-    Credentials, Region, RequestChecksumCalculation, ResponseChecksumValidation,
-};
 use aws_sdk_s3::primitives::ByteStream;
 use aws_sdk_s3::types::{BucketLocationConstraint, CreateBucketConfiguration};
 use hort_core::store::{BlobStore, PutOutcome, StoreError};
 use tokio::runtime::{Handle, Runtime, RuntimeFlavor};
 
-use crate::s3_config::{S3Config, S3Credentials};
+use crate::s3_config::S3Config;
 use crate::s3_errors::{self, Request, Target};
 
 /// How often `put_if_absent` retries AWS S3's 409 `ConditionalRequestConflict` (another
@@ -62,55 +56,12 @@ impl S3Store {
                     .to_owned(),
             });
         }
-        let endpoint = match &config.endpoint {
-            Some(endpoint) => Some(checked_endpoint(endpoint)?),
-            None => None,
-        };
-        let timeouts = TimeoutConfig::builder()
-            .connect_timeout(config.connect_timeout)
-            .operation_attempt_timeout(config.attempt_timeout)
-            .build();
-        let mut loader = aws_config::defaults(BehaviorVersion::latest())
-            .timeout_config(timeouts)
-            .retry_config(RetryConfig::standard().with_max_attempts(config.max_attempts.max(1)));
-        if let Some(region) = &config.region {
-            loader = loader.region(Region::new(region.clone()));
-        }
-        if let S3Credentials::Static {
-            access_key,
-            secret_key,
-        } = &config.credentials
-        {
-            let credentials = Credentials::new(access_key, secret_key, None, None, "hort-static");
-            loader = loader.credentials_provider(credentials);
-        }
-        if let Some(endpoint) = &endpoint {
-            loader = loader.endpoint_url(endpoint);
-        }
-        let sdk_config = loader.load().await;
-        let Some(region) = sdk_config.region().map(ToString::to_string) else {
-            return Err(StoreError::Other {
-                what: format!(
-                    "no AWS region for bucket {:?}: set AWS_REGION or the store's region",
-                    config.bucket
-                ),
-            });
-        };
-        let mut s3 = aws_sdk_s3::config::Builder::from(&sdk_config)
-            .force_path_style(config.force_path_style);
-        if endpoint.is_some() {
-            // Many S3-compatible servers reject the SDK's default CRC32 trailers; shuffle blocks
-            // carry their own checksum, so only send checksums where S3 demands them.
-            s3 = s3
-                .request_checksum_calculation(RequestChecksumCalculation::WhenRequired)
-                .response_checksum_validation(ResponseChecksumValidation::WhenRequired);
-        }
-        let label = endpoint.unwrap_or_else(|| format!("AWS S3 ({region})"));
-        let mut store =
-            Self::from_client(Client::from_conf(s3.build()), &config.bucket, label, handle);
+        let (client, label) = config.sdk_client().await?;
+        let region = client.config().region().map(ToString::to_string);
+        let mut store = Self::from_client(client, &config.bucket, label, handle);
         store.target.connect_timeout = config.connect_timeout;
         store.target.attempt_timeout = config.attempt_timeout;
-        store.region = Some(region);
+        store.region = region;
         Ok(store)
     }
 
@@ -130,8 +81,8 @@ impl S3Store {
         Ok(store)
     }
 
-    /// A store over an SDK client built elsewhere (for example once per Lambda environment, in
-    /// `main`). `endpoint` only names the server in error messages; `handle` must belong to a
+    /// A store over an SDK client built elsewhere (for example with [`S3Config::sdk_client`], once
+    /// per Lambda environment, in `main`). `endpoint` only names the server in error messages; `handle` must belong to a
     /// multi-threaded runtime that outlives the store.
     pub fn from_client(
         client: Client,
@@ -551,24 +502,6 @@ impl Drop for S3Store {
     }
 }
 
-/// `endpoint` without trailing slashes, if it is an `http://` or `https://` URL with a host.
-fn checked_endpoint(endpoint: &str) -> Result<String, StoreError> {
-    let trimmed = endpoint.trim_end_matches('/');
-    let host = trimmed
-        .strip_prefix("http://")
-        .or_else(|| trimmed.strip_prefix("https://"));
-    match host {
-        Some(host) if !host.is_empty() && !host.contains('/') && !host.contains(' ') => {
-            Ok(trimmed.to_owned())
-        }
-        _ => Err(StoreError::Other {
-            what: format!(
-                "invalid S3 endpoint {endpoint:?}: expected http://HOST[:PORT] or https://HOST[:PORT]"
-            ),
-        }),
-    }
-}
-
 /// `(first byte, total length)` from `Content-Range: bytes FIRST-LAST/TOTAL`.
 fn parse_content_range(value: &str) -> Option<(u64, u64)> {
     let (span, total) = value.strip_prefix("bytes ")?.split_once('/')?;
@@ -604,18 +537,5 @@ mod tests {
         assert_eq!(parse_content_range("bytes 2-4/10"), Some((2, 10)));
         assert_eq!(parse_content_range("bytes */10"), None);
         assert_eq!(parse_content_range("items 2-4/10"), None);
-    }
-
-    #[test]
-    fn endpoints_must_be_http_urls() {
-        assert_eq!(
-            checked_endpoint("http://127.0.0.1:9000/").unwrap(),
-            "http://127.0.0.1:9000"
-        );
-        assert!(checked_endpoint("https://s3.example.com").is_ok());
-        for bad in ["127.0.0.1:9000", "http://", "ftp://x", "http://h/path"] {
-            let err = checked_endpoint(bad).unwrap_err();
-            assert!(err.to_string().contains("invalid S3 endpoint"), "{err}");
-        }
     }
 }

@@ -35,6 +35,8 @@ pub enum Command {
 pub enum BenchCommand {
     /// The in-process pipeline against the monolithic renderer: time, skipped pairs, memory.
     Pipeline(crate::bench::PipelineBenchArgs),
+    /// Single-thread BVH kernel against native Embree on identical rays: Mrays/s, build, load.
+    Kernel(crate::bench::KernelBenchArgs),
 }
 
 #[derive(Subcommand)]

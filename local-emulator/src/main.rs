@@ -38,6 +38,9 @@ fn main() -> std::process::ExitCode {
         cli::Command::Bench {
             command: cli::BenchCommand::Pipeline(args),
         } => bench::run_pipeline_bench(&args, &AllocationMeter),
+        cli::Command::Bench {
+            command: cli::BenchCommand::Kernel(args),
+        } => bench::run_kernel_bench(&args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -147,6 +147,7 @@ fn render_pipeline(
     let options = PipelineOptions {
         job: JobId::new("local").context("job id")?,
         workers,
+        split_cache_bytes: 1 << 30,
     };
     let store = MemoryStore::new();
     let run = run_pipeline(&store, scene, request, &options)?;

@@ -63,6 +63,8 @@ fn check_scene(rel: &str, spps: &[u32]) {
                     let options = PipelineOptions {
                         job: JobId::new("eq").unwrap(),
                         workers,
+                        // With and without cached splits: the bytes must not change.
+                        split_cache_bytes: if workers == 3 { 0 } else { 1 << 30 },
                     };
                     let run = run_pipeline(&store, &scene, request, &options)
                         .unwrap_or_else(|e| panic!("{rel} k={k} s={s} {mode:?}: {e}"));
@@ -136,6 +138,7 @@ fn every_task_run_twice_writes_identical_bytes() {
         &PipelineOptions {
             job: job.clone(),
             workers: 2,
+            split_cache_bytes: 1 << 30,
         },
     )
     .unwrap();
@@ -173,6 +176,7 @@ fn lost_and_corrupt_blocks_are_recomputed_from_lineage() {
         &PipelineOptions {
             job: job.clone(),
             workers: 2,
+            split_cache_bytes: 1 << 30,
         },
     )
     .unwrap();

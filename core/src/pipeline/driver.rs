@@ -3,8 +3,9 @@
 
 use super::PipelineError;
 use super::plan::{JobPlan, PlanRequest, plan_job, resolve_counts};
-use super::runner::{TaskMetrics, run_task};
+use super::runner::{TaskMetrics, run_task_cached};
 use super::split::split_scene;
+use super::split_cache::SplitCache;
 use crate::hits::{Hit, decode_hits};
 use crate::ids::{JobId, SplitId, Stage};
 use crate::image::{Image, decode_pfm};
@@ -32,6 +33,8 @@ pub struct PipelineOptions {
     pub job: JobId,
     /// Worker threads running tasks concurrently (at least 1).
     pub workers: usize,
+    /// Stored bytes of decoded splits each worker may keep between tasks (0: none).
+    pub split_cache_bytes: u64,
 }
 
 /// A finished job.
@@ -94,7 +97,7 @@ pub fn run_pipeline(
     for stage in TASK_STAGES {
         let stage_start = Instant::now();
         let tasks = task_count(&plan, stage);
-        let m = run_stage(store, job, &plan, stage, tasks, options.workers.max(1))?;
+        let m = run_stage(store, job, &plan, stage, tasks, options)?;
         stages.push(StageReport {
             name: stage.to_string(),
             tasks: tasks as u64,
@@ -133,8 +136,9 @@ fn run_stage(
     plan: &JobPlan,
     stage: Stage,
     tasks: usize,
-    workers: usize,
+    options: &PipelineOptions,
 ) -> Result<TaskMetrics, PipelineError> {
+    let workers = options.workers.max(1);
     let next = AtomicUsize::new(0);
     let failed = AtomicBool::new(false);
     let total = Mutex::new(TaskMetrics::default());
@@ -142,12 +146,13 @@ fn run_stage(
     std::thread::scope(|scope| {
         for _ in 0..workers.min(tasks) {
             scope.spawn(|| {
+                let cache = SplitCache::new(options.split_cache_bytes);
                 while !failed.load(Ordering::Relaxed) {
                     let task = next.fetch_add(1, Ordering::Relaxed);
                     if task >= tasks {
                         break;
                     }
-                    match run_task(store, job, plan, stage, task as u32) {
+                    match run_task_cached(store, job, plan, stage, task as u32, &cache) {
                         Ok(m) => *total.lock().unwrap_or_else(|e| e.into_inner()) += m,
                         Err(e) => {
                             failed.store(true, Ordering::Relaxed);

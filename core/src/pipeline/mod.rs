@@ -24,6 +24,7 @@ mod plan;
 mod records;
 mod runner;
 mod split;
+mod split_cache;
 mod split_object;
 mod stages;
 
@@ -34,8 +35,9 @@ pub use plan::{
     TraceTask, plan_job, resolve_counts,
 };
 pub use records::{Occluded, PixelBlock, ShadowQuery, SurfaceHit};
-pub use runner::{TaskMetrics, producer_of, run_task};
+pub use runner::{TaskMetrics, producer_of, run_task, run_task_cached};
 pub use split::{SplitMode, assign_splits, split_scene};
+pub use split_cache::SplitCache;
 pub use split_object::TriangleShading;
 pub use split_object::{SPLIT_FORMAT_VERSION, SplitObject, decode_split, encode_split};
 pub use stages::{cast_map, cast_reduce, combine, expand, trace_map, trace_reduce};

@@ -5,7 +5,6 @@ use super::PipelineError;
 use crate::shading::SurfacePoint;
 use crate::shuffle::columns::{ColumnError, ColumnReader, ColumnWriter};
 use crate::shuffle::{RecordKind, decode_block, encode_block};
-use crate::triangle::Ray;
 use glam::Vec3;
 
 /// A camera sample's hit with the shading data of its surface. CastMap emits candidates (kind
@@ -20,14 +19,14 @@ pub struct SurfaceHit {
     pub surface: SurfacePoint,
 }
 
-/// A shadow segment to test against one split. Key: (pixel, sample, light).
+/// A shadow segment to test against one split: from `origin` to light `light` (the ray is
+/// rebuilt with [`crate::shading::shadow_ray`]). Key: (pixel, sample, light).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ShadowQuery {
     pub pixel: u32,
     pub sample: u32,
     pub light: u32,
-    pub ray: Ray,
-    pub t_max: f32,
+    pub origin: Vec3,
 }
 
 /// A (pixel, sample, light) whose shadow segment one split blocks.
@@ -94,7 +93,17 @@ pub fn encode_surface_hits(kind: RecordKind, hits: &[SurfaceHit]) -> Vec<u8> {
     put_vec3s(&mut w, s.clone().map(|s| s.p));
     put_vec3s(&mut w, s.clone().map(|s| s.p_error));
     put_vec3s(&mut w, s.clone().map(|s| s.n_geo));
-    put_vec3s(&mut w, s.clone().map(|s| s.n_shade));
+    // Flat shading (the common case) has n_shade == n_geo: store only the others.
+    let smooth = |s: &SurfacePoint| {
+        s.n_shade.to_array().map(f32::to_bits) != s.n_geo.to_array().map(f32::to_bits)
+    };
+    w.put_bytes(
+        &hits
+            .iter()
+            .map(|h| u8::from(smooth(&h.surface)))
+            .collect::<Vec<_>>(),
+    );
+    put_vec3s(&mut w, s.clone().filter(smooth).map(|s| s.n_shade));
     put_vec3s(&mut w, s.map(|s| Vec3::from(s.kd)));
     encode_block(kind, hits.len() as u64, w.as_bytes())
 }
@@ -121,9 +130,26 @@ pub fn decode_surface_hits(
     let p = read_vec3s(&mut r, n, key)?;
     let p_error = read_vec3s(&mut r, n, key)?;
     let n_geo = read_vec3s(&mut r, n, key)?;
-    let n_shade = read_vec3s(&mut r, n, key)?;
+    let smooth = r.read_bytes().map_err(c)?.to_vec();
+    check_len(key, "smooth", smooth.len(), n)?;
+    let smooth_count = smooth.iter().filter(|&&f| f == 1).count();
+    if smooth_count + smooth.iter().filter(|&&f| f == 0).count() != n {
+        return Err(PipelineError::Corrupt(format!(
+            "shuffle block {key}: smooth flags are not 0 or 1"
+        )));
+    }
+    let mut n_smooth = read_vec3s(&mut r, smooth_count, key)?.into_iter();
     let kd = read_vec3s(&mut r, n, key)?;
     r.finish().map_err(c)?;
+    let n_shade: Vec<Vec3> = (0..n)
+        .map(|i| {
+            if smooth[i] == 1 {
+                n_smooth.next().unwrap_or(n_geo[i])
+            } else {
+                n_geo[i]
+            }
+        })
+        .collect();
     let hits = (0..n)
         .map(|i| SurfaceHit {
             pixel: pixels[i],
@@ -148,9 +174,7 @@ pub fn encode_queries(queries: &[ShadowQuery]) -> Vec<u8> {
     w.put_u32_sorted_delta(&queries.iter().map(|q| q.pixel).collect::<Vec<_>>());
     w.put_u32(&queries.iter().map(|q| q.sample).collect::<Vec<_>>());
     w.put_u32(&queries.iter().map(|q| q.light).collect::<Vec<_>>());
-    put_vec3s(&mut w, queries.iter().map(|q| q.ray.origin));
-    put_vec3s(&mut w, queries.iter().map(|q| q.ray.dir));
-    w.put_f32(&queries.iter().map(|q| q.t_max).collect::<Vec<_>>());
+    put_vec3s(&mut w, queries.iter().map(|q| q.origin));
     encode_block(RecordKind::ShadowQuery, queries.len() as u64, w.as_bytes())
 }
 
@@ -168,20 +192,13 @@ pub fn decode_queries(key: &str, bytes: &[u8]) -> Result<(Vec<ShadowQuery>, u64)
     check_len(key, "sample", samples.len(), n)?;
     check_len(key, "light", lights.len(), n)?;
     let origins = read_vec3s(&mut r, n, key)?;
-    let dirs = read_vec3s(&mut r, n, key)?;
-    let t_max = r.read_f32().map_err(c)?;
-    check_len(key, "t_max", t_max.len(), n)?;
     r.finish().map_err(c)?;
     let queries = (0..n)
         .map(|i| ShadowQuery {
             pixel: pixels[i],
             sample: samples[i],
             light: lights[i],
-            ray: Ray {
-                origin: origins[i],
-                dir: dirs[i],
-            },
-            t_max: t_max[i],
+            origin: origins[i],
         })
         .collect();
     Ok((queries, block.raw.len() as u64))
@@ -299,11 +316,7 @@ mod tests {
                 pixel: i,
                 sample: 0,
                 light: i % 2,
-                ray: Ray {
-                    origin: Vec3::splat(i as f32),
-                    dir: Vec3::X,
-                },
-                t_max: 0.9999,
+                origin: Vec3::splat(i as f32),
             })
             .collect();
         assert_eq!(

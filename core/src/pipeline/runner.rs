@@ -12,6 +12,7 @@ use super::records::{
     decode_occluded, decode_pixels, decode_queries, decode_surface_hits, encode_occluded,
     encode_pixels, encode_queries, encode_surface_hits,
 };
+use super::split_cache::SplitCache;
 use super::split_object::{SplitObject, decode_split};
 use super::stages;
 use crate::hits::encode_hits;
@@ -20,6 +21,7 @@ use crate::image::{encode_pfm, encode_png};
 use crate::keys::{hits_key, image_key_with_ext, parse_partition_key, partition_key, split_key};
 use crate::shuffle::RecordKind;
 use crate::store::BlobStore;
+use std::sync::Arc;
 
 /// What one task did, for the stage metrics of the report.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -68,10 +70,23 @@ pub fn run_task(
     stage: Stage,
     task: u32,
 ) -> Result<TaskMetrics, PipelineError> {
+    run_task_cached(store, job, plan, stage, task, &SplitCache::new(0))
+}
+
+/// [`run_task`] with a worker's cache of decoded splits (same outputs, fewer split reads).
+pub fn run_task_cached(
+    store: &dyn BlobStore,
+    job: &JobId,
+    plan: &JobPlan,
+    stage: Stage,
+    task: u32,
+    cache: &SplitCache,
+) -> Result<TaskMetrics, PipelineError> {
     let mut ctx = Task {
         store,
         job,
         plan,
+        cache,
         metrics: TaskMetrics::default(),
         depth: 0,
     };
@@ -83,6 +98,7 @@ struct Task<'a> {
     store: &'a dyn BlobStore,
     job: &'a JobId,
     plan: &'a JobPlan,
+    cache: &'a SplitCache,
     metrics: TaskMetrics,
     /// Nesting of lineage recomputation (bounded by the stage chain).
     depth: u32,
@@ -149,7 +165,12 @@ impl Task<'_> {
                     Vec::new()
                 } else {
                     let split = self.read_split(t.split)?;
-                    stages::trace_map(&split, &queries)
+                    stages::trace_map(plan, &split, &queries).map_err(|light| {
+                        PipelineError::Corrupt(format!(
+                            "shuffle block {key}: a query names light {light}, the plan has {}",
+                            plan.lights.len()
+                        ))
+                    })?
                 };
                 let bytes = encode_occluded(&occluded);
                 self.write(&self.key(stage, task, t.span), bytes, occluded.len())
@@ -206,12 +227,18 @@ impl Task<'_> {
         partition_key(self.job, stage, TaskId(task), PartitionId(partition))
     }
 
-    fn read_split(&mut self, split: u32) -> Result<SplitObject, PipelineError> {
+    fn read_split(&mut self, split: u32) -> Result<Arc<SplitObject>, PipelineError> {
         let key = split_key(self.job, SplitId(split));
+        if let Some(object) = self.cache.get(&key) {
+            return Ok(object);
+        }
         let bytes = self.store.get(&key)?;
         self.metrics.bytes_read += bytes.len() as u64;
         self.metrics.split_bytes_read += bytes.len() as u64;
-        decode_split(&key, &bytes)
+        let object = Arc::new(decode_split(&key, &bytes)?);
+        self.cache
+            .insert(&key, bytes.len() as u64, Arc::clone(&object));
+        Ok(object)
     }
 
     fn read_span_hits(&mut self, span: u32) -> Result<Vec<super::SurfaceHit>, PipelineError> {

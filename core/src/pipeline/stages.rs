@@ -11,7 +11,7 @@ use crate::error::SceneError;
 use crate::hits::Hit;
 use crate::image::Image;
 use crate::sampling::sample_offset;
-use crate::shading::{combine as combine_light, shadow_test, surface_point};
+use crate::shading::{combine as combine_light, shadow_ray, shadow_test, surface_point};
 
 /// CastMap: every camera sample of `span` against one split; the split's nearest hit of each
 /// sample that hits it, sorted by (pixel, sample).
@@ -73,12 +73,10 @@ pub fn expand(plan: &JobPlan, hits: &[SurfaceHit]) -> Vec<Vec<ShadowQuery>> {
                 pixel: hit.pixel,
                 sample: hit.sample,
                 light: light_index as u32,
-                ray: test.ray,
-                t_max: test.t_max,
+                origin: test.ray.origin,
             };
             for (split, b) in boxes.iter().enumerate() {
-                if plan.split_mode == SplitMode::Naive
-                    || segment_may_hit(b, &query.ray, query.t_max)
+                if plan.split_mode == SplitMode::Naive || segment_may_hit(b, &test.ray, test.t_max)
                 {
                     out[split].push(query);
                 }
@@ -89,16 +87,25 @@ pub fn expand(plan: &JobPlan, hits: &[SurfaceHit]) -> Vec<Vec<ShadowQuery>> {
 }
 
 /// TraceMap: the queries this split blocks, in input order (so sorted when the input is).
-pub fn trace_map(split: &SplitObject, queries: &[ShadowQuery]) -> Vec<Occluded> {
-    queries
-        .iter()
-        .filter(|q| split.bvh.occluded(&q.ray, q.t_max))
-        .map(|q| Occluded {
-            pixel: q.pixel,
-            sample: q.sample,
-            light: q.light,
-        })
-        .collect()
+/// Errors when a query names a light the plan does not have.
+pub fn trace_map(
+    plan: &JobPlan,
+    split: &SplitObject,
+    queries: &[ShadowQuery],
+) -> Result<Vec<Occluded>, u32> {
+    let mut out = Vec::new();
+    for q in queries {
+        let light = plan.lights.get(q.light as usize).ok_or(q.light)?;
+        let (ray, t_max) = shadow_ray(light, q.origin);
+        if split.bvh.occluded(&ray, t_max) {
+            out.push(Occluded {
+                pixel: q.pixel,
+                sample: q.sample,
+                light: q.light,
+            });
+        }
+    }
+    Ok(out)
 }
 
 /// TraceReduce: shades every sample of `span` (a light counts unless some split blocks it:

@@ -1,10 +1,12 @@
 //! `hort bench ...`: benchmarks that print tables with ratios against a baseline measured in the
 //! same run, and append the rows to a CSV file.
 
+mod kernel;
 mod pipeline;
 mod scenes;
 mod table;
 
+pub use kernel::{KernelBenchArgs, run_kernel_bench};
 pub use pipeline::{PipelineBenchArgs, run_pipeline_bench};
 
 /// Process-wide allocation meter (the binary's global allocator), for per-task memory peaks.

@@ -88,6 +88,7 @@ fn run(scene: &Scene, req: PlanRequest, workers: usize) -> Result<(PipelineRun, 
     let options = PipelineOptions {
         job: JobId::new("bench")?,
         workers,
+        split_cache_bytes: 1 << 30,
     };
     let start = Instant::now();
     let run = run_pipeline(&store, scene, req, &options)?;

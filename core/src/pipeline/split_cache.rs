@@ -1,0 +1,87 @@
+//! A worker's cache of decoded split objects, like a warm function container keeping what it
+//! loaded: split objects are written once by the plan step and never change within a job, so a
+//! decoded split can serve every later task of the same job on the same worker. Output bytes
+//! do not depend on whether a split came from the cache.
+
+use super::split_object::SplitObject;
+use std::sync::{Arc, Mutex};
+
+/// Least-recently-used cache of decoded splits, bounded by their stored (compressed) size.
+#[derive(Debug)]
+pub struct SplitCache {
+    budget_bytes: u64,
+    entries: Mutex<Vec<Entry>>,
+}
+
+#[derive(Debug)]
+struct Entry {
+    key: String,
+    bytes: u64,
+    object: Arc<SplitObject>,
+}
+
+impl SplitCache {
+    /// A cache holding splits of at most `budget_bytes` stored bytes in total (0 disables it).
+    pub fn new(budget_bytes: u64) -> SplitCache {
+        SplitCache {
+            budget_bytes,
+            entries: Mutex::new(Vec::new()),
+        }
+    }
+
+    /// The cached split stored under `key`, marking it most recently used.
+    pub fn get(&self, key: &str) -> Option<Arc<SplitObject>> {
+        let mut entries = self.entries.lock().unwrap_or_else(|e| e.into_inner());
+        let i = entries.iter().position(|e| e.key == key)?;
+        let entry = entries.remove(i);
+        let object = Arc::clone(&entry.object);
+        entries.push(entry);
+        Some(object)
+    }
+
+    /// Keeps `object` (stored as `bytes` bytes under `key`), evicting the least recently used.
+    pub fn insert(&self, key: &str, bytes: u64, object: Arc<SplitObject>) {
+        if bytes > self.budget_bytes {
+            return;
+        }
+        let mut entries = self.entries.lock().unwrap_or_else(|e| e.into_inner());
+        entries.retain(|e| e.key != key);
+        entries.push(Entry {
+            key: key.to_string(),
+            bytes,
+            object,
+        });
+        while entries.iter().map(|e| e.bytes).sum::<u64>() > self.budget_bytes {
+            entries.remove(0);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::Bvh;
+
+    fn object(split: u32) -> Arc<SplitObject> {
+        Arc::new(SplitObject {
+            split,
+            bvh: Bvh::build(Vec::new(), Vec::new()),
+            shading: Vec::new(),
+        })
+    }
+
+    #[test]
+    fn evicts_least_recently_used_within_budget() {
+        let cache = SplitCache::new(100);
+        cache.insert("a", 40, object(0));
+        cache.insert("b", 40, object(1));
+        assert!(cache.get("a").is_some());
+        cache.insert("c", 40, object(2));
+        assert!(cache.get("b").is_none(), "b was least recently used");
+        assert_eq!(cache.get("a").unwrap().split, 0);
+        assert_eq!(cache.get("c").unwrap().split, 2);
+        cache.insert("huge", 101, object(3));
+        assert!(cache.get("huge").is_none());
+        assert!(SplitCache::new(0).get("a").is_none());
+    }
+}

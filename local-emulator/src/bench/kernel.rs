@@ -1,0 +1,418 @@
+//! `hort bench kernel`: single-thread ray throughput of our BVH kernel against native Embree on
+//! the identical rays, plus BVH build and split-object load times.
+//!
+//! Per scene: one primary ray per pixel centre (exactly the renderer's camera rays), traced with
+//! [`Bvh::closest_hit`]; for each primary hit, the shadow ray towards the scene's first light
+//! exactly as the renderer builds it ([`shadow_test`]), traced with [`Bvh::occluded`]. All rays
+//! and our answers go to a binary file that `bench/embree_harness.c` (compiled here at run time
+//! against `libembree3` when it is installed) traces with `rtcIntersect1`, `rtcIntersect16` and
+//! `rtcOccluded1` on a one-thread device. Timings are the best of `--repeats` passes; ratios
+//! compare numbers measured in the same run.
+
+use super::scenes::{bundled, generated};
+use super::table::{Table, f3};
+use anyhow::{Context, Result, bail};
+use hort_core::bvh::Bvh;
+use hort_core::camera::Camera;
+use hort_core::pipeline::{SplitObject, TriangleShading, decode_split, encode_split};
+use hort_core::render::{build_scene_bvh, shading_of, surface_of};
+use hort_core::scene::{Scene, load_scene};
+use hort_core::shading::shadow_test;
+use hort_core::triangle::Ray;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+/// Options of `hort bench kernel`.
+#[derive(clap::Args, Clone, Debug)]
+pub struct KernelBenchArgs {
+    #[arg(long, default_value_t = 1920)]
+    pub width: u32,
+    #[arg(long, default_value_t = 1080)]
+    pub height: u32,
+    /// Triangle counts of the generated scenes (comma-separated; empty for none).
+    #[arg(long, value_delimiter = ',', default_value = "100000,1000000,2000000")]
+    pub generated: Vec<u64>,
+    /// Skip the bundled scenes (bunny, teapot, cornell).
+    #[arg(long)]
+    pub skip_bundled: bool,
+    /// Timed passes per kernel; the best pass is reported.
+    #[arg(long, default_value_t = 2)]
+    pub repeats: u32,
+    /// Do not run Embree even if it is installed.
+    #[arg(long)]
+    pub no_embree: bool,
+    /// Append the tables to this CSV file.
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+    /// Where generated scenes are cached.
+    #[arg(long, default_value = "target/bench-scenes")]
+    pub scene_dir: PathBuf,
+    /// Where the ray files and the compiled Embree harness go.
+    #[arg(long, default_value = "target/kernel-bench")]
+    pub work_dir: PathBuf,
+}
+
+/// What one scene measured.
+struct SceneResult {
+    name: String,
+    triangles: usize,
+    primary: usize,
+    primary_s: f64,
+    primary_hits: usize,
+    shadow: usize,
+    shadow_s: f64,
+    occluded: usize,
+    build_s: f64,
+    load_s: f64,
+    embree: Option<EmbreeResult>,
+}
+
+#[derive(serde::Deserialize)]
+struct EmbreeResult {
+    build_s: f64,
+    primary_s: f64,
+    primary16_s: f64,
+    primary_same_id: u64,
+    shadow_s: f64,
+    shadow_same: u64,
+}
+
+pub fn run_kernel_bench(args: &KernelBenchArgs) -> Result<()> {
+    std::fs::create_dir_all(&args.work_dir)
+        .with_context(|| format!("cannot create {}", args.work_dir.display()))?;
+    let harness = if args.no_embree {
+        eprintln!("Embree: skipped (--no-embree)");
+        None
+    } else {
+        match compile_harness(&args.work_dir) {
+            Ok(path) => Some(path),
+            Err(e) => {
+                eprintln!("Embree unavailable ({e:#}); reporting our kernel only");
+                None
+            }
+        }
+    };
+    let mut scenes: Vec<(String, PathBuf)> = Vec::new();
+    if !args.skip_bundled {
+        for name in ["bunny", "teapot", "cornell"] {
+            scenes.push((name.into(), bundled(&format!("{name}/{name}.json"))));
+        }
+    }
+    for &n in &args.generated {
+        scenes.push((
+            format!("generated {}k", n / 1000),
+            generated(&args.scene_dir, n, 1)?,
+        ));
+    }
+    let mut results = Vec::new();
+    for (name, path) in scenes {
+        let scene = load_scene(&path)?;
+        let result = bench_scene(&name, &scene, args, harness.as_deref())?;
+        eprintln!(
+            "{name}: ours {:.2} / {:.2} Mrays/s primary / shadow",
+            mrays(result.primary, result.primary_s),
+            mrays(result.shadow, result.shadow_s)
+        );
+        results.push(result);
+    }
+    let tables = [ray_table(&results, args), build_table(&results)];
+    for t in &tables {
+        t.print();
+        if let Some(csv) = &args.csv {
+            t.append_csv(csv)?;
+        }
+    }
+    if harness.is_none() {
+        println!("\n(Embree unavailable: install libembree-dev and a C compiler for its columns)");
+    }
+    Ok(())
+}
+
+/// Compiles the harness into `dir` with `cc`; errors if there is no compiler or no Embree.
+fn compile_harness(dir: &Path) -> Result<PathBuf> {
+    let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("bench/embree_harness.c");
+    let out = dir.join("embree_harness");
+    let output = Command::new("cc")
+        .arg("-O2")
+        .arg(&source)
+        .arg("-o")
+        .arg(&out)
+        .arg("-lembree3")
+        .output()
+        .context("cannot run cc")?;
+    if !output.status.success() {
+        bail!(
+            "cc -lembree3 failed: {}",
+            String::from_utf8_lossy(&output.stderr)
+                .lines()
+                .next()
+                .unwrap_or("")
+        );
+    }
+    Ok(out)
+}
+
+fn mrays(rays: usize, seconds: f64) -> f64 {
+    rays as f64 / seconds.max(1e-12) / 1e6
+}
+
+/// Best wall time of `repeats` runs of `f`, and the last run's result.
+fn best_of<T>(repeats: u32, mut f: impl FnMut() -> T) -> (f64, T) {
+    let mut best = f64::INFINITY;
+    let mut last = None;
+    for _ in 0..repeats.max(1) {
+        let start = Instant::now();
+        let r = f();
+        best = best.min(start.elapsed().as_secs_f64());
+        last = Some(r);
+    }
+    (best, last.expect("at least one run"))
+}
+
+fn bench_scene(
+    name: &str,
+    scene: &Scene,
+    args: &KernelBenchArgs,
+    harness: Option<&Path>,
+) -> Result<SceneResult> {
+    let start = Instant::now();
+    let bvh = build_scene_bvh(&scene.mesh);
+    let build_s = start.elapsed().as_secs_f64();
+
+    let camera = Camera::new(&scene.camera, args.width, args.height)?;
+    let primary: Vec<Ray> = (0..args.height)
+        .flat_map(|y| {
+            (0..args.width).map(move |x| camera.ray(f64::from(x) + 0.5, f64::from(y) + 0.5))
+        })
+        .collect();
+    let (primary_s, hits) = best_of(args.repeats, || {
+        primary
+            .iter()
+            .map(|r| bvh.closest_hit(r))
+            .collect::<Vec<_>>()
+    });
+    let light = scene.lights.first();
+    let shadow: Vec<(Ray, f32)> = primary
+        .iter()
+        .zip(&hits)
+        .filter_map(|(ray, hit)| {
+            let sp = surface_of(&scene.mesh, hit.as_ref()?, ray);
+            let test = shadow_test(&sp, light?)?;
+            Some((test.ray, test.t_max))
+        })
+        .collect();
+    let (shadow_s, occluded) = best_of(args.repeats, || {
+        shadow
+            .iter()
+            .map(|(r, t_max)| bvh.occluded(r, *t_max))
+            .collect::<Vec<_>>()
+    });
+    let load_s = split_load_seconds(scene, bvh.clone(), args.repeats)?;
+
+    let embree = match harness {
+        None => None,
+        Some(h) => {
+            let file = args
+                .work_dir
+                .join(format!("rays-{}.bin", name.replace(' ', "-")));
+            write_ray_file(&file, scene, &primary, &hits, &shadow, &occluded)?;
+            let output = Command::new(h)
+                .arg(&file)
+                .arg(args.repeats.to_string())
+                .output()
+                .with_context(|| format!("cannot run {}", h.display()))?;
+            if !output.status.success() {
+                bail!(
+                    "Embree harness failed on {name}: {}",
+                    String::from_utf8_lossy(&output.stderr)
+                );
+            }
+            let _ = std::fs::remove_file(&file);
+            Some(
+                serde_json::from_slice::<EmbreeResult>(&output.stdout)
+                    .context("Embree harness output")?,
+            )
+        }
+    };
+    Ok(SceneResult {
+        name: name.to_string(),
+        triangles: bvh.triangle_count(),
+        primary: primary.len(),
+        primary_s,
+        primary_hits: hits.iter().flatten().count(),
+        shadow: shadow.len(),
+        shadow_s,
+        occluded: occluded.iter().filter(|&&o| o).count(),
+        build_s,
+        load_s,
+        embree,
+    })
+}
+
+/// Seconds to decode the whole scene stored as one split object (decompression, checksums,
+/// validation, BVH reassembly): what a task pays before tracing.
+fn split_load_seconds(scene: &Scene, bvh: Bvh, repeats: u32) -> Result<f64> {
+    let shading = bvh
+        .parts()
+        .2
+        .iter()
+        .map(|&id| {
+            let (normals, kd) = shading_of(&scene.mesh, id);
+            TriangleShading { normals, kd }
+        })
+        .collect();
+    let bytes = encode_split(&SplitObject {
+        split: 0,
+        bvh,
+        shading,
+    });
+    let (seconds, decoded) = best_of(repeats, || decode_split("bench", &bytes));
+    decoded?;
+    Ok(seconds)
+}
+
+/// Writes the ray file `embree_harness.c` documents.
+fn write_ray_file(
+    path: &Path,
+    scene: &Scene,
+    primary: &[Ray],
+    hits: &[Option<hort_core::bvh::ClosestHit>],
+    shadow: &[(Ray, f32)],
+    occluded: &[bool],
+) -> Result<()> {
+    let mut out = Vec::new();
+    let f32s = |out: &mut Vec<u8>, v: &[f32]| {
+        for x in v {
+            out.extend_from_slice(&x.to_le_bytes());
+        }
+    };
+    out.extend_from_slice(b"HORTKRN1");
+    let n = scene.mesh.triangle_count();
+    for v in [n, primary.len(), shadow.len(), 0] {
+        out.extend_from_slice(&(v as u32).to_le_bytes());
+    }
+    for i in 0..n {
+        for c in scene.mesh.corners(i) {
+            f32s(&mut out, &c.to_array());
+        }
+    }
+    for r in primary {
+        f32s(&mut out, &r.origin.to_array());
+        f32s(&mut out, &r.dir.to_array());
+    }
+    for h in hits {
+        let (id, t) = h.map_or((u32::MAX, f32::INFINITY), |h| (h.id, h.t));
+        out.extend_from_slice(&id.to_le_bytes());
+        out.extend_from_slice(&t.to_le_bytes());
+    }
+    for (r, t_max) in shadow {
+        f32s(&mut out, &r.origin.to_array());
+        f32s(&mut out, &r.dir.to_array());
+        f32s(&mut out, &[*t_max]);
+    }
+    out.extend(occluded.iter().map(|&o| u8::from(o)));
+    std::fs::File::create(path)
+        .and_then(|mut f| f.write_all(&out))
+        .with_context(|| format!("cannot write {}", path.display()))
+}
+
+fn ray_table(results: &[SceneResult], args: &KernelBenchArgs) -> Table {
+    let mut table = Table::new(
+        &format!(
+            "single-thread kernel vs native Embree 3 on identical rays, {}x{} (Mrays/s; ratio = ours / Embree single rays)",
+            args.width, args.height
+        ),
+        &[
+            "scene",
+            "triangles",
+            "primary rays",
+            "hit %",
+            "ours primary",
+            "Embree primary",
+            "ratio",
+            "Embree x16",
+            "same id %",
+            "shadow rays",
+            "occluded %",
+            "ours shadow",
+            "Embree shadow",
+            "ratio",
+            "same %",
+        ],
+    );
+    let pct = |a: u64, b: usize| format!("{:.2}", 100.0 * a as f64 / b.max(1) as f64);
+    for r in results {
+        let ours_p = mrays(r.primary, r.primary_s);
+        let ours_s = mrays(r.shadow, r.shadow_s);
+        let mut row = vec![
+            r.name.clone(),
+            r.triangles.to_string(),
+            r.primary.to_string(),
+            pct(r.primary_hits as u64, r.primary),
+            format!("{ours_p:.2}"),
+        ];
+        let dash = || "-".to_string();
+        match &r.embree {
+            Some(e) => {
+                let ep = mrays(r.primary, e.primary_s);
+                let es = mrays(r.shadow, e.shadow_s);
+                row.extend([
+                    format!("{ep:.2}"),
+                    f3(ours_p / ep),
+                    format!("{:.2}", mrays(r.primary, e.primary16_s)),
+                    pct(e.primary_same_id, r.primary),
+                    r.shadow.to_string(),
+                    pct(r.occluded as u64, r.shadow),
+                    format!("{ours_s:.2}"),
+                    format!("{es:.2}"),
+                    f3(ours_s / es),
+                    pct(e.shadow_same, r.shadow),
+                ]);
+            }
+            None => row.extend([
+                dash(),
+                dash(),
+                dash(),
+                dash(),
+                r.shadow.to_string(),
+                pct(r.occluded as u64, r.shadow),
+                format!("{ours_s:.2}"),
+                dash(),
+                dash(),
+                dash(),
+            ]),
+        }
+        table.push(row);
+    }
+    table
+}
+
+fn build_table(results: &[SceneResult]) -> Table {
+    let mut table = Table::new(
+        "BVH build (one thread; ratio = ours / Embree rtcCommitScene) and split-object load seconds",
+        &[
+            "scene",
+            "triangles",
+            "ours build s",
+            "Embree build s",
+            "ratio",
+            "split load s",
+        ],
+    );
+    for r in results {
+        let (eb, ratio) = r.embree.as_ref().map_or(("-".into(), "-".into()), |e| {
+            (f3(e.build_s), f3(r.build_s / e.build_s))
+        });
+        table.push(vec![
+            r.name.clone(),
+            r.triangles.to_string(),
+            f3(r.build_s),
+            eb,
+            ratio,
+            f3(r.load_s),
+        ]);
+    }
+    table
+}
