@@ -2,6 +2,7 @@
 //!
 //! ```text
 //! jobs/{job}/manifest.json                       the job request, created once
+//! jobs/{job}/scene/{path}                       the scene files, relative to the main file
 //! jobs/{job}/plan.json                           the job plan (splits, spans, tasks)
 //! jobs/{job}/splits/{split:05}.bin               one scene split with its BVH
 //! jobs/{job}/{stage}/{task:05}/part-{p:05}       one shuffle partition of one task's output
@@ -71,6 +72,12 @@ pub fn image_key(job: &JobId) -> String {
 pub fn image_key_with_ext(job: &JobId, ext: &str) -> String {
     let ext = ext.strip_prefix('.').unwrap_or(ext);
     format!("jobs/{job}/out/image.{ext}")
+}
+
+/// `jobs/{job}/scene/`: the scene files of the job (the main file and what it names), stored
+/// by the client under their paths relative to the main file's folder.
+pub fn scene_prefix(job: &JobId) -> String {
+    format!("jobs/{job}/scene/")
 }
 
 /// `jobs/{job}/out/hits.bin`: the hit buffer of the command-line contract.
@@ -154,6 +161,7 @@ mod tests {
         assert_eq!(image_key_with_ext(&j, ".exr"), "jobs/job-42/out/image.exr");
         assert_eq!(report_key(&j), "jobs/job-42/report.json");
         assert_eq!(hits_key(&j), "jobs/job-42/out/hits.bin");
+        assert_eq!(scene_prefix(&j), "jobs/job-42/scene/");
         assert_eq!(
             items_key(&j, Stage::TraceMap),
             "jobs/job-42/items/trace-map.json"

@@ -15,6 +15,7 @@ pub mod shading;
 pub mod triangle;
 
 // Outputs.
+pub mod cost;
 pub mod hits;
 pub mod image;
 pub mod report;

@@ -36,6 +36,12 @@ pub struct TriangleHit {
 }
 
 impl RayPrep {
+    /// The permutation `[kx, ky, kz]` (indices into x, y, z) and shear `[sx, sy, sz]`, for
+    /// vectorised copies of [`intersect`] that must compute the same bits.
+    pub(crate) fn shear(&self) -> ([usize; 3], [f32; 3]) {
+        ([self.kx, self.ky, self.kz], [self.sx, self.sy, self.sz])
+    }
+
     /// Precomputes the permutation (largest |dir| axis becomes z) and shear of `ray`.
     pub fn new(ray: &Ray) -> Self {
         let d = ray.dir.abs();

@@ -74,9 +74,58 @@ pub struct RenderArgs {
     /// How the scene is cut: spatial clusters (default) or the paper's naive index ranges.
     #[arg(long, default_value = "spatial")]
     pub split_mode: SplitMode,
-    /// Tasks run concurrently (default: all cores).
+    /// Function slots: tasks run concurrently (default: all cores).
     #[arg(long)]
     pub workers: Option<usize>,
+    /// Run the stages with the in-process driver over memory instead of the emulator (no S3,
+    /// no state machine): the fastest way to check a scene through the pipeline.
+    #[arg(long, conflicts_with_all = ["s3_endpoint", "data_dir"])]
+    pub in_process: bool,
+    /// Use this S3-compatible endpoint (MinIO, Garage, Ceph RGW, moto, AWS) instead of the
+    /// embedded server; credentials from --access-key/--secret-key or the AWS environment.
+    #[arg(long, requires = "bucket")]
+    pub s3_endpoint: Option<String>,
+    /// Bucket at --s3-endpoint.
+    #[arg(long, requires = "s3_endpoint")]
+    pub bucket: Option<String>,
+    /// Access key for --s3-endpoint (else AWS_ACCESS_KEY_ID and the default chain).
+    #[arg(long, requires = "secret_key", env = "HORT_S3_ACCESS_KEY")]
+    pub access_key: Option<String>,
+    /// Secret key for --s3-endpoint.
+    #[arg(
+        long,
+        requires = "access_key",
+        env = "HORT_S3_SECRET_KEY",
+        hide_env_values = true
+    )]
+    pub secret_key: Option<String>,
+    /// Keep the embedded server's objects in DIR (default: a temporary folder, removed after).
+    #[arg(long)]
+    pub data_dir: Option<PathBuf>,
+    /// Job id (default: a fresh one); objects go under jobs/ID/.
+    #[arg(long)]
+    pub job: Option<String>,
+    /// Probability that an attempt fails (before running, or after writing part of its outputs).
+    #[arg(long, default_value_t = 0.0)]
+    pub fail_rate: f64,
+    /// Probability that an attempt is delivered twice and runs concurrently.
+    #[arg(long, default_value_t = 0.0)]
+    pub duplicate_rate: f64,
+    /// Probability that an attempt straggles past its timeout (retried on States.Timeout).
+    #[arg(long, default_value_t = 0.0)]
+    pub slow_rate: f64,
+    /// Seed of fault injection and retry jitter.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Per-task timeout in seconds (default: derived from each task's work, 10 to 90 s).
+    #[arg(long)]
+    pub task_timeout: Option<u32>,
+    /// Multiplies every wait and timeout of the state machine (1 = real time).
+    #[arg(long, default_value_t = 1.0, hide = true)]
+    pub time_scale: f64,
+    /// Lambda memory (MB) the cost estimate assumes.
+    #[arg(long, default_value_t = 2048)]
+    pub memory_mb: u32,
     /// Output image: .png (8-bit sRGB), .pfm or .exr (linear). Default: SCENE's name with .png.
     #[arg(long)]
     pub out: Option<PathBuf>,

@@ -3,4 +3,6 @@
 #![forbid(unsafe_code)]
 
 pub mod embedded_s3;
+pub mod emulator;
 pub mod orchestrator;
+pub mod progress;

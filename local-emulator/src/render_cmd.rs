@@ -3,6 +3,7 @@
 
 use crate::cli::RenderArgs;
 use anyhow::{Context, Result, bail};
+use hort_core::cost::Arch;
 use hort_core::hits::{Hit, encode_hits};
 use hort_core::ids::JobId;
 use hort_core::image::{Image, write_image};
@@ -11,7 +12,14 @@ use hort_core::render::{RenderSettings, build_scene_bvh, render};
 use hort_core::report::{RayReport, Report, Seconds, StageReport};
 use hort_core::scene::{DEFAULT_HEIGHT, DEFAULT_WIDTH, Scene, check_image_size, load_scene};
 use hort_core::store::MemoryStore;
+use hort_functions::S3Credentials;
+use hort_local_emulator::emulator::{
+    EmulatorConfig, FaultSettings, JobSettings, StorageTarget, run_job,
+};
+use hort_local_emulator::progress::{ProgressMode, ProgressObserver, print_summary};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// What either renderer hands back for writing.
@@ -24,6 +32,7 @@ struct Rendered {
     threads: usize,
     stages: Vec<StageReport>,
     replication: Option<f64>,
+    cost_usd: Option<f64>,
 }
 
 pub fn run(args: RenderArgs) -> Result<()> {
@@ -43,8 +52,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let out = args.out.clone().unwrap_or_else(|| default_out(&args.scene));
     let rendered = if args.monolithic {
         render_monolithic(&scene, width, height, spp, args.threads)?
-    } else {
+    } else if args.in_process {
         render_pipeline(&scene, width, height, spp, &args)?
+    } else {
+        render_emulated(&args, width, height, spp)?
     };
     write_image(&out, &rendered.image)?;
     if let Some(path) = &args.hits {
@@ -72,7 +83,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         },
         stages: rendered.stages,
         replication: rendered.replication,
-        cost_usd: None,
+        cost_usd: rendered.cost_usd,
     };
     if let Some(path) = &args.report {
         write_file(path, report.to_json().as_bytes())?;
@@ -125,6 +136,7 @@ fn render_monolithic(
         threads,
         stages: Vec::new(),
         replication: None,
+        cost_usd: None,
     })
 }
 
@@ -163,6 +175,123 @@ fn render_pipeline(
         threads: workers,
         stages: run.stages,
         replication: Some(run.replication),
+        cost_usd: None,
+    })
+}
+
+fn render_emulated(args: &RenderArgs, width: u32, height: u32, spp: u32) -> Result<Rendered> {
+    let workers = args.workers.unwrap_or_else(cores);
+    for (name, p) in [
+        ("--fail-rate", args.fail_rate),
+        ("--duplicate-rate", args.duplicate_rate),
+        ("--slow-rate", args.slow_rate),
+    ] {
+        if !(0.0..=1.0).contains(&p) {
+            bail!("{name} {p} is not a probability between 0 and 1");
+        }
+    }
+    if !(args.time_scale > 0.0 && args.time_scale.is_finite()) {
+        bail!("--time-scale must be a positive number");
+    }
+    let storage = match (&args.s3_endpoint, &args.bucket) {
+        (Some(endpoint), Some(bucket)) => StorageTarget::External {
+            endpoint: endpoint.clone(),
+            bucket: bucket.clone(),
+            credentials: match (&args.access_key, &args.secret_key) {
+                (Some(a), Some(s)) => S3Credentials::Static {
+                    access_key: a.clone(),
+                    secret_key: s.clone(),
+                },
+                _ => S3Credentials::DefaultChain,
+            },
+        },
+        _ => StorageTarget::Embedded {
+            data_dir: args.data_dir.clone(),
+        },
+    };
+    let cancel = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&cancel);
+    // A second Ctrl-C (or a failure to install the handler) leaves the default behaviour.
+    let _ = ctrlc::set_handler(move || {
+        if flag.swap(true, Ordering::Relaxed) {
+            std::process::exit(130);
+        }
+        eprintln!("\nstopping: no new tasks start; press Ctrl-C again to quit at once");
+    });
+    let config = EmulatorConfig {
+        storage,
+        job: args.job.clone(),
+        workers,
+        faults: FaultSettings {
+            fail_rate: args.fail_rate,
+            duplicate_rate: args.duplicate_rate,
+            slow_rate: args.slow_rate,
+            seed: args.seed,
+        },
+        time_scale: args.time_scale,
+        task_timeout_seconds: args.task_timeout,
+        split_cache_bytes: 1 << 30,
+        memory_mb: args.memory_mb,
+        arch: Arch::Arm64,
+        cancel,
+    };
+    let settings = JobSettings {
+        width,
+        height,
+        spp,
+        splits: args.splits,
+        spans: args.spans,
+        split_mode: args.split_mode,
+    };
+    let progress = ProgressObserver::new(ProgressMode::detect());
+    let run = run_job(&config, &args.scene, settings, &progress)?;
+    let mut summary = Vec::new();
+    print_summary(&run.stages, &mut summary).context("summary")?;
+    eprint!("{}", String::from_utf8_lossy(&summary));
+    let retries = run.failed_attempts();
+    if let Some(f) = &run.faults {
+        eprintln!(
+            "faults injected: {} failed before running, {} failed after writing, {} duplicated, {} straggled; {retries} attempts retried",
+            f.failed_before.load(Ordering::Relaxed),
+            f.failed_after_writing.load(Ordering::Relaxed),
+            f.duplicated.load(Ordering::Relaxed),
+            f.slowed.load(Ordering::Relaxed),
+        );
+    }
+    if run.recomputed() > 0 {
+        eprintln!(
+            "{} lost or corrupt blocks recomputed from lineage",
+            run.recomputed()
+        );
+    }
+    eprintln!(
+        "job {} on {} ({} splits, {} spans); estimated AWS cost ${:.6}",
+        run.job,
+        run.endpoint,
+        run.plan.k(),
+        run.plan.spans.len(),
+        run.cost.total
+    );
+    let split_read: u64 = run.ledger.stages.values().map(|m| m.split_bytes_read).sum();
+    let render_seconds = run
+        .stages
+        .iter()
+        .filter(|s| s.name != "plan")
+        .map(|s| s.seconds)
+        .sum();
+    Ok(Rendered {
+        image: run.image,
+        hits: run.hits,
+        rays: RayReport {
+            primary: u64::from(width) * u64::from(height) * u64::from(spp),
+            shadow: run.ledger.stages.values().map(|m| m.shadow_rays).sum(),
+        },
+        build_seconds: run.stages.first().map_or(0.0, |s| s.seconds),
+        render_seconds,
+        threads: workers,
+        replication: Some(split_read as f64 / run.plan.scene_bytes().max(1) as f64),
+        stages: run.stages,
+        cost_usd: Some(run.cost.total),
     })
 }
 

@@ -16,11 +16,7 @@ pub(super) const MAX_DEPTH: usize = 60;
 pub(super) fn build(triangles: Vec<[Vec3; 3]>, ids: Vec<u32>) -> Bvh {
     let n = triangles.len();
     if n == 0 {
-        return Bvh {
-            nodes: Vec::new(),
-            triangles,
-            ids,
-        };
+        return Bvh::assemble(Vec::new(), triangles, ids);
     }
     let boxes: Vec<Aabb> = triangles.iter().map(Aabb::of_triangle).collect();
     let centroids: Vec<Vec3> = boxes.iter().map(|b| (b.lo + b.hi) * 0.5).collect();
@@ -61,11 +57,7 @@ pub(super) fn build(triangles: Vec<[Vec3; 3]>, ids: Vec<u32>) -> Bvh {
     }
     let triangles_in_order = order.iter().map(|&i| triangles[i as usize]).collect();
     let ids_in_order = order.iter().map(|&i| ids[i as usize]).collect();
-    Bvh {
-        nodes,
-        triangles: triangles_in_order,
-        ids: ids_in_order,
-    }
+    Bvh::assemble(nodes, triangles_in_order, ids_in_order)
 }
 
 #[derive(Clone, Copy)]

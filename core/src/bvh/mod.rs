@@ -10,6 +10,8 @@
 //! - Building is deterministic: the same triangles in the same order give the same nodes.
 
 mod build;
+mod node4;
+mod packet;
 mod parts;
 mod traverse;
 
@@ -70,6 +72,9 @@ pub struct Bvh {
     nodes: Vec<Node>,
     triangles: Vec<[Vec3; 3]>,
     ids: Vec<u32>,
+    /// Traversal form derived from `nodes` and `triangles` (see [`node4`]).
+    wide: Vec<node4::Node4>,
+    packets: Vec<node4::Packet>,
 }
 
 impl Bvh {
@@ -78,6 +83,18 @@ impl Bvh {
     pub fn build(triangles: Vec<[Vec3; 3]>, ids: Vec<u32>) -> Bvh {
         assert_eq!(triangles.len(), ids.len(), "one id per triangle");
         build::build(triangles, ids)
+    }
+
+    /// Assembles a BVH from valid binary nodes, adding the traversal form.
+    fn assemble(nodes: Vec<Node>, triangles: Vec<[Vec3; 3]>, ids: Vec<u32>) -> Bvh {
+        let (wide, packets) = node4::collapse(&nodes, &triangles);
+        Bvh {
+            nodes,
+            triangles,
+            ids,
+            wide,
+            packets,
+        }
     }
 
     /// Number of triangles.

@@ -43,11 +43,7 @@ impl Bvh {
         }
         if nodes.is_empty() {
             if triangles.is_empty() {
-                return Ok(Bvh {
-                    nodes,
-                    triangles,
-                    ids,
-                });
+                return Ok(Bvh::assemble(nodes, triangles, ids));
             }
             return Err(BvhPartsError::NoNodes);
         }
@@ -85,10 +81,6 @@ impl Bvh {
                 triangles: triangles.len(),
             });
         }
-        Ok(Bvh {
-            nodes,
-            triangles,
-            ids,
-        })
+        Ok(Bvh::assemble(nodes, triangles, ids))
     }
 }

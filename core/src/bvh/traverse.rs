@@ -2,6 +2,8 @@
 //! far distance scaled by 1 + 2·gamma(3)), and a node is skipped only when its entry distance
 //! exceeds the current bound by a relative margin, so culling never changes the answer.
 
+use super::node4::LEAF;
+use super::packet::{BoxTester, TriangleTester, triangle_candidates};
 use super::{Aabb, Bvh};
 use crate::triangle::{Ray, RayPrep, gamma, intersect};
 use glam::Vec3;
@@ -10,9 +12,10 @@ use glam::Vec3;
 /// distance or of a triangle's t, so culling stays conservative.
 const CULL_MARGIN: f32 = 1.0 + 1e-4;
 /// 1 + 2·gamma(3) with gamma(n) = n·u / (1 - n·u), u = 2^-24 (pbrt-v4, Bounds3::IntersectP).
-const FAR_SCALE: f32 = 1.0 + 2.0 * gamma(3.0);
-/// One stack entry per tree level suffices: the builder caps depth at `MAX_DEPTH`.
-const STACK: usize = super::build::MAX_DEPTH;
+pub(super) const FAR_SCALE: f32 = 1.0 + 2.0 * gamma(3.0);
+/// Each 4-wide level defers at most 3 children and 4-wide depth is at most the binary depth,
+/// which the builder and `from_parts` cap at `MAX_DEPTH`.
+const STACK: usize = 3 * super::build::MAX_DEPTH + 1;
 
 /// The nearest hit of a ray: scene-wide triangle id, distance and barycentrics.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -77,78 +80,113 @@ pub fn segment_may_hit(bounds: &Aabb, ray: &Ray, t_max: f32) -> bool {
         .is_some()
 }
 
+/// A deferred child: its child word, packet count and entry distance.
+#[derive(Clone, Copy)]
+struct Entry {
+    child: u32,
+    packets: u32,
+    t: f32,
+}
+
+const NO_ENTRY: Entry = Entry {
+    child: 0,
+    packets: 0,
+    t: 0.0,
+};
+
+thread_local! {
+    /// One traversal stack per thread, reused: initialising a fresh one per ray costs as much
+    /// as a small traversal.
+    static STACKS: std::cell::RefCell<[Entry; STACK]> =
+        const { std::cell::RefCell::new([NO_ENTRY; STACK]) };
+}
+
 impl Bvh {
     /// The nearest hit with `t > 0`: smaller t wins, equal t goes to the smaller id.
     pub fn closest_hit(&self, ray: &Ray) -> Option<ClosestHit> {
-        let root = self.nodes.first()?;
+        if self.wide.is_empty() {
+            return None;
+        }
+        STACKS.with_borrow_mut(|stack| self.closest_hit_with(ray, stack))
+    }
+
+    fn closest_hit_with(&self, ray: &Ray, stack: &mut [Entry; STACK]) -> Option<ClosestHit> {
         let prep = RayPrep::new(ray);
-        let slab = SlabRay::new(ray);
+        let boxes = BoxTester::new(ray);
+        let tris = TriangleTester::new(&prep);
         let mut best: Option<ClosestHit> = None;
         let mut best_t = f32::INFINITY;
-        let mut stack = [0u32; STACK];
         let mut depth = 0usize;
-        slab.entry(&root.bounds, f32::INFINITY)?;
-        let mut node = 0usize;
+        let (mut child, mut packets) = (0u32, 0u32);
         loop {
-            let n = &self.nodes[node];
-            if n.count > 0 {
-                let first = n.first as usize;
-                for i in first..first + n.count as usize {
-                    let [p0, p1, p2] = self.triangles[i];
-                    let Some(h) = intersect(&prep, p0, p1, p2, f32::INFINITY) else {
-                        continue;
-                    };
-                    let id = self.ids[i];
-                    let better = match best {
-                        None => true,
-                        Some(b) => h.t < b.t || (h.t == b.t && id < b.id),
-                    };
-                    if better {
-                        best_t = h.t;
-                        best = Some(ClosestHit {
-                            id,
-                            t: h.t,
-                            b: h.b,
-                            corners: [p0, p1, p2],
-                            index: i as u32,
-                        });
+            if child & LEAF == 0 {
+                let node = &self.wide[child as usize];
+                let (mask, t0) = boxes.test(node, best_t * CULL_MARGIN);
+                if mask != 0 {
+                    // Visit the nearest hit child now, defer the others farthest first.
+                    let mut hit = [NO_ENTRY; 4];
+                    let mut n = 0;
+                    for slot in 0..4 {
+                        if mask & (1 << slot) != 0 {
+                            let e = Entry {
+                                child: node.child[slot],
+                                packets: node.packets[slot],
+                                t: t0[slot],
+                            };
+                            let mut k = n;
+                            while k > 0 && hit[k - 1].t < e.t {
+                                hit[k] = hit[k - 1];
+                                k -= 1;
+                            }
+                            hit[k] = e;
+                            n += 1;
+                        }
                     }
+                    stack[depth..depth + n - 1].copy_from_slice(&hit[..n - 1]);
+                    depth += n - 1;
+                    (child, packets) = (hit[n - 1].child, hit[n - 1].packets);
+                    continue;
                 }
             } else {
-                let limit = best_t * CULL_MARGIN;
-                let (l, r) = (n.first as usize, n.first as usize + 1);
-                let el = slab.entry(&self.nodes[l].bounds, limit);
-                let er = slab.entry(&self.nodes[r].bounds, limit);
-                match (el, er) {
-                    (Some(a), Some(b)) => {
-                        let (near, far) = if b < a { (r, l) } else { (l, r) };
-                        push(&mut stack, &mut depth, far);
-                        node = near;
-                        continue;
+                let first = (child & !LEAF) as usize;
+                for p in &self.packets[first..first + packets as usize] {
+                    let mut lanes = triangle_candidates(&tris, p, best_t, true);
+                    while lanes != 0 {
+                        let lane = lanes.trailing_zeros() as usize;
+                        lanes &= lanes - 1;
+                        let i = p.first as usize + lane;
+                        let [p0, p1, p2] = p.corners(lane);
+                        let Some(h) = intersect(&prep, p0, p1, p2, f32::INFINITY) else {
+                            continue;
+                        };
+                        let id = self.ids[i];
+                        let better = match best {
+                            None => true,
+                            Some(b) => h.t < b.t || (h.t == b.t && id < b.id),
+                        };
+                        if better {
+                            best_t = h.t;
+                            best = Some(ClosestHit {
+                                id,
+                                t: h.t,
+                                b: h.b,
+                                corners: [p0, p1, p2],
+                                index: i as u32,
+                            });
+                        }
                     }
-                    (Some(_), None) => {
-                        node = l;
-                        continue;
-                    }
-                    (None, Some(_)) => {
-                        node = r;
-                        continue;
-                    }
-                    (None, None) => {}
                 }
             }
-            // Pop the next node still worth visiting.
+            // Pop the next child still worth visiting: entering at or before the (scaled) best
+            // t is exactly when its box test with the current bound would still pass.
             loop {
                 if depth == 0 {
                     return best;
                 }
                 depth -= 1;
-                let candidate = stack[depth] as usize;
-                if slab
-                    .entry(&self.nodes[candidate].bounds, best_t * CULL_MARGIN)
-                    .is_some()
-                {
-                    node = candidate;
+                let e = stack[depth];
+                if e.t <= best_t * CULL_MARGIN {
+                    (child, packets) = (e.child, e.packets);
                     break;
                 }
             }
@@ -157,54 +195,58 @@ impl Bvh {
 
     /// True when some triangle is hit with `0 < t < t_max` (shadow rays).
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
-        let Some(root) = self.nodes.first() else {
-            return false;
-        };
-        if !segment_may_hit(&root.bounds, ray, t_max) {
+        if self.wide.is_empty() || !segment_may_hit(&self.bounds(), ray, t_max) {
             return false;
         }
+        STACKS.with_borrow_mut(|stack| self.occluded_with(ray, t_max, stack))
+    }
+
+    fn occluded_with(&self, ray: &Ray, t_max: f32, stack: &mut [Entry; STACK]) -> bool {
         let prep = RayPrep::new(ray);
-        let slab = SlabRay::new(ray);
+        let boxes = BoxTester::new(ray);
+        let tris = TriangleTester::new(&prep);
         let limit = t_max * CULL_MARGIN;
-        let mut stack = [0u32; STACK];
         let mut depth = 0usize;
-        let mut node = 0usize;
+        let (mut child, mut packets) = (0u32, 0u32);
         loop {
-            let n = &self.nodes[node];
-            if n.count > 0 {
-                let first = n.first as usize;
-                for [p0, p1, p2] in &self.triangles[first..first + n.count as usize] {
-                    if intersect(&prep, *p0, *p1, *p2, t_max).is_some() {
-                        return true;
+            if child & LEAF == 0 {
+                let node = &self.wide[child as usize];
+                let (mut mask, _) = boxes.test(node, limit);
+                if mask != 0 {
+                    let slot = mask.trailing_zeros() as usize;
+                    (child, packets) = (node.child[slot], node.packets[slot]);
+                    mask &= mask - 1;
+                    while mask != 0 {
+                        let s = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        stack[depth] = Entry {
+                            child: node.child[s],
+                            packets: node.packets[s],
+                            t: 0.0,
+                        };
+                        depth += 1;
                     }
+                    continue;
                 }
             } else {
-                let (l, r) = (n.first as usize, n.first as usize + 1);
-                let hit_l = slab.entry(&self.nodes[l].bounds, limit).is_some();
-                let hit_r = slab.entry(&self.nodes[r].bounds, limit).is_some();
-                if hit_l && hit_r {
-                    push(&mut stack, &mut depth, r);
-                    node = l;
-                    continue;
-                } else if hit_l {
-                    node = l;
-                    continue;
-                } else if hit_r {
-                    node = r;
-                    continue;
+                let first = (child & !LEAF) as usize;
+                for p in &self.packets[first..first + packets as usize] {
+                    let mut lanes = triangle_candidates(&tris, p, t_max, false);
+                    while lanes != 0 {
+                        let lane = lanes.trailing_zeros() as usize;
+                        lanes &= lanes - 1;
+                        let [p0, p1, p2] = p.corners(lane);
+                        if intersect(&prep, p0, p1, p2, t_max).is_some() {
+                            return true;
+                        }
+                    }
                 }
             }
             if depth == 0 {
                 return false;
             }
             depth -= 1;
-            node = stack[depth] as usize;
+            (child, packets) = (stack[depth].child, stack[depth].packets);
         }
     }
-}
-
-#[inline]
-fn push(stack: &mut [u32; STACK], depth: &mut usize, node: usize) {
-    stack[*depth] = node as u32;
-    *depth += 1;
 }

@@ -24,7 +24,7 @@ use crate::store::BlobStore;
 use std::sync::Arc;
 
 /// What one task did, for the stage metrics of the report.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct TaskMetrics {
     /// Bytes fetched from storage (compressed), split objects included.
     pub bytes_read: u64,

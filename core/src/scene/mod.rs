@@ -10,7 +10,7 @@ mod mesh;
 mod obj;
 
 pub use framing::{default_camera, default_light, scene_bounds};
-pub use manifest::{MANIFEST_SCHEMA, Manifest};
+pub use manifest::{MANIFEST_SCHEMA, Manifest, parse_manifest};
 pub use mesh::{Material, Mesh, NO_NORMAL};
 pub use obj::parse_obj;
 

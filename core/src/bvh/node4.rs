@@ -1,0 +1,148 @@
+//! The traversal form of a BVH: the binary tree collapsed into 4-wide nodes whose child boxes
+//! are tested together, and leaves as packets of up to 4 triangles stored axis by axis.
+//!
+//! It is derived data: a pure function of the binary nodes and the leaf-order triangles, rebuilt
+//! by [`Bvh::build`](super::Bvh::build) and [`Bvh::from_parts`](super::Bvh::from_parts), never
+//! stored. Collapsing only regroups boxes the binary tree already has, so every box the traversal
+//! tests is a box of the binary tree.
+
+use super::{Aabb, Node};
+use glam::Vec3;
+
+/// Child word flag: the child is a leaf (the low bits are its first packet).
+pub(super) const LEAF: u32 = 1 << 31;
+
+/// Four child boxes (axis by axis, child by child) and what each child is. An unused slot has
+/// the box lo = hi = +inf, which no ray enters (its entry distance is +inf or its exit -inf),
+/// and is an empty leaf.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(64))]
+pub(super) struct Node4 {
+    pub lo: [[f32; 4]; 3],
+    pub hi: [[f32; 4]; 3],
+    /// Inner child: its index in the node array. Leaf: `LEAF | first packet`.
+    pub child: [u32; 4],
+    /// Leaf: its number of packets (0 for an unused slot). Inner: 0.
+    pub packets: [u32; 4],
+}
+
+/// Up to four triangles of one leaf: `v[corner][axis][lane]`. Lane `i < lanes` is the leaf-order
+/// triangle `first + i`; unused lanes are zero (degenerate) and masked out anyway.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(16))]
+pub(super) struct Packet {
+    pub v: [[[f32; 4]; 3]; 3],
+    pub first: u32,
+    pub lanes: u32,
+}
+
+impl Packet {
+    /// The corners of lane `lane`: the same values as the leaf-order triangle `first + lane`.
+    #[inline(always)]
+    pub fn corners(&self, lane: usize) -> [Vec3; 3] {
+        [0, 1, 2].map(|c| Vec3::new(self.v[c][0][lane], self.v[c][1][lane], self.v[c][2][lane]))
+    }
+}
+
+const UNUSED: Node4 = Node4 {
+    lo: [[f32::INFINITY; 4]; 3],
+    hi: [[f32::INFINITY; 4]; 3],
+    child: [LEAF; 4],
+    packets: [0; 4],
+};
+
+/// Collapses binary `nodes` (root first, valid as checked by `from_parts` or made by `build`)
+/// over leaf-order `triangles`. Empty for an empty tree; otherwise node 0 is the root.
+pub(super) fn collapse(nodes: &[Node], triangles: &[[Vec3; 3]]) -> (Vec<Node4>, Vec<Packet>) {
+    let mut out = Collapse {
+        nodes,
+        triangles,
+        wide: Vec::with_capacity(nodes.len() / 3 + 1),
+        packets: Vec::with_capacity(triangles.len() / 2 + 1),
+    };
+    if !nodes.is_empty() {
+        out.wide.push(UNUSED);
+        let children = if nodes[0].count > 0 {
+            vec![0]
+        } else {
+            out.open(0)
+        };
+        out.fill(0, &children);
+    }
+    (out.wide, out.packets)
+}
+
+struct Collapse<'a> {
+    nodes: &'a [Node],
+    triangles: &'a [[Vec3; 3]],
+    wide: Vec<Node4>,
+    packets: Vec<Packet>,
+}
+
+impl Collapse<'_> {
+    /// The up to 4 binary nodes that become the children of the wide node for inner node `n`:
+    /// its two children, then repeatedly the inner one with the largest box opened in place.
+    fn open(&self, n: usize) -> Vec<usize> {
+        let first = self.nodes[n].first as usize;
+        let mut children = vec![first, first + 1];
+        while children.len() < 4 {
+            let widest = children
+                .iter()
+                .enumerate()
+                .filter(|&(_, &c)| self.nodes[c].count == 0)
+                .map(|(k, &c)| (k, self.nodes[c].bounds.half_area()))
+                .fold(None, |best: Option<(usize, f32)>, (k, a)| match best {
+                    Some((_, b)) if b >= a => best,
+                    _ => Some((k, a)),
+                });
+            let Some((k, _)) = widest else { break };
+            let c = self.nodes[children[k]].first as usize;
+            children.splice(k..=k, [c, c + 1]);
+        }
+        children
+    }
+
+    /// Fills wide node `w` with binary `children`, creating their subtrees depth first.
+    fn fill(&mut self, w: usize, children: &[usize]) {
+        for (slot, &c) in children.iter().enumerate() {
+            let node = self.nodes[c];
+            let Aabb { lo, hi } = node.bounds;
+            for axis in 0..3 {
+                self.wide[w].lo[axis][slot] = lo[axis];
+                self.wide[w].hi[axis][slot] = hi[axis];
+            }
+            if node.count > 0 {
+                let first_packet = self.packets.len();
+                let (start, end) = (
+                    node.first as usize,
+                    node.first as usize + node.count as usize,
+                );
+                for chunk in (start..end).step_by(4) {
+                    let lanes = (end - chunk).min(4);
+                    let mut v = [[[0.0f32; 4]; 3]; 3];
+                    for lane in 0..lanes {
+                        for (corner, p) in self.triangles[chunk + lane].iter().enumerate() {
+                            for axis in 0..3 {
+                                v[corner][axis][lane] = p[axis];
+                            }
+                        }
+                    }
+                    self.packets.push(Packet {
+                        v,
+                        first: chunk as u32,
+                        lanes: lanes as u32,
+                    });
+                }
+                self.wide[w].child[slot] = LEAF | first_packet as u32;
+                self.wide[w].packets[slot] = (self.packets.len() - first_packet) as u32;
+            } else {
+                let index = self.wide.len();
+                self.wide.push(UNUSED);
+                self.wide[w].child[slot] = index as u32;
+                self.wide[w].packets[slot] = 0;
+                let grandchildren = self.open(c);
+                self.fill(index, &grandchildren);
+            }
+        }
+    }
+}

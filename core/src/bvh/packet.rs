@@ -1,0 +1,114 @@
+//! Four-wide box and triangle tests over [`Node4`] and [`Packet`] (the `wide` crate: SSE on
+//! x86-64, NEON on aarch64, plain arrays elsewhere). Every lane computes the same IEEE
+//! operations in the same order as the scalar code (no FMA, comparisons and selects instead of
+//! min/max), so results are the same bits on every machine:
+//! - [`BoxTester::test`] is [`SlabRay::entry`](super::traverse) on each child box;
+//! - [`triangle_candidates`] rejects only lanes that [`crate::triangle::intersect`] rejects;
+//!   the survivors go through `intersect` itself, which alone decides hits and t.
+
+use super::node4::{Node4, Packet};
+use crate::triangle::{Ray, RayPrep};
+use wide::f32x4;
+
+/// Per-ray constants of the 4-wide slab test.
+pub(super) struct BoxTester {
+    origin: [f32x4; 3],
+    inv_dir: [f32x4; 3],
+}
+
+impl BoxTester {
+    pub fn new(ray: &Ray) -> Self {
+        let inv = glam::Vec3::ONE / ray.dir;
+        BoxTester {
+            origin: [0, 1, 2].map(|a| f32x4::splat(ray.origin[a])),
+            inv_dir: [0, 1, 2].map(|a| f32x4::splat(inv[a])),
+        }
+    }
+
+    /// For each child slot of `node`: bit set when the ray enters its box at or before `t_max`
+    /// (scaled far distances, as the scalar test), and the entry distances.
+    #[inline(always)]
+    pub fn test(&self, node: &Node4, t_max: f32) -> (u32, [f32; 4]) {
+        let mut t0 = f32x4::ZERO;
+        let mut t1 = f32x4::splat(t_max);
+        let scale = f32x4::splat(super::traverse::FAR_SCALE);
+        for axis in 0..3 {
+            let n = (f32x4::from(node.lo[axis]) - self.origin[axis]) * self.inv_dir[axis];
+            let f = (f32x4::from(node.hi[axis]) - self.origin[axis]) * self.inv_dir[axis];
+            let swap = n.simd_gt(f);
+            let near = swap.select(f, n);
+            let far = swap.select(n, f) * scale;
+            // A NaN never passes a comparison, so it leaves the interval unchanged.
+            t0 = near.simd_gt(t0).select(near, t0);
+            t1 = far.simd_lt(t1).select(far, t1);
+        }
+        let miss = t0.simd_gt(t1).to_bitmask();
+        (!miss & 0xf, t0.to_array())
+    }
+}
+
+/// Per-ray constants of the 4-wide triangle pre-test: the permuted origin and the shear.
+pub(super) struct TriangleTester {
+    axes: [usize; 3],
+    origin: [f32x4; 3],
+    shear: [f32x4; 3],
+}
+
+impl TriangleTester {
+    pub fn new(prep: &RayPrep) -> Self {
+        let (axes, shear) = prep.shear();
+        TriangleTester {
+            axes,
+            origin: axes.map(|a| f32x4::splat(prep.origin[a])),
+            shear: shear.map(f32x4::splat),
+        }
+    }
+}
+
+/// Lanes of `p` (bit i = lane i, only lanes < `p.lanes`) for which `intersect(prep, .., t_max)`
+/// may hit with `t <= t_max` (`inclusive`) or `t < t_max`. A lane is dropped only when the
+/// scalar test computes the same edge functions and rejects it: mixed signs with none zero,
+/// zero or wrongly signed determinant, or t beyond `t_max`.
+#[inline(always)]
+pub(super) fn triangle_candidates(
+    r: &TriangleTester,
+    p: &Packet,
+    t_max: f32,
+    inclusive: bool,
+) -> u32 {
+    let [kx, ky, kz] = r.axes;
+    let [ox, oy, oz] = r.origin;
+    let [sx, sy, sz] = r.shear;
+    let corner = |c: usize| {
+        let v = &p.v[c];
+        let x = f32x4::from(v[kx]) - ox;
+        let y = f32x4::from(v[ky]) - oy;
+        let z = f32x4::from(v[kz]) - oz;
+        (x - sx * z, y - sy * z, z)
+    };
+    let (ax, ay, az) = corner(0);
+    let (bx, by, bz) = corner(1);
+    let (cx, cy, cz) = corner(2);
+    let u = cx * by - cy * bx;
+    let v = ax * cy - ay * cx;
+    let w = bx * ay - by * ax;
+    let zero = f32x4::ZERO;
+    let any_zero = u.simd_eq(zero) | v.simd_eq(zero) | w.simd_eq(zero);
+    let any_neg = u.simd_lt(zero) | v.simd_lt(zero) | w.simd_lt(zero);
+    let any_pos = u.simd_gt(zero) | v.simd_gt(zero) | w.simd_gt(zero);
+    let det = u + v + w;
+    let t_scaled = u * (sz * az) + v * (sz * bz) + w * (sz * cz);
+    let t = t_scaled * (f32x4::ONE / det);
+    let t_max = f32x4::splat(t_max);
+    // The scalar test rejects a NaN t too.
+    let beyond = if inclusive {
+        !t.simd_le(t_max)
+    } else {
+        !t.simd_lt(t_max)
+    };
+    let wrong_side = det.simd_lt(zero) ^ t_scaled.simd_lt(zero);
+    let reject = (any_neg & any_pos) | det.simd_eq(zero) | wrong_side | beyond;
+    // With an edge function exactly zero the scalar test recomputes them in f64: keep the lane.
+    let reject = (reject & !any_zero).to_bitmask();
+    !reject & ((1u32 << p.lanes) - 1)
+}

@@ -1,0 +1,114 @@
+//! Per-stage accounting from the orchestrator's events: wall-clock time, attempts, and the
+//! storage traffic between one top-level state's start and the next one's (stages run one
+//! after another, so the traffic in between is the stage's).
+
+use crate::orchestrator::{Event, Observer};
+use hort_core::store::{CountingStore, StoreStats};
+use hort_functions::S3Store;
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+/// What one top-level state used.
+#[derive(Clone, Debug, Default)]
+pub struct StageUsage {
+    /// The state's name (`Plan`, `CastMap`, …).
+    pub state: String,
+    pub seconds: f64,
+    pub attempts: u64,
+    pub failed_attempts: u64,
+    /// Child executions a Map started (its items).
+    pub items: u64,
+    pub traffic: StoreStats,
+}
+
+/// Observer that turns events into [`StageUsage`] rows.
+pub struct Accounting {
+    store: Arc<CountingStore<S3Store>>,
+    inner: Mutex<State>,
+}
+
+struct State {
+    rows: Vec<StageUsage>,
+    started: Option<(Instant, StoreStats)>,
+}
+
+impl Accounting {
+    pub fn new(store: Arc<CountingStore<S3Store>>) -> Self {
+        Accounting {
+            store,
+            inner: Mutex::new(State {
+                rows: Vec::new(),
+                started: None,
+            }),
+        }
+    }
+
+    /// Closes the running stage and returns every row.
+    pub fn finish(&self) -> Vec<StageUsage> {
+        let mut s = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        self.close(&mut s);
+        s.rows.clone()
+    }
+
+    fn close(&self, s: &mut State) {
+        if let (Some((t0, stats0)), Some(row)) = (s.started.take(), s.rows.last_mut()) {
+            row.seconds = t0.elapsed().as_secs_f64();
+            row.traffic = self.store.stats().since(&stats0);
+        }
+    }
+}
+
+fn top_level(state: &str) -> Option<&str> {
+    state.split('/').next()
+}
+
+impl Observer for Accounting {
+    fn event(&self, event: &Event) {
+        let mut s = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        match event {
+            Event::StateEntered {
+                state,
+                item_index: None,
+            } if !state.contains('/') => {
+                if s.rows.last().is_some_and(|r| &r.state == state) {
+                    return;
+                }
+                self.close(&mut s);
+                s.rows.push(StageUsage {
+                    state: state.clone(),
+                    ..StageUsage::default()
+                });
+                s.started = Some((Instant::now(), self.store.stats()));
+            }
+            Event::MapStarted { state, items, .. } => {
+                if let Some(row) = s.rows.iter_mut().rev().find(|r| &r.state == state) {
+                    row.items += *items as u64;
+                }
+            }
+            Event::TaskAttemptStarted { state, .. } => {
+                let top = top_level(state).unwrap_or_default().to_string();
+                if let Some(row) = s.rows.iter_mut().rev().find(|r| r.state == top) {
+                    row.attempts += 1;
+                }
+            }
+            Event::TaskAttemptFailed { state, .. } => {
+                let top = top_level(state).unwrap_or_default().to_string();
+                if let Some(row) = s.rows.iter_mut().rev().find(|r| r.state == top) {
+                    row.failed_attempts += 1;
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+/// Sends every event to each observer in turn.
+pub struct FanOut<'a>(pub Vec<&'a dyn Observer>);
+
+impl Observer for FanOut<'_> {
+    fn event(&self, event: &Event) {
+        for o in &self.0 {
+            o.event(event);
+        }
+    }
+}

@@ -1,0 +1,176 @@
+//! Seeded fault injection around the in-process functions: attempts that fail before running or
+//! after writing part of their outputs, duplicated concurrent attempts, and stragglers that
+//! outlive their timeout. Each decision is a pure function of (seed, stage, task, attempt), so a
+//! run is reproducible. None of it may change the image: every task writes the same bytes on
+//! every attempt.
+
+use super::invoker::InProcessInvoker;
+use crate::orchestrator::{TaskFailure, TaskInvoker};
+use hort_core::store::{BlobStore, PutOutcome, StoreError};
+use serde_json::Value;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::time::Duration;
+
+/// Probabilities (per attempt) and seed of the injected faults.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FaultSettings {
+    pub fail_rate: f64,
+    pub duplicate_rate: f64,
+    pub slow_rate: f64,
+    pub seed: u64,
+}
+
+impl FaultSettings {
+    /// Whether any fault is enabled.
+    pub fn any(&self) -> bool {
+        self.fail_rate > 0.0 || self.duplicate_rate > 0.0 || self.slow_rate > 0.0
+    }
+}
+
+/// How many faults were injected.
+#[derive(Debug, Default)]
+pub struct FaultCounts {
+    pub failed_before: AtomicU64,
+    pub failed_after_writing: AtomicU64,
+    pub duplicated: AtomicU64,
+    pub slowed: AtomicU64,
+}
+
+/// Wraps the functions with seeded faults.
+pub struct FaultyInvoker {
+    inner: Arc<InProcessInvoker>,
+    store: Arc<dyn BlobStore>,
+    settings: FaultSettings,
+    /// Multiplies timeouts (the orchestrator's time scale), so stragglers outlive theirs.
+    time_scale: f64,
+    pub counts: Arc<FaultCounts>,
+}
+
+impl FaultyInvoker {
+    pub fn new(
+        inner: Arc<InProcessInvoker>,
+        store: Arc<dyn BlobStore>,
+        settings: FaultSettings,
+        time_scale: f64,
+    ) -> Self {
+        FaultyInvoker {
+            inner,
+            store,
+            settings,
+            time_scale,
+            counts: Arc::new(FaultCounts::default()),
+        }
+    }
+
+    /// A uniform draw in [0, 1) for this attempt and purpose.
+    fn draw(&self, input: &Value, salt: u64) -> f64 {
+        let field = |name: &str| input.get(name).cloned().unwrap_or(Value::Null).to_string();
+        let task = input
+            .get("item")
+            .and_then(|i| i.get("task"))
+            .cloned()
+            .unwrap_or(Value::Null);
+        let text = format!("{}|{}|{}|{}", field("stage"), task, field("attempt"), salt);
+        let mut h = self.settings.seed ^ 0x9e37_79b9_7f4a_7c15;
+        for b in text.bytes() {
+            h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+        }
+        h ^= h >> 33;
+        h = h.wrapping_mul(0xff51_afd7_ed55_8ccd);
+        h ^= h >> 33;
+        (h >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+impl TaskInvoker for FaultyInvoker {
+    fn invoke(&self, resource: &str, input: Value) -> Result<Value, TaskFailure> {
+        let timeout = input
+            .get("item")
+            .and_then(|i| i.get("timeout_seconds"))
+            .and_then(Value::as_f64);
+        if self.draw(&input, 1) < self.settings.duplicate_rate {
+            self.counts.duplicated.fetch_add(1, Ordering::Relaxed);
+            let (inner, resource, twin) =
+                (Arc::clone(&self.inner), resource.to_string(), input.clone());
+            // The twin runs concurrently on its own; its outcome is ignored, as a duplicate
+            // delivery's would be.
+            std::thread::spawn(move || {
+                let _ = inner.invoke(&resource, twin);
+            });
+        }
+        if let Some(seconds) = timeout
+            && self.draw(&input, 2) < self.settings.slow_rate
+        {
+            self.counts.slowed.fetch_add(1, Ordering::Relaxed);
+            std::thread::sleep(Duration::from_secs_f64(
+                seconds * self.time_scale * 1.2 + 0.05,
+            ));
+        }
+        let fail = self.draw(&input, 3);
+        if fail < self.settings.fail_rate / 2.0 {
+            self.counts.failed_before.fetch_add(1, Ordering::Relaxed);
+            return Err(TaskFailure::retryable(
+                "injected fault: the worker died before running the task",
+            ));
+        }
+        if fail < self.settings.fail_rate {
+            self.counts
+                .failed_after_writing
+                .fetch_add(1, Ordering::Relaxed);
+            let puts = 1 + (self.draw(&input, 4) * 3.0) as usize;
+            let failing = FailAfterPuts {
+                inner: self.store.as_ref(),
+                puts_left: AtomicUsize::new(puts),
+            };
+            let _ = self.inner.invoke_with_store(resource, input, &failing);
+            return Err(TaskFailure::retryable(
+                "injected fault: the worker died after writing part of its outputs",
+            ));
+        }
+        self.inner.invoke(resource, input)
+    }
+}
+
+/// A store whose puts start failing after a number of successful ones (a worker dying
+/// mid-write).
+struct FailAfterPuts<'a> {
+    inner: &'a dyn BlobStore,
+    puts_left: AtomicUsize,
+}
+
+impl FailAfterPuts<'_> {
+    fn spend(&self, key: &str) -> Result<(), StoreError> {
+        let left = self.puts_left.load(Ordering::Relaxed);
+        if left == 0 {
+            return Err(StoreError::Unavailable {
+                what: format!("injected fault: worker died before writing {key}"),
+            });
+        }
+        self.puts_left.store(left - 1, Ordering::Relaxed);
+        Ok(())
+    }
+}
+
+impl BlobStore for FailAfterPuts<'_> {
+    fn get(&self, key: &str) -> Result<Vec<u8>, StoreError> {
+        self.inner.get(key)
+    }
+    fn get_range(&self, key: &str, range: std::ops::Range<u64>) -> Result<Vec<u8>, StoreError> {
+        self.inner.get_range(key, range)
+    }
+    fn put(&self, key: &str, bytes: &[u8]) -> Result<(), StoreError> {
+        self.spend(key)?;
+        self.inner.put(key, bytes)
+    }
+    fn put_if_absent(&self, key: &str, bytes: &[u8]) -> Result<PutOutcome, StoreError> {
+        self.spend(key)?;
+        self.inner.put_if_absent(key, bytes)
+    }
+    fn list(&self, prefix: &str) -> Result<Vec<String>, StoreError> {
+        self.inner.list(prefix)
+    }
+    fn delete(&self, key: &str) -> Result<(), StoreError> {
+        self.inner.delete(key)
+    }
+}

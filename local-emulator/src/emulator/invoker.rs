@@ -1,0 +1,138 @@
+//! The functions, invoked in process: routes the state machine's function names to the
+//! handlers of `hort-functions`, gives each invocation a warm container's split cache, and keeps
+//! a ledger of what the invocations did (for the report and the cost estimate).
+
+use crate::orchestrator::{TaskFailure, TaskInvoker};
+use hort_core::pipeline::{SplitCache, TaskMetrics};
+use hort_core::store::BlobStore;
+use hort_functions::handlers::{HandlerError, PlanEvent, WorkerEvent, handle_plan, handle_worker};
+use serde_json::Value;
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+/// The state machine's name for the Plan function.
+pub const PLAN_FUNCTION: &str = "PlanFunctionArn";
+/// The state machine's name for the Worker function.
+pub const WORKER_FUNCTION: &str = "WorkerFunctionArn";
+
+/// What the invocations did.
+#[derive(Clone, Debug, Default)]
+pub struct Ledger {
+    /// Metrics of successful task attempts, by stage name.
+    pub stages: BTreeMap<String, TaskMetrics>,
+    /// Duration of every invocation (successful or not), milliseconds.
+    pub invocation_ms: Vec<f64>,
+}
+
+/// Runs the handlers in this process.
+pub struct InProcessInvoker {
+    store: Arc<dyn BlobStore>,
+    bucket: String,
+    work_dir: PathBuf,
+    cache_bytes: u64,
+    /// Idle warm containers' caches; an invocation takes one (or a cold one) and gives it back.
+    caches: Mutex<Vec<SplitCache>>,
+    ledger: Mutex<Ledger>,
+}
+
+impl InProcessInvoker {
+    /// Handlers over `store` (bucket `bucket`), a scratch folder for the Plan function's scene
+    /// copy, and `cache_bytes` of decoded splits per warm worker.
+    pub fn new(
+        store: Arc<dyn BlobStore>,
+        bucket: &str,
+        work_dir: PathBuf,
+        cache_bytes: u64,
+    ) -> Self {
+        InProcessInvoker {
+            store,
+            bucket: bucket.to_string(),
+            work_dir,
+            cache_bytes,
+            caches: Mutex::new(Vec::new()),
+            ledger: Mutex::new(Ledger::default()),
+        }
+    }
+
+    /// A copy of the ledger so far.
+    pub fn ledger(&self) -> Ledger {
+        self.ledger
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
+    }
+
+    /// Invokes `function` with `input` against `store` (the fault injector passes a failing
+    /// store here).
+    pub fn invoke_with_store(
+        &self,
+        function: &str,
+        input: Value,
+        store: &dyn BlobStore,
+    ) -> Result<Value, TaskFailure> {
+        let started = Instant::now();
+        let result = self.dispatch(function, input, store);
+        let ms = started.elapsed().as_secs_f64() * 1e3;
+        self.ledger
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .invocation_ms
+            .push(ms);
+        result
+    }
+
+    fn dispatch(
+        &self,
+        function: &str,
+        input: Value,
+        store: &dyn BlobStore,
+    ) -> Result<Value, TaskFailure> {
+        let failure = |e: HandlerError| TaskFailure::new(e.error_type, e.cause);
+        let bad_event =
+            |e: serde_json::Error| TaskFailure::bad_input(format!("malformed event: {e}"));
+        match function {
+            PLAN_FUNCTION => {
+                let event: PlanEvent = serde_json::from_value(input).map_err(bad_event)?;
+                let out =
+                    handle_plan(store, &self.bucket, &event, &self.work_dir).map_err(failure)?;
+                serde_json::to_value(out).map_err(|e| TaskFailure::bad_input(e.to_string()))
+            }
+            WORKER_FUNCTION => {
+                let event: WorkerEvent = serde_json::from_value(input).map_err(bad_event)?;
+                let cache = self
+                    .caches
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .pop()
+                    .unwrap_or_else(|| SplitCache::new(self.cache_bytes));
+                let result = handle_worker(store, &self.bucket, &cache, &event);
+                self.caches
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .push(cache);
+                let metrics = result.map_err(failure)?;
+                *self
+                    .ledger
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .stages
+                    .entry(event.stage.clone())
+                    .or_default() += metrics;
+                serde_json::to_value(metrics).map_err(|e| TaskFailure::bad_input(e.to_string()))
+            }
+            other => Err(TaskFailure::new(
+                "Lambda.ResourceNotFoundException",
+                format!("no function named {other}"),
+            )),
+        }
+    }
+}
+
+impl TaskInvoker for InProcessInvoker {
+    fn invoke(&self, resource: &str, input: Value) -> Result<Value, TaskFailure> {
+        let store = Arc::clone(&self.store);
+        self.invoke_with_store(resource, input, store.as_ref())
+    }
+}

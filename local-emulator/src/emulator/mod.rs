@@ -1,0 +1,303 @@
+//! The local emulator: the whole serverless pipeline on one machine. The same handlers as the
+//! cloud functions, the same state machine definition (`infra/statemachine.asl.json`,
+//! interpreted by [`crate::orchestrator`]), the same S3 protocol (an embedded server or any
+//! S3-compatible endpoint), plus seeded fault injection.
+
+mod accounting;
+mod faults;
+mod invoker;
+mod storage;
+mod upload;
+
+pub use accounting::{Accounting, FanOut, StageUsage};
+pub use faults::{FaultCounts, FaultSettings, FaultyInvoker};
+pub use invoker::{InProcessInvoker, Ledger, PLAN_FUNCTION, WORKER_FUNCTION};
+pub use storage::{EMBEDDED_BUCKET, Storage, StorageTarget};
+pub use upload::{scene_files, submit_job};
+
+use crate::orchestrator::{Observer, Orchestrator, OrchestratorOptions, TaskInvoker};
+use anyhow::{Context, Result, anyhow};
+use hort_core::cost::{Arch, CostBreakdown, CostInputs, estimate, standard_transitions_for};
+use hort_core::hits::{Hit, decode_hits};
+use hort_core::ids::{JobId, Stage};
+use hort_core::image::{Image, decode_pfm};
+use hort_core::keys::{hits_key, image_key_with_ext, plan_key};
+use hort_core::pipeline::{JobPlan, SplitMode, TaskMetrics, task_count};
+use hort_core::report::StageReport;
+use hort_functions::handlers::JobRequest;
+use std::path::Path;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+/// How the emulator runs a job.
+#[derive(Clone, Debug)]
+pub struct EmulatorConfig {
+    pub storage: StorageTarget,
+    /// Job id; a fresh one per run when `None`.
+    pub job: Option<String>,
+    /// Concurrent function slots (Lambda concurrency).
+    pub workers: usize,
+    pub faults: FaultSettings,
+    /// Multiplies the state machine's waits and timeouts (1.0 = real time).
+    pub time_scale: f64,
+    /// Per-task timeout override, seconds (default: derived from each task's work).
+    pub task_timeout_seconds: Option<u32>,
+    /// Decoded split bytes a warm worker keeps.
+    pub split_cache_bytes: u64,
+    /// Lambda memory and architecture the cost estimate assumes.
+    pub memory_mb: u32,
+    pub arch: Arch,
+    /// Set to stop the run (Ctrl-C).
+    pub cancel: Arc<AtomicBool>,
+}
+
+/// Image and partitioning of a job.
+#[derive(Clone, Copy, Debug)]
+pub struct JobSettings {
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub splits: Option<u32>,
+    pub spans: Option<u32>,
+    pub split_mode: SplitMode,
+}
+
+/// A finished job as the emulator saw it.
+pub struct EmulatorRun {
+    pub job: JobId,
+    pub endpoint: String,
+    pub plan: JobPlan,
+    pub image: Image,
+    /// The PNG the Combine function stored.
+    pub png: Vec<u8>,
+    pub hits: Vec<Hit>,
+    /// `plan`, then the five task stages, then `combine`.
+    pub stages: Vec<StageReport>,
+    pub usage: Vec<StageUsage>,
+    pub ledger: Ledger,
+    pub faults: Option<Arc<FaultCounts>>,
+    pub cost: CostBreakdown,
+    pub seconds: f64,
+}
+
+impl EmulatorRun {
+    /// Attempts that failed and were retried or abandoned, over all stages.
+    pub fn failed_attempts(&self) -> u64 {
+        self.usage.iter().map(|u| u.failed_attempts).sum()
+    }
+
+    /// Input blocks recomputed from lineage, over all stages.
+    pub fn recomputed(&self) -> u64 {
+        self.ledger.stages.values().map(|m| m.recomputed).sum()
+    }
+}
+
+/// A job id unique to this process and moment.
+fn fresh_job_id() -> String {
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos());
+    format!(
+        "local-{}-{:x}",
+        std::process::id(),
+        nanos & 0xffff_ffff_ffff
+    )
+}
+
+/// Opens storage, uploads the scene and the job request, runs the state machine, and reads the
+/// outputs back. `observer` sees the orchestrator's events (progress display).
+pub fn run_job(
+    config: &EmulatorConfig,
+    scene: &Path,
+    settings: JobSettings,
+    observer: &dyn Observer,
+) -> Result<EmulatorRun> {
+    let started = Instant::now();
+    let storage = Storage::open(&config.storage)?;
+    let job = JobId::new(config.job.clone().unwrap_or_else(fresh_job_id))?;
+    let request = JobRequest {
+        scene: scene
+            .file_name()
+            .context("the scene path names no file")?
+            .to_string_lossy()
+            .into_owned(),
+        width: settings.width,
+        height: settings.height,
+        spp: settings.spp,
+        splits: settings.splits,
+        spans: settings.spans,
+        split_mode: settings.split_mode,
+        max_concurrency: config.workers as u32,
+        task_timeout_seconds: config.task_timeout_seconds,
+    };
+    let store = storage.blob_store();
+    submit_job(store.as_ref(), &job, scene, &request)?;
+
+    let work_dir = std::env::temp_dir();
+    let functions = Arc::new(InProcessInvoker::new(
+        Arc::clone(&store),
+        &storage.bucket,
+        work_dir,
+        config.split_cache_bytes,
+    ));
+    let (invoker, fault_counts): (Arc<dyn TaskInvoker>, _) = if config.faults.any() {
+        let faulty = FaultyInvoker::new(
+            Arc::clone(&functions),
+            Arc::clone(&store),
+            config.faults,
+            config.time_scale,
+        );
+        let counts = Arc::clone(&faulty.counts);
+        (Arc::new(faulty), Some(counts))
+    } else {
+        (functions.clone(), None)
+    };
+    let orchestrator = Orchestrator::hort(OrchestratorOptions {
+        slots: config.workers.max(1),
+        time_scale: config.time_scale,
+        seed: config.faults.seed,
+        cancel: Arc::clone(&config.cancel),
+    })
+    .map_err(|e| anyhow!("the state machine definition: {e}"))?;
+    let accounting = Accounting::new(Arc::clone(&storage.store));
+    let fan_out = FanOut(vec![&accounting, observer]);
+    let input = serde_json::json!({"job": job.as_str(), "bucket": storage.bucket});
+    let outcome = orchestrator.run(input, invoker, store.as_ref(), &fan_out);
+    let usage = accounting.finish();
+    if let Err(failure) = outcome {
+        if config.cancel.load(Ordering::Relaxed) {
+            return Err(anyhow!(
+                "cancelled; objects so far are kept under jobs/{job}/"
+            ));
+        }
+        let detail = match &failure.item {
+            Some(item) => format!(
+                "{} task {}: {}: {}",
+                stage_name(&item.map_state),
+                item.index,
+                item.error,
+                item.cause
+            ),
+            None => format!(
+                "{}: {}: {}",
+                stage_name(&failure.state),
+                failure.error,
+                failure.cause
+            ),
+        };
+        return Err(anyhow!("job {job} failed in {detail}"));
+    }
+
+    let plan_bytes = store.get(&plan_key(&job))?;
+    let plan = JobPlan::from_json(&plan_key(&job), &plan_bytes)?;
+    let pfm_key = image_key_with_ext(&job, "pfm");
+    let image = decode_pfm(&store.get(&pfm_key)?).map_err(|e| anyhow!("{pfm_key}: {e}"))?;
+    let png = store.get(&image_key_with_ext(&job, "png"))?;
+    let hits = decode_hits(&store.get(&hits_key(&job))?, plan.width, plan.height)
+        .map_err(|e| anyhow!("{}: {e}", hits_key(&job)))?;
+    let ledger = functions.ledger();
+    let stages = stage_reports(&plan, &usage, &ledger);
+    let seconds = started.elapsed().as_secs_f64();
+    let cost = estimate_cost(config, &usage, &ledger, seconds);
+    Ok(EmulatorRun {
+        job,
+        endpoint: storage.endpoint.clone(),
+        plan,
+        image,
+        png,
+        hits,
+        stages,
+        usage,
+        ledger,
+        faults: fault_counts,
+        cost,
+        seconds,
+    })
+}
+
+/// The stage name of a top-level state (`CastMap` -> `cast-map`).
+pub fn stage_name(state: &str) -> String {
+    let top = state.split('/').next().unwrap_or(state);
+    let mut out = String::new();
+    for (i, c) in top.chars().enumerate() {
+        if c.is_ascii_uppercase() && i > 0 {
+            out.push('-');
+        }
+        out.push(c.to_ascii_lowercase());
+    }
+    out
+}
+
+fn stage_reports(plan: &JobPlan, usage: &[StageUsage], ledger: &Ledger) -> Vec<StageReport> {
+    usage
+        .iter()
+        .filter(|u| u.attempts > 0 || u.items > 0)
+        .map(|u| {
+            let name = stage_name(&u.state);
+            let metrics = ledger
+                .stages
+                .get(&name)
+                .copied()
+                .unwrap_or(TaskMetrics::default());
+            let tasks = name
+                .parse::<Stage>()
+                .map_or(1, |stage| task_count(plan, stage) as u64);
+            let raw = if name == "plan" {
+                u.traffic.bytes_written
+            } else {
+                metrics.bytes_written_raw
+            };
+            StageReport {
+                name,
+                tasks,
+                attempts: u.attempts,
+                seconds: u.seconds,
+                bytes_read: u.traffic.bytes_read,
+                bytes_written: u.traffic.bytes_written,
+                bytes_written_raw: raw,
+            }
+        })
+        .collect()
+}
+
+fn estimate_cost(
+    config: &EmulatorConfig,
+    usage: &[StageUsage],
+    ledger: &Ledger,
+    seconds: f64,
+) -> CostBreakdown {
+    let traffic = usage
+        .iter()
+        .fold(hort_core::store::StoreStats::default(), |mut a, u| {
+            a.gets += u.traffic.gets;
+            a.puts += u.traffic.puts;
+            a.lists += u.traffic.lists;
+            a.bytes_written += u.traffic.bytes_written;
+            a
+        });
+    let children: u64 = usage.iter().map(|u| u.items).sum();
+    let maps = usage.iter().filter(|u| u.items > 0).count() as u32;
+    let tasks = usage.len() as u32 - maps;
+    let retries_outside: u64 = usage
+        .iter()
+        .filter(|u| u.items == 0)
+        .map(|u| u.attempts.saturating_sub(1))
+        .sum();
+    estimate(&CostInputs {
+        arch: config.arch,
+        memory_mb: config.memory_mb,
+        invocation_ms: ledger.invocation_ms.clone(),
+        s3_put_like: traffic.puts + traffic.lists,
+        s3_get_like: traffic.gets,
+        s3_byte_seconds: traffic.bytes_written as f64 * seconds,
+        standard_transitions: standard_transitions_for(maps, tasks, children, retries_outside),
+        // One EXPRESS child per item; its duration is approximated by its worker's run time.
+        express_ms: ledger
+            .invocation_ms
+            .iter()
+            .copied()
+            .take(children as usize)
+            .collect(),
+    })
+}

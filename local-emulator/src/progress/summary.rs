@@ -1,0 +1,80 @@
+//! The summary table printed after a pipelined render.
+
+use std::io::{self, Write};
+
+use hort_core::report::StageReport;
+
+const HEADERS: [&str; 7] = [
+    "stage",
+    "tasks",
+    "attempts",
+    "time (s)",
+    "MB read",
+    "MB written",
+    "compression",
+];
+
+/// Writes the per-stage table of a render, with a total row: tasks, attempts, seconds,
+/// megabytes (10^6 bytes) read and written (compressed), and the compression ratio
+/// (`bytes_written_raw / bytes_written`, `-` when nothing was written). The total's time is the
+/// sum of the stages' times (they run one after another) and its ratio that of the sums.
+/// Columns are aligned: the stage name to the left, numbers to the right.
+pub fn print_summary(stages: &[StageReport], out: &mut dyn Write) -> io::Result<()> {
+    let total = StageReport {
+        name: "total".into(),
+        tasks: stages.iter().map(|s| s.tasks).sum(),
+        attempts: stages.iter().map(|s| s.attempts).sum(),
+        seconds: stages.iter().map(|s| s.seconds).sum(),
+        bytes_read: stages.iter().map(|s| s.bytes_read).sum(),
+        bytes_written: stages.iter().map(|s| s.bytes_written).sum(),
+        bytes_written_raw: stages.iter().map(|s| s.bytes_written_raw).sum(),
+    };
+    let header: Vec<String> = HEADERS.iter().map(|h| (*h).to_owned()).collect();
+    let rows: Vec<Vec<String>> = stages.iter().map(row).collect();
+    let total = row(&total);
+    let mut widths: Vec<usize> = HEADERS.iter().map(|h| h.len()).collect();
+    for r in rows.iter().chain([&total]) {
+        for (w, cell) in widths.iter_mut().zip(r) {
+            *w = (*w).max(cell.chars().count());
+        }
+    }
+    let line = |out: &mut dyn Write, cells: &[String]| -> io::Result<()> {
+        let mut text = String::new();
+        for (i, (cell, w)) in cells.iter().zip(&widths).enumerate() {
+            if i == 0 {
+                text.push_str(&format!("{cell:<w$}"));
+            } else {
+                text.push_str(&format!("  {cell:>w$}"));
+            }
+        }
+        writeln!(out, "{}", text.trim_end())
+    };
+    line(out, &header)?;
+    for r in &rows {
+        line(out, r)?;
+    }
+    let rule: usize = widths.iter().sum::<usize>() + 2 * (widths.len() - 1);
+    writeln!(out, "{}", "-".repeat(rule))?;
+    line(out, &total)
+}
+
+fn row(s: &StageReport) -> Vec<String> {
+    let mb = |bytes: u64| format!("{:.2}", bytes as f64 / 1e6);
+    let ratio = if s.bytes_written == 0 {
+        "-".to_owned()
+    } else {
+        format!(
+            "{:.2}x",
+            s.bytes_written_raw as f64 / s.bytes_written as f64
+        )
+    };
+    vec![
+        s.name.clone(),
+        s.tasks.to_string(),
+        s.attempts.to_string(),
+        format!("{:.2}", s.seconds),
+        mb(s.bytes_read),
+        mb(s.bytes_written),
+        ratio,
+    ]
+}
