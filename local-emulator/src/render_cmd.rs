@@ -64,8 +64,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let report = Report {
         mode: if args.monolithic {
             "monolithic"
-        } else {
+        } else if args.in_process {
             "pipeline"
+        } else {
+            "emulator"
         }
         .into(),
         scene: args.scene.display().to_string(),

@@ -492,7 +492,7 @@ fn a_missing_items_file_or_foreign_bucket_fails_the_map_clearly() {
 #[test]
 fn express_children_time_out_after_five_minutes() {
     // Every attempt times out (10 s); retries with backoff push the child past 300 s.
-    let definition = HORT_DEFINITION.replace("\"MaxAttempts\": 2", "\"MaxAttempts\": 100");
+    let definition = HORT_DEFINITION.replace("\"MaxAttempts\": 4", "\"MaxAttempts\": 100");
     let mut opts = options(4);
     opts.time_scale = 0.0002;
     let o = Orchestrator::new(&definition, opts).unwrap();

@@ -24,7 +24,8 @@ pub fn print_summary(stages: &[StageReport], out: &mut dyn Write) -> io::Result<
         name: "total".into(),
         tasks: stages.iter().map(|s| s.tasks).sum(),
         attempts: stages.iter().map(|s| s.attempts).sum(),
-        seconds: stages.iter().map(|s| s.seconds).sum(),
+        // Not `sum()`: an empty f64 sum is -0.0, which prints as `-0.00`.
+        seconds: stages.iter().fold(0.0, |t, s| t + s.seconds),
         bytes_read: stages.iter().map(|s| s.bytes_read).sum(),
         bytes_written: stages.iter().map(|s| s.bytes_written).sum(),
         bytes_written_raw: stages.iter().map(|s| s.bytes_written_raw).sum(),

@@ -182,7 +182,7 @@ impl Inner {
                         bar.set_position(s.done);
                     }
                     let tasks = s.stats.tasks;
-                    let decile = if tasks == 0 { 0 } else { s.done * 10 / tasks };
+                    let decile = (s.done * 10).checked_div(tasks).unwrap_or(0);
                     if decile > s.decile && decile < 10 {
                         s.decile = decile;
                         let line = format!(

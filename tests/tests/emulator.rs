@@ -1,0 +1,234 @@
+//! The local emulator end to end over the real S3 protocol: the image and hit buffer equal the
+//! monolithic render's for several partitionings and worker counts, under injected faults, and
+//! when a block is corrupted in storage between stages.
+
+mod s3_support;
+
+use hort_core::cost::Arch;
+use hort_core::hits::Hit;
+use hort_core::pipeline::SplitMode;
+use hort_core::render::{RenderOutput, RenderSettings, build_scene_bvh, render};
+use hort_core::scene::load_scene;
+use hort_core::store::BlobStore;
+use hort_functions::S3Credentials;
+use hort_local_emulator::emulator::{
+    EmulatorConfig, EmulatorRun, FaultSettings, JobSettings, StorageTarget, run_job,
+};
+use hort_local_emulator::orchestrator::{Event, NoObserver, Observer};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+
+const W: u32 = 64;
+const H: u32 = 48;
+
+fn scene_path(rel: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../scenes")
+        .join(rel)
+}
+
+fn monolithic(rel: &str, spp: u32) -> RenderOutput {
+    let scene = load_scene(&scene_path(rel)).unwrap();
+    let bvh = build_scene_bvh(&scene.mesh);
+    render(
+        &scene,
+        &bvh,
+        RenderSettings {
+            width: W,
+            height: H,
+            spp,
+            threads: 2,
+        },
+    )
+    .unwrap()
+}
+
+fn config(server: &s3_support::Embedded, workers: usize, faults: FaultSettings) -> EmulatorConfig {
+    EmulatorConfig {
+        storage: StorageTarget::External {
+            endpoint: server.server.endpoint(),
+            bucket: "emu".into(),
+            credentials: S3Credentials::Static {
+                access_key: s3_support::ACCESS_KEY.into(),
+                secret_key: s3_support::SECRET_KEY.into(),
+            },
+        },
+        job: None,
+        workers,
+        faults,
+        // Fast backoff for tests; timeouts (50 s x 0.02 = 1 s) stay far above a task's time.
+        time_scale: 0.02,
+        task_timeout_seconds: Some(50),
+        split_cache_bytes: 1 << 28,
+        memory_mb: 2048,
+        arch: Arch::Arm64,
+        cancel: Arc::new(AtomicBool::new(false)),
+    }
+}
+
+fn settings(spp: u32, k: u32, s: u32, mode: SplitMode) -> JobSettings {
+    JobSettings {
+        width: W,
+        height: H,
+        spp,
+        splits: Some(k),
+        spans: Some(s),
+        split_mode: mode,
+    }
+}
+
+fn bits(image: &[[f32; 3]]) -> Vec<u32> {
+    image.iter().flatten().map(|v| v.to_bits()).collect()
+}
+
+fn hit_bits(hits: &[Hit]) -> Vec<(u32, u32)> {
+    hits.iter().map(|h| (h.triangle, h.t.to_bits())).collect()
+}
+
+fn assert_same(run: &EmulatorRun, mono: &RenderOutput, what: &str) {
+    assert_eq!(
+        bits(&run.image.pixels),
+        bits(&mono.image.pixels),
+        "image differs: {what}"
+    );
+    assert_eq!(
+        hit_bits(&run.hits),
+        hit_bits(&mono.hits),
+        "hit buffer differs: {what}"
+    );
+}
+
+#[test]
+fn emulated_pipeline_equals_monolithic_for_several_partitionings() {
+    let server = s3_support::Embedded::start(Some("emu"));
+    let mono = monolithic("bunny/bunny.json", 1);
+    for (k, s, workers, mode) in [
+        (1, 1, 1, SplitMode::Spatial),
+        (3, 7, 4, SplitMode::Spatial),
+        (8, 5, 3, SplitMode::Naive),
+    ] {
+        let run = run_job(
+            &config(&server, workers, FaultSettings::default()),
+            &scene_path("bunny/bunny.json"),
+            settings(1, k, s, mode),
+            &NoObserver,
+        )
+        .unwrap_or_else(|e| panic!("k={k} s={s}: {e:#}"));
+        assert_same(
+            &run,
+            &mono,
+            &format!("k={k} s={s} workers={workers} {mode:?}"),
+        );
+        assert_eq!(run.failed_attempts(), 0);
+        let names: Vec<&str> = run.stages.iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "plan",
+                "cast-map",
+                "cast-reduce",
+                "expand",
+                "trace-map",
+                "trace-reduce",
+                "combine"
+            ]
+        );
+        assert!(run.cost.total > 0.0);
+        assert_eq!(run.stages[2].tasks, u64::from(s));
+    }
+}
+
+#[test]
+fn injected_faults_give_the_identical_image_and_are_counted() {
+    let server = s3_support::Embedded::start(Some("emu"));
+    let mono = monolithic("cornell/cornell.json", 2);
+    for seed in [1u64, 2, 3] {
+        let faults = FaultSettings {
+            fail_rate: 0.2,
+            duplicate_rate: 0.2,
+            slow_rate: 0.1,
+            seed,
+        };
+        let run = run_job(
+            &config(&server, 4, faults),
+            &scene_path("cornell/cornell.json"),
+            settings(2, 3, 6, SplitMode::Spatial),
+            &NoObserver,
+        )
+        .unwrap_or_else(|e| panic!("seed {seed}: {e:#}"));
+        assert_same(&run, &mono, &format!("faults with seed {seed}"));
+        let counts = run.faults.as_ref().expect("fault counts");
+        let injected_failures = counts.failed_before.load(Ordering::Relaxed)
+            + counts.failed_after_writing.load(Ordering::Relaxed);
+        assert!(
+            injected_failures > 0 && counts.duplicated.load(Ordering::Relaxed) > 0,
+            "seed {seed}: faults were injected"
+        );
+        assert!(
+            counts.slowed.load(Ordering::Relaxed) > 0,
+            "seed {seed}: stragglers were injected"
+        );
+        // Every injected failure and straggler is a failed attempt the report counts.
+        assert!(
+            run.failed_attempts() >= injected_failures,
+            "seed {seed}: {} retried attempts",
+            run.failed_attempts()
+        );
+        let attempts: u64 = run.stages.iter().map(|s| s.attempts).sum();
+        let tasks: u64 = run.stages.iter().map(|s| s.tasks).sum();
+        assert_eq!(
+            attempts,
+            tasks + run.failed_attempts(),
+            "seed {seed}: attempts = tasks + retries"
+        );
+    }
+}
+
+/// Corrupts one cast-reduce block as soon as the trace-reduce stage starts.
+struct CorruptBeforeTraceReduce {
+    store: hort_functions::S3Store,
+    corrupted: AtomicU32,
+}
+
+impl Observer for CorruptBeforeTraceReduce {
+    fn event(&self, event: &Event) {
+        if let Event::StateEntered {
+            state,
+            item_index: None,
+        } = event
+            && state == "TraceReduce"
+            && self.corrupted.fetch_add(1, Ordering::Relaxed) == 0
+        {
+            let keys = self.store.list("jobs/").unwrap();
+            let key = keys
+                .iter()
+                .find(|k| k.contains("/cast-reduce/00002/"))
+                .expect("a cast-reduce block");
+            let mut bytes = self.store.get(key).unwrap();
+            let at = bytes.len() / 2;
+            bytes[at] ^= 0x5a;
+            self.store.put(key, &bytes).unwrap();
+        }
+    }
+}
+
+#[test]
+fn a_block_corrupted_between_stages_is_recomputed_from_lineage() {
+    let server = s3_support::Embedded::start(Some("emu"));
+    let mono = monolithic("teapot/teapot.json", 1);
+    let observer = CorruptBeforeTraceReduce {
+        store: server.store("emu"),
+        corrupted: AtomicU32::new(0),
+    };
+    let run = run_job(
+        &config(&server, 2, FaultSettings::default()),
+        &scene_path("teapot/teapot.json"),
+        settings(1, 2, 4, SplitMode::Spatial),
+        &observer,
+    )
+    .unwrap();
+    assert_eq!(observer.corrupted.load(Ordering::Relaxed), 1);
+    assert_same(&run, &mono, "after corruption");
+    assert_eq!(run.recomputed(), 1, "the corrupt block was recomputed once");
+}
