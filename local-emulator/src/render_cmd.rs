@@ -7,7 +7,7 @@ use hort_core::cost::Arch;
 use hort_core::hits::{Hit, encode_hits};
 use hort_core::ids::JobId;
 use hort_core::image::{Image, write_image};
-use hort_core::pipeline::{PipelineOptions, PlanRequest, run_pipeline};
+use hort_core::pipeline::{PipelineOptions, PlanRequest, resolve_counts, run_pipeline};
 use hort_core::render::{RenderSettings, build_scene_bvh, render};
 use hort_core::report::{RayReport, Report, Seconds, StageReport};
 use hort_core::scene::{DEFAULT_HEIGHT, DEFAULT_WIDTH, Scene, check_image_size, load_scene};
@@ -55,6 +55,16 @@ pub fn run(args: RenderArgs) -> Result<()> {
     } else if args.in_process {
         render_pipeline(&scene, width, height, spp, &args)?
     } else {
+        // Refuse impossible partitionings here, with the scene at hand, before any upload.
+        let request = PlanRequest {
+            width,
+            height,
+            spp,
+            splits: args.splits,
+            spans: args.spans,
+            mode: args.split_mode,
+        };
+        resolve_counts(&request, scene.mesh.triangle_count() as u64)?;
         render_emulated(&args, width, height, spp)?
     };
     write_image(&out, &rendered.image)?;

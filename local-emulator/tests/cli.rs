@@ -221,6 +221,7 @@ fn pipeline_render_equals_monolithic_byte_for_byte() {
             "64",
             "--height",
             "48",
+            "--in-process",
             "--splits",
             k,
             "--spans",
@@ -285,4 +286,135 @@ fn pipeline_render_equals_monolithic_byte_for_byte() {
         String::from_utf8(o.stderr).unwrap(),
         "error: --splits 5000 is out of range: the scene has 994 triangles, so use 1 to 994\n"
     );
+}
+
+#[test]
+fn emulator_render_equals_monolithic_and_reports_cost() {
+    let mono_dir = scratch("emu-mono");
+    let mono = render(&scene("cornell/cornell.json"), &mono_dir, &[]);
+    let dir = scratch("emu");
+    let (out, hits, report) = (dir.join("o.pfm"), dir.join("h.bin"), dir.join("r.json"));
+    let data = dir.join("data");
+    let o = hort(&[
+        "render",
+        scene("cornell/cornell.json").to_str().unwrap(),
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--splits",
+        "3",
+        "--spans",
+        "4",
+        "--workers",
+        "3",
+        "--data-dir",
+        data.to_str().unwrap(),
+        "--job",
+        "cli-test",
+        "--out",
+        out.to_str().unwrap(),
+        "--hits",
+        hits.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    assert_eq!(std::fs::read(&out).unwrap(), mono.0);
+    assert_eq!(std::fs::read(&hits).unwrap(), mono.1);
+    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(report).unwrap()).unwrap();
+    assert_eq!(r["mode"], "emulator");
+    assert!(r["cost_usd"].as_f64().unwrap() > 0.0);
+    assert_eq!(r["stages"][0]["name"], "plan");
+    assert!(
+        stderr.contains("stage") && stderr.contains("compression"),
+        "summary table: {stderr}"
+    );
+    // --data-dir keeps the objects for inspection, and a job id is used once.
+    assert!(std::fs::read_dir(&data).unwrap().count() > 0);
+    let again = hort(&[
+        "render",
+        scene("cornell/cornell.json").to_str().unwrap(),
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--data-dir",
+        data.to_str().unwrap(),
+        "--job",
+        "cli-test",
+        "--out",
+        dir.join("x.png").to_str().unwrap(),
+    ]);
+    assert_eq!(again.status.code(), Some(1));
+    assert_eq!(
+        String::from_utf8(again.stderr).unwrap(),
+        "error: job \"cli-test\" already exists in this bucket: choose another --job id or another --data-dir\n"
+    );
+}
+
+#[test]
+fn storage_problems_are_one_clear_line() {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    drop(listener);
+    let dir = scratch("s3-errors");
+    let server =
+        hort_local_emulator::embedded_s3::EmbeddedS3::start(&dir, "right-key", "right-secret")
+            .unwrap();
+    server.ensure_bucket("real").unwrap();
+    let endpoint = server.endpoint();
+    let dead = format!("http://127.0.0.1:{port}");
+    let cases = [
+        (
+            dead.as_str(),
+            "real",
+            "right-key",
+            "right-secret",
+            format!(
+                "error: storage unavailable (retryable): check bucket: S3 endpoint {dead} is unreachable (connection refused)\n"
+            ),
+        ),
+        (
+            endpoint.as_str(),
+            "nope",
+            "right-key",
+            "right-secret",
+            format!(
+                "error: storage access denied: check bucket: bucket \"nope\" does not exist at {endpoint}\n"
+            ),
+        ),
+        (
+            endpoint.as_str(),
+            "real",
+            "wrong-key",
+            "right-secret",
+            format!(
+                "error: storage access denied: check bucket: S3 rejected the credentials (InvalidAccessKeyId) for bucket \"real\" at {endpoint}\n"
+            ),
+        ),
+    ];
+    for (url, bucket, key, secret, expected) in cases {
+        let o = hort(&[
+            "render",
+            scene("bunny/bunny.json").to_str().unwrap(),
+            "--width",
+            "16",
+            "--height",
+            "12",
+            "--s3-endpoint",
+            url,
+            "--bucket",
+            bucket,
+            "--access-key",
+            key,
+            "--secret-key",
+            secret,
+            "--out",
+            dir.join("x.png").to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(1));
+        assert_eq!(String::from_utf8(o.stderr).unwrap(), expected);
+    }
 }
