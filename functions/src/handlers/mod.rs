@@ -63,3 +63,6 @@ impl From<StoreError> for HandlerError {
         PipelineError::Store(e).into()
     }
 }
+
+#[cfg(test)]
+mod tests;

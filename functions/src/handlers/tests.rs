@@ -1,0 +1,161 @@
+//! The handlers called directly over an in-memory store, as the Lambda runtime would call them.
+
+use super::*;
+use hort_core::ids::{JobId, Stage};
+use hort_core::keys::{hits_key, items_key, manifest_key, scene_prefix};
+use hort_core::pipeline::{SplitCache, SplitMode};
+use hort_core::store::{BlobStore, MemoryStore};
+
+fn request(scene: &str) -> JobRequest {
+    JobRequest {
+        scene: scene.into(),
+        width: 32,
+        height: 24,
+        spp: 1,
+        splits: Some(2),
+        spans: Some(3),
+        split_mode: SplitMode::Spatial,
+        max_concurrency: 4,
+        task_timeout_seconds: None,
+    }
+}
+
+/// A store holding the bundled Cornell room and a job request for it.
+fn submitted(job: &str) -> MemoryStore {
+    let store = MemoryStore::new();
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/cornell");
+    let prefix = scene_prefix(&JobId::new(job).unwrap());
+    for file in ["cornell.json", "cornell.obj", "cornell.mtl"] {
+        let bytes = std::fs::read(format!("{dir}/{file}")).unwrap();
+        store.put(&format!("{prefix}{file}"), &bytes).unwrap();
+    }
+    let json = serde_json::to_vec(&request("cornell.json")).unwrap();
+    store
+        .put(&manifest_key(&JobId::new(job).unwrap()), &json)
+        .unwrap();
+    store
+}
+
+fn plan_event(job: &str) -> PlanEvent {
+    PlanEvent {
+        job: job.into(),
+        bucket: "b".into(),
+        attempt: 0,
+    }
+}
+
+#[test]
+fn plan_then_every_worker_task_produces_the_outputs() {
+    let store = submitted("j1");
+    let out = handle_plan(&store, "b", &plan_event("j1"), &std::env::temp_dir()).unwrap();
+    let job = JobId::new("j1").unwrap();
+    assert_eq!(out.items.cast_reduce, items_key(&job, Stage::CastReduce));
+    assert_eq!(out.max_concurrency, 4);
+    let cache = SplitCache::new(1 << 24);
+    for (stage, key) in [
+        ("cast-map", &out.items.cast_map),
+        ("cast-reduce", &out.items.cast_reduce),
+        ("expand", &out.items.expand),
+        ("trace-map", &out.items.trace_map),
+        ("trace-reduce", &out.items.trace_reduce),
+    ] {
+        let items: Vec<TaskItem> = serde_json::from_slice(&store.get(key).unwrap()).unwrap();
+        assert!(!items.is_empty());
+        for item in items {
+            let timeout = item.timeout_seconds.unwrap();
+            assert!((10..=90).contains(&timeout), "{stage}: timeout {timeout}");
+            let event = WorkerEvent {
+                job: "j1".into(),
+                bucket: "b".into(),
+                stage: stage.into(),
+                item,
+                attempt: 0,
+            };
+            handle_worker(&store, "b", &cache, &event).unwrap();
+        }
+    }
+    let combine = WorkerEvent {
+        job: "j1".into(),
+        bucket: "b".into(),
+        stage: "combine".into(),
+        item: TaskItem {
+            task: 0,
+            timeout_seconds: None,
+        },
+        attempt: 0,
+    };
+    handle_worker(&store, "b", &cache, &combine).unwrap();
+    assert_eq!(store.get(&hits_key(&job)).unwrap().len(), 32 * 24 * 8);
+}
+
+#[test]
+fn bad_requests_are_bad_input_with_clear_causes() {
+    let store = MemoryStore::new();
+    let tmp = std::env::temp_dir();
+    let e = handle_plan(&store, "b", &plan_event("nojob"), &tmp).unwrap_err();
+    assert_eq!(
+        e,
+        HandlerError::bad_input("job request jobs/nojob/manifest.json does not exist")
+    );
+    let e = handle_plan(&store, "other", &plan_event("nojob"), &tmp).unwrap_err();
+    assert_eq!(
+        e,
+        HandlerError::bad_input("the event names bucket \"b\", this function serves \"other\"")
+    );
+    let e = handle_plan(&store, "b", &plan_event("Bad Id"), &tmp).unwrap_err();
+    assert_eq!(e.error_type, BAD_INPUT);
+
+    let store = submitted("j2");
+    let json = serde_json::to_vec(&request("../escape.json")).unwrap();
+    store.put("jobs/j2/manifest.json", &json).unwrap();
+    let e = handle_plan(&store, "b", &plan_event("j2"), &tmp).unwrap_err();
+    assert_eq!(
+        e,
+        HandlerError::bad_input("job request names an unsafe scene path \"../escape.json\"")
+    );
+
+    let worker = WorkerEvent {
+        job: "j2".into(),
+        bucket: "b".into(),
+        stage: "shine".into(),
+        item: TaskItem {
+            task: 0,
+            timeout_seconds: None,
+        },
+        attempt: 0,
+    };
+    let e = handle_worker(&store, "b", &SplitCache::new(0), &worker).unwrap_err();
+    assert_eq!(e.error_type, BAD_INPUT);
+    assert!(e.cause.contains("shine"), "{}", e.cause);
+}
+
+#[test]
+fn a_missing_plan_and_a_bad_scene_are_not_retried() {
+    let store = submitted("j3");
+    let worker = WorkerEvent {
+        job: "j3".into(),
+        bucket: "b".into(),
+        stage: "cast-map".into(),
+        item: TaskItem {
+            task: 0,
+            timeout_seconds: None,
+        },
+        attempt: 0,
+    };
+    let e = handle_worker(&store, "b", &SplitCache::new(0), &worker).unwrap_err();
+    assert_eq!(
+        e,
+        HandlerError::retryable("object not found: jobs/j3/plan.json")
+    );
+
+    store
+        .put("jobs/j3/scene/cornell.obj", b"v 0 0 0\nf 1 2 3\n")
+        .unwrap();
+    let e = handle_plan(&store, "b", &plan_event("j3"), &std::env::temp_dir()).unwrap_err();
+    assert_eq!(e.error_type, BAD_INPUT);
+    assert!(
+        e.cause.contains("cornell.obj:2: face refers to vertex 2"),
+        "{}",
+        e.cause
+    );
+}
