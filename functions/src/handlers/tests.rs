@@ -143,9 +143,10 @@ fn a_missing_plan_and_a_bad_scene_are_not_retried() {
         attempt: 0,
     };
     let e = handle_worker(&store, "b", &SplitCache::new(0), &worker).unwrap_err();
+    // S3 is strongly consistent: an object that is not there now will not appear on a retry.
     assert_eq!(
         e,
-        HandlerError::retryable("object not found: jobs/j3/plan.json")
+        HandlerError::bad_input("object not found: jobs/j3/plan.json")
     );
 
     store
