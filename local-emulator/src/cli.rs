@@ -114,6 +114,10 @@ pub struct RenderArgs {
     /// Probability that an attempt straggles past its timeout (retried on States.Timeout).
     #[arg(long, default_value_t = 0.0)]
     pub slow_rate: f64,
+    /// This many seconds into the run, one function slot dies with its attempt (the paper's
+    /// fault experiment): the attempt times out and is retried, the slot never comes back.
+    #[arg(long)]
+    pub kill_slot_after: Option<f64>,
     /// Seed of fault injection and retry jitter.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,

@@ -239,6 +239,7 @@ fn render_emulated(args: &RenderArgs, width: u32, height: u32, spp: u32) -> Resu
             duplicate_rate: args.duplicate_rate,
             slow_rate: args.slow_rate,
             seed: args.seed,
+            kill_slot_after: args.kill_slot_after,
         },
         time_scale: args.time_scale,
         task_timeout_seconds: args.task_timeout,
@@ -269,6 +270,12 @@ fn render_emulated(args: &RenderArgs, width: u32, height: u32, spp: u32) -> Resu
             f.duplicated.load(Ordering::Relaxed),
             f.slowed.load(Ordering::Relaxed),
         );
+        if f.slots_killed.load(Ordering::Relaxed) > 0 {
+            eprintln!(
+                "one function slot died with its attempt; the rest ran on {} slots",
+                workers - 1
+            );
+        }
     }
     if run.recomputed() > 0 {
         eprintln!(

@@ -149,6 +149,7 @@ fn injected_faults_give_the_identical_image_and_are_counted() {
             duplicate_rate: 0.2,
             slow_rate: 0.1,
             seed,
+            kill_slot_after: None,
         };
         let run = run_job(
             &config(&server, 4, faults),
@@ -231,4 +232,29 @@ fn a_block_corrupted_between_stages_is_recomputed_from_lineage() {
     assert_eq!(observer.corrupted.load(Ordering::Relaxed), 1);
     assert_same(&run, &mono, "after corruption");
     assert_eq!(run.recomputed(), 1, "the corrupt block was recomputed once");
+}
+
+#[test]
+fn a_function_slot_dying_mid_run_loses_nothing() {
+    let server = s3_support::Embedded::start(Some("emu"));
+    let mono = monolithic("bunny/bunny.json", 1);
+    let faults = FaultSettings {
+        kill_slot_after: Some(0.0),
+        ..FaultSettings::default()
+    };
+    let run = run_job(
+        &config(&server, 4, faults),
+        &scene_path("bunny/bunny.json"),
+        settings(1, 2, 4, SplitMode::Spatial),
+        &NoObserver,
+    )
+    .unwrap();
+    assert_same(&run, &mono, "one slot died");
+    let counts = run.faults.as_ref().unwrap();
+    assert_eq!(counts.slots_killed.load(Ordering::Relaxed), 1);
+    assert_eq!(
+        run.failed_attempts(),
+        1,
+        "the lost attempt timed out once and was retried"
+    );
 }

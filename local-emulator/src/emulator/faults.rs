@@ -9,8 +9,8 @@ use crate::orchestrator::{TaskFailure, TaskInvoker};
 use hort_core::store::{BlobStore, PutOutcome, StoreError};
 use serde_json::Value;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
-use std::time::Duration;
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
 
 /// Probabilities (per attempt) and seed of the injected faults.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -19,12 +19,19 @@ pub struct FaultSettings {
     pub duplicate_rate: f64,
     pub slow_rate: f64,
     pub seed: u64,
+    /// The paper's experiment: this many seconds into the run, one function slot dies: the
+    /// attempt it runs is lost (it never answers, so it times out and is retried) and the slot
+    /// never frees again.
+    pub kill_slot_after: Option<f64>,
 }
 
 impl FaultSettings {
     /// Whether any fault is enabled.
     pub fn any(&self) -> bool {
-        self.fail_rate > 0.0 || self.duplicate_rate > 0.0 || self.slow_rate > 0.0
+        self.fail_rate > 0.0
+            || self.duplicate_rate > 0.0
+            || self.slow_rate > 0.0
+            || self.kill_slot_after.is_some()
     }
 }
 
@@ -35,6 +42,8 @@ pub struct FaultCounts {
     pub failed_after_writing: AtomicU64,
     pub duplicated: AtomicU64,
     pub slowed: AtomicU64,
+    /// Function slots that died (0 or 1).
+    pub slots_killed: AtomicU64,
 }
 
 /// Wraps the functions with seeded faults.
@@ -45,6 +54,9 @@ pub struct FaultyInvoker {
     /// Multiplies timeouts (the orchestrator's time scale), so stragglers outlive theirs.
     time_scale: f64,
     pub counts: Arc<FaultCounts>,
+    started: Instant,
+    /// Set when the run is over: releases a dead slot's thread.
+    pub finished: Arc<AtomicBool>,
 }
 
 impl FaultyInvoker {
@@ -60,7 +72,21 @@ impl FaultyInvoker {
             settings,
             time_scale,
             counts: Arc::new(FaultCounts::default()),
+            started: Instant::now(),
+            finished: Arc::new(AtomicBool::new(false)),
         }
+    }
+
+    /// Whether this invocation is the one that dies with its slot.
+    fn dies_with_its_slot(&self) -> bool {
+        self.settings
+            .kill_slot_after
+            .is_some_and(|t| self.started.elapsed().as_secs_f64() >= t)
+            && self
+                .counts
+                .slots_killed
+                .compare_exchange(0, 1, Ordering::Relaxed, Ordering::Relaxed)
+                .is_ok()
     }
 
     /// A uniform draw in [0, 1) for this attempt and purpose.
@@ -85,6 +111,15 @@ impl FaultyInvoker {
 
 impl TaskInvoker for FaultyInvoker {
     fn invoke(&self, resource: &str, input: Value) -> Result<Value, TaskFailure> {
+        if input.get("item").is_some() && self.dies_with_its_slot() {
+            // Never answers: holds the slot until the run is over.
+            while !self.finished.load(Ordering::Relaxed) {
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            return Err(TaskFailure::retryable(
+                "injected fault: the function slot died",
+            ));
+        }
         let timeout = input
             .get("item")
             .and_then(|i| i.get("timeout_seconds"))

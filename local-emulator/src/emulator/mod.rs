@@ -141,13 +141,15 @@ pub fn run_job(
         work_dir,
         config.split_cache_bytes,
     ));
+    let finished = Arc::new(AtomicBool::new(false));
     let (invoker, fault_counts): (Arc<dyn TaskInvoker>, _) = if config.faults.any() {
-        let faulty = FaultyInvoker::new(
+        let mut faulty = FaultyInvoker::new(
             Arc::clone(&functions),
             Arc::clone(&store),
             config.faults,
             config.time_scale,
         );
+        faulty.finished = Arc::clone(&finished);
         let counts = Arc::clone(&faulty.counts);
         (Arc::new(faulty), Some(counts))
     } else {
@@ -164,6 +166,7 @@ pub fn run_job(
     let fan_out = FanOut(vec![&accounting, observer]);
     let input = serde_json::json!({"job": job.as_str(), "bucket": storage.bucket});
     let outcome = orchestrator.run(input, invoker, store.as_ref(), &fan_out);
+    finished.store(true, Ordering::Relaxed);
     let usage = accounting.finish();
     if let Err(failure) = outcome {
         if config.cancel.load(Ordering::Relaxed) {
