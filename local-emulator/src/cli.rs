@@ -35,6 +35,8 @@ pub enum Command {
 pub enum BenchCommand {
     /// The in-process pipeline against the monolithic renderer: time, skipped pairs, memory.
     Pipeline(crate::bench::PipelineBenchArgs),
+    /// The local emulator end to end against the monolithic renderer, and a dying slot.
+    Emulator(crate::bench::EmulatorBenchArgs),
     /// Single-thread BVH kernel against native Embree on identical rays: Mrays/s, build, load.
     Kernel(crate::bench::KernelBenchArgs),
 }

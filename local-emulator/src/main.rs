@@ -39,6 +39,9 @@ fn main() -> std::process::ExitCode {
             command: cli::BenchCommand::Pipeline(args),
         } => bench::run_pipeline_bench(&args, &AllocationMeter),
         cli::Command::Bench {
+            command: cli::BenchCommand::Emulator(args),
+        } => bench::run_emulator_bench(&args),
+        cli::Command::Bench {
             command: cli::BenchCommand::Kernel(args),
         } => bench::run_kernel_bench(&args),
     };

@@ -1,11 +1,13 @@
 //! `hort bench ...`: benchmarks that print tables with ratios against a baseline measured in the
 //! same run, and append the rows to a CSV file.
 
+mod emulator;
 mod kernel;
 mod pipeline;
 mod scenes;
 mod table;
 
+pub use emulator::{EmulatorBenchArgs, run_emulator_bench};
 pub use kernel::{KernelBenchArgs, run_kernel_bench};
 pub use pipeline::{PipelineBenchArgs, run_pipeline_bench};
 

@@ -1,0 +1,228 @@
+//! `hort bench emulator`: the local emulator end to end (embedded S3 server, state machine,
+//! function handlers) against the monolithic renderer on the same machine and threads, with
+//! the in-process pipeline in between to show where the time goes: in-process minus monolithic
+//! is the pipeline's own work (encoding, compression, split loads, extra traversal); emulator
+//! minus in-process is storage round trips over S3 and orchestration. Then the paper's fault
+//! experiment: one of 16 function slots dies mid-run.
+
+use super::scenes::generated;
+use super::table::{Table, f3};
+use anyhow::Result;
+use hort_core::cost::Arch;
+use hort_core::ids::JobId;
+use hort_core::pipeline::{PipelineOptions, PlanRequest, SplitMode, run_pipeline};
+use hort_core::render::{RenderSettings, build_scene_bvh, render};
+use hort_core::scene::load_scene;
+use hort_core::store::MemoryStore;
+use hort_local_emulator::emulator::{
+    EmulatorConfig, FaultSettings, JobSettings, StorageTarget, run_job,
+};
+use hort_local_emulator::orchestrator::NoObserver;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+/// Options of `hort bench emulator`.
+#[derive(clap::Args, Clone, Debug)]
+pub struct EmulatorBenchArgs {
+    #[arg(long, default_value_t = 1_000_000)]
+    pub triangles: u64,
+    #[arg(long, default_value_t = 1920)]
+    pub width: u32,
+    #[arg(long, default_value_t = 1080)]
+    pub height: u32,
+    /// Threads of the monolithic render and function slots of the pipeline (default: cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+    #[arg(long, default_value = "target/bench-scenes")]
+    pub scene_dir: PathBuf,
+    /// Skip the 16-slot fault experiment.
+    #[arg(long)]
+    pub skip_faults: bool,
+}
+
+fn emulator_config(workers: usize, faults: FaultSettings) -> EmulatorConfig {
+    EmulatorConfig {
+        storage: StorageTarget::Embedded { data_dir: None },
+        job: None,
+        workers,
+        faults,
+        time_scale: 1.0,
+        task_timeout_seconds: None,
+        split_cache_bytes: 1 << 30,
+        memory_mb: 2048,
+        arch: Arch::Arm64,
+        cancel: Arc::new(AtomicBool::new(false)),
+    }
+}
+
+pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
+    let threads = args
+        .threads
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let path = generated(&args.scene_dir, args.triangles, 1)?;
+    let scene = load_scene(&path)?;
+    let mut table = Table::new(
+        &format!(
+            "emulator vs monolithic: {} triangles, {}x{}, {threads} threads/slots (ratio = time / monolithic)",
+            scene.mesh.triangle_count(),
+            args.width,
+            args.height
+        ),
+        &[
+            "run",
+            "seconds",
+            "ratio",
+            "S3 requests",
+            "MB written",
+            "cost USD",
+            "identical",
+        ],
+    );
+    let start = Instant::now();
+    let bvh = build_scene_bvh(&scene.mesh);
+    let settings = RenderSettings {
+        width: args.width,
+        height: args.height,
+        spp: 1,
+        threads,
+    };
+    let mono = render(&scene, &bvh, settings)?;
+    let mono_seconds = start.elapsed().as_secs_f64();
+    drop(bvh);
+    table.push(vec![
+        "monolithic".into(),
+        f3(mono_seconds),
+        "1.000".into(),
+        "-".into(),
+        "-".into(),
+        "-".into(),
+        "-".into(),
+    ]);
+    for (name, k) in [("MR1 k=1 s=16", 1u32), ("MR2 k=8 s=16 spatial", 8)] {
+        let request = PlanRequest {
+            width: args.width,
+            height: args.height,
+            spp: 1,
+            splits: Some(k),
+            spans: Some(16),
+            mode: SplitMode::Spatial,
+        };
+        let options = PipelineOptions {
+            job: JobId::new("bench")?,
+            workers: threads,
+            split_cache_bytes: 1 << 30,
+        };
+        let t = Instant::now();
+        let run = run_pipeline(&MemoryStore::new(), &scene, request, &options)?;
+        let in_process = t.elapsed().as_secs_f64();
+        table.push(vec![
+            format!("in-process {name}"),
+            f3(in_process),
+            f3(in_process / mono_seconds),
+            "-".into(),
+            "-".into(),
+            "-".into(),
+            yes(run.image.pixels == mono.image.pixels && run.hits == mono.hits),
+        ]);
+        let t = Instant::now();
+        let job = JobSettings {
+            width: args.width,
+            height: args.height,
+            spp: 1,
+            splits: Some(k),
+            spans: Some(16),
+            split_mode: SplitMode::Spatial,
+        };
+        let run = run_job(
+            &emulator_config(threads, FaultSettings::default()),
+            &path,
+            job,
+            &NoObserver,
+        )?;
+        let seconds = t.elapsed().as_secs_f64();
+        let requests: u64 = run
+            .usage
+            .iter()
+            .map(|u| u.traffic.gets + u.traffic.puts + u.traffic.lists)
+            .sum();
+        let written: u64 = run.usage.iter().map(|u| u.traffic.bytes_written).sum();
+        table.push(vec![
+            format!("emulator {name}"),
+            f3(seconds),
+            f3(seconds / mono_seconds),
+            requests.to_string(),
+            format!("{:.1}", written as f64 / 1e6),
+            format!("{:.5}", run.cost.total),
+            yes(run.image.pixels == mono.image.pixels && run.hits == mono.hits),
+        ]);
+    }
+    let mut tables = vec![table];
+    if !args.skip_faults {
+        tables.push(fault_table(args, &path, &mono.image.pixels)?);
+    }
+    for t in &tables {
+        t.print();
+        if let Some(csv) = &args.csv {
+            t.append_csv(csv)?;
+        }
+    }
+    Ok(())
+}
+
+fn yes(b: bool) -> String {
+    if b { "yes" } else { "NO" }.into()
+}
+
+/// The paper's experiment: 16 slots, one dies halfway through the fault-free run's time.
+fn fault_table(
+    args: &EmulatorBenchArgs,
+    path: &std::path::Path,
+    reference: &[[f32; 3]],
+) -> Result<Table> {
+    let job = JobSettings {
+        width: args.width,
+        height: args.height,
+        spp: 1,
+        splits: Some(8),
+        spans: Some(16),
+        split_mode: SplitMode::Spatial,
+    };
+    let t = Instant::now();
+    let clean = run_job(
+        &emulator_config(16, FaultSettings::default()),
+        path,
+        job,
+        &NoObserver,
+    )?;
+    let clean_seconds = t.elapsed().as_secs_f64();
+    let faults = FaultSettings {
+        kill_slot_after: Some(clean_seconds / 2.0),
+        ..FaultSettings::default()
+    };
+    let t = Instant::now();
+    let killed = run_job(&emulator_config(16, faults), path, job, &NoObserver)?;
+    let killed_seconds = t.elapsed().as_secs_f64();
+    let mut table = Table::new(
+        "one of 16 function slots dies halfway (the paper: +60% on Hadoop)",
+        &["run", "seconds", "extra", "failed attempts", "identical"],
+    );
+    table.push(vec![
+        "16 slots".into(),
+        f3(clean_seconds),
+        "-".into(),
+        clean.failed_attempts().to_string(),
+        yes(clean.image.pixels == reference),
+    ]);
+    table.push(vec![
+        "16 slots, one dies".into(),
+        f3(killed_seconds),
+        format!("{:+.0}%", 100.0 * (killed_seconds / clean_seconds - 1.0)),
+        killed.failed_attempts().to_string(),
+        yes(killed.image.pixels == reference),
+    ]);
+    Ok(table)
+}
