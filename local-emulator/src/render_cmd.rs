@@ -13,9 +13,7 @@ use hort_core::report::{RayReport, Report, Seconds, StageReport};
 use hort_core::scene::{DEFAULT_HEIGHT, DEFAULT_WIDTH, Scene, check_image_size, load_scene};
 use hort_core::store::MemoryStore;
 use hort_functions::S3Credentials;
-use hort_local_emulator::emulator::{
-    EmulatorConfig, FaultSettings, JobSettings, StorageTarget, run_job,
-};
+use hort_local_emulator::emulator::{EmulatorConfig, FaultSettings, StorageTarget, run_job};
 use hort_local_emulator::progress::{ProgressMode, ProgressObserver, print_summary};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -50,22 +48,22 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let spp = args.spp.or(scene.image.spp).unwrap_or(1);
     check_image_size(width, height, spp)?;
     let out = args.out.clone().unwrap_or_else(|| default_out(&args.scene));
+    let request = PlanRequest {
+        width,
+        height,
+        spp,
+        splits: args.splits,
+        spans: args.spans,
+        mode: args.split_mode,
+    };
     let rendered = if args.monolithic {
         render_monolithic(&scene, width, height, spp, args.threads)?
     } else if args.in_process {
-        render_pipeline(&scene, width, height, spp, &args)?
+        render_pipeline(&scene, request, &args)?
     } else {
         // Refuse impossible partitionings here, with the scene at hand, before any upload.
-        let request = PlanRequest {
-            width,
-            height,
-            spp,
-            splits: args.splits,
-            spans: args.spans,
-            mode: args.split_mode,
-        };
         resolve_counts(&request, scene.mesh.triangle_count() as u64)?;
-        render_emulated(&args, width, height, spp)?
+        render_emulated(&args, request)?
     };
     write_image(&out, &rendered.image)?;
     if let Some(path) = &args.hits {
@@ -152,22 +150,8 @@ fn render_monolithic(
     })
 }
 
-fn render_pipeline(
-    scene: &Scene,
-    width: u32,
-    height: u32,
-    spp: u32,
-    args: &RenderArgs,
-) -> Result<Rendered> {
+fn render_pipeline(scene: &Scene, request: PlanRequest, args: &RenderArgs) -> Result<Rendered> {
     let workers = args.workers.unwrap_or_else(cores);
-    let request = PlanRequest {
-        width,
-        height,
-        spp,
-        splits: args.splits,
-        spans: args.spans,
-        mode: args.split_mode,
-    };
     let options = PipelineOptions {
         job: JobId::new("local").context("job id")?,
         workers,
@@ -191,7 +175,7 @@ fn render_pipeline(
     })
 }
 
-fn render_emulated(args: &RenderArgs, width: u32, height: u32, spp: u32) -> Result<Rendered> {
+fn render_emulated(args: &RenderArgs, request: PlanRequest) -> Result<Rendered> {
     let workers = args.workers.unwrap_or_else(cores);
     for (name, p) in [
         ("--fail-rate", args.fail_rate),
@@ -248,16 +232,8 @@ fn render_emulated(args: &RenderArgs, width: u32, height: u32, spp: u32) -> Resu
         arch: Arch::Arm64,
         cancel,
     };
-    let settings = JobSettings {
-        width,
-        height,
-        spp,
-        splits: args.splits,
-        spans: args.spans,
-        split_mode: args.split_mode,
-    };
     let progress = ProgressObserver::new(ProgressMode::detect());
-    let run = run_job(&config, &args.scene, settings, &progress)?;
+    let run = run_job(&config, &args.scene, request, &progress)?;
     let mut summary = Vec::new();
     print_summary(&run.stages, &mut summary).context("summary")?;
     eprint!("{}", String::from_utf8_lossy(&summary));
@@ -302,7 +278,7 @@ fn render_emulated(args: &RenderArgs, width: u32, height: u32, spp: u32) -> Resu
         image: run.image,
         hits: run.hits,
         rays: RayReport {
-            primary: u64::from(width) * u64::from(height) * u64::from(spp),
+            primary: u64::from(request.width) * u64::from(request.height) * u64::from(request.spp),
             shadow: run.ledger.stages.values().map(|m| m.shadow_rays).sum(),
         },
         build_seconds: run.stages.first().map_or(0.0, |s| s.seconds),

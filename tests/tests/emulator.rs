@@ -6,13 +6,13 @@ mod s3_support;
 
 use hort_core::cost::Arch;
 use hort_core::hits::Hit;
-use hort_core::pipeline::SplitMode;
+use hort_core::pipeline::{PlanRequest, SplitMode};
 use hort_core::render::{RenderOutput, RenderSettings, build_scene_bvh, render};
 use hort_core::scene::load_scene;
 use hort_core::store::BlobStore;
 use hort_functions::S3Credentials;
 use hort_local_emulator::emulator::{
-    EmulatorConfig, EmulatorRun, FaultSettings, JobSettings, StorageTarget, run_job,
+    EmulatorConfig, EmulatorRun, FaultSettings, StorageTarget, run_job,
 };
 use hort_local_emulator::orchestrator::{Event, NoObserver, Observer};
 use std::path::PathBuf;
@@ -67,14 +67,14 @@ fn config(server: &s3_support::Embedded, workers: usize, faults: FaultSettings) 
     }
 }
 
-fn settings(spp: u32, k: u32, s: u32, mode: SplitMode) -> JobSettings {
-    JobSettings {
+fn settings(spp: u32, k: u32, s: u32, mode: SplitMode) -> PlanRequest {
+    PlanRequest {
         width: W,
         height: H,
         spp,
         splits: Some(k),
         spans: Some(s),
-        split_mode: mode,
+        mode,
     }
 }
 

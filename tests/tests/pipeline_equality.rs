@@ -2,7 +2,9 @@
 //! count, split mode, sample count and worker count.
 
 use hort_core::ids::{JobId, Stage};
-use hort_core::pipeline::{PipelineOptions, PlanRequest, SplitMode, run_pipeline, task_count};
+use hort_core::pipeline::{
+    PipelineOptions, PipelineRun, PlanRequest, SplitMode, run_pipeline, task_count,
+};
 use hort_core::render::{RenderSettings, build_scene_bvh, render};
 use hort_core::scene::{Scene, load_scene};
 use hort_core::store::{BlobStore, MemoryStore};
@@ -118,30 +120,30 @@ fn snapshot(store: &MemoryStore) -> Vec<(String, Vec<u8>)> {
         .collect()
 }
 
-#[test]
-fn every_task_run_twice_writes_identical_bytes() {
-    let scene = scene("cornell/cornell.json");
+/// Runs the pipeline on a bundled scene into a fresh memory store.
+fn run_in_memory(rel: &str, spp: u32, k: u32, s: u32) -> (MemoryStore, PipelineRun, JobId) {
     let store = MemoryStore::new();
     let request = PlanRequest {
         width: W,
         height: H,
-        spp: 2,
-        splits: Some(3),
-        spans: Some(5),
+        spp,
+        splits: Some(k),
+        spans: Some(s),
         mode: SplitMode::Spatial,
     };
-    let job = JobId::new("twice").unwrap();
-    let run = run_pipeline(
-        &store,
-        &scene,
-        request,
-        &PipelineOptions {
-            job: job.clone(),
-            workers: 2,
-            split_cache_bytes: 1 << 30,
-        },
-    )
-    .unwrap();
+    let job = JobId::new("memory").unwrap();
+    let options = PipelineOptions {
+        job: job.clone(),
+        workers: 2,
+        split_cache_bytes: 1 << 30,
+    };
+    let run = run_pipeline(&store, &scene(rel), request, &options).unwrap();
+    (store, run, job)
+}
+
+#[test]
+fn every_task_run_twice_writes_identical_bytes() {
+    let (store, run, job) = run_in_memory("cornell/cornell.json", 2, 3, 5);
     let before = snapshot(&store);
     for stage in hort_core::pipeline::TASK_STAGES {
         for task in 0..task_count(&run.plan, stage) {
@@ -158,28 +160,7 @@ fn every_task_run_twice_writes_identical_bytes() {
 
 #[test]
 fn lost_and_corrupt_blocks_are_recomputed_from_lineage() {
-    let scene = scene("bunny/bunny.json");
-    let store = MemoryStore::new();
-    let request = PlanRequest {
-        width: W,
-        height: H,
-        spp: 1,
-        splits: Some(4),
-        spans: Some(3),
-        mode: SplitMode::Spatial,
-    };
-    let job = JobId::new("lineage").unwrap();
-    let run = run_pipeline(
-        &store,
-        &scene,
-        request,
-        &PipelineOptions {
-            job: job.clone(),
-            workers: 2,
-            split_cache_bytes: 1 << 30,
-        },
-    )
-    .unwrap();
+    let (store, run, job) = run_in_memory("bunny/bunny.json", 1, 4, 3);
     let before = snapshot(&store);
     let keys: Vec<String> = before.iter().map(|(k, _)| k.clone()).collect();
     // Corrupt one CastReduce block (flip a byte in its payload) and delete one CastMap block

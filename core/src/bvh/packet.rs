@@ -14,6 +14,8 @@ use wide::f32x4;
 pub(super) struct BoxTester {
     origin: [f32x4; 3],
     inv_dir: [f32x4; 3],
+    /// Per axis: the near plane is the box's `hi` (the direction's sign bit is set).
+    near_hi: [bool; 3],
 }
 
 impl BoxTester {
@@ -22,6 +24,7 @@ impl BoxTester {
         BoxTester {
             origin: [0, 1, 2].map(|a| f32x4::splat(ray.origin[a])),
             inv_dir: [0, 1, 2].map(|a| f32x4::splat(inv[a])),
+            near_hi: [0, 1, 2].map(|a| inv[a].is_sign_negative()),
         }
     }
 
@@ -33,11 +36,13 @@ impl BoxTester {
         let mut t1 = f32x4::splat(t_max);
         let scale = f32x4::splat(super::traverse::FAR_SCALE);
         for axis in 0..3 {
-            let n = (f32x4::from(node.lo[axis]) - self.origin[axis]) * self.inv_dir[axis];
-            let f = (f32x4::from(node.hi[axis]) - self.origin[axis]) * self.inv_dir[axis];
-            let swap = n.simd_gt(f);
-            let near = swap.select(f, n);
-            let far = swap.select(n, f) * scale;
+            let (near_plane, far_plane) = if self.near_hi[axis] {
+                (node.hi[axis], node.lo[axis])
+            } else {
+                (node.lo[axis], node.hi[axis])
+            };
+            let near = (f32x4::from(near_plane) - self.origin[axis]) * self.inv_dir[axis];
+            let far = (f32x4::from(far_plane) - self.origin[axis]) * self.inv_dir[axis] * scale;
             // A NaN never passes a comparison, so it leaves the interval unchanged.
             t0 = near.simd_gt(t0).select(near, t0);
             t1 = far.simd_lt(t1).select(far, t1);
@@ -111,4 +116,104 @@ pub(super) fn triangle_candidates(
     // With an edge function exactly zero the scalar test recomputes them in f64: keep the lane.
     let reject = (reject & !any_zero).to_bitmask();
     !reject & ((1u32 << p.lanes) - 1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::triangle::intersect;
+    use glam::Vec3;
+
+    /// splitmix64, for reproducible test data.
+    struct Rng(u64);
+    impl Rng {
+        fn next(&mut self) -> u64 {
+            self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+            let mut z = self.0;
+            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+            z ^ (z >> 31)
+        }
+        fn unit(&mut self) -> f32 {
+            (self.next() >> 40) as f32 / (1u64 << 24) as f32
+        }
+        /// Mostly ordinary values, often exact grid values, zeros of both signs, extremes.
+        fn coord(&mut self) -> f32 {
+            const SPECIAL: [f32; 10] = [0.0, -0.0, 1.0, -1.0, 0.5, 2.0, 1e-30, -1e-30, 1e30, -1e30];
+            match self.next() % 8 {
+                0 => SPECIAL[(self.next() % 10) as usize],
+                1 => (self.next() % 5) as f32 - 2.0,
+                _ => self.unit() * 4.0 - 2.0,
+            }
+        }
+        fn vec(&mut self) -> Vec3 {
+            Vec3::new(self.coord(), self.coord(), self.coord())
+        }
+    }
+
+    fn packet(tris: &[[Vec3; 3]; 4]) -> Packet {
+        let mut v = [[[0.0f32; 4]; 3]; 3];
+        for (lane, t) in tris.iter().enumerate() {
+            for (c, p) in t.iter().enumerate() {
+                for a in 0..3 {
+                    v[c][a][lane] = p[a];
+                }
+            }
+        }
+        Packet {
+            v,
+            first: 0,
+            lanes: 4,
+        }
+    }
+
+    /// The 4-wide pre-test never drops a lane the scalar test hits: 4 million ray/triangle
+    /// pairs, random and degenerate (shared vertices, axis-parallel rays, signed zeros, huge and
+    /// tiny coordinates, origins on vertices).
+    #[test]
+    fn packet_pretest_keeps_every_scalar_hit() {
+        let mut rng = Rng(42);
+        let mut hits = 0;
+        for _ in 0..1_000_000 {
+            let shared = rng.vec();
+            let tris: [[Vec3; 3]; 4] = std::array::from_fn(|_| {
+                let a = if rng.next() % 4 == 0 {
+                    shared
+                } else {
+                    rng.vec()
+                };
+                [a, rng.vec(), rng.vec()]
+            });
+            let origin = match rng.next() % 4 {
+                0 => tris[(rng.next() % 4) as usize][(rng.next() % 3) as usize],
+                _ => rng.vec() * 3.0,
+            };
+            let dir = match rng.next() % 3 {
+                0 => rng.vec(),
+                _ => tris[(rng.next() % 4) as usize][(rng.next() % 3) as usize] - origin,
+            };
+            if dir == Vec3::ZERO || !dir.is_finite() {
+                continue;
+            }
+            let ray = Ray { origin, dir };
+            let prep = RayPrep::new(&ray);
+            let tester = TriangleTester::new(&prep);
+            let p = packet(&tris);
+            let t_max = [f32::INFINITY, rng.unit() * 4.0][(rng.next() % 2) as usize];
+            let exclusive = triangle_candidates(&tester, &p, t_max, false);
+            let inclusive = triangle_candidates(&tester, &p, t_max, true);
+            for (lane, [p0, p1, p2]) in tris.iter().enumerate() {
+                if intersect(&prep, *p0, *p1, *p2, t_max).is_some() {
+                    hits += 1;
+                    assert!(exclusive & (1 << lane) != 0, "{ray:?} {:?}", tris[lane]);
+                }
+                if let Some(h) = intersect(&prep, *p0, *p1, *p2, f32::INFINITY)
+                    && h.t <= t_max
+                {
+                    assert!(inclusive & (1 << lane) != 0, "{ray:?} {:?}", tris[lane]);
+                }
+            }
+        }
+        assert!(hits > 100_000, "the test should exercise hits ({hits})");
+    }
 }

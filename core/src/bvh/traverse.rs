@@ -44,19 +44,21 @@ impl SlabRay {
     }
 
     /// Entry distance into `b` (0 when the origin is inside), or `None` if the ray misses it
-    /// or enters beyond `t_max`.
+    /// or enters beyond `t_max`. The near plane of each axis is chosen by the direction's sign
+    /// bit, exactly as [`BoxTester::test`] does for four boxes at once.
     #[inline]
     fn entry(&self, b: &Aabb, t_max: f32) -> Option<f32> {
         let mut t0 = 0.0f32;
         let mut t1 = t_max;
         for axis in 0..3 {
             let inv = self.inv_dir[axis];
-            let mut near = (b.lo[axis] - self.origin[axis]) * inv;
-            let mut far = (b.hi[axis] - self.origin[axis]) * inv;
-            if near > far {
-                std::mem::swap(&mut near, &mut far);
-            }
-            far *= FAR_SCALE;
+            let (near_plane, far_plane) = if inv.is_sign_negative() {
+                (b.hi[axis], b.lo[axis])
+            } else {
+                (b.lo[axis], b.hi[axis])
+            };
+            let near = (near_plane - self.origin[axis]) * inv;
+            let far = (far_plane - self.origin[axis]) * inv * FAR_SCALE;
             // NaN (0 * inf when the origin lies on a slab plane) leaves the interval unchanged.
             if near > t0 {
                 t0 = near;
@@ -64,11 +66,8 @@ impl SlabRay {
             if far < t1 {
                 t1 = far;
             }
-            if t0 > t1 {
-                return None;
-            }
         }
-        Some(t0)
+        if t0 > t1 { None } else { Some(t0) }
     }
 }
 

@@ -14,9 +14,7 @@ use hort_core::pipeline::{PipelineOptions, PlanRequest, SplitMode, run_pipeline}
 use hort_core::render::{RenderSettings, build_scene_bvh, render};
 use hort_core::scene::load_scene;
 use hort_core::store::MemoryStore;
-use hort_local_emulator::emulator::{
-    EmulatorConfig, FaultSettings, JobSettings, StorageTarget, run_job,
-};
+use hort_local_emulator::emulator::{EmulatorConfig, FaultSettings, StorageTarget, run_job};
 use hort_local_emulator::orchestrator::NoObserver;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -129,18 +127,10 @@ pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
             yes(run.image.pixels == mono.image.pixels && run.hits == mono.hits),
         ]);
         let t = Instant::now();
-        let job = JobSettings {
-            width: args.width,
-            height: args.height,
-            spp: 1,
-            splits: Some(k),
-            spans: Some(16),
-            split_mode: SplitMode::Spatial,
-        };
         let run = run_job(
             &emulator_config(threads, FaultSettings::default()),
             &path,
-            job,
+            request,
             &NoObserver,
         )?;
         let seconds = t.elapsed().as_secs_f64();
@@ -183,13 +173,13 @@ fn fault_table(
     path: &std::path::Path,
     reference: &[[f32; 3]],
 ) -> Result<Table> {
-    let job = JobSettings {
+    let job = PlanRequest {
         width: args.width,
         height: args.height,
         spp: 1,
         splits: Some(8),
         spans: Some(16),
-        split_mode: SplitMode::Spatial,
+        mode: SplitMode::Spatial,
     };
     let t = Instant::now();
     let clean = run_job(

@@ -22,7 +22,7 @@ use hort_core::hits::{Hit, decode_hits};
 use hort_core::ids::{JobId, Stage};
 use hort_core::image::{Image, decode_pfm};
 use hort_core::keys::{hits_key, image_key_with_ext, plan_key};
-use hort_core::pipeline::{JobPlan, SplitMode, TaskMetrics, task_count};
+use hort_core::pipeline::{JobPlan, PlanRequest, TaskMetrics, task_count};
 use hort_core::report::StageReport;
 use hort_functions::handlers::JobRequest;
 use std::path::Path;
@@ -50,17 +50,6 @@ pub struct EmulatorConfig {
     pub arch: Arch,
     /// Set to stop the run (Ctrl-C).
     pub cancel: Arc<AtomicBool>,
-}
-
-/// Image and partitioning of a job.
-#[derive(Clone, Copy, Debug)]
-pub struct JobSettings {
-    pub width: u32,
-    pub height: u32,
-    pub spp: u32,
-    pub splits: Option<u32>,
-    pub spans: Option<u32>,
-    pub split_mode: SplitMode,
 }
 
 /// A finished job as the emulator saw it.
@@ -110,7 +99,7 @@ fn fresh_job_id() -> String {
 pub fn run_job(
     config: &EmulatorConfig,
     scene: &Path,
-    settings: JobSettings,
+    settings: PlanRequest,
     observer: &dyn Observer,
 ) -> Result<EmulatorRun> {
     let started = Instant::now();
@@ -127,7 +116,7 @@ pub fn run_job(
         spp: settings.spp,
         splits: settings.splits,
         spans: settings.spans,
-        split_mode: settings.split_mode,
+        split_mode: settings.mode,
         max_concurrency: config.workers as u32,
         task_timeout_seconds: config.task_timeout_seconds,
     };
