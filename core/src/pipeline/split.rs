@@ -37,6 +37,8 @@ impl std::str::FromStr for SplitMode {
 pub fn assign_splits(mesh: &Mesh, k: usize, mode: SplitMode) -> Vec<Vec<u32>> {
     let n = mesh.triangle_count();
     let order: Vec<u32> = match mode {
+        // One split holds everything in either mode: no need to sort.
+        _ if k == 1 => (0..n as u32).collect(),
         SplitMode::Naive => (0..n as u32).collect(),
         SplitMode::Spatial => morton_order(mesh),
     };

@@ -11,6 +11,7 @@ use hort_core::pipeline::{
 use hort_core::scene::load_scene;
 use hort_core::store::BlobStore;
 use std::path::{Component, Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 pub use hort_core::keys::scene_prefix;
 
@@ -38,7 +39,14 @@ pub fn handle_plan(
         )));
     }
     let request = read_request(store, &job)?;
-    let scene_dir = work_dir.join(format!("hort-plan-{job}-{}", event.attempt));
+    // Unique per invocation: a duplicated delivery of the same attempt must not share it.
+    static INVOCATION: AtomicU64 = AtomicU64::new(0);
+    let scene_dir = work_dir.join(format!(
+        "hort-plan-{job}-{}-{}-{}",
+        event.attempt,
+        std::process::id(),
+        INVOCATION.fetch_add(1, Ordering::Relaxed)
+    ));
     let scene_path = download_scene(store, &job, &request, &scene_dir)?;
     let loaded = load_scene(&scene_path);
     let _ = std::fs::remove_dir_all(&scene_dir);

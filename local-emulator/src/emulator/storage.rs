@@ -6,6 +6,7 @@ use hort_core::store::{BlobStore, CountingStore, StoreError};
 use hort_functions::{S3Config, S3Credentials, S3Store};
 use std::path::PathBuf;
 use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Keys of the embedded server (it only listens on 127.0.0.1).
 const EMBEDDED_ACCESS_KEY: &str = "hort-local";
