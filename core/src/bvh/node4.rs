@@ -62,12 +62,12 @@ pub(super) fn collapse(nodes: &[Node], triangles: &[[Vec3; 3]]) -> (Vec<Node4>, 
     };
     if !nodes.is_empty() {
         out.wide.push(UNUSED);
-        let children = if nodes[0].count > 0 {
-            vec![0]
+        let (children, len) = if nodes[0].count > 0 {
+            ([0; 4], 1)
         } else {
             out.open(0)
         };
-        out.fill(0, &children);
+        out.fill(0, &children[..len]);
     }
     (out.wide, out.packets)
 }
@@ -82,24 +82,26 @@ struct Collapse<'a> {
 impl Collapse<'_> {
     /// The up to 4 binary nodes that become the children of the wide node for inner node `n`:
     /// its two children, then repeatedly the inner one with the largest box opened in place.
-    fn open(&self, n: usize) -> Vec<usize> {
+    fn open(&self, n: usize) -> ([usize; 4], usize) {
         let first = self.nodes[n].first as usize;
-        let mut children = vec![first, first + 1];
-        while children.len() < 4 {
-            let widest = children
-                .iter()
-                .enumerate()
-                .filter(|&(_, &c)| self.nodes[c].count == 0)
-                .map(|(k, &c)| (k, self.nodes[c].bounds.half_area()))
-                .fold(None, |best: Option<(usize, f32)>, (k, a)| match best {
-                    Some((_, b)) if b >= a => best,
-                    _ => Some((k, a)),
-                });
+        let mut children = [first, first + 1, 0, 0];
+        let mut len = 2;
+        while len < 4 {
+            let mut widest: Option<(usize, f32)> = None;
+            for (k, &c) in children[..len].iter().enumerate() {
+                let node = &self.nodes[c];
+                let area = node.bounds.half_area();
+                if node.count == 0 && widest.is_none_or(|(_, a)| area > a) {
+                    widest = Some((k, area));
+                }
+            }
             let Some((k, _)) = widest else { break };
             let c = self.nodes[children[k]].first as usize;
-            children.splice(k..=k, [c, c + 1]);
+            children[k] = c;
+            children[len] = c + 1;
+            len += 1;
         }
-        children
+        (children, len)
     }
 
     /// Fills wide node `w` with binary `children`, creating their subtrees depth first.
@@ -140,8 +142,8 @@ impl Collapse<'_> {
                 self.wide.push(UNUSED);
                 self.wide[w].child[slot] = index as u32;
                 self.wide[w].packets[slot] = 0;
-                let grandchildren = self.open(c);
-                self.fill(index, &grandchildren);
+                let (grandchildren, len) = self.open(c);
+                self.fill(index, &grandchildren[..len]);
             }
         }
     }

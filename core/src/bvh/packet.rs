@@ -7,7 +7,7 @@
 //!   the survivors go through `intersect` itself, which alone decides hits and t.
 
 use super::node4::{Node4, Packet};
-use crate::triangle::{Ray, RayPrep};
+use crate::triangle::{Ray, RayPrep, gamma};
 use wide::f32x4;
 
 /// Per-ray constants of the 4-wide slab test.
@@ -73,7 +73,8 @@ impl TriangleTester {
 /// Lanes of `p` (bit i = lane i, only lanes < `p.lanes`) for which `intersect(prep, .., t_max)`
 /// may hit with `t <= t_max` (`inclusive`) or `t < t_max`. A lane is dropped only when the
 /// scalar test computes the same edge functions and rejects it: mixed signs with none zero,
-/// zero or wrongly signed determinant, or t beyond `t_max`.
+/// zero or wrongly signed determinant, t beyond `t_max`, or (not `inclusive`) t within its
+/// rounding error of 0.
 #[inline(always)]
 pub(super) fn triangle_candidates(
     r: &TriangleTester,
@@ -102,8 +103,10 @@ pub(super) fn triangle_candidates(
     let any_neg = u.simd_lt(zero) | v.simd_lt(zero) | w.simd_lt(zero);
     let any_pos = u.simd_gt(zero) | v.simd_gt(zero) | w.simd_gt(zero);
     let det = u + v + w;
-    let t_scaled = u * (sz * az) + v * (sz * bz) + w * (sz * cz);
-    let t = t_scaled * (f32x4::ONE / det);
+    let (zs0, zs1, zs2) = (sz * az, sz * bz, sz * cz);
+    let t_scaled = u * zs0 + v * zs1 + w * zs2;
+    let inv_det = f32x4::ONE / det;
+    let t = t_scaled * inv_det;
     let t_max = f32x4::splat(t_max);
     // The scalar test rejects a NaN t too.
     let beyond = if inclusive {
@@ -114,8 +117,32 @@ pub(super) fn triangle_candidates(
     let wrong_side = det.simd_lt(zero) ^ t_scaled.simd_lt(zero);
     let reject = (any_neg & any_pos) | det.simd_eq(zero) | wrong_side | beyond;
     // With an edge function exactly zero the scalar test recomputes them in f64: keep the lane.
-    let reject = (reject & !any_zero).to_bitmask();
-    !reject & ((1u32 << p.lanes) - 1)
+    let lanes = (1u32 << p.lanes) - 1;
+    let keep = !(reject & !any_zero).to_bitmask() & lanes;
+    // Closest-hit survivors are mostly real hits; shadow rays meet the triangle they start
+    // on, which only the next test rejects.
+    if keep == 0 || inclusive {
+        return keep;
+    }
+    // The conservative t > 0 test (pbrt-v4 6.8.6), in the scalar order of operations. The
+    // maxima are of non-negative values, where `select(a > b, a, b)` equals `f32::max` unless a
+    // NaN is involved; then `t <= delta_t` is false and the lane is kept.
+    let max = |a: f32x4, b: f32x4| a.simd_gt(b).select(a, b);
+    let max_zt = max(max(zs0.abs(), zs1.abs()), zs2.abs());
+    let max_xt = max(max(ax.abs(), bx.abs()), cx.abs());
+    let max_yt = max(max(ay.abs(), by.abs()), cy.abs());
+    let g = |n: f32| f32x4::splat(gamma(n));
+    let delta_z = g(3.0) * max_zt;
+    let delta_x = g(5.0) * (max_xt + max_zt);
+    let delta_y = g(5.0) * (max_yt + max_zt);
+    let delta_e =
+        f32x4::splat(2.0) * (g(2.0) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
+    let max_e = max(max(u.abs(), v.abs()), w.abs());
+    let delta_t = f32x4::splat(3.0)
+        * (g(3.0) * max_e * max_zt + delta_e * max_zt + delta_z * max_e)
+        * inv_det.abs();
+    let too_close = (t.simd_le(delta_t) & !any_zero).to_bitmask();
+    keep & !too_close
 }
 
 #[cfg(test)]
@@ -169,7 +196,7 @@ mod tests {
 
     /// The 4-wide pre-test never drops a lane the scalar test hits: 4 million ray/triangle
     /// pairs, random and degenerate (shared vertices, axis-parallel rays, signed zeros, huge and
-    /// tiny coordinates, origins on vertices).
+    /// tiny coordinates, origins on vertices and on triangles).
     #[test]
     fn packet_pretest_keeps_every_scalar_hit() {
         let mut rng = Rng(42);
@@ -186,6 +213,12 @@ mod tests {
             });
             let origin = match rng.next() % 4 {
                 0 => tris[(rng.next() % 4) as usize][(rng.next() % 3) as usize],
+                1 => {
+                    // On (or next to) a triangle's surface, as shadow rays start.
+                    let [p0, p1, p2] = tris[(rng.next() % 4) as usize];
+                    let (b1, b2) = (rng.unit() * 0.5, rng.unit() * 0.5);
+                    p0 * (1.0 - b1 - b2) + p1 * b1 + p2 * b2
+                }
                 _ => rng.vec() * 3.0,
             };
             let dir = match rng.next() % 3 {

@@ -5,7 +5,7 @@
 use super::node4::LEAF;
 use super::packet::{BoxTester, TriangleTester, triangle_candidates};
 use super::{Aabb, Bvh};
-use crate::triangle::{Ray, RayPrep, gamma, intersect};
+use crate::triangle::{Ray, RayPrep, TriangleHit, gamma, intersect};
 use glam::Vec3;
 
 /// Relative margin on culling distances: far larger than the rounding error of a box entry
@@ -113,8 +113,9 @@ impl Bvh {
         let prep = RayPrep::new(ray);
         let boxes = BoxTester::new(ray);
         let tris = TriangleTester::new(&prep);
-        let mut best: Option<ClosestHit> = None;
-        let mut best_t = f32::INFINITY;
+        // The best hit so far: its triangle hit, packet index and lane.
+        let mut best: Option<(TriangleHit, usize, usize)> = None;
+        let (mut best_t, mut best_id) = (f32::INFINITY, u32::MAX);
         let mut depth = 0usize;
         let (mut child, mut packets) = (0u32, 0u32);
         loop {
@@ -148,7 +149,8 @@ impl Bvh {
                 }
             } else {
                 let first = (child & !LEAF) as usize;
-                for p in &self.packets[first..first + packets as usize] {
+                for k in first..first + packets as usize {
+                    let p = &self.packets[k];
                     let mut lanes = triangle_candidates(&tris, p, best_t, true);
                     while lanes != 0 {
                         let lane = lanes.trailing_zeros() as usize;
@@ -159,19 +161,10 @@ impl Bvh {
                             continue;
                         };
                         let id = self.ids[i];
-                        let better = match best {
-                            None => true,
-                            Some(b) => h.t < b.t || (h.t == b.t && id < b.id),
-                        };
-                        if better {
-                            best_t = h.t;
-                            best = Some(ClosestHit {
-                                id,
-                                t: h.t,
-                                b: h.b,
-                                corners: [p0, p1, p2],
-                                index: i as u32,
-                            });
+                        // Hits have finite t, so the first one always wins against +inf.
+                        if h.t < best_t || (h.t == best_t && id < best_id) {
+                            (best_t, best_id) = (h.t, id);
+                            best = Some((h, k, lane));
                         }
                     }
                 }
@@ -180,7 +173,17 @@ impl Bvh {
             // t is exactly when its box test with the current bound would still pass.
             loop {
                 if depth == 0 {
-                    return best;
+                    return best.map(|(h, packet, lane)| {
+                        let p = &self.packets[packet];
+                        let index = p.first as usize + lane;
+                        ClosestHit {
+                            id: self.ids[index],
+                            t: h.t,
+                            b: h.b,
+                            corners: p.corners(lane),
+                            index: index as u32,
+                        }
+                    });
                 }
                 depth -= 1;
                 let e = stack[depth];

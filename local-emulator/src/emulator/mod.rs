@@ -43,7 +43,7 @@ pub struct EmulatorConfig {
     pub time_scale: f64,
     /// Per-task timeout override, seconds (default: derived from each task's work).
     pub task_timeout_seconds: Option<u32>,
-    /// Decoded split bytes a warm worker keeps.
+    /// Stored bytes of decoded splits all warm workers together may keep.
     pub split_cache_bytes: u64,
     /// Lambda memory and architecture the cost estimate assumes.
     pub memory_mb: u32,
@@ -128,7 +128,8 @@ pub fn run_job(
         Arc::clone(&store),
         &storage.bucket,
         work_dir,
-        config.split_cache_bytes,
+        // The budget is for the whole emulator: each warm worker gets its share.
+        config.split_cache_bytes / config.workers.max(1) as u64,
     ));
     let finished = Arc::new(AtomicBool::new(false));
     let (invoker, fault_counts): (Arc<dyn TaskInvoker>, _) = if config.faults.any() {
