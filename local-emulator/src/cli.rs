@@ -18,7 +18,7 @@ pub struct Cli {
 #[derive(Subcommand)]
 pub enum Command {
     /// Render an OBJ file or a JSON scene manifest.
-    Render(RenderArgs),
+    Render(Box<RenderArgs>),
     /// Scene tools.
     Scene {
         #[command(subcommand)]

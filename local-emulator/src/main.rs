@@ -31,7 +31,7 @@ impl bench::MemoryMeter for AllocationMeter {
 fn main() -> std::process::ExitCode {
     let cli = cli::Cli::parse();
     let result = match cli.command {
-        cli::Command::Render(args) => render_cmd::run(args),
+        cli::Command::Render(args) => render_cmd::run(*args),
         cli::Command::Scene {
             command: cli::SceneCommand::Generate(args),
         } => scene_cmd::generate(args),

@@ -122,8 +122,8 @@ impl Collapse<'_> {
                 for chunk in (start..end).step_by(4) {
                     let lanes = (end - chunk).min(4);
                     let mut v = [[[0.0f32; 4]; 3]; 3];
-                    for lane in 0..lanes {
-                        for (corner, p) in self.triangles[chunk + lane].iter().enumerate() {
+                    for (lane, t) in self.triangles[chunk..chunk + lanes].iter().enumerate() {
+                        for (corner, p) in t.iter().enumerate() {
                             for axis in 0..3 {
                                 v[corner][axis][lane] = p[axis];
                             }

@@ -3,8 +3,11 @@
 //! operations in the same order as the scalar code (no FMA, comparisons and selects instead of
 //! min/max), so results are the same bits on every machine:
 //! - [`BoxTester::test`] is [`SlabRay::entry`](super::traverse) on each child box;
-//! - [`triangle_candidates`] rejects only lanes that [`crate::triangle::intersect`] rejects;
-//!   the survivors go through `intersect` itself, which alone decides hits and t.
+//! - [`triangle_candidates`] (shadow rays) rejects only lanes that
+//!   [`crate::triangle::intersect`] rejects; the survivors go through `intersect` itself;
+//! - [`triangle_hits`] (closest hit) gives `intersect`'s exact t and barycentrics wherever the
+//!   scalar test takes no other path (no edge function exactly 0, no NaN input), and leaves
+//!   the other lanes to `intersect`.
 
 use super::node4::{Node4, Packet};
 use crate::triangle::{Ray, RayPrep, gamma};
@@ -52,7 +55,7 @@ impl BoxTester {
     }
 }
 
-/// Per-ray constants of the 4-wide triangle pre-test: the permuted origin and the shear.
+/// Per-ray constants of the 4-wide triangle tests: the permuted origin and the shear.
 pub(super) struct TriangleTester {
     axes: [usize; 3],
     origin: [f32x4; 3],
@@ -70,18 +73,28 @@ impl TriangleTester {
     }
 }
 
-/// Lanes of `p` (bit i = lane i, only lanes < `p.lanes`) for which `intersect(prep, .., t_max)`
-/// may hit with `t <= t_max` (`inclusive`) or `t < t_max`. A lane is dropped only when the
-/// scalar test computes the same edge functions and rejects it: mixed signs with none zero,
-/// zero or wrongly signed determinant, t beyond `t_max`, or (not `inclusive`) t within its
-/// rounding error of 0.
+/// The watertight test's intermediate values for 4 triangles, computed exactly as
+/// [`crate::triangle::intersect`] computes them (before its f64 fallback).
+struct Edges {
+    x: [f32x4; 3],
+    y: [f32x4; 3],
+    zs: [f32x4; 3],
+    u: f32x4,
+    v: f32x4,
+    w: f32x4,
+    inv_det: f32x4,
+    t: f32x4,
+    /// Lanes with an edge function exactly 0 (the scalar test recomputes them in f64).
+    any_zero: f32x4,
+    /// Lanes the scalar test rejects before its error bound: mixed edge signs, zero or
+    /// non-finite determinant, t of the wrong sign, NaN or infinite t. Valid where !any_zero.
+    rejected: f32x4,
+    /// Lanes where no input of the error bound is NaN, so 4-wide maxima equal `f32::max`.
+    clean: f32x4,
+}
+
 #[inline(always)]
-pub(super) fn triangle_candidates(
-    r: &TriangleTester,
-    p: &Packet,
-    t_max: f32,
-    inclusive: bool,
-) -> u32 {
+fn edges(r: &TriangleTester, p: &Packet) -> Edges {
     let [kx, ky, kz] = r.axes;
     let [ox, oy, oz] = r.origin;
     let [sx, sy, sz] = r.shear;
@@ -107,42 +120,93 @@ pub(super) fn triangle_candidates(
     let t_scaled = u * zs0 + v * zs1 + w * zs2;
     let inv_det = f32x4::ONE / det;
     let t = t_scaled * inv_det;
-    let t_max = f32x4::splat(t_max);
-    // The scalar test rejects a NaN t too.
-    let beyond = if inclusive {
-        !t.simd_le(t_max)
-    } else {
-        !t.simd_lt(t_max)
-    };
+    let inf = f32x4::splat(f32::INFINITY);
+    let det_bad = det.simd_eq(zero) | !det.abs().simd_lt(inf);
     let wrong_side = det.simd_lt(zero) ^ t_scaled.simd_lt(zero);
-    let reject = (any_neg & any_pos) | det.simd_eq(zero) | wrong_side | beyond;
-    // With an edge function exactly zero the scalar test recomputes them in f64: keep the lane.
-    let lanes = (1u32 << p.lanes) - 1;
-    let keep = !(reject & !any_zero).to_bitmask() & lanes;
-    // Closest-hit survivors are mostly real hits; shadow rays meet the triangle they start
-    // on, which only the next test rejects.
-    if keep == 0 || inclusive {
-        return keep;
+    let rejected = (any_neg & any_pos) | det_bad | wrong_side | !t.simd_lt(inf);
+    let sum = ax + ay + bx + by + cx + cy + zs0 + zs1 + zs2 + u + v + w;
+    Edges {
+        x: [ax, bx, cx],
+        y: [ay, by, cy],
+        zs: [zs0, zs1, zs2],
+        u,
+        v,
+        w,
+        inv_det,
+        t,
+        any_zero,
+        rejected,
+        clean: sum.simd_eq(sum),
     }
-    // The conservative t > 0 test (pbrt-v4 6.8.6), in the scalar order of operations. The
-    // maxima are of non-negative values, where `select(a > b, a, b)` equals `f32::max` unless a
-    // NaN is involved; then `t <= delta_t` is false and the lane is kept.
+}
+
+/// Lanes the scalar test rejects by its conservative t > 0 bound (pbrt-v4 6.8.6), computed in
+/// its order of operations. Only `clean` lanes are claimed: there the maxima are of
+/// non-negative non-NaN values, where `select(a > b, a, b)` equals `f32::max`.
+#[inline(always)]
+fn too_close(e: &Edges) -> f32x4 {
     let max = |a: f32x4, b: f32x4| a.simd_gt(b).select(a, b);
-    let max_zt = max(max(zs0.abs(), zs1.abs()), zs2.abs());
-    let max_xt = max(max(ax.abs(), bx.abs()), cx.abs());
-    let max_yt = max(max(ay.abs(), by.abs()), cy.abs());
+    let max3 = |[a, b, c]: [f32x4; 3]| max(max(a.abs(), b.abs()), c.abs());
+    let max_zt = max3(e.zs);
+    let max_xt = max3(e.x);
+    let max_yt = max3(e.y);
     let g = |n: f32| f32x4::splat(gamma(n));
     let delta_z = g(3.0) * max_zt;
     let delta_x = g(5.0) * (max_xt + max_zt);
     let delta_y = g(5.0) * (max_yt + max_zt);
     let delta_e =
         f32x4::splat(2.0) * (g(2.0) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
-    let max_e = max(max(u.abs(), v.abs()), w.abs());
+    let max_e = max3([e.u, e.v, e.w]);
     let delta_t = f32x4::splat(3.0)
         * (g(3.0) * max_e * max_zt + delta_e * max_zt + delta_z * max_e)
-        * inv_det.abs();
-    let too_close = (t.simd_le(delta_t) & !any_zero).to_bitmask();
-    keep & !too_close
+        * e.inv_det.abs();
+    e.t.simd_le(delta_t) & e.clean
+}
+
+/// Lanes of `p` (bit i = lane i, only lanes < `p.lanes`) for which `intersect(prep, .., t_max)`
+/// may hit (`t < t_max`). A lane is dropped only when the scalar test computes the same values
+/// and rejects it.
+#[inline(always)]
+pub(super) fn triangle_candidates(r: &TriangleTester, p: &Packet, t_max: f32) -> u32 {
+    let e = edges(r, p);
+    let lanes = (1u32 << p.lanes) - 1;
+    let reject = e.rejected | !e.t.simd_lt(f32x4::splat(t_max));
+    let keep = !(reject & !e.any_zero).to_bitmask() & lanes;
+    // Shadow rays meet the triangle they start on, which only the error bound rejects.
+    if keep == 0 {
+        return 0;
+    }
+    keep & !(too_close(&e) & !e.any_zero).to_bitmask()
+}
+
+/// The 4-wide closest-hit test of one packet against `intersect(prep, .., +inf)`.
+pub(super) struct PacketHits {
+    /// Lanes whose scalar result is a hit with exactly `t[lane]` and barycentrics
+    /// `b[..][lane]`, with t <= the `t_max` given (farther hits are left out).
+    pub exact: u32,
+    /// Lanes only the scalar test can decide (an edge function is 0, or a NaN input).
+    pub scalar: u32,
+    pub t: [f32; 4],
+    pub b: [[f32; 4]; 3],
+}
+
+#[inline(always)]
+pub(super) fn triangle_hits(r: &TriangleTester, p: &Packet, t_max: f32) -> PacketHits {
+    let e = edges(r, p);
+    let lanes = (1u32 << p.lanes) - 1;
+    let unsure = e.any_zero | !e.clean;
+    let scalar = unsure.to_bitmask() & lanes;
+    let miss = e.rejected | !e.t.simd_le(f32x4::splat(t_max));
+    let mut exact = !(miss | unsure).to_bitmask() & lanes;
+    if exact != 0 {
+        exact &= !too_close(&e).to_bitmask();
+    }
+    PacketHits {
+        exact,
+        scalar,
+        t: e.t.to_array(),
+        b: [e.u, e.v, e.w].map(|x| (x * e.inv_det).to_array()),
+    }
 }
 
 #[cfg(test)]
@@ -194,17 +258,19 @@ mod tests {
         }
     }
 
-    /// The 4-wide pre-test never drops a lane the scalar test hits: 4 million ray/triangle
+    /// The 4-wide shadow pre-test never drops a lane the scalar test hits, and the 4-wide
+    /// closest-hit test gives the scalar test's exact bits on every lane it decides: 4 million
+    /// ray/triangle
     /// pairs, random and degenerate (shared vertices, axis-parallel rays, signed zeros, huge and
     /// tiny coordinates, origins on vertices and on triangles).
     #[test]
-    fn packet_pretest_keeps_every_scalar_hit() {
+    fn packet_tests_agree_with_the_scalar_test() {
         let mut rng = Rng(42);
-        let mut hits = 0;
+        let (mut hits, mut exact_hits) = (0, 0);
         for _ in 0..1_000_000 {
             let shared = rng.vec();
             let tris: [[Vec3; 3]; 4] = std::array::from_fn(|_| {
-                let a = if rng.next() % 4 == 0 {
+                let a = if rng.next().is_multiple_of(4) {
                     shared
                 } else {
                     rng.vec()
@@ -233,20 +299,29 @@ mod tests {
             let tester = TriangleTester::new(&prep);
             let p = packet(&tris);
             let t_max = [f32::INFINITY, rng.unit() * 4.0][(rng.next() % 2) as usize];
-            let exclusive = triangle_candidates(&tester, &p, t_max, false);
-            let inclusive = triangle_candidates(&tester, &p, t_max, true);
+            let candidates = triangle_candidates(&tester, &p, t_max);
+            let exact = triangle_hits(&tester, &p, t_max);
+            assert_eq!(exact.exact & exact.scalar, 0);
+            exact_hits += exact.exact.count_ones();
             for (lane, [p0, p1, p2]) in tris.iter().enumerate() {
+                let bit = 1 << lane;
                 if intersect(&prep, *p0, *p1, *p2, t_max).is_some() {
                     hits += 1;
-                    assert!(exclusive & (1 << lane) != 0, "{ray:?} {:?}", tris[lane]);
+                    assert!(candidates & bit != 0, "{ray:?} {:?}", tris[lane]);
                 }
-                if let Some(h) = intersect(&prep, *p0, *p1, *p2, f32::INFINITY)
-                    && h.t <= t_max
-                {
-                    assert!(inclusive & (1 << lane) != 0, "{ray:?} {:?}", tris[lane]);
+                let scalar = intersect(&prep, *p0, *p1, *p2, f32::INFINITY);
+                if exact.scalar & bit != 0 {
+                    continue;
                 }
+                let wide = (exact.exact & bit != 0)
+                    .then(|| (exact.t[lane].to_bits(), exact.b.map(|b| b[lane].to_bits())));
+                let expected = scalar
+                    .filter(|h| h.t <= t_max)
+                    .map(|h| (h.t.to_bits(), h.b.map(f32::to_bits)));
+                assert_eq!(wide, expected, "{ray:?} {:?}", tris[lane]);
             }
         }
         assert!(hits > 100_000, "the test should exercise hits ({hits})");
+        assert!(exact_hits > 100_000, "and 4-wide exact hits ({exact_hits})");
     }
 }

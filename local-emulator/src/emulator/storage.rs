@@ -54,8 +54,13 @@ impl Storage {
                 let (dir, temp) = match data_dir {
                     Some(d) => (d.clone(), None),
                     None => {
-                        let d =
-                            std::env::temp_dir().join(format!("hort-s3-{}", std::process::id()));
+                        // Unique per run: several runs may share a process (benches, tests).
+                        static RUN: AtomicU64 = AtomicU64::new(0);
+                        let d = std::env::temp_dir().join(format!(
+                            "hort-s3-{}-{}",
+                            std::process::id(),
+                            RUN.fetch_add(1, Ordering::Relaxed)
+                        ));
                         (d.clone(), Some(TempDir(d)))
                     }
                 };
