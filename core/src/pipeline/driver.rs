@@ -94,10 +94,14 @@ pub fn run_pipeline(
     }];
     let mut metrics = vec![TaskMetrics::default()];
     let render_start = Instant::now();
+    // One cache per worker for the whole job, like a warm container serving task after task.
+    let caches: Vec<SplitCache> = (0..options.workers.max(1))
+        .map(|_| SplitCache::new(options.split_cache_bytes))
+        .collect();
     for stage in TASK_STAGES {
         let stage_start = Instant::now();
         let tasks = task_count(&plan, stage);
-        let m = run_stage(store, job, &plan, stage, tasks, options)?;
+        let m = run_stage(store, job, &plan, stage, tasks, &caches)?;
         stages.push(StageReport {
             name: stage.to_string(),
             tasks: tasks as u64,
@@ -129,30 +133,28 @@ pub fn run_pipeline(
     })
 }
 
-/// Runs tasks `0..tasks` of `stage` on `workers` threads; the first error stops the stage.
+/// Runs tasks `0..tasks` of `stage` on one thread per cache; the first error stops the stage.
 fn run_stage(
     store: &dyn BlobStore,
     job: &JobId,
     plan: &JobPlan,
     stage: Stage,
     tasks: usize,
-    options: &PipelineOptions,
+    caches: &[SplitCache],
 ) -> Result<TaskMetrics, PipelineError> {
-    let workers = options.workers.max(1);
     let next = AtomicUsize::new(0);
     let failed = AtomicBool::new(false);
     let total = Mutex::new(TaskMetrics::default());
     let first_error: Mutex<Option<PipelineError>> = Mutex::new(None);
     std::thread::scope(|scope| {
-        for _ in 0..workers.min(tasks) {
+        for cache in caches.iter().take(tasks) {
             scope.spawn(|| {
-                let cache = SplitCache::new(options.split_cache_bytes);
                 while !failed.load(Ordering::Relaxed) {
                     let task = next.fetch_add(1, Ordering::Relaxed);
                     if task >= tasks {
                         break;
                     }
-                    match run_task_cached(store, job, plan, stage, task as u32, &cache) {
+                    match run_task_cached(store, job, plan, stage, task as u32, cache) {
                         Ok(m) => *total.lock().unwrap_or_else(|e| e.into_inner()) += m,
                         Err(e) => {
                             failed.store(true, Ordering::Relaxed);
