@@ -1,1 +1,37 @@
-//! End-to-end test support (tests live in `tests/tests/`).
+//! Shared helpers of the end-to-end tests in `tests/tests/`: bundled scenes, the monolithic
+//! reference render, and bit-exact views of images and hit buffers.
+
+use hort_core::hits::Hit;
+use hort_core::render::{RenderOutput, RenderSettings, build_scene_bvh, render};
+use hort_core::scene::load_scene;
+use std::path::PathBuf;
+
+/// The path of a bundled scene, e.g. `scene_path("bunny/bunny.json")`.
+pub fn scene_path(rel: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../scenes")
+        .join(rel)
+}
+
+/// The monolithic render of a bundled scene: the reference every pipeline run must equal.
+pub fn monolithic(rel: &str, width: u32, height: u32, spp: u32) -> RenderOutput {
+    let scene = load_scene(&scene_path(rel)).expect("bundled scene");
+    let bvh = build_scene_bvh(&scene.mesh);
+    let settings = RenderSettings {
+        width,
+        height,
+        spp,
+        threads: 2,
+    };
+    render(&scene, &bvh, settings).expect("monolithic render")
+}
+
+/// Every channel of every pixel as its f32 bit pattern.
+pub fn pixel_bits(pixels: &[[f32; 3]]) -> Vec<u32> {
+    pixels.iter().flatten().map(|v| v.to_bits()).collect()
+}
+
+/// Every hit as (triangle, t bit pattern).
+pub fn hit_bits(hits: &[Hit]) -> Vec<(u32, u32)> {
+    hits.iter().map(|h| (h.triangle, h.t.to_bits())).collect()
+}

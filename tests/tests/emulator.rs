@@ -5,43 +5,23 @@
 mod s3_support;
 
 use hort_core::cost::Arch;
-use hort_core::hits::Hit;
 use hort_core::pipeline::{PlanRequest, SplitMode};
-use hort_core::render::{RenderOutput, RenderSettings, build_scene_bvh, render};
-use hort_core::scene::load_scene;
+use hort_core::render::RenderOutput;
 use hort_core::store::BlobStore;
 use hort_functions::S3Credentials;
 use hort_local_emulator::emulator::{
     EmulatorConfig, EmulatorRun, FaultSettings, StorageTarget, run_job,
 };
 use hort_local_emulator::orchestrator::{Event, NoObserver, Observer};
-use std::path::PathBuf;
+use hort_tests::{hit_bits, pixel_bits, scene_path};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 const W: u32 = 64;
 const H: u32 = 48;
 
-fn scene_path(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../scenes")
-        .join(rel)
-}
-
 fn monolithic(rel: &str, spp: u32) -> RenderOutput {
-    let scene = load_scene(&scene_path(rel)).unwrap();
-    let bvh = build_scene_bvh(&scene.mesh);
-    render(
-        &scene,
-        &bvh,
-        RenderSettings {
-            width: W,
-            height: H,
-            spp,
-            threads: 2,
-        },
-    )
-    .unwrap()
+    hort_tests::monolithic(rel, W, H, spp)
 }
 
 fn config(server: &s3_support::Embedded, workers: usize, faults: FaultSettings) -> EmulatorConfig {
@@ -78,18 +58,10 @@ fn settings(spp: u32, k: u32, s: u32, mode: SplitMode) -> PlanRequest {
     }
 }
 
-fn bits(image: &[[f32; 3]]) -> Vec<u32> {
-    image.iter().flatten().map(|v| v.to_bits()).collect()
-}
-
-fn hit_bits(hits: &[Hit]) -> Vec<(u32, u32)> {
-    hits.iter().map(|h| (h.triangle, h.t.to_bits())).collect()
-}
-
 fn assert_same(run: &EmulatorRun, mono: &RenderOutput, what: &str) {
     assert_eq!(
-        bits(&run.image.pixels),
-        bits(&mono.image.pixels),
+        pixel_bits(&run.image.pixels),
+        pixel_bits(&mono.image.pixels),
         "image differs: {what}"
     );
     assert_eq!(

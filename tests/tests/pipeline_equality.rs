@@ -5,47 +5,22 @@ use hort_core::ids::{JobId, Stage};
 use hort_core::pipeline::{
     PipelineOptions, PipelineRun, PlanRequest, SplitMode, run_pipeline, task_count,
 };
-use hort_core::render::{RenderSettings, build_scene_bvh, render};
 use hort_core::scene::{Scene, load_scene};
 use hort_core::store::{BlobStore, MemoryStore};
-use std::path::Path;
+use hort_tests::{hit_bits, pixel_bits, scene_path};
 
 const W: u32 = 64;
 const H: u32 = 48;
 
 fn scene(rel: &str) -> Scene {
-    load_scene(
-        &Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../scenes")
-            .join(rel),
-    )
-    .expect("bundled scene")
-}
-
-fn bits(pixels: &[[f32; 3]]) -> Vec<u32> {
-    pixels.iter().flatten().map(|v| v.to_bits()).collect()
-}
-
-fn hit_bits(hits: &[hort_core::hits::Hit]) -> Vec<(u32, u32)> {
-    hits.iter().map(|h| (h.triangle, h.t.to_bits())).collect()
+    load_scene(&scene_path(rel)).expect("bundled scene")
 }
 
 fn check_scene(rel: &str, spps: &[u32]) {
     let scene = scene(rel);
-    let bvh = build_scene_bvh(&scene.mesh);
     for &spp in spps {
-        let mono = render(
-            &scene,
-            &bvh,
-            RenderSettings {
-                width: W,
-                height: H,
-                spp,
-                threads: 2,
-            },
-        )
-        .unwrap();
-        let mono_bits = bits(&mono.image.pixels);
+        let mono = hort_tests::monolithic(rel, W, H, spp);
+        let mono_bits = pixel_bits(&mono.image.pixels);
         assert!(
             mono_bits.iter().any(|&b| b != 0),
             "{rel}: the render must not be black"
@@ -71,7 +46,11 @@ fn check_scene(rel: &str, spps: &[u32]) {
                     let run = run_pipeline(&store, &scene, request, &options)
                         .unwrap_or_else(|e| panic!("{rel} k={k} s={s} {mode:?}: {e}"));
                     let what = format!("{rel} spp={spp} {mode:?} k={k} s={s} workers={workers}");
-                    assert_eq!(bits(&run.image.pixels), mono_bits, "image differs: {what}");
+                    assert_eq!(
+                        pixel_bits(&run.image.pixels),
+                        mono_bits,
+                        "image differs: {what}"
+                    );
                     assert_eq!(
                         hit_bits(&run.hits),
                         hit_bits(&mono.hits),

@@ -215,31 +215,20 @@ mod tests {
     use crate::triangle::intersect;
     use glam::Vec3;
 
-    /// splitmix64, for reproducible test data.
-    struct Rng(u64);
-    impl Rng {
-        fn next(&mut self) -> u64 {
-            self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-            z ^ (z >> 31)
+    use crate::bvh::tests::Rng;
+
+    /// Mostly ordinary values, often exact grid values, zeros of both signs, extremes.
+    fn coord(rng: &mut Rng) -> f32 {
+        const SPECIAL: [f32; 10] = [0.0, -0.0, 1.0, -1.0, 0.5, 2.0, 1e-30, -1e-30, 1e30, -1e30];
+        match rng.next() % 8 {
+            0 => SPECIAL[(rng.next() % 10) as usize],
+            1 => (rng.next() % 5) as f32 - 2.0,
+            _ => rng.unit() * 4.0 - 2.0,
         }
-        fn unit(&mut self) -> f32 {
-            (self.next() >> 40) as f32 / (1u64 << 24) as f32
-        }
-        /// Mostly ordinary values, often exact grid values, zeros of both signs, extremes.
-        fn coord(&mut self) -> f32 {
-            const SPECIAL: [f32; 10] = [0.0, -0.0, 1.0, -1.0, 0.5, 2.0, 1e-30, -1e-30, 1e30, -1e30];
-            match self.next() % 8 {
-                0 => SPECIAL[(self.next() % 10) as usize],
-                1 => (self.next() % 5) as f32 - 2.0,
-                _ => self.unit() * 4.0 - 2.0,
-            }
-        }
-        fn vec(&mut self) -> Vec3 {
-            Vec3::new(self.coord(), self.coord(), self.coord())
-        }
+    }
+
+    fn any_vec(rng: &mut Rng) -> Vec3 {
+        Vec3::new(coord(rng), coord(rng), coord(rng))
     }
 
     fn packet(tris: &[[Vec3; 3]; 4]) -> Packet {
@@ -268,14 +257,14 @@ mod tests {
         let mut rng = Rng(42);
         let (mut hits, mut exact_hits) = (0, 0);
         for _ in 0..1_000_000 {
-            let shared = rng.vec();
+            let shared = any_vec(&mut rng);
             let tris: [[Vec3; 3]; 4] = std::array::from_fn(|_| {
                 let a = if rng.next().is_multiple_of(4) {
                     shared
                 } else {
-                    rng.vec()
+                    any_vec(&mut rng)
                 };
-                [a, rng.vec(), rng.vec()]
+                [a, any_vec(&mut rng), any_vec(&mut rng)]
             });
             let origin = match rng.next() % 4 {
                 0 => tris[(rng.next() % 4) as usize][(rng.next() % 3) as usize],
@@ -285,10 +274,10 @@ mod tests {
                     let (b1, b2) = (rng.unit() * 0.5, rng.unit() * 0.5);
                     p0 * (1.0 - b1 - b2) + p1 * b1 + p2 * b2
                 }
-                _ => rng.vec() * 3.0,
+                _ => any_vec(&mut rng) * 3.0,
             };
             let dir = match rng.next() % 3 {
-                0 => rng.vec(),
+                0 => any_vec(&mut rng),
                 _ => tris[(rng.next() % 4) as usize][(rng.next() % 3) as usize] - origin,
             };
             if dir == Vec3::ZERO || !dir.is_finite() {

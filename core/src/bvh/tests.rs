@@ -3,17 +3,17 @@
 use super::*;
 use crate::triangle::{Ray, RayPrep, intersect};
 
-/// splitmix64, for reproducible test data.
-struct Rng(u64);
+/// splitmix64, for reproducible test data (shared by the BVH's test modules).
+pub(crate) struct Rng(pub(crate) u64);
 impl Rng {
-    fn next(&mut self) -> u64 {
+    pub(crate) fn next(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
         let mut z = self.0;
         z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
         z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
         z ^ (z >> 31)
     }
-    fn unit(&mut self) -> f32 {
+    pub(crate) fn unit(&mut self) -> f32 {
         (self.next() >> 40) as f32 / (1u64 << 24) as f32
     }
     fn vec(&mut self, lo: f32, hi: f32) -> Vec3 {
