@@ -124,7 +124,7 @@ fn run_in_memory(rel: &str, spp: u32, k: u32, s: u32) -> (MemoryStore, PipelineR
 fn every_task_run_twice_writes_identical_bytes() {
     let (store, run, job) = run_in_memory("cornell/cornell.json", 2, 3, 5);
     let before = snapshot(&store);
-    for stage in hort_core::pipeline::TASK_STAGES {
+    for &stage in hort_core::pipeline::TASK_STAGES {
         for task in 0..task_count(&run.plan, stage) {
             hort_core::pipeline::run_task(&store, &job, &run.plan, stage, task as u32).unwrap();
         }

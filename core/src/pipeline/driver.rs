@@ -17,15 +17,8 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::Instant;
 
-/// The stages run after planning, in order.
-pub const TASK_STAGES: [Stage; 6] = [
-    Stage::CastMap,
-    Stage::CastReduce,
-    Stage::Expand,
-    Stage::TraceMap,
-    Stage::TraceReduce,
-    Stage::Combine,
-];
+/// The stages run as tasks after planning (every stage but `Split`), in order.
+pub const TASK_STAGES: &[Stage] = Stage::ALL.split_at(1).1;
 
 /// How to run a job in process.
 #[derive(Clone, Debug)]
@@ -98,7 +91,7 @@ pub fn run_pipeline(
     let caches: Vec<SplitCache> = (0..options.workers.max(1))
         .map(|_| SplitCache::new(options.split_cache_bytes))
         .collect();
-    for stage in TASK_STAGES {
+    for &stage in TASK_STAGES {
         let stage_start = Instant::now();
         let tasks = task_count(&plan, stage);
         let m = run_stage(store, job, &plan, stage, tasks, &caches)?;

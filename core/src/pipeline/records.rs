@@ -113,7 +113,7 @@ pub fn decode_surface_hits(
     key: &str,
     bytes: &[u8],
     kind: RecordKind,
-) -> Result<(Vec<SurfaceHit>, u64), PipelineError> {
+) -> Result<Vec<SurfaceHit>, PipelineError> {
     let block =
         decode_block(key, bytes, kind).map_err(|e| PipelineError::Corrupt(e.to_string()))?;
     let mut r = ColumnReader::new(&block.raw);
@@ -165,76 +165,85 @@ pub fn decode_surface_hits(
             },
         })
         .collect();
-    Ok((hits, block.raw.len() as u64))
+    Ok(hits)
 }
 
-/// Encodes shadow queries (sorted by (pixel, sample, light)).
-pub fn encode_queries(queries: &[ShadowQuery]) -> Vec<u8> {
-    let mut w = ColumnWriter::new();
-    w.put_u32_sorted_delta(&queries.iter().map(|q| q.pixel).collect::<Vec<_>>());
-    w.put_u32(&queries.iter().map(|q| q.sample).collect::<Vec<_>>());
-    w.put_u32(&queries.iter().map(|q| q.light).collect::<Vec<_>>());
-    put_vec3s(&mut w, queries.iter().map(|q| q.origin));
-    encode_block(RecordKind::ShadowQuery, queries.len() as u64, w.as_bytes())
+/// Writes (pixel, sample, light) keys sorted by pixel as three columns.
+fn put_keys(w: &mut ColumnWriter, keys: impl Iterator<Item = Occluded> + Clone) {
+    w.put_u32_sorted_delta(&keys.clone().map(|k| k.pixel).collect::<Vec<_>>());
+    w.put_u32(&keys.clone().map(|k| k.sample).collect::<Vec<_>>());
+    w.put_u32(&keys.map(|k| k.light).collect::<Vec<_>>());
 }
 
-/// Decodes a block written by [`encode_queries`].
-pub fn decode_queries(key: &str, bytes: &[u8]) -> Result<(Vec<ShadowQuery>, u64), PipelineError> {
-    let block = decode_block(key, bytes, RecordKind::ShadowQuery)
-        .map_err(|e| PipelineError::Corrupt(e.to_string()))?;
-    let mut r = ColumnReader::new(&block.raw);
+/// Reads the columns of [`put_keys`]; there must be `count` keys.
+fn read_keys(r: &mut ColumnReader, key: &str, count: u64) -> Result<Vec<Occluded>, PipelineError> {
     let c = |e| corrupt(key, e);
     let pixels = r.read_u32_sorted_delta().map_err(c)?;
     let n = pixels.len();
-    check_len(key, "pixel", n, block.record_count as usize)?;
+    check_len(key, "pixel", n, count as usize)?;
     let samples = r.read_u32().map_err(c)?;
     let lights = r.read_u32().map_err(c)?;
     check_len(key, "sample", samples.len(), n)?;
     check_len(key, "light", lights.len(), n)?;
-    let origins = read_vec3s(&mut r, n, key)?;
-    r.finish().map_err(c)?;
-    let queries = (0..n)
-        .map(|i| ShadowQuery {
-            pixel: pixels[i],
-            sample: samples[i],
-            light: lights[i],
-            origin: origins[i],
-        })
-        .collect();
-    Ok((queries, block.raw.len() as u64))
-}
-
-/// Encodes occluded keys (sorted).
-pub fn encode_occluded(keys: &[Occluded]) -> Vec<u8> {
-    let mut w = ColumnWriter::new();
-    w.put_u32_sorted_delta(&keys.iter().map(|k| k.pixel).collect::<Vec<_>>());
-    w.put_u32(&keys.iter().map(|k| k.sample).collect::<Vec<_>>());
-    w.put_u32(&keys.iter().map(|k| k.light).collect::<Vec<_>>());
-    encode_block(RecordKind::ShadowResult, keys.len() as u64, w.as_bytes())
-}
-
-/// Decodes a block written by [`encode_occluded`].
-pub fn decode_occluded(key: &str, bytes: &[u8]) -> Result<(Vec<Occluded>, u64), PipelineError> {
-    let block = decode_block(key, bytes, RecordKind::ShadowResult)
-        .map_err(|e| PipelineError::Corrupt(e.to_string()))?;
-    let mut r = ColumnReader::new(&block.raw);
-    let c = |e| corrupt(key, e);
-    let pixels = r.read_u32_sorted_delta().map_err(c)?;
-    let n = pixels.len();
-    check_len(key, "pixel", n, block.record_count as usize)?;
-    let samples = r.read_u32().map_err(c)?;
-    let lights = r.read_u32().map_err(c)?;
-    check_len(key, "sample", samples.len(), n)?;
-    check_len(key, "light", lights.len(), n)?;
-    r.finish().map_err(c)?;
-    let keys = (0..n)
+    Ok((0..n)
         .map(|i| Occluded {
             pixel: pixels[i],
             sample: samples[i],
             light: lights[i],
         })
-        .collect();
-    Ok((keys, block.raw.len() as u64))
+        .collect())
+}
+
+/// Encodes shadow queries (sorted by (pixel, sample, light)).
+pub fn encode_queries(queries: &[ShadowQuery]) -> Vec<u8> {
+    let mut w = ColumnWriter::new();
+    put_keys(
+        &mut w,
+        queries.iter().map(|q| Occluded {
+            pixel: q.pixel,
+            sample: q.sample,
+            light: q.light,
+        }),
+    );
+    put_vec3s(&mut w, queries.iter().map(|q| q.origin));
+    encode_block(RecordKind::ShadowQuery, queries.len() as u64, w.as_bytes())
+}
+
+/// Decodes a block written by [`encode_queries`].
+pub fn decode_queries(key: &str, bytes: &[u8]) -> Result<Vec<ShadowQuery>, PipelineError> {
+    let block = decode_block(key, bytes, RecordKind::ShadowQuery)
+        .map_err(|e| PipelineError::Corrupt(e.to_string()))?;
+    let mut r = ColumnReader::new(&block.raw);
+    let keys = read_keys(&mut r, key, block.record_count)?;
+    let origins = read_vec3s(&mut r, keys.len(), key)?;
+    r.finish().map_err(|e| corrupt(key, e))?;
+    Ok(keys
+        .into_iter()
+        .zip(origins)
+        .map(|(k, origin)| ShadowQuery {
+            pixel: k.pixel,
+            sample: k.sample,
+            light: k.light,
+            origin,
+        })
+        .collect())
+}
+
+/// Encodes occluded keys (sorted).
+pub fn encode_occluded(keys: &[Occluded]) -> Vec<u8> {
+    let mut w = ColumnWriter::new();
+    put_keys(&mut w, keys.iter().copied());
+    encode_block(RecordKind::ShadowResult, keys.len() as u64, w.as_bytes())
+}
+
+/// Decodes a block written by [`encode_occluded`].
+pub fn decode_occluded(key: &str, bytes: &[u8]) -> Result<Vec<Occluded>, PipelineError> {
+    let block = decode_block(key, bytes, RecordKind::ShadowResult)
+        .map_err(|e| PipelineError::Corrupt(e.to_string()))?;
+    let mut r = ColumnReader::new(&block.raw);
+    let keys = read_keys(&mut r, key, block.record_count)?;
+    r.finish().map_err(|e| corrupt(key, e))?;
+    Ok(keys)
 }
 
 /// Encodes a span's pixels.
@@ -252,7 +261,7 @@ pub fn encode_pixels(block: &PixelBlock) -> Vec<u8> {
 }
 
 /// Decodes a block written by [`encode_pixels`].
-pub fn decode_pixels(key: &str, bytes: &[u8]) -> Result<(PixelBlock, u64), PipelineError> {
+pub fn decode_pixels(key: &str, bytes: &[u8]) -> Result<PixelBlock, PipelineError> {
     let block = decode_block(key, bytes, RecordKind::PixelColor)
         .map_err(|e| PipelineError::Corrupt(e.to_string()))?;
     let mut r = ColumnReader::new(&block.raw);
@@ -266,15 +275,12 @@ pub fn decode_pixels(key: &str, bytes: &[u8]) -> Result<(PixelBlock, u64), Pipel
     check_len(key, "triangle", triangles.len(), n)?;
     check_len(key, "t", ts.len(), n)?;
     r.finish().map_err(c)?;
-    Ok((
-        PixelBlock {
-            start: (u64::from(start[0]) << 32) | u64::from(start[1]),
-            colours: colours.into_iter().map(|v| v.to_array()).collect(),
-            triangles,
-            ts,
-        },
-        block.raw.len() as u64,
-    ))
+    Ok(PixelBlock {
+        start: (u64::from(start[0]) << 32) | u64::from(start[1]),
+        colours: colours.into_iter().map(|v| v.to_array()).collect(),
+        triangles,
+        ts,
+    })
 }
 
 #[cfg(test)]
@@ -305,7 +311,7 @@ mod tests {
             .collect();
         let bytes = encode_surface_hits(RecordKind::Hit, &hits);
         assert_eq!(
-            decode_surface_hits("k", &bytes, RecordKind::Hit).unwrap().0,
+            decode_surface_hits("k", &bytes, RecordKind::Hit).unwrap(),
             hits
         );
         let e = decode_surface_hits("k", &bytes, RecordKind::CastCandidate).unwrap_err();
@@ -320,7 +326,7 @@ mod tests {
             })
             .collect();
         assert_eq!(
-            decode_queries("k", &encode_queries(&queries)).unwrap().0,
+            decode_queries("k", &encode_queries(&queries)).unwrap(),
             queries
         );
 
@@ -332,7 +338,7 @@ mod tests {
             })
             .collect();
         assert_eq!(
-            decode_occluded("k", &encode_occluded(&occluded)).unwrap().0,
+            decode_occluded("k", &encode_occluded(&occluded)).unwrap(),
             occluded
         );
 
@@ -342,9 +348,6 @@ mod tests {
             triangles: vec![7, u32::MAX],
             ts: vec![2.5, f32::INFINITY],
         };
-        assert_eq!(
-            decode_pixels("k", &encode_pixels(&pixels)).unwrap().0,
-            pixels
-        );
+        assert_eq!(decode_pixels("k", &encode_pixels(&pixels)).unwrap(), pixels);
     }
 }

@@ -251,7 +251,7 @@ impl Task<'_> {
     fn read<T>(
         &mut self,
         key: &str,
-        decode: impl Fn(&str, &[u8]) -> Result<(T, u64), PipelineError>,
+        decode: impl Fn(&str, &[u8]) -> Result<T, PipelineError>,
     ) -> Result<T, PipelineError> {
         let first = self
             .store
@@ -266,15 +266,10 @@ impl Task<'_> {
             Err(PipelineError::Corrupt(_)) => true,
             _ => false,
         };
-        if !lost {
-            return first.map(|(value, _)| value);
-        }
-        let Some((stage, task)) = producer_of(key) else {
-            return first.map(|(value, _)| value);
+        // The chain of producers is at most the stage chain long.
+        let Some((stage, task)) = producer_of(key).filter(|_| lost && self.depth < 8) else {
+            return first;
         };
-        if self.depth >= 8 {
-            return first.map(|(value, _)| value);
-        }
         self.depth += 1;
         let result = self.run(stage, task);
         self.depth -= 1;
@@ -282,7 +277,7 @@ impl Task<'_> {
         self.metrics.recomputed += 1;
         let bytes = self.store.get(key)?;
         self.metrics.bytes_read += bytes.len() as u64;
-        decode(key, &bytes).map(|(value, _)| value)
+        decode(key, &bytes)
     }
 
     fn write_hits(

@@ -298,7 +298,7 @@ fn memory_table(
     drop(scene);
     // Map tasks, one at a time, each measured from its own start.
     let mut peaks: Vec<(Stage, usize)> = Vec::new();
-    for stage in hort_core::pipeline::TASK_STAGES {
+    for &stage in hort_core::pipeline::TASK_STAGES {
         for task in 0..task_count(&plan, stage) {
             let before = meter.current();
             meter.reset_peak();
@@ -323,7 +323,7 @@ fn memory_table(
         mb(splitter_peak),
         f3(splitter_peak as f64 / mono_peak as f64),
     ]);
-    for stage in hort_core::pipeline::TASK_STAGES {
+    for &stage in hort_core::pipeline::TASK_STAGES {
         let of_stage: Vec<usize> = peaks
             .iter()
             .filter(|(s, _)| *s == stage)
