@@ -22,6 +22,12 @@ pub struct Report {
     pub replication: Option<f64>,
     /// Estimated AWS cost of the render; null when it did not run as functions.
     pub cost_usd: Option<f64>,
+    /// Task attempts that failed and were retried (timeouts, injected or real faults).
+    #[serde(default)]
+    pub retried_attempts: u64,
+    /// Lost or corrupt blocks that tasks recomputed from their lineage.
+    #[serde(default)]
+    pub recomputed_blocks: u64,
 }
 
 /// Logical ray counts: one primary ray per sample, one shadow ray per hit sample and light.
@@ -92,6 +98,8 @@ mod tests {
             stages: vec![],
             replication: None,
             cost_usd: None,
+            retried_attempts: 2,
+            recomputed_blocks: 1,
         };
         let text = r.to_json();
         let v: serde_json::Value = serde_json::from_str(&text).unwrap();
@@ -110,6 +118,8 @@ mod tests {
         assert_eq!(v["rays"]["primary"], 3072);
         assert_eq!(v["seconds"]["render"], 0.25);
         assert!(v["replication"].is_null());
+        assert_eq!(v["retried_attempts"], 2);
+        assert_eq!(v["recomputed_blocks"], 1);
         let back: Report = serde_json::from_str(&text).unwrap();
         assert_eq!(back, r);
     }

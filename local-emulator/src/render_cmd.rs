@@ -31,6 +31,8 @@ struct Rendered {
     stages: Vec<StageReport>,
     replication: Option<f64>,
     cost_usd: Option<f64>,
+    retried_attempts: u64,
+    recomputed_blocks: u64,
 }
 
 pub fn run(args: RenderArgs) -> Result<()> {
@@ -94,6 +96,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
         stages: rendered.stages,
         replication: rendered.replication,
         cost_usd: rendered.cost_usd,
+        retried_attempts: rendered.retried_attempts,
+        recomputed_blocks: rendered.recomputed_blocks,
     };
     if let Some(path) = &args.report {
         write_file(path, report.to_json().as_bytes())?;
@@ -147,6 +151,8 @@ fn render_monolithic(
         stages: Vec::new(),
         replication: None,
         cost_usd: None,
+        retried_attempts: 0,
+        recomputed_blocks: 0,
     })
 }
 
@@ -172,6 +178,8 @@ fn render_pipeline(scene: &Scene, request: PlanRequest, args: &RenderArgs) -> Re
         stages: run.stages,
         replication: Some(run.replication),
         cost_usd: None,
+        retried_attempts: 0,
+        recomputed_blocks: run.metrics.iter().map(|m| m.recomputed).sum(),
     })
 }
 
@@ -268,6 +276,7 @@ fn render_emulated(args: &RenderArgs, request: PlanRequest) -> Result<Rendered> 
         run.cost.total
     );
     let split_read: u64 = run.ledger.stages.values().map(|m| m.split_bytes_read).sum();
+    let recomputed = run.recomputed();
     let render_seconds = run
         .stages
         .iter()
@@ -285,6 +294,8 @@ fn render_emulated(args: &RenderArgs, request: PlanRequest) -> Result<Rendered> 
         render_seconds,
         threads: workers,
         replication: Some(split_read as f64 / run.plan.scene_bytes().max(1) as f64),
+        retried_attempts: retries,
+        recomputed_blocks: recomputed,
         stages: run.stages,
         cost_usd: Some(run.cost.total),
     })

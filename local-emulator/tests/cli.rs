@@ -326,6 +326,8 @@ fn emulator_render_equals_monolithic_and_reports_cost() {
     let r: serde_json::Value = serde_json::from_slice(&std::fs::read(report).unwrap()).unwrap();
     assert_eq!(r["mode"], "emulator");
     assert!(r["cost_usd"].as_f64().unwrap() > 0.0);
+    assert_eq!(r["retried_attempts"], 0);
+    assert_eq!(r["recomputed_blocks"], 0);
     assert_eq!(r["stages"][0]["name"], "plan");
     assert!(
         stderr.contains("stage") && stderr.contains("compression"),
@@ -417,4 +419,59 @@ fn storage_problems_are_one_clear_line() {
         assert_eq!(o.status.code(), Some(1));
         assert_eq!(String::from_utf8(o.stderr).unwrap(), expected);
     }
+}
+
+#[test]
+fn injected_failures_are_counted_in_the_report_and_change_nothing() {
+    let mono = render(&scene("cornell/cornell.json"), &scratch("faults-mono"), &[]);
+    let dir = scratch("faults");
+    let (out, report) = (dir.join("o.pfm"), dir.join("r.json"));
+    let o = hort(&[
+        "render",
+        scene("cornell/cornell.json").to_str().unwrap(),
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--splits",
+        "2",
+        "--spans",
+        "5",
+        "--workers",
+        "3",
+        "--fail-rate",
+        "0.3",
+        "--duplicate-rate",
+        "0.2",
+        "--seed",
+        "4",
+        "--time-scale",
+        "0.02",
+        "--task-timeout",
+        "50",
+        "--out",
+        out.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    assert_eq!(std::fs::read(&out).unwrap(), mono.0);
+    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(report).unwrap()).unwrap();
+    let retried = r["retried_attempts"].as_u64().unwrap();
+    assert!(retried > 0, "{stderr}");
+    let attempts: u64 = r["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["attempts"].as_u64().unwrap())
+        .sum();
+    let tasks: u64 = r["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["tasks"].as_u64().unwrap())
+        .sum();
+    assert_eq!(attempts, tasks + retried);
+    assert!(stderr.contains("faults injected:"), "{stderr}");
 }
