@@ -160,9 +160,13 @@ pub fn run_job(
     let usage = accounting.finish();
     if let Err(failure) = outcome {
         if config.cancel.load(Ordering::Relaxed) {
-            return Err(anyhow!(
-                "cancelled; objects so far are kept under jobs/{job}/"
-            ));
+            // A temporary embedded store is removed on exit: promise nothing then.
+            let kept = !matches!(config.storage, StorageTarget::Embedded { data_dir: None });
+            return Err(if kept {
+                anyhow!("cancelled; objects so far are kept under jobs/{job}/")
+            } else {
+                anyhow!("cancelled")
+            });
         }
         let detail = match &failure.item {
             Some(item) => format!(
