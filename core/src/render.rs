@@ -54,6 +54,11 @@ impl std::ops::AddAssign for RayCounts {
     }
 }
 
+/// Cores this process may use (at least 1): the default thread and worker count everywhere.
+pub fn available_cores() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
 /// Builds the BVH over the whole scene; triangle ids are scene-order indices.
 pub fn build_scene_bvh(mesh: &Mesh) -> Bvh {
     let n = mesh.triangle_count();
@@ -122,7 +127,7 @@ pub fn render(
     check_image_size(width, height, spp)?;
     let camera = Camera::new(&scene.camera, width, height)?;
     let threads = if threads == 0 {
-        std::thread::available_parallelism().map_or(1, |n| n.get())
+        available_cores()
     } else {
         threads
     };

@@ -8,7 +8,7 @@ use hort_core::hits::{Hit, encode_hits};
 use hort_core::ids::JobId;
 use hort_core::image::{Image, write_image};
 use hort_core::pipeline::{PipelineOptions, PlanRequest, resolve_counts, run_pipeline};
-use hort_core::render::{RenderSettings, build_scene_bvh, render};
+use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
 use hort_core::report::{RayReport, Report, Seconds, StageReport};
 use hort_core::scene::{DEFAULT_HEIGHT, DEFAULT_WIDTH, Scene, check_image_size, load_scene};
 use hort_core::store::MemoryStore;
@@ -116,10 +116,6 @@ pub fn run(args: RenderArgs) -> Result<()> {
     Ok(())
 }
 
-fn cores() -> usize {
-    std::thread::available_parallelism().map_or(1, |n| n.get())
-}
-
 fn render_monolithic(
     scene: &Scene,
     width: u32,
@@ -127,7 +123,7 @@ fn render_monolithic(
     spp: u32,
     threads: Option<usize>,
 ) -> Result<Rendered> {
-    let threads = threads.unwrap_or_else(cores);
+    let threads = threads.unwrap_or_else(available_cores);
     let build_start = Instant::now();
     let bvh = build_scene_bvh(&scene.mesh);
     let build_seconds = build_start.elapsed().as_secs_f64();
@@ -157,7 +153,7 @@ fn render_monolithic(
 }
 
 fn render_pipeline(scene: &Scene, request: PlanRequest, args: &RenderArgs) -> Result<Rendered> {
-    let workers = args.workers.unwrap_or_else(cores);
+    let workers = args.workers.unwrap_or_else(available_cores);
     let options = PipelineOptions {
         job: JobId::new("local").context("job id")?,
         workers,
@@ -184,7 +180,7 @@ fn render_pipeline(scene: &Scene, request: PlanRequest, args: &RenderArgs) -> Re
 }
 
 fn render_emulated(args: &RenderArgs, request: PlanRequest) -> Result<Rendered> {
-    let workers = args.workers.unwrap_or_else(cores);
+    let workers = args.workers.unwrap_or_else(available_cores);
     for (name, p) in [
         ("--fail-rate", args.fail_rate),
         ("--duplicate-rate", args.duplicate_rate),

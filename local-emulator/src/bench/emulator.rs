@@ -11,7 +11,7 @@ use anyhow::Result;
 use hort_core::cost::Arch;
 use hort_core::ids::JobId;
 use hort_core::pipeline::{PipelineOptions, PlanRequest, SplitMode, run_pipeline};
-use hort_core::render::{RenderSettings, build_scene_bvh, render};
+use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
 use hort_core::scene::load_scene;
 use hort_core::store::MemoryStore;
 use hort_local_emulator::emulator::{EmulatorConfig, FaultSettings, StorageTarget, run_job};
@@ -58,9 +58,7 @@ fn emulator_config(workers: usize, faults: FaultSettings) -> EmulatorConfig {
 }
 
 pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
-    let threads = args
-        .threads
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let threads = args.threads.unwrap_or_else(available_cores);
     let path = generated(&args.scene_dir, args.triangles, 1)?;
     let scene = load_scene(&path)?;
     let mut table = Table::new(

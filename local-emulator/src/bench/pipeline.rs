@@ -12,7 +12,7 @@ use hort_core::pipeline::{
     PipelineOptions, PipelineRun, PlanRequest, SplitMode, plan_job, resolve_counts, run_pipeline,
     run_task, split_scene, task_count,
 };
-use hort_core::render::{RenderSettings, build_scene_bvh, render};
+use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
 use hort_core::scene::{Scene, load_scene};
 use hort_core::store::{BlobStore, MemoryStore};
 use std::path::PathBuf;
@@ -46,9 +46,7 @@ pub struct PipelineBenchArgs {
 }
 
 pub fn run_pipeline_bench(args: &PipelineBenchArgs, meter: &dyn MemoryMeter) -> Result<()> {
-    let threads = args
-        .threads
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let threads = args.threads.unwrap_or_else(available_cores);
     let scene_path = generated(&args.scene_dir, args.triangles, 1)?;
     let scene = load_scene(&scene_path)?;
     let mut tables = vec![time_table(&scene, args, threads)?];

@@ -124,7 +124,7 @@ impl Default for OrchestratorOptions {
     /// One slot per available core, real time, seed 0, not cancelled.
     fn default() -> Self {
         Self {
-            slots: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            slots: hort_core::render::available_cores(),
             time_scale: 1.0,
             seed: 0,
             cancel: Arc::new(AtomicBool::new(false)),

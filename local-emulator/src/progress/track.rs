@@ -38,20 +38,7 @@ pub(super) struct Stage {
     pub(super) bar: Option<ProgressBar>,
 }
 
-/// The stage name of a top-level state.
-pub(super) fn stage_name(state: &str) -> String {
-    if let Some((_, name)) = PIPELINE.iter().find(|(s, _)| *s == state) {
-        return (*name).to_owned();
-    }
-    let mut name = String::new();
-    for (i, c) in state.chars().enumerate() {
-        if c.is_uppercase() && i > 0 {
-            name.push('-');
-        }
-        name.extend(c.to_lowercase());
-    }
-    name
-}
+pub(super) use crate::emulator::stage_name;
 
 /// The top-level state of a path, and whether the path is that state itself.
 fn top(path: &str) -> (&str, bool) {
