@@ -12,11 +12,13 @@
 //! - Building is deterministic: the same triangles in the same order give the same nodes.
 
 mod build;
+mod coherent;
 mod node4;
 mod packet;
 mod parts;
 mod traverse;
 
+pub use coherent::PACKET;
 pub use parts::BvhPartsError;
 pub use traverse::{ClosestHit, segment_may_hit};
 

@@ -40,7 +40,9 @@ impl Packet {
     /// The corners of lane `lane`: the same values as the leaf-order triangle `first + lane`.
     #[inline(always)]
     pub fn corners(&self, lane: usize) -> [Vec3; 3] {
-        [0, 1, 2].map(|c| Vec3::new(self.v[c][0][lane], self.v[c][1][lane], self.v[c][2][lane]))
+        super::packet::each3(|c| {
+            Vec3::new(self.v[c][0][lane], self.v[c][1][lane], self.v[c][2][lane])
+        })
     }
 }
 

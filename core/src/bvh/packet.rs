@@ -13,6 +13,18 @@ use super::node4::{Node4, Packet};
 use crate::triangle::{Ray, RayPrep, gamma};
 use wide::f32x4;
 
+/// `[f(0), f(1), f(2)]`, always inlined (`array::map` is not, and per-ray setup showed it).
+#[inline(always)]
+pub(super) fn each3<T>(f: impl Fn(usize) -> T) -> [T; 3] {
+    [f(0), f(1), f(2)]
+}
+
+/// `[f(0), f(1), f(2), f(3)]`, always inlined.
+#[inline(always)]
+pub(super) fn each4<T>(f: impl Fn(usize) -> T) -> [T; 4] {
+    [f(0), f(1), f(2), f(3)]
+}
+
 /// Per-ray constants of the 4-wide slab test.
 pub(super) struct BoxTester {
     origin: [f32x4; 3],
@@ -25,9 +37,9 @@ impl BoxTester {
     pub fn new(ray: &Ray) -> Self {
         let inv = glam::Vec3::ONE / ray.dir;
         BoxTester {
-            origin: [0, 1, 2].map(|a| f32x4::splat(ray.origin[a])),
-            inv_dir: [0, 1, 2].map(|a| f32x4::splat(inv[a])),
-            near_hi: [0, 1, 2].map(|a| inv[a].is_sign_negative()),
+            origin: each3(|a| f32x4::splat(ray.origin[a])),
+            inv_dir: each3(|a| f32x4::splat(inv[a])),
+            near_hi: each3(|a| inv[a].is_sign_negative()),
         }
     }
 
@@ -56,6 +68,7 @@ impl BoxTester {
 }
 
 /// Per-ray constants of the 4-wide triangle tests: the permuted origin and the shear.
+#[derive(Clone, Copy)]
 pub(super) struct TriangleTester {
     axes: [usize; 3],
     origin: [f32x4; 3],
@@ -67,8 +80,8 @@ impl TriangleTester {
         let (axes, shear) = prep.shear();
         TriangleTester {
             axes,
-            origin: axes.map(|a| f32x4::splat(prep.origin[a])),
-            shear: shear.map(f32x4::splat),
+            origin: each3(|k| f32x4::splat(prep.origin[axes[k]])),
+            shear: each3(|k| f32x4::splat(shear[k])),
         }
     }
 }
@@ -205,7 +218,11 @@ pub(super) fn triangle_hits(r: &TriangleTester, p: &Packet, t_max: f32) -> Packe
         exact,
         scalar,
         t: e.t.to_array(),
-        b: [e.u, e.v, e.w].map(|x| (x * e.inv_det).to_array()),
+        b: [
+            (e.u * e.inv_det).to_array(),
+            (e.v * e.inv_det).to_array(),
+            (e.w * e.inv_det).to_array(),
+        ],
     }
 }
 

@@ -45,8 +45,41 @@ fn bvh_of(tris: &[[Vec3; 3]]) -> Bvh {
     Bvh::build(tris.to_vec(), (0..tris.len() as u32).collect())
 }
 
+/// The bits of a hit, so that equality means the same bits (and -0 != +0).
+fn hit_bits(h: &ClosestHit) -> (u32, u32, [u32; 3], u32, [[u32; 3]; 3]) {
+    (
+        h.id,
+        h.t.to_bits(),
+        h.b.map(f32::to_bits),
+        h.index,
+        h.corners.map(|c| c.to_array().map(f32::to_bits)),
+    )
+}
+
+/// Packets give every ray exactly the single-ray answer, for packets cut at every offset
+/// (full, partial and one-ray packets).
+fn check_packets_against_single_rays(bvh: &Bvh, rays: &[Ray]) {
+    let single: Vec<_> = rays
+        .iter()
+        .map(|r| bvh.closest_hit(r).as_ref().map(hit_bits))
+        .collect();
+    for skip in [0, 1, 5, 15] {
+        let rays = &rays[skip.min(rays.len())..];
+        let mut out = vec![None; rays.len()];
+        bvh.closest_hits(rays, &mut out);
+        for (k, (got, expected)) in out
+            .iter()
+            .zip(&single[skip.min(single.len())..])
+            .enumerate()
+        {
+            assert_eq!(&got.as_ref().map(hit_bits), expected, "ray {}", k + skip);
+        }
+    }
+}
+
 fn check_against_brute_force(tris: &[[Vec3; 3]], rays: &[Ray]) {
     let bvh = bvh_of(tris);
+    check_packets_against_single_rays(&bvh, rays);
     let mut hits = 0;
     for (k, ray) in rays.iter().enumerate() {
         let expected = brute_force(tris, ray);
@@ -112,6 +145,9 @@ fn equal_t_ties_go_to_the_smaller_id() {
         dir: Vec3::new(0.0, 0.0, -1.0),
     };
     assert_eq!(bvh.closest_hit(&ray).map(|h| h.id), Some(100));
+    let mut out = [None; 3];
+    bvh.closest_hits(&[ray; 3], &mut out);
+    assert_eq!(out.map(|h| h.map(|h| h.id)), [Some(100); 3]);
 }
 
 #[test]
@@ -134,6 +170,26 @@ fn closest_hit_equals_brute_force_on_the_bunny() {
     let radius = (bounds.hi - bounds.lo).length() * 0.5;
     let rays = random_rays(&mut Rng(3), 2000, centre, radius);
     check_against_brute_force(&tris, &rays);
+    // Coherent camera rays (what packets are for): a 64x48 pinhole grid over the bunny, rows of
+    // 64 traced in packets of 16, from an eye outside and from one inside its box.
+    let bvh = bvh_of(&tris);
+    for eye in [centre + Vec3::new(0.1, 0.5, 1.25) * radius * 2.0, centre] {
+        let forward = (centre + Vec3::new(0.01, 0.02, 0.0) - eye).normalize_or(Vec3::Z);
+        let right = forward.cross(Vec3::Y).normalize();
+        let up = right.cross(forward);
+        let rays: Vec<Ray> = (0..48 * 64)
+            .map(|p| {
+                let (x, y) = ((p % 64) as f32 / 32.0 - 1.0, 1.0 - (p / 64) as f32 / 24.0);
+                Ray {
+                    origin: eye,
+                    dir: forward + right * x * 0.5 + up * y * 0.4,
+                }
+            })
+            .collect();
+        check_packets_against_single_rays(&bvh, &rays);
+        let hits = rays.iter().filter(|r| bvh.closest_hit(r).is_some()).count();
+        assert!(hits > 200, "camera rays should hit the bunny ({hits})");
+    }
 }
 
 /// A closed, subdivided cube: every face is a grid of quads split into two triangles.
@@ -217,4 +273,13 @@ fn empty_bvh_hits_nothing() {
     };
     assert!(bvh.closest_hit(&ray).is_none());
     assert!(!bvh.occluded(&ray, f32::INFINITY));
+    let mut out = [Some(ClosestHit {
+        id: 0,
+        t: 1.0,
+        b: [0.0; 3],
+        corners: [Vec3::ZERO; 3],
+        index: 0,
+    })];
+    bvh.closest_hits(&[ray], &mut out);
+    assert_eq!(out, [None]);
 }

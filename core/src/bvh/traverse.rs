@@ -3,19 +3,19 @@
 //! exceeds the current bound by a relative margin, so culling never changes the answer.
 
 use super::node4::{LEAF, Node4};
-use super::packet::{BoxTester, TriangleTester, triangle_candidates, triangle_hits};
+use super::packet::{BoxTester, TriangleTester, each3, triangle_candidates, triangle_hits};
 use super::{Aabb, Bvh};
 use crate::triangle::{Ray, RayPrep, TriangleHit, gamma, intersect};
 use glam::Vec3;
 
 /// Relative margin on culling distances: far larger than the rounding error of a box entry
 /// distance or of a triangle's t, so culling stays conservative.
-const CULL_MARGIN: f32 = 1.0 + 1e-4;
+pub(super) const CULL_MARGIN: f32 = 1.0 + 1e-4;
 /// 1 + 2·gamma(3) with gamma(n) = n·u / (1 - n·u), u = 2^-24 (pbrt-v4, Bounds3::IntersectP).
 pub(super) const FAR_SCALE: f32 = 1.0 + 2.0 * gamma(3.0);
 /// Each 4-wide level defers at most 3 children and 4-wide depth is at most the binary depth,
 /// which the builder and `from_parts` cap at `MAX_DEPTH`.
-const STACK: usize = 3 * super::build::MAX_DEPTH + 1;
+pub(super) const STACK: usize = 3 * super::build::MAX_DEPTH + 1;
 
 /// The nearest hit of a ray: scene-wide triangle id, distance and barycentrics.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -79,9 +79,12 @@ pub fn segment_may_hit(bounds: &Aabb, ray: &Ray, t_max: f32) -> bool {
         .is_some()
 }
 
+/// The child word and packet count that stand for the whole tree (wide node 0).
+pub(super) const ROOT: (u32, u32) = (0, 0);
+
 /// A deferred child: its child word, packet count and entry distance.
 #[derive(Clone, Copy)]
-struct Entry {
+pub(super) struct Entry {
     child: u32,
     packets: u32,
     t: f32,
@@ -96,8 +99,40 @@ const NO_ENTRY: Entry = Entry {
 thread_local! {
     /// One traversal stack per thread, reused: initialising a fresh one per ray costs as much
     /// as a small traversal.
-    static STACKS: std::cell::RefCell<[Entry; STACK]> =
+    pub(super) static STACKS: std::cell::RefCell<[Entry; STACK]> =
         const { std::cell::RefCell::new([NO_ENTRY; STACK]) };
+}
+
+/// One ray's closest-hit search: its constants for the triangle tests and its best hit so far
+/// (triangle hit, packet index, lane). Shared by single rays and coherent packets, so both
+/// keep exactly the same best hit.
+#[derive(Clone, Copy)]
+pub(super) struct ClosestSearch {
+    pub prep: RayPrep,
+    pub tris: TriangleTester,
+    best: Option<(TriangleHit, usize, usize)>,
+    pub best_t: f32,
+    best_id: u32,
+}
+
+impl ClosestSearch {
+    #[inline(always)]
+    pub fn new(ray: &Ray) -> Self {
+        let prep = RayPrep::new(ray);
+        ClosestSearch {
+            tris: TriangleTester::new(&prep),
+            prep,
+            best: None,
+            best_t: f32::INFINITY,
+            best_id: u32::MAX,
+        }
+    }
+
+    /// The culling bound: a box entered beyond it cannot hold a better hit.
+    #[inline(always)]
+    pub fn bound(&self) -> f32 {
+        self.best_t * CULL_MARGIN
+    }
 }
 
 impl Bvh {
@@ -106,75 +141,93 @@ impl Bvh {
         if self.wide.is_empty() {
             return None;
         }
-        STACKS.with_borrow_mut(|stack| self.closest_hit_with(ray, stack))
+        let mut search = ClosestSearch::new(ray);
+        STACKS.with_borrow_mut(|stack| {
+            self.closest_from(ROOT, &BoxTester::new(ray), &mut search, stack)
+        });
+        self.closest_result(&search)
     }
 
-    fn closest_hit_with(&self, ray: &Ray, stack: &mut [Entry; STACK]) -> Option<ClosestHit> {
-        let prep = RayPrep::new(ray);
-        let boxes = BoxTester::new(ray);
-        let tris = TriangleTester::new(&prep);
-        // The best hit so far: its triangle hit, packet index and lane.
-        let mut best: Option<(TriangleHit, usize, usize)> = None;
-        let (mut best_t, mut best_id) = (f32::INFINITY, u32::MAX);
+    /// The finished search's hit.
+    #[inline(always)]
+    pub(super) fn closest_result(&self, search: &ClosestSearch) -> Option<ClosestHit> {
+        search.best.map(|(h, packet, lane)| {
+            let p = &self.packets[packet];
+            let index = p.first as usize + lane;
+            ClosestHit {
+                id: self.ids[index],
+                t: h.t,
+                b: h.b,
+                corners: p.corners(lane),
+                index: index as u32,
+            }
+        })
+    }
+
+    /// Tests the `count` packets from `first` (one leaf) against the search's ray, keeping the
+    /// best hit.
+    #[inline(always)]
+    pub(super) fn closest_in_leaf(&self, first: usize, count: usize, s: &mut ClosestSearch) {
+        for k in first..first + count {
+            let p = &self.packets[k];
+            let wide = triangle_hits(&s.tris, p, s.best_t);
+            let mut lanes = wide.exact | wide.scalar;
+            while lanes != 0 {
+                let lane = lanes.trailing_zeros() as usize;
+                lanes &= lanes - 1;
+                let h = if wide.exact & (1 << lane) != 0 {
+                    TriangleHit {
+                        t: wide.t[lane],
+                        b: each3(|k| wide.b[k][lane]),
+                    }
+                } else {
+                    let [p0, p1, p2] = p.corners(lane);
+                    let Some(h) = intersect(&s.prep, p0, p1, p2, f32::INFINITY) else {
+                        continue;
+                    };
+                    h
+                };
+                let id = self.ids[p.first as usize + lane];
+                // Hits have finite t, so the first one always wins against +inf.
+                if h.t < s.best_t || (h.t == s.best_t && id < s.best_id) {
+                    (s.best_t, s.best_id) = (h.t, id);
+                    s.best = Some((h, k, lane));
+                }
+            }
+        }
+    }
+
+    /// Continues `s` over the subtree whose child word and packet count are `start` (the
+    /// whole tree for [`ROOT`]).
+    pub(super) fn closest_from(
+        &self,
+        start: (u32, u32),
+        boxes: &BoxTester,
+        s: &mut ClosestSearch,
+        stack: &mut [Entry; STACK],
+    ) {
         let mut depth = 0usize;
-        let (mut child, mut packets) = (0u32, 0u32);
+        let (mut child, mut packets) = start;
         loop {
             if child & LEAF == 0 {
                 let node = &self.wide[child as usize];
-                let (mask, t0) = boxes.test(node, best_t * CULL_MARGIN);
+                let (mask, t0) = boxes.test(node, s.bound());
                 if mask != 0 {
                     (child, packets) = descend(node, mask, &t0, stack, &mut depth);
                     continue;
                 }
             } else {
-                let first = (child & !LEAF) as usize;
-                for k in first..first + packets as usize {
-                    let p = &self.packets[k];
-                    let wide = triangle_hits(&tris, p, best_t);
-                    let mut lanes = wide.exact | wide.scalar;
-                    while lanes != 0 {
-                        let lane = lanes.trailing_zeros() as usize;
-                        lanes &= lanes - 1;
-                        let h = if wide.exact & (1 << lane) != 0 {
-                            TriangleHit {
-                                t: wide.t[lane],
-                                b: wide.b.map(|b| b[lane]),
-                            }
-                        } else {
-                            let [p0, p1, p2] = p.corners(lane);
-                            let Some(h) = intersect(&prep, p0, p1, p2, f32::INFINITY) else {
-                                continue;
-                            };
-                            h
-                        };
-                        let id = self.ids[p.first as usize + lane];
-                        // Hits have finite t, so the first one always wins against +inf.
-                        if h.t < best_t || (h.t == best_t && id < best_id) {
-                            (best_t, best_id) = (h.t, id);
-                            best = Some((h, k, lane));
-                        }
-                    }
-                }
+                self.closest_in_leaf((child & !LEAF) as usize, packets as usize, s);
             }
             // Pop the next child still worth visiting: entering at or before the (scaled) best
             // t is exactly when its box test with the current bound would still pass.
             loop {
                 if depth == 0 {
-                    return best.map(|(h, packet, lane)| {
-                        let p = &self.packets[packet];
-                        let index = p.first as usize + lane;
-                        ClosestHit {
-                            id: self.ids[index],
-                            t: h.t,
-                            b: h.b,
-                            corners: p.corners(lane),
-                            index: index as u32,
-                        }
-                    });
+                    return;
                 }
                 depth -= 1;
                 let e = stack[depth];
-                if e.t <= best_t * CULL_MARGIN {
+                if e.t <= s.bound() {
                     (child, packets) = (e.child, e.packets);
                     break;
                 }
@@ -196,7 +249,7 @@ impl Bvh {
         let tris = TriangleTester::new(&prep);
         let limit = t_max * CULL_MARGIN;
         let mut depth = 0usize;
-        let (mut child, mut packets) = (0u32, 0u32);
+        let (mut child, mut packets) = ROOT;
         loop {
             if child & LEAF == 0 {
                 let node = &self.wide[child as usize];

@@ -1,0 +1,398 @@
+//! Coherent ray packets for closest hits: up to [`PACKET`] rays from one origin (neighbouring
+//! pixels or samples of a pinhole camera) traverse the 4-wide BVH together. At each inner node
+//! one interval test bounds what every ray of the packet can do with the four child boxes: a
+//! child no ray can enter is dropped for all of them, a child every active ray certainly enters
+//! keeps them all, and only the children in between are tested ray by ray (four rays per SIMD
+//! test). A single remaining ray goes on alone with the single-ray traversal; leaves run the
+//! single-ray leaf test for each ray. Packets whose rays do not share an origin, or have a
+//! non-finite component, are traced ray by ray.
+//!
+//! Guarantee: [`Bvh::closest_hits`] gives every ray exactly what [`Bvh::closest_hit`] gives it.
+//! Each lane's box test is the single-ray slab test (same operations in the same order, so the
+//! same bits). The interval test takes, per axis, the products of the shared offset
+//! `plane - origin` with the smallest and largest inverse direction of the packet; rounding is
+//! monotonic, so these are exactly the smallest and largest per-ray values, and the test can
+//! only claim "no ray enters" or "every ray enters" when the per-ray tests would say so. A ray
+//! leaves a child only when its own test says the child cannot hold a better hit, and all hits
+//! go through the single-ray best-hit update ([`Bvh::closest_in_leaf`]). The closest hit is
+//! unique (smaller t, then smaller id), so the visiting order cannot change it.
+
+use super::node4::{LEAF, Node4};
+use super::packet::{BoxTester, each3, each4};
+use super::traverse::{ClosestSearch, Entry, FAR_SCALE, ROOT, STACK, STACKS};
+use super::{Bvh, ClosestHit};
+use crate::triangle::Ray;
+use wide::f32x4;
+
+/// Rays per packet: 16, as in Embree's widest packets (a 4x4 tile or 16 pixels of a row).
+pub const PACKET: usize = 16;
+const GROUPS: usize = PACKET / 4;
+
+/// `LANES[bits]`: all-ones in the lanes whose bit is set.
+const LANES: [[u32; 4]; 16] = {
+    let mut t = [[0u32; 4]; 16];
+    let mut bits = 0;
+    while bits < 16 {
+        let mut l = 0;
+        while l < 4 {
+            if bits & (1 << l) != 0 {
+                t[bits][l] = u32::MAX;
+            }
+            l += 1;
+        }
+        bits += 1;
+    }
+    t
+};
+
+fn lane_mask(bits: u32) -> f32x4 {
+    let l = &LANES[bits as usize];
+    f32x4::from(each4(|k| f32::from_bits(l[k])))
+}
+
+/// The packet's rays four lanes per group, for slab tests across rays, and the interval hull of
+/// their inverse directions for the whole-packet test.
+struct PacketBoxes {
+    origin: [f32x4; 3],
+    inv_dir: [[f32x4; 3]; GROUPS],
+    /// All-ones lanes where the direction's sign bit is set (the near plane is the box's hi).
+    near_hi: [[f32x4; 3]; GROUPS],
+    /// Per axis: the smallest and largest inverse direction of the packet.
+    inv_lo: [f32x4; 3],
+    inv_hi: [f32x4; 3],
+    /// Per axis: every ray's near plane is the box's hi (all signs negative).
+    all_near_hi: [bool; 3],
+    /// Per axis: the rays' signs differ or an inverse direction is infinite, so the interval
+    /// test leaves this axis out (it then never claims that every ray enters).
+    loose: [bool; 3],
+}
+
+impl PacketBoxes {
+    /// `rays` holds 1..=PACKET rays sharing one origin; lanes past the end repeat the last ray
+    /// (and are never active).
+    fn new(rays: &[Ray]) -> Self {
+        let last = rays.len() - 1;
+        // The same division as the single-ray testers (`Vec3::ONE / dir`, per component).
+        let mut inv = [[0.0f32; 3]; PACKET];
+        for (i, row) in inv.iter_mut().enumerate() {
+            *row = (glam::Vec3::ONE / rays[i.min(last)].dir).to_array();
+        }
+        let group = |g: usize, axis: usize, f: fn(f32) -> f32| {
+            f32x4::from(each4(|l| f(inv[4 * g + l][axis])))
+        };
+        let sign = |x: f32| f32::from_bits(if x.is_sign_negative() { u32::MAX } else { 0 });
+        let mut inv_lo = [f32::INFINITY; 3];
+        let mut inv_hi = [f32::NEG_INFINITY; 3];
+        let mut negative = [0usize; 3];
+        let mut loose = [false; 3];
+        for row in &inv[..rays.len()] {
+            for axis in 0..3 {
+                let x = row[axis];
+                inv_lo[axis] = inv_lo[axis].min(x);
+                inv_hi[axis] = inv_hi[axis].max(x);
+                negative[axis] += usize::from(x.is_sign_negative());
+                loose[axis] |= !x.is_finite();
+            }
+        }
+        let all_near_hi = each3(|a| negative[a] == rays.len());
+        for axis in 0..3 {
+            loose[axis] |= negative[axis] != 0 && !all_near_hi[axis];
+        }
+        PacketBoxes {
+            origin: each3(|a| f32x4::splat(rays[0].origin[a])),
+            inv_dir: each4(|g| each3(|a| group(g, a, |x| x))),
+            near_hi: each4(|g| each3(|a| group(g, a, sign))),
+            inv_lo: each3(|a| f32x4::splat(inv_lo[a])),
+            inv_hi: each3(|a| f32x4::splat(inv_hi[a])),
+            all_near_hi,
+            loose,
+        }
+    }
+
+    /// The whole-packet test of the four child boxes of `node` for rays whose bounds lie in
+    /// `[bound_lo, bound_hi]`: (children some ray may enter, children every ray enters, a lower
+    /// bound of every ray's entry distance per child).
+    #[inline(always)]
+    fn test_hull(&self, node: &Node4, bound_lo: f32, bound_hi: f32) -> (u32, u32, [f32; 4]) {
+        let scale = f32x4::splat(FAR_SCALE);
+        let zero = f32x4::ZERO;
+        let (mut some0, mut some1) = (zero, f32x4::splat(bound_hi));
+        let (mut all0, mut all1) = (zero, f32x4::splat(bound_lo));
+        let mut all_axes = true;
+        for axis in 0..3 {
+            if self.loose[axis] {
+                all_axes = false;
+                continue;
+            }
+            let (near_plane, far_plane) = if self.all_near_hi[axis] {
+                (node.hi[axis], node.lo[axis])
+            } else {
+                (node.lo[axis], node.hi[axis])
+            };
+            let (lo, hi) = (self.inv_lo[axis], self.inv_hi[axis]);
+            let d = f32x4::from(near_plane) - self.origin[axis];
+            let f = f32x4::from(far_plane) - self.origin[axis];
+            // x * inv is monotonic in inv, rising for x >= 0 and falling otherwise.
+            let (d_up, f_up) = (d.simd_ge(zero), f.simd_ge(zero));
+            let near_min = d_up.select(d * lo, d * hi);
+            let near_max = d_up.select(d * hi, d * lo);
+            let far_max = f_up.select(f * hi, f * lo) * scale;
+            let far_min = f_up.select(f * lo, f * hi) * scale;
+            some0 = near_min.simd_gt(some0).select(near_min, some0);
+            some1 = far_max.simd_lt(some1).select(far_max, some1);
+            all0 = near_max.simd_gt(all0).select(near_max, all0);
+            all1 = far_min.simd_lt(all1).select(far_min, all1);
+        }
+        let some = !some0.simd_gt(some1).to_bitmask() & 0xf;
+        let all = if all_axes {
+            // Comparisons with a NaN are false, so a NaN never claims "every ray".
+            all0.simd_le(all1).to_bitmask() & some
+        } else {
+            0
+        };
+        (some, all, some0.to_array())
+    }
+
+    /// The rays of `active` (bit i = ray i) that enter child `slot` of `node` at or before their
+    /// bound (lane i of group i / 4 of `bound`), by the single-ray slab test, and the smallest
+    /// entry distance among them (+inf when none).
+    #[inline(always)]
+    fn test_rays(
+        &self,
+        node: &Node4,
+        slot: usize,
+        active: u32,
+        bound: &[f32x4; GROUPS],
+    ) -> (u32, f32) {
+        let scale = f32x4::splat(FAR_SCALE);
+        let lo = each3(|a| f32x4::splat(node.lo[a][slot]));
+        let hi = each3(|a| f32x4::splat(node.hi[a][slot]));
+        let mut rays = 0;
+        let mut entry = f32x4::splat(f32::INFINITY);
+        for (g, &bound) in bound.iter().enumerate() {
+            let lanes = (active >> (4 * g)) & 0xf;
+            if lanes == 0 {
+                continue;
+            }
+            let mut t0 = f32x4::ZERO;
+            let mut t1 = bound;
+            for axis in 0..3 {
+                let near_hi = self.near_hi[g][axis];
+                let (o, inv) = (self.origin[axis], self.inv_dir[g][axis]);
+                let near = (near_hi.select(hi[axis], lo[axis]) - o) * inv;
+                let far = (near_hi.select(lo[axis], hi[axis]) - o) * inv * scale;
+                // As the single-ray test: a NaN never passes, so it changes nothing.
+                t0 = near.simd_gt(t0).select(near, t0);
+                t1 = far.simd_lt(t1).select(far, t1);
+            }
+            let hit = !t0.simd_gt(t1).to_bitmask() & lanes;
+            rays |= hit << (4 * g);
+            entry = (lane_mask(hit) & t0.simd_lt(entry)).select(t0, entry);
+        }
+        let e = entry.to_array();
+        (rays, e[0].min(e[1]).min(e[2].min(e[3])))
+    }
+}
+
+/// A deferred child of a packet: its child word, packet count, the rays that enter it and a
+/// lower bound of their entry distances.
+#[derive(Clone, Copy)]
+struct PacketEntry {
+    child: u32,
+    packets: u32,
+    rays: u32,
+    t: f32,
+}
+
+const NO_ENTRY: PacketEntry = PacketEntry {
+    child: 0,
+    packets: 0,
+    rays: 0,
+    t: 0.0,
+};
+
+thread_local! {
+    /// One packet traversal stack per thread, reused (as the single-ray stacks).
+    static PACKET_STACKS: std::cell::RefCell<[PacketEntry; STACK]> =
+        const { std::cell::RefCell::new([NO_ENTRY; STACK]) };
+}
+
+/// Whether `rays` can travel as one packet: one origin, finite components.
+fn is_coherent(rays: &[Ray]) -> bool {
+    let origin = rays[0].origin;
+    rays.iter()
+        .all(|r| r.origin == origin && origin.is_finite() && r.dir.is_finite())
+}
+
+impl Bvh {
+    /// The closest hit of every ray (`out[i]` for `rays[i]`), exactly as [`Bvh::closest_hit`]
+    /// gives it, traced in packets of [`PACKET`] consecutive rays: faster when neighbours in
+    /// `rays` share an origin and are coherent (camera rays of neighbouring pixels). Panics if
+    /// the lengths differ.
+    pub fn closest_hits(&self, rays: &[Ray], out: &mut [Option<ClosestHit>]) {
+        assert_eq!(rays.len(), out.len(), "one output per ray");
+        if self.wide.is_empty() {
+            out.fill(None);
+            return;
+        }
+        PACKET_STACKS.with_borrow_mut(|stack| {
+            STACKS.with_borrow_mut(|ray_stack| {
+                for (rays, out) in rays.chunks(PACKET).zip(out.chunks_mut(PACKET)) {
+                    if is_coherent(rays) {
+                        self.trace_packet(rays, out, stack, ray_stack);
+                    } else {
+                        for (ray, out) in rays.iter().zip(out) {
+                            let mut search = ClosestSearch::new(ray);
+                            let boxes = BoxTester::new(ray);
+                            self.closest_from(ROOT, &boxes, &mut search, ray_stack);
+                            *out = self.closest_result(&search);
+                        }
+                    }
+                }
+            })
+        });
+    }
+
+    fn trace_packet(
+        &self,
+        rays: &[Ray],
+        out: &mut [Option<ClosestHit>],
+        stack: &mut [PacketEntry; STACK],
+        ray_stack: &mut [Entry; STACK],
+    ) {
+        let last = rays.len() - 1;
+        let mut searches = [ClosestSearch::new(&rays[last]); PACKET];
+        for (search, ray) in searches.iter_mut().zip(&rays[..last]) {
+            *search = ClosestSearch::new(ray);
+        }
+        // Each ray's culling bound, kept in step with its search.
+        let mut bounds = [[f32::INFINITY; 4]; GROUPS];
+        let boxes = PacketBoxes::new(rays);
+        let mut depth = 0usize;
+        let (mut child, mut packets) = ROOT;
+        let mut active = (1u32 << rays.len()) - 1;
+        loop {
+            if active.count_ones() <= 1 {
+                let mut each = active;
+                while each != 0 {
+                    let i = each.trailing_zeros() as usize;
+                    each &= each - 1;
+                    let single = BoxTester::new(&rays[i]);
+                    self.closest_from((child, packets), &single, &mut searches[i], ray_stack);
+                    bounds[i / 4][i % 4] = searches[i].bound();
+                }
+            } else if child & LEAF == 0 {
+                let node = &self.wide[child as usize];
+                let bound = each4(|g| f32x4::from(bounds[g]));
+                let (bound_lo, bound_hi) = bound_range(&bound, active);
+                let (some, all, hull_entry) = boxes.test_hull(node, bound_lo, bound_hi);
+                let mut enter = [0u32; 4];
+                let mut entry = hull_entry;
+                let mut each = some;
+                while each != 0 {
+                    let slot = each.trailing_zeros() as usize;
+                    each &= each - 1;
+                    if all & (1 << slot) != 0 {
+                        enter[slot] = active;
+                    } else {
+                        (enter[slot], entry[slot]) = boxes.test_rays(node, slot, active, &bound);
+                    }
+                }
+                if let Some(next) = descend(node, &enter, &entry, stack, &mut depth) {
+                    (child, packets, active) = next;
+                    continue;
+                }
+            } else {
+                let first = (child & !LEAF) as usize;
+                let mut each = active;
+                while each != 0 {
+                    let i = each.trailing_zeros() as usize;
+                    each &= each - 1;
+                    self.closest_in_leaf(first, packets as usize, &mut searches[i]);
+                    bounds[i / 4][i % 4] = searches[i].bound();
+                }
+            }
+            // Pop the next child with the rays that may still find a better hit in it: a ray
+            // whose bound is below the child's entry bound would fail its box test now.
+            loop {
+                if depth == 0 {
+                    for (o, s) in out.iter_mut().zip(&searches) {
+                        *o = self.closest_result(s);
+                    }
+                    return;
+                }
+                depth -= 1;
+                let e = stack[depth];
+                let mut keep = 0;
+                let mut each = e.rays;
+                while each != 0 {
+                    let i = each.trailing_zeros() as usize;
+                    each &= each - 1;
+                    if e.t <= bounds[i / 4][i % 4] {
+                        keep |= 1 << i;
+                    }
+                }
+                if keep != 0 {
+                    (child, packets, active) = (e.child, e.packets, keep);
+                    break;
+                }
+            }
+        }
+    }
+}
+
+/// The smallest and largest bound among the `active` rays.
+#[inline(always)]
+fn bound_range(bound: &[f32x4; GROUPS], active: u32) -> (f32, f32) {
+    let mut lo = f32x4::splat(f32::INFINITY);
+    let mut hi = f32x4::splat(f32::NEG_INFINITY);
+    for (g, b) in bound.iter().enumerate() {
+        let lanes = lane_mask((active >> (4 * g)) & 0xf);
+        lo = (lanes & b.simd_lt(lo)).select(*b, lo);
+        hi = (lanes & b.simd_gt(hi)).select(*b, hi);
+    }
+    let (lo, hi) = (lo.to_array(), hi.to_array());
+    (
+        lo[0].min(lo[1]).min(lo[2].min(lo[3])),
+        hi[0].max(hi[1]).max(hi[2].max(hi[3])),
+    )
+}
+
+/// Defers the entered children of `node` (rays per slot in `enter`, entry bounds `entry`)
+/// farthest first onto `stack`, except the nearest, which it returns to visit now; `None` when
+/// no ray enters any child.
+#[inline(always)]
+fn descend(
+    node: &Node4,
+    enter: &[u32; 4],
+    entry: &[f32; 4],
+    stack: &mut [PacketEntry; STACK],
+    depth: &mut usize,
+) -> Option<(u32, u32, u32)> {
+    let mut hit = [NO_ENTRY; 4];
+    let mut n = 0;
+    for slot in 0..4 {
+        if enter[slot] != 0 {
+            let e = PacketEntry {
+                child: node.child[slot],
+                packets: node.packets[slot],
+                rays: enter[slot],
+                t: entry[slot],
+            };
+            let mut k = n;
+            while k > 0 && hit[k - 1].t < e.t {
+                hit[k] = hit[k - 1];
+                k -= 1;
+            }
+            hit[k] = e;
+            n += 1;
+        }
+    }
+    if n == 0 {
+        return None;
+    }
+    stack[*depth..*depth + n - 1].copy_from_slice(&hit[..n - 1]);
+    *depth += n - 1;
+    let e = hit[n - 1];
+    Some((e.child, e.packets, e.rays))
+}
