@@ -63,6 +63,8 @@ struct SceneResult {
     triangles: usize,
     primary: usize,
     primary_s: f64,
+    /// Our coherent path: the same rays in packets of 16 consecutive rays (as Embree x16).
+    packets_s: f64,
     primary_hits: usize,
     shadow: usize,
     shadow_s: f64,
@@ -70,6 +72,8 @@ struct SceneResult {
     build_s: f64,
     load_s: f64,
     embree: Option<EmbreeResult>,
+    #[cfg(feature = "obvhs-bench")]
+    obvhs: super::obvhs_kernel::ObvhsResult,
 }
 
 #[derive(serde::Deserialize)]
@@ -135,6 +139,8 @@ pub fn run_kernel_bench(args: &KernelBenchArgs) -> Result<()> {
     if harness.is_none() {
         println!("\n(Embree unavailable: install libembree-dev and a C compiler for its columns)");
     }
+    #[cfg(not(feature = "obvhs-bench"))]
+    println!("\n(obvhs not compiled in: build with --features obvhs-bench for its columns)");
     Ok(())
 }
 
@@ -167,7 +173,7 @@ fn mrays(rays: usize, seconds: f64) -> f64 {
 }
 
 /// Best wall time of `repeats` runs of `f`, and the last run's result.
-fn best_of<T>(repeats: u32, mut f: impl FnMut() -> T) -> (f64, T) {
+pub(super) fn best_of<T>(repeats: u32, mut f: impl FnMut() -> T) -> (f64, T) {
     let mut best = f64::INFINITY;
     let mut last = None;
     for _ in 0..repeats.max(1) {
@@ -202,6 +208,13 @@ fn bench_scene(
             *out = bvh.closest_hit(r);
         }
     });
+    let mut packet_hits = vec![None; primary.len()];
+    let (packets_s, ()) = best_of(args.repeats, || {
+        bvh.closest_hits(&primary, &mut packet_hits);
+    });
+    if packet_hits != hits {
+        bail!("{name}: packets and single rays disagree");
+    }
     let light = scene.lights.first();
     let shadow: Vec<(Ray, f32)> = primary
         .iter()
@@ -250,6 +263,7 @@ fn bench_scene(
         triangles: bvh.triangle_count(),
         primary: primary.len(),
         primary_s,
+        packets_s,
         primary_hits: hits.iter().flatten().count(),
         shadow: shadow.len(),
         shadow_s,
@@ -257,6 +271,8 @@ fn bench_scene(
         build_s,
         load_s,
         embree,
+        #[cfg(feature = "obvhs-bench")]
+        obvhs: super::obvhs_kernel::run(scene, &primary, &hits, &shadow, &occluded, args.repeats),
     })
 }
 
@@ -342,6 +358,8 @@ fn ray_table(results: &[SceneResult], args: &KernelBenchArgs) -> Table {
             "Embree primary",
             "ratio",
             "Embree x16",
+            "ours x16",
+            "ratio x16",
             "same id %",
             "shadow rays",
             "occluded %",
@@ -351,10 +369,15 @@ fn ray_table(results: &[SceneResult], args: &KernelBenchArgs) -> Table {
             "same %",
         ],
     );
+    #[cfg(feature = "obvhs-bench")]
+    table
+        .header
+        .extend(super::obvhs_kernel::RAY_HEADER.map(String::from));
     let pct = |a: u64, b: usize| format!("{:.2}", 100.0 * a as f64 / b.max(1) as f64);
     for r in results {
         let ours_p = mrays(r.primary, r.primary_s);
         let ours_s = mrays(r.shadow, r.shadow_s);
+        let ours_x16 = mrays(r.primary, r.packets_s);
         let mut row = vec![
             r.name.clone(),
             r.triangles.to_string(),
@@ -371,6 +394,8 @@ fn ray_table(results: &[SceneResult], args: &KernelBenchArgs) -> Table {
                     format!("{ep:.2}"),
                     f3(ours_p / ep),
                     format!("{:.2}", mrays(r.primary, e.primary16_s)),
+                    format!("{ours_x16:.2}"),
+                    f3(ours_x16 / mrays(r.primary, e.primary16_s)),
                     pct(e.primary_same_id, r.primary),
                     r.shadow.to_string(),
                     pct(r.occluded as u64, r.shadow),
@@ -384,6 +409,8 @@ fn ray_table(results: &[SceneResult], args: &KernelBenchArgs) -> Table {
                 dash(),
                 dash(),
                 dash(),
+                format!("{ours_x16:.2}"),
+                dash(),
                 dash(),
                 r.shadow.to_string(),
                 pct(r.occluded as u64, r.shadow),
@@ -393,6 +420,14 @@ fn ray_table(results: &[SceneResult], args: &KernelBenchArgs) -> Table {
                 dash(),
             ]),
         }
+        #[cfg(feature = "obvhs-bench")]
+        row.extend(super::obvhs_kernel::ray_cells(
+            &r.obvhs,
+            r.primary,
+            r.shadow,
+            (r.primary_s, r.shadow_s),
+            r.embree.as_ref().map(|e| (e.primary_s, e.shadow_s)),
+        ));
         table.push(row);
     }
     table
@@ -410,6 +445,10 @@ fn build_table(results: &[SceneResult]) -> Table {
             "split load s",
         ],
     );
+    #[cfg(feature = "obvhs-bench")]
+    table
+        .header
+        .extend(super::obvhs_kernel::BUILD_HEADER.map(String::from));
     for r in results {
         let (eb, ratio) = r.embree.as_ref().map_or(("-".into(), "-".into()), |e| {
             (f3(e.build_s), f3(r.build_s / e.build_s))
@@ -422,6 +461,10 @@ fn build_table(results: &[SceneResult]) -> Table {
             ratio,
             f3(r.load_s),
         ]);
+        #[cfg(feature = "obvhs-bench")]
+        if let Some(row) = table.rows.last_mut() {
+            row.extend(super::obvhs_kernel::build_cells(&r.obvhs, r.build_s));
+        }
     }
     table
 }

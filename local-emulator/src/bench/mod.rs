@@ -3,6 +3,8 @@
 
 mod emulator;
 mod kernel;
+#[cfg(feature = "obvhs-bench")]
+mod obvhs_kernel;
 mod pipeline;
 mod scenes;
 mod table;
