@@ -1,6 +1,6 @@
 //! The monolithic renderer (the paper's TRAD): one process, one BVH over the whole scene.
 //!
-//! The per-sample work ([`trace_sample`]) is separate from the loop that drives it over pixels
+//! The per-sample shading ([`shade_sample`]) is separate from the loop that drives it over pixels
 //! and threads ([`render`]); the result does not depend on the thread count.
 
 use crate::bvh::{Bvh, ClosestHit};
@@ -82,24 +82,22 @@ pub fn surface_of(mesh: &Mesh, hit: &ClosestHit, ray: &Ray) -> SurfacePoint {
     surface_point(hit.corners, hit.b, ray.dir, normals, kd)
 }
 
-/// Traces one camera sample at image position (px, py): returns its radiance, its hit and the
-/// logical rays it cast.
-pub fn trace_sample(
+/// Shades one camera sample whose primary ray `ray` has the closest hit `hit`: returns its
+/// radiance and the logical rays it cast (its primary ray and its shadow rays).
+pub fn shade_sample(
     scene: &Scene,
     bvh: &Bvh,
-    camera: &Camera,
-    px: f64,
-    py: f64,
-) -> ([f32; 3], Option<ClosestHit>, RayCounts) {
-    let ray = camera.ray(px, py);
-    let Some(hit) = bvh.closest_hit(&ray) else {
+    ray: &Ray,
+    hit: Option<&ClosestHit>,
+) -> ([f32; 3], RayCounts) {
+    let Some(hit) = hit else {
         let rays = RayCounts {
             primary: 1,
             shadow: 0,
         };
-        return (scene.background, None, rays);
+        return (scene.background, rays);
     };
-    let sp = surface_of(&scene.mesh, &hit, &ray);
+    let sp = surface_of(&scene.mesh, hit, ray);
     let contributions = scene.lights.iter().filter_map(|light| {
         let test = shadow_test(&sp, light)?;
         (!bvh.occluded(&test.ray, test.t_max)).then_some(test.unoccluded)
@@ -109,7 +107,7 @@ pub fn trace_sample(
         primary: 1,
         shadow: scene.lights.len() as u64,
     };
-    (colour, Some(hit), rays)
+    (colour, rays)
 }
 
 /// Renders `scene` with one BVH over all its triangles.
@@ -183,29 +181,35 @@ fn render_row(scene: &Scene, bvh: &Bvh, camera: &Camera, s: RenderSettings, y: u
         hits: Vec::with_capacity(s.width as usize),
         rays: RayCounts::default(),
     };
-    for x in 0..s.width {
-        let pixel = u64::from(y) * u64::from(s.width) + u64::from(x);
+    // The row's camera rays, pixel by pixel and sample by sample: neighbours are coherent, so
+    // they are traced as packets.
+    let first_pixel = u64::from(y) * u64::from(s.width);
+    let rays: Vec<Ray> = (0..s.width)
+        .flat_map(|x| {
+            (0..s.spp).map(move |sample| {
+                let (ox, oy) = sample_offset(first_pixel + u64::from(x), sample, s.spp);
+                camera.ray(f64::from(x) + ox, f64::from(y) + oy)
+            })
+        })
+        .collect();
+    let mut hits = vec![None; rays.len()];
+    bvh.closest_hits(&rays, &mut hits);
+    let samples = s.spp as usize;
+    for (rays, hits) in rays.chunks(samples).zip(hits.chunks(samples)) {
         let mut sum = [0.0f32; 3];
-        let mut first_hit = Hit::MISS;
-        for sample in 0..s.spp {
-            let (ox, oy) = sample_offset(pixel, sample, s.spp);
-            let px = f64::from(x) + ox;
-            let py = f64::from(y) + oy;
-            let (colour, hit, rays) = trace_sample(scene, bvh, camera, px, py);
+        for (ray, hit) in rays.iter().zip(hits) {
+            let (colour, counts) = shade_sample(scene, bvh, ray, hit.as_ref());
             for k in 0..3 {
                 sum[k] += colour[k];
             }
-            if sample == 0 {
-                first_hit = hit.map_or(Hit::MISS, |h| Hit {
-                    triangle: h.id,
-                    t: h.t,
-                });
-            }
-            row.rays += rays;
+            row.rays += counts;
         }
         let inv = s.spp as f32;
         row.colours.push(sum.map(|v| v / inv));
-        row.hits.push(first_hit);
+        row.hits.push(hits[0].map_or(Hit::MISS, |h| Hit {
+            triangle: h.id,
+            t: h.t,
+        }));
     }
     row
 }

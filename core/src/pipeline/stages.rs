@@ -22,13 +22,28 @@ pub fn cast_map(
 ) -> Result<Vec<SurfaceHit>, SceneError> {
     let camera = Camera::new(&plan.camera, plan.width, plan.height)?;
     let width = u64::from(plan.width);
+    // Samples in (pixel, sample) order, traced in batches of neighbouring camera rays (coherent,
+    // so `closest_hits` runs them as packets).
+    let samples = (span.start..span.end).flat_map(|pixel| (0..plan.spp).map(move |s| (pixel, s)));
     let mut out = Vec::new();
-    for pixel in span.start..span.end {
-        let (x, y) = ((pixel % width) as f64, (pixel / width) as f64);
-        for sample in 0..plan.spp {
+    let mut batch: Vec<(u64, u32)> = Vec::with_capacity(CAST_BATCH);
+    let mut rays = Vec::with_capacity(CAST_BATCH);
+    let mut hits = Vec::with_capacity(CAST_BATCH);
+    let mut samples = samples.peekable();
+    while samples.peek().is_some() {
+        batch.clear();
+        batch.extend(samples.by_ref().take(CAST_BATCH));
+        rays.clear();
+        rays.extend(batch.iter().map(|&(pixel, sample)| {
+            let (x, y) = ((pixel % width) as f64, (pixel / width) as f64);
             let (ox, oy) = sample_offset(pixel, sample, plan.spp);
-            let ray = camera.ray(x + ox, y + oy);
-            let Some(hit) = split.bvh.closest_hit(&ray) else {
+            camera.ray(x + ox, y + oy)
+        }));
+        hits.clear();
+        hits.resize(rays.len(), None);
+        split.bvh.closest_hits(&rays, &mut hits);
+        for ((&(pixel, sample), ray), hit) in batch.iter().zip(&rays).zip(&hits) {
+            let Some(hit) = hit else {
                 continue;
             };
             let shading = split.shading[hit.index as usize];
@@ -43,6 +58,9 @@ pub fn cast_map(
     }
     Ok(out)
 }
+
+/// Camera samples traced per `closest_hits` call in CastMap.
+const CAST_BATCH: usize = 1024;
 
 /// CastReduce: the nearest candidate per (pixel, sample): smaller t, then smaller triangle id.
 /// The result does not depend on the order or grouping of the inputs.
