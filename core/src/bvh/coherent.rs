@@ -260,6 +260,13 @@ impl Bvh {
         stack: &mut [PacketEntry; STACK],
         ray_stack: &mut [Entry; STACK],
     ) {
+        let boxes = PacketBoxes::new(rays);
+        // A packet that misses every child of the root (background) needs no per-ray setup.
+        let (some, _, _) = boxes.test_hull(&self.wide[0], f32::INFINITY, f32::INFINITY);
+        if some == 0 {
+            out.fill(None);
+            return;
+        }
         let last = rays.len() - 1;
         let mut searches = [ClosestSearch::new(&rays[last]); PACKET];
         for (search, ray) in searches.iter_mut().zip(&rays[..last]) {
@@ -267,7 +274,6 @@ impl Bvh {
         }
         // Each ray's culling bound, kept in step with its search.
         let mut bounds = [[f32::INFINITY; 4]; GROUPS];
-        let boxes = PacketBoxes::new(rays);
         let mut depth = 0usize;
         let (mut child, mut packets) = ROOT;
         let mut active = (1u32 << rays.len()) - 1;
