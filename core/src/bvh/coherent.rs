@@ -72,40 +72,36 @@ impl PacketBoxes {
     /// (and are never active).
     fn new(rays: &[Ray]) -> Self {
         let last = rays.len() - 1;
-        // The same division as the single-ray testers (`Vec3::ONE / dir`, per component).
-        let mut inv = [[0.0f32; 3]; PACKET];
-        for (i, row) in inv.iter_mut().enumerate() {
-            *row = (glam::Vec3::ONE / rays[i.min(last)].dir).to_array();
-        }
-        let group = |g: usize, axis: usize, f: fn(f32) -> f32| {
-            f32x4::from(each4(|l| f(inv[4 * g + l][axis])))
-        };
-        let sign = |x: f32| f32::from_bits(if x.is_sign_negative() { u32::MAX } else { 0 });
-        let mut inv_lo = [f32::INFINITY; 3];
-        let mut inv_hi = [f32::NEG_INFINITY; 3];
-        let mut negative = [0usize; 3];
-        let mut loose = [false; 3];
-        for row in &inv[..rays.len()] {
-            for axis in 0..3 {
-                let x = row[axis];
-                inv_lo[axis] = inv_lo[axis].min(x);
-                inv_hi[axis] = inv_hi[axis].max(x);
-                negative[axis] += usize::from(x.is_sign_negative());
-                loose[axis] |= !x.is_finite();
+        let valid = (1u32 << rays.len()) - 1;
+        let dir = |g: usize, a: usize| f32x4::from(each4(|l| rays[(4 * g + l).min(last)].dir[a]));
+        // The same correctly rounded division as the single-ray testers (`Vec3::ONE / dir`).
+        let inv_dir: [[f32x4; 3]; GROUPS] = each4(|g| each3(|a| f32x4::ONE / dir(g, a)));
+        // Directions are finite (`is_coherent`), so 1/d is never zero or NaN: its sign bit is
+        // set exactly when it is below zero.
+        let near_hi = each4(|g| each3(|a| inv_dir[g][a].simd_lt(f32x4::ZERO)));
+        let inf = f32x4::splat(f32::INFINITY);
+        let (mut lo, mut hi) = ([inf; 3], [-inf; 3]);
+        let (mut negative, mut infinite) = ([0u32; 3], [0u32; 3]);
+        for g in 0..GROUPS {
+            let bits = (valid >> (4 * g)) & 0xf;
+            let lanes = lane_mask(bits);
+            for a in 0..3 {
+                let x = inv_dir[g][a];
+                lo[a] = (lanes & x.simd_lt(lo[a])).select(x, lo[a]);
+                hi[a] = (lanes & x.simd_gt(hi[a])).select(x, hi[a]);
+                negative[a] |= (near_hi[g][a].to_bitmask() & bits) << (4 * g);
+                infinite[a] |= (x.abs().simd_eq(inf).to_bitmask() & bits) << (4 * g);
             }
         }
-        let all_near_hi = each3(|a| negative[a] == rays.len());
-        for axis in 0..3 {
-            loose[axis] |= negative[axis] != 0 && !all_near_hi[axis];
-        }
+        let all_near_hi = each3(|a| negative[a] == valid);
         PacketBoxes {
             origin: each3(|a| f32x4::splat(rays[0].origin[a])),
-            inv_dir: each4(|g| each3(|a| group(g, a, |x| x))),
-            near_hi: each4(|g| each3(|a| group(g, a, sign))),
-            inv_lo: each3(|a| f32x4::splat(inv_lo[a])),
-            inv_hi: each3(|a| f32x4::splat(inv_hi[a])),
+            inv_dir,
+            near_hi,
+            inv_lo: each3(|a| f32x4::splat(lowest(lo[a]))),
+            inv_hi: each3(|a| f32x4::splat(-lowest(-hi[a]))),
             all_near_hi,
-            loose,
+            loose: each3(|a| infinite[a] != 0 || (negative[a] != 0 && !all_near_hi[a])),
         }
     }
 
@@ -189,8 +185,7 @@ impl PacketBoxes {
             rays |= hit << (4 * g);
             entry = (lane_mask(hit) & t0.simd_lt(entry)).select(t0, entry);
         }
-        let e = entry.to_array();
-        (rays, e[0].min(e[1]).min(e[2].min(e[3])))
+        (rays, lowest(entry))
     }
 }
 
@@ -267,11 +262,9 @@ impl Bvh {
             out.fill(None);
             return;
         }
-        let last = rays.len() - 1;
-        let mut searches = [ClosestSearch::new(&rays[last]); PACKET];
-        for (search, ray) in searches.iter_mut().zip(&rays[..last]) {
-            *search = ClosestSearch::new(ray);
-        }
+        // Per-ray searches are set up when the ray first reaches a leaf (or goes on alone):
+        // rays that miss everything never pay for it.
+        let mut searches: [Option<ClosestSearch>; PACKET] = [None; PACKET];
         // Each ray's culling bound, kept in step with its search.
         let mut bounds = [[f32::INFINITY; 4]; GROUPS];
         let mut depth = 0usize;
@@ -284,8 +277,9 @@ impl Bvh {
                     let i = each.trailing_zeros() as usize;
                     each &= each - 1;
                     let single = BoxTester::new(&rays[i]);
-                    self.closest_from((child, packets), &single, &mut searches[i], ray_stack);
-                    bounds[i / 4][i % 4] = searches[i].bound();
+                    let search = searches[i].get_or_insert_with(|| ClosestSearch::new(&rays[i]));
+                    self.closest_from((child, packets), &single, search, ray_stack);
+                    bounds[i / 4][i % 4] = search.bound();
                 }
             } else if child & LEAF == 0 {
                 let node = &self.wide[child as usize];
@@ -314,8 +308,9 @@ impl Bvh {
                 while each != 0 {
                     let i = each.trailing_zeros() as usize;
                     each &= each - 1;
-                    self.closest_in_leaf(first, packets as usize, &mut searches[i]);
-                    bounds[i / 4][i % 4] = searches[i].bound();
+                    let search = searches[i].get_or_insert_with(|| ClosestSearch::new(&rays[i]));
+                    self.closest_in_leaf(first, packets as usize, search);
+                    bounds[i / 4][i % 4] = search.bound();
                 }
             }
             // Pop the next child with the rays that may still find a better hit in it: a ray
@@ -323,7 +318,7 @@ impl Bvh {
             loop {
                 if depth == 0 {
                     for (o, s) in out.iter_mut().zip(&searches) {
-                        *o = self.closest_result(s);
+                        *o = s.as_ref().and_then(|s| self.closest_result(s));
                     }
                     return;
                 }
@@ -347,6 +342,13 @@ impl Bvh {
     }
 }
 
+/// The smallest lane of `x` (no NaN lanes).
+#[inline(always)]
+fn lowest(x: f32x4) -> f32 {
+    let x = x.to_array();
+    x[0].min(x[1]).min(x[2].min(x[3]))
+}
+
 /// The smallest and largest bound among the `active` rays.
 #[inline(always)]
 fn bound_range(bound: &[f32x4; GROUPS], active: u32) -> (f32, f32) {
@@ -357,11 +359,7 @@ fn bound_range(bound: &[f32x4; GROUPS], active: u32) -> (f32, f32) {
         lo = (lanes & b.simd_lt(lo)).select(*b, lo);
         hi = (lanes & b.simd_gt(hi)).select(*b, hi);
     }
-    let (lo, hi) = (lo.to_array(), hi.to_array());
-    (
-        lo[0].min(lo[1]).min(lo[2].min(lo[3])),
-        hi[0].max(hi[1]).max(hi[2].max(hi[3])),
-    )
+    (lowest(lo), -lowest(-hi))
 }
 
 /// Defers the entered children of `node` (rays per slot in `enter`, entry bounds `entry`)
