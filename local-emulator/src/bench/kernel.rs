@@ -6,8 +6,11 @@
 //! exactly as the renderer builds it ([`shadow_test`]), traced with [`Bvh::occluded`]. All rays
 //! and our answers go to a binary file that `bench/embree_harness.c` (compiled here at run time
 //! against `libembree3` when it is installed) traces with `rtcIntersect1`, `rtcIntersect16` and
-//! `rtcOccluded1` on a one-thread device. Timings are the best of `--repeats` passes; ratios
-//! compare numbers measured in the same run.
+//! `rtcOccluded1` on a one-thread device. Our coherent path ([`Bvh::closest_hits`]) traces the
+//! same primary rays in packets of 16 consecutive rays (16 pixels of a row), exactly as the
+//! harness groups them for `rtcIntersect16`, and must return the single-ray answers. With
+//! `--features obvhs-bench`, the crate obvhs runs on the same rays too (`obvhs_kernel.rs`).
+//! Timings are the best of `--repeats` passes; ratios compare numbers measured in the same run.
 
 use super::scenes::{bundled, generated};
 use super::table::{Table, f3};
