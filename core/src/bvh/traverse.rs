@@ -108,7 +108,9 @@ thread_local! {
 /// keep exactly the same best hit.
 #[derive(Clone, Copy)]
 pub(super) struct ClosestSearch {
-    pub prep: RayPrep,
+    /// The ray (the scalar test's constants are rebuilt from it in the rare lanes that need
+    /// them: copying them here stalled every ray's setup).
+    ray: Ray,
     pub tris: TriangleTester,
     best: Option<(TriangleHit, usize, usize)>,
     pub best_t: f32,
@@ -118,10 +120,9 @@ pub(super) struct ClosestSearch {
 impl ClosestSearch {
     #[inline(always)]
     pub fn new(ray: &Ray) -> Self {
-        let prep = RayPrep::new(ray);
         ClosestSearch {
-            tris: TriangleTester::new(&prep),
-            prep,
+            tris: TriangleTester::new(&RayPrep::new(ray)),
+            ray: *ray,
             best: None,
             best_t: f32::INFINITY,
             best_id: u32::MAX,
@@ -182,7 +183,8 @@ impl Bvh {
                     }
                 } else {
                     let [p0, p1, p2] = p.corners(lane);
-                    let Some(h) = intersect(&s.prep, p0, p1, p2, f32::INFINITY) else {
+                    let prep = RayPrep::new(&s.ray);
+                    let Some(h) = intersect(&prep, p0, p1, p2, f32::INFINITY) else {
                         continue;
                     };
                     h
