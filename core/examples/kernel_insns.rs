@@ -11,7 +11,11 @@
 //! - `primary`: + trace the primary rays;
 //! - `shadow-rays`: + make the shadow rays from the hits, allocate their results;
 //! - `shadow`: + trace the shadow rays;
-//! - `digest`: all of the above, then FNV-1a digests of the answers (not for counting).
+//! - `digest`: all of the above, then FNV-1a digests of the answers (not for counting); fails
+//!   unless the 16-ray packets give the single-ray answers;
+//! - `packets` (outside the chain): `setup` + the primary rays in 16-ray packets
+//!   ([`Bvh::closest_hits`]), so per primary ray in packets = (count(packets) - count(setup)) /
+//!   primary rays.
 //!
 //! So instructions per primary ray = (count(primary) - count(setup)) / primary rays, and per
 //! shadow ray = (count(shadow) - count(shadow-rays)) / shadow rays. The counting modes print
@@ -35,6 +39,9 @@ enum Mode {
     ShadowRays,
     Shadow,
     Digest,
+    /// Setup, then the primary rays in 16-ray packets (`Bvh::closest_hits`); not part of the
+    /// chain above.
+    Packets,
 }
 
 impl Mode {
@@ -45,13 +52,13 @@ impl Mode {
             "shadow-rays" => Mode::ShadowRays,
             "shadow" => Mode::Shadow,
             "digest" => Mode::Digest,
+            "packets" => Mode::Packets,
             _ => return None,
         })
     }
 }
 
-const USAGE: &str =
-    "usage: kernel_insns <scene.json> <setup|primary|shadow-rays|shadow|digest> [WIDTHxHEIGHT]";
+const USAGE: &str = "usage: kernel_insns <scene.json> <setup|primary|shadow-rays|shadow|digest|packets> [WIDTHxHEIGHT]";
 
 fn main() -> ExitCode {
     match run() {
@@ -85,6 +92,16 @@ fn run() -> Result<(), Box<dyn Error>> {
         .flat_map(|y| (0..width).map(move |x| camera.ray(f64::from(x) + 0.5, f64::from(y) + 0.5)))
         .collect();
     let mut hits: Vec<Option<ClosestHit>> = vec![None; primary.len()];
+    if mode == Mode::Packets {
+        trace_packets(&bvh, &primary, &mut hits);
+        black_box(&hits);
+        println!(
+            "mode=packets width={width} height={height} triangles={} primary_rays={}",
+            bvh.triangle_count(),
+            primary.len()
+        );
+        return Ok(());
+    }
     if mode >= Mode::Primary {
         trace_primary(&bvh, &primary, &mut hits);
     }
@@ -116,6 +133,11 @@ fn run() -> Result<(), Box<dyn Error>> {
         shadow.len()
     );
     if mode == Mode::Digest {
+        let mut packet_hits = vec![None; primary.len()];
+        trace_packets(&bvh, &primary, &mut packet_hits);
+        if packet_hits != hits {
+            return Err("16-ray packets and single rays disagree".into());
+        }
         let mut primary_digest = Fnv::new();
         for hit in &hits {
             match hit {
@@ -148,6 +170,11 @@ fn run() -> Result<(), Box<dyn Error>> {
         );
     }
     Ok(())
+}
+
+#[inline(never)]
+fn trace_packets(bvh: &Bvh, rays: &[Ray], hits: &mut [Option<ClosestHit>]) {
+    bvh.closest_hits(rays, hits);
 }
 
 #[inline(never)]

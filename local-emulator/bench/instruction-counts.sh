@@ -10,10 +10,12 @@
 # target aarch64-unknown-linux-gnu, gcc-aarch64-linux-gnu (linker and aarch64 libc under
 # /usr/aarch64-linux-gnu), qemu-user 7.x with plugin support, valgrind, a host C compiler (cc).
 #
-# Both architectures run the release build of core/examples/kernel_insns.rs in four modes
-# (setup, primary, shadow-rays, shadow), each adding one step, and count the instructions of
-# the whole process: per primary ray = (primary - setup) / primary rays, per shadow ray =
-# (shadow - shadow-rays) / shadow rays. A fifth run per architecture (digest, uninstrumented)
+# Both architectures run the release build of core/examples/kernel_insns.rs in four chained
+# modes (setup, primary, shadow-rays, shadow), each adding one step, plus `packets` (setup +
+# the primary rays in 16-ray packets), and count the instructions of the whole process: per
+# primary ray = (primary - setup) / primary rays, in packets = (packets - setup) / primary
+# rays, per shadow ray = (shadow - shadow-rays) / shadow rays. A digest run per architecture
+# (uninstrumented; it also checks that packets give the single-ray answers)
 # prints FNV digests of every hit (id, t, barycentrics, leaf index) and every shadow ray and
 # answer; "same answers" says whether both architectures agree bit for bit.
 set -euo pipefail
@@ -115,15 +117,15 @@ echo "commit $(git rev-parse --short HEAD 2>/dev/null || echo '?')${dirty:+ + un
 echo
 echo "Instructions per ray, ${size} image, one primary ray per pixel, shadow rays towards the first light (x86-64: SSE2 build, valgrind callgrind Ir; aarch64: NEON build, qemu-user plugin)."
 echo
-echo "| scene | triangles | primary rays | x86-64 / primary ray | aarch64 / primary ray | aarch64 / x86-64 | shadow rays | x86-64 / shadow ray | aarch64 / shadow ray | aarch64 / x86-64 | same answers |"
-echo "|---|---|---|---|---|---|---|---|---|---|---|"
+echo "| scene | triangles | primary rays | x86-64 / primary ray | aarch64 / primary ray | aarch64 / x86-64 | x86-64 / primary ray, x16 packets | aarch64 / primary ray, x16 packets | shadow rays | x86-64 / shadow ray | aarch64 / shadow ray | aarch64 / x86-64 | same answers |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|"
 status=0
 for i in "${!scene_files[@]}"; do
     f=${scene_files[$i]}
     name=${scenes[$i]}
     echo "$name ..." >&2
     declare -A xc=() ac=()
-    for m in setup primary shadow-rays shadow; do
+    for m in setup primary packets shadow-rays shadow; do
         xc[$m]=$(x86_count "$f" $m)
         ac[$m]=$(arm_count "$f" $m)
     done
@@ -141,13 +143,15 @@ for i in "${!scene_files[@]}"; do
     fi
     xp=$(per_ray "${xc[setup]}" "${xc[primary]}" "$np")
     ap=$(per_ray "${ac[setup]}" "${ac[primary]}" "$np")
+    xq=$(per_ray "${xc[setup]}" "${xc[packets]}" "$np")
+    aq=$(per_ray "${ac[setup]}" "${ac[packets]}" "$np")
     xs=$(per_ray "${xc[shadow-rays]}" "${xc[shadow]}" "$ns")
     as=$(per_ray "${ac[shadow-rays]}" "${ac[shadow]}" "$ns")
-    echo "| $name | $triangles | $np | $xp | $ap | $(ratio "$xp" "$ap") | $ns | $xs | $as | $(ratio "$xs" "$as") | $same |"
+    echo "| $name | $triangles | $np | $xp | $ap | $(ratio "$xp" "$ap") | $xq | $aq | $ns | $xs | $as | $(ratio "$xs" "$as") | $same |"
     {
-        echo "$name raw totals (setup primary shadow-rays shadow):"
-        echo "  x86-64  ${xc[setup]} ${xc[primary]} ${xc[shadow-rays]} ${xc[shadow]}"
-        echo "  aarch64 ${ac[setup]} ${ac[primary]} ${ac[shadow-rays]} ${ac[shadow]}"
+        echo "$name raw totals (setup primary packets shadow-rays shadow):"
+        echo "  x86-64  ${xc[setup]} ${xc[primary]} ${xc[packets]} ${xc[shadow-rays]} ${xc[shadow]}"
+        echo "  aarch64 ${ac[setup]} ${ac[primary]} ${ac[packets]} ${ac[shadow-rays]} ${ac[shadow]}"
     } >&2
     unset xc ac
 done
