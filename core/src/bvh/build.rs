@@ -14,7 +14,7 @@ pub(super) const MAX_DEPTH: usize = 60;
 pub(super) fn build(triangles: Vec<[Vec3; 3]>, ids: Vec<u32>) -> Bvh {
     let n = triangles.len();
     if n == 0 {
-        return Bvh::assemble(Vec::new(), triangles, ids);
+        return Bvh::assemble(Vec::new(), ids, |_| [Vec3::ZERO; 3]);
     }
     let boxes: Vec<Aabb> = triangles.iter().map(Aabb::of_triangle).collect();
     let centroids: Vec<Vec3> = boxes.iter().map(|b| (b.lo + b.hi) * 0.5).collect();
@@ -53,9 +53,8 @@ pub(super) fn build(triangles: Vec<[Vec3; 3]>, ids: Vec<u32>) -> Bvh {
             }
         }
     }
-    let triangles_in_order = order.iter().map(|&i| triangles[i as usize]).collect();
     let ids_in_order = order.iter().map(|&i| ids[i as usize]).collect();
-    Bvh::assemble(nodes, triangles_in_order, ids_in_order)
+    Bvh::assemble(nodes, ids_in_order, |t| triangles[order[t] as usize])
 }
 
 #[derive(Clone, Copy)]

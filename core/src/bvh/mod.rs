@@ -74,9 +74,11 @@ pub struct Node {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Bvh {
     nodes: Vec<Node>,
-    triangles: Vec<[Vec3; 3]>,
+    /// Scene-wide id of each triangle, in leaf order.
     ids: Vec<u32>,
-    /// Traversal form derived from `nodes` and `triangles` (see [`node4`]).
+    /// Traversal form derived from `nodes` and the leaf-order triangles (see [`node4`]). The
+    /// packets hold the only copy of the triangles: leaf-order triangle `t` is lane
+    /// `t - first` of the packet whose lanes start at `first`.
     wide: Vec<node4::Node4>,
     packets: Vec<node4::Packet>,
 }
@@ -89,12 +91,12 @@ impl Bvh {
         build::build(triangles, ids)
     }
 
-    /// Assembles a BVH from valid binary nodes, adding the traversal form.
-    fn assemble(nodes: Vec<Node>, triangles: Vec<[Vec3; 3]>, ids: Vec<u32>) -> Bvh {
-        let (wide, packets) = node4::collapse(&nodes, &triangles);
+    /// Assembles a BVH from valid binary nodes whose leaves cover the `ids.len()` triangles
+    /// exactly once, adding the traversal form; `corners(t)` is leaf-order triangle `t`.
+    fn assemble(nodes: Vec<Node>, ids: Vec<u32>, corners: impl Fn(usize) -> [Vec3; 3]) -> Bvh {
+        let (wide, packets) = node4::collapse(&nodes, ids.len(), corners);
         Bvh {
             nodes,
-            triangles,
             ids,
             wide,
             packets,
@@ -103,7 +105,21 @@ impl Bvh {
 
     /// Number of triangles.
     pub fn triangle_count(&self) -> usize {
-        self.triangles.len()
+        self.ids.len()
+    }
+
+    /// The scene-wide id of each triangle, in leaf order.
+    pub fn ids(&self) -> &[u32] {
+        &self.ids
+    }
+
+    /// Bytes this BVH holds in memory (its arrays; what a cache of decoded splits budgets).
+    pub fn memory_bytes(&self) -> u64 {
+        use std::mem::size_of;
+        (self.nodes.len() * size_of::<Node>()
+            + self.ids.len() * size_of::<u32>()
+            + self.wide.len() * size_of::<node4::Node4>()
+            + self.packets.len() * size_of::<node4::Packet>()) as u64
     }
 
     /// Number of nodes.

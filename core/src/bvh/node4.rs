@@ -4,7 +4,8 @@
 //! It is derived data: a pure function of the binary nodes and the leaf-order triangles, rebuilt
 //! by [`Bvh::build`](super::Bvh::build) and [`Bvh::from_parts`](super::Bvh::from_parts), never
 //! stored. Collapsing only regroups boxes the binary tree already has, so every box the traversal
-//! tests is a box of the binary tree.
+//! tests is a box of the binary tree. The packets are the only copy of the triangles a `Bvh`
+//! keeps: every leaf-order triangle is one lane of one packet.
 
 use super::{Aabb, Node};
 use glam::Vec3;
@@ -54,13 +55,18 @@ const UNUSED: Node4 = Node4 {
 };
 
 /// Collapses binary `nodes` (root first, valid as checked by `from_parts` or made by `build`)
-/// over leaf-order `triangles`. Empty for an empty tree; otherwise node 0 is the root.
-pub(super) fn collapse(nodes: &[Node], triangles: &[[Vec3; 3]]) -> (Vec<Node4>, Vec<Packet>) {
+/// over `n` leaf-order triangles, where `corners(t)` is triangle `t` (called once per triangle,
+/// only for `t < n`). Empty for an empty tree; otherwise node 0 is the root.
+pub(super) fn collapse<F: Fn(usize) -> [Vec3; 3]>(
+    nodes: &[Node],
+    n: usize,
+    corners: F,
+) -> (Vec<Node4>, Vec<Packet>) {
     let mut out = Collapse {
         nodes,
-        triangles,
+        corners,
         wide: Vec::with_capacity(nodes.len() / 3 + 1),
-        packets: Vec::with_capacity(triangles.len() / 2 + 1),
+        packets: Vec::with_capacity(n / 2 + 1),
     };
     if !nodes.is_empty() {
         out.wide.push(UNUSED);
@@ -71,17 +77,19 @@ pub(super) fn collapse(nodes: &[Node], triangles: &[[Vec3; 3]]) -> (Vec<Node4>, 
         };
         out.fill(0, &children[..len]);
     }
+    out.wide.shrink_to_fit();
+    out.packets.shrink_to_fit();
     (out.wide, out.packets)
 }
 
-struct Collapse<'a> {
+struct Collapse<'a, F> {
     nodes: &'a [Node],
-    triangles: &'a [[Vec3; 3]],
+    corners: F,
     wide: Vec<Node4>,
     packets: Vec<Packet>,
 }
 
-impl Collapse<'_> {
+impl<F: Fn(usize) -> [Vec3; 3]> Collapse<'_, F> {
     /// The up to 4 binary nodes that become the children of the wide node for inner node `n`:
     /// its two children, then repeatedly the inner one with the largest box opened in place.
     fn open(&self, n: usize) -> ([usize; 4], usize) {
@@ -124,7 +132,7 @@ impl Collapse<'_> {
                 for chunk in (start..end).step_by(4) {
                     let lanes = (end - chunk).min(4);
                     let mut v = [[[0.0f32; 4]; 3]; 3];
-                    for (lane, t) in self.triangles[chunk..chunk + lanes].iter().enumerate() {
+                    for (lane, t) in (chunk..chunk + lanes).map(&self.corners).enumerate() {
                         for (corner, p) in t.iter().enumerate() {
                             for axis in 0..3 {
                                 v[corner][axis][lane] = p[axis];

@@ -9,8 +9,6 @@ use glam::Vec3;
 /// Why stored BVH arrays cannot be used.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum BvhPartsError {
-    #[error("BVH has {triangles} triangles but {ids} ids")]
-    LengthMismatch { triangles: usize, ids: usize },
     #[error("BVH node {node}: {problem}")]
     BadNode { node: usize, problem: String },
     #[error("BVH with triangles has no nodes")]
@@ -22,28 +20,36 @@ pub enum BvhPartsError {
 }
 
 impl Bvh {
-    /// The nodes (root first), the triangles in leaf order and their scene-wide ids.
-    pub fn parts(&self) -> (&[Node], &[[Vec3; 3]], &[u32]) {
-        (&self.nodes, &self.triangles, &self.ids)
+    /// The nodes (root first), the triangles in leaf order and their scene-wide ids. The
+    /// triangles are gathered from the traversal packets (their only copy) into a new vector.
+    pub fn parts(&self) -> (&[Node], Vec<[Vec3; 3]>, &[u32]) {
+        let mut triangles = vec![[Vec3::ZERO; 3]; self.ids.len()];
+        for p in &self.packets {
+            let first = p.first as usize;
+            for (lane, t) in triangles[first..first + p.lanes as usize]
+                .iter_mut()
+                .enumerate()
+            {
+                *t = p.corners(lane);
+            }
+        }
+        (&self.nodes, triangles, &self.ids)
     }
 
-    /// Reassembles a BVH from [`Bvh::parts`] output, checking that children come after their
-    /// parent, leaves stay inside the triangle array and cover it exactly once, and the depth
-    /// stays within the traversal stack.
+    /// Reassembles a BVH from [`Bvh::parts`] output: `ids.len()` triangles, where `corners(t)`
+    /// is leaf-order triangle `t`. Checks that children come after their parent, the depth
+    /// stays within the traversal stack, and the leaves, visited depth first (left child
+    /// first), cover the triangles exactly once and in order, as [`Bvh::build`] lays them out.
+    /// Only after these checks pass, `corners` is called once for each `t < ids.len()`.
     pub fn from_parts(
         nodes: Vec<Node>,
-        triangles: Vec<[Vec3; 3]>,
         ids: Vec<u32>,
+        corners: impl Fn(usize) -> [Vec3; 3],
     ) -> Result<Bvh, BvhPartsError> {
-        if triangles.len() != ids.len() {
-            return Err(BvhPartsError::LengthMismatch {
-                triangles: triangles.len(),
-                ids: ids.len(),
-            });
-        }
+        let triangles = ids.len();
         if nodes.is_empty() {
-            if triangles.is_empty() {
-                return Ok(Bvh::assemble(nodes, triangles, ids));
+            if triangles == 0 {
+                return Ok(Bvh::assemble(nodes, ids, corners));
             }
             return Err(BvhPartsError::NoNodes);
         }
@@ -68,19 +74,23 @@ impl Bvh {
                 stack.push((left + 1, depth + 1));
                 stack.push((left, depth + 1));
             } else {
-                let end = n.first as usize + n.count as usize;
-                if end > triangles.len() {
-                    return Err(bad(format!("leaf ends at {end} past {}", triangles.len())));
+                if n.first as usize != covered {
+                    return Err(bad(format!(
+                        "leaf starts at triangle {}, expected {covered}",
+                        n.first
+                    )));
+                }
+                // `covered <= triangles` holds here, so neither side can overflow.
+                if n.count as usize > triangles - covered {
+                    let end = u64::from(n.first) + u64::from(n.count);
+                    return Err(bad(format!("leaf ends at {end} past {triangles}")));
                 }
                 covered += n.count as usize;
             }
         }
-        if covered != triangles.len() {
-            return Err(BvhPartsError::Coverage {
-                covered,
-                triangles: triangles.len(),
-            });
+        if covered != triangles {
+            return Err(BvhPartsError::Coverage { covered, triangles });
         }
-        Ok(Bvh::assemble(nodes, triangles, ids))
+        Ok(Bvh::assemble(nodes, ids, corners))
     }
 }

@@ -26,7 +26,7 @@ pub struct PipelineOptions {
     pub job: JobId,
     /// Worker threads running tasks concurrently (at least 1).
     pub workers: usize,
-    /// Stored bytes of decoded splits each worker may keep between tasks (0: none).
+    /// Memory of decoded splits each worker may keep between tasks (0: none).
     pub split_cache_bytes: u64,
 }
 

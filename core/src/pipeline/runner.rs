@@ -236,8 +236,7 @@ impl Task<'_> {
         self.metrics.bytes_read += bytes.len() as u64;
         self.metrics.split_bytes_read += bytes.len() as u64;
         let object = Arc::new(decode_split(&key, &bytes)?);
-        self.cache
-            .insert(&key, bytes.len() as u64, Arc::clone(&object));
+        self.cache.insert(&key, Arc::clone(&object));
         Ok(object)
     }
 

@@ -105,8 +105,7 @@ pub fn split_scene<E>(
         let triangles = ids.iter().map(|&i| mesh.corners(i as usize)).collect();
         let bvh = Bvh::build(triangles, ids);
         let shading = bvh
-            .parts()
-            .2
+            .ids()
             .iter()
             .map(|&id| {
                 let (normals, kd) = shading_of(mesh, id);

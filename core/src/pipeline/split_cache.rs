@@ -6,7 +6,8 @@
 use super::split_object::SplitObject;
 use std::sync::{Arc, Mutex};
 
-/// Least-recently-used cache of decoded splits, bounded by their stored (compressed) size.
+/// Least-recently-used cache of decoded splits, bounded by the memory they hold
+/// ([`SplitObject::memory_bytes`]).
 #[derive(Debug)]
 pub struct SplitCache {
     budget_bytes: u64,
@@ -21,7 +22,8 @@ struct Entry {
 }
 
 impl SplitCache {
-    /// A cache holding splits of at most `budget_bytes` stored bytes in total (0 disables it).
+    /// A cache holding decoded splits of at most `budget_bytes` bytes of memory in total (0
+    /// disables it).
     pub fn new(budget_bytes: u64) -> SplitCache {
         SplitCache {
             budget_bytes,
@@ -39,8 +41,9 @@ impl SplitCache {
         Some(object)
     }
 
-    /// Keeps `object` (stored as `bytes` bytes under `key`), evicting the least recently used.
-    pub fn insert(&self, key: &str, bytes: u64, object: Arc<SplitObject>) {
+    /// Keeps `object` (stored under `key`), evicting the least recently used.
+    pub fn insert(&self, key: &str, object: Arc<SplitObject>) {
+        let bytes = object.memory_bytes();
         if bytes > self.budget_bytes {
             return;
         }
@@ -61,27 +64,46 @@ impl SplitCache {
 mod tests {
     use super::*;
     use crate::bvh::Bvh;
+    use crate::pipeline::TriangleShading;
 
-    fn object(split: u32) -> Arc<SplitObject> {
+    /// A split of `n` triangles.
+    fn object(split: u32, n: usize) -> Arc<SplitObject> {
+        let tri = [glam::Vec3::ZERO, glam::Vec3::X, glam::Vec3::Y];
         Arc::new(SplitObject {
             split,
-            bvh: Bvh::build(Vec::new(), Vec::new()),
-            shading: Vec::new(),
+            bvh: Bvh::build(vec![tri; n], (0..n as u32).collect()),
+            shading: vec![
+                TriangleShading {
+                    normals: None,
+                    kd: [0.5; 3],
+                };
+                n
+            ],
         })
     }
 
     #[test]
-    fn evicts_least_recently_used_within_budget() {
-        let cache = SplitCache::new(100);
-        cache.insert("a", 40, object(0));
-        cache.insert("b", 40, object(1));
+    fn evicts_least_recently_used_within_its_memory_budget() {
+        let size = object(0, 10).memory_bytes();
+        assert!(
+            size > 10 * 36,
+            "a split holds at least its corners ({size})"
+        );
+        let cache = SplitCache::new(size * 5 / 2);
+        cache.insert("a", object(0, 10));
+        cache.insert("b", object(1, 10));
         assert!(cache.get("a").is_some());
-        cache.insert("c", 40, object(2));
+        cache.insert("c", object(2, 10));
         assert!(cache.get("b").is_none(), "b was least recently used");
         assert_eq!(cache.get("a").unwrap().split, 0);
         assert_eq!(cache.get("c").unwrap().split, 2);
-        cache.insert("huge", 101, object(3));
-        assert!(cache.get("huge").is_none());
+        cache.insert("huge", object(3, 100));
+        assert!(cache.get("huge").is_none(), "larger than the whole budget");
+        assert_eq!(
+            cache.get("a").unwrap().split,
+            0,
+            "kept when a huge one is refused"
+        );
         assert!(SplitCache::new(0).get("a").is_none());
     }
 }

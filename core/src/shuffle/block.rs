@@ -1,6 +1,6 @@
 //! The block codec: header, zstd payload, checksum.
 
-use std::io::Read;
+use zstd::zstd_safe::zstd_sys::ZSTD_ErrorCode::ZSTD_error_dstSize_tooSmall;
 
 /// The first 8 bytes of every block.
 pub const BLOCK_MAGIC: [u8; 8] = *b"HORTBLK\0";
@@ -325,16 +325,25 @@ fn inflate(payload: &[u8], raw_len: u64) -> Result<Vec<u8>, BlockProblem> {
             payload.len().saturating_sub(frame_len)
         )));
     }
-    let decoder =
-        zstd::stream::read::Decoder::with_buffer(payload).map_err(|e| corrupt(e.to_string()))?;
     // The block CRC has vouched for the declared length (and it is <= MAX_RAW_LEN): allocate it
-    // once. On targets where it does not fit in usize, grow as data arrives instead.
-    let mut raw = Vec::with_capacity(usize::try_from(raw_len).unwrap_or(0));
-    decoder
-        .take(raw_len.saturating_add(1))
-        .read_to_end(&mut raw)
-        .map_err(|e| corrupt(e.to_string()))?;
-    let found = raw.len() as u64;
+    // once, plus one byte to tell a longer payload from a corrupt one. zstd decompresses the
+    // whole frame straight into it (no window buffer, no copy) and never writes past it.
+    // (Only a 32-bit target can fail to hold it.)
+    let capacity = usize::try_from(raw_len + 1)
+        .ok()
+        .filter(|&c| c <= isize::MAX as usize)
+        .ok_or(BlockProblem::RawTooLarge {
+            len: raw_len,
+            max: isize::MAX as u64 - 1,
+        })?;
+    let mut raw = Vec::with_capacity(capacity);
+    let found = match zstd::zstd_safe::decompress(&mut raw, payload) {
+        Ok(found) => found as u64,
+        Err(code) if zstd::zstd_safe::is_error_kind(code, ZSTD_error_dstSize_tooSmall) => {
+            raw_len + 1
+        }
+        Err(code) => return Err(corrupt(zstd::zstd_safe::get_error_name(code).to_owned())),
+    };
     if found != raw_len {
         return Err(BlockProblem::RawLengthMismatch {
             declared: raw_len,

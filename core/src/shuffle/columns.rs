@@ -171,19 +171,25 @@ impl<'a> ColumnReader<'a> {
 
     /// Reads a [`ColumnWriter::put_u32`] column.
     pub fn read_u32(&mut self) -> Result<Vec<u32>, ColumnError> {
-        let count = self.header(TAG_U32, "u32", 4)?;
-        let words = self.planes(count)?;
-        Ok(words.into_iter().map(u32::from_le_bytes).collect())
+        Ok(self.read_u32_planes()?.u32s().collect())
     }
 
     /// Reads a [`ColumnWriter::put_f32`] column, bit for bit.
     pub fn read_f32(&mut self) -> Result<Vec<f32>, ColumnError> {
+        Ok(self.read_f32_planes()?.f32s().collect())
+    }
+
+    /// Reads a [`ColumnWriter::put_u32`] column in place: its byte planes, borrowed from the
+    /// input, for callers that convert the values straight into their own types.
+    pub fn read_u32_planes(&mut self) -> Result<Planes<'a>, ColumnError> {
+        let count = self.header(TAG_U32, "u32", 4)?;
+        self.planes(count)
+    }
+
+    /// Reads a [`ColumnWriter::put_f32`] column in place, like [`ColumnReader::read_u32_planes`].
+    pub fn read_f32_planes(&mut self) -> Result<Planes<'a>, ColumnError> {
         let count = self.header(TAG_F32, "f32", 4)?;
-        let words = self.planes(count)?;
-        Ok(words
-            .into_iter()
-            .map(|w| f32::from_bits(u32::from_le_bytes(w)))
-            .collect())
+        self.planes(count)
     }
 
     /// Reads a [`ColumnWriter::put_bytes`] column, borrowing from the input.
@@ -237,18 +243,15 @@ impl<'a> ColumnReader<'a> {
         usize::try_from(count).map_err(|_| self.truncated(needed))
     }
 
-    fn planes(&mut self, count: usize) -> Result<Vec<[u8; 4]>, ColumnError> {
+    fn planes(&mut self, count: usize) -> Result<Planes<'a>, ColumnError> {
         let bytes = self.take(count.saturating_mul(4))?;
-        let mut words = vec![[0u8; 4]; count];
-        for (plane, plane_bytes) in bytes.chunks_exact(count.max(1)).enumerate() {
-            for (word, &byte) in words.iter_mut().zip(plane_bytes) {
-                if let Some(slot) = word.get_mut(plane) {
-                    *slot = byte;
-                }
-            }
-        }
+        let (b0, rest) = bytes.split_at(count);
+        let (b1, rest) = rest.split_at(count);
+        let (b2, b3) = rest.split_at(count);
         self.column += 1;
-        Ok(words)
+        Ok(Planes {
+            planes: [b0, b1, b2, b3],
+        })
     }
 
     fn take(&mut self, n: usize) -> Result<&'a [u8], ColumnError> {
@@ -291,6 +294,52 @@ impl<'a> ColumnReader<'a> {
             column: self.column,
         }
     }
+}
+
+/// A column of 4-byte values as written: byte 0 of every value, then byte 1, ... (see the
+/// module docs), borrowed from the reader's input. Every plane has [`Planes::len`] bytes.
+#[derive(Debug, Clone, Copy)]
+pub struct Planes<'a> {
+    planes: [&'a [u8]; 4],
+}
+
+impl<'a> Planes<'a> {
+    /// Number of values.
+    pub fn len(&self) -> usize {
+        self.planes[0].len()
+    }
+
+    /// True for an empty column.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The values as `u32`s.
+    pub fn u32s(&self) -> impl ExactSizeIterator<Item = u32> + 'a {
+        self.groups::<1>().map(|[w]| w)
+    }
+
+    /// The values as `f32`s, bit for bit.
+    pub fn f32s(&self) -> impl ExactSizeIterator<Item = f32> + 'a {
+        self.groups::<1>().map(|[w]| f32::from_bits(w))
+    }
+
+    /// The values in consecutive groups of `K` (values `K * i .. K * i + K` as item `i`), as
+    /// `u32` bits. A trailing partial group is skipped: callers check [`Planes::len`] first.
+    pub fn groups<const K: usize>(&self) -> impl ExactSizeIterator<Item = [u32; K]> + 'a {
+        let [b0, b1, b2, b3] = self.planes.map(|p| p.as_chunks::<K>().0);
+        b0.iter()
+            .zip(b1)
+            .zip(b2)
+            .zip(b3)
+            .map(|(((b0, b1), b2), b3)| words(b0, b1, b2, b3))
+    }
+}
+
+/// The little-endian words whose bytes 0, 1, 2, 3 are `b0[k]`, `b1[k]`, `b2[k]`, `b3[k]`.
+#[inline(always)]
+fn words<const K: usize>(b0: &[u8; K], b1: &[u8; K], b2: &[u8; K], b3: &[u8; K]) -> [u32; K] {
+    std::array::from_fn(|k| u32::from_le_bytes([b0[k], b1[k], b2[k], b3[k]]))
 }
 
 fn put_varint(bytes: &mut Vec<u8>, mut value: u64) {

@@ -283,8 +283,7 @@ fn bench_scene(
 /// validation, BVH reassembly): what a task pays before tracing.
 fn split_load_seconds(scene: &Scene, bvh: Bvh, repeats: u32) -> Result<f64> {
     let shading = bvh
-        .parts()
-        .2
+        .ids()
         .iter()
         .map(|&id| {
             let (normals, kd) = shading_of(&scene.mesh, id);

@@ -43,7 +43,7 @@ pub struct EmulatorConfig {
     pub time_scale: f64,
     /// Per-task timeout override, seconds (default: derived from each task's work).
     pub task_timeout_seconds: Option<u32>,
-    /// Stored bytes of decoded splits all warm workers together may keep.
+    /// Memory of decoded splits all warm workers together may keep.
     pub split_cache_bytes: u64,
     /// Lambda memory and architecture the cost estimate assumes.
     pub memory_mb: u32,

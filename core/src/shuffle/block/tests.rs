@@ -205,3 +205,27 @@ fn record_kind_codes_are_fixed() {
     }
     assert_eq!(RecordKind::from_code(0), None);
 }
+
+#[test]
+fn frames_without_a_content_size_decode_and_are_length_checked() {
+    // A streaming encoder does not know the size ahead, so its frame header omits it.
+    let raw = sample_raw();
+    let stream = zstd::stream::encode_all(&raw[..], ZSTD_LEVEL).unwrap();
+    let frame = |declared: u64| {
+        let mut bytes = encode_block(RecordKind::Hit, 1, &raw)[..BLOCK_HEADER_LEN].to_vec();
+        bytes[20..28].copy_from_slice(&declared.to_le_bytes());
+        bytes.extend_from_slice(&stream);
+        reseal(bytes)
+    };
+    let n = raw.len() as u64;
+    assert_eq!(
+        decode_block("k", &frame(n), RecordKind::Hit).unwrap().raw,
+        raw
+    );
+    for (declared, found) in [(n - 1, n), (n + 1, n), (0, 1), (n - 10, n - 9)] {
+        assert_eq!(
+            decode_err(&frame(declared), RecordKind::Hit).problem,
+            BlockProblem::RawLengthMismatch { declared, found }
+        );
+    }
+}

@@ -209,3 +209,39 @@ fn random_garbage_never_panics() {
         let _ = reader.read_bytes();
     }
 }
+
+#[test]
+fn planes_read_in_place_give_the_values_and_their_groups() {
+    let mut rng = Rng(7);
+    let values: Vec<u32> = (0..30).map(|_| rng.u32()).collect();
+    let floats = [1.5f32, -0.0, f32::from_bits(0x7fc0_1234), f32::NEG_INFINITY];
+    let mut writer = ColumnWriter::new();
+    writer.put_u32(&values);
+    writer.put_f32(&floats);
+    writer.put_u32(&[]);
+    let bytes = writer.into_bytes();
+    let mut reader = ColumnReader::new(&bytes);
+    let planes = reader.read_u32_planes().unwrap();
+    let floats_back = reader.read_f32_planes().unwrap();
+    let empty = reader.read_u32_planes().unwrap();
+    reader.finish().unwrap();
+
+    assert_eq!(planes.len(), 30);
+    assert_eq!(planes.u32s().collect::<Vec<_>>(), values);
+    let bits: Vec<u32> = floats_back.f32s().map(f32::to_bits).collect();
+    assert_eq!(bits, floats.map(f32::to_bits));
+    // Groups of 7: four whole groups, the last 2 values skipped.
+    let groups: Vec<[u32; 7]> = planes.groups::<7>().collect();
+    assert_eq!(groups.len(), 4);
+    for (i, g) in groups.iter().enumerate() {
+        assert_eq!(g[..], values[7 * i..7 * i + 7]);
+    }
+    assert!(empty.is_empty());
+    assert_eq!(empty.groups::<3>().count(), 0);
+    // Wrong types are still errors.
+    let mut reader = ColumnReader::new(&bytes);
+    assert!(matches!(
+        reader.read_f32_planes(),
+        Err(ColumnError::WrongType { column: 0, .. })
+    ));
+}
