@@ -115,7 +115,7 @@ ratio() { awk -v x="$1" -v y="$2" 'BEGIN { if (x > 0 && y != "-") printf "%.2f",
 dirty=$(GIT_OPTIONAL_LOCKS=0 git status --porcelain -- core 2>/dev/null | head -1)
 echo "commit $(git rev-parse --short HEAD 2>/dev/null || echo '?')${dirty:+ + uncommitted changes in core/} (sources sha1 ${before:0:12}), $(rustc --version), $(qemu-aarch64 --version | head -1), $(valgrind --version)"
 echo
-echo "Instructions per ray, ${size} image, one primary ray per pixel, shadow rays towards the first light (x86-64: SSE2 build, valgrind callgrind Ir; aarch64: NEON build, qemu-user plugin)."
+echo "Instructions per ray, ${size} image, one primary ray per pixel, shadow rays towards the first light (x86-64: x86-64-v2 build as .cargo/config.toml sets it, valgrind callgrind Ir; aarch64: NEON build, qemu-user plugin)."
 echo
 echo "| scene | triangles | primary rays | x86-64 / primary ray | aarch64 / primary ray | aarch64 / x86-64 | x86-64 / primary ray, x16 packets | aarch64 / primary ray, x16 packets | shadow rays | x86-64 / shadow ray | aarch64 / shadow ray | aarch64 / x86-64 | same answers |"
 echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|"

@@ -8,6 +8,8 @@
 //!   the order "smaller t, then smaller triangle id" (same triangle, same t bits): box culling is
 //!   conservative and the triangle test ([`crate::triangle::intersect`]) is a pure function.
 //!   Hence the answer never depends on how triangles are grouped into BVHs or splits.
+//! - [`Bvh::closest_hits`] (16-ray packets for coherent camera rays) gives every ray exactly
+//!   [`Bvh::closest_hit`]'s answer.
 //! - [`Bvh::occluded`] is true exactly when some triangle has a hit with `0 < t < t_max`.
 //! - Building is deterministic: the same triangles in the same order give the same nodes.
 
