@@ -19,7 +19,10 @@
 
 use super::node4::{LEAF, Node4};
 use super::packet::{BoxTester, each3, each4};
-use super::traverse::{ClosestSearch, Entry, FAR_SCALE, ROOT, STACK, STACKS};
+use super::traverse::{
+    ClosestSearch, Entry, FAR_SCALE, ROOT, STACK, STACKS, defer_all_but_nearest,
+    insert_farthest_first,
+};
 use super::{Bvh, ClosestHit};
 use crate::triangle::Ray;
 use wide::f32x4;
@@ -383,20 +386,12 @@ fn descend(
                 rays: enter[slot],
                 t: entry[slot],
             };
-            let mut k = n;
-            while k > 0 && hit[k - 1].t < e.t {
-                hit[k] = hit[k - 1];
-                k -= 1;
-            }
-            hit[k] = e;
-            n += 1;
+            n = insert_farthest_first(&mut hit, n, e, |e| e.t);
         }
     }
     if n == 0 {
         return None;
     }
-    stack[*depth..*depth + n - 1].copy_from_slice(&hit[..n - 1]);
-    *depth += n - 1;
-    let e = hit[n - 1];
+    let e = defer_all_but_nearest(&hit[..n], stack, depth);
     Some((e.child, e.packets, e.rays))
 }

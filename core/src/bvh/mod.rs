@@ -136,4 +136,4 @@ impl Bvh {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

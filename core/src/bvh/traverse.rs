@@ -303,16 +303,41 @@ fn descend(
                 packets: node.packets[slot],
                 t,
             };
-            let mut k = n;
-            while k > 0 && hit[k - 1].t < e.t {
-                hit[k] = hit[k - 1];
-                k -= 1;
-            }
-            hit[k] = e;
-            n += 1;
+            n = insert_farthest_first(&mut hit, n, e, |e| e.t);
         }
     }
-    stack[*depth..*depth + n - 1].copy_from_slice(&hit[..n - 1]);
+    let e = defer_all_but_nearest(&hit[..n], stack, depth);
+    (e.child, e.packets)
+}
+
+/// Inserts `e` among the first `n` entries of `sorted`, kept farthest first by `t`; returns the
+/// new count.
+#[inline(always)]
+pub(super) fn insert_farthest_first<E: Copy>(
+    sorted: &mut [E; 4],
+    n: usize,
+    e: E,
+    t: impl Fn(&E) -> f32,
+) -> usize {
+    let mut k = n;
+    while k > 0 && t(&sorted[k - 1]) < t(&e) {
+        sorted[k] = sorted[k - 1];
+        k -= 1;
+    }
+    sorted[k] = e;
+    n + 1
+}
+
+/// Pushes all but the last of `sorted` (farthest first, not empty) onto `stack` at `depth` and
+/// returns the last, the nearest.
+#[inline(always)]
+pub(super) fn defer_all_but_nearest<E: Copy>(
+    sorted: &[E],
+    stack: &mut [E],
+    depth: &mut usize,
+) -> E {
+    let n = sorted.len();
+    stack[*depth..*depth + n - 1].copy_from_slice(&sorted[..n - 1]);
     *depth += n - 1;
-    (hit[n - 1].child, hit[n - 1].packets)
+    sorted[n - 1]
 }

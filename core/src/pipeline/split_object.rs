@@ -425,19 +425,7 @@ mod tests {
             .to_string();
         assert!(e.contains("jobs/j/splits/00003.bin"), "{e}");
     }
-    /// xorshift64*, for reproducible test data.
-    struct Rng(u64);
-    impl Rng {
-        fn next(&mut self) -> u64 {
-            self.0 ^= self.0 >> 12;
-            self.0 ^= self.0 << 25;
-            self.0 ^= self.0 >> 27;
-            self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
-        }
-        fn below(&mut self, n: u64) -> u64 {
-            self.next() % n
-        }
-    }
+    use crate::bvh::tests::Rng;
 
     /// A grid mesh of `n` triangles sharing corners (with signed zeros), some with vertex
     /// normals (one of them NaN with a payload), kd from a few materials.
@@ -464,14 +452,14 @@ mod tests {
         let nan = f32::from_bits(0x7fc0_1234);
         let shading = (0..n)
             .map(|i| TriangleShading {
-                normals: match rng.below(4) {
+                normals: match rng.next() % 4 {
                     0 => None,
                     1 => Some([Vec3::Y, Vec3::new(0.0, 1.0, -0.0), Vec3::Y]),
                     2 => Some([Vec3::new(nan, 0.0, 1.0), Vec3::Z, Vec3::X]),
                     _ => Some([Vec3::splat(i as f32); 3]),
                 },
                 kd: [
-                    0.25 * rng.below(3) as f32,
+                    0.25 * (rng.next() % 3) as f32,
                     0.5,
                     if i % 5 == 0 { -0.0 } else { 0.0 },
                 ],
@@ -664,11 +652,11 @@ mod tests {
         let mut errors = 0;
         for _ in 0..3000 {
             let mut damaged = raw.clone();
-            for _ in 0..1 + rng.below(3) {
-                let at = rng.below(damaged.len() as u64) as usize;
-                match rng.below(4) {
+            for _ in 0..1 + (rng.next() % 3) {
+                let at = (rng.next() % damaged.len() as u64) as usize;
+                match rng.next() % 4 {
                     0 => damaged[at] = rng.next() as u8,
-                    1 => damaged[at] ^= 1 << rng.below(8),
+                    1 => damaged[at] ^= 1 << (rng.next() % 8),
                     2 => damaged.truncate(at),
                     _ => damaged.insert(at, rng.next() as u8),
                 }
