@@ -169,6 +169,9 @@ pub fn render(
     })
 }
 
+/// Camera samples traced per `closest_hits` call (rounded to whole pixels).
+const BATCH_SAMPLES: usize = 1024;
+
 struct Row {
     colours: Vec<[f32; 3]>,
     hits: Vec<Hit>,
@@ -181,35 +184,42 @@ fn render_row(scene: &Scene, bvh: &Bvh, camera: &Camera, s: RenderSettings, y: u
         hits: Vec::with_capacity(s.width as usize),
         rays: RayCounts::default(),
     };
-    // The row's camera rays, pixel by pixel and sample by sample: neighbours are coherent, so
-    // they are traced as packets.
+    // The row's camera rays, pixel by pixel and sample by sample, in batches of about
+    // `BATCH_SAMPLES` (whole pixels): neighbours are coherent, so they are traced as packets,
+    // and memory stays bounded whatever the width and spp.
     let first_pixel = u64::from(y) * u64::from(s.width);
-    let rays: Vec<Ray> = (0..s.width)
-        .flat_map(|x| {
+    let samples = s.spp as usize;
+    let pixels_per_batch = (BATCH_SAMPLES / samples).max(1) as u32;
+    let mut rays = Vec::new();
+    let mut hits = Vec::new();
+    for batch_start in (0..s.width).step_by(pixels_per_batch as usize) {
+        let batch_end = (batch_start + pixels_per_batch).min(s.width);
+        rays.clear();
+        rays.extend((batch_start..batch_end).flat_map(|x| {
             (0..s.spp).map(move |sample| {
                 let (ox, oy) = sample_offset(first_pixel + u64::from(x), sample, s.spp);
                 camera.ray(f64::from(x) + ox, f64::from(y) + oy)
             })
-        })
-        .collect();
-    let mut hits = vec![None; rays.len()];
-    bvh.closest_hits(&rays, &mut hits);
-    let samples = s.spp as usize;
-    for (rays, hits) in rays.chunks(samples).zip(hits.chunks(samples)) {
-        let mut sum = [0.0f32; 3];
-        for (ray, hit) in rays.iter().zip(hits) {
-            let (colour, counts) = shade_sample(scene, bvh, ray, hit.as_ref());
-            for k in 0..3 {
-                sum[k] += colour[k];
-            }
-            row.rays += counts;
-        }
-        let inv = s.spp as f32;
-        row.colours.push(sum.map(|v| v / inv));
-        row.hits.push(hits[0].map_or(Hit::MISS, |h| Hit {
-            triangle: h.id,
-            t: h.t,
         }));
+        hits.clear();
+        hits.resize(rays.len(), None);
+        bvh.closest_hits(&rays, &mut hits);
+        for (rays, hits) in rays.chunks(samples).zip(hits.chunks(samples)) {
+            let mut sum = [0.0f32; 3];
+            for (ray, hit) in rays.iter().zip(hits) {
+                let (colour, counts) = shade_sample(scene, bvh, ray, hit.as_ref());
+                for k in 0..3 {
+                    sum[k] += colour[k];
+                }
+                row.rays += counts;
+            }
+            let inv = s.spp as f32;
+            row.colours.push(sum.map(|v| v / inv));
+            row.hits.push(hits[0].map_or(Hit::MISS, |h| Hit {
+                triangle: h.id,
+                t: h.t,
+            }));
+        }
     }
     row
 }
