@@ -169,6 +169,52 @@ pub fn render(
     })
 }
 
+/// [`shade_sample`] for every sample of a batch, with the shadow rays of the whole batch traced
+/// as packets (sample by sample, light by light: neighbours share a light): the same colours.
+fn shade_batch(
+    scene: &Scene,
+    bvh: &Bvh,
+    rays: &[Ray],
+    hits: &[Option<ClosestHit>],
+) -> Vec<[f32; 3]> {
+    let surfaces: Vec<Option<SurfacePoint>> = rays
+        .iter()
+        .zip(hits)
+        .map(|(ray, hit)| hit.as_ref().map(|h| surface_of(&scene.mesh, h, ray)))
+        .collect();
+    // Per sample, its lights' tests in light order (the order `combine` sums them in).
+    let mut segments = Vec::new();
+    let mut tests = Vec::new();
+    for (sample, sp) in surfaces.iter().enumerate() {
+        let Some(sp) = sp else { continue };
+        for light in &scene.lights {
+            if let Some(test) = shadow_test(sp, light) {
+                segments.push((test.ray, test.t_max));
+                tests.push((sample, test.unoccluded));
+            }
+        }
+    }
+    let mut blocked = vec![false; segments.len()];
+    bvh.occluded_many(&segments, &mut blocked);
+    let mut next = tests.iter().zip(&blocked).peekable();
+    surfaces
+        .iter()
+        .enumerate()
+        .map(|(sample, sp)| {
+            let Some(sp) = sp else {
+                return scene.background;
+            };
+            let mut contributions = Vec::new();
+            while let Some(((_, unoccluded), &b)) = next.next_if(|((s, _), _)| *s == sample) {
+                if !b {
+                    contributions.push(*unoccluded);
+                }
+            }
+            combine(sp.kd, contributions.into_iter(), scene.ambient)
+        })
+        .collect()
+}
+
 /// Camera samples traced per `closest_hits` call (rounded to whole pixels).
 const BATCH_SAMPLES: usize = 1024;
 
@@ -204,14 +250,23 @@ fn render_row(scene: &Scene, bvh: &Bvh, camera: &Camera, s: RenderSettings, y: u
         hits.clear();
         hits.resize(rays.len(), None);
         bvh.closest_hits(&rays, &mut hits);
-        for (rays, hits) in rays.chunks(samples).zip(hits.chunks(samples)) {
+        let colours = shade_batch(scene, bvh, &rays, &hits);
+        for (colours, hits) in colours.chunks(samples).zip(hits.chunks(samples)) {
             let mut sum = [0.0f32; 3];
-            for (ray, hit) in rays.iter().zip(hits) {
-                let (colour, counts) = shade_sample(scene, bvh, ray, hit.as_ref());
+            for (colour, hit) in colours.iter().zip(hits) {
                 for k in 0..3 {
                     sum[k] += colour[k];
                 }
-                row.rays += counts;
+                // As `shade_sample` counts: one primary ray, and one shadow ray per light for a
+                // hit.
+                row.rays += RayCounts {
+                    primary: 1,
+                    shadow: if hit.is_some() {
+                        scene.lights.len() as u64
+                    } else {
+                        0
+                    },
+                };
             }
             let inv = s.spp as f32;
             row.colours.push(sum.map(|v| v / inv));
@@ -234,7 +289,14 @@ mod tests {
     #[test]
     fn batched_packet_rows_equal_sample_by_sample_tracing() {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/teapot/teapot.json");
-        let scene = load_scene(std::path::Path::new(path)).expect("bundled teapot");
+        let mut scene = load_scene(std::path::Path::new(path)).expect("bundled teapot");
+        // Three lights, so that each sample's shadow rays are several and their order matters.
+        let first = scene.lights[0];
+        scene.lights.push(crate::scene::Light::Directional {
+            direction: glam::DVec3::new(0.3, -1.0, -0.2).normalize(),
+            irradiance: [0.4, 0.3, 0.2],
+        });
+        scene.lights.push(first);
         let bvh = build_scene_bvh(&scene.mesh);
         let settings = RenderSettings {
             width: 40,

@@ -77,9 +77,39 @@ fn check_packets_against_single_rays(bvh: &Bvh, rays: &[Ray]) {
     }
 }
 
+/// Shadow packets give every segment exactly the single-ray answer, for packets cut at every
+/// offset; returns how many segments are blocked.
+fn check_shadow_packets_against_single_rays(bvh: &Bvh, segments: &[(Ray, f32)]) -> usize {
+    let single: Vec<bool> = segments.iter().map(|(r, t)| bvh.occluded(r, *t)).collect();
+    for skip in [0, 1, 5, 15] {
+        let segments = &segments[skip.min(segments.len())..];
+        let mut out = vec![false; segments.len()];
+        bvh.occluded_many(segments, &mut out);
+        assert_eq!(out, single[skip.min(single.len())..], "skip {skip}");
+    }
+    single.iter().filter(|&&b| b).count()
+}
+
 fn check_against_brute_force(tris: &[[Vec3; 3]], rays: &[Ray]) {
     let bvh = bvh_of(tris);
     check_packets_against_single_rays(&bvh, rays);
+    let segments: Vec<(Ray, f32)> = rays
+        .iter()
+        .filter_map(|r| Some((r, bvh.closest_hit(r)?.t)))
+        .flat_map(|(r, t)| {
+            [
+                (*r, t * 0.999),
+                (*r, t * 1.001),
+                (*r, f32::INFINITY),
+                (*r, t),
+            ]
+        })
+        .collect();
+    let blocked = check_shadow_packets_against_single_rays(&bvh, &segments);
+    assert!(
+        blocked > 0 && blocked < segments.len(),
+        "both answers occur ({blocked})"
+    );
     let mut hits = 0;
     for (k, ray) in rays.iter().enumerate() {
         let expected = brute_force(tris, ray);
@@ -189,6 +219,27 @@ fn closest_hit_equals_brute_force_on_the_bunny() {
         check_packets_against_single_rays(&bvh, &rays);
         let hits = rays.iter().filter(|r| bvh.closest_hit(r).is_some()).count();
         assert!(hits > 200, "camera rays should hit the bunny ({hits})");
+        // Coherent shadow segments: from each hit point to a light above the bunny.
+        let light = centre + Vec3::new(0.5, 1.0, 0.8) * radius * 2.0;
+        let segments: Vec<(Ray, f32)> = rays
+            .iter()
+            .filter_map(|r| {
+                let hit = bvh.closest_hit(r)?;
+                let origin = r.origin + r.dir * hit.t;
+                Some((
+                    Ray {
+                        origin,
+                        dir: light - origin,
+                    },
+                    1.0,
+                ))
+            })
+            .collect();
+        let blocked = check_shadow_packets_against_single_rays(&bvh, &segments);
+        assert!(
+            blocked > 20 && blocked < segments.len(),
+            "some shadows ({blocked})"
+        );
     }
 }
 

@@ -201,6 +201,7 @@ impl Bvh {
 
     /// Continues `s` over the subtree whose child word and packet count are `start` (the
     /// whole tree for [`ROOT`]).
+    #[inline(always)]
     pub(super) fn closest_from(
         &self,
         start: (u32, u32),
@@ -247,11 +248,26 @@ impl Bvh {
 
     fn occluded_with(&self, ray: &Ray, t_max: f32, stack: &mut [Entry; STACK]) -> bool {
         let prep = RayPrep::new(ray);
-        let boxes = BoxTester::new(ray);
         let tris = TriangleTester::new(&prep);
+        self.occluded_from(ROOT, &BoxTester::new(ray), &prep, &tris, t_max, stack)
+    }
+
+    /// Whether the segment `0 < t < t_max` of the ray that `prep`, `boxes` and `tris` were made
+    /// for is blocked by a triangle of the subtree whose child word and packet count are `start`
+    /// (the whole tree for [`ROOT`]).
+    #[inline(always)]
+    pub(super) fn occluded_from(
+        &self,
+        start: (u32, u32),
+        boxes: &BoxTester,
+        prep: &RayPrep,
+        tris: &TriangleTester,
+        t_max: f32,
+        stack: &mut [Entry; STACK],
+    ) -> bool {
         let limit = t_max * CULL_MARGIN;
         let mut depth = 0usize;
-        let (mut child, mut packets) = ROOT;
+        let (mut child, mut packets) = start;
         loop {
             if child & LEAF == 0 {
                 let node = &self.wide[child as usize];
@@ -261,25 +277,64 @@ impl Bvh {
                     (child, packets) = descend(node, mask, &t0, stack, &mut depth);
                     continue;
                 }
-            } else {
-                let first = (child & !LEAF) as usize;
-                for p in &self.packets[first..first + packets as usize] {
-                    let mut lanes = triangle_candidates(&tris, p, t_max);
-                    while lanes != 0 {
-                        let lane = lanes.trailing_zeros() as usize;
-                        lanes &= lanes - 1;
-                        let [p0, p1, p2] = p.corners(lane);
-                        if intersect(&prep, p0, p1, p2, t_max).is_some() {
-                            return true;
-                        }
-                    }
-                }
+            } else if self.occluded_in_leaf(
+                (child & !LEAF) as usize,
+                packets as usize,
+                prep,
+                tris,
+                t_max,
+            ) {
+                return true;
             }
             if depth == 0 {
                 return false;
             }
             depth -= 1;
             (child, packets) = (stack[depth].child, stack[depth].packets);
+        }
+    }
+
+    /// Whether a triangle of the `count` packets from `first` (one leaf) blocks the segment.
+    #[inline(always)]
+    pub(super) fn occluded_in_leaf(
+        &self,
+        first: usize,
+        count: usize,
+        prep: &RayPrep,
+        tris: &TriangleTester,
+        t_max: f32,
+    ) -> bool {
+        for p in &self.packets[first..first + count] {
+            let mut lanes = triangle_candidates(tris, p, t_max);
+            while lanes != 0 {
+                let lane = lanes.trailing_zeros() as usize;
+                lanes &= lanes - 1;
+                let [p0, p1, p2] = p.corners(lane);
+                if intersect(prep, p0, p1, p2, t_max).is_some() {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+}
+
+/// One shadow ray's constants for the any-hit tests of a packet: the segment `0 < t < t_max`.
+#[derive(Clone, Copy)]
+pub(super) struct ShadowSearch {
+    pub prep: RayPrep,
+    pub tris: TriangleTester,
+    pub t_max: f32,
+}
+
+impl ShadowSearch {
+    #[inline(always)]
+    pub fn new(ray: &Ray, t_max: f32) -> Self {
+        let prep = RayPrep::new(ray);
+        ShadowSearch {
+            tris: TriangleTester::new(&prep),
+            prep,
+            t_max,
         }
     }
 }

@@ -59,7 +59,7 @@ pub fn cast_map(
     Ok(out)
 }
 
-/// Camera samples traced per `closest_hits` call in CastMap.
+/// Camera samples (CastMap) or shadow queries (TraceMap) traced per packet call.
 const CAST_BATCH: usize = 1024;
 
 /// CastReduce: the nearest candidate per (pixel, sample): smaller t, then smaller triangle id.
@@ -112,16 +112,30 @@ pub fn trace_map(
     queries: &[ShadowQuery],
 ) -> Result<Vec<Occluded>, u32> {
     let mut out = Vec::new();
-    for q in queries {
-        let light = plan.lights.get(q.light as usize).ok_or(q.light)?;
-        let (ray, t_max) = shadow_ray(light, q.origin);
-        if split.bvh.occluded(&ray, t_max) {
-            out.push(Occluded {
-                pixel: q.pixel,
-                sample: q.sample,
-                light: q.light,
-            });
+    let mut segments = Vec::with_capacity(CAST_BATCH);
+    let mut blocked = Vec::with_capacity(CAST_BATCH);
+    // Queries are sorted by (pixel, sample, light): neighbours are coherent, so a batch is
+    // traced as packets.
+    for batch in queries.chunks(CAST_BATCH) {
+        segments.clear();
+        for q in batch {
+            let light = plan.lights.get(q.light as usize).ok_or(q.light)?;
+            segments.push(shadow_ray(light, q.origin));
         }
+        blocked.clear();
+        blocked.resize(segments.len(), false);
+        split.bvh.occluded_many(&segments, &mut blocked);
+        out.extend(
+            batch
+                .iter()
+                .zip(&blocked)
+                .filter(|(_, b)| **b)
+                .map(|(q, _)| Occluded {
+                    pixel: q.pixel,
+                    sample: q.sample,
+                    light: q.light,
+                }),
+        );
     }
     Ok(out)
 }
