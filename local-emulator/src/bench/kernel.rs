@@ -68,6 +68,8 @@ struct SceneResult {
     primary_s: f64,
     /// Our coherent path: the same rays in packets of 16 consecutive rays (as Embree x16).
     packets_s: f64,
+    /// The shadow rays in packets of 16 consecutive rays ([`Bvh::occluded_many`]).
+    shadow_packets_s: f64,
     primary_hits: usize,
     shadow: usize,
     shadow_s: f64,
@@ -234,6 +236,13 @@ fn bench_scene(
             *out = bvh.occluded(r, *t_max);
         }
     });
+    let mut packet_occluded = vec![false; shadow.len()];
+    let (shadow_packets_s, ()) = best_of(args.repeats, || {
+        bvh.occluded_many(&shadow, &mut packet_occluded);
+    });
+    if packet_occluded != occluded {
+        bail!("{name}: shadow packets and single rays disagree");
+    }
     let load_s = split_load_seconds(scene, bvh.clone(), args.repeats)?;
 
     let embree = match harness {
@@ -267,6 +276,7 @@ fn bench_scene(
         primary: primary.len(),
         primary_s,
         packets_s,
+        shadow_packets_s,
         primary_hits: hits.iter().flatten().count(),
         shadow: shadow.len(),
         shadow_s,
@@ -368,6 +378,7 @@ fn ray_table(results: &[SceneResult], args: &KernelBenchArgs) -> Table {
             "ours shadow",
             "Embree shadow",
             "ratio",
+            "ours shadow x16",
             "same %",
         ],
     );
@@ -380,6 +391,7 @@ fn ray_table(results: &[SceneResult], args: &KernelBenchArgs) -> Table {
         let ours_p = mrays(r.primary, r.primary_s);
         let ours_s = mrays(r.shadow, r.shadow_s);
         let ours_x16 = mrays(r.primary, r.packets_s);
+        let ours_s16 = mrays(r.shadow, r.shadow_packets_s);
         let mut row = vec![
             r.name.clone(),
             r.triangles.to_string(),
@@ -404,6 +416,7 @@ fn ray_table(results: &[SceneResult], args: &KernelBenchArgs) -> Table {
                     format!("{ours_s:.2}"),
                     format!("{es:.2}"),
                     f3(ours_s / es),
+                    format!("{ours_s16:.2}"),
                     pct(e.shadow_same, r.shadow),
                 ]);
             }
@@ -419,6 +432,7 @@ fn ray_table(results: &[SceneResult], args: &KernelBenchArgs) -> Table {
                 format!("{ours_s:.2}"),
                 dash(),
                 dash(),
+                format!("{ours_s16:.2}"),
                 dash(),
             ]),
         }
