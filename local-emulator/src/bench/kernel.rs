@@ -8,7 +8,8 @@
 //! against `libembree3` when it is installed) traces with `rtcIntersect1`, `rtcIntersect16` and
 //! `rtcOccluded1` on a one-thread device. Our coherent path ([`Bvh::closest_hits`]) traces the
 //! same primary rays in packets of 16 consecutive rays (16 pixels of a row), exactly as the
-//! harness groups them for `rtcIntersect16`, and must return the single-ray answers. With
+//! harness groups them for `rtcIntersect16`, and must return the single-ray answers; the
+//! shadow rays go through [`Bvh::occluded_many`] the same way. With
 //! `--features obvhs-bench`, the crate obvhs runs on the same rays too (`obvhs_kernel.rs`).
 //! Timings are the best of `--repeats` passes; ratios compare numbers measured in the same run.
 
