@@ -185,6 +185,29 @@ impl PacketBoxes {
         (some, all, some0.to_array())
     }
 
+    /// For each child of `node`: the rays of `active` that enter it at or before their bound
+    /// (lane i of group i / 4 of `bound`) and a lower bound of their entry distances. The hull
+    /// test decides what it can; the single-ray test decides the rest ray by ray.
+    #[inline(always)]
+    fn enter_children(
+        &self,
+        node: &Node4,
+        active: u32,
+        bound: &[f32x4; GROUPS],
+    ) -> ([u32; 4], [f32; 4]) {
+        let (bound_lo, bound_hi) = bound_range(bound, active);
+        let (some, all, mut entry) = self.test_hull(node, bound_lo, bound_hi);
+        let mut enter = [0u32; 4];
+        for slot in bits(some) {
+            if all & (1 << slot) != 0 {
+                enter[slot] = active;
+            } else {
+                (enter[slot], entry[slot]) = self.test_rays(node, slot, active, bound);
+            }
+        }
+        (enter, entry)
+    }
+
     /// The rays of `active` (bit i = ray i) that enter child `slot` of `node` at or before their
     /// bound (lane i of group i / 4 of `bound`), by the single-ray slab test, and the smallest
     /// entry distance among them (+inf when none).
@@ -352,10 +375,7 @@ impl Bvh {
         let (mut child, mut packets) = ROOT;
         loop {
             if active.count_ones() <= 1 {
-                let mut each = active;
-                while each != 0 {
-                    let i = each.trailing_zeros() as usize;
-                    each &= each - 1;
+                for i in bits(active) {
                     let (ray, t_max) = &segments[i];
                     let s = searches[i].get_or_insert_with(|| ShadowSearch::new(ray, *t_max));
                     let single = BoxTester::new(ray);
@@ -366,30 +386,14 @@ impl Bvh {
                 }
             } else if child & LEAF == 0 {
                 let node = &self.wide[child as usize];
-                let (bound_lo, bound_hi) = bound_range(&bound, active);
-                let (some, all, hull_entry) = boxes.test_hull(node, bound_lo, bound_hi);
-                let mut enter = [0u32; 4];
-                let mut entry = hull_entry;
-                let mut each = some;
-                while each != 0 {
-                    let slot = each.trailing_zeros() as usize;
-                    each &= each - 1;
-                    if all & (1 << slot) != 0 {
-                        enter[slot] = active;
-                    } else {
-                        (enter[slot], entry[slot]) = boxes.test_rays(node, slot, active, &bound);
-                    }
-                }
+                let (enter, entry) = boxes.enter_children(node, active, &bound);
                 if let Some(next) = descend(node, &enter, &entry, stack, &mut depth) {
                     (child, packets, active) = next;
                     continue;
                 }
             } else {
                 let first = (child & !LEAF) as usize;
-                let mut each = active;
-                while each != 0 {
-                    let i = each.trailing_zeros() as usize;
-                    each &= each - 1;
+                for i in bits(active) {
                     let (ray, t_max) = &segments[i];
                     let s = searches[i].get_or_insert_with(|| ShadowSearch::new(ray, *t_max));
                     if self.occluded_in_leaf(first, packets as usize, &s.prep, &s.tris, s.t_max) {
@@ -441,10 +445,7 @@ impl Bvh {
         let mut active = (1u32 << rays.len()) - 1;
         loop {
             if active.count_ones() <= 1 {
-                let mut each = active;
-                while each != 0 {
-                    let i = each.trailing_zeros() as usize;
-                    each &= each - 1;
+                for i in bits(active) {
                     let single = BoxTester::new(&rays[i]);
                     let search = searches[i].get_or_insert_with(|| ClosestSearch::new(&rays[i]));
                     self.closest_from((child, packets), &single, search, ray_stack);
@@ -453,30 +454,14 @@ impl Bvh {
             } else if child & LEAF == 0 {
                 let node = &self.wide[child as usize];
                 let bound = each4(|g| f32x4::from(bounds[g]));
-                let (bound_lo, bound_hi) = bound_range(&bound, active);
-                let (some, all, hull_entry) = boxes.test_hull(node, bound_lo, bound_hi);
-                let mut enter = [0u32; 4];
-                let mut entry = hull_entry;
-                let mut each = some;
-                while each != 0 {
-                    let slot = each.trailing_zeros() as usize;
-                    each &= each - 1;
-                    if all & (1 << slot) != 0 {
-                        enter[slot] = active;
-                    } else {
-                        (enter[slot], entry[slot]) = boxes.test_rays(node, slot, active, &bound);
-                    }
-                }
+                let (enter, entry) = boxes.enter_children(node, active, &bound);
                 if let Some(next) = descend(node, &enter, &entry, stack, &mut depth) {
                     (child, packets, active) = next;
                     continue;
                 }
             } else {
                 let first = (child & !LEAF) as usize;
-                let mut each = active;
-                while each != 0 {
-                    let i = each.trailing_zeros() as usize;
-                    each &= each - 1;
+                for i in bits(active) {
                     let search = searches[i].get_or_insert_with(|| ClosestSearch::new(&rays[i]));
                     self.closest_in_leaf(first, packets as usize, search);
                     bounds[i / 4][i % 4] = search.bound();
@@ -494,10 +479,7 @@ impl Bvh {
                 depth -= 1;
                 let e = stack[depth];
                 let mut keep = 0;
-                let mut each = e.rays;
-                while each != 0 {
-                    let i = each.trailing_zeros() as usize;
-                    each &= each - 1;
+                for i in bits(e.rays) {
                     if e.t <= bounds[i / 4][i % 4] {
                         keep |= 1 << i;
                     }
@@ -509,6 +491,18 @@ impl Bvh {
             }
         }
     }
+}
+
+/// The indices of the set bits of `mask`, lowest first.
+#[inline(always)]
+fn bits(mut mask: u32) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (mask != 0).then(|| {
+            let i = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            i
+        })
+    })
 }
 
 /// The smallest lane of `x` (no NaN lanes).
