@@ -1,7 +1,8 @@
 //! The monolithic renderer (the paper's TRAD): one process, one BVH over the whole scene.
 //!
-//! The per-sample shading ([`shade_sample`]) is separate from the loop that drives it over pixels
-//! and threads ([`render`]); the result does not depend on the thread count.
+//! Rows are traced in batches of camera samples (primary rays, then all their shadow rays, as
+//! packets: [`Bvh::closest_hits`], [`Bvh::occluded_many`]); the colours are those of tracing
+//! each sample alone, and the result does not depend on the thread count.
 
 use crate::bvh::{Bvh, ClosestHit};
 use crate::camera::Camera;
@@ -82,34 +83,6 @@ pub fn surface_of(mesh: &Mesh, hit: &ClosestHit, ray: &Ray) -> SurfacePoint {
     surface_point(hit.corners, hit.b, ray.dir, normals, kd)
 }
 
-/// Shades one camera sample whose primary ray `ray` has the closest hit `hit`: returns its
-/// radiance and the logical rays it cast (its primary ray and its shadow rays).
-pub fn shade_sample(
-    scene: &Scene,
-    bvh: &Bvh,
-    ray: &Ray,
-    hit: Option<&ClosestHit>,
-) -> ([f32; 3], RayCounts) {
-    let Some(hit) = hit else {
-        let rays = RayCounts {
-            primary: 1,
-            shadow: 0,
-        };
-        return (scene.background, rays);
-    };
-    let sp = surface_of(&scene.mesh, hit, ray);
-    let contributions = scene.lights.iter().filter_map(|light| {
-        let test = shadow_test(&sp, light)?;
-        (!bvh.occluded(&test.ray, test.t_max)).then_some(test.unoccluded)
-    });
-    let colour = combine(sp.kd, contributions, scene.ambient);
-    let rays = RayCounts {
-        primary: 1,
-        shadow: scene.lights.len() as u64,
-    };
-    (colour, rays)
-}
-
 /// Renders `scene` with one BVH over all its triangles.
 pub fn render(
     scene: &Scene,
@@ -169,8 +142,10 @@ pub fn render(
     })
 }
 
-/// [`shade_sample`] for every sample of a batch, with the shadow rays of the whole batch traced
-/// as packets (sample by sample, light by light: neighbours share a light): the same colours.
+/// The radiance of every sample of a batch whose primary rays `rays` have the closest hits
+/// `hits`: the background for a miss, else Lambert shading with the lights its shadow rays
+/// reach (summed in light order) plus ambient. The shadow rays of the whole batch are traced as
+/// packets (sample by sample, light by light: neighbours share a light).
 fn shade_batch(
     scene: &Scene,
     bvh: &Bvh,
@@ -257,8 +232,7 @@ fn render_row(scene: &Scene, bvh: &Bvh, camera: &Camera, s: RenderSettings, y: u
                 for k in 0..3 {
                     sum[k] += colour[k];
                 }
-                // As `shade_sample` counts: one primary ray, and one shadow ray per light for a
-                // hit.
+                // One primary ray, and for a hit one shadow ray per light.
                 row.rays += RayCounts {
                     primary: 1,
                     shadow: if hit.is_some() {
@@ -284,6 +258,34 @@ mod tests {
     use super::*;
     use crate::scene::load_scene;
 
+    /// The reference: one camera sample shaded alone (single-ray `occluded` per light), with
+    /// the logical rays it cast.
+    fn shade_sample(
+        scene: &Scene,
+        bvh: &Bvh,
+        ray: &Ray,
+        hit: Option<&ClosestHit>,
+    ) -> ([f32; 3], RayCounts) {
+        let Some(hit) = hit else {
+            let rays = RayCounts {
+                primary: 1,
+                shadow: 0,
+            };
+            return (scene.background, rays);
+        };
+        let sp = surface_of(&scene.mesh, hit, ray);
+        let contributions = scene.lights.iter().filter_map(|light| {
+            let test = shadow_test(&sp, light)?;
+            (!bvh.occluded(&test.ray, test.t_max)).then_some(test.unoccluded)
+        });
+        let colour = combine(sp.kd, contributions, scene.ambient);
+        let rays = RayCounts {
+            primary: 1,
+            shadow: scene.lights.len() as u64,
+        };
+        (colour, rays)
+    }
+
     /// Rows traced in packets and batches equal the same samples traced one by one with
     /// `closest_hit`: 40 pixels x 64 samples per row is three batches of whole pixels.
     #[test]
@@ -308,6 +310,7 @@ mod tests {
         let out = render(&scene, &bvh, settings).expect("render");
         let camera = Camera::new(&scene.camera, settings.width, settings.height).unwrap();
         let mut hits = 0;
+        let mut rays = RayCounts::default();
         for y in 0..settings.height {
             for x in 0..settings.width {
                 let pixel = u64::from(y) * u64::from(settings.width) + u64::from(x);
@@ -328,7 +331,8 @@ mod tests {
                         );
                         hits += usize::from(hit.is_some());
                     }
-                    let (colour, _) = shade_sample(&scene, &bvh, &ray, hit.as_ref());
+                    let (colour, counts) = shade_sample(&scene, &bvh, &ray, hit.as_ref());
+                    rays += counts;
                     for k in 0..3 {
                         sum[k] += colour[k];
                     }
@@ -342,5 +346,6 @@ mod tests {
             }
         }
         assert!(hits > 20, "the teapot should be in the picture ({hits})");
+        assert_eq!(out.rays, rays);
     }
 }

@@ -1,17 +1,19 @@
-//! Coherent ray packets for closest hits: up to [`PACKET`] rays from one origin (neighbouring
-//! pixels or samples of a pinhole camera) traverse the 4-wide BVH together. At each inner node
+//! Coherent ray packets: up to [`PACKET`] neighbouring rays (camera rays of neighbouring pixels
+//! or samples, or their shadow rays towards one light) traverse the 4-wide BVH together, for
+//! closest hits ([`Bvh::closest_hits`]) and for shadow segments ([`Bvh::occluded_many`]). At each inner node
 //! one interval test bounds what every ray of the packet can do with the four child boxes: a
 //! child no ray can enter is dropped for all of them, a child every active ray certainly enters
 //! keeps them all, and only the children in between are tested ray by ray (four rays per SIMD
 //! test). A single remaining ray goes on alone with the single-ray traversal; leaves run the
-//! single-ray leaf test for each ray. Packets whose rays do not share an origin, or have a
-//! non-finite component, are traced ray by ray.
+//! single-ray leaf test for each ray. Packets with a non-finite origin or direction are traced
+//! ray by ray.
 //!
 //! Guarantee: [`Bvh::closest_hits`] gives every ray exactly what [`Bvh::closest_hit`] gives it.
 //! Each lane's box test is the single-ray slab test (same operations in the same order, so the
-//! same bits). The interval test takes, per axis, the products of the shared offset
-//! `plane - origin` with the smallest and largest inverse direction of the packet; rounding is
-//! monotonic, so these are exactly the smallest and largest per-ray values, and the test can
+//! same bits). The interval test takes, per axis, the products of the offsets `plane - origin`
+//! at the packet's smallest and largest origin with its smallest and largest inverse direction
+//! (one offset when all rays share an origin); rounding is monotonic, so the extremes of these
+//! are exactly the smallest and largest per-ray values, and the test can
 //! only claim "no ray enters" or "every ray enters" when the per-ray tests would say so. A ray
 //! leaves a child only when its own test says the child cannot hold a better hit, and all hits
 //! go through the single-ray best-hit update ([`Bvh::closest_in_leaf`]). The closest hit is
@@ -271,17 +273,15 @@ thread_local! {
         const { std::cell::RefCell::new([NO_ENTRY; STACK]) };
 }
 
-/// Whether `rays` can travel as one packet: one origin, finite components.
-fn is_coherent(rays: &[Ray]) -> bool {
-    let origin = rays[0].origin;
-    rays.iter()
-        .all(|r| r.origin == origin && origin.is_finite() && r.dir.is_finite())
+/// Whether `ray` can travel in a packet: the hull test needs finite origins and directions.
+fn is_finite(ray: &Ray) -> bool {
+    ray.origin.is_finite() && ray.dir.is_finite()
 }
 
 impl Bvh {
     /// The closest hit of every ray (`out[i]` for `rays[i]`), exactly as [`Bvh::closest_hit`]
     /// gives it, traced in packets of [`PACKET`] consecutive rays: faster when neighbours in
-    /// `rays` share an origin and are coherent (camera rays of neighbouring pixels). Panics if
+    /// `rays` are coherent (camera rays of neighbouring pixels, best with one origin). Panics if
     /// the lengths differ.
     pub fn closest_hits(&self, rays: &[Ray], out: &mut [Option<ClosestHit>]) {
         assert_eq!(rays.len(), out.len(), "one output per ray");
@@ -292,14 +292,11 @@ impl Bvh {
         PACKET_STACKS.with_borrow_mut(|stack| {
             STACKS.with_borrow_mut(|ray_stack| {
                 for (rays, out) in rays.chunks(PACKET).zip(out.chunks_mut(PACKET)) {
-                    if is_coherent(rays) {
+                    if rays.iter().all(is_finite) {
                         self.trace_packet(rays, out, stack, ray_stack);
                     } else {
                         for (ray, out) in rays.iter().zip(out) {
-                            let mut search = ClosestSearch::new(ray);
-                            let boxes = BoxTester::new(ray);
-                            self.closest_from(ROOT, &boxes, &mut search, ray_stack);
-                            *out = self.closest_result(&search);
+                            *out = self.closest_hit_with(ray, ray_stack);
                         }
                     }
                 }
@@ -352,14 +349,11 @@ impl Bvh {
                 active |= 1 << i;
             }
         }
-        let finite = |(r, t): &(Ray, f32)| r.origin.is_finite() && r.dir.is_finite() && !t.is_nan();
+        let finite = |(r, t): &(Ray, f32)| is_finite(r) && !t.is_nan();
         if active == 0 || !segments.iter().all(finite) {
-            for (i, (ray, t_max)) in segments.iter().enumerate() {
-                if active & (1 << i) != 0 {
-                    let s = ShadowSearch::new(ray, *t_max);
-                    let boxes = BoxTester::new(ray);
-                    out[i] = self.occluded_from(ROOT, &boxes, &s.prep, &s.tris, s.t_max, ray_stack);
-                }
+            for i in bits(active) {
+                let (ray, t_max) = &segments[i];
+                out[i] = self.occluded_with(ray, *t_max, ray_stack);
             }
             return;
         }

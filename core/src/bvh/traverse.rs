@@ -142,10 +142,18 @@ impl Bvh {
         if self.wide.is_empty() {
             return None;
         }
+        STACKS.with_borrow_mut(|stack| self.closest_hit_with(ray, stack))
+    }
+
+    /// [`Bvh::closest_hit`] of a non-empty BVH with the caller's stack.
+    #[inline(always)]
+    pub(super) fn closest_hit_with(
+        &self,
+        ray: &Ray,
+        stack: &mut [Entry; STACK],
+    ) -> Option<ClosestHit> {
         let mut search = ClosestSearch::new(ray);
-        STACKS.with_borrow_mut(|stack| {
-            self.closest_from(ROOT, &BoxTester::new(ray), &mut search, stack)
-        });
+        self.closest_from(ROOT, &BoxTester::new(ray), &mut search, stack);
         self.closest_result(&search)
     }
 
@@ -246,7 +254,9 @@ impl Bvh {
         STACKS.with_borrow_mut(|stack| self.occluded_with(ray, t_max, stack))
     }
 
-    fn occluded_with(&self, ray: &Ray, t_max: f32, stack: &mut [Entry; STACK]) -> bool {
+    /// [`Bvh::occluded`] of a non-empty BVH past the root test, with the caller's stack.
+    #[inline(always)]
+    pub(super) fn occluded_with(&self, ray: &Ray, t_max: f32, stack: &mut [Entry; STACK]) -> bool {
         let prep = RayPrep::new(ray);
         let tris = TriangleTester::new(&prep);
         self.occluded_from(ROOT, &BoxTester::new(ray), &prep, &tris, t_max, stack)

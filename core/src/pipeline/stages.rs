@@ -26,13 +26,13 @@ pub fn cast_map(
     // so `closest_hits` runs them as packets).
     let samples = (span.start..span.end).flat_map(|pixel| (0..plan.spp).map(move |s| (pixel, s)));
     let mut out = Vec::new();
-    let mut batch: Vec<(u64, u32)> = Vec::with_capacity(CAST_BATCH);
-    let mut rays = Vec::with_capacity(CAST_BATCH);
-    let mut hits = Vec::with_capacity(CAST_BATCH);
+    let mut batch: Vec<(u64, u32)> = Vec::with_capacity(BATCH);
+    let mut rays = Vec::with_capacity(BATCH);
+    let mut hits = Vec::with_capacity(BATCH);
     let mut samples = samples.peekable();
     while samples.peek().is_some() {
         batch.clear();
-        batch.extend(samples.by_ref().take(CAST_BATCH));
+        batch.extend(samples.by_ref().take(BATCH));
         rays.clear();
         rays.extend(batch.iter().map(|&(pixel, sample)| {
             let (x, y) = ((pixel % width) as f64, (pixel / width) as f64);
@@ -60,7 +60,7 @@ pub fn cast_map(
 }
 
 /// Camera samples (CastMap) or shadow queries (TraceMap) traced per packet call.
-const CAST_BATCH: usize = 1024;
+const BATCH: usize = 1024;
 
 /// CastReduce: the nearest candidate per (pixel, sample): smaller t, then smaller triangle id.
 /// The result does not depend on the order or grouping of the inputs.
@@ -112,11 +112,11 @@ pub fn trace_map(
     queries: &[ShadowQuery],
 ) -> Result<Vec<Occluded>, u32> {
     let mut out = Vec::new();
-    let mut segments = Vec::with_capacity(CAST_BATCH);
-    let mut blocked = Vec::with_capacity(CAST_BATCH);
+    let mut segments = Vec::with_capacity(BATCH);
+    let mut blocked = Vec::with_capacity(BATCH);
     // Queries are sorted by (pixel, sample, light): neighbours are coherent, so a batch is
     // traced as packets.
-    for batch in queries.chunks(CAST_BATCH) {
+    for batch in queries.chunks(BATCH) {
         segments.clear();
         for q in batch {
             let light = plan.lights.get(q.light as usize).ok_or(q.light)?;
