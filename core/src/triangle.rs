@@ -174,23 +174,139 @@ mod tests {
         assert!(intersect(&r, Vec3::ZERO, Vec3::X, Vec3::Y, 5.0001).is_some());
     }
 
+    /// Two triangles sharing the edge `edge`; `opposite[i]` is the corner of `triangles[i]` off
+    /// the edge, so a hit on the edge has barycentric `b[opposite[i]] == 0`.
+    #[derive(Clone, Copy)]
+    struct EdgePair {
+        triangles: [[Vec3; 3]; 2],
+        opposite: [usize; 2],
+        edge: [Vec3; 2],
+    }
+
+    /// The unit square at z = 0 cut along its diagonal from (1, 0, 0) to (0, 1, 0).
+    const SQUARE: EdgePair = EdgePair {
+        triangles: [
+            [Vec3::ZERO, Vec3::X, Vec3::Y],
+            [Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y],
+        ],
+        opposite: [0, 1],
+        edge: [Vec3::X, Vec3::Y],
+    };
+
+    /// A folded pair in general position: not coplanar, no axis-aligned edge, and the points of
+    /// the edge A-B are (apart from A and B) not representable.
+    const A: Vec3 = Vec3::new(0.3, -1.7, 0.2);
+    const B: Vec3 = Vec3::new(2.1, 0.9, -0.4);
+    const FOLDED: EdgePair = EdgePair {
+        triangles: [
+            [A, B, Vec3::new(-1.1, 0.8, 0.5)],
+            [Vec3::new(2.9, -1.6, -0.3), B, A],
+        ],
+        opposite: [2, 0],
+        edge: [A, B],
+    };
+
+    /// Traces `origin + t dir` against both triangles of `pair` and asserts watertightness: at
+    /// least one of them hits. Also asserts that every hit is on the shared edge (barycentric
+    /// across it within `b_tol` of 0) at t within `t_tol` of `t_aim`, and that two hits agree on
+    /// t to a few ulps. Returns both answers.
+    fn trace_edge(
+        pair: EdgePair,
+        origin: Vec3,
+        dir: Vec3,
+        t_aim: f32,
+        b_tol: f32,
+        t_tol: f32,
+    ) -> [Option<TriangleHit>; 2] {
+        let r = RayPrep::new(&Ray { origin, dir });
+        let hits = pair
+            .triangles
+            .map(|[p0, p1, p2]| intersect(&r, p0, p1, p2, f32::INFINITY));
+        let what = format!("ray {origin} + t {dir}");
+        assert!(
+            hits.iter().any(Option::is_some),
+            "{what} leaked through the edge"
+        );
+        for (hit, off) in hits.iter().zip(pair.opposite) {
+            if let Some(h) = hit {
+                assert!(h.b[off].abs() <= b_tol, "{what}: {h:?} is not on the edge");
+                assert!(
+                    (h.t - t_aim).abs() <= t_tol,
+                    "{what}: {h:?}, aimed at t = {t_aim}"
+                );
+            }
+        }
+        if let [Some(h0), Some(h1)] = hits {
+            let ulps = 4.0 * f32::EPSILON * h0.t;
+            assert!(
+                (h0.t - h1.t).abs() <= ulps,
+                "{what}: t {} vs {}",
+                h0.t,
+                h1.t
+            );
+        }
+        hits
+    }
+
+    #[test]
+    fn shared_edge_is_hit_by_both_sides_when_aimed_exactly() {
+        // The points (1 - k/16, k/16, 0), endpoints included, are exactly on the square's
+        // diagonal. With these directions (components of few bits, the largest a power of two)
+        // the origin `point - 4 dir`, the translation and the shear are exact, so the ray passes
+        // exactly through the point: it is on both closed triangles, and both must report it at
+        // t = 4 with barycentric exactly 0 across the edge.
+        let dirs = [
+            [0.0, 0.0, -1.0],
+            [0.25, -0.5, -1.0],
+            [-0.375, 0.125, -1.0],
+            [0.5, 0.75, 1.0],     // from below
+            [-1.0, 0.5, -0.75],   // x is the major axis
+            [0.25, -1.0, 0.5],    // y is the major axis, from below
+            [1.0, 1.0, -0.125],   // grazing, across the edge
+            [-0.5, 0.5, -0.0625], // grazing, along the edge
+        ];
+        for k in 0..=16 {
+            let s = k as f32 / 16.0;
+            let point = Vec3::new(1.0 - s, s, 0.0);
+            for d in dirs {
+                let dir = Vec3::from(d);
+                let origin = point - 4.0 * dir;
+                assert_eq!(origin + 4.0 * dir, point, "inexact aim");
+                let hits = trace_edge(SQUARE, origin, dir, 4.0, 0.0, 0.0);
+                assert!(
+                    hits.iter().all(Option::is_some),
+                    "k = {k}, dir {dir}: {hits:?}"
+                );
+            }
+        }
+    }
+
     #[test]
     fn shared_edge_is_hit_by_at_least_one_side() {
-        // Two triangles sharing the diagonal of the unit square; rays along the diagonal.
-        let (p00, p10, p01, p11) = (Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(1.0, 1.0, 0.0));
-        for i in 0..=1000 {
-            let s = i as f32 / 1000.0;
-            let r = ray([s, 1.0 - s, 3.0], [0.013, -0.007, -1.0]);
-            let a = intersect(&r, p00, p10, p01, f32::INFINITY);
-            let b = intersect(&r, p10, p11, p01, f32::INFINITY);
-            let o = r.origin + Vec3::new(0.013, -0.007, -1.0) * 3.0;
-            // Away from the square's outer (unshared) boundary.
-            let inside = (1e-4..=1.0 - 1e-4).contains(&o.x) && (1e-4..=1.0 - 1e-4).contains(&o.y);
-            if inside {
-                assert!(
-                    a.is_some() || b.is_some(),
-                    "ray {i} leaked through the edge"
-                );
+        // Points `a + s (b - a)` of the edge rounded to f32. For most s (i / 1000, 1/3, ...) the
+        // point of the real edge is not representable, so the ray passes within a rounding error
+        // of the edge on either side or through it; the non-dyadic directions also round the
+        // origin `point - 3 dir`. Whatever the rounding, one of the two triangles must hit (at
+        // t ~ 3, barycentric ~0 across the edge): a leak here is a crack in a closed mesh. (A
+        // Moller-Trumbore test, which is not watertight, lets 552 of these 12,048 rays through.)
+        let dirs = [
+            [0.0, 0.0, -1.0],
+            [0.3, -0.7, -1.1],
+            [-0.123, 0.456, 0.789],
+            [0.9, 0.8, -0.05], // grazing the square
+            [-2.0, 0.1, 0.3],
+            [0.01, -1.0, 0.02],
+        ];
+        let mut fractions: Vec<f64> = (1..1000).map(|i| f64::from(i) / 1000.0).collect();
+        fractions.extend([1.0 / 3.0, 2.0 / 3.0, 1e-6, 1.0 - 1e-6, 0.5 + 1e-9]);
+        for pair in [SQUARE, FOLDED] {
+            let [a, b] = pair.edge.map(|p| p.as_dvec3());
+            for &s in &fractions {
+                let point = (a + s * (b - a)).as_vec3();
+                for d in dirs {
+                    let dir = Vec3::from(d);
+                    trace_edge(pair, point - 3.0 * dir, dir, 3.0, 1e-5, 1e-5);
+                }
             }
         }
     }
