@@ -1,8 +1,12 @@
 //! The pinhole camera of DESIGN.md. Ray directions are computed in f64 and rounded once to f32:
 //! for pixel position (px, py) (pixel centre at x + 0.5), with tan = tan(vfov / 2),
 //! dir = normalize(f + ((2·px/W - 1)·tan·W/H)·r + ((1 - 2·py/H)·tan)·u), row 0 at the top.
+//!
+//! [`Camera::sample_ray`] is the one camera-sample path: the monolithic renderer and CastMap
+//! both take their rays from it, so they trace the same rays bit for bit.
 
 use crate::error::SceneError;
+use crate::sampling::sample_offset;
 use crate::scene::CameraSpec;
 use crate::triangle::Ray;
 use glam::DVec3;
@@ -17,6 +21,8 @@ pub struct Camera {
     tan_half: f64,
     width: f64,
     height: f64,
+    /// The image width in pixels, to split row-major pixel indices into (x, y).
+    columns: u64,
 }
 
 impl Camera {
@@ -46,6 +52,7 @@ impl Camera {
             tan_half: libm::tan(half),
             width: f64::from(width),
             height: f64::from(height),
+            columns: u64::from(width),
         })
     }
 
@@ -72,6 +79,19 @@ impl Camera {
             dir: d.as_vec3(),
         }
     }
+
+    /// The ray of sample `sample` of `spp` in pixel `pixel` (row-major index from the top-left,
+    /// x = pixel % width, y = pixel / width): [`Camera::ray`] through (x + ox, y + oy), where
+    /// (ox, oy) is [`sample_offset`]`(pixel, sample, spp)`. A pure function of its arguments and
+    /// the camera. Panics if the camera was made for an image of width 0 (it has no pixels).
+    #[inline]
+    pub fn sample_ray(&self, pixel: u64, sample: u32, spp: u32) -> Ray {
+        let (ox, oy) = sample_offset(pixel, sample, spp);
+        // x < 2^32 and, for a pixel of the image, y < height: both convert to f64 exactly.
+        let x = (pixel % self.columns) as f64;
+        let y = (pixel / self.columns) as f64;
+        self.ray(x + ox, y + oy)
+    }
 }
 
 #[cfg(test)]
@@ -90,6 +110,36 @@ mod tests {
         assert_eq!(cam.ray(2.0, 1.0).dir, glam::Vec3::new(0.0, 0.0, -1.0));
         assert!(cam.ray(0.5, 0.5).dir.y > 0.0, "row 0 is the top");
         assert!(cam.ray(0.5, 0.5).dir.x < 0.0, "column 0 is the left");
+    }
+
+    /// Sample rays are the rays through the pixel corner plus the sample offset, with the pixel
+    /// index split row-major (first and last column, later rows, one and several samples).
+    #[test]
+    fn sample_rays_go_through_their_pixel_and_offset() {
+        let spec = CameraSpec {
+            eye: DVec3::new(0.5, 1.0, 5.0),
+            look_at: DVec3::new(0.0, 0.25, 0.0),
+            up: DVec3::Y,
+            vfov_degrees: 40.0,
+        };
+        let (width, height) = (7u32, 5u32);
+        let cam = Camera::new(&spec, width, height).unwrap();
+        for spp in [1u32, 4, 9] {
+            for (x, y) in [(0u32, 0u32), (6, 0), (0, 1), (3, 2), (6, 4)] {
+                let pixel = u64::from(y) * u64::from(width) + u64::from(x);
+                for sample in 0..spp {
+                    let (ox, oy) = sample_offset(pixel, sample, spp);
+                    let expected = cam.ray(f64::from(x) + ox, f64::from(y) + oy);
+                    let got = cam.sample_ray(pixel, sample, spp);
+                    assert_eq!(got.origin.to_array(), expected.origin.to_array());
+                    assert_eq!(
+                        got.dir.to_array().map(f32::to_bits),
+                        expected.dir.to_array().map(f32::to_bits),
+                        "pixel ({x}, {y}) sample {sample} of {spp}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]

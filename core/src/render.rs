@@ -9,7 +9,7 @@ use crate::camera::Camera;
 use crate::error::SceneError;
 use crate::hits::Hit;
 use crate::image::Image;
-use crate::sampling::sample_offset;
+use crate::sampling::PixelSum;
 use crate::scene::{Mesh, NO_NORMAL, Scene, check_image_size};
 use crate::shading::{SurfacePoint, combine, shadow_test, surface_point};
 use crate::triangle::Ray;
@@ -217,21 +217,17 @@ fn render_row(scene: &Scene, bvh: &Bvh, camera: &Camera, s: RenderSettings, y: u
         let batch_end = (batch_start + pixels_per_batch).min(s.width);
         rays.clear();
         rays.extend((batch_start..batch_end).flat_map(|x| {
-            (0..s.spp).map(move |sample| {
-                let (ox, oy) = sample_offset(first_pixel + u64::from(x), sample, s.spp);
-                camera.ray(f64::from(x) + ox, f64::from(y) + oy)
-            })
+            let pixel = first_pixel + u64::from(x);
+            (0..s.spp).map(move |sample| camera.sample_ray(pixel, sample, s.spp))
         }));
         hits.clear();
         hits.resize(rays.len(), None);
         bvh.closest_hits(&rays, &mut hits);
         let colours = shade_batch(scene, bvh, &rays, &hits);
         for (colours, hits) in colours.chunks(samples).zip(hits.chunks(samples)) {
-            let mut sum = [0.0f32; 3];
+            let mut sum = PixelSum::default();
             for (colour, hit) in colours.iter().zip(hits) {
-                for k in 0..3 {
-                    sum[k] += colour[k];
-                }
+                sum.add(*colour);
                 // One primary ray, and for a hit one shadow ray per light.
                 row.rays += RayCounts {
                     primary: 1,
@@ -242,8 +238,7 @@ fn render_row(scene: &Scene, bvh: &Bvh, camera: &Camera, s: RenderSettings, y: u
                     },
                 };
             }
-            let inv = s.spp as f32;
-            row.colours.push(sum.map(|v| v / inv));
+            row.colours.push(sum.mean(s.spp));
             row.hits.push(hits[0].map_or(Hit::MISS, |h| Hit {
                 triangle: h.id,
                 t: h.t,
@@ -256,6 +251,7 @@ fn render_row(scene: &Scene, bvh: &Bvh, camera: &Camera, s: RenderSettings, y: u
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sampling::sample_offset;
     use crate::scene::load_scene;
 
     /// The reference: one camera sample shaded alone (single-ray `occluded` per light), with

@@ -2,6 +2,9 @@
 //! correlated multi-jittered (Kensler, "Correlated Multi-Jittered Sampling", 2013), stratified
 //! in 2D and in each 1D projection, jittered by a hash of (pixel, sample). Pure integer hashing
 //! and exact float conversions: identical on every machine.
+//!
+//! [`PixelSum`] turns a pixel's sample radiances into the pixel: the one pixel-mean path of the
+//! monolithic renderer and TraceReduce, so both write the same bits.
 
 /// The offset in [0, 1)^2 inside pixel `pixel` (row-major index) of sample `sample` of `spp`.
 pub fn sample_offset(pixel: u64, sample: u32, spp: u32) -> (f64, f64) {
@@ -19,6 +22,35 @@ pub fn sample_offset(pixel: u64, sample: u32, spp: u32) -> (f64, f64) {
     let x = (f64::from(s % m) + (f64::from(sy) + jx) / f64::from(n)) / f64::from(m);
     let y = (f64::from(s / m) + (f64::from(sx) + jy) / f64::from(m)) / f64::from(n);
     (x.min(ONE_MINUS_ULP), y.min(ONE_MINUS_ULP))
+}
+
+/// One pixel's running sum of sample radiances (linear RGB, f32). The guarantee: [`mean`]
+/// returns exactly `(((0 + c_0) + c_1) + ... + c_n-1) / spp` per channel, the samples summed in
+/// the order they were added, in f32 without fused operations, then one correctly rounded
+/// division by `spp as f32`.
+///
+/// [`mean`]: PixelSum::mean
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PixelSum {
+    sum: [f32; 3],
+}
+
+impl PixelSum {
+    /// Adds the next sample's radiance.
+    #[inline]
+    pub fn add(&mut self, colour: [f32; 3]) {
+        for (sum, c) in self.sum.iter_mut().zip(colour) {
+            *sum += c;
+        }
+    }
+
+    /// The pixel: the sum divided by the pixel's sample count `spp` (not by the number of
+    /// samples added; callers add exactly `spp`).
+    #[inline]
+    pub fn mean(self, spp: u32) -> [f32; 3] {
+        let spp = spp as f32;
+        self.sum.map(|v| v / spp)
+    }
 }
 
 const ONE_MINUS_ULP: f64 = 1.0 - f64::EPSILON / 2.0;
@@ -85,6 +117,25 @@ fn unit_float(h: u32) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The mean is the in-order f32 sum divided once by spp: order matters in f32, and this
+    /// order is the one both renderers have always used.
+    #[test]
+    fn pixel_sum_is_the_in_order_sum_over_spp() {
+        let samples = [[1e8f32, 0.1, -0.0], [1.0, 0.2, -0.0], [-1e8, 0.3, -0.0]];
+        let mut film = PixelSum::default();
+        for s in samples {
+            film.add(s);
+        }
+        let mean = film.mean(3);
+        assert_eq!(
+            mean[0], 0.0,
+            "1e8 + 1 rounds to 1e8 in f32, so the 1 is lost"
+        );
+        assert_eq!(mean[1].to_bits(), (((0.1f32 + 0.2) + 0.3) / 3.0).to_bits());
+        assert_eq!(mean[2].to_bits(), 0.0f32.to_bits(), "0 + -0 is +0");
+        assert_eq!(PixelSum::default().mean(4), [0.0; 3]);
+    }
 
     #[test]
     fn one_sample_is_the_pixel_centre() {

@@ -10,7 +10,7 @@ use crate::camera::Camera;
 use crate::error::SceneError;
 use crate::hits::Hit;
 use crate::image::Image;
-use crate::sampling::sample_offset;
+use crate::sampling::PixelSum;
 use crate::shading::{combine as combine_light, shadow_ray, shadow_test, surface_point};
 
 /// CastMap: every camera sample of `span` against one split; the split's nearest hit of each
@@ -21,7 +21,6 @@ pub fn cast_map(
     split: &SplitObject,
 ) -> Result<Vec<SurfaceHit>, SceneError> {
     let camera = Camera::new(&plan.camera, plan.width, plan.height)?;
-    let width = u64::from(plan.width);
     // Samples in (pixel, sample) order, traced in batches of neighbouring camera rays (coherent,
     // so `closest_hits` runs them as packets).
     let samples = (span.start..span.end).flat_map(|pixel| (0..plan.spp).map(move |s| (pixel, s)));
@@ -34,11 +33,11 @@ pub fn cast_map(
         batch.clear();
         batch.extend(samples.by_ref().take(BATCH));
         rays.clear();
-        rays.extend(batch.iter().map(|&(pixel, sample)| {
-            let (x, y) = ((pixel % width) as f64, (pixel / width) as f64);
-            let (ox, oy) = sample_offset(pixel, sample, plan.spp);
-            camera.ray(x + ox, y + oy)
-        }));
+        rays.extend(
+            batch
+                .iter()
+                .map(|&(pixel, sample)| camera.sample_ray(pixel, sample, plan.spp)),
+        );
         hits.clear();
         hits.resize(rays.len(), None);
         split.bvh.closest_hits(&rays, &mut hits);
@@ -162,7 +161,7 @@ pub fn trace_reduce(
     let mut next_hit = hits.iter().peekable();
     for pixel in span.start..span.end {
         let pixel = pixel as u32;
-        let mut sum = [0.0f32; 3];
+        let mut sum = PixelSum::default();
         let mut first = Hit::MISS;
         for sample in 0..plan.spp {
             let hit = next_hit.next_if(|h| h.pixel == pixel && h.sample == sample);
@@ -190,12 +189,9 @@ pub fn trace_reduce(
                     combine_light(h.surface.kd, contributions, plan.ambient)
                 }
             };
-            for k in 0..3 {
-                sum[k] += colour[k];
-            }
+            sum.add(colour);
         }
-        let spp = plan.spp as f32;
-        block.colours.push(sum.map(|v| v / spp));
+        block.colours.push(sum.mean(plan.spp));
         block.triangles.push(first.triangle);
         block.ts.push(first.t);
     }
