@@ -1,7 +1,8 @@
 //! Column-wise record layout for the raw bytes of a block, chosen so zstd compresses it well.
 //!
 //! A stage writes each field of its records as one column, in a fixed order, and reads them back
-//! in the same order. Each column is a tag byte, the value count as a LEB128 varint, then:
+//! in the same order. Each column is a tag byte, the value count as a LEB128 varint
+//! ([`super::varint`], at most 10 bytes), then:
 //!
 //! | tag | writer | payload |
 //! |-----|--------|---------|
@@ -13,6 +14,8 @@
 //! Byte planes put the slowly varying high bytes (exponents, high id bits) next to each other,
 //! where zstd finds long runs. Reading never panics and never allocates more than the input
 //! length allows; errors carry no key (the caller adds it).
+
+use super::varint::{self, VarintError};
 
 /// Why a column could not be read. The column index counts from 0 in reading order.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -79,7 +82,7 @@ impl ColumnWriter {
         self.header(TAG_U32_SORTED_DELTA, values.len());
         let mut previous = 0u32;
         for &value in values {
-            put_varint(&mut self.bytes, u64::from(value.wrapping_sub(previous)));
+            varint::write(&mut self.bytes, u64::from(value.wrapping_sub(previous)));
             previous = value;
         }
     }
@@ -127,7 +130,7 @@ impl ColumnWriter {
 
     fn header(&mut self, tag: u8, count: usize) {
         self.bytes.push(tag);
-        put_varint(&mut self.bytes, count as u64);
+        varint::write(&mut self.bytes, count as u64);
     }
 
     fn put_planes(&mut self, words: impl Iterator<Item = [u8; 4]> + Clone, count: usize) {
@@ -264,21 +267,11 @@ impl<'a> ColumnReader<'a> {
     }
 
     fn varint(&mut self) -> Result<u64, ColumnError> {
-        let mut value = 0u64;
-        for shift in (0..64).step_by(7) {
-            let [byte] = *self.take(1)? else {
-                return Err(self.truncated(1));
-            };
-            let bits = u64::from(byte & 0x7f);
-            if shift == 63 && bits > 1 {
-                return Err(self.bad_varint());
-            }
-            value |= bits << shift;
-            if byte & 0x80 == 0 {
-                return Ok(value);
-            }
-        }
-        Err(self.bad_varint())
+        varint::read_u64(&mut self.rest).map_err(|e| match e {
+            // The input ran out: one more byte was needed.
+            VarintError::Truncated => self.truncated(1),
+            VarintError::Malformed => self.bad_varint(),
+        })
     }
 
     fn truncated(&self, needed: u64) -> ColumnError {
@@ -340,14 +333,6 @@ impl<'a> Planes<'a> {
 #[inline(always)]
 fn words<const K: usize>(b0: &[u8; K], b1: &[u8; K], b2: &[u8; K], b3: &[u8; K]) -> [u32; K] {
     std::array::from_fn(|k| u32::from_le_bytes([b0[k], b1[k], b2[k], b3[k]]))
-}
-
-fn put_varint(bytes: &mut Vec<u8>, mut value: u64) {
-    while value >= 0x80 {
-        bytes.push((value as u8 & 0x7f) | 0x80);
-        value >>= 7;
-    }
-    bytes.push(value as u8);
 }
 
 #[cfg(test)]

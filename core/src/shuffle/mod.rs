@@ -6,6 +6,7 @@
 
 mod block;
 pub mod columns;
+pub(crate) mod varint;
 
 pub use block::{
     BLOCK_HEADER_LEN, BLOCK_MAGIC, BLOCK_VERSION, Block, BlockError, BlockProblem, MAX_RAW_LEN,
