@@ -6,7 +6,7 @@
 # asl-validator checks the schema (Distributed Map ItemReader/ItemProcessor included) and the
 # state graph (missing Next targets, unreachable states). It does not check enum values such as
 # JitterStrategy or the syntax of ErrorPath/CausePath: the emulator's loader does, and
-# `cargo test -p hort-local-emulator orchestrator` loads this same file.
+# `cargo test -p asl-interpreter` loads this same file.
 set -euo pipefail
 
 version=4.0.0

@@ -1,15 +1,17 @@
-//! Typed identifiers of the HORT pipeline: job, stage, task, attempt, split, partition.
+//! Typed identifiers of the HORT pipeline: job, task, split, partition (stages: [`crate::stage`]).
 //!
 //! Every id that reaches an object key or a state-machine payload goes through these types, so a
 //! split index can never be passed where a partition index is expected. Ids serialize as plain
-//! JSON strings (`JobId`, `Stage`) or numbers (the `u32` newtypes).
+//! JSON strings (`JobId`) or numbers (the `u32` newtypes).
 
 use std::fmt;
 use std::str::FromStr;
 
 use serde::{Deserialize, Serialize};
 
-/// Why a string is not a valid [`JobId`] or [`Stage`].
+pub use crate::stage::Stage;
+
+/// Why a string is not a valid [`JobId`] or [`crate::stage::Stage`].
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum IdError {
     /// The job id is empty or longer than [`JobId::MAX_LEN`] characters.
@@ -30,7 +32,7 @@ pub enum IdError {
     },
     /// The string names no stage.
     #[error(
-        "unknown stage {found:?}: expected one of split, cast-map, cast-reduce, expand, trace-map, trace-reduce, combine"
+        "unknown stage {found:?}: expected one of plan, cast-map, cast-reduce, expand, trace-map, trace-reduce, combine"
     )]
     UnknownStage {
         /// The rejected stage name.
@@ -99,71 +101,6 @@ impl From<JobId> for String {
     }
 }
 
-/// One stage of the HORT dataflow, in pipeline order (the derived `Ord` follows that order).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Stage {
-    /// Cut the scene into split objects, each with its own BVH.
-    Split,
-    /// Primary rays of one span against one split: candidate hits.
-    CastMap,
-    /// Nearest candidate per pixel sample.
-    CastReduce,
-    /// Route visible hits to the splits their shadow rays must be tested against.
-    Expand,
-    /// Shadow rays of routed hits against one split.
-    TraceMap,
-    /// Per pixel sample and light, occluded if any split occludes; shade.
-    TraceReduce,
-    /// Assemble the image.
-    Combine,
-}
-
-impl Stage {
-    /// Every stage, in pipeline order.
-    pub const ALL: [Stage; 7] = [
-        Stage::Split,
-        Stage::CastMap,
-        Stage::CastReduce,
-        Stage::Expand,
-        Stage::TraceMap,
-        Stage::TraceReduce,
-        Stage::Combine,
-    ];
-
-    /// The stage's stable kebab-case name, used in object keys, JSON and logs.
-    pub const fn as_str(self) -> &'static str {
-        match self {
-            Stage::Split => "split",
-            Stage::CastMap => "cast-map",
-            Stage::CastReduce => "cast-reduce",
-            Stage::Expand => "expand",
-            Stage::TraceMap => "trace-map",
-            Stage::TraceReduce => "trace-reduce",
-            Stage::Combine => "combine",
-        }
-    }
-}
-
-impl fmt::Display for Stage {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
-
-impl FromStr for Stage {
-    type Err = IdError;
-    /// Accepts exactly the names [`Stage::as_str`] returns (case-sensitive).
-    fn from_str(s: &str) -> Result<Self, IdError> {
-        Stage::ALL
-            .into_iter()
-            .find(|stage| stage.as_str() == s)
-            .ok_or_else(|| IdError::UnknownStage {
-                found: s.to_owned(),
-            })
-    }
-}
-
 macro_rules! index_id {
     ($(#[$doc:meta])* $name:ident) => {
         $(#[$doc])*
@@ -191,11 +128,6 @@ macro_rules! index_id {
 index_id!(
     /// Index of a task within one stage, 0-based; serializes as a JSON number.
     TaskId
-);
-index_id!(
-    /// Attempt number of one task, 0 for the first run; serializes as a JSON number. Outputs do
-    /// not depend on it (every attempt writes the same bytes), so it never appears in object keys.
-    Attempt
 );
 index_id!(
     /// Index of a scene split, 0-based, `< k`; serializes as a JSON number.
@@ -253,45 +185,17 @@ mod tests {
     }
 
     #[test]
-    fn stage_names_round_trip_and_are_exact() {
-        let names = [
-            "split",
-            "cast-map",
-            "cast-reduce",
-            "expand",
-            "trace-map",
-            "trace-reduce",
-            "combine",
-        ];
-        for (stage, name) in Stage::ALL.into_iter().zip(names) {
-            assert_eq!(stage.as_str(), name);
-            assert_eq!(name.parse::<Stage>(), Ok(stage));
-            assert_eq!(
-                serde_json::to_string(&stage).unwrap(),
-                format!("\"{name}\"")
-            );
-        }
-        assert!(matches!(
-            "Split".parse::<Stage>(),
-            Err(IdError::UnknownStage { .. })
-        ));
-        assert!(Stage::ALL.windows(2).all(|w| w[0] < w[1]));
-    }
-
-    #[test]
     fn serde_uses_strings_and_numbers_and_validates() {
         let job = JobId::new("job-7").unwrap();
         assert_eq!(serde_json::to_string(&job).unwrap(), "\"job-7\"");
         assert_eq!(serde_json::from_str::<JobId>("\"job-7\"").unwrap(), job);
         assert!(serde_json::from_str::<JobId>("\"Job 7\"").is_err());
-        assert!(serde_json::from_str::<Stage>("\"cast_map\"").is_err());
         assert_eq!(serde_json::to_string(&TaskId(12)).unwrap(), "12");
         assert_eq!(
             serde_json::from_str::<PartitionId>("3").unwrap(),
             PartitionId(3)
         );
         assert_eq!(serde_json::from_str::<SplitId>("4").unwrap(), SplitId(4));
-        assert_eq!(serde_json::from_str::<Attempt>("2").unwrap(), Attempt(2));
         assert_eq!(TaskId(5).to_string(), "5");
     }
 }

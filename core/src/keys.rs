@@ -9,7 +9,6 @@
 //! jobs/{job}/items/{stage}.json                 the task items of one Map state
 //! jobs/{job}/out/image.{ext}                     the final image (png, pfm, exr)
 //! jobs/{job}/out/hits.bin                        the hit buffer
-//! jobs/{job}/report.json                         the run report
 //! ```
 //!
 //! Indices are zero-padded to five digits so that, below 100 000, listing a prefix returns tasks
@@ -19,11 +18,6 @@
 //! same bytes to the same keys.
 
 use crate::ids::{JobId, PartitionId, SplitId, Stage, TaskId};
-
-/// `jobs/{job}/`: every object of the job, and nothing of any other job, starts with it.
-pub fn job_prefix(job: &JobId) -> String {
-    format!("jobs/{job}/")
-}
 
 /// `jobs/{job}/manifest.json`: the job request, written once with a conditional put.
 pub fn manifest_key(job: &JobId) -> String {
@@ -35,25 +29,9 @@ pub fn plan_key(job: &JobId) -> String {
     format!("jobs/{job}/plan.json")
 }
 
-/// `jobs/{job}/splits/`: the prefix of every split object of the job, and of nothing else.
-pub fn splits_prefix(job: &JobId) -> String {
-    format!("jobs/{job}/splits/")
-}
-
 /// `jobs/{job}/splits/{split:05}.bin`: one scene split.
 pub fn split_key(job: &JobId, split: SplitId) -> String {
     format!("jobs/{job}/splits/{:05}.bin", split.0)
-}
-
-/// `jobs/{job}/{stage}/`: the prefix of every partition written by the stage's tasks, and of
-/// nothing else (no stage name is a prefix of another followed by `/`).
-pub fn stage_prefix(job: &JobId, stage: Stage) -> String {
-    format!("jobs/{job}/{stage}/")
-}
-
-/// `jobs/{job}/{stage}/{task:05}/`: the prefix of every partition written by one task.
-pub fn task_prefix(job: &JobId, stage: Stage, task: TaskId) -> String {
-    format!("jobs/{job}/{stage}/{:05}/", task.0)
 }
 
 /// `jobs/{job}/{stage}/{task:05}/part-{p:05}`: partition `p` of the output of one task.
@@ -62,14 +40,9 @@ pub fn partition_key(job: &JobId, stage: Stage, task: TaskId, partition: Partiti
     format!("jobs/{job}/{stage}/{:05}/part-{:05}", task.0, partition.0)
 }
 
-/// `jobs/{job}/out/image.png`: the final 8-bit sRGB image.
-pub fn image_key(job: &JobId) -> String {
-    image_key_with_ext(job, "png")
-}
-
 /// `jobs/{job}/out/image.{ext}`: the final image in another format; `ext` is given without the
 /// dot (`"pfm"`, `"exr"`). A leading dot, if present, is dropped so `".pfm"` gives the same key.
-pub fn image_key_with_ext(job: &JobId, ext: &str) -> String {
+pub fn image_key(job: &JobId, ext: &str) -> String {
     let ext = ext.strip_prefix('.').unwrap_or(ext);
     format!("jobs/{job}/out/image.{ext}")
 }
@@ -88,11 +61,6 @@ pub fn hits_key(job: &JobId) -> String {
 /// `jobs/{job}/items/{stage}.json`: the JSON array of task items a Map state reads.
 pub fn items_key(job: &JobId, stage: Stage) -> String {
     format!("jobs/{job}/items/{stage}.json")
-}
-
-/// `jobs/{job}/report.json`: the run report.
-pub fn report_key(job: &JobId) -> String {
-    format!("jobs/{job}/report.json")
 }
 
 /// Parses a key made by [`partition_key`]; `None` for any other string.
@@ -138,49 +106,25 @@ mod tests {
     #[test]
     fn keys_are_the_documented_strings() {
         let j = job();
-        assert_eq!(job_prefix(&j), "jobs/job-42/");
         assert_eq!(manifest_key(&j), "jobs/job-42/manifest.json");
         assert_eq!(plan_key(&j), "jobs/job-42/plan.json");
-        assert_eq!(splits_prefix(&j), "jobs/job-42/splits/");
         assert_eq!(split_key(&j, SplitId(1)), "jobs/job-42/splits/00001.bin");
         assert_eq!(
             split_key(&j, SplitId(123_456)),
             "jobs/job-42/splits/123456.bin"
         );
-        assert_eq!(stage_prefix(&j, Stage::CastMap), "jobs/job-42/cast-map/");
-        assert_eq!(
-            task_prefix(&j, Stage::TraceMap, TaskId(7)),
-            "jobs/job-42/trace-map/00007/"
-        );
         assert_eq!(
             partition_key(&j, Stage::CastMap, TaskId(3), PartitionId(12)),
             "jobs/job-42/cast-map/00003/part-00012"
         );
-        assert_eq!(image_key(&j), "jobs/job-42/out/image.png");
-        assert_eq!(image_key_with_ext(&j, "pfm"), "jobs/job-42/out/image.pfm");
-        assert_eq!(image_key_with_ext(&j, ".exr"), "jobs/job-42/out/image.exr");
-        assert_eq!(report_key(&j), "jobs/job-42/report.json");
+        assert_eq!(image_key(&j, "pfm"), "jobs/job-42/out/image.pfm");
+        assert_eq!(image_key(&j, ".exr"), "jobs/job-42/out/image.exr");
         assert_eq!(hits_key(&j), "jobs/job-42/out/hits.bin");
         assert_eq!(scene_prefix(&j), "jobs/job-42/scene/");
         assert_eq!(
             items_key(&j, Stage::TraceMap),
             "jobs/job-42/items/trace-map.json"
         );
-    }
-
-    #[test]
-    fn prefixes_contain_exactly_their_keys() {
-        let j = job();
-        let key = partition_key(&j, Stage::Expand, TaskId(2), PartitionId(0));
-        assert!(key.starts_with(&job_prefix(&j)));
-        assert!(key.starts_with(&stage_prefix(&j, Stage::Expand)));
-        assert!(key.starts_with(&task_prefix(&j, Stage::Expand, TaskId(2))));
-        for other in Stage::ALL.into_iter().filter(|s| *s != Stage::Expand) {
-            assert!(!key.starts_with(&stage_prefix(&j, other)));
-        }
-        let other_job = JobId::new("job-4").unwrap();
-        assert!(!manifest_key(&j).starts_with(&job_prefix(&other_job)));
-        assert!(!split_key(&j, SplitId(0)).starts_with(&stage_prefix(&j, Stage::Split)));
     }
 
     #[test]

@@ -4,6 +4,8 @@
 #![forbid(unsafe_code)]
 
 pub mod error;
+mod error_type;
+pub use error_type::ErrorType;
 
 // Scene input and the renderer.
 pub mod bvh;
@@ -28,4 +30,8 @@ pub mod ids;
 pub mod keys;
 pub mod pipeline;
 pub mod shuffle;
+pub mod stage;
 pub mod store;
+
+// Shared machinery.
+pub mod worker_pool;

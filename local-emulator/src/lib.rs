@@ -1,8 +1,10 @@
-//! Library side of the `hort` command: pieces of the local emulator that tests and other crates
-//! use directly. The `hort` binary (`src/main.rs`) declares its own modules.
+//! The local emulator behind the `hort` command: the serverless pipeline on one machine, with
+//! the same function handlers as the cloud (`hort-functions`), the same state machine definition
+//! (interpreted by `asl-interpreter`), and real S3-protocol storage (`embedded-s3` or any
+//! S3-compatible endpoint). The `hort` binary (`src/main.rs`) adds the command line and the
+//! benchmarks.
 #![forbid(unsafe_code)]
 
-pub mod embedded_s3;
 pub mod emulator;
-pub mod orchestrator;
 pub mod progress;
+pub mod state_machine;

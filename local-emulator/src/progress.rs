@@ -29,19 +29,8 @@ use indicatif::{MultiProgress, ProgressDrawTarget};
 
 use track::{Inner, Stage};
 
-use crate::orchestrator::{Event, Observer};
+use asl_interpreter::{Event, Observer};
 pub use summary::print_summary;
-
-/// The pipeline's stages in order: (top-level state name, stage name).
-const PIPELINE: [(&str, &str); 7] = [
-    ("Plan", "plan"),
-    ("CastMap", "cast-map"),
-    ("CastReduce", "cast-reduce"),
-    ("Expand", "expand"),
-    ("TraceMap", "trace-map"),
-    ("TraceReduce", "trace-reduce"),
-    ("Combine", "combine"),
-];
 
 /// How progress is shown.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

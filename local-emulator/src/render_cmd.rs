@@ -3,6 +3,8 @@
 
 use crate::cli::RenderArgs;
 use anyhow::{Context, Result, bail};
+use hort::emulator::{EmulatorConfig, FaultSettings, StorageTarget, run_job};
+use hort::progress::{ProgressMode, ProgressObserver, print_summary};
 use hort_core::cost::Arch;
 use hort_core::hits::{Hit, encode_hits};
 use hort_core::ids::JobId;
@@ -13,8 +15,6 @@ use hort_core::report::{RayReport, Report, Seconds, StageReport};
 use hort_core::scene::{DEFAULT_HEIGHT, DEFAULT_WIDTH, Scene, check_image_size, load_scene};
 use hort_core::store::MemoryStore;
 use hort_functions::S3Credentials;
-use hort_local_emulator::emulator::{EmulatorConfig, FaultSettings, StorageTarget, run_job};
-use hort_local_emulator::progress::{ProgressMode, ProgressObserver, print_summary};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};

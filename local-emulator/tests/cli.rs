@@ -259,7 +259,7 @@ fn pipeline_render_equals_monolithic_byte_for_byte() {
         assert_eq!(
             names,
             [
-                "split",
+                "plan",
                 "cast-map",
                 "cast-reduce",
                 "expand",
@@ -362,9 +362,7 @@ fn storage_problems_are_one_clear_line() {
     let port = listener.local_addr().unwrap().port();
     drop(listener);
     let dir = scratch("s3-errors");
-    let server =
-        hort_local_emulator::embedded_s3::EmbeddedS3::start(&dir, "right-key", "right-secret")
-            .unwrap();
+    let server = embedded_s3::EmbeddedS3::start(&dir, "right-key", "right-secret").unwrap();
     server.ensure_bucket("real").unwrap();
     let endpoint = server.endpoint();
     let dead = format!("http://127.0.0.1:{port}");

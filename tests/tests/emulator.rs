@@ -4,15 +4,13 @@
 
 mod s3_support;
 
+use asl_interpreter::{Event, NoObserver, Observer};
+use hort::emulator::{EmulatorConfig, EmulatorRun, FaultSettings, StorageTarget, run_job};
 use hort_core::cost::Arch;
 use hort_core::pipeline::{PlanRequest, SplitMode};
 use hort_core::render::RenderOutput;
 use hort_core::store::BlobStore;
 use hort_functions::S3Credentials;
-use hort_local_emulator::emulator::{
-    EmulatorConfig, EmulatorRun, FaultSettings, StorageTarget, run_job,
-};
-use hort_local_emulator::orchestrator::{Event, NoObserver, Observer};
 use hort_tests::{hit_bits, pixel_bits, scene_path};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};

@@ -2,9 +2,7 @@
 //! count, split mode, sample count and worker count.
 
 use hort_core::ids::{JobId, Stage};
-use hort_core::pipeline::{
-    PipelineOptions, PipelineRun, PlanRequest, SplitMode, run_pipeline, task_count,
-};
+use hort_core::pipeline::{PipelineOptions, PipelineRun, PlanRequest, SplitMode, run_pipeline};
 use hort_core::scene::{Scene, load_scene};
 use hort_core::store::{BlobStore, MemoryStore};
 use hort_tests::{hit_bits, pixel_bits, scene_path};
@@ -124,8 +122,8 @@ fn run_in_memory(rel: &str, spp: u32, k: u32, s: u32) -> (MemoryStore, PipelineR
 fn every_task_run_twice_writes_identical_bytes() {
     let (store, run, job) = run_in_memory("cornell/cornell.json", 2, 3, 5);
     let before = snapshot(&store);
-    for &stage in hort_core::pipeline::TASK_STAGES {
-        for task in 0..task_count(&run.plan, stage) {
+    for &stage in hort_core::ids::Stage::TASKS {
+        for task in 0..run.plan.task_count(stage) {
             hort_core::pipeline::run_task(&store, &job, &run.plan, stage, task as u32).unwrap();
         }
     }

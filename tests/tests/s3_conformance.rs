@@ -41,12 +41,9 @@ fn embedded_s3_keeps_objects_across_restarts() {
         .expect("put");
     let Embedded { server, dir } = embedded;
     drop(server);
-    let again = hort_local_emulator::embedded_s3::EmbeddedS3::start(
-        dir.path(),
-        s3_support::ACCESS_KEY,
-        s3_support::SECRET_KEY,
-    )
-    .expect("restart");
+    let again =
+        embedded_s3::EmbeddedS3::start(dir.path(), s3_support::ACCESS_KEY, s3_support::SECRET_KEY)
+            .expect("restart");
     let again = Embedded { server: again, dir };
     let store = again.store("durable");
     assert_eq!(store.get("jobs/j/manifest.json").expect("get"), b"{}");

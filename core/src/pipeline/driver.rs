@@ -2,14 +2,14 @@
 //! any [`BlobStore`], stage after stage, and collects the per-stage metrics of the report.
 
 use super::PipelineError;
-use super::plan::{JobPlan, PlanRequest, plan_job, resolve_counts};
+use super::outputs::read_outputs;
+use super::plan::{JobPlan, PlanRequest};
+use super::plan_step::plan_into_store;
 use super::runner::{TaskMetrics, run_task_cached};
-use super::split::split_scene;
 use super::split_cache::SplitCache;
-use crate::hits::{Hit, decode_hits};
-use crate::ids::{JobId, SplitId, Stage};
-use crate::image::{Image, decode_pfm};
-use crate::keys::{hits_key, image_key_with_ext, plan_key, split_key};
+use crate::hits::Hit;
+use crate::ids::{JobId, Stage};
+use crate::image::Image;
 use crate::report::StageReport;
 use crate::scene::Scene;
 use crate::store::BlobStore;
@@ -17,12 +17,10 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::Instant;
 
-/// The stages run as tasks after planning (every stage but `Split`), in order.
-pub const TASK_STAGES: &[Stage] = Stage::ALL.split_at(1).1;
-
 /// How to run a job in process.
 #[derive(Clone, Debug)]
 pub struct PipelineOptions {
+    /// The job's id: every object it stores is under `jobs/{job}/`.
     pub job: JobId,
     /// Worker threads running tasks concurrently (at least 1).
     pub workers: usize,
@@ -33,29 +31,24 @@ pub struct PipelineOptions {
 /// A finished job.
 #[derive(Clone, Debug)]
 pub struct PipelineRun {
+    /// The plan the job ran.
     pub plan: JobPlan,
+    /// The linear image, bit-identical to the monolithic render's.
     pub image: Image,
+    /// The hit buffer (sample 0 of each pixel), row-major from the top-left.
     pub hits: Vec<Hit>,
-    /// Per stage: `split` (the plan step) then the task stages in order.
+    /// Per stage: `plan` then the task stages in order.
     pub stages: Vec<StageReport>,
     /// Summed task metrics per stage, same order as `stages`.
     pub metrics: Vec<TaskMetrics>,
+    /// Camera rays traced: width x height x spp.
     pub primary_rays: u64,
+    /// Logical shadow rays: one per hit sample and light.
     pub shadow_rays: u64,
     /// Split bytes read by all tasks / bytes of all splits.
     pub replication: f64,
     /// Wall-clock seconds of the task stages (cast-map to combine).
     pub render_seconds: f64,
-}
-
-/// Number of tasks of `stage` in `plan`.
-pub fn task_count(plan: &JobPlan, stage: Stage) -> usize {
-    match stage {
-        Stage::CastMap => plan.cast_tasks.len(),
-        Stage::TraceMap => plan.trace_tasks.len(),
-        Stage::CastReduce | Stage::Expand | Stage::TraceReduce => plan.spans.len(),
-        Stage::Combine | Stage::Split => 1,
-    }
 }
 
 /// Splits and plans `scene` into `store`, runs every stage, and reads back the outputs.
@@ -67,23 +60,16 @@ pub fn run_pipeline(
 ) -> Result<PipelineRun, PipelineError> {
     let job = &options.job;
     let started = Instant::now();
-    let (k, s) = resolve_counts(&request, scene.mesh.triangle_count() as u64)?;
-    let infos = split_scene(&scene.mesh, k as usize, request.mode, |split, bytes| {
-        store.put(&split_key(job, SplitId(split)), &bytes)
-    })?;
-    let plan = plan_job(scene, &request, infos, s)?;
-    let plan_json = serde_json::to_vec_pretty(&plan)
-        .map_err(|e| PipelineError::BadInput(format!("cannot encode the plan: {e}")))?;
-    store.put(&plan_key(job), &plan_json)?;
-    let split_bytes = plan.scene_bytes();
+    let planned = plan_into_store(store, job, scene, &request)?;
+    let plan = planned.plan;
     let mut stages = vec![StageReport {
-        name: Stage::Split.to_string(),
+        name: Stage::Plan.to_string(),
         tasks: 1,
         attempts: 1,
         seconds: started.elapsed().as_secs_f64(),
         bytes_read: 0,
-        bytes_written: split_bytes + plan_json.len() as u64,
-        bytes_written_raw: split_bytes + plan_json.len() as u64,
+        bytes_written: planned.bytes_written,
+        bytes_written_raw: planned.bytes_written,
     }];
     let mut metrics = vec![TaskMetrics::default()];
     let render_start = Instant::now();
@@ -91,9 +77,9 @@ pub fn run_pipeline(
     let caches: Vec<SplitCache> = (0..options.workers.max(1))
         .map(|_| SplitCache::new(options.split_cache_bytes))
         .collect();
-    for &stage in TASK_STAGES {
+    for &stage in Stage::TASKS {
         let stage_start = Instant::now();
-        let tasks = task_count(&plan, stage);
+        let tasks = plan.task_count(stage);
         let m = run_stage(store, job, &plan, stage, tasks, &caches)?;
         stages.push(StageReport {
             name: stage.to_string(),
@@ -107,19 +93,16 @@ pub fn run_pipeline(
         metrics.push(m);
     }
     let render_seconds = render_start.elapsed().as_secs_f64();
-    let image_key = image_key_with_ext(job, "pfm");
-    let image = decode_pfm(&store.get(&image_key)?)
-        .map_err(|e| PipelineError::Corrupt(format!("{image_key}: {e}")))?;
-    let hits = decode_hits(&store.get(&hits_key(job))?, plan.width, plan.height)
-        .map_err(|e| PipelineError::Corrupt(format!("{}: {e}", hits_key(job))))?;
+    let outputs = read_outputs(store, job, &plan)?;
+    let split_bytes = plan.scene_bytes();
     let split_read: u64 = metrics.iter().map(|m| m.split_bytes_read).sum();
     Ok(PipelineRun {
         primary_rays: u64::from(plan.width) * u64::from(plan.height) * u64::from(plan.spp),
         shadow_rays: metrics.iter().map(|m| m.shadow_rays).sum(),
         replication: split_read as f64 / split_bytes.max(1) as f64,
         plan,
-        image,
-        hits,
+        image: outputs.image,
+        hits: outputs.hits,
         stages,
         metrics,
         render_seconds,

@@ -20,7 +20,9 @@
 
 mod driver;
 mod frustum;
+mod outputs;
 mod plan;
+mod plan_step;
 mod records;
 mod runner;
 mod split;
@@ -28,12 +30,14 @@ mod split_cache;
 mod split_object;
 mod stages;
 
-pub use driver::{PipelineOptions, PipelineRun, TASK_STAGES, run_pipeline, task_count};
+pub use driver::{PipelineOptions, PipelineRun, run_pipeline};
 pub use frustum::span_may_meet_box;
+pub use outputs::{JobOutputs, read_outputs};
 pub use plan::{
     CastTask, JobPlan, MAX_SPANS, MAX_SPLITS, PLAN_FORMAT_VERSION, PlanRequest, Span, SplitInfo,
     TraceTask, plan_job, resolve_counts,
 };
+pub use plan_step::{PlannedJob, plan_into_store};
 pub use records::{Occluded, PixelBlock, ShadowQuery, SurfaceHit};
 pub use runner::{TaskMetrics, producer_of, run_task, run_task_cached};
 pub use split::{SplitMode, assign_splits, split_scene};
@@ -42,6 +46,7 @@ pub use split_object::TriangleShading;
 pub use split_object::{SPLIT_FORMAT_VERSION, SplitObject, decode_split, encode_split};
 pub use stages::{cast_map, cast_reduce, combine, expand, trace_map, trace_reduce};
 
+use crate::ErrorType;
 use crate::store::StoreError;
 
 /// Why a task or the pipeline failed. `Display` is one line naming the object or field.
@@ -63,6 +68,16 @@ pub enum PipelineError {
 }
 
 impl PipelineError {
+    /// The error type a function reports for this failure ([`ErrorType::Retryable`] exactly when
+    /// [`PipelineError::is_retryable`]).
+    pub fn error_type(&self) -> ErrorType {
+        if self.is_retryable() {
+            ErrorType::Retryable
+        } else {
+            ErrorType::BadInput
+        }
+    }
+
     /// Whether running the same task again may succeed.
     pub fn is_retryable(&self) -> bool {
         match self {

@@ -7,6 +7,7 @@ use super::split::SplitMode;
 use crate::bvh::Aabb;
 use crate::camera::Camera;
 use crate::scene::{CameraSpec, Light, Scene, check_image_size};
+use crate::stage::Stage;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -21,14 +22,31 @@ const AUTO_TRIANGLES_PER_SPLIT: u64 = 250_000;
 /// Samples per span when the span count is chosen automatically.
 const AUTO_SAMPLES_PER_SPAN: u64 = 65_536;
 
-/// What the user asked for; `None` means choose automatically.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Shortest per-task timeout a plan gives, seconds.
+const MIN_TIMEOUT_SECONDS: u32 = 10;
+/// Longest per-task timeout a plan gives, seconds: three attempts must fit an EXPRESS child's
+/// 5 minutes.
+const MAX_TIMEOUT_SECONDS: u32 = 90;
+/// Rays per second a task is assumed to manage at the least, for its timeout.
+const SLOWEST_RAYS_PER_SECOND: u64 = 100_000;
+
+/// What the user asked for; `None` means choose automatically. Stored inside the job request,
+/// so its JSON field names are part of the job request's format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct PlanRequest {
+    /// Image width in pixels, 1 to 65536.
     pub width: u32,
+    /// Image height in pixels, 1 to 65536.
     pub height: u32,
+    /// Samples per pixel, 1 to 65536.
     pub spp: u32,
+    /// Scene splits k; automatic (about 250k triangles each) when `None`.
     pub splits: Option<u32>,
+    /// Pixel spans s; automatic (about 64k samples each) when `None`.
     pub spans: Option<u32>,
+    /// How the scene is cut into splits.
+    #[serde(rename = "split_mode")]
     pub mode: SplitMode,
 }
 
@@ -111,6 +129,44 @@ impl JobPlan {
     /// The TraceMap task of (span, split).
     pub fn trace_task_id(&self, span: u32, split: u32) -> u32 {
         span * self.k() + split
+    }
+
+    /// Number of tasks of `stage` in this plan: one per CastMap/TraceMap pair, one per span for
+    /// the reduce stages and Expand, one for Plan and Combine.
+    pub fn task_count(&self, stage: Stage) -> usize {
+        match stage {
+            Stage::CastMap => self.cast_tasks.len(),
+            Stage::TraceMap => self.trace_tasks.len(),
+            Stage::CastReduce | Stage::Expand | Stage::TraceReduce => self.spans.len(),
+            Stage::Combine | Stage::Plan => 1,
+        }
+    }
+
+    /// The timeout of task `task` of `stage`, seconds: 10 s plus its rays at a pessimistic
+    /// 100k rays/s, at most 90 s. A task that does not exist gets the 10 s floor.
+    pub fn task_timeout_seconds(&self, stage: Stage, task: u32) -> u32 {
+        let span_samples = |span: u32| {
+            self.spans
+                .get(span as usize)
+                .map_or(0, |s| (s.end - s.start) * u64::from(self.spp))
+        };
+        let lights = self.lights.len() as u64;
+        let rays = match stage {
+            Stage::CastMap => self
+                .cast_tasks
+                .get(task as usize)
+                .map_or(0, |t| span_samples(t.span)),
+            Stage::TraceMap => self
+                .trace_tasks
+                .get(task as usize)
+                .map_or(0, |t| span_samples(t.span) * lights),
+            Stage::CastReduce | Stage::Expand | Stage::TraceReduce => {
+                span_samples(task) * (1 + lights) / 4
+            }
+            Stage::Combine | Stage::Plan => u64::from(self.width) * u64::from(self.height) / 4,
+        };
+        let seconds = u64::from(MIN_TIMEOUT_SECONDS) + rays / SLOWEST_RAYS_PER_SECOND;
+        seconds.min(u64::from(MAX_TIMEOUT_SECONDS)) as u32
     }
 
     /// Total bytes of all split objects (the scene as stored).
@@ -292,6 +348,22 @@ mod tests {
         );
         let json = serde_json::to_vec(&plan).unwrap();
         assert_eq!(JobPlan::from_json("p", &json).unwrap(), plan);
+        let counts: Vec<usize> = Stage::ALL.iter().map(|&st| plan.task_count(st)).collect();
+        assert_eq!(counts, [1, plan.cast_tasks.len(), 7, 7, 21, 7, 1]);
+        // 64x48 over 7 spans: span 0 holds 438 pixels; cornell has one light.
+        assert_eq!(plan.spans[0].end - plan.spans[0].start, 438);
+        assert_eq!(plan.task_timeout_seconds(Stage::TraceMap, 0), 10);
+        assert_eq!(plan.task_timeout_seconds(Stage::TraceMap, 999), 10);
+        let mut dense = plan.clone();
+        dense.spp = 1000; // 438,000 camera rays in span 0: 10 s + 4 s
+        assert_eq!(dense.cast_tasks[0].span, 0);
+        assert_eq!(dense.task_timeout_seconds(Stage::CastMap, 0), 14);
+        assert_eq!(
+            dense.task_timeout_seconds(Stage::CastReduce, 0),
+            10 + 876_000 / 4 / 100_000
+        );
+        dense.spp = 100_000; // 438 s of rays at the floor rate: capped
+        assert_eq!(dense.task_timeout_seconds(Stage::CastMap, 0), 90);
         let e = JobPlan::from_json("jobs/x/plan.json", b"{")
             .unwrap_err()
             .to_string();

@@ -18,7 +18,7 @@ use super::stages;
 use crate::hits::encode_hits;
 use crate::ids::{JobId, PartitionId, SplitId, Stage, TaskId};
 use crate::image::{encode_pfm, encode_png};
-use crate::keys::{hits_key, image_key_with_ext, parse_partition_key, partition_key, split_key};
+use crate::keys::{hits_key, image_key, parse_partition_key, partition_key, split_key};
 use crate::shuffle::RecordKind;
 use crate::store::BlobStore;
 use std::sync::Arc;
@@ -211,14 +211,14 @@ impl Task<'_> {
                 }
                 let (image, hits) = stages::combine(plan, &blocks);
                 let png = encode_png(&image).map_err(|e| PipelineError::BadInput(e.to_string()))?;
-                self.write_plain(&image_key_with_ext(self.job, "png"), png)?;
-                self.write_plain(&image_key_with_ext(self.job, "pfm"), encode_pfm(&image))?;
+                self.write_plain(&image_key(self.job, "png"), png)?;
+                self.write_plain(&image_key(self.job, "pfm"), encode_pfm(&image))?;
                 self.write_plain(&hits_key(self.job), encode_hits(&hits))?;
                 self.metrics.records += hits.len() as u64;
                 Ok(())
             }
-            Stage::Split => Err(PipelineError::BadInput(
-                "the split stage runs in the plan step, not as a task".into(),
+            Stage::Plan => Err(PipelineError::BadInput(
+                "the plan stage runs in the Plan function, not as a worker task".into(),
             )),
         }
     }

@@ -1,7 +1,11 @@
 //! The JSON the state machine passes to the handlers and gets back, and the job request the
-//! client stores before starting an execution.
+//! client stores before starting an execution. Ids are typed: a malformed job id, stage name or
+//! task number fails decoding, naming the field.
 
-use hort_core::pipeline::SplitMode;
+use std::collections::BTreeMap;
+
+use hort_core::ids::{JobId, Stage, TaskId};
+use hort_core::pipeline::PlanRequest;
 use serde::{Deserialize, Serialize};
 
 /// What the client stores at `jobs/{job}/manifest.json` (created once, with `put_if_absent`).
@@ -11,60 +15,67 @@ pub struct JobRequest {
     /// The scene's main file (OBJ or manifest), relative to `jobs/{job}/scene/`; the files it
     /// names are stored beside it under the same prefix.
     pub scene: String,
-    pub width: u32,
-    pub height: u32,
-    pub spp: u32,
-    pub splits: Option<u32>,
-    pub spans: Option<u32>,
-    pub split_mode: SplitMode,
+    /// Image size, samples, splits, spans and split mode, as for `hort render`.
+    pub render: PlanRequest,
     /// Map iterations at once (0: no limit beyond the account's concurrency).
     pub max_concurrency: u32,
     /// Per-task timeout override in seconds; by default derived from each task's work.
     pub task_timeout_seconds: Option<u32>,
 }
 
-/// Input of the Plan task.
+/// Input of the Plan function.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct PlanEvent {
-    pub job: String,
+    /// The job to plan.
+    pub job: JobId,
+    /// The bucket holding the job (must be the one the function serves).
     pub bucket: String,
+    /// Retry count of this attempt (`$$.State.RetryCount`), 0 for the first.
     #[serde(default)]
     pub attempt: u32,
 }
 
 /// One Map item: a task of a stage and its timeout.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct TaskItem {
-    pub task: u32,
+    /// The task's index within its stage.
+    pub task: TaskId,
+    /// The task's timeout (the Map's `TimeoutSecondsPath`); `None` leaves the state's default.
     #[serde(default)]
     pub timeout_seconds: Option<u32>,
 }
 
-/// Input of the Worker task.
+/// Input of the Worker function.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct WorkerEvent {
-    pub job: String,
+    /// The job the task belongs to.
+    pub job: JobId,
+    /// The bucket holding the job (must be the one the function serves).
     pub bucket: String,
-    /// Stage name, e.g. `cast-map`.
-    pub stage: String,
+    /// The task's stage (never [`Stage::Plan`], which the Plan function runs).
+    pub stage: Stage,
+    /// Which task, and its timeout.
     pub item: TaskItem,
+    /// Retry count of this attempt (`$$.State.RetryCount`), 0 for the first.
     #[serde(default)]
     pub attempt: u32,
 }
 
-/// The keys of each Map state's items file.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub struct StageItems {
-    pub cast_map: String,
-    pub cast_reduce: String,
-    pub expand: String,
-    pub trace_map: String,
-    pub trace_reduce: String,
-}
-
-/// Output of the Plan task.
+/// Output of the Plan function: where each Map state reads its items, and its concurrency.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct PlanOutput {
-    pub items: StageItems,
+    /// Items file key per Map stage, by [`Stage::items_field`] (`$.plan.items.cast_map`, ...).
+    pub items: BTreeMap<String, String>,
+    /// Map iterations at once (0: no limit beyond the account's concurrency).
     pub max_concurrency: u32,
+}
+
+impl PlanOutput {
+    /// The items file key of `stage`, if it is a Map stage this output names.
+    pub fn items_key(&self, stage: Stage) -> Option<&str> {
+        self.items.get(stage.items_field()?).map(String::as_str)
+    }
 }

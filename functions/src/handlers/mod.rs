@@ -1,32 +1,34 @@
-//! The function handlers as plain functions over an injected [`BlobStore`]: the orchestrator's
-//! Plan task (`plan`) and the Worker task that runs any stage task (`worker`). The Lambda
-//! binaries and the local emulator call exactly these.
+//! The function handlers as plain functions over an injected [`BlobStore`]: the Plan function
+//! ([`handle_plan`]) and the Worker function that runs any task of the other stages
+//! ([`handle_worker`]). [`dispatch`] decodes a JSON event, runs the handler and maps its error to
+//! the state machine's error type; the local emulator calls it for every invocation.
 //!
 //! Error contract with the state machine (`infra/statemachine.asl.json`): a handler fails with
-//! error type `Hort.Retryable` (storage trouble, a lost or corrupt block that could not be
-//! recomputed: retried with backoff) or `Hort.BadInput` (a bad scene or request: never retried).
+//! [`ErrorType::Retryable`] (`Hort.Retryable`: storage trouble, a lost or corrupt block that
+//! could not be recomputed; retried with backoff) or [`ErrorType::BadInput`] (`Hort.BadInput`: a
+//! bad scene, request or event; never retried).
 
+mod dispatch;
 mod events;
 mod plan;
 mod worker;
 
-pub use events::{JobRequest, PlanEvent, PlanOutput, StageItems, TaskItem, WorkerEvent};
-pub use plan::{handle_plan, scene_prefix, task_timeout_seconds};
+pub use dispatch::{Function, FunctionEnv, Invoked, dispatch};
+pub use events::{JobRequest, PlanEvent, PlanOutput, TaskItem, WorkerEvent};
+pub use plan::{handle_plan, scene_prefix};
 pub use worker::handle_worker;
 
+pub use hort_core::ErrorType;
 use hort_core::pipeline::PipelineError;
-use hort_core::store::StoreError;
+use hort_core::store::{BlobStore, StoreError};
 
-/// Error type of retryable failures.
-pub const RETRYABLE: &str = "Hort.Retryable";
-/// Error type of failures no retry can fix.
-pub const BAD_INPUT: &str = "Hort.BadInput";
-
-/// A handler failure: its error type (one of [`RETRYABLE`], [`BAD_INPUT`]) and a one-line cause.
+/// A handler failure: its error type and a one-line cause. `Display` is `{type}: {cause}`.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("{error_type}: {cause}")]
 pub struct HandlerError {
-    pub error_type: &'static str,
+    /// What the state machine does with it: retry or give up.
+    pub error_type: ErrorType,
+    /// What went wrong, naming the object, field or file.
     pub cause: String,
 }
 
@@ -34,7 +36,7 @@ impl HandlerError {
     /// A failure that a retry may fix.
     pub fn retryable(cause: impl Into<String>) -> Self {
         HandlerError {
-            error_type: RETRYABLE,
+            error_type: ErrorType::Retryable,
             cause: cause.into(),
         }
     }
@@ -42,7 +44,7 @@ impl HandlerError {
     /// A failure that no retry fixes.
     pub fn bad_input(cause: impl Into<String>) -> Self {
         HandlerError {
-            error_type: BAD_INPUT,
+            error_type: ErrorType::BadInput,
             cause: cause.into(),
         }
     }
@@ -50,10 +52,9 @@ impl HandlerError {
 
 impl From<PipelineError> for HandlerError {
     fn from(e: PipelineError) -> Self {
-        if e.is_retryable() {
-            HandlerError::retryable(e.to_string())
-        } else {
-            HandlerError::bad_input(e.to_string())
+        HandlerError {
+            error_type: e.error_type(),
+            cause: e.to_string(),
         }
     }
 }
@@ -61,6 +62,17 @@ impl From<PipelineError> for HandlerError {
 impl From<StoreError> for HandlerError {
     fn from(e: StoreError) -> Self {
         PipelineError::Store(e).into()
+    }
+}
+
+/// Refuses an event meant for another bucket than the one the function serves.
+fn check_bucket(event_bucket: &str, bucket: &str) -> Result<(), HandlerError> {
+    if event_bucket == bucket {
+        Ok(())
+    } else {
+        Err(HandlerError::bad_input(format!(
+            "the event names bucket \"{event_bucket}\", this function serves \"{bucket}\""
+        )))
     }
 }
 

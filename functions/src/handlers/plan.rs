@@ -1,26 +1,17 @@
 //! The Plan task: read the job request and scene from storage, split the scene (one split
 //! object at a time), write the plan and one items file per Map state.
 
-use super::HandlerError;
-use super::events::{JobRequest, PlanEvent, PlanOutput, StageItems, TaskItem};
-use hort_core::ids::{JobId, SplitId, Stage};
-use hort_core::keys::{items_key, manifest_key, plan_key, split_key};
-use hort_core::pipeline::{
-    JobPlan, PlanRequest, plan_job, resolve_counts, split_scene, task_count,
-};
+use super::events::{JobRequest, PlanEvent, PlanOutput, TaskItem};
+use super::{HandlerError, check_bucket};
+use hort_core::ids::{JobId, Stage, TaskId};
+use hort_core::keys::{items_key, manifest_key};
+use hort_core::pipeline::plan_into_store;
 use hort_core::scene::load_scene;
 use hort_core::store::BlobStore;
 use std::path::{Component, Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 pub use hort_core::keys::scene_prefix;
-
-/// Shortest per-task timeout, seconds.
-const MIN_TIMEOUT: u32 = 10;
-/// Longest per-task timeout, seconds: three attempts must fit an EXPRESS child's 5 minutes.
-const MAX_TIMEOUT: u32 = 90;
-/// Rays per second a task is assumed to manage at the least, for its timeout.
-const SLOWEST_RAYS_PER_SECOND: u64 = 100_000;
 
 /// Plans job `event.job`: reads `jobs/{job}/manifest.json` and the files under
 /// `jobs/{job}/scene/` (copied into `work_dir`, like a function's `/tmp`), writes the split
@@ -31,14 +22,9 @@ pub fn handle_plan(
     event: &PlanEvent,
     work_dir: &Path,
 ) -> Result<PlanOutput, HandlerError> {
-    let job = JobId::new(event.job.clone()).map_err(|e| HandlerError::bad_input(e.to_string()))?;
-    if event.bucket != bucket {
-        return Err(HandlerError::bad_input(format!(
-            "the event names bucket \"{}\", this function serves \"{bucket}\"",
-            event.bucket
-        )));
-    }
-    let request = read_request(store, &job)?;
+    let job = &event.job;
+    check_bucket(&event.bucket, bucket)?;
+    let request = read_request(store, job)?;
     // Unique per invocation: a duplicated delivery of the same attempt must not share it.
     static INVOCATION: AtomicU64 = AtomicU64::new(0);
     let scene_dir = work_dir.join(format!(
@@ -47,82 +33,36 @@ pub fn handle_plan(
         std::process::id(),
         INVOCATION.fetch_add(1, Ordering::Relaxed)
     ));
-    let scene_path = download_scene(store, &job, &request, &scene_dir)?;
+    let scene_path = download_scene(store, job, &request, &scene_dir)?;
     let loaded = load_scene(&scene_path);
     let _ = std::fs::remove_dir_all(&scene_dir);
     let scene = loaded.map_err(|e| HandlerError::bad_input(e.to_string()))?;
-    let plan_request = PlanRequest {
-        width: request.width,
-        height: request.height,
-        spp: request.spp,
-        splits: request.splits,
-        spans: request.spans,
-        mode: request.split_mode,
-    };
-    let (k, s) = resolve_counts(&plan_request, scene.mesh.triangle_count() as u64)?;
-    let infos = split_scene(
-        &scene.mesh,
-        k as usize,
-        plan_request.mode,
-        |split, bytes| store.put(&split_key(&job, SplitId(split)), &bytes),
-    )?;
-    let plan = plan_job(&scene, &plan_request, infos, s)?;
-    let plan_json = serde_json::to_vec_pretty(&plan)
-        .map_err(|e| HandlerError::bad_input(format!("cannot encode the plan: {e}")))?;
-    store.put(&plan_key(&job), &plan_json)?;
-    let write_items = |stage: Stage| -> Result<String, HandlerError> {
-        let items: Vec<TaskItem> = (0..task_count(&plan, stage) as u32)
+    let plan = plan_into_store(store, job, &scene, &request.render)?.plan;
+    let mut items = std::collections::BTreeMap::new();
+    for stage in Stage::ALL {
+        let Some(field) = stage.items_field() else {
+            continue;
+        };
+        let tasks: Vec<TaskItem> = (0..plan.task_count(stage) as u32)
             .map(|task| TaskItem {
-                task,
+                task: TaskId(task),
                 timeout_seconds: Some(
                     request
                         .task_timeout_seconds
-                        .unwrap_or_else(|| task_timeout_seconds(&plan, stage, task)),
+                        .unwrap_or_else(|| plan.task_timeout_seconds(stage, task)),
                 ),
             })
             .collect();
-        let key = items_key(&job, stage);
-        let json = serde_json::to_vec(&items)
+        let key = items_key(job, stage);
+        let json = serde_json::to_vec(&tasks)
             .map_err(|e| HandlerError::bad_input(format!("cannot encode items: {e}")))?;
         store.put(&key, &json)?;
-        Ok(key)
-    };
+        items.insert(field.to_owned(), key);
+    }
     Ok(PlanOutput {
-        items: StageItems {
-            cast_map: write_items(Stage::CastMap)?,
-            cast_reduce: write_items(Stage::CastReduce)?,
-            expand: write_items(Stage::Expand)?,
-            trace_map: write_items(Stage::TraceMap)?,
-            trace_reduce: write_items(Stage::TraceReduce)?,
-        },
+        items,
         max_concurrency: request.max_concurrency,
     })
-}
-
-/// A task's timeout: 10 s plus its rays at a pessimistic 100k rays/s, at most 90 s.
-pub fn task_timeout_seconds(plan: &JobPlan, stage: Stage, task: u32) -> u32 {
-    let span_samples = |span: u32| {
-        plan.spans
-            .get(span as usize)
-            .map_or(0, |s| (s.end - s.start) * u64::from(plan.spp))
-    };
-    let lights = plan.lights.len() as u64;
-    let rays = match stage {
-        Stage::CastMap => plan
-            .cast_tasks
-            .get(task as usize)
-            .map_or(0, |t| span_samples(t.span)),
-        Stage::TraceMap => plan
-            .trace_tasks
-            .get(task as usize)
-            .map_or(0, |t| span_samples(t.span) * lights),
-        Stage::CastReduce | Stage::Expand | Stage::TraceReduce => {
-            span_samples(task) * (1 + lights) / 4
-        }
-        Stage::Combine | Stage::Split => u64::from(plan.width) * u64::from(plan.height) / 4,
-    };
-    let seconds = u64::from(MIN_TIMEOUT) + rays / SLOWEST_RAYS_PER_SECOND;
-    seconds.min(u64::from(MAX_TIMEOUT)) as u32
 }
 
 fn read_request(store: &dyn BlobStore, job: &JobId) -> Result<JobRequest, HandlerError> {

@@ -1,20 +1,23 @@
 //! The handlers called directly over an in-memory store, as the Lambda runtime would call them.
 
 use super::*;
+use hort_core::ids::TaskId;
 use hort_core::ids::{JobId, Stage};
 use hort_core::keys::{hits_key, items_key, manifest_key, scene_prefix};
-use hort_core::pipeline::{SplitCache, SplitMode};
+use hort_core::pipeline::{PlanRequest, SplitCache, SplitMode};
 use hort_core::store::{BlobStore, MemoryStore};
 
 fn request(scene: &str) -> JobRequest {
     JobRequest {
         scene: scene.into(),
-        width: 32,
-        height: 24,
-        spp: 1,
-        splits: Some(2),
-        spans: Some(3),
-        split_mode: SplitMode::Spatial,
+        render: PlanRequest {
+            width: 32,
+            height: 24,
+            spp: 1,
+            splits: Some(2),
+            spans: Some(3),
+            mode: SplitMode::Spatial,
+        },
         max_concurrency: 4,
         task_timeout_seconds: None,
     }
@@ -38,7 +41,7 @@ fn submitted(job: &str) -> MemoryStore {
 
 fn plan_event(job: &str) -> PlanEvent {
     PlanEvent {
-        job: job.into(),
+        job: JobId::new(job).unwrap(),
         bucket: "b".into(),
         attempt: 0,
     }
@@ -49,25 +52,39 @@ fn plan_then_every_worker_task_produces_the_outputs() {
     let store = submitted("j1");
     let out = handle_plan(&store, "b", &plan_event("j1"), &std::env::temp_dir()).unwrap();
     let job = JobId::new("j1").unwrap();
-    assert_eq!(out.items.cast_reduce, items_key(&job, Stage::CastReduce));
+    assert_eq!(
+        serde_json::to_value(&out.items).unwrap(),
+        serde_json::json!({
+            "cast_map": "jobs/j1/items/cast-map.json",
+            "cast_reduce": "jobs/j1/items/cast-reduce.json",
+            "expand": "jobs/j1/items/expand.json",
+            "trace_map": "jobs/j1/items/trace-map.json",
+            "trace_reduce": "jobs/j1/items/trace-reduce.json",
+        })
+    );
+    assert_eq!(
+        out.items_key(Stage::CastReduce),
+        Some(items_key(&job, Stage::CastReduce).as_str())
+    );
     assert_eq!(out.max_concurrency, 4);
     let cache = SplitCache::new(1 << 24);
-    for (stage, key) in [
-        ("cast-map", &out.items.cast_map),
-        ("cast-reduce", &out.items.cast_reduce),
-        ("expand", &out.items.expand),
-        ("trace-map", &out.items.trace_map),
-        ("trace-reduce", &out.items.trace_reduce),
+    for stage in [
+        Stage::CastMap,
+        Stage::CastReduce,
+        Stage::Expand,
+        Stage::TraceMap,
+        Stage::TraceReduce,
     ] {
+        let key = out.items_key(stage).unwrap();
         let items: Vec<TaskItem> = serde_json::from_slice(&store.get(key).unwrap()).unwrap();
         assert!(!items.is_empty());
         for item in items {
             let timeout = item.timeout_seconds.unwrap();
             assert!((10..=90).contains(&timeout), "{stage}: timeout {timeout}");
             let event = WorkerEvent {
-                job: "j1".into(),
+                job: job.clone(),
                 bucket: "b".into(),
-                stage: stage.into(),
+                stage,
                 item,
                 attempt: 0,
             };
@@ -75,11 +92,11 @@ fn plan_then_every_worker_task_produces_the_outputs() {
         }
     }
     let combine = WorkerEvent {
-        job: "j1".into(),
+        job: job.clone(),
         bucket: "b".into(),
-        stage: "combine".into(),
+        stage: Stage::Combine,
         item: TaskItem {
-            task: 0,
+            task: TaskId(0),
             timeout_seconds: None,
         },
         attempt: 0,
@@ -102,8 +119,21 @@ fn bad_requests_are_bad_input_with_clear_causes() {
         e,
         HandlerError::bad_input("the event names bucket \"b\", this function serves \"other\"")
     );
-    let e = handle_plan(&store, "b", &plan_event("Bad Id"), &tmp).unwrap_err();
-    assert_eq!(e.error_type, BAD_INPUT);
+    let env = FunctionEnv {
+        store: &store,
+        bucket: "b",
+        work_dir: &tmp,
+        split_cache: &SplitCache::new(0),
+    };
+    let bad_id = serde_json::json!({"job": "Bad Id", "bucket": "b"});
+    let e = dispatch(Function::Plan, bad_id, &env).unwrap_err();
+    assert_eq!(
+        e,
+        HandlerError::bad_input(
+            "malformed Plan event: invalid job id \"Bad Id\": character 'B' is not one of a-z, \
+             0-9, '-'"
+        )
+    );
 
     let store = submitted("j2");
     let json = serde_json::to_vec(&request("../escape.json")).unwrap();
@@ -114,30 +144,51 @@ fn bad_requests_are_bad_input_with_clear_causes() {
         HandlerError::bad_input("job request names an unsafe scene path \"../escape.json\"")
     );
 
-    let worker = WorkerEvent {
-        job: "j2".into(),
-        bucket: "b".into(),
-        stage: "shine".into(),
-        item: TaskItem {
-            task: 0,
-            timeout_seconds: None,
-        },
-        attempt: 0,
+    let env = FunctionEnv {
+        store: &store,
+        bucket: "b",
+        work_dir: &tmp,
+        split_cache: &SplitCache::new(0),
     };
-    let e = handle_worker(&store, "b", &SplitCache::new(0), &worker).unwrap_err();
-    assert_eq!(e.error_type, BAD_INPUT);
-    assert!(e.cause.contains("shine"), "{}", e.cause);
+    let shine = serde_json::json!({"job": "j2", "bucket": "b", "stage": "shine",
+        "item": {"task": 0}});
+    let e = dispatch(Function::Worker, shine, &env).unwrap_err();
+    assert_eq!(e.error_type, ErrorType::BadInput);
+    assert!(
+        e.cause
+            .starts_with("malformed Worker event: unknown variant `shine`"),
+        "{}",
+        e.cause
+    );
+    let negative = serde_json::json!({"job": "j2", "bucket": "b", "stage": "expand",
+        "item": {"task": -1}});
+    let e = dispatch(Function::Worker, negative, &env).unwrap_err();
+    assert!(
+        e.cause
+            .starts_with("malformed Worker event: invalid value: integer `-1`"),
+        "{}",
+        e.cause
+    );
+    assert_eq!(
+        Function::from_state_machine_name("WorkerFunctionArn"),
+        Some(Function::Worker)
+    );
+    assert_eq!(
+        Function::from_state_machine_name("PlanFunctionArn"),
+        Some(Function::Plan)
+    );
+    assert_eq!(Function::from_state_machine_name("Other"), None);
 }
 
 #[test]
 fn a_missing_plan_and_a_bad_scene_are_not_retried() {
     let store = submitted("j3");
     let worker = WorkerEvent {
-        job: "j3".into(),
+        job: JobId::new("j3").unwrap(),
         bucket: "b".into(),
-        stage: "cast-map".into(),
+        stage: Stage::CastMap,
         item: TaskItem {
-            task: 0,
+            task: TaskId(0),
             timeout_seconds: None,
         },
         attempt: 0,
@@ -153,7 +204,7 @@ fn a_missing_plan_and_a_bad_scene_are_not_retried() {
         .put("jobs/j3/scene/cornell.obj", b"v 0 0 0\nf 1 2 3\n")
         .unwrap();
     let e = handle_plan(&store, "b", &plan_event("j3"), &std::env::temp_dir()).unwrap_err();
-    assert_eq!(e.error_type, BAD_INPUT);
+    assert_eq!(e.error_type, ErrorType::BadInput);
     assert!(
         e.cause.contains("cornell.obj:2: face refers to vertex 2"),
         "{}",

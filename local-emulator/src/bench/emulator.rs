@@ -8,14 +8,14 @@
 use super::scenes::generated;
 use super::table::{Table, f3};
 use anyhow::Result;
+use asl_interpreter::NoObserver;
+use hort::emulator::{EmulatorConfig, FaultSettings, StorageTarget, run_job};
 use hort_core::cost::Arch;
 use hort_core::ids::JobId;
 use hort_core::pipeline::{PipelineOptions, PlanRequest, SplitMode, run_pipeline};
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
 use hort_core::scene::load_scene;
 use hort_core::store::MemoryStore;
-use hort_local_emulator::emulator::{EmulatorConfig, FaultSettings, StorageTarget, run_job};
-use hort_local_emulator::orchestrator::NoObserver;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;

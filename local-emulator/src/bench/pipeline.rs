@@ -10,7 +10,7 @@ use hort_core::ids::{JobId, SplitId, Stage};
 use hort_core::keys::split_key;
 use hort_core::pipeline::{
     PipelineOptions, PipelineRun, PlanRequest, SplitMode, plan_job, resolve_counts, run_pipeline,
-    run_task, split_scene, task_count,
+    run_task, split_scene,
 };
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
 use hort_core::scene::{Scene, load_scene};
@@ -223,7 +223,7 @@ fn skip_table(
         for mode in [SplitMode::Naive, SplitMode::Spatial] {
             let (run, _) = run(scene, request(args, k, 16, mode), threads)?;
             let pairs = f64::from(k) * 16.0;
-            let trace = run.metrics[1 + hort_core::pipeline::TASK_STAGES
+            let trace = run.metrics[1 + Stage::TASKS
                 .iter()
                 .position(|s| *s == Stage::TraceMap)
                 .unwrap_or(0)];
@@ -296,8 +296,8 @@ fn memory_table(
     drop(scene);
     // Map tasks, one at a time, each measured from its own start.
     let mut peaks: Vec<(Stage, usize)> = Vec::new();
-    for &stage in hort_core::pipeline::TASK_STAGES {
-        for task in 0..task_count(&plan, stage) {
+    for &stage in Stage::TASKS {
+        for task in 0..plan.task_count(stage) {
             let before = meter.current();
             meter.reset_peak();
             run_task(&store, &job, &plan, stage, task as u32)?;
@@ -321,7 +321,7 @@ fn memory_table(
         mb(splitter_peak),
         f3(splitter_peak as f64 / mono_peak as f64),
     ]);
-    for &stage in hort_core::pipeline::TASK_STAGES {
+    for &stage in Stage::TASKS {
         let of_stage: Vec<usize> = peaks
             .iter()
             .filter(|(s, _)| *s == stage)

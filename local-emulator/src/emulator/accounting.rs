@@ -2,7 +2,7 @@
 //! storage traffic between one top-level state's start and the next one's (stages run one
 //! after another, so the traffic in between is the stage's).
 
-use crate::orchestrator::{Event, Observer};
+use asl_interpreter::{Event, Observer};
 use hort_core::store::{CountingStore, StoreStats};
 use hort_functions::S3Store;
 use std::sync::{Arc, Mutex};

@@ -5,7 +5,8 @@
 //! every attempt.
 
 use super::invoker::InProcessInvoker;
-use crate::orchestrator::{TaskFailure, TaskInvoker};
+use asl_interpreter::{TaskFailure, TaskInvoker};
+use hort_core::ErrorType;
 use hort_core::store::{BlobStore, PutOutcome, StoreError};
 use serde_json::Value;
 use std::sync::Arc;
@@ -116,7 +117,8 @@ impl TaskInvoker for FaultyInvoker {
             while !self.finished.load(Ordering::Relaxed) {
                 std::thread::sleep(Duration::from_millis(20));
             }
-            return Err(TaskFailure::retryable(
+            return Err(TaskFailure::new(
+                ErrorType::Retryable.as_str(),
                 "injected fault: the function slot died",
             ));
         }
@@ -145,7 +147,8 @@ impl TaskInvoker for FaultyInvoker {
         let fail = self.draw(&input, 3);
         if fail < self.settings.fail_rate / 2.0 {
             self.counts.failed_before.fetch_add(1, Ordering::Relaxed);
-            return Err(TaskFailure::retryable(
+            return Err(TaskFailure::new(
+                ErrorType::Retryable.as_str(),
                 "injected fault: the worker died before running the task",
             ));
         }
@@ -159,7 +162,8 @@ impl TaskInvoker for FaultyInvoker {
                 puts_left: AtomicUsize::new(puts),
             };
             let _ = self.inner.invoke_with_store(resource, input, &failing);
-            return Err(TaskFailure::retryable(
+            return Err(TaskFailure::new(
+                ErrorType::Retryable.as_str(),
                 "injected fault: the worker died after writing part of its outputs",
             ));
         }

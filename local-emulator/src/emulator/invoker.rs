@@ -2,20 +2,15 @@
 //! handlers of `hort-functions`, gives each invocation a warm container's split cache, and keeps
 //! a ledger of what the invocations did (for the report and the cost estimate).
 
-use crate::orchestrator::{TaskFailure, TaskInvoker};
+use asl_interpreter::{TaskFailure, TaskInvoker};
 use hort_core::pipeline::{SplitCache, TaskMetrics};
 use hort_core::store::BlobStore;
-use hort_functions::handlers::{HandlerError, PlanEvent, WorkerEvent, handle_plan, handle_worker};
+use hort_functions::handlers::{Function, FunctionEnv, dispatch};
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
-
-/// The state machine's name for the Plan function.
-pub const PLAN_FUNCTION: &str = "PlanFunctionArn";
-/// The state machine's name for the Worker function.
-pub const WORKER_FUNCTION: &str = "WorkerFunctionArn";
 
 /// What the invocations did.
 #[derive(Clone, Debug, Default)]
@@ -89,44 +84,41 @@ impl InProcessInvoker {
         input: Value,
         store: &dyn BlobStore,
     ) -> Result<Value, TaskFailure> {
-        let failure = |e: HandlerError| TaskFailure::new(e.error_type, e.cause);
-        let bad_event =
-            |e: serde_json::Error| TaskFailure::bad_input(format!("malformed event: {e}"));
-        match function {
-            PLAN_FUNCTION => {
-                let event: PlanEvent = serde_json::from_value(input).map_err(bad_event)?;
-                let out =
-                    handle_plan(store, &self.bucket, &event, &self.work_dir).map_err(failure)?;
-                serde_json::to_value(out).map_err(|e| TaskFailure::bad_input(e.to_string()))
-            }
-            WORKER_FUNCTION => {
-                let event: WorkerEvent = serde_json::from_value(input).map_err(bad_event)?;
-                let cache = self
-                    .caches
-                    .lock()
-                    .unwrap_or_else(|e| e.into_inner())
-                    .pop()
-                    .unwrap_or_else(|| SplitCache::new(self.cache_bytes));
-                let result = handle_worker(store, &self.bucket, &cache, &event);
-                self.caches
-                    .lock()
-                    .unwrap_or_else(|e| e.into_inner())
-                    .push(cache);
-                let metrics = result.map_err(failure)?;
-                *self
-                    .ledger
-                    .lock()
-                    .unwrap_or_else(|e| e.into_inner())
-                    .stages
-                    .entry(event.stage.clone())
-                    .or_default() += metrics;
-                serde_json::to_value(metrics).map_err(|e| TaskFailure::bad_input(e.to_string()))
-            }
-            other => Err(TaskFailure::new(
+        let Some(function) = Function::from_state_machine_name(function) else {
+            return Err(TaskFailure::new(
                 "Lambda.ResourceNotFoundException",
-                format!("no function named {other}"),
-            )),
+                format!("no function named {function}"),
+            ));
+        };
+        // An invocation takes an idle warm container's cache (or a cold one) and gives it back.
+        let cache = self
+            .caches
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .pop()
+            .unwrap_or_else(|| SplitCache::new(self.cache_bytes));
+        let env = FunctionEnv {
+            store,
+            bucket: &self.bucket,
+            work_dir: &self.work_dir,
+            split_cache: &cache,
+        };
+        let result = dispatch(function, input, &env);
+        self.caches
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push(cache);
+        let invoked = result.map_err(|e| TaskFailure::new(e.error_type.as_str(), e.cause))?;
+        if let Some((stage, metrics)) = invoked.task {
+            *self
+                .ledger
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .stages
+                .entry(stage.to_string())
+                .or_default() += metrics;
         }
+        Ok(invoked.output)
     }
 }
 

@@ -1,6 +1,6 @@
 //! The local emulator: the whole serverless pipeline on one machine. The same handlers as the
 //! cloud functions, the same state machine definition (`infra/statemachine.asl.json`,
-//! interpreted by [`crate::orchestrator`]), the same S3 protocol (an embedded server or any
+//! interpreted by `asl_interpreter`), the same S3 protocol (an embedded server or any
 //! S3-compatible endpoint), plus seeded fault injection.
 
 mod accounting;
@@ -11,18 +11,19 @@ mod upload;
 
 pub use accounting::{Accounting, FanOut, StageUsage};
 pub use faults::{FaultCounts, FaultSettings, FaultyInvoker};
-pub use invoker::{InProcessInvoker, Ledger, PLAN_FUNCTION, WORKER_FUNCTION};
+pub use invoker::{InProcessInvoker, Ledger};
 pub use storage::{EMBEDDED_BUCKET, Storage, StorageTarget};
 pub use upload::{scene_files, submit_job};
 
-use crate::orchestrator::{Observer, Orchestrator, OrchestratorOptions, TaskInvoker};
+use crate::state_machine::{StoreItems, hort_orchestrator};
 use anyhow::{Context, Result, anyhow};
+use asl_interpreter::{Observer, OrchestratorOptions, TaskInvoker};
 use hort_core::cost::{Arch, CostBreakdown, CostInputs, estimate, standard_transitions_for};
-use hort_core::hits::{Hit, decode_hits};
+use hort_core::hits::Hit;
 use hort_core::ids::{JobId, Stage};
-use hort_core::image::{Image, decode_pfm};
-use hort_core::keys::{hits_key, image_key_with_ext, plan_key};
-use hort_core::pipeline::{JobPlan, PlanRequest, TaskMetrics, task_count};
+use hort_core::image::Image;
+use hort_core::keys::{image_key, plan_key};
+use hort_core::pipeline::{JobOutputs, JobPlan, PlanRequest, TaskMetrics, read_outputs};
 use hort_core::report::StageReport;
 use hort_functions::handlers::JobRequest;
 use std::path::Path;
@@ -111,12 +112,7 @@ pub fn run_job(
             .context("the scene path names no file")?
             .to_string_lossy()
             .into_owned(),
-        width: settings.width,
-        height: settings.height,
-        spp: settings.spp,
-        splits: settings.splits,
-        spans: settings.spans,
-        split_mode: settings.mode,
+        render: settings,
         max_concurrency: config.workers as u32,
         task_timeout_seconds: config.task_timeout_seconds,
     };
@@ -145,7 +141,7 @@ pub fn run_job(
     } else {
         (functions.clone(), None)
     };
-    let orchestrator = Orchestrator::hort(OrchestratorOptions {
+    let orchestrator = hort_orchestrator(OrchestratorOptions {
         slots: config.workers.max(1),
         time_scale: config.time_scale,
         seed: config.faults.seed,
@@ -155,7 +151,7 @@ pub fn run_job(
     let accounting = Accounting::new(Arc::clone(&storage.store));
     let fan_out = FanOut(vec![&accounting, observer]);
     let input = serde_json::json!({"job": job.as_str(), "bucket": storage.bucket});
-    let outcome = orchestrator.run(input, invoker, store.as_ref(), &fan_out);
+    let outcome = orchestrator.run(input, invoker, &StoreItems(store.as_ref()), &fan_out);
     finished.store(true, Ordering::Relaxed);
     let usage = accounting.finish();
     if let Err(failure) = outcome {
@@ -188,11 +184,8 @@ pub fn run_job(
 
     let plan_bytes = store.get(&plan_key(&job))?;
     let plan = JobPlan::from_json(&plan_key(&job), &plan_bytes)?;
-    let pfm_key = image_key_with_ext(&job, "pfm");
-    let image = decode_pfm(&store.get(&pfm_key)?).map_err(|e| anyhow!("{pfm_key}: {e}"))?;
-    let png = store.get(&image_key_with_ext(&job, "png"))?;
-    let hits = decode_hits(&store.get(&hits_key(&job))?, plan.width, plan.height)
-        .map_err(|e| anyhow!("{}: {e}", hits_key(&job)))?;
+    let JobOutputs { image, hits } = read_outputs(store.as_ref(), &job, &plan)?;
+    let png = store.get(&image_key(&job, "png"))?;
     let ledger = functions.ledger();
     let stages = stage_reports(&plan, &usage, &ledger);
     let seconds = started.elapsed().as_secs_f64();
@@ -213,17 +206,10 @@ pub fn run_job(
     })
 }
 
-/// The stage name of a top-level state (`CastMap` -> `cast-map`).
+/// The stage name of a state path (`CastMap/CastMapTask` -> `cast-map`); a state outside the
+/// stage table keeps its own name.
 pub fn stage_name(state: &str) -> String {
-    let top = state.split('/').next().unwrap_or(state);
-    let mut out = String::new();
-    for (i, c) in top.chars().enumerate() {
-        if c.is_ascii_uppercase() && i > 0 {
-            out.push('-');
-        }
-        out.push(c.to_ascii_lowercase());
-    }
-    out
+    Stage::of_state(state).map_or_else(|| state.to_owned(), |s| s.to_string())
 }
 
 fn stage_reports(plan: &JobPlan, usage: &[StageUsage], ledger: &Ledger) -> Vec<StageReport> {
@@ -239,7 +225,7 @@ fn stage_reports(plan: &JobPlan, usage: &[StageUsage], ledger: &Ledger) -> Vec<S
                 .unwrap_or(TaskMetrics::default());
             let tasks = name
                 .parse::<Stage>()
-                .map_or(1, |stage| task_count(plan, stage) as u64);
+                .map_or(1, |stage| plan.task_count(stage) as u64);
             let raw = if name == "plan" {
                 u.traffic.bytes_written
             } else {

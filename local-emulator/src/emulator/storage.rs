@@ -1,7 +1,7 @@
 //! Where the emulator keeps objects: an S3 server embedded in the process (default) or any
 //! S3-compatible endpoint, always reached through the real S3 protocol with `S3Store`.
 
-use crate::embedded_s3::EmbeddedS3;
+use embedded_s3::EmbeddedS3;
 use hort_core::store::{BlobStore, CountingStore, StoreError};
 use hort_functions::{S3Config, S3Credentials, S3Store};
 use std::path::PathBuf;

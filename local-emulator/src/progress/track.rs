@@ -7,8 +7,8 @@ use std::time::Duration;
 
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 
-use super::{PIPELINE, StageStats};
-use crate::orchestrator::Event;
+use super::StageStats;
+use asl_interpreter::Event;
 
 pub(super) struct Inner {
     /// Lines mode: where lines go.
@@ -23,7 +23,7 @@ pub(super) struct Inner {
 pub(super) struct Stage {
     pub(super) state: String,
     pub(super) stats: StageStats,
-    /// Position in [`PIPELINE`], or after it in order of appearance.
+    /// Position in the stage table (`Stage::ALL`), or after it in order of appearance.
     pub(super) rank: usize,
     /// A top-level Task (not a Map).
     pub(super) single: bool,
@@ -209,6 +209,8 @@ impl Inner {
                 let cause = cause.lines().next().unwrap_or("");
                 self.line_or_print(now, &format!("{name}: {error}: {cause}"));
             }
+            // Events added to the interpreter later are not shown until the display knows them.
+            _ => {}
         }
     }
 
@@ -221,10 +223,10 @@ impl Inner {
         if let Some(i) = self.find(top) {
             return i;
         }
-        let rank = PIPELINE
+        let rank = hort_core::ids::Stage::ALL
             .iter()
-            .position(|(s, _)| *s == top)
-            .unwrap_or(PIPELINE.len() + self.stages.len());
+            .position(|s| s.state_name() == top)
+            .unwrap_or(hort_core::ids::Stage::ALL.len() + self.stages.len());
         self.stages.push(Stage {
             state: top.to_owned(),
             stats: StageStats {

@@ -3,8 +3,8 @@
 // Each test binary that includes this module uses only part of it.
 #![allow(dead_code)]
 
+use embedded_s3::EmbeddedS3;
 use hort_functions::{S3Config, S3Store};
-use hort_local_emulator::embedded_s3::EmbeddedS3;
 
 /// Access key pair the embedded test servers accept.
 pub const ACCESS_KEY: &str = "hort-test-access";

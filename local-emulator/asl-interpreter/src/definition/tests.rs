@@ -3,7 +3,7 @@
 use serde_json::{Value, json};
 
 use super::load;
-use crate::orchestrator::HORT_DEFINITION;
+use crate::tests::HORT_DEFINITION;
 
 fn load_error(definition: Value) -> String {
     load(&definition.to_string()).unwrap_err().to_string()
@@ -123,10 +123,7 @@ fn the_hort_definition_compiles_to_the_documented_graph() {
         panic!("TraceMap is a Map");
     };
     assert!(map.express);
-    assert_eq!(
-        map.result_path,
-        crate::orchestrator::paths::ResultPath::Discard
-    );
+    assert_eq!(map.result_path, crate::paths::ResultPath::Discard);
     let super::State::Task(task) = &map.processor.states["TraceMapTask"] else {
         panic!("TraceMapTask is a Task");
     };
@@ -137,6 +134,6 @@ fn the_hort_definition_compiles_to_the_documented_graph() {
     assert!(
         task.retry[1..]
             .iter()
-            .all(|r| r.jitter == crate::orchestrator::Jitter::Full)
+            .all(|r| r.jitter == crate::Jitter::Full)
     );
 }

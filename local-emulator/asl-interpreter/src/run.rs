@@ -28,7 +28,6 @@ use std::sync::{Arc, Mutex};
 use std::thread;
 use std::time::{Duration, Instant};
 
-use hort_core::store::BlobStore;
 use serde_json::{Value, json};
 
 use super::definition::{
@@ -119,7 +118,7 @@ struct Step<'m> {
 pub struct Execution<'a> {
     pub options: &'a OrchestratorOptions,
     pub invoker: &'a Arc<dyn TaskInvoker>,
-    pub store: &'a dyn BlobStore,
+    pub items: &'a dyn crate::ItemReader,
     pub observer: &'a dyn Observer,
     pub slots: Arc<Slots>,
     /// `{"Execution": …, "StateMachine": …}` of the context object.

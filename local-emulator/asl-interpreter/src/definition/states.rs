@@ -9,8 +9,8 @@ use super::{
     DefinitionError, FailState, Io, MapState, Number, PassState, Selector, State, StateMachine,
     TaskState, Transition, machine,
 };
-use crate::orchestrator::paths::{Path, ResultPath, Template};
-use crate::orchestrator::retry::{self, Catcher, Jitter, Retrier};
+use crate::paths::{Path, ResultPath, Template};
+use crate::retry::{self, Catcher, Jitter, Retrier};
 
 const LAMBDA_INVOKE: &str = "arn:aws:states:::lambda:invoke";
 const S3_GET_OBJECT: &str = "arn:aws:states:::s3:getObject";

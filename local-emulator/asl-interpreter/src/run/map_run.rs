@@ -12,9 +12,9 @@ use super::{
     EXCEED_TOLERATED_FAILURE, EXPRESS_LIMIT_SECONDS, Execution, Failure, Frame, Halt,
     ITEM_READER_FAILED, Step, Stop, lock, next, positive, select,
 };
-use crate::orchestrator::ItemFailure;
-use crate::orchestrator::definition::MapState;
-use crate::orchestrator::events::Event;
+use crate::ItemFailure;
+use crate::definition::MapState;
+use crate::events::Event;
 
 impl Execution<'_> {
     pub(super) fn map<'m>(
@@ -88,8 +88,8 @@ impl Execution<'_> {
             )));
         }
         let bytes = self
-            .store
-            .get(key)
+            .items
+            .read_object(key)
             .map_err(|e| reader_failed(format!("cannot read items s3://{bucket}/{key}: {e}")))?;
         match serde_json::from_slice::<Value>(&bytes) {
             Ok(Value::Array(items)) => Ok(items),

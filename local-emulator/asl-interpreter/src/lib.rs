@@ -1,9 +1,10 @@
-//! The emulator's orchestrator: runs `infra/statemachine.asl.json` (Amazon States Language), the
-//! same definition AWS Step Functions runs, against in-process function handlers and a
-//! [`BlobStore`].
+//! An interpreter of Amazon States Language: runs a state machine definition (for HORT,
+//! `infra/statemachine.asl.json`, the same file AWS Step Functions runs) against in-process
+//! functions ([`TaskInvoker`]) and an [`ItemReader`] standing in for S3. It knows nothing of ray
+//! tracing: the definition, the functions and the bucket are the caller's.
 //!
 //! # Why our own interpreter, not the `asl` crate
-//! crates.io `asl` 0.2.0 was evaluated first (as STACK.md asks). It parses Task, Pass, Wait,
+//! crates.io `asl` 0.2.0 was evaluated first. It parses Task, Pass, Wait,
 //! Choice, Succeed and Fail, but its executor treats Map (and Parallel) as a no-op, has no Retry
 //! (retriers parse but nothing retries, so no BackoffRate/MaxDelaySeconds/JitterStrategy), no
 //! TimeoutSeconds, and intrinsic functions return a placeholder string; its Map model
@@ -23,11 +24,10 @@
 //! `States.ExceedToleratedFailureThreshold`.
 //!
 //! # Error contract of the functions
-//! A function signals failure with a [`TaskFailure`] whose `error` is the error type Step
-//! Functions sees (the Lambda `errorType`): [`RETRYABLE`] (`Hort.Retryable`: throttling,
-//! timeouts, 5xx, lost input that could not be recomputed yet) or [`BAD_INPUT`]
-//! (`Hort.BadInput`: bad scene, bad request; never retried). The definition retries
-//! `Hort.Retryable`, `States.Timeout` and Lambda's own transient errors, and nothing else.
+//! A function signals failure with a [`TaskFailure`] whose `error` is the error name Step
+//! Functions sees (the Lambda `errorType`); `Retry` and `Catch` match on it exactly as in the
+//! cloud. Which names a definition retries is the definition's business (HORT's are
+//! `Hort.Retryable` and `Hort.BadInput`, see `hort_core::ErrorType`).
 
 pub mod definition;
 pub mod events;
@@ -45,7 +45,6 @@ use std::fmt;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
-use hort_core::store::BlobStore;
 use serde_json::{Value, json};
 
 pub use definition::{DefinitionError, State, StateMachine};
@@ -53,17 +52,17 @@ pub use events::{Event, EventLog, NoObserver, Observer};
 pub use retry::{Jitter, Retrier, backoff_seconds, retry_delay};
 pub use run::{CANCELLED, EXCEED_TOLERATED_FAILURE, ITEM_READER_FAILED, PANIC};
 
-/// The HORT state machine, `infra/statemachine.asl.json`, as compiled into this binary.
-pub const HORT_DEFINITION: &str = include_str!("../../../infra/statemachine.asl.json");
-
-/// The error type of a failure worth retrying (throttling, timeouts, 5xx, lost workers).
-pub const RETRYABLE: &str = "Hort.Retryable";
-/// The error type of a failure retrying cannot fix (bad scene, bad request).
-pub const BAD_INPUT: &str = "Hort.BadInput";
 /// The error of an attempt that ran past its `TimeoutSeconds`.
 pub const TIMEOUT: &str = retry::TIMEOUT;
 /// The error of a path or data error inside the interpreter (never retried or caught).
 pub const RUNTIME: &str = retry::RUNTIME;
+
+/// Reads a Distributed Map's items file: the stand-in for S3 `GetObject` of an `ItemReader`.
+pub trait ItemReader: Sync {
+    /// The bytes of object `key` of the execution's bucket, or a one-line reason it cannot be
+    /// read (shown in the `States.ItemReaderFailed` cause).
+    fn read_object(&self, key: &str) -> Result<Vec<u8>, String>;
+}
 
 /// Runs functions for the emulator: the in-process stand-in for Lambda.
 pub trait TaskInvoker: Send + Sync {
@@ -78,7 +77,7 @@ pub trait TaskInvoker: Send + Sync {
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("{error}: {cause}")]
 pub struct TaskFailure {
-    /// The error name matched by `Retry`/`Catch`: [`RETRYABLE`], [`BAD_INPUT`], or another.
+    /// The error name matched by `Retry`/`Catch` (e.g. `Hort.Retryable`).
     pub error: String,
     /// A human-readable cause.
     pub cause: String,
@@ -91,16 +90,6 @@ impl TaskFailure {
             error: error.into(),
             cause: cause.into(),
         }
-    }
-
-    /// A [`RETRYABLE`] failure.
-    pub fn retryable(cause: impl Into<String>) -> Self {
-        Self::new(RETRYABLE, cause)
-    }
-
-    /// A [`BAD_INPUT`] failure.
-    pub fn bad_input(cause: impl Into<String>) -> Self {
-        Self::new(BAD_INPUT, cause)
     }
 }
 
@@ -124,7 +113,7 @@ impl Default for OrchestratorOptions {
     /// One slot per available core, real time, seed 0, not cancelled.
     fn default() -> Self {
         Self {
-            slots: hort_core::render::available_cores(),
+            slots: std::thread::available_parallelism().map_or(1, |n| n.get()),
             time_scale: 1.0,
             seed: 0,
             cancel: Arc::new(AtomicBool::new(false)),
@@ -197,11 +186,6 @@ impl Orchestrator {
         Ok(Self { machine, options })
     }
 
-    /// The HORT definition ([`HORT_DEFINITION`]).
-    pub fn hort(options: OrchestratorOptions) -> Result<Self, DefinitionError> {
-        Self::new(HORT_DEFINITION, options)
-    }
-
     /// The checked definition.
     pub fn machine(&self) -> &StateMachine {
         &self.machine
@@ -234,13 +218,13 @@ impl Orchestrator {
     /// Runs one execution to its end and returns its output.
     ///
     /// `invoker` runs the functions (shared with invocation threads that may outlive a timed-out
-    /// attempt, hence the `Arc`); `store` is the bucket named by the input's `"bucket"` field,
+    /// attempt, hence the `Arc`); `items` reads the bucket named by the input's `"bucket"` field,
     /// the only bucket an `ItemReader` may read; `observer` sees progress from many threads.
     pub fn run(
         &self,
         input: Value,
         invoker: Arc<dyn TaskInvoker>,
-        store: &dyn BlobStore,
+        items: &dyn ItemReader,
         observer: &dyn Observer,
     ) -> Result<Value, ExecutionFailure> {
         let name = input
@@ -251,7 +235,7 @@ impl Orchestrator {
         let execution = run::Execution {
             options: &self.options,
             invoker: &invoker,
-            store,
+            items,
             observer,
             slots: slots::Slots::new(self.options.slots),
             context: json!({

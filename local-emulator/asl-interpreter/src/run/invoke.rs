@@ -10,9 +10,9 @@ use std::time::{Duration, Instant};
 use serde_json::Value;
 
 use super::{Execution, Failure, Frame, PANIC, POLL, Stop};
-use crate::orchestrator::TaskFailure;
-use crate::orchestrator::events::Event;
-use crate::orchestrator::retry;
+use crate::TaskFailure;
+use crate::events::Event;
+use crate::retry;
 
 impl Execution<'_> {
     /// One invocation on its own thread, holding a slot until the function returns.

@@ -1,14 +1,51 @@
-//! Runs the real `infra/statemachine.asl.json` with fake functions over a `MemoryStore`.
+//! Runs the real `infra/statemachine.asl.json` with fake functions over an in-memory bucket.
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use hort_core::store::{BlobStore, MemoryStore};
 use serde_json::{Value, json};
 
 use super::*;
+
+/// HORT's state machine: the definition these tests run.
+pub(crate) const HORT_DEFINITION: &str = include_str!("../../../infra/statemachine.asl.json");
+
+/// The error names HORT's definition retries and refuses to retry, as documented in
+/// `infra/README.md`.
+const RETRYABLE: &str = "Hort.Retryable";
+const BAD_INPUT: &str = "Hort.BadInput";
+
+/// An in-memory bucket serving the Map states' items files.
+#[derive(Default)]
+struct MemoryItems(Mutex<BTreeMap<String, Vec<u8>>>);
+
+impl MemoryItems {
+    fn new() -> Self {
+        Self::default()
+    }
+    fn put(&self, key: &str, bytes: &[u8]) {
+        self.0
+            .lock()
+            .unwrap()
+            .insert(key.to_owned(), bytes.to_vec());
+    }
+    fn delete(&self, key: &str) {
+        self.0.lock().unwrap().remove(key);
+    }
+}
+
+impl ItemReader for MemoryItems {
+    fn read_object(&self, key: &str) -> Result<Vec<u8>, String> {
+        self.0
+            .lock()
+            .unwrap()
+            .get(key)
+            .cloned()
+            .ok_or_else(|| format!("no object {key}"))
+    }
+}
 
 const STAGES: [(&str, &str); 5] = [
     ("cast_map", "cast-map"),
@@ -23,15 +60,13 @@ fn items_key(stage: &str) -> String {
 }
 
 /// A store holding `count` items per stage, each `{"task": i, "timeout_seconds": timeout}`.
-fn store_with_items(count: usize, timeout: u64) -> MemoryStore {
-    let store = MemoryStore::new();
+fn store_with_items(count: usize, timeout: u64) -> MemoryItems {
+    let store = MemoryItems::new();
     for (_, stage) in STAGES {
         let items: Vec<Value> = (0..count)
             .map(|i| json!({"task": i, "timeout_seconds": timeout}))
             .collect();
-        store
-            .put(&items_key(stage), json!(items).to_string().as_bytes())
-            .unwrap();
+        store.put(&items_key(stage), json!(items).to_string().as_bytes());
     }
     store
 }
@@ -138,10 +173,10 @@ impl TaskInvoker for Fake {
 
 fn run_with(
     fake: &Arc<Fake>,
-    store: &MemoryStore,
+    store: &MemoryItems,
     opts: OrchestratorOptions,
 ) -> (Result<Value, ExecutionFailure>, Vec<Event>) {
-    let orchestrator = Orchestrator::hort(opts).unwrap();
+    let orchestrator = Orchestrator::new(HORT_DEFINITION, opts).unwrap();
     let log = EventLog::new();
     let invoker: Arc<dyn TaskInvoker> = fake.clone();
     let out = orchestrator.run(input(), invoker, store, &log);
@@ -150,7 +185,7 @@ fn run_with(
 
 #[test]
 fn the_hort_definition_loads_and_names_its_functions() {
-    let o = Orchestrator::hort(options(2)).unwrap();
+    let o = Orchestrator::new(HORT_DEFINITION, options(2)).unwrap();
     let functions: Vec<String> = o.functions().into_iter().collect();
     assert_eq!(functions, ["PlanFunctionArn", "WorkerFunctionArn"]);
     assert_eq!(o.machine().start_at, "Plan");
@@ -238,7 +273,7 @@ fn all_stages_run_in_order_with_every_item_once() {
 fn retryable_failures_are_retried_with_attempt_numbers() {
     let fake = Fake::new(0, |stage, _, n| {
         if stage == "cast-reduce" && n < 2 {
-            Err(TaskFailure::retryable("storage unavailable"))
+            Err(TaskFailure::new(RETRYABLE, "storage unavailable"))
         } else {
             Ok(json!({}))
         }
@@ -288,7 +323,7 @@ fn retryable_failures_are_retried_with_attempt_numbers() {
 fn bad_input_is_not_retried_and_fails_the_job_naming_the_state() {
     let fake = Fake::new(0, |stage, e, _| {
         if stage == "expand" && e["item"]["task"] == 1 {
-            Err(TaskFailure::bad_input("split 3 has a NaN vertex"))
+            Err(TaskFailure::new(BAD_INPUT, "split 3 has a NaN vertex"))
         } else {
             Ok(json!({}))
         }
@@ -462,7 +497,7 @@ fn cancellation_stops_promptly() {
 #[test]
 fn a_missing_items_file_or_foreign_bucket_fails_the_map_clearly() {
     let store = store_with_items(1, 60);
-    store.delete(&items_key("trace-map")).unwrap();
+    store.delete(&items_key("trace-map"));
     let (out, _) = run_with(&Fake::ok(), &store, options(2));
     let failure = out.unwrap_err();
     assert_eq!(failure.error, ITEM_READER_FAILED);
@@ -515,7 +550,9 @@ fn express_children_time_out_after_five_minutes() {
 fn unusable_options_are_refused() {
     let mut bad = options(1);
     bad.time_scale = 0.0;
-    let err = Orchestrator::hort(bad).unwrap_err().to_string();
+    let err = Orchestrator::new(HORT_DEFINITION, bad)
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("time_scale"), "{err}");
 }
 
@@ -531,7 +568,7 @@ fn a_fail_state_reports_its_own_error_and_a_runtime_error_is_not_caught() {
     let o = Orchestrator::new(&machine.to_string(), options(1)).unwrap();
     let invoker: Arc<dyn TaskInvoker> = Fake::ok();
     let f = o
-        .run(json!({}), invoker.clone(), &MemoryStore::new(), &NoObserver)
+        .run(json!({}), invoker.clone(), &MemoryItems::new(), &NoObserver)
         .unwrap_err();
     assert_eq!(
         (f.error.as_str(), f.cause.as_str(), f.state.as_str()),
@@ -553,7 +590,7 @@ fn a_fail_state_reports_its_own_error_and_a_runtime_error_is_not_caught() {
     });
     let o = Orchestrator::new(&machine.to_string(), options(1)).unwrap();
     let f = o
-        .run(json!({}), invoker, &MemoryStore::new(), &NoObserver)
+        .run(json!({}), invoker, &MemoryItems::new(), &NoObserver)
         .unwrap_err();
     assert_eq!(f.error, RUNTIME);
     assert!(f.cause.contains("$.missing"), "{}", f.cause);
@@ -564,15 +601,15 @@ fn plan_failures_are_caught_into_plan_failed() {
     struct PlanFails;
     impl TaskInvoker for PlanFails {
         fn invoke(&self, _: &str, _: Value) -> Result<Value, TaskFailure> {
-            Err(TaskFailure::bad_input("scene.obj line 4: bad face"))
+            Err(TaskFailure::new(BAD_INPUT, "scene.obj line 4: bad face"))
         }
     }
-    let o = Orchestrator::hort(options(1)).unwrap();
+    let o = Orchestrator::new(HORT_DEFINITION, options(1)).unwrap();
     let f = o
         .run(
             input(),
             Arc::new(PlanFails),
-            &MemoryStore::new(),
+            &MemoryItems::new(),
             &NoObserver,
         )
         .unwrap_err();

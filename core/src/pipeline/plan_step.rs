@@ -1,0 +1,42 @@
+//! The plan step, shared by the in-process driver and the Plan function: cut the scene into
+//! split objects (stored one at a time), plan the tasks, store the plan.
+
+use super::PipelineError;
+use super::plan::{JobPlan, PlanRequest, plan_job, resolve_counts};
+use super::split::split_scene;
+use crate::ids::{JobId, SplitId};
+use crate::keys::{plan_key, split_key};
+use crate::scene::Scene;
+use crate::store::BlobStore;
+
+/// A job planned into its store.
+#[derive(Clone, Debug)]
+pub struct PlannedJob {
+    /// The plan, as stored at `jobs/{job}/plan.json`.
+    pub plan: JobPlan,
+    /// Bytes stored by the step: every split object plus the plan.
+    pub bytes_written: u64,
+}
+
+/// Splits `scene` as `request` asks (counts checked by [`resolve_counts`]), stores each split
+/// object at `jobs/{job}/splits/` as soon as it is built (the whole-scene acceleration data is
+/// never held), then stores the plan. Deterministic: the same inputs store the same bytes.
+pub fn plan_into_store(
+    store: &dyn BlobStore,
+    job: &JobId,
+    scene: &Scene,
+    request: &PlanRequest,
+) -> Result<PlannedJob, PipelineError> {
+    let (k, s) = resolve_counts(request, scene.mesh.triangle_count() as u64)?;
+    let infos = split_scene(&scene.mesh, k as usize, request.mode, |split, bytes| {
+        store.put(&split_key(job, SplitId(split)), &bytes)
+    })?;
+    let plan = plan_job(scene, request, infos, s)?;
+    let plan_json = serde_json::to_vec_pretty(&plan)
+        .map_err(|e| PipelineError::BadInput(format!("cannot encode the plan: {e}")))?;
+    store.put(&plan_key(job), &plan_json)?;
+    Ok(PlannedJob {
+        bytes_written: plan.scene_bytes() + plan_json.len() as u64,
+        plan,
+    })
+}

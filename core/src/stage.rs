@@ -1,0 +1,216 @@
+//! The stage table: the one place that says which stages a job has, in which order, what each
+//! is called in object keys, reports and the state machine, and how its tasks are handed out.
+//!
+//! | stage | name | state | items field | function |
+//! |---|---|---|---|---|
+//! | [`Stage::Plan`] | `plan` | `Plan` | - | `PlanFunctionArn` |
+//! | [`Stage::CastMap`] | `cast-map` | `CastMap` | `cast_map` | `WorkerFunctionArn` |
+//! | [`Stage::CastReduce`] | `cast-reduce` | `CastReduce` | `cast_reduce` | `WorkerFunctionArn` |
+//! | [`Stage::Expand`] | `expand` | `Expand` | `expand` | `WorkerFunctionArn` |
+//! | [`Stage::TraceMap`] | `trace-map` | `TraceMap` | `trace_map` | `WorkerFunctionArn` |
+//! | [`Stage::TraceReduce`] | `trace-reduce` | `TraceReduce` | `trace_reduce` | `WorkerFunctionArn` |
+//! | [`Stage::Combine`] | `combine` | `Combine` | - | `WorkerFunctionArn` |
+//!
+//! The task count and timeout of each stage for a given job are [`crate::pipeline::JobPlan`]'s
+//! (`task_count`, `task_timeout_seconds`). `infra/statemachine.asl.json` spells the same table
+//! out for Step Functions; a test of the emulator checks the two agree.
+
+use std::fmt;
+use std::str::FromStr;
+
+use serde::{Deserialize, Serialize};
+
+use crate::ids::{IdError, JobId};
+
+/// One stage of the HORT dataflow, in pipeline order (the derived `Ord` follows that order).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Stage {
+    /// Cut the scene into split objects, each with its own BVH, and plan the job's tasks.
+    Plan,
+    /// Primary rays of one span against one split: candidate hits.
+    CastMap,
+    /// Nearest candidate per pixel sample.
+    CastReduce,
+    /// Route visible hits to the splits their shadow rays must be tested against.
+    Expand,
+    /// Shadow rays of routed hits against one split.
+    TraceMap,
+    /// Per pixel sample and light, occluded if any split occludes; shade.
+    TraceReduce,
+    /// Assemble the image.
+    Combine,
+}
+
+/// The state machine's name of the function that plans a job.
+pub const PLAN_FUNCTION: &str = "PlanFunctionArn";
+/// The state machine's name of the function that runs any task of the other stages.
+pub const WORKER_FUNCTION: &str = "WorkerFunctionArn";
+
+impl Stage {
+    /// Every stage, in pipeline order.
+    pub const ALL: [Stage; 7] = [
+        Stage::Plan,
+        Stage::CastMap,
+        Stage::CastReduce,
+        Stage::Expand,
+        Stage::TraceMap,
+        Stage::TraceReduce,
+        Stage::Combine,
+    ];
+
+    /// The stages whose tasks the Worker function runs (every stage after [`Stage::Plan`]), in
+    /// order.
+    pub const TASKS: &'static [Stage] = Stage::ALL.split_at(1).1;
+
+    /// The stage's stable kebab-case name, used in object keys, JSON, reports and logs.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            Stage::Plan => "plan",
+            Stage::CastMap => "cast-map",
+            Stage::CastReduce => "cast-reduce",
+            Stage::Expand => "expand",
+            Stage::TraceMap => "trace-map",
+            Stage::TraceReduce => "trace-reduce",
+            Stage::Combine => "combine",
+        }
+    }
+
+    /// The name of the stage's top-level state in `infra/statemachine.asl.json`.
+    pub const fn state_name(self) -> &'static str {
+        match self {
+            Stage::Plan => "Plan",
+            Stage::CastMap => "CastMap",
+            Stage::CastReduce => "CastReduce",
+            Stage::Expand => "Expand",
+            Stage::TraceMap => "TraceMap",
+            Stage::TraceReduce => "TraceReduce",
+            Stage::Combine => "Combine",
+        }
+    }
+
+    /// For a stage run as a Distributed Map, the field of the Plan function's `items` output that
+    /// holds its items file key (`$.plan.items.{field}` in the state machine); `None` for the
+    /// stages run as one Task state (plan, combine).
+    pub const fn items_field(self) -> Option<&'static str> {
+        match self {
+            Stage::CastMap => Some("cast_map"),
+            Stage::CastReduce => Some("cast_reduce"),
+            Stage::Expand => Some("expand"),
+            Stage::TraceMap => Some("trace_map"),
+            Stage::TraceReduce => Some("trace_reduce"),
+            Stage::Plan | Stage::Combine => None,
+        }
+    }
+
+    /// The key of the stage's items file, for Map stages (see [`Stage::items_field`]).
+    pub fn items_key(self, job: &JobId) -> Option<String> {
+        self.items_field()
+            .map(|_| crate::keys::items_key(job, self))
+    }
+
+    /// The state machine's name of the function that runs the stage's tasks.
+    pub const fn function(self) -> &'static str {
+        match self {
+            Stage::Plan => PLAN_FUNCTION,
+            _ => WORKER_FUNCTION,
+        }
+    }
+
+    /// The stage of a state path of the top-level machine (`"CastMap"` or
+    /// `"CastMap/CastMapTask"` -> [`Stage::CastMap`]); `None` for any other state.
+    pub fn of_state(path: &str) -> Option<Stage> {
+        let top = path.split('/').next().unwrap_or(path);
+        Stage::ALL.into_iter().find(|s| s.state_name() == top)
+    }
+}
+
+impl fmt::Display for Stage {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl FromStr for Stage {
+    type Err = IdError;
+    /// Accepts exactly the names [`Stage::as_str`] returns (case-sensitive).
+    fn from_str(s: &str) -> Result<Self, IdError> {
+        Stage::ALL
+            .into_iter()
+            .find(|stage| stage.as_str() == s)
+            .ok_or_else(|| IdError::UnknownStage {
+                found: s.to_owned(),
+            })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_table_is_the_documented_one() {
+        let rows: Vec<(&str, &str, Option<&str>, &str)> = Stage::ALL
+            .iter()
+            .map(|s| (s.as_str(), s.state_name(), s.items_field(), s.function()))
+            .collect();
+        assert_eq!(
+            rows,
+            [
+                ("plan", "Plan", None, "PlanFunctionArn"),
+                ("cast-map", "CastMap", Some("cast_map"), "WorkerFunctionArn"),
+                (
+                    "cast-reduce",
+                    "CastReduce",
+                    Some("cast_reduce"),
+                    "WorkerFunctionArn"
+                ),
+                ("expand", "Expand", Some("expand"), "WorkerFunctionArn"),
+                (
+                    "trace-map",
+                    "TraceMap",
+                    Some("trace_map"),
+                    "WorkerFunctionArn"
+                ),
+                (
+                    "trace-reduce",
+                    "TraceReduce",
+                    Some("trace_reduce"),
+                    "WorkerFunctionArn"
+                ),
+                ("combine", "Combine", None, "WorkerFunctionArn"),
+            ]
+        );
+        assert_eq!(Stage::TASKS, &Stage::ALL[1..]);
+        assert!(Stage::ALL.windows(2).all(|w| w[0] < w[1]));
+    }
+
+    #[test]
+    fn names_round_trip_and_are_exact() {
+        for stage in Stage::ALL {
+            assert_eq!(stage.as_str().parse::<Stage>(), Ok(stage));
+            assert_eq!(
+                serde_json::to_string(&stage).unwrap(),
+                format!("\"{}\"", stage.as_str())
+            );
+            assert_eq!(Stage::of_state(stage.state_name()), Some(stage));
+        }
+        assert_eq!(
+            "Split".parse::<Stage>().unwrap_err().to_string(),
+            "unknown stage \"Split\": expected one of plan, cast-map, cast-reduce, expand, \
+             trace-map, trace-reduce, combine"
+        );
+        assert!(serde_json::from_str::<Stage>("\"cast_map\"").is_err());
+        assert_eq!(
+            Stage::of_state("TraceMap/TraceMapTask"),
+            Some(Stage::TraceMap)
+        );
+        assert_eq!(Stage::of_state("Done"), None);
+        let job = JobId::new("j").unwrap();
+        assert_eq!(
+            Stage::Expand.items_key(&job).as_deref(),
+            Some("jobs/j/items/expand.json")
+        );
+        assert_eq!(Stage::Combine.items_key(&job), None);
+    }
+}

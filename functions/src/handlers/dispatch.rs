@@ -1,0 +1,86 @@
+//! One invocation from JSON to JSON: decode the event, run the handler, encode the answer, and
+//! classify any failure. Lambda mains and the local emulator both go through [`dispatch`].
+
+use std::path::Path;
+
+use hort_core::ids::Stage;
+use hort_core::pipeline::{SplitCache, TaskMetrics};
+use hort_core::stage::{PLAN_FUNCTION, WORKER_FUNCTION};
+use serde_json::Value;
+
+use super::events::{PlanEvent, WorkerEvent};
+use super::{BlobStore, HandlerError, handle_plan, handle_worker};
+
+/// The functions of a deployment.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Function {
+    /// Splits and plans a job ([`handle_plan`]).
+    Plan,
+    /// Runs one task of any stage after the plan ([`handle_worker`]).
+    Worker,
+}
+
+impl Function {
+    /// The function the state machine names `name` (`PlanFunctionArn`, `WorkerFunctionArn`).
+    pub fn from_state_machine_name(name: &str) -> Option<Function> {
+        match name {
+            PLAN_FUNCTION => Some(Function::Plan),
+            WORKER_FUNCTION => Some(Function::Worker),
+            _ => None,
+        }
+    }
+}
+
+/// What an invocation may use besides its event: a warm container's state.
+pub struct FunctionEnv<'a> {
+    /// The bucket's objects.
+    pub store: &'a dyn BlobStore,
+    /// The bucket the function serves; events naming another are refused.
+    pub bucket: &'a str,
+    /// Scratch space (a function's `/tmp`): the Plan function copies the scene here.
+    pub work_dir: &'a Path,
+    /// Decoded splits kept between invocations of this container.
+    pub split_cache: &'a SplitCache,
+}
+
+/// A successful invocation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Invoked {
+    /// The function's JSON answer (the `Payload` the state machine sees).
+    pub output: Value,
+    /// For a Worker invocation, the task's stage and what it did.
+    pub task: Option<(Stage, TaskMetrics)>,
+}
+
+/// Runs `function` on the JSON `event`. A malformed event is [`HandlerError::bad_input`] naming
+/// the function and the field; handler failures keep their own classification.
+pub fn dispatch(
+    function: Function,
+    event: Value,
+    env: &FunctionEnv<'_>,
+) -> Result<Invoked, HandlerError> {
+    let malformed = |what: &str, e: serde_json::Error| {
+        HandlerError::bad_input(format!("malformed {what} event: {e}"))
+    };
+    let encode = |e: serde_json::Error| HandlerError::bad_input(format!("cannot encode: {e}"));
+    match function {
+        Function::Plan => {
+            let event: PlanEvent =
+                serde_json::from_value(event).map_err(|e| malformed("Plan", e))?;
+            let out = handle_plan(env.store, env.bucket, &event, env.work_dir)?;
+            Ok(Invoked {
+                output: serde_json::to_value(out).map_err(encode)?,
+                task: None,
+            })
+        }
+        Function::Worker => {
+            let event: WorkerEvent =
+                serde_json::from_value(event).map_err(|e| malformed("Worker", e))?;
+            let metrics = handle_worker(env.store, env.bucket, env.split_cache, &event)?;
+            Ok(Invoked {
+                output: serde_json::to_value(metrics).map_err(encode)?,
+                task: Some((event.stage, metrics)),
+            })
+        }
+    }
+}

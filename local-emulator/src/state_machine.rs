@@ -1,0 +1,88 @@
+//! HORT's state machine, `infra/statemachine.asl.json`: the file AWS Step Functions runs and the
+//! emulator interprets, compiled into this crate.
+
+use asl_interpreter::{DefinitionError, ItemReader, Orchestrator, OrchestratorOptions};
+use hort_core::store::BlobStore;
+
+/// The definition's text, exactly as deployed.
+pub const HORT_DEFINITION: &str = include_str!("../../infra/statemachine.asl.json");
+
+/// Loads [`HORT_DEFINITION`] with `options`.
+pub fn hort_orchestrator(options: OrchestratorOptions) -> Result<Orchestrator, DefinitionError> {
+    Orchestrator::new(HORT_DEFINITION, options)
+}
+
+/// A bucket as the interpreter's `ItemReader` sees it: `GetObject` on the job's store.
+pub struct StoreItems<'a>(pub &'a dyn BlobStore);
+
+impl ItemReader for StoreItems<'_> {
+    fn read_object(&self, key: &str) -> Result<Vec<u8>, String> {
+        self.0.get(key).map_err(|e| e.to_string())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::HORT_DEFINITION;
+    use hort_core::ids::Stage;
+    use serde_json::Value;
+
+    /// The stage of one top-level state as the definition spells it: the state's name, the
+    /// `stage` literal it passes to the Worker (`None` for Plan), the function it invokes, and
+    /// for a Map state its items key path.
+    fn stage_states(machine: &Value) -> Vec<(String, Option<String>, String, Option<String>)> {
+        let states = &machine["States"];
+        let mut out = Vec::new();
+        let mut next = machine["StartAt"].as_str();
+        while let Some(name) = next {
+            let state = &states[name];
+            match state["Type"].as_str() {
+                Some("Task") => {
+                    let params = &state["Parameters"];
+                    out.push((
+                        name.to_owned(),
+                        params["Payload"]["stage"].as_str().map(str::to_owned),
+                        params["FunctionName"].as_str().unwrap().to_owned(),
+                        None,
+                    ));
+                }
+                Some("Map") => {
+                    let processor = &state["ItemProcessor"];
+                    let task = &processor["States"][processor["StartAt"].as_str().unwrap()];
+                    out.push((
+                        name.to_owned(),
+                        state["ItemSelector"]["stage"].as_str().map(str::to_owned),
+                        task["Parameters"]["FunctionName"]
+                            .as_str()
+                            .unwrap()
+                            .to_owned(),
+                        state["ItemReader"]["Parameters"]["Key.$"]
+                            .as_str()
+                            .map(str::to_owned),
+                    ));
+                }
+                Some("Succeed") => break,
+                other => panic!("state {name}: unexpected type {other:?} on the main path"),
+            }
+            next = state["Next"].as_str();
+        }
+        out
+    }
+
+    #[test]
+    fn the_definition_runs_the_stage_table_in_order() {
+        let machine: Value = serde_json::from_str(HORT_DEFINITION).unwrap();
+        let expected: Vec<_> = Stage::ALL
+            .iter()
+            .map(|s| {
+                (
+                    s.state_name().to_owned(),
+                    (*s != Stage::Plan).then(|| s.as_str().to_owned()),
+                    format!("${{{}}}", s.function()),
+                    s.items_field().map(|f| format!("$.plan.items.{f}")),
+                )
+            })
+            .collect();
+        assert_eq!(stage_states(&machine), expected);
+    }
+}
