@@ -13,9 +13,9 @@ use crate::sampling::PixelSum;
 use crate::scene::{Mesh, NO_NORMAL, Scene, check_image_size};
 use crate::shading::{SurfacePoint, combine, shadow_test, surface_point};
 use crate::triangle::Ray;
+use crate::worker_pool::run_indexed;
 use glam::Vec3;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::mpsc;
+use std::convert::Infallible;
 use std::time::Instant;
 
 /// Image size, samples per pixel and worker threads of one render.
@@ -103,37 +103,21 @@ pub fn render(
         threads
     };
     let start = Instant::now();
-    let next_row = AtomicUsize::new(0);
-    let (tx, rx) = mpsc::channel();
     let mut image = Image::new(width, height);
     let mut hits = vec![Hit::MISS; width as usize * height as usize];
     let mut rays = RayCounts::default();
-    std::thread::scope(|s| {
-        for _ in 0..threads {
-            let tx = tx.clone();
-            let next_row = &next_row;
-            let camera = &camera;
-            s.spawn(move || {
-                loop {
-                    let y = next_row.fetch_add(1, Ordering::Relaxed);
-                    if y >= height as usize {
-                        break;
-                    }
-                    let row = render_row(scene, bvh, camera, settings, y as u32);
-                    if tx.send((y, row)).is_err() {
-                        break;
-                    }
-                }
-            });
-        }
-        drop(tx);
-        for (y, row) in rx {
+    // One item per row; each row lands at its own place, so the thread count changes nothing.
+    let Ok(()) = run_indexed(
+        std::iter::repeat_n((), threads),
+        height as usize,
+        |(), y| Ok::<Row, Infallible>(render_row(scene, bvh, &camera, settings, y as u32)),
+        |y, row| {
             let range = y * width as usize..(y + 1) * width as usize;
             image.pixels[range.clone()].copy_from_slice(&row.colours);
             hits[range].copy_from_slice(&row.hits);
             rays += row.rays;
-        }
-    });
+        },
+    );
     Ok(RenderOutput {
         image,
         hits,
