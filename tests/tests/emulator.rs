@@ -35,9 +35,11 @@ fn config(server: &s3_support::Embedded, workers: usize, faults: FaultSettings) 
         job: None,
         workers,
         faults,
-        // Fast backoff for tests; timeouts (50 s x 0.02 = 1 s) stay far above a task's time.
+        // Fast backoff for tests. Timeouts of 250 s x 0.02 = 5 s stay far above a task's time
+        // (tens of milliseconds) even on a loaded machine, so no attempt times out unless a
+        // fault makes it; the fault test shortens them (its assertions allow extra timeouts).
         time_scale: 0.02,
-        task_timeout_seconds: Some(50),
+        task_timeout_seconds: Some(250),
         split_cache_bytes: 1 << 28,
         memory_mb: 2048,
         arch: Arch::Arm64,
@@ -113,6 +115,7 @@ fn emulated_pipeline_equals_monolithic_for_several_partitionings() {
 fn injected_faults_give_the_identical_image_and_are_counted() {
     let server = s3_support::Embedded::start(Some("emu"));
     let mono = monolithic("cornell/cornell.json", 2);
+    let (mut failed_before, mut failed_after_writing) = (0, 0);
     for seed in [1u64, 2, 3] {
         let faults = FaultSettings {
             fail_rate: 0.2,
@@ -121,8 +124,13 @@ fn injected_faults_give_the_identical_image_and_are_counted() {
             seed,
             kill_slot_after: None,
         };
+        // Stragglers sleep past their timeout: 1 s here keeps the test short.
+        let config = EmulatorConfig {
+            task_timeout_seconds: Some(50),
+            ..config(&server, 4, faults)
+        };
         let run = run_job(
-            &config(&server, 4, faults),
+            &config,
             &scene_path("cornell/cornell.json"),
             settings(2, 3, 6, SplitMode::Spatial),
             &NoObserver,
@@ -130,6 +138,8 @@ fn injected_faults_give_the_identical_image_and_are_counted() {
         .unwrap_or_else(|e| panic!("seed {seed}: {e:#}"));
         assert_same(&run, &mono, &format!("faults with seed {seed}"));
         let counts = run.faults.as_ref().expect("fault counts");
+        failed_before += counts.failed_before.load(Ordering::Relaxed);
+        failed_after_writing += counts.failed_after_writing.load(Ordering::Relaxed);
         let injected_failures = counts.failed_before.load(Ordering::Relaxed)
             + counts.failed_after_writing.load(Ordering::Relaxed);
         assert!(
@@ -154,6 +164,13 @@ fn injected_faults_give_the_identical_image_and_are_counted() {
             "seed {seed}: attempts = tasks + retries"
         );
     }
+    // Both kinds of failure happened: before running, and after writing part of the outputs
+    // (whose partial objects the retry overwrites with the same bytes).
+    assert!(failed_before > 0, "no attempt failed before running");
+    assert!(
+        failed_after_writing > 0,
+        "no attempt failed after writing part of its outputs"
+    );
 }
 
 /// Corrupts one cast-reduce block as soon as the trace-reduce stage starts.

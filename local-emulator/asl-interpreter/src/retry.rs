@@ -111,7 +111,8 @@ pub fn retry_delay(
     Duration::try_from_secs_f64(seconds).unwrap_or(Duration::MAX)
 }
 
-/// A uniform number in `[0, 1)` that depends only on its arguments.
+/// A uniform number in `[0, 1)` that depends only on its arguments: the FULL jitter of retries,
+/// and any other seeded decision a caller wants reproducible (the emulator's fault injection).
 pub fn unit_draw(seed: u64, state: &str, item: Option<usize>, retry: u32) -> f64 {
     // FNV-1a over the state path, then splitmix64 rounds mixing in the other keys.
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;

@@ -5,6 +5,7 @@
 //! every attempt.
 
 use super::invoker::InProcessInvoker;
+use asl_interpreter::retry::unit_draw;
 use asl_interpreter::{TaskFailure, TaskInvoker};
 use hort_core::ErrorType;
 use hort_core::store::{BlobStore, PutOutcome, StoreError};
@@ -90,23 +91,22 @@ impl FaultyInvoker {
                 .is_ok()
     }
 
-    /// A uniform draw in [0, 1) for this attempt and purpose.
+    /// A uniform draw in [0, 1) for this attempt (stage, task, attempt) and purpose (`salt`):
+    /// the same seeded draw the state machine's retry jitter uses.
     fn draw(&self, input: &Value, salt: u64) -> f64 {
-        let field = |name: &str| input.get(name).cloned().unwrap_or(Value::Null).to_string();
+        let stage = input.get("stage").and_then(Value::as_str).unwrap_or("");
         let task = input
             .get("item")
             .and_then(|i| i.get("task"))
-            .cloned()
-            .unwrap_or(Value::Null);
-        let text = format!("{}|{}|{}|{}", field("stage"), task, field("attempt"), salt);
-        let mut h = self.settings.seed ^ 0x9e37_79b9_7f4a_7c15;
-        for b in text.bytes() {
-            h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
-        }
-        h ^= h >> 33;
-        h = h.wrapping_mul(0xff51_afd7_ed55_8ccd);
-        h ^= h >> 33;
-        (h >> 11) as f64 / (1u64 << 53) as f64
+            .and_then(Value::as_u64)
+            .map(|t| t as usize);
+        let attempt = input.get("attempt").and_then(Value::as_u64).unwrap_or(0);
+        unit_draw(
+            self.settings.seed,
+            &format!("fault-{salt}/{stage}"),
+            task,
+            attempt as u32,
+        )
     }
 }
 
