@@ -1,11 +1,11 @@
-//! The documented AWS price model behind the report's `cost_usd` (DESIGN.md, "Measures": dollars
+//! The documented AWS price model behind the report's `cost_usd` (docs/ARCHITECTURE.md: dollars
 //! per frame from GB-seconds, requests and S3 operations).
 //!
 //! # Prices
 //! List prices for us-east-1, read 2026-11 from the AWS pricing pages for Lambda
 //! (<https://aws.amazon.com/lambda/pricing/>), S3 (<https://aws.amazon.com/s3/pricing/>) and
-//! Step Functions (<https://aws.amazon.com/step-functions/pricing/>), as recorded in STACK.md,
-//! "AWS facts". They all live in the constants below; change them there, with the date.
+//! Step Functions (<https://aws.amazon.com/step-functions/pricing/>).
+//! They all live in the constants below; change them there, with the date.
 //!
 //! | what | price | billing unit |
 //! |---|---|---|
@@ -366,13 +366,13 @@ mod tests {
             express_ms: vec![1050.0; 1000],
             ..CostInputs::default()
         });
-        assert_close!(gb_seconds(SFN_EXPRESS_BILLED_MEMORY_MB, 1_100_000), 68.75);
+        assert_close!(gb_seconds(64, 1_100_000), 68.75);
         assert_close!(cost.step_functions, 0.0252 + 0.001 + 0.001_146_062_5);
         assert_close!(cost.total, 0.027_346_062_5);
     }
 
     #[test]
-    fn total_is_the_sum_of_the_lines() {
+    fn every_line_by_hand() {
         let cost = estimate(&CostInputs {
             arch: Arch::X86_64,
             memory_mb: 1769,
@@ -383,17 +383,46 @@ mod tests {
             standard_transitions: 11,
             express_ms: vec![950.0, 31_000.0],
         });
+        // Lambda: 13 + 900 + 30,001 = 30,914 ms at 1,769 MB = 30.914 x 1,769 / 1,024
+        // = 53.405142578125 GB-s, x $0.0000166667 = $0.0008900874898068359375.
+        assert_close!(cost.lambda_compute, 0.000_890_087_489_806_836);
+        // 3 requests x $0.20 / 1e6.
+        assert_close!(cost.lambda_requests, 0.000_000_6);
+        // 123 x $0.005 / 1,000 + 4,567 x $0.0004 / 1,000 = 0.000615 + 0.0018268.
+        assert_close!(cost.s3_requests, 0.002_441_8);
+        // 5e12 byte-s / 2^30 / (730 x 3,600 s) = 0.00177192270665045 GB-months, x $0.023.
+        assert_close!(cost.s3_storage, 0.000_040_754_222_252_960_4);
+        // 11 transitions x $0.025 / 1,000 = 0.000275; 2 Express requests x $1 / 1e6 = 0.000002;
+        // 950 ms bills 1,000 and 31,000 bills 31,000: 32 s at 64 MB = 2 GB-s x $0.00001667
+        // = 0.00003334.
+        assert_close!(cost.step_functions, 0.000_310_34);
+        assert_close!(cost.total, 0.003_683_581_712_059_796_4);
         let sum = cost.lambda_compute
             + cost.lambda_requests
             + cost.s3_requests
             + cost.s3_storage
             + cost.step_functions;
         assert_eq!(cost.total, sum);
-        // 13 + 900 + 30,001 = 30,914 ms at 1,769 MB.
-        assert_close!(
-            cost.lambda_compute,
-            30_914.0 * 1769.0 / 1_024_000.0 * LAMBDA_USD_PER_GB_S_X86_64
-        );
+    }
+
+    #[test]
+    fn prices_are_the_documented_ones() {
+        // The price table of the module documentation, us-east-1, 2026-11.
+        assert_eq!(LAMBDA_USD_PER_GB_S_ARM64, 0.000_013_333_4);
+        assert_eq!(LAMBDA_USD_PER_GB_S_X86_64, 0.000_016_666_7);
+        assert_eq!(LAMBDA_USD_PER_MILLION_REQUESTS, 0.20);
+        assert_eq!(LAMBDA_BILLING_GRANULARITY_MS, 1);
+        assert_eq!(S3_USD_PER_1000_PUT_LIKE, 0.005);
+        assert_eq!(S3_USD_PER_1000_GET_LIKE, 0.0004);
+        assert_eq!(S3_USD_PER_GB_MONTH, 0.023);
+        assert_eq!(S3_BYTES_PER_GB, 1_073_741_824.0);
+        assert_eq!(S3_SECONDS_PER_MONTH, 2_628_000.0);
+        assert_eq!(SFN_STANDARD_USD_PER_1000_TRANSITIONS, 0.025);
+        assert_eq!(SFN_EXPRESS_USD_PER_MILLION_REQUESTS, 1.0);
+        assert_eq!(SFN_EXPRESS_USD_PER_GB_S, 0.000_016_67);
+        assert_eq!(SFN_EXPRESS_BILLING_GRANULARITY_MS, 100);
+        assert_eq!(SFN_EXPRESS_BILLED_MEMORY_MB, 64);
+        assert_eq!((PRICES_AS_OF, PRICE_REGION), ("2026-11", "us-east-1"));
     }
 
     #[test]

@@ -137,18 +137,31 @@ mod tests {
         assert_eq!(bytes, [4, 3, 2, 1, 0x00, 0x00, 0x80, 0x3f]);
     }
 
+    /// `sample()` encoded by hand: LE u32 triangle, then the LE bits of t.
+    #[rustfmt::skip]
+    const SAMPLE_BYTES: [u8; 48] = [
+        0x00, 0x00, 0x00, 0x00,  0x00, 0x00, 0xc0, 0x3f, // 0, 1.5 = 0x3fc00000
+        0xff, 0xff, 0xff, 0xff,  0x00, 0x00, 0x80, 0x7f, // miss: u32::MAX, +inf = 0x7f800000
+        0x04, 0x03, 0x02, 0x01,  0x01, 0x00, 0x80, 0x3f, // 0x01020304, 0x3f800001
+        0x07, 0x00, 0x00, 0x00,  0x00, 0x00, 0x00, 0x80, // 7, -0.0 = 0x80000000
+        0x08, 0x00, 0x00, 0x00,  0xef, 0xbe, 0xc0, 0x7f, // 8, NaN 0x7fc0beef
+        0xfe, 0xff, 0xff, 0xff,  0x00, 0x00, 0x20, 0x00, // u32::MAX - 1, 2^-128 = 0x00200000
+    ];
+
     #[test]
-    fn round_trip_preserves_bits() {
-        let hits = sample();
-        let bytes = encode_hits(&hits);
-        assert_eq!(bytes.len(), hits.len() * 8);
-        let back = decode_hits(&bytes, 3, 2).unwrap();
-        assert_eq!(back.len(), hits.len());
-        for (a, b) in hits.iter().zip(&back) {
+    fn encodes_to_hand_written_bytes() {
+        assert_eq!(encode_hits(&sample()), SAMPLE_BYTES);
+    }
+
+    #[test]
+    fn decodes_hand_written_bytes_bit_exact() {
+        let back = decode_hits(&SAMPLE_BYTES, 3, 2).unwrap();
+        assert_eq!(back.len(), 6);
+        for (a, b) in sample().iter().zip(&back) {
             assert_eq!(a.triangle, b.triangle);
             assert_eq!(a.t.to_bits(), b.t.to_bits());
         }
-        assert_eq!(encode_hits(&back), bytes);
+        assert!(back[1].is_miss());
     }
 
     #[test]

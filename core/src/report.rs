@@ -1,4 +1,4 @@
-//! The `--report` JSON of the command-line contract (DESIGN.md): one object with `width`,
+//! The `--report` JSON of the command-line contract (docs/ARCHITECTURE.md): one object with `width`,
 //! `height`, `triangles`, `rays {primary, shadow}`, `seconds {total, render}`, `stages[]`,
 //! `replication` and `cost_usd`. Fields that do not apply (monolithic mode) are null or empty.
 
@@ -75,10 +75,9 @@ impl Report {
 mod tests {
     use super::*;
 
-    #[test]
-    fn report_round_trips_and_has_contract_fields() {
-        let r = Report {
-            mode: "monolithic".into(),
+    fn sample() -> Report {
+        Report {
+            mode: "pipeline".into(),
             scene: "x.obj".into(),
             width: 64,
             height: 48,
@@ -95,32 +94,80 @@ mod tests {
                 load: 0.125,
                 build: 0.0625,
             },
-            stages: vec![],
-            replication: None,
+            stages: vec![StageReport {
+                name: "trace".into(),
+                tasks: 4,
+                attempts: 5,
+                seconds: 1.5,
+                bytes_read: 1000,
+                bytes_written: 300,
+                bytes_written_raw: 900,
+            }],
+            replication: Some(1.25),
             cost_usd: None,
             retried_attempts: 2,
             recomputed_blocks: 1,
-        };
-        let text = r.to_json();
-        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
-        for k in [
-            "width",
-            "height",
-            "triangles",
-            "rays",
-            "seconds",
-            "stages",
-            "replication",
-            "cost_usd",
-        ] {
-            assert!(v.get(k).is_some(), "missing {k}");
         }
-        assert_eq!(v["rays"]["primary"], 3072);
-        assert_eq!(v["seconds"]["render"], 0.25);
-        assert!(v["replication"].is_null());
-        assert_eq!(v["retried_attempts"], 2);
-        assert_eq!(v["recomputed_blocks"], 1);
-        let back: Report = serde_json::from_str(&text).unwrap();
-        assert_eq!(back, r);
+    }
+
+    /// `sample()` as the contract's JSON, written by hand.
+    const SAMPLE_JSON: &str = r#"{
+  "mode": "pipeline",
+  "scene": "x.obj",
+  "width": 64,
+  "height": 48,
+  "spp": 1,
+  "triangles": 12,
+  "threads": 2,
+  "rays": {
+    "primary": 3072,
+    "shadow": 100
+  },
+  "seconds": {
+    "total": 0.5,
+    "render": 0.25,
+    "load": 0.125,
+    "build": 0.0625
+  },
+  "stages": [
+    {
+      "name": "trace",
+      "tasks": 4,
+      "attempts": 5,
+      "seconds": 1.5,
+      "bytes_read": 1000,
+      "bytes_written": 300,
+      "bytes_written_raw": 900
+    }
+  ],
+  "replication": 1.25,
+  "cost_usd": null,
+  "retried_attempts": 2,
+  "recomputed_blocks": 1
+}"#;
+
+    #[test]
+    fn report_json_is_the_contract_text() {
+        assert_eq!(sample().to_json(), SAMPLE_JSON);
+    }
+
+    #[test]
+    fn report_parses_hand_written_json() {
+        assert_eq!(
+            serde_json::from_str::<Report>(SAMPLE_JSON).unwrap(),
+            sample()
+        );
+        // A report from before the fault counters: they default to 0.
+        let old = r#"{"mode": "monolithic", "scene": "x.obj", "width": 64, "height": 48,
+            "spp": 1, "triangles": 12, "threads": 2, "rays": {"primary": 3072, "shadow": 100},
+            "seconds": {"total": 0.5, "render": 0.25, "load": 0.125, "build": 0.0625},
+            "stages": [], "replication": null, "cost_usd": 0.75}"#;
+        let r: Report = serde_json::from_str(old).unwrap();
+        assert_eq!((r.retried_attempts, r.recomputed_blocks), (0, 0));
+        assert_eq!(
+            (r.mode.as_str(), r.cost_usd, r.replication),
+            ("monolithic", Some(0.75), None)
+        );
+        assert!(r.stages.is_empty());
     }
 }

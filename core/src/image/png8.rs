@@ -111,11 +111,115 @@ mod tests {
     }
 
     #[test]
-    fn png_is_deterministic_and_rejects_bad_images() {
-        assert_eq!(
-            encode_png(&sample_image()).unwrap(),
-            encode_png(&sample_image()).unwrap()
-        );
+    fn tiny_png_bytes_by_hand() {
+        // Compressed, a 3x2 image would be larger than stored, so the png crate stores its
+        // scanlines unfiltered (a zlib stored block, filter type 0 on each row).
+        #[rustfmt::skip]
+        let expected: &[u8] = &[
+            0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a, b'\n',
+            // IHDR: 3 x 2, bit depth 8, colour type 2 (RGB), compression 0, filter method 0,
+            // no interlace; CRC.
+            0, 0, 0, 13, b'I', b'H', b'D', b'R',
+            0, 0, 0, 3, 0, 0, 0, 2, 8, 2, 0, 0, 0,
+            0x12, 0x16, 0xf1, 0x4d,
+            // sRGB, rendering intent 0 (perceptual); CRC.
+            0, 0, 0, 1, b's', b'R', b'G', b'B', 0, 0xae, 0xce, 0x1c, 0xe9,
+            // IDAT: zlib header 78 01; final stored block of 20 = 0x14 bytes (LEN, !LEN); the
+            // scanlines (the sRGB bytes of `png_decodes_to_expected_bytes`); their Adler-32; CRC.
+            0, 0, 0, 31, b'I', b'D', b'A', b'T',
+            0x78, 0x01,
+            0x01, 0x14, 0x00, 0xeb, 0xff,
+            0, 255, 0, 188, 118, 0, 255, 0, 0, 0,
+            0, 0, 0, 0, 0, 0, 0, 10, 0, 255,
+            0x35, 0xec, 0x04, 0x3a,
+            0xb0, 0xb2, 0x62, 0xa1,
+            // IEND; CRC.
+            0, 0, 0, 0, b'I', b'E', b'N', b'D', 0xae, 0x42, 0x60, 0x82,
+        ];
+        assert_eq!(encode_png(&sample_image()).unwrap(), expected);
+    }
+
+    /// The Paeth filter (PNG specification, section 9.4) of 8-bit RGB scanlines, each row
+    /// prefixed with its filter type 4.
+    fn paeth_filtered(rgb: &[u8], width: usize) -> Vec<u8> {
+        let stride = 3 * width;
+        let mut out = Vec::new();
+        let zeros = vec![0; stride];
+        for (y, row) in rgb.chunks_exact(stride).enumerate() {
+            let above = if y == 0 {
+                &zeros[..]
+            } else {
+                &rgb[(y - 1) * stride..y * stride]
+            };
+            out.push(4);
+            for (i, &x) in row.iter().enumerate() {
+                let left = |r: &[u8]| if i >= 3 { i16::from(r[i - 3]) } else { 0 };
+                let (a, b, c) = (left(row), i16::from(above[i]), left(above));
+                let p = a + b - c;
+                let (pa, pb, pc) = ((p - a).abs(), (p - b).abs(), (p - c).abs());
+                let predictor = if pa <= pb && pa <= pc {
+                    a
+                } else if pb <= pc {
+                    b
+                } else {
+                    c
+                };
+                out.push(x.wrapping_sub(predictor as u8));
+            }
+        }
+        out
+    }
+
+    /// Adler-32 (RFC 1950), the checksum that ends a zlib stream.
+    fn adler32(data: &[u8]) -> u32 {
+        let (mut a, mut b) = (1u32, 0u32);
+        for &d in data {
+            a = (a + u32::from(d)) % 65_521;
+            b = (b + a) % 65_521;
+        }
+        (b << 16) | a
+    }
+
+    #[test]
+    fn compressed_png_is_paeth_filtered() {
+        // A smooth 32x16 gradient compresses, so the encoder keeps its Paeth-filtered stream:
+        // the zlib stream's Adler-32 is that of the Paeth filter of the decoded scanlines.
+        let (w, h) = (32, 16);
+        let mut img = Image::new(w, h);
+        for y in 0..h {
+            for x in 0..w {
+                img.set(x, y, [x as f32 / 31.0, y as f32 / 15.0, 0.5]);
+            }
+        }
+        let bytes = encode_png(&img).unwrap();
+        let mut reader = png::Decoder::new(std::io::Cursor::new(&bytes[..]))
+            .read_info()
+            .unwrap();
+        let mut rgb = vec![0; reader.output_buffer_size().unwrap()];
+        reader.next_frame(&mut rgb).unwrap();
+        // sRGB of linear 0, 0.5 and 1/31: 0, 188 and 50.
+        assert_eq!(&rgb[..6], [0, 0, 188, 50, 0, 188]);
+
+        let mut idat = Vec::new();
+        let mut rest = &bytes[33 + 13..]; // after the signature, IHDR and sRGB
+        while !rest.is_empty() {
+            let len = u32::from_be_bytes(rest[..4].try_into().unwrap()) as usize;
+            if &rest[4..8] == b"IDAT" {
+                idat.extend_from_slice(&rest[8..8 + len]);
+            }
+            rest = &rest[12 + len..];
+        }
+        let filtered = paeth_filtered(&rgb, w as usize);
+        assert!(idat.len() < filtered.len(), "not compressed");
+        let adler = adler32(&filtered).to_be_bytes();
+        assert_eq!(idat[idat.len() - 4..], adler);
+    }
+
+    #[test]
+    fn png_rejects_bad_images() {
         assert!(encode_png(&Image::new(0, 0)).is_err());
+        let mut img = Image::new(2, 2);
+        img.pixels.pop();
+        assert!(encode_png(&img).is_err());
     }
 }
