@@ -1,5 +1,5 @@
 //! Binned SAH construction (Wald 2007): 16 bins per axis on centroid bounds; every node of at
-//! most [`MAX_LEAF`] triangles is a leaf (one 4-wide packet test), larger ones are split.
+//! most [`MAX_LEAF`] triangles is a leaf (one 4-wide `Triangle4` test), larger ones are split.
 
 use super::{Aabb, Bvh, Node};
 use glam::Vec3;
@@ -66,7 +66,7 @@ struct Bin {
 /// Partitions `refs` and returns the split position, or `None` to make a leaf.
 fn choose_split(refs: &mut [u32], boxes: &[Aabb], centroids: &[Vec3]) -> Option<usize> {
     let count = refs.len();
-    // Up to MAX_LEAF triangles are one 4-wide packet test, cheaper than any split (measured:
+    // Up to MAX_LEAF triangles are one 4-wide Triangle4 test, cheaper than any split (measured:
     // about +10% primary and shadow rays/s on a 1M-triangle scene against an SAH leaf cost).
     if count as u32 <= MAX_LEAF {
         return None;

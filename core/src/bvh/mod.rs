@@ -1,27 +1,34 @@
 //! A bounding volume hierarchy over triangles: binned-SAH build of a binary tree (what split
-//! objects store), collapsed into 4-wide nodes and 4-triangle packets for traversal with 4-wide
-//! box and triangle tests. Layout, measurements against native Embree and where time goes:
-//! `README.md` in this folder.
+//! objects store), collapsed into 4-wide nodes whose leaves are `Triangle4`s (four triangles
+//! stored axis by axis) for traversal with 4-wide box and triangle tests. Layout, measurements
+//! against native Embree and where time goes: `README.md` in this folder.
+//!
+//! Vocabulary: a `Triangle4` is four triangles of one leaf tested at once (`node4.rs`,
+//! `simd4.rs`); a ray packet is [`RAY_PACKET`] neighbouring rays traversing together, either a
+//! closest-hit packet of camera rays (`ray_packet.rs`) or a segment packet of shadow segments
+//! (`segment_packet.rs`).
 //!
 //! Guarantees:
 //! - [`Bvh::closest_hit`] returns exactly what a brute-force loop over all triangles returns with
 //!   the order "smaller t, then smaller triangle id" (same triangle, same t bits): box culling is
 //!   conservative and the triangle test ([`crate::triangle::intersect`]) is a pure function.
 //!   Hence the answer never depends on how triangles are grouped into BVHs or splits.
-//! - [`Bvh::closest_hits`] (16-ray packets for coherent camera rays) gives every ray exactly
+//! - [`Bvh::closest_hits`] (closest-hit ray packets) gives every ray exactly
 //!   [`Bvh::closest_hit`]'s answer.
-//! - [`Bvh::occluded`] is true exactly when some triangle has a hit with `0 < t < t_max`.
+//! - [`Bvh::occluded`] is true exactly when some triangle has a hit with `0 < t < t_max`, and
+//!   [`Bvh::occluded_many`] (segment packets) gives every segment exactly its answer.
 //! - Building is deterministic: the same triangles in the same order give the same nodes.
 
 mod build;
-mod coherent;
 mod node4;
-mod packet;
 mod parts;
+mod ray_packet;
+mod segment_packet;
+mod simd4;
 mod traverse;
 
-pub use coherent::PACKET;
 pub use parts::BvhPartsError;
+pub use ray_packet::RAY_PACKET;
 pub use traverse::{ClosestHit, segment_may_hit};
 
 use glam::Vec3;
@@ -79,10 +86,10 @@ pub struct Bvh {
     /// Scene-wide id of each triangle, in leaf order.
     ids: Vec<u32>,
     /// Traversal form derived from `nodes` and the leaf-order triangles (see [`node4`]). The
-    /// packets hold the only copy of the triangles: leaf-order triangle `t` is lane
-    /// `t - first` of the packet whose lanes start at `first`.
+    /// `Triangle4`s hold the only copy of the triangles: leaf-order triangle `t` is lane
+    /// `t - first` of the `Triangle4` whose lanes start at `first`.
     wide: Vec<node4::Node4>,
-    packets: Vec<node4::Packet>,
+    triangles: Vec<node4::Triangle4>,
 }
 
 impl Bvh {
@@ -96,12 +103,12 @@ impl Bvh {
     /// Assembles a BVH from valid binary nodes whose leaves cover the `ids.len()` triangles
     /// exactly once, adding the traversal form; `corners(t)` is leaf-order triangle `t`.
     fn assemble(nodes: Vec<Node>, ids: Vec<u32>, corners: impl Fn(usize) -> [Vec3; 3]) -> Bvh {
-        let (wide, packets) = node4::collapse(&nodes, ids.len(), corners);
+        let (wide, triangles) = node4::collapse(&nodes, ids.len(), corners);
         Bvh {
             nodes,
             ids,
             wide,
-            packets,
+            triangles,
         }
     }
 
@@ -121,7 +128,7 @@ impl Bvh {
         (self.nodes.len() * size_of::<Node>()
             + self.ids.len() * size_of::<u32>()
             + self.wide.len() * size_of::<node4::Node4>()
-            + self.packets.len() * size_of::<node4::Packet>()) as u64
+            + self.triangles.len() * size_of::<node4::Triangle4>()) as u64
     }
 
     /// Number of nodes.

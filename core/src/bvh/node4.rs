@@ -1,16 +1,17 @@
 //! The traversal form of a BVH: the binary tree collapsed into 4-wide nodes whose child boxes
-//! are tested together, and leaves as packets of up to 4 triangles stored axis by axis.
+//! are tested together, and leaves as runs of [`Triangle4`]s (up to 4 triangles each, stored
+//! axis by axis).
 //!
 //! It is derived data: a pure function of the binary nodes and the leaf-order triangles, rebuilt
 //! by [`Bvh::build`](super::Bvh::build) and [`Bvh::from_parts`](super::Bvh::from_parts), never
 //! stored. Collapsing only regroups boxes the binary tree already has, so every box the traversal
-//! tests is a box of the binary tree. The packets are the only copy of the triangles a `Bvh`
-//! keeps: every leaf-order triangle is one lane of one packet.
+//! tests is a box of the binary tree. The `Triangle4`s are the only copy of the triangles a
+//! `Bvh` keeps: every leaf-order triangle is one lane of one `Triangle4`.
 
 use super::{Aabb, Node};
 use glam::Vec3;
 
-/// Child word flag: the child is a leaf (the low bits are its first packet).
+/// Child word flag: the child is a leaf (the low bits are its first `Triangle4`).
 pub(super) const LEAF: u32 = 1 << 31;
 
 /// Four child boxes (axis by axis, child by child) and what each child is. An unused slot has
@@ -21,27 +22,29 @@ pub(super) const LEAF: u32 = 1 << 31;
 pub(super) struct Node4 {
     pub lo: [[f32; 4]; 3],
     pub hi: [[f32; 4]; 3],
-    /// Inner child: its index in the node array. Leaf: `LEAF | first packet`.
+    /// Inner child: its index in the node array. Leaf: `LEAF | first Triangle4`.
     pub child: [u32; 4],
-    /// Leaf: its number of packets (0 for an unused slot). Inner: 0.
-    pub packets: [u32; 4],
+    /// Leaf: its number of `Triangle4`s, from the first one in `child` on (0 for an unused
+    /// slot). Inner: 0.
+    pub triangle4_count: [u32; 4],
 }
 
-/// Up to four triangles of one leaf: `v[corner][axis][lane]`. Lane `i < lanes` is the leaf-order
-/// triangle `first + i`; unused lanes are zero (degenerate) and masked out anyway.
+/// Up to four triangles of one leaf, laid out for the 4-wide triangle tests (not a ray packet):
+/// `v[corner][axis][lane]`. Lane `i < lanes` is the leaf-order triangle `first + i`; unused
+/// lanes are zero (degenerate) and masked out anyway.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(16))]
-pub(super) struct Packet {
+pub(super) struct Triangle4 {
     pub v: [[[f32; 4]; 3]; 3],
     pub first: u32,
     pub lanes: u32,
 }
 
-impl Packet {
+impl Triangle4 {
     /// The corners of lane `lane`: the same values as the leaf-order triangle `first + lane`.
     #[inline(always)]
     pub fn corners(&self, lane: usize) -> [Vec3; 3] {
-        super::packet::each3(|c| {
+        super::simd4::each3(|c| {
             Vec3::new(self.v[c][0][lane], self.v[c][1][lane], self.v[c][2][lane])
         })
     }
@@ -51,7 +54,7 @@ const UNUSED: Node4 = Node4 {
     lo: [[f32::INFINITY; 4]; 3],
     hi: [[f32::INFINITY; 4]; 3],
     child: [LEAF; 4],
-    packets: [0; 4],
+    triangle4_count: [0; 4],
 };
 
 /// Collapses binary `nodes` (root first, valid as checked by `from_parts` or made by `build`)
@@ -61,12 +64,12 @@ pub(super) fn collapse<F: Fn(usize) -> [Vec3; 3]>(
     nodes: &[Node],
     n: usize,
     corners: F,
-) -> (Vec<Node4>, Vec<Packet>) {
+) -> (Vec<Node4>, Vec<Triangle4>) {
     let mut out = Collapse {
         nodes,
         corners,
         wide: Vec::with_capacity(nodes.len() / 3 + 1),
-        packets: Vec::with_capacity(n / 2 + 1),
+        triangles: Vec::with_capacity(n / 2 + 1),
     };
     if !nodes.is_empty() {
         out.wide.push(UNUSED);
@@ -78,15 +81,15 @@ pub(super) fn collapse<F: Fn(usize) -> [Vec3; 3]>(
         out.fill(0, &children[..len]);
     }
     out.wide.shrink_to_fit();
-    out.packets.shrink_to_fit();
-    (out.wide, out.packets)
+    out.triangles.shrink_to_fit();
+    (out.wide, out.triangles)
 }
 
 struct Collapse<'a, F> {
     nodes: &'a [Node],
     corners: F,
     wide: Vec<Node4>,
-    packets: Vec<Packet>,
+    triangles: Vec<Triangle4>,
 }
 
 impl<F: Fn(usize) -> [Vec3; 3]> Collapse<'_, F> {
@@ -124,7 +127,7 @@ impl<F: Fn(usize) -> [Vec3; 3]> Collapse<'_, F> {
                 self.wide[w].hi[axis][slot] = hi[axis];
             }
             if node.count > 0 {
-                let first_packet = self.packets.len();
+                let first_triangle4 = self.triangles.len();
                 let (start, end) = (
                     node.first as usize,
                     node.first as usize + node.count as usize,
@@ -139,19 +142,20 @@ impl<F: Fn(usize) -> [Vec3; 3]> Collapse<'_, F> {
                             }
                         }
                     }
-                    self.packets.push(Packet {
+                    self.triangles.push(Triangle4 {
                         v,
                         first: chunk as u32,
                         lanes: lanes as u32,
                     });
                 }
-                self.wide[w].child[slot] = LEAF | first_packet as u32;
-                self.wide[w].packets[slot] = (self.packets.len() - first_packet) as u32;
+                self.wide[w].child[slot] = LEAF | first_triangle4 as u32;
+                self.wide[w].triangle4_count[slot] =
+                    (self.triangles.len() - first_triangle4) as u32;
             } else {
                 let index = self.wide.len();
                 self.wide.push(UNUSED);
                 self.wide[w].child[slot] = index as u32;
-                self.wide[w].packets[slot] = 0;
+                self.wide[w].triangle4_count[slot] = 0;
                 let (grandchildren, len) = self.open(c);
                 self.fill(index, &grandchildren[..len]);
             }

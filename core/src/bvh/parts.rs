@@ -21,10 +21,11 @@ pub enum BvhPartsError {
 
 impl Bvh {
     /// The nodes (root first), the triangles in leaf order and their scene-wide ids. The
-    /// triangles are gathered from the traversal packets (their only copy) into a new vector.
+    /// triangles are gathered from the traversal form's `Triangle4`s (their only copy) into a new
+    /// vector.
     pub fn parts(&self) -> (&[Node], Vec<[Vec3; 3]>, &[u32]) {
         let mut triangles = vec![[Vec3::ZERO; 3]; self.ids.len()];
-        for p in &self.packets {
+        for p in &self.triangles {
             let first = p.first as usize;
             for (lane, t) in triangles[first..first + p.lanes as usize]
                 .iter_mut()

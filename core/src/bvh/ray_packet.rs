@@ -1,39 +1,42 @@
-//! Coherent ray packets: up to [`PACKET`] neighbouring rays (camera rays of neighbouring pixels
-//! or samples, or their shadow rays towards one light) traverse the 4-wide BVH together, for
-//! closest hits ([`Bvh::closest_hits`]) and for shadow segments ([`Bvh::occluded_many`]). At each inner node
-//! one interval test bounds what every ray of the packet can do with the four child boxes: a
-//! child no ray can enter is dropped for all of them, a child every active ray certainly enters
-//! keeps them all, and only the children in between are tested ray by ray (four rays per SIMD
-//! test). A single remaining ray goes on alone with the single-ray traversal; leaves run the
-//! single-ray leaf test for each ray. Packets with a non-finite origin or direction are traced
-//! ray by ray.
+//! Ray packets: up to [`RAY_PACKET`] neighbouring rays traverse the 4-wide BVH together. Two
+//! kinds share this machinery: closest-hit packets of camera rays ([`Bvh::closest_hits`], here)
+//! and segment packets of shadow segments ([`Bvh::occluded_many`], `segment_packet.rs`). (Not
+//! to be confused with a leaf's `Triangle4`s: four triangles tested by one 4-wide test.)
+//!
+//! At each inner node one interval test ([`RayPacketTester`]) bounds what every ray of the
+//! packet can do with the four child boxes: a child no ray can enter is dropped for all of
+//! them, a child every active ray certainly enters keeps them all, and only the children in
+//! between are tested ray by ray (four rays per SIMD test). A single remaining ray goes on
+//! alone with the single-ray traversal; leaves run the single-ray leaf test for each ray.
+//! Packets with a non-finite origin or direction are traced ray by ray.
 //!
 //! Guarantee: [`Bvh::closest_hits`] gives every ray exactly what [`Bvh::closest_hit`] gives it.
 //! Each lane's box test is the single-ray slab test (same operations in the same order, so the
 //! same bits). The interval test takes, per axis, the products of the offsets `plane - origin`
 //! at the packet's smallest and largest origin with its smallest and largest inverse direction
 //! (one offset when all rays share an origin); rounding is monotonic, so the extremes of these
-//! are exactly the smallest and largest per-ray values, and the test can
-//! only claim "no ray enters" or "every ray enters" when the per-ray tests would say so. A ray
-//! leaves a child only when its own test says the child cannot hold a better hit, and all hits
-//! go through the single-ray best-hit update ([`Bvh::closest_in_leaf`]). The closest hit is
-//! unique (smaller t, then smaller id), so the visiting order cannot change it.
+//! are exactly the smallest and largest per-ray values, and the test can only claim "no ray
+//! enters" or "every ray enters" when the per-ray tests would say so. A ray leaves a child only
+//! when its own test says the child cannot hold a better hit, and all hits go through the
+//! single-ray best-hit update ([`Bvh::closest_in_leaf`]). The closest hit is unique (smaller t,
+//! then smaller id), so the visiting order cannot change it.
 
 use super::node4::{LEAF, Node4};
-use super::packet::{BoxTester, each3, each4};
+use super::simd4::{BoxTester, each3, each4};
 use super::traverse::{
-    ClosestSearch, Entry, FAR_SCALE, ROOT, STACK, STACKS, ShadowSearch, defer_all_but_nearest,
-    insert_farthest_first, segment_may_hit,
+    ClosestSearch, Entry, FAR_SCALE, ROOT, STACK, STACKS, defer_all_but_nearest,
+    insert_farthest_first,
 };
 use super::{Bvh, ClosestHit};
 use crate::triangle::Ray;
 use wide::f32x4;
 
-/// Rays per packet: 16, as in Embree's widest packets (a 4x4 tile or 16 pixels of a row).
-pub const PACKET: usize = 16;
-const GROUPS: usize = PACKET / 4;
-/// Wide nodes below which shadow segments are traced one by one.
-const SMALL_TREE: usize = 16;
+/// Rays per ray packet (closest-hit and segment packets alike): 16, as in Embree's widest
+/// packets (a 4x4 tile or 16 pixels of a row). [`Bvh::closest_hits`] and
+/// [`Bvh::occluded_many`] cut their input into runs of this many consecutive rays.
+pub const RAY_PACKET: usize = 16;
+/// Groups of four rays (one SIMD register each) per packet.
+pub(super) const GROUPS: usize = RAY_PACKET / 4;
 
 /// `LANES[bits]`: all-ones in the lanes whose bit is set.
 const LANES: [[u32; 4]; 16] = {
@@ -57,9 +60,9 @@ fn lane_mask(bits: u32) -> f32x4 {
     f32x4::from(each4(|k| f32::from_bits(l[k])))
 }
 
-/// The packet's rays four lanes per group, for slab tests across rays, and the interval hull of
-/// their inverse directions for the whole-packet test.
-struct PacketBoxes {
+/// A ray packet's box tester: its rays four lanes per group, for slab tests across rays, and
+/// the interval hull of their origins and inverse directions for the whole-packet test.
+pub(super) struct RayPacketTester {
     origin: [[f32x4; 3]; GROUPS],
     /// Per axis: the smallest and largest origin coordinate of the packet.
     origin_lo: [f32x4; 3],
@@ -79,10 +82,10 @@ struct PacketBoxes {
     loose: [bool; 3],
 }
 
-impl PacketBoxes {
-    /// `rays` holds 1..=PACKET rays with finite origins and directions; lanes past the end
+impl RayPacketTester {
+    /// `rays` holds 1..=RAY_PACKET rays with finite origins and directions; lanes past the end
     /// repeat the last ray (and are never active).
-    fn new(rays: &[Ray]) -> Self {
+    pub(super) fn new(rays: &[Ray]) -> Self {
         let last = rays.len() - 1;
         let valid = (1u32 << rays.len()) - 1;
         let dir = |g: usize, a: usize| f32x4::from(each4(|l| rays[(4 * g + l).min(last)].dir[a]));
@@ -114,7 +117,7 @@ impl PacketBoxes {
         let all_near_hi = each3(|a| negative[a] == valid);
         let origin_lo = each3(|a| lowest(o_lo[a]));
         let origin_hi = each3(|a| -lowest(-o_hi[a]));
-        PacketBoxes {
+        RayPacketTester {
             origin,
             origin_lo: each3(|a| f32x4::splat(origin_lo[a])),
             origin_hi: each3(|a| f32x4::splat(origin_hi[a])),
@@ -191,7 +194,7 @@ impl PacketBoxes {
     /// (lane i of group i / 4 of `bound`) and a lower bound of their entry distances. The hull
     /// test decides what it can; the single-ray test decides the rest ray by ray.
     #[inline(always)]
-    fn enter_children(
+    pub(super) fn enter_children(
         &self,
         node: &Node4,
         active: u32,
@@ -250,37 +253,38 @@ impl PacketBoxes {
     }
 }
 
-/// A deferred child of a packet: its child word, packet count, the rays that enter it and a
-/// lower bound of their entry distances.
+/// A deferred child of a ray packet: its child word, `Triangle4` count, the rays that enter
+/// it and a lower bound of their entry distances.
 #[derive(Clone, Copy)]
-struct PacketEntry {
-    child: u32,
-    packets: u32,
-    rays: u32,
-    t: f32,
+pub(super) struct RayPacketEntry {
+    pub child: u32,
+    pub triangle4_count: u32,
+    /// Bit i: ray i of the packet enters the child.
+    pub rays: u32,
+    pub t: f32,
 }
 
-const NO_ENTRY: PacketEntry = PacketEntry {
+const NO_ENTRY: RayPacketEntry = RayPacketEntry {
     child: 0,
-    packets: 0,
+    triangle4_count: 0,
     rays: 0,
     t: 0.0,
 };
 
 thread_local! {
-    /// One packet traversal stack per thread, reused (as the single-ray stacks).
-    static PACKET_STACKS: std::cell::RefCell<[PacketEntry; STACK]> =
+    /// One ray-packet traversal stack per thread, reused (as the single-ray stacks).
+    pub(super) static RAY_PACKET_STACKS: std::cell::RefCell<[RayPacketEntry; STACK]> =
         const { std::cell::RefCell::new([NO_ENTRY; STACK]) };
 }
 
 /// Whether `ray` can travel in a packet: the hull test needs finite origins and directions.
-fn is_finite(ray: &Ray) -> bool {
+pub(super) fn is_finite(ray: &Ray) -> bool {
     ray.origin.is_finite() && ray.dir.is_finite()
 }
 
 impl Bvh {
     /// The closest hit of every ray (`out[i]` for `rays[i]`), exactly as [`Bvh::closest_hit`]
-    /// gives it, traced in packets of [`PACKET`] consecutive rays: faster when neighbours in
+    /// gives it, traced in packets of [`RAY_PACKET`] consecutive rays: faster when neighbours in
     /// `rays` are coherent (camera rays of neighbouring pixels, best with one origin). Panics if
     /// the lengths differ.
     pub fn closest_hits(&self, rays: &[Ray], out: &mut [Option<ClosestHit>]) {
@@ -289,11 +293,11 @@ impl Bvh {
             out.fill(None);
             return;
         }
-        PACKET_STACKS.with_borrow_mut(|stack| {
+        RAY_PACKET_STACKS.with_borrow_mut(|stack| {
             STACKS.with_borrow_mut(|ray_stack| {
-                for (rays, out) in rays.chunks(PACKET).zip(out.chunks_mut(PACKET)) {
+                for (rays, out) in rays.chunks(RAY_PACKET).zip(out.chunks_mut(RAY_PACKET)) {
                     if rays.iter().all(is_finite) {
-                        self.trace_packet(rays, out, stack, ray_stack);
+                        self.trace_closest_packet(rays, out, stack, ray_stack);
                     } else {
                         for (ray, out) in rays.iter().zip(out) {
                             *out = self.closest_hit_with(ray, ray_stack);
@@ -304,125 +308,15 @@ impl Bvh {
         });
     }
 
-    /// For every shadow segment `(ray, t_max)`, whether [`Bvh::occluded`] says it is blocked
-    /// (`out[i]` for `rays[i]`), traced in packets of [`PACKET`] consecutive segments: faster
-    /// when neighbours are coherent (the shadow rays of neighbouring pixels towards one light).
-    /// Panics if the lengths differ.
-    pub fn occluded_many(&self, rays: &[(Ray, f32)], out: &mut [bool]) {
-        assert_eq!(rays.len(), out.len(), "one output per ray");
-        if self.wide.is_empty() {
-            out.fill(false);
-            return;
-        }
-        if self.wide.len() < SMALL_TREE {
-            // In a tree of a few nodes there is nothing to share: packets would only add setup
-            // (cornell, 36 triangles: 0.7x single rays).
-            for ((ray, t_max), out) in rays.iter().zip(out) {
-                *out = self.occluded(ray, *t_max);
-            }
-            return;
-        }
-        PACKET_STACKS.with_borrow_mut(|stack| {
-            STACKS.with_borrow_mut(|ray_stack| {
-                for (rays, out) in rays.chunks(PACKET).zip(out.chunks_mut(PACKET)) {
-                    self.trace_shadow_packet(rays, out, stack, ray_stack);
-                }
-            })
-        });
-    }
-
-    fn trace_shadow_packet(
-        &self,
-        segments: &[(Ray, f32)],
-        out: &mut [bool],
-        stack: &mut [PacketEntry; STACK],
-        ray_stack: &mut [Entry; STACK],
-    ) {
-        let root = self.bounds();
-        let mut rays = [segments[0].0; PACKET];
-        // Rays still to trace: the root test of `occluded` and finite inputs (others go alone).
-        let mut active = 0u32;
-        for (i, (ray, t_max)) in segments.iter().enumerate() {
-            rays[i] = *ray;
-            out[i] = false;
-            if segment_may_hit(&root, ray, *t_max) {
-                active |= 1 << i;
-            }
-        }
-        let finite = |(r, t): &(Ray, f32)| is_finite(r) && !t.is_nan();
-        if active == 0 || !segments.iter().all(finite) {
-            for i in bits(active) {
-                let (ray, t_max) = &segments[i];
-                out[i] = self.occluded_with(ray, *t_max, ray_stack);
-            }
-            return;
-        }
-        let boxes = PacketBoxes::new(&rays[..segments.len()]);
-        let mut searches: [Option<ShadowSearch>; PACKET] = [None; PACKET];
-        let mut bounds = [[f32::NEG_INFINITY; 4]; GROUPS];
-        for (i, (_, t_max)) in segments.iter().enumerate() {
-            bounds[i / 4][i % 4] = *t_max * super::traverse::CULL_MARGIN;
-        }
-        let bound = each4(|g| f32x4::from(bounds[g]));
-        let mut blocked = 0u32;
-        let mut depth = 0usize;
-        let (mut child, mut packets) = ROOT;
-        loop {
-            if active.count_ones() <= 1 {
-                for i in bits(active) {
-                    let (ray, t_max) = &segments[i];
-                    let s = searches[i].get_or_insert_with(|| ShadowSearch::new(ray, *t_max));
-                    let single = BoxTester::new(ray);
-                    let start = (child, packets);
-                    if self.occluded_from(start, &single, &s.prep, &s.tris, s.t_max, ray_stack) {
-                        blocked |= 1 << i;
-                    }
-                }
-            } else if child & LEAF == 0 {
-                let node = &self.wide[child as usize];
-                let (enter, entry) = boxes.enter_children(node, active, &bound);
-                if let Some(next) = descend(node, &enter, &entry, stack, &mut depth) {
-                    (child, packets, active) = next;
-                    continue;
-                }
-            } else {
-                let first = (child & !LEAF) as usize;
-                for i in bits(active) {
-                    let (ray, t_max) = &segments[i];
-                    let s = searches[i].get_or_insert_with(|| ShadowSearch::new(ray, *t_max));
-                    if self.occluded_in_leaf(first, packets as usize, &s.prep, &s.tris, s.t_max) {
-                        blocked |= 1 << i;
-                    }
-                }
-            }
-            // Pop the next child with the rays not yet known to be blocked (bounds never
-            // shrink: each ray's segment is fixed).
-            loop {
-                if depth == 0 {
-                    for (i, o) in out.iter_mut().enumerate() {
-                        *o = blocked & (1 << i) != 0;
-                    }
-                    return;
-                }
-                depth -= 1;
-                let e = stack[depth];
-                let keep = e.rays & !blocked;
-                if keep != 0 {
-                    (child, packets, active) = (e.child, e.packets, keep);
-                    break;
-                }
-            }
-        }
-    }
-
-    fn trace_packet(
+    /// [`Bvh::closest_hits`] of one packet of 1..=[`RAY_PACKET`] finite rays.
+    fn trace_closest_packet(
         &self,
         rays: &[Ray],
         out: &mut [Option<ClosestHit>],
-        stack: &mut [PacketEntry; STACK],
+        stack: &mut [RayPacketEntry; STACK],
         ray_stack: &mut [Entry; STACK],
     ) {
-        let boxes = PacketBoxes::new(rays);
+        let boxes = RayPacketTester::new(rays);
         // A packet that misses every child of the root (background) needs no per-ray setup.
         let (some, _, _) = boxes.test_hull(&self.wide[0], f32::INFINITY, f32::INFINITY);
         if some == 0 {
@@ -431,18 +325,18 @@ impl Bvh {
         }
         // Per-ray searches are set up when the ray first reaches a leaf (or goes on alone):
         // rays that miss everything never pay for it.
-        let mut searches: [Option<ClosestSearch>; PACKET] = [None; PACKET];
+        let mut searches: [Option<ClosestSearch>; RAY_PACKET] = [None; RAY_PACKET];
         // Each ray's culling bound, kept in step with its search.
         let mut bounds = [[f32::INFINITY; 4]; GROUPS];
         let mut depth = 0usize;
-        let (mut child, mut packets) = ROOT;
+        let (mut child, mut triangle4_count) = ROOT;
         let mut active = (1u32 << rays.len()) - 1;
         loop {
             if active.count_ones() <= 1 {
                 for i in bits(active) {
                     let single = BoxTester::new(&rays[i]);
                     let search = searches[i].get_or_insert_with(|| ClosestSearch::new(&rays[i]));
-                    self.closest_from((child, packets), &single, search, ray_stack);
+                    self.closest_from((child, triangle4_count), &single, search, ray_stack);
                     bounds[i / 4][i % 4] = search.bound();
                 }
             } else if child & LEAF == 0 {
@@ -450,14 +344,14 @@ impl Bvh {
                 let bound = each4(|g| f32x4::from(bounds[g]));
                 let (enter, entry) = boxes.enter_children(node, active, &bound);
                 if let Some(next) = descend(node, &enter, &entry, stack, &mut depth) {
-                    (child, packets, active) = next;
+                    (child, triangle4_count, active) = next;
                     continue;
                 }
             } else {
                 let first = (child & !LEAF) as usize;
                 for i in bits(active) {
                     let search = searches[i].get_or_insert_with(|| ClosestSearch::new(&rays[i]));
-                    self.closest_in_leaf(first, packets as usize, search);
+                    self.closest_in_leaf(first, triangle4_count as usize, search);
                     bounds[i / 4][i % 4] = search.bound();
                 }
             }
@@ -479,7 +373,7 @@ impl Bvh {
                     }
                 }
                 if keep != 0 {
-                    (child, packets, active) = (e.child, e.packets, keep);
+                    (child, triangle4_count, active) = (e.child, e.triangle4_count, keep);
                     break;
                 }
             }
@@ -489,7 +383,7 @@ impl Bvh {
 
 /// The indices of the set bits of `mask`, lowest first.
 #[inline(always)]
-fn bits(mut mask: u32) -> impl Iterator<Item = usize> {
+pub(super) fn bits(mut mask: u32) -> impl Iterator<Item = usize> {
     std::iter::from_fn(move || {
         (mask != 0).then(|| {
             let i = mask.trailing_zeros() as usize;
@@ -523,20 +417,20 @@ fn bound_range(bound: &[f32x4; GROUPS], active: u32) -> (f32, f32) {
 /// farthest first onto `stack`, except the nearest, which it returns to visit now; `None` when
 /// no ray enters any child.
 #[inline(always)]
-fn descend(
+pub(super) fn descend(
     node: &Node4,
     enter: &[u32; 4],
     entry: &[f32; 4],
-    stack: &mut [PacketEntry; STACK],
+    stack: &mut [RayPacketEntry; STACK],
     depth: &mut usize,
 ) -> Option<(u32, u32, u32)> {
     let mut hit = [NO_ENTRY; 4];
     let mut n = 0;
     for slot in 0..4 {
         if enter[slot] != 0 {
-            let e = PacketEntry {
+            let e = RayPacketEntry {
                 child: node.child[slot],
-                packets: node.packets[slot],
+                triangle4_count: node.triangle4_count[slot],
                 rays: enter[slot],
                 t: entry[slot],
             };
@@ -547,5 +441,5 @@ fn descend(
         return None;
     }
     let e = defer_all_but_nearest(&hit[..n], stack, depth);
-    Some((e.child, e.packets, e.rays))
+    Some((e.child, e.triangle4_count, e.rays))
 }

@@ -1,4 +1,4 @@
-//! Four-wide box and triangle tests over [`Node4`] and [`Packet`] (the `wide` crate: SSE on
+//! Four-wide box and triangle tests over [`Node4`] and [`Triangle4`] (the `wide` crate: SSE on
 //! x86-64, NEON on aarch64, plain arrays elsewhere). Every lane computes the same IEEE
 //! operations in the same order as the scalar code (no FMA, comparisons and selects instead of
 //! min/max), so results are the same bits on every machine:
@@ -9,7 +9,7 @@
 //!   scalar test takes no other path (no edge function exactly 0, no NaN input), and leaves
 //!   the other lanes to `intersect`.
 
-use super::node4::{Node4, Packet};
+use super::node4::{Node4, Triangle4};
 use crate::triangle::{Ray, RayPrep, gamma};
 use wide::f32x4;
 
@@ -107,7 +107,7 @@ struct Edges {
 }
 
 #[inline(always)]
-fn edges(r: &TriangleTester, p: &Packet) -> Edges {
+fn edges(r: &TriangleTester, p: &Triangle4) -> Edges {
     let [kx, ky, kz] = r.axes;
     let [ox, oy, oz] = r.origin;
     let [sx, sy, sz] = r.shear;
@@ -180,7 +180,7 @@ fn too_close(e: &Edges) -> f32x4 {
 /// may hit (`t < t_max`). A lane is dropped only when the scalar test computes the same values
 /// and rejects it.
 #[inline(always)]
-pub(super) fn triangle_candidates(r: &TriangleTester, p: &Packet, t_max: f32) -> u32 {
+pub(super) fn triangle_candidates(r: &TriangleTester, p: &Triangle4, t_max: f32) -> u32 {
     let e = edges(r, p);
     let lanes = (1u32 << p.lanes) - 1;
     let reject = e.rejected | !e.t.simd_lt(f32x4::splat(t_max));
@@ -192,8 +192,8 @@ pub(super) fn triangle_candidates(r: &TriangleTester, p: &Packet, t_max: f32) ->
     keep & !(too_close(&e) & !e.any_zero).to_bitmask()
 }
 
-/// The 4-wide closest-hit test of one packet against `intersect(prep, .., +inf)`.
-pub(super) struct PacketHits {
+/// The 4-wide closest-hit test of one [`Triangle4`] against `intersect(prep, .., +inf)`.
+pub(super) struct Triangle4Hits {
     /// Lanes whose scalar result is a hit with exactly `t[lane]` and barycentrics
     /// `b[..][lane]`, with t <= the `t_max` given (farther hits are left out).
     pub exact: u32,
@@ -204,7 +204,7 @@ pub(super) struct PacketHits {
 }
 
 #[inline(always)]
-pub(super) fn triangle_hits(r: &TriangleTester, p: &Packet, t_max: f32) -> PacketHits {
+pub(super) fn triangle_hits(r: &TriangleTester, p: &Triangle4, t_max: f32) -> Triangle4Hits {
     let e = edges(r, p);
     let lanes = (1u32 << p.lanes) - 1;
     let unsure = e.any_zero | !e.clean;
@@ -214,7 +214,7 @@ pub(super) fn triangle_hits(r: &TriangleTester, p: &Packet, t_max: f32) -> Packe
     if exact != 0 {
         exact &= !too_close(&e).to_bitmask();
     }
-    PacketHits {
+    Triangle4Hits {
         exact,
         scalar,
         t: e.t.to_array(),
@@ -248,7 +248,7 @@ mod tests {
         Vec3::new(coord(rng), coord(rng), coord(rng))
     }
 
-    fn packet(tris: &[[Vec3; 3]; 4]) -> Packet {
+    fn triangle4(tris: &[[Vec3; 3]; 4]) -> Triangle4 {
         let mut v = [[[0.0f32; 4]; 3]; 3];
         for (lane, t) in tris.iter().enumerate() {
             for (c, p) in t.iter().enumerate() {
@@ -257,7 +257,7 @@ mod tests {
                 }
             }
         }
-        Packet {
+        Triangle4 {
             v,
             first: 0,
             lanes: 4,
@@ -270,7 +270,7 @@ mod tests {
     /// pairs, random and degenerate (shared vertices, axis-parallel rays, signed zeros, huge and
     /// tiny coordinates, origins on vertices and on triangles).
     #[test]
-    fn packet_tests_agree_with_the_scalar_test() {
+    fn four_wide_tests_agree_with_the_scalar_test() {
         let mut rng = Rng(42);
         let (mut hits, mut exact_hits) = (0, 0);
         for _ in 0..1_000_000 {
@@ -303,7 +303,7 @@ mod tests {
             let ray = Ray { origin, dir };
             let prep = RayPrep::new(&ray);
             let tester = TriangleTester::new(&prep);
-            let p = packet(&tris);
+            let p = triangle4(&tris);
             let t_max = [f32::INFINITY, rng.unit() * 4.0][(rng.next() % 2) as usize];
             let candidates = triangle_candidates(&tester, &p, t_max);
             let exact = triangle_hits(&tester, &p, t_max);

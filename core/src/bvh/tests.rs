@@ -56,9 +56,9 @@ fn hit_bits(h: &ClosestHit) -> (u32, u32, [u32; 3], u32, [[u32; 3]; 3]) {
     )
 }
 
-/// Packets give every ray exactly the single-ray answer, for packets cut at every offset
-/// (full, partial and one-ray packets).
-fn check_packets_against_single_rays(bvh: &Bvh, rays: &[Ray]) {
+/// Closest-hit ray packets give every ray exactly the single-ray answer, for packets cut at
+/// every offset (full, partial and one-ray packets).
+fn check_ray_packets_against_single_rays(bvh: &Bvh, rays: &[Ray]) {
     let single: Vec<_> = rays
         .iter()
         .map(|r| bvh.closest_hit(r).as_ref().map(hit_bits))
@@ -77,9 +77,9 @@ fn check_packets_against_single_rays(bvh: &Bvh, rays: &[Ray]) {
     }
 }
 
-/// Shadow packets give every segment exactly the single-ray answer, for packets cut at every
+/// Segment packets give every segment exactly the single-ray answer, for packets cut at every
 /// offset; returns how many segments are blocked.
-fn check_shadow_packets_against_single_rays(bvh: &Bvh, segments: &[(Ray, f32)]) -> usize {
+fn check_segment_packets_against_single_rays(bvh: &Bvh, segments: &[(Ray, f32)]) -> usize {
     let single: Vec<bool> = segments.iter().map(|(r, t)| bvh.occluded(r, *t)).collect();
     for skip in [0, 1, 5, 15] {
         let segments = &segments[skip.min(segments.len())..];
@@ -92,7 +92,7 @@ fn check_shadow_packets_against_single_rays(bvh: &Bvh, segments: &[(Ray, f32)]) 
 
 fn check_against_brute_force(tris: &[[Vec3; 3]], rays: &[Ray]) {
     let bvh = bvh_of(tris);
-    check_packets_against_single_rays(&bvh, rays);
+    check_ray_packets_against_single_rays(&bvh, rays);
     let segments: Vec<(Ray, f32)> = rays
         .iter()
         .filter_map(|r| Some((r, bvh.closest_hit(r)?.t)))
@@ -105,7 +105,7 @@ fn check_against_brute_force(tris: &[[Vec3; 3]], rays: &[Ray]) {
             ]
         })
         .collect();
-    let blocked = check_shadow_packets_against_single_rays(&bvh, &segments);
+    let blocked = check_segment_packets_against_single_rays(&bvh, &segments);
     assert!(
         blocked > 0 && blocked < segments.len(),
         "both answers occur ({blocked})"
@@ -200,7 +200,7 @@ fn closest_hit_equals_brute_force_on_the_bunny() {
     let radius = (bounds.hi - bounds.lo).length() * 0.5;
     let rays = random_rays(&mut Rng(3), 2000, centre, radius);
     check_against_brute_force(&tris, &rays);
-    // Coherent camera rays (what packets are for): a 64x48 pinhole grid over the bunny, rows of
+    // Coherent camera rays (what ray packets are for): a 64x48 pinhole grid over the bunny, rows of
     // 64 traced in packets of 16, from an eye outside and from one inside its box.
     let bvh = bvh_of(&tris);
     for eye in [centre + Vec3::new(0.1, 0.5, 1.25) * radius * 2.0, centre] {
@@ -216,7 +216,7 @@ fn closest_hit_equals_brute_force_on_the_bunny() {
                 }
             })
             .collect();
-        check_packets_against_single_rays(&bvh, &rays);
+        check_ray_packets_against_single_rays(&bvh, &rays);
         let hits = rays.iter().filter(|r| bvh.closest_hit(r).is_some()).count();
         assert!(hits > 200, "camera rays should hit the bunny ({hits})");
         // Coherent shadow segments: from each hit point to a light above the bunny.
@@ -235,7 +235,7 @@ fn closest_hit_equals_brute_force_on_the_bunny() {
                 ))
             })
             .collect();
-        let blocked = check_shadow_packets_against_single_rays(&bvh, &segments);
+        let blocked = check_segment_packets_against_single_rays(&bvh, &segments);
         assert!(
             blocked > 20 && blocked < segments.len(),
             "some shadows ({blocked})"

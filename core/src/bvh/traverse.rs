@@ -3,7 +3,7 @@
 //! exceeds the current bound by a relative margin, so culling never changes the answer.
 
 use super::node4::{LEAF, Node4};
-use super::packet::{BoxTester, TriangleTester, each3, triangle_candidates, triangle_hits};
+use super::simd4::{BoxTester, TriangleTester, each3, triangle_candidates, triangle_hits};
 use super::{Aabb, Bvh};
 use crate::triangle::{Ray, RayPrep, TriangleHit, gamma, intersect};
 use glam::Vec3;
@@ -79,20 +79,20 @@ pub fn segment_may_hit(bounds: &Aabb, ray: &Ray, t_max: f32) -> bool {
         .is_some()
 }
 
-/// The child word and packet count that stand for the whole tree (wide node 0).
+/// The child word and `Triangle4` count that stand for the whole tree (wide node 0).
 pub(super) const ROOT: (u32, u32) = (0, 0);
 
-/// A deferred child: its child word, packet count and entry distance.
+/// A deferred child: its child word, `Triangle4` count and entry distance.
 #[derive(Clone, Copy)]
 pub(super) struct Entry {
     child: u32,
-    packets: u32,
+    triangle4_count: u32,
     t: f32,
 }
 
 const NO_ENTRY: Entry = Entry {
     child: 0,
-    packets: 0,
+    triangle4_count: 0,
     t: 0.0,
 };
 
@@ -104,7 +104,7 @@ thread_local! {
 }
 
 /// One ray's closest-hit search: its constants for the triangle tests and its best hit so far
-/// (triangle hit, packet index, lane). Shared by single rays and coherent packets, so both
+/// (triangle hit, `Triangle4` index, lane). Shared by single rays and ray packets, so both
 /// keep exactly the same best hit.
 #[derive(Clone, Copy)]
 pub(super) struct ClosestSearch {
@@ -160,8 +160,8 @@ impl Bvh {
     /// The finished search's hit.
     #[inline(always)]
     pub(super) fn closest_result(&self, search: &ClosestSearch) -> Option<ClosestHit> {
-        search.best.map(|(h, packet, lane)| {
-            let p = &self.packets[packet];
+        search.best.map(|(h, k, lane)| {
+            let p = &self.triangles[k];
             let index = p.first as usize + lane;
             ClosestHit {
                 id: self.ids[index],
@@ -173,12 +173,12 @@ impl Bvh {
         })
     }
 
-    /// Tests the `count` packets from `first` (one leaf) against the search's ray, keeping the
+    /// Tests the `count` `Triangle4`s from `first` (one leaf) against the search's ray, keeping the
     /// best hit.
     #[inline(always)]
     pub(super) fn closest_in_leaf(&self, first: usize, count: usize, s: &mut ClosestSearch) {
         for k in first..first + count {
-            let p = &self.packets[k];
+            let p = &self.triangles[k];
             let wide = triangle_hits(&s.tris, p, s.best_t);
             let mut lanes = wide.exact | wide.scalar;
             while lanes != 0 {
@@ -207,7 +207,7 @@ impl Bvh {
         }
     }
 
-    /// Continues `s` over the subtree whose child word and packet count are `start` (the
+    /// Continues `s` over the subtree whose child word and `Triangle4` count are `start` (the
     /// whole tree for [`ROOT`]).
     #[inline(always)]
     pub(super) fn closest_from(
@@ -218,17 +218,17 @@ impl Bvh {
         stack: &mut [Entry; STACK],
     ) {
         let mut depth = 0usize;
-        let (mut child, mut packets) = start;
+        let (mut child, mut triangle4_count) = start;
         loop {
             if child & LEAF == 0 {
                 let node = &self.wide[child as usize];
                 let (mask, t0) = boxes.test(node, s.bound());
                 if mask != 0 {
-                    (child, packets) = descend(node, mask, &t0, stack, &mut depth);
+                    (child, triangle4_count) = descend(node, mask, &t0, stack, &mut depth);
                     continue;
                 }
             } else {
-                self.closest_in_leaf((child & !LEAF) as usize, packets as usize, s);
+                self.closest_in_leaf((child & !LEAF) as usize, triangle4_count as usize, s);
             }
             // Pop the next child still worth visiting: entering at or before the (scaled) best
             // t is exactly when its box test with the current bound would still pass.
@@ -239,7 +239,7 @@ impl Bvh {
                 depth -= 1;
                 let e = stack[depth];
                 if e.t <= s.bound() {
-                    (child, packets) = (e.child, e.packets);
+                    (child, triangle4_count) = (e.child, e.triangle4_count);
                     break;
                 }
             }
@@ -263,8 +263,8 @@ impl Bvh {
     }
 
     /// Whether the segment `0 < t < t_max` of the ray that `prep`, `boxes` and `tris` were made
-    /// for is blocked by a triangle of the subtree whose child word and packet count are `start`
-    /// (the whole tree for [`ROOT`]).
+    /// for is blocked by a triangle of the subtree whose child word and `Triangle4` count are
+    /// `start` (the whole tree for [`ROOT`]).
     #[inline(always)]
     pub(super) fn occluded_from(
         &self,
@@ -277,19 +277,19 @@ impl Bvh {
     ) -> bool {
         let limit = t_max * CULL_MARGIN;
         let mut depth = 0usize;
-        let (mut child, mut packets) = start;
+        let (mut child, mut triangle4_count) = start;
         loop {
             if child & LEAF == 0 {
                 let node = &self.wide[child as usize];
                 let (mask, t0) = boxes.test(node, limit);
                 if mask != 0 {
                     // Nearest first here too: +15-35% shadow rays/s against slot order.
-                    (child, packets) = descend(node, mask, &t0, stack, &mut depth);
+                    (child, triangle4_count) = descend(node, mask, &t0, stack, &mut depth);
                     continue;
                 }
             } else if self.occluded_in_leaf(
                 (child & !LEAF) as usize,
-                packets as usize,
+                triangle4_count as usize,
                 prep,
                 tris,
                 t_max,
@@ -300,11 +300,11 @@ impl Bvh {
                 return false;
             }
             depth -= 1;
-            (child, packets) = (stack[depth].child, stack[depth].packets);
+            (child, triangle4_count) = (stack[depth].child, stack[depth].triangle4_count);
         }
     }
 
-    /// Whether a triangle of the `count` packets from `first` (one leaf) blocks the segment.
+    /// Whether a triangle of the `count` `Triangle4`s from `first` (one leaf) blocks the segment.
     #[inline(always)]
     pub(super) fn occluded_in_leaf(
         &self,
@@ -314,7 +314,7 @@ impl Bvh {
         tris: &TriangleTester,
         t_max: f32,
     ) -> bool {
-        for p in &self.packets[first..first + count] {
+        for p in &self.triangles[first..first + count] {
             let mut lanes = triangle_candidates(tris, p, t_max);
             while lanes != 0 {
                 let lane = lanes.trailing_zeros() as usize;
@@ -329,7 +329,8 @@ impl Bvh {
     }
 }
 
-/// One shadow ray's constants for the any-hit tests of a packet: the segment `0 < t < t_max`.
+/// One shadow ray's constants for the any-hit leaf tests of a segment packet: the segment
+/// `0 < t < t_max`.
 #[derive(Clone, Copy)]
 pub(super) struct ShadowSearch {
     pub prep: RayPrep,
@@ -350,7 +351,7 @@ impl ShadowSearch {
 }
 
 /// Defers the children of `node` in `mask` (entry distances `t0`) farthest first onto `stack`
-/// except the nearest, which it returns (child word, packet count) to visit now.
+/// except the nearest, which it returns (child word, `Triangle4` count) to visit now.
 #[inline(always)]
 fn descend(
     node: &Node4,
@@ -365,14 +366,14 @@ fn descend(
         if mask & (1 << slot) != 0 {
             let e = Entry {
                 child: node.child[slot],
-                packets: node.packets[slot],
+                triangle4_count: node.triangle4_count[slot],
                 t,
             };
             n = insert_farthest_first(&mut hit, n, e, |e| e.t);
         }
     }
     let e = defer_all_but_nearest(&hit[..n], stack, depth);
-    (e.child, e.packets)
+    (e.child, e.triangle4_count)
 }
 
 /// Inserts `e` among the first `n` entries of `sorted`, kept farthest first by `t`; returns the
