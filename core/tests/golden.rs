@@ -1,0 +1,127 @@
+//! Golden digests of monolithic renders of the bundled scenes.
+//!
+//! Each case loads a scene with `load_scene`, builds the BVH, renders it monolithically at a
+//! small size, and hashes (64-bit FNV-1a) the PFM bytes of the linear image and the hit-buffer
+//! bytes. The digests are pinned: any change to what the renderer computes (loading, BVH,
+//! intersection, camera, sampling, shading) or to the two encodings changes them.
+//!
+//! The same digests must hold on x86-64 and on aarch64: the renderer uses no fused multiply-add
+//! and no platform libm, so its output is the same bits on both. A digest that differs on one
+//! architecture is a portability bug, not a reason to re-pin.
+//!
+//! To re-pin after an intended change of the output, run
+//! `cargo test -p hort-core --test golden -- --nocapture` and copy the printed lines.
+
+use hort_core::hits::encode_hits;
+use hort_core::image::encode_pfm;
+use hort_core::render::{RenderSettings, build_scene_bvh, render};
+use hort_core::scene::load_scene;
+use std::path::Path;
+
+/// 64-bit FNV-1a (offset basis 0xcbf29ce484222325, prime 0x100000001b3).
+fn fnv1a64(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    })
+}
+
+/// One pinned render: scene path (relative to the repository root), size, samples per pixel,
+/// and the FNV-1a 64 digests of the PFM and of the hit buffer.
+struct Golden {
+    scene: &'static str,
+    width: u32,
+    height: u32,
+    spp: u32,
+    pfm: u64,
+    hits: u64,
+}
+
+const GOLDEN: [Golden; 5] = [
+    Golden {
+        scene: "scenes/bunny/bunny.json",
+        width: 64,
+        height: 48,
+        spp: 1,
+        pfm: 0xe2d2_4219_88a4_c244,
+        hits: 0xeef7_0c1d_2e59_1bac,
+    },
+    Golden {
+        scene: "scenes/teapot/teapot.json",
+        width: 64,
+        height: 48,
+        spp: 1,
+        pfm: 0x2841_efe0_88f9_d2d7,
+        hits: 0x12a1_2b15_d81e_b603,
+    },
+    Golden {
+        scene: "scenes/cornell/cornell.json",
+        width: 64,
+        height: 48,
+        spp: 1,
+        pfm: 0xd7da_80db_92c6_f24d,
+        hits: 0xa299_c400_3931_6944,
+    },
+    Golden {
+        scene: "scenes/bunny/bunny.obj",
+        width: 64,
+        height: 48,
+        spp: 1,
+        pfm: 0x3a1e_b4f8_f085_a4c5,
+        hits: 0xf694_554b_216e_75e8,
+    },
+    Golden {
+        scene: "scenes/bunny/bunny.json",
+        width: 64,
+        height: 48,
+        spp: 4,
+        pfm: 0x0f17_e090_850c_1cb2,
+        hits: 0x9443_ca9c_8e81_dca9,
+    },
+];
+
+#[test]
+fn fnv1a64_known_vectors() {
+    assert_eq!(fnv1a64(b""), 0xcbf2_9ce4_8422_2325);
+    assert_eq!(fnv1a64(b"a"), 0xaf63_dc4c_8601_ec8c);
+    assert_eq!(fnv1a64(b"foobar"), 0x8594_4171_f739_67e8);
+}
+
+#[test]
+fn bundled_scenes_render_to_the_pinned_digests() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let mut failures = Vec::new();
+    for g in &GOLDEN {
+        let scene = load_scene(&root.join(g.scene)).unwrap_or_else(|e| panic!("{}: {e}", g.scene));
+        let bvh = build_scene_bvh(&scene.mesh);
+        let settings = RenderSettings {
+            width: g.width,
+            height: g.height,
+            spp: g.spp,
+            threads: 2,
+        };
+        let out = render(&scene, &bvh, settings).unwrap_or_else(|e| panic!("{}: {e}", g.scene));
+        assert!(
+            out.hits.iter().any(|h| !h.is_miss()),
+            "{}: the camera sees nothing",
+            g.scene
+        );
+        let pfm = fnv1a64(&encode_pfm(&out.image));
+        let hits = fnv1a64(&encode_hits(&out.hits));
+        let (w, h, spp) = (g.width, g.height, g.spp);
+        println!(
+            "{} {w}x{h} spp {spp}: pfm: {pfm:#018x}, hits: {hits:#018x},",
+            g.scene
+        );
+        if (pfm, hits) != (g.pfm, g.hits) {
+            failures.push(format!(
+                "{} {w}x{h} spp {spp}: pfm {pfm:#018x} (pinned {:#018x}), hits {hits:#018x} (pinned {:#018x})",
+                g.scene, g.pfm, g.hits
+            ));
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "digests changed:\n{}",
+        failures.join("\n")
+    );
+}
