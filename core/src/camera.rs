@@ -1,4 +1,5 @@
-//! The pinhole camera of DESIGN.md. Ray directions are computed in f64 and rounded once to f32:
+//! The pinhole camera of the default scene contract (docs/ARCHITECTURE.md). Ray directions are
+//! computed in f64 and rounded once to f32:
 //! for pixel position (px, py) (pixel centre at x + 0.5), with tan = tan(vfov / 2),
 //! dir = normalize(f + ((2·px/W - 1)·tan·W/H)·r + ((1 - 2·py/H)·tan)·u), row 0 at the top.
 //!

@@ -9,10 +9,11 @@ use std::fmt;
 /// Whether running the same task again may succeed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum ErrorType {
-    /// Storage trouble, throttling, a lost or corrupt block that could not be recomputed yet:
-    /// `Hort.Retryable`.
+    /// Storage trouble (throttling, timeouts, 5xx) or a corrupt object that a retry may find
+    /// rewritten: `Hort.Retryable`.
     Retryable,
-    /// A bad scene, request or event: `Hort.BadInput`. No retry can fix it.
+    /// A bad scene, request or event, or an object that does not exist (S3 is strongly
+    /// consistent, so it will not appear on a retry): `Hort.BadInput`. No retry can fix it.
     BadInput,
 }
 

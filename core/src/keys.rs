@@ -7,14 +7,15 @@
 //! jobs/{job}/splits/{split:05}.bin               one scene split with its BVH
 //! jobs/{job}/{stage}/{task:05}/part-{p:05}       one shuffle partition of one task's output
 //! jobs/{job}/items/{stage}.json                 the task items of one Map state
-//! jobs/{job}/out/image.{ext}                     the final image (png, pfm, exr)
+//! jobs/{job}/out/image.{ext}                     the final image (png, pfm)
 //! jobs/{job}/out/hits.bin                        the hit buffer
 //! ```
 //!
 //! Indices are zero-padded to five digits so that, below 100 000, listing a prefix returns tasks
 //! and partitions in numeric order (lists are sorted by bytes). Larger indices still produce
-//! unique keys, with more digits. Keys contain only `[a-z0-9-./]` plus the image extension, all
-//! safe in S3 without escaping. Keys do not contain the attempt: every attempt of a task writes the
+//! unique keys, with more digits. Keys this module makes contain only `[a-z0-9-./]` plus the image
+//! extension, all safe in S3 without escaping; scene files keep the names the user gave them
+//! under `jobs/{job}/scene/`. Keys do not contain the attempt: every attempt of a task writes the
 //! same bytes to the same keys.
 
 use crate::ids::{JobId, PartitionId, SplitId, Stage, TaskId};

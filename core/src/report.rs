@@ -1,13 +1,14 @@
-//! The `--report` JSON of the command-line contract (docs/ARCHITECTURE.md): one object with `width`,
-//! `height`, `triangles`, `rays {primary, shadow}`, `seconds {total, render}`, `stages[]`,
-//! `replication` and `cost_usd`. Fields that do not apply (monolithic mode) are null or empty.
+//! The `--report` JSON of the command-line contract (docs/ARCHITECTURE.md): one object with
+//! `width`, `height`, `triangles`, `rays {primary, shadow}`, `seconds {total, render}`, `stages[]`,
+//! `replication` and `cost_usd`. Fields that do not apply to a mode are null or empty
+//! (`stages`, `replication` and `cost_usd` in monolithic mode; `cost_usd` in process).
 
 use serde::{Deserialize, Serialize};
 
 /// A render report. Field names are part of the contract; more fields may be added.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Report {
-    /// `"monolithic"` or `"pipeline"`.
+    /// `"monolithic"`, `"pipeline"` (in process, `--in-process`) or `"emulator"`.
     pub mode: String,
     pub scene: String,
     pub width: u32,

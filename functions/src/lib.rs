@@ -8,6 +8,7 @@
 //!   configured by [`S3Config`] ([`s3_config`]); SDK errors are classified in one private
 //!   module, `s3_errors`, into the core's `StoreError` with one-line messages.
 #![forbid(unsafe_code)]
+#![warn(missing_docs)]
 
 pub use hort_core as core;
 

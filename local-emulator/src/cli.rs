@@ -1,4 +1,5 @@
-//! The command-line contract of DESIGN.md: names and meanings scripts rely on.
+//! The command-line contract (docs/ARCHITECTURE.md, "Command line"): names and meanings scripts
+//! rely on.
 
 use clap::{Args, Parser, Subcommand};
 use hort_core::pipeline::SplitMode;

@@ -4,6 +4,7 @@
 //! S3-compatible endpoint). The `hort` binary (`src/main.rs`) adds the command line and the
 //! benchmarks.
 #![forbid(unsafe_code)]
+#![warn(missing_docs)]
 
 pub mod emulator;
 pub mod progress;

@@ -102,14 +102,26 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if let Some(path) = &args.report {
         write_file(path, report.to_json().as_bytes())?;
     }
+    print_run_summary(&report, rendered.render_seconds, &out)
+}
+
+/// The summary every render mode prints to standard error: the stage table (pipeline modes),
+/// then one line of size, mode, time, ray throughput and output path.
+fn print_run_summary(report: &Report, render_seconds: f64, out: &Path) -> Result<()> {
+    if !report.stages.is_empty() {
+        let mut table = Vec::new();
+        print_summary(&report.stages, &mut table).context("summary")?;
+        eprint!("{}", String::from_utf8_lossy(&table));
+    }
+    let (width, height, spp) = (report.width, report.height, report.spp);
     let mrays =
-        (report.rays.primary + report.rays.shadow) as f64 / rendered.render_seconds.max(1e-9) / 1e6;
+        (report.rays.primary + report.rays.shadow) as f64 / render_seconds.max(1e-9) / 1e6;
     eprintln!(
         "rendered {width}x{height} at {spp} spp ({}), {} triangles: {:.3} s render ({mrays:.2} Mrays/s on {} threads), {:.3} s total -> {}",
         report.mode,
         report.triangles,
-        rendered.render_seconds,
-        rendered.threads,
+        render_seconds,
+        report.threads,
         report.seconds.total,
         out.display()
     );
@@ -238,9 +250,6 @@ fn render_emulated(args: &RenderArgs, request: PlanRequest) -> Result<Rendered> 
     };
     let progress = ProgressObserver::new(ProgressMode::detect());
     let run = run_job(&config, &args.scene, request, &progress)?;
-    let mut summary = Vec::new();
-    print_summary(&run.stages, &mut summary).context("summary")?;
-    eprint!("{}", String::from_utf8_lossy(&summary));
     let retries = run.failed_attempts();
     if let Some(f) = &run.faults {
         eprintln!(

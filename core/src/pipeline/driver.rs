@@ -13,8 +13,7 @@ use crate::image::Image;
 use crate::report::StageReport;
 use crate::scene::Scene;
 use crate::store::BlobStore;
-use std::sync::Mutex;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use crate::worker_pool::run_indexed;
 use std::time::Instant;
 
 /// How to run a job in process.
@@ -110,6 +109,7 @@ pub fn run_pipeline(
 }
 
 /// Runs tasks `0..tasks` of `stage` on one thread per cache; the first error stops the stage.
+/// The summed metrics do not depend on which worker ran which task (integer sums).
 fn run_stage(
     store: &dyn BlobStore,
     job: &JobId,
@@ -118,34 +118,12 @@ fn run_stage(
     tasks: usize,
     caches: &[SplitCache],
 ) -> Result<TaskMetrics, PipelineError> {
-    let next = AtomicUsize::new(0);
-    let failed = AtomicBool::new(false);
-    let total = Mutex::new(TaskMetrics::default());
-    let first_error: Mutex<Option<PipelineError>> = Mutex::new(None);
-    std::thread::scope(|scope| {
-        for cache in caches.iter().take(tasks) {
-            scope.spawn(|| {
-                while !failed.load(Ordering::Relaxed) {
-                    let task = next.fetch_add(1, Ordering::Relaxed);
-                    if task >= tasks {
-                        break;
-                    }
-                    match run_task_cached(store, job, plan, stage, task as u32, cache) {
-                        Ok(m) => *total.lock().unwrap_or_else(|e| e.into_inner()) += m,
-                        Err(e) => {
-                            failed.store(true, Ordering::Relaxed);
-                            first_error
-                                .lock()
-                                .unwrap_or_else(|e| e.into_inner())
-                                .get_or_insert(e);
-                        }
-                    }
-                }
-            });
-        }
-    });
-    match first_error.into_inner().unwrap_or_else(|e| e.into_inner()) {
-        Some(e) => Err(e),
-        None => Ok(total.into_inner().unwrap_or_else(|e| e.into_inner())),
-    }
+    let mut total = TaskMetrics::default();
+    run_indexed(
+        caches,
+        tasks,
+        |cache, task| run_task_cached(store, job, plan, stage, task as u32, cache),
+        |_, metrics| total += metrics,
+    )?;
+    Ok(total)
 }

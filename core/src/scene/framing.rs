@@ -1,5 +1,5 @@
-//! The documented defaults (DESIGN.md, "Defaults a user sees"): a camera that frames the scene's
-//! bounding box and one point light above it.
+//! The documented defaults (docs/ARCHITECTURE.md, "Default scene"): a camera that frames the
+//! scene's bounding box and one point light above it.
 
 use super::mesh::Mesh;
 use super::{CameraSpec, Light};

@@ -1,5 +1,6 @@
 //! One invocation from JSON to JSON: decode the event, run the handler, encode the answer, and
-//! classify any failure. Lambda mains and the local emulator both go through [`dispatch`].
+//! classify any failure. The local emulator calls [`dispatch`] for every invocation; a Lambda
+//! entry point would do the same.
 
 use std::path::Path;
 

@@ -4,9 +4,10 @@
 //! the state machine's error type; the local emulator calls it for every invocation.
 //!
 //! Error contract with the state machine (`infra/statemachine.asl.json`): a handler fails with
-//! [`ErrorType::Retryable`] (`Hort.Retryable`: storage trouble, a lost or corrupt block that
-//! could not be recomputed; retried with backoff) or [`ErrorType::BadInput`] (`Hort.BadInput`: a
-//! bad scene, request or event; never retried).
+//! [`ErrorType::Retryable`] (`Hort.Retryable`: storage trouble, a corrupt object; retried with
+//! backoff) or [`ErrorType::BadInput`] (`Hort.BadInput`: a bad scene, request or event, a missing
+//! object; never retried). Missing or corrupt shuffle blocks never reach the state machine: the
+//! consuming task recomputes them from lineage first.
 
 mod dispatch;
 mod events;

@@ -11,6 +11,9 @@
 //! finish (up to 5 s) and joins the runtime; drop it outside async tasks (a plain thread or
 //! `main`), as for any tokio runtime. Objects stay on disk after the server stops.
 
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
 mod object_files;
 
 use std::io;

@@ -13,11 +13,15 @@ use std::time::Instant;
 pub struct StageUsage {
     /// The state's name (`Plan`, `CastMap`, …).
     pub state: String,
+    /// Wall-clock seconds from entering the state to leaving it.
     pub seconds: f64,
+    /// Function invocations started for the state (first attempts and retries).
     pub attempts: u64,
+    /// Attempts that failed (errors and timeouts), whether retried or not.
     pub failed_attempts: u64,
     /// Child executions a Map started (its items).
     pub items: u64,
+    /// Storage requests and bytes while the state ran (all attempts, zombies included).
     pub traffic: StoreStats,
 }
 
@@ -33,6 +37,7 @@ struct State {
 }
 
 impl Accounting {
+    /// Accounting over the requests counted by `store`.
     pub fn new(store: Arc<CountingStore<S3Store>>) -> Self {
         Accounting {
             store,

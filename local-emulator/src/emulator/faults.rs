@@ -17,9 +17,14 @@ use std::time::{Duration, Instant};
 /// Probabilities (per attempt) and seed of the injected faults.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FaultSettings {
+    /// Probability that an attempt fails (half before running, half after writing part of its
+    /// outputs), 0 to 1.
     pub fail_rate: f64,
+    /// Probability that an attempt is delivered twice, running concurrently, 0 to 1.
     pub duplicate_rate: f64,
+    /// Probability that an attempt straggles past its timeout, 0 to 1.
     pub slow_rate: f64,
+    /// Seed of every decision: the same seed injects the same faults.
     pub seed: u64,
     /// The paper's experiment: this many seconds into the run, one function slot dies: the
     /// attempt it runs is lost (it never answers, so it times out and is retried) and the slot
@@ -40,9 +45,13 @@ impl FaultSettings {
 /// How many faults were injected.
 #[derive(Debug, Default)]
 pub struct FaultCounts {
+    /// Attempts failed before running.
     pub failed_before: AtomicU64,
+    /// Attempts failed after writing part of their outputs.
     pub failed_after_writing: AtomicU64,
+    /// Attempts delivered twice.
     pub duplicated: AtomicU64,
+    /// Attempts that straggled past their timeout.
     pub slowed: AtomicU64,
     /// Function slots that died (0 or 1).
     pub slots_killed: AtomicU64,
@@ -55,6 +64,7 @@ pub struct FaultyInvoker {
     settings: FaultSettings,
     /// Multiplies timeouts (the orchestrator's time scale), so stragglers outlive theirs.
     time_scale: f64,
+    /// What was injected so far.
     pub counts: Arc<FaultCounts>,
     started: Instant,
     /// Set when the run is over: releases a dead slot's thread.
@@ -62,6 +72,8 @@ pub struct FaultyInvoker {
 }
 
 impl FaultyInvoker {
+    /// Wraps `inner`, whose attempts see `store` through the faults; `time_scale` is the
+    /// orchestrator's, so stragglers outlive their scaled timeouts.
     pub fn new(
         inner: Arc<InProcessInvoker>,
         store: Arc<dyn BlobStore>,

@@ -34,11 +34,13 @@ use std::time::Instant;
 /// How the emulator runs a job.
 #[derive(Clone, Debug)]
 pub struct EmulatorConfig {
+    /// Which S3 service holds the job.
     pub storage: StorageTarget,
     /// Job id; a fresh one per run when `None`.
     pub job: Option<String>,
     /// Concurrent function slots (Lambda concurrency).
     pub workers: usize,
+    /// Seeded faults to inject (none by default).
     pub faults: FaultSettings,
     /// Multiplies the state machine's waits and timeouts (1.0 = real time).
     pub time_scale: f64,
@@ -48,6 +50,7 @@ pub struct EmulatorConfig {
     pub split_cache_bytes: u64,
     /// Lambda memory and architecture the cost estimate assumes.
     pub memory_mb: u32,
+    /// Lambda architecture the cost estimate assumes.
     pub arch: Arch,
     /// Set to stop the run (Ctrl-C).
     pub cancel: Arc<AtomicBool>,
@@ -55,19 +58,29 @@ pub struct EmulatorConfig {
 
 /// A finished job as the emulator saw it.
 pub struct EmulatorRun {
+    /// The job's id.
     pub job: JobId,
+    /// The S3 endpoint the job ran against.
     pub endpoint: String,
+    /// The plan the Plan function stored.
     pub plan: JobPlan,
+    /// The linear image the Combine function stored (bit-exact from its PFM).
     pub image: Image,
     /// The PNG the Combine function stored.
     pub png: Vec<u8>,
+    /// The hit buffer the Combine function stored.
     pub hits: Vec<Hit>,
     /// `plan`, then the five task stages, then `combine`.
     pub stages: Vec<StageReport>,
+    /// What each top-level state used (time, attempts, storage traffic), in order entered.
     pub usage: Vec<StageUsage>,
+    /// What the function invocations did.
     pub ledger: Ledger,
+    /// Faults injected, when any were asked for.
     pub faults: Option<Arc<FaultCounts>>,
+    /// The AWS cost estimate of the run.
     pub cost: CostBreakdown,
+    /// Wall-clock seconds of the whole job, upload to outputs read back.
     pub seconds: f64,
 }
 

@@ -18,19 +18,28 @@ pub const EMBEDDED_BUCKET: &str = "hort";
 #[derive(Clone, Debug)]
 pub enum StorageTarget {
     /// Start an S3 server in this process over `data_dir` (a temporary folder when `None`).
-    Embedded { data_dir: Option<PathBuf> },
+    Embedded {
+        /// Where objects are kept after the run; a temporary folder, removed at exit, if `None`.
+        data_dir: Option<PathBuf>,
+    },
     /// Use an S3-compatible endpoint (MinIO, Garage, Ceph RGW, moto, AWS).
     External {
+        /// The endpoint URL, e.g. `http://127.0.0.1:9000`.
         endpoint: String,
+        /// The bucket holding the jobs (created if absent).
         bucket: String,
+        /// How requests are signed.
         credentials: S3Credentials,
     },
 }
 
 /// An opened bucket: the store every function and the orchestrator use, with request counts.
 pub struct Storage {
+    /// The bucket's objects over the S3 protocol, with request counts.
     pub store: Arc<CountingStore<S3Store>>,
+    /// The bucket's name.
     pub bucket: String,
+    /// The S3 endpoint URL the store talks to.
     pub endpoint: String,
     /// Keeps the embedded server (and its temporary folder) alive.
     _server: Option<EmbeddedS3>,
