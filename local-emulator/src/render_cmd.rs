@@ -114,8 +114,7 @@ fn print_run_summary(report: &Report, render_seconds: f64, out: &Path) -> Result
         eprint!("{}", String::from_utf8_lossy(&table));
     }
     let (width, height, spp) = (report.width, report.height, report.spp);
-    let mrays =
-        (report.rays.primary + report.rays.shadow) as f64 / render_seconds.max(1e-9) / 1e6;
+    let mrays = (report.rays.primary + report.rays.shadow) as f64 / render_seconds.max(1e-9) / 1e6;
     eprintln!(
         "rendered {width}x{height} at {spp} spp ({}), {} triangles: {:.3} s render ({mrays:.2} Mrays/s on {} threads), {:.3} s total -> {}",
         report.mode,

@@ -5,6 +5,7 @@
 //! minus in-process is storage round trips over S3 and orchestration. Then the paper's fault
 //! experiment: one of 16 function slots dies mid-run.
 
+use super::BenchCommon;
 use super::scenes::generated;
 use super::table::{Table, f3};
 use anyhow::Result;
@@ -16,7 +17,6 @@ use hort_core::pipeline::{PipelineOptions, PlanRequest, SplitMode, run_pipeline}
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
 use hort_core::scene::load_scene;
 use hort_core::store::MemoryStore;
-use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
@@ -24,19 +24,12 @@ use std::time::Instant;
 /// Options of `hort bench emulator`.
 #[derive(clap::Args, Clone, Debug)]
 pub struct EmulatorBenchArgs {
+    /// Triangles of the generated scene.
     #[arg(long, default_value_t = 1_000_000)]
     pub triangles: u64,
-    #[arg(long, default_value_t = 1920)]
-    pub width: u32,
-    #[arg(long, default_value_t = 1080)]
-    pub height: u32,
-    /// Threads of the monolithic render and function slots of the pipeline (default: cores).
-    #[arg(long)]
-    pub threads: Option<usize>,
-    #[arg(long)]
-    pub csv: Option<PathBuf>,
-    #[arg(long, default_value = "target/bench-scenes")]
-    pub scene_dir: PathBuf,
+    /// Image size, threads, CSV output and scene cache.
+    #[command(flatten)]
+    pub common: BenchCommon,
     /// Skip the 16-slot fault experiment.
     #[arg(long)]
     pub skip_faults: bool,
@@ -58,15 +51,15 @@ fn emulator_config(workers: usize, faults: FaultSettings) -> EmulatorConfig {
 }
 
 pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
-    let threads = args.threads.unwrap_or_else(available_cores);
-    let path = generated(&args.scene_dir, args.triangles, 1)?;
+    let threads = args.common.threads.unwrap_or_else(available_cores);
+    let path = generated(&args.common.scene_dir, args.triangles, 1)?;
     let scene = load_scene(&path)?;
     let mut table = Table::new(
         &format!(
             "emulator vs monolithic: {} triangles, {}x{}, {threads} threads/slots (ratio = time / monolithic)",
             scene.mesh.triangle_count(),
-            args.width,
-            args.height
+            args.common.width,
+            args.common.height
         ),
         &[
             "run",
@@ -81,8 +74,8 @@ pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
     let start = Instant::now();
     let bvh = build_scene_bvh(&scene.mesh);
     let settings = RenderSettings {
-        width: args.width,
-        height: args.height,
+        width: args.common.width,
+        height: args.common.height,
         spp: 1,
         threads,
     };
@@ -100,8 +93,8 @@ pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
     ]);
     for (name, k) in [("MR1 k=1 s=16", 1u32), ("MR2 k=8 s=16 spatial", 8)] {
         let request = PlanRequest {
-            width: args.width,
-            height: args.height,
+            width: args.common.width,
+            height: args.common.height,
             spp: 1,
             splits: Some(k),
             spans: Some(16),
@@ -154,7 +147,7 @@ pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
     }
     for t in &tables {
         t.print();
-        if let Some(csv) = &args.csv {
+        if let Some(csv) = &args.common.csv {
             t.append_csv(csv)?;
         }
     }
@@ -172,8 +165,8 @@ fn fault_table(
     reference: &[[f32; 3]],
 ) -> Result<Table> {
     let job = PlanRequest {
-        width: args.width,
-        height: args.height,
+        width: args.common.width,
+        height: args.common.height,
         spp: 1,
         splits: Some(8),
         spans: Some(16),

@@ -22,3 +22,24 @@ pub trait MemoryMeter {
     /// Starts a new high-water mark from the current allocation.
     fn reset_peak(&self);
 }
+
+/// Options the pipeline and emulator benchmarks share.
+#[derive(clap::Args, Clone, Debug)]
+pub struct BenchCommon {
+    /// Image width.
+    #[arg(long, default_value_t = 1920)]
+    pub width: u32,
+    /// Image height.
+    #[arg(long, default_value_t = 1080)]
+    pub height: u32,
+    /// Threads of the monolithic render, and workers (function slots) of the pipeline
+    /// (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Append every table to this CSV file.
+    #[arg(long)]
+    pub csv: Option<std::path::PathBuf>,
+    /// Where generated scenes are cached.
+    #[arg(long, default_value = "target/bench-scenes")]
+    pub scene_dir: std::path::PathBuf,
+}

@@ -2,9 +2,9 @@
 //! same machine and threads (time ratios, extra traversal, shuffle bytes per pixel), the pairs
 //! spatial splits let stages skip, and per-task memory peaks against the monolithic render's.
 
-use super::MemoryMeter;
 use super::scenes::{bundled, generated};
 use super::table::{Table, f3};
+use super::{BenchCommon, MemoryMeter};
 use anyhow::{Result, ensure};
 use hort_core::ids::{JobId, SplitId, Stage};
 use hort_core::keys::split_key;
@@ -15,7 +15,6 @@ use hort_core::pipeline::{
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
 use hort_core::scene::{Scene, load_scene};
 use hort_core::store::{BlobStore, MemoryStore};
-use std::path::PathBuf;
 use std::time::Instant;
 
 /// Options of `hort bench pipeline`.
@@ -27,27 +26,17 @@ pub struct PipelineBenchArgs {
     /// Triangles of the generated scene for the memory table.
     #[arg(long, default_value_t = 2_000_000)]
     pub memory_triangles: u64,
-    #[arg(long, default_value_t = 1920)]
-    pub width: u32,
-    #[arg(long, default_value_t = 1080)]
-    pub height: u32,
-    /// Threads of the monolithic render and workers of the pipeline (default: all cores).
-    #[arg(long)]
-    pub threads: Option<usize>,
-    /// Append every table to this CSV file.
-    #[arg(long)]
-    pub csv: Option<PathBuf>,
-    /// Where generated scenes are cached.
-    #[arg(long, default_value = "target/bench-scenes")]
-    pub scene_dir: PathBuf,
+    /// Image size, threads, CSV output and scene cache.
+    #[command(flatten)]
+    pub common: BenchCommon,
     /// Skip the memory table (it renders the large scene twice more).
     #[arg(long)]
     pub skip_memory: bool,
 }
 
 pub fn run_pipeline_bench(args: &PipelineBenchArgs, meter: &dyn MemoryMeter) -> Result<()> {
-    let threads = args.threads.unwrap_or_else(available_cores);
-    let scene_path = generated(&args.scene_dir, args.triangles, 1)?;
+    let threads = args.common.threads.unwrap_or_else(available_cores);
+    let scene_path = generated(&args.common.scene_dir, args.triangles, 1)?;
     let scene = load_scene(&scene_path)?;
     let mut tables = vec![time_table(&scene, args, threads)?];
     let bunny = load_scene(&bundled("bunny/bunny.json"))?;
@@ -58,12 +47,12 @@ pub fn run_pipeline_bench(args: &PipelineBenchArgs, meter: &dyn MemoryMeter) -> 
     )?);
     drop(scene);
     if !args.skip_memory {
-        let path = generated(&args.scene_dir, args.memory_triangles, 1)?;
+        let path = generated(&args.common.scene_dir, args.memory_triangles, 1)?;
         tables.push(memory_table(&path, args, threads, meter)?);
     }
     for t in &tables {
         t.print();
-        if let Some(csv) = &args.csv {
+        if let Some(csv) = &args.common.csv {
             t.append_csv(csv)?;
         }
     }
@@ -72,8 +61,8 @@ pub fn run_pipeline_bench(args: &PipelineBenchArgs, meter: &dyn MemoryMeter) -> 
 
 fn request(args: &PipelineBenchArgs, k: u32, s: u32, mode: SplitMode) -> PlanRequest {
     PlanRequest {
-        width: args.width,
-        height: args.height,
+        width: args.common.width,
+        height: args.common.height,
         spp: 1,
         splits: Some(k),
         spans: Some(s),
@@ -106,8 +95,8 @@ fn time_table(scene: &Scene, args: &PipelineBenchArgs, threads: usize) -> Result
         &format!(
             "pipeline vs monolithic: {} triangles, {}x{}, {threads} threads (ratio = time / monolithic time)",
             scene.mesh.triangle_count(),
-            args.width,
-            args.height
+            args.common.width,
+            args.common.height
         ),
         &[
             "run",
@@ -128,8 +117,8 @@ fn time_table(scene: &Scene, args: &PipelineBenchArgs, threads: usize) -> Result
     let start = Instant::now();
     let bvh = build_scene_bvh(&scene.mesh);
     let settings = RenderSettings {
-        width: args.width,
-        height: args.height,
+        width: args.common.width,
+        height: args.common.height,
         spp: 1,
         threads,
     };
@@ -151,7 +140,7 @@ fn time_table(scene: &Scene, args: &PipelineBenchArgs, threads: usize) -> Result
         "-".into(),
         "-".into(),
     ]);
-    let pixels = f64::from(args.width) * f64::from(args.height);
+    let pixels = f64::from(args.common.width) * f64::from(args.common.height);
     for (name, k, s, mode) in [
         ("MR1 k=1 s=16", 1, 16, SplitMode::Spatial),
         ("MR2 k=8 s=16 spatial", 8, 16, SplitMode::Spatial),
@@ -204,7 +193,7 @@ fn skip_table(
     let mut table = Table::new(
         &format!(
             "(span, split) pairs skipped by spatial splits, k=8 s=16, {}x{}",
-            args.width, args.height
+            args.common.width, args.common.height
         ),
         &[
             "scene",
@@ -272,8 +261,8 @@ fn memory_table(
     // Monolithic: the parsed scene, its BVH, the render buffers.
     let bvh = build_scene_bvh(&scene.mesh);
     let settings = RenderSettings {
-        width: args.width,
-        height: args.height,
+        width: args.common.width,
+        height: args.common.height,
         spp: 1,
         threads,
     };
@@ -307,7 +296,7 @@ fn memory_table(
     let mut table = Table::new(
         &format!(
             "memory: {} triangles, k={k} s={s}, {}x{} (allocation high-water marks; ratio = / monolithic)",
-            plan.triangles, args.width, args.height
+            plan.triangles, args.common.width, args.common.height
         ),
         &["what", "peak MB", "ratio"],
     );
