@@ -274,9 +274,18 @@ fn closed_cube(n: usize) -> Vec<[Vec3; 3]> {
     tris
 }
 
+/// Whether `target` is a corner of `tri` or the midpoint of two of its corners, computed as the
+/// test computes its targets (so exact comparison is right).
+fn on_corner_or_edge_midpoint(tri: &[Vec3; 3], target: Vec3) -> bool {
+    let [a, b, c] = *tri;
+    [a, b, c, (a + b) * 0.5, (b + c) * 0.5, (a + c) * 0.5].contains(&target)
+}
+
 #[test]
 fn rays_at_shared_edges_and_vertices_of_a_closed_mesh_never_miss() {
-    let tris = closed_cube(7);
+    let n = 7;
+    let tris = closed_cube(n);
+    assert_eq!(tris.len(), 6 * n * n * 2);
     let bvh = bvh_of(&tris);
     let mut rng = Rng(11);
     let mut targets: Vec<Vec3> = Vec::new();
@@ -287,7 +296,7 @@ fn rays_at_shared_edges_and_vertices_of_a_closed_mesh_never_miss() {
         targets.push((t[0] + t[2]) * 0.5);
     }
     let mut tested = 0;
-    for target in targets {
+    for &target in &targets {
         for _ in 0..4 {
             // The line through an interior point and the target must cross the closed surface:
             // from outside (beyond the interior point) and from inside alike.
@@ -301,18 +310,35 @@ fn rays_at_shared_edges_and_vertices_of_a_closed_mesh_never_miss() {
                 bvh.closest_hit(&ray).is_some(),
                 "ray at {target:?} from {origin:?} leaked"
             );
+            // From inside the (convex) cube the first surface point is the target itself: the
+            // hit must be there, on a triangle that has the target as a corner or on an edge,
+            // not on some triangle behind a gap.
             let inside = Ray {
                 origin: interior,
                 dir: (target - interior).normalize(),
             };
+            let hit = bvh.closest_hit(&inside);
+            let Some(hit) = hit else {
+                panic!("inside ray towards {target:?} leaked");
+            };
+            let point = inside.origin + inside.dir * hit.t;
             assert!(
-                bvh.closest_hit(&inside).is_some(),
-                "inside ray towards {target:?} leaked"
+                (point - target).length() < 1e-4,
+                "inside ray towards {target:?} hit {point:?}"
+            );
+            assert!(
+                on_corner_or_edge_midpoint(&tris[hit.id as usize], target),
+                "inside ray towards {target:?} hit triangle {} = {:?}",
+                hit.id,
+                tris[hit.id as usize]
             );
             tested += 2;
         }
     }
-    assert!(tested > 5000);
+    // Every target (3 corners and 3 edge midpoints per triangle) from 4 interior points, two
+    // rays each: nothing skipped.
+    assert_eq!(targets.len(), 6 * tris.len());
+    assert_eq!(tested, 2 * 4 * targets.len());
 }
 
 #[test]
