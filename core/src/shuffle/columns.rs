@@ -2,7 +2,7 @@
 //!
 //! A stage writes each field of its records as one column, in a fixed order, and reads them back
 //! in the same order. Each column is a tag byte, the value count as a LEB128 varint
-//! ([`super::varint`], at most 10 bytes), then:
+//! (`shuffle::varint`, at most 10 bytes), then:
 //!
 //! | tag | writer | payload |
 //! |-----|--------|---------|
