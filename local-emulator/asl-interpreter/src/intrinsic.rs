@@ -47,6 +47,8 @@ impl Intrinsic {
         Ok(call)
     }
 
+    /// Evaluates the call: path arguments against `input` (`$…`) or `context` (`$$…`),
+    /// nested calls first; a failing path or an unusable argument is the error message.
     pub fn eval(&self, input: &Value, context: &Value) -> Result<Value, String> {
         let args = self
             .args

@@ -28,7 +28,17 @@
 //! Functions sees (the Lambda `errorType`); `Retry` and `Catch` match on it exactly as in the
 //! cloud. Which names a definition retries is the definition's business (HORT's are
 //! `Hort.Retryable` and `Hort.BadInput`, see `hort_core::ErrorType`).
+//!
+//! # Time
+//! Retry backoff, Task timeouts and the EXPRESS limit are waited on a [`Clock`]: real time by
+//! default ([`RealClock`]), scaled by [`OrchestratorOptions::time_scale`]. Tests can run an
+//! execution on virtual time instead ([`ManualClock`], through [`Orchestrator::with_clock`]),
+//! so that whether an attempt times out depends on what the test does, not on how fast the
+//! machine is (see [`clock`]).
 
+#![warn(missing_docs)]
+
+pub mod clock;
 pub mod definition;
 pub mod events;
 pub mod intrinsic;
@@ -47,6 +57,7 @@ use std::sync::atomic::AtomicBool;
 
 use serde_json::{Value, json};
 
+pub use clock::{Clock, ManualClock, RealClock};
 pub use definition::{DefinitionError, State, StateMachine};
 pub use events::{Event, EventLog, NoObserver, Observer};
 pub use retry::{Jitter, Retrier, backoff_seconds, retry_delay};
@@ -100,7 +111,8 @@ pub struct OrchestratorOptions {
     /// concurrency limit); at least 1. A Map runs min(MaxConcurrency, slots) items at once.
     pub slots: usize,
     /// Multiplies every wait and timeout (retry delays, `TimeoutSeconds`, the 5-minute EXPRESS
-    /// limit); 1.0 is real time, tests use e.g. 0.001. Finite and positive.
+    /// limit) before it is waited on the execution's [`Clock`]; 1.0 is real time, tests use
+    /// e.g. 0.001. Finite and positive.
     pub time_scale: f64,
     /// Seed of the FULL jitter draws; the same seed gives the same delays.
     pub seed: u64,
@@ -167,6 +179,7 @@ impl std::error::Error for ExecutionFailure {}
 pub struct Orchestrator {
     machine: StateMachine,
     options: OrchestratorOptions,
+    clock: Arc<dyn Clock>,
 }
 
 impl Orchestrator {
@@ -183,7 +196,20 @@ impl Orchestrator {
             });
         }
         let machine = definition::load(definition)?;
-        Ok(Self { machine, options })
+        Ok(Self {
+            machine,
+            options,
+            clock: Arc::new(RealClock::new()),
+        })
+    }
+
+    /// Runs executions on `clock` instead of real time: retry backoff is waited with
+    /// [`Clock::sleep`], and Task timeouts and the EXPRESS limit are deadlines on
+    /// [`Clock::now`] (all still scaled by [`OrchestratorOptions::time_scale`]). For tests,
+    /// with a [`ManualClock`]; a clock shared by concurrent executions is shared time.
+    pub fn with_clock(mut self, clock: Arc<dyn Clock>) -> Self {
+        self.clock = clock;
+        self
     }
 
     /// The checked definition.
@@ -234,6 +260,7 @@ impl Orchestrator {
             .to_owned();
         let execution = run::Execution {
             options: &self.options,
+            clock: self.clock.as_ref(),
             invoker: &invoker,
             items,
             observer,

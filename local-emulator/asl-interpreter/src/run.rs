@@ -12,6 +12,10 @@
 //! (a zombie Lambda). The timeout clock starts when the invocation starts, not while it waits
 //! for a slot (Lambda would throttle instead, with `Lambda.TooManyRequestsException`).
 //!
+//! Retry backoff, attempt timeouts and the EXPRESS limit are measured on the execution's
+//! [`Clock`](crate::Clock), after scaling by `time_scale`; everything else (stop flags, free
+//! slots, results) is polled every [`POLL`] of real time.
+//!
 //! A Distributed Map runs its items on min(MaxConcurrency, slots, items) threads, each running
 //! one child execution at a time with `$$.Map.Item.{Index,Value}` available to `ItemSelector`.
 //! The first failed child (after its own retries) stops the Map Run (no new children start,
@@ -25,8 +29,7 @@ mod map_run;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
-use std::thread;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use serde_json::{Value, json};
 
@@ -36,7 +39,7 @@ use super::definition::{
 use super::events::{Event, Observer};
 use super::retry::{self, Catcher, Decision, Retrier, RetryState};
 use super::slots::Slots;
-use super::{ItemFailure, OrchestratorOptions, TaskInvoker};
+use super::{Clock, ItemFailure, OrchestratorOptions, TaskInvoker};
 
 /// The error of a Map Run that failed because an item failed.
 pub const EXCEED_TOLERATED_FAILURE: &str = "States.ExceedToleratedFailureThreshold";
@@ -55,9 +58,13 @@ const POLL: Duration = Duration::from_millis(5);
 /// A failure travelling up: the state it was raised in and, for a Map, the item behind it.
 #[derive(Debug, Clone)]
 pub struct Failure {
+    /// The error name.
     pub error: String,
+    /// The cause.
     pub cause: String,
+    /// The state (path) that raised it.
     pub state: String,
+    /// For a failed Map Run, the item whose failure failed it.
     pub item: Option<Box<ItemFailure>>,
 }
 
@@ -90,8 +97,8 @@ struct Frame<'f> {
     map: Option<&'f str>,
     item: Option<usize>,
     halt: Halt<'f>,
-    /// The end of an EXPRESS child execution.
-    deadline: Option<Instant>,
+    /// The end of an EXPRESS child execution, on the execution's clock.
+    deadline: Option<Duration>,
 }
 
 impl Frame<'_> {
@@ -102,8 +109,8 @@ impl Frame<'_> {
         }
     }
 
-    fn expired(&self) -> bool {
-        self.deadline.is_some_and(|d| Instant::now() >= d)
+    fn expired(&self, clock: &dyn Clock) -> bool {
+        self.deadline.is_some_and(|d| clock.now() >= d)
     }
 }
 
@@ -116,10 +123,17 @@ struct Step<'m> {
 
 /// One execution in progress.
 pub struct Execution<'a> {
+    /// The options it runs with.
     pub options: &'a OrchestratorOptions,
+    /// What backoff, timeouts and the EXPRESS limit are measured on.
+    pub clock: &'a dyn Clock,
+    /// Runs the functions.
     pub invoker: &'a Arc<dyn TaskInvoker>,
+    /// Reads the Map states' items files.
     pub items: &'a dyn crate::ItemReader,
+    /// Sees the events.
     pub observer: &'a dyn Observer,
+    /// The function slots shared by all its invocations.
     pub slots: Arc<Slots>,
     /// `{"Execution": …, "StateMachine": …}` of the context object.
     pub context: Value,
@@ -173,7 +187,7 @@ impl Execution<'_> {
         if frame.halt.is_set() {
             return Err(Stop::Halted(path.to_owned()));
         }
-        if frame.expired() {
+        if frame.expired(self.clock) {
             return Err(Stop::Failed(Failure {
                 error: retry::TIMEOUT.into(),
                 cause: format!(
@@ -188,15 +202,17 @@ impl Execution<'_> {
         Ok(())
     }
 
+    /// Waits `duration` on the clock, checking the stop flags and the EXPRESS deadline every
+    /// [`POLL`] of it.
     fn sleep(&self, duration: Duration, frame: &Frame, path: &str) -> Result<(), Stop> {
-        let end = Instant::now() + duration;
+        let end = self.clock.now().saturating_add(duration);
         loop {
             self.check(frame, path)?;
-            let left = end.saturating_duration_since(Instant::now());
+            let left = end.saturating_sub(self.clock.now());
             if left.is_zero() {
                 return Ok(());
             }
-            thread::sleep(left.min(POLL));
+            self.clock.sleep(left.min(POLL));
         }
     }
 

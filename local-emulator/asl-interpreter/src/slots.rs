@@ -82,17 +82,22 @@ mod tests {
                         let _g = slots.acquire(|| false).unwrap();
                         let now = held.fetch_add(1, Ordering::SeqCst) + 1;
                         peak.fetch_max(now, Ordering::SeqCst);
-                        std::thread::sleep(Duration::from_micros(200));
+                        std::thread::yield_now();
                         held.fetch_sub(1, Ordering::SeqCst);
                     }
                 });
             }
         });
-        assert_eq!(peak.load(Ordering::SeqCst), 2);
+        assert!((1..=2).contains(&peak.load(Ordering::SeqCst)));
+        // Both slots can be held at once; a third waiter gives up when told to, and gets a
+        // slot when one is freed.
         let a = slots.acquire(|| false).unwrap();
         let _b = slots.acquire(|| false).unwrap();
         assert!(slots.acquire(|| true).is_none());
-        drop(a);
-        assert!(slots.acquire(|| false).is_some());
+        std::thread::scope(|s| {
+            let waiter = s.spawn(|| slots.acquire(|| false).is_some());
+            drop(a);
+            assert!(waiter.join().unwrap());
+        });
     }
 }

@@ -1,13 +1,25 @@
 //! Runs the real `infra/statemachine.asl.json` with fake functions over an in-memory bucket.
+//!
+//! # No test depends on the machine's speed
+//! Executions run on a [`ManualClock`]: virtual time that moves only when a backoff is waited
+//! or a fake moves it. An attempt times out only when a test moves the clock past its deadline
+//! while it runs; every other attempt is instantaneous and cannot time out however long the
+//! machine stalls. Fakes that must outlive something (a zombie past its timeout, an invocation
+//! in flight when the run is cancelled) block on the [`Board`] until the event that ends their
+//! role has been observed or the run has returned, never for a fixed time; the assertions are
+//! about order and counts (the run returned while they were still blocked; the retry started
+//! after the zombie ended). A wait a correct interpreter always ends is capped at [`CAP`], and
+//! every run asserts no cap was reached.
 
 use std::collections::BTreeMap;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 use serde_json::{Value, json};
 
 use super::*;
+use crate::retry::retry_delay;
 
 /// HORT's state machine: the definition these tests run.
 pub(crate) const HORT_DEFINITION: &str = include_str!("../../../infra/statemachine.asl.json");
@@ -16,6 +28,130 @@ pub(crate) const HORT_DEFINITION: &str = include_str!("../../../infra/statemachi
 /// `infra/README.md`.
 const RETRYABLE: &str = "Hort.Retryable";
 const BAD_INPUT: &str = "Hort.BadInput";
+
+/// The time scale of the tests' executions (virtual time, so it only shows in the numbers).
+const SCALE: f64 = 0.001;
+
+/// The longest a fake waits for something a correct interpreter makes happen. Only a broken or
+/// deadlocked run reaches it, and [`run_on`] fails the test if any wait did.
+const CAP: Duration = Duration::from_secs(30);
+
+/// How long a fake lingers to give a broken interpreter the chance to do what a correct one
+/// never does (start a retry while its zombie holds the only slot, exceed a concurrency
+/// limit). A correct run passes whatever the machine's speed; this only sets how reliably a
+/// broken one is caught.
+const GRACE: Duration = Duration::from_millis(50);
+
+const CAST_TASK: &str = "CastMap/CastMapTask";
+const TRACE_TASK: &str = "TraceMap/TraceMapTask";
+
+/// `seconds` of the definition's time, as the clock sees it.
+fn scaled(seconds: f64) -> Duration {
+    Duration::from_secs_f64(seconds * SCALE)
+}
+
+/// What the tests' threads see of a run, kept under one lock.
+#[derive(Debug, Default)]
+struct Seen {
+    /// Every event, in arrival order.
+    events: Vec<Event>,
+    /// Invocations of the fake running now.
+    in_flight: usize,
+    /// The most that ever ran at once (zombies included).
+    peak: usize,
+    /// Per stage (`plan` for Plan): (running now, most at once).
+    stages: BTreeMap<String, (usize, usize)>,
+    /// Invocations still running when the run returned.
+    in_flight_at_return: Option<usize>,
+    /// Set once the run has returned: blocked fakes may end.
+    released: bool,
+    /// The waits that reached [`CAP`].
+    capped: Vec<String>,
+}
+
+impl Seen {
+    /// How many attempts numbered `attempt` of `state` have started (over all items).
+    fn started(&self, state: &str, attempt: u32) -> usize {
+        self.events
+            .iter()
+            .filter(|e| {
+                matches!(e, Event::TaskAttemptStarted { state: s, attempt: a, .. }
+                    if s == state && *a == attempt)
+            })
+            .count()
+    }
+
+    /// True once attempt `attempt` of `state` for `item` has failed.
+    fn attempt_failed(&self, state: &str, item: Option<usize>, attempt: u32) -> bool {
+        self.events.iter().any(|e| {
+            matches!(e, Event::TaskAttemptFailed { state: s, item_index, attempt: a, .. }
+                if s == state && *item_index == item && *a == attempt)
+        })
+    }
+}
+
+/// The observer of a run, and where its fakes wait for what the run does.
+#[derive(Debug, Default)]
+struct Board {
+    seen: Mutex<Seen>,
+    changed: Condvar,
+}
+
+impl Board {
+    fn lock(&self) -> MutexGuard<'_, Seen> {
+        self.seen.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// Changes what was seen and wakes every waiter.
+    fn update<T>(&self, change: impl FnOnce(&mut Seen) -> T) -> T {
+        let out = change(&mut self.lock());
+        self.changed.notify_all();
+        out
+    }
+
+    /// Waits at most `limit` for `done`; whether it came.
+    fn wait_for(&self, limit: Duration, done: impl Fn(&Seen) -> bool) -> bool {
+        let end = Instant::now() + limit;
+        let mut seen = self.lock();
+        loop {
+            if done(&seen) {
+                return true;
+            }
+            let left = end.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return false;
+            }
+            seen = self
+                .changed
+                .wait_timeout(seen, left)
+                .unwrap_or_else(|p| p.into_inner())
+                .0;
+        }
+    }
+
+    /// Waits for something a correct run makes happen; reaching [`CAP`] is recorded and fails
+    /// the test in [`run_on`].
+    fn wait(&self, what: &str, done: impl Fn(&Seen) -> bool) {
+        if !self.wait_for(CAP, done) {
+            self.update(|s| s.capped.push(what.to_owned()));
+        }
+    }
+
+    /// Blocks until the run has returned (a zombie, or an invocation the run abandoned).
+    fn until_released(&self) {
+        self.wait("the run returns", |s| s.released);
+    }
+
+    fn events(&self) -> Vec<Event> {
+        self.lock().events.clone()
+    }
+}
+
+impl Observer for Board {
+    fn event(&self, e: &Event) {
+        self.update(|s| s.events.push(e.clone()));
+    }
+}
 
 /// An in-memory bucket serving the Map states' items files.
 #[derive(Default)]
@@ -78,49 +214,70 @@ fn input() -> Value {
 fn options(slots: usize) -> OrchestratorOptions {
     OrchestratorOptions {
         slots,
-        time_scale: 0.001,
+        time_scale: SCALE,
         seed: 7,
         cancel: Arc::new(AtomicBool::new(false)),
     }
 }
 
-type Behaviour = dyn Fn(&str, &Value, u32) -> Result<Value, TaskFailure> + Send + Sync;
+type Behaviour = dyn Fn(&Fake, &str, &Value, u32) -> Result<Value, TaskFailure> + Send + Sync;
 
 /// A fake Lambda: answers Plan with the items keys, runs `behaviour` for every worker call
-/// (stage, event, call number of this (stage, task)), and records calls and concurrency.
+/// (the fake, stage, event, call number of this (stage, task)), and records calls and
+/// concurrency on its board. Its clock is the one its executions run on.
 struct Fake {
     max_concurrency: u64,
     behaviour: Box<Behaviour>,
+    board: Board,
+    clock: Arc<ManualClock>,
     calls: Mutex<Vec<(String, String, Value)>>,
     per_task: Mutex<BTreeMap<(String, u64), u32>>,
-    in_flight: AtomicUsize,
-    peak: AtomicUsize,
+}
+
+/// Counts an invocation out of the board when it ends, panicking or not.
+struct Running<'a> {
+    board: &'a Board,
+    stage: String,
+}
+
+impl Drop for Running<'_> {
+    fn drop(&mut self) {
+        self.board.update(|s| {
+            s.in_flight -= 1;
+            if let Some(stage) = s.stages.get_mut(&self.stage) {
+                stage.0 -= 1;
+            }
+        });
+    }
 }
 
 impl Fake {
     fn new(
         max_concurrency: u64,
-        behaviour: impl Fn(&str, &Value, u32) -> Result<Value, TaskFailure> + Send + Sync + 'static,
+        behaviour: impl Fn(&Fake, &str, &Value, u32) -> Result<Value, TaskFailure>
+        + Send
+        + Sync
+        + 'static,
     ) -> Arc<Fake> {
         Arc::new(Fake {
             max_concurrency,
             behaviour: Box::new(behaviour),
+            board: Board::default(),
+            clock: Arc::new(ManualClock::new()),
             calls: Mutex::new(Vec::new()),
             per_task: Mutex::new(BTreeMap::new()),
-            in_flight: AtomicUsize::new(0),
-            peak: AtomicUsize::new(0),
         })
     }
 
     fn ok() -> Arc<Fake> {
-        Fake::new(0, |_, _, _| Ok(json!({"ok": true})))
+        Fake::new(0, |_, _, _, _| Ok(json!({"ok": true})))
     }
 
     fn calls(&self) -> Vec<(String, String, Value)> {
         self.calls.lock().unwrap().clone()
     }
 
-    /// (stage, task) of every worker call, in call order.
+    /// (stage, task, attempt) of every worker call, in call order.
     fn worker_calls(&self) -> Vec<(String, u64, u64)> {
         self.calls()
             .into_iter()
@@ -134,18 +291,44 @@ impl Fake {
             })
             .collect()
     }
+
+    /// The most invocations that ever ran at once.
+    fn peak(&self) -> usize {
+        self.board.lock().peak
+    }
+
+    /// The HORT definition on this fake's clock.
+    fn hort(&self, options: OrchestratorOptions) -> Orchestrator {
+        self.machine(HORT_DEFINITION, options)
+    }
+
+    /// A definition on this fake's clock.
+    fn machine(&self, definition: &str, options: OrchestratorOptions) -> Orchestrator {
+        Orchestrator::new(definition, options)
+            .unwrap()
+            .with_clock(self.clock.clone())
+    }
 }
 
 impl TaskInvoker for Fake {
     fn invoke(&self, resource: &str, input: Value) -> Result<Value, TaskFailure> {
-        let now = self.in_flight.fetch_add(1, Ordering::SeqCst) + 1;
-        self.peak.fetch_max(now, Ordering::SeqCst);
         let stage = input["stage"].as_str().unwrap_or("plan").to_owned();
+        self.board.update(|s| {
+            s.in_flight += 1;
+            s.peak = s.peak.max(s.in_flight);
+            let (now, peak) = s.stages.entry(stage.clone()).or_default();
+            *now += 1;
+            *peak = (*peak).max(*now);
+        });
+        let _running = Running {
+            board: &self.board,
+            stage: stage.clone(),
+        };
         self.calls
             .lock()
             .unwrap()
             .push((resource.to_owned(), stage.clone(), input.clone()));
-        let result = match resource {
+        match resource {
             "PlanFunctionArn" => {
                 assert_eq!(input, json!({"job": "j1", "bucket": "b1", "attempt": 0}));
                 let items: serde_json::Map<String, Value> = STAGES
@@ -162,25 +345,41 @@ impl TaskInvoker for Fake {
                     *n += 1;
                     *n - 1
                 };
-                (self.behaviour)(&stage, &input, n)
+                (self.behaviour)(self, &stage, &input, n)
             }
             other => panic!("unexpected function {other}"),
-        };
-        self.in_flight.fetch_sub(1, Ordering::SeqCst);
-        result
+        }
     }
 }
 
+/// Runs one execution observed by the fake's board; then releases the fakes still blocked,
+/// waits for every invocation to end, and fails the test if any wait reached [`CAP`].
+fn run_on(
+    orchestrator: &Orchestrator,
+    fake: &Arc<Fake>,
+    input: Value,
+    store: &MemoryItems,
+) -> (Result<Value, ExecutionFailure>, Vec<Event>) {
+    let invoker: Arc<dyn TaskInvoker> = fake.clone();
+    let out = orchestrator.run(input, invoker, store, &fake.board);
+    fake.board.update(|s| {
+        s.in_flight_at_return = Some(s.in_flight);
+        s.released = true;
+    });
+    fake.board
+        .wait("every invocation ends once released", |s| s.in_flight == 0);
+    let capped = fake.board.lock().capped.clone();
+    assert!(capped.is_empty(), "waits that never ended: {capped:?}");
+    (out, fake.board.events())
+}
+
+/// Runs HORT's definition on the fake's clock.
 fn run_with(
     fake: &Arc<Fake>,
     store: &MemoryItems,
     opts: OrchestratorOptions,
 ) -> (Result<Value, ExecutionFailure>, Vec<Event>) {
-    let orchestrator = Orchestrator::new(HORT_DEFINITION, opts).unwrap();
-    let log = EventLog::new();
-    let invoker: Arc<dyn TaskInvoker> = fake.clone();
-    let out = orchestrator.run(input(), invoker, store, &log);
-    (out, log.events())
+    run_on(&fake.hort(opts), fake, input(), store)
 }
 
 #[test]
@@ -271,7 +470,7 @@ fn all_stages_run_in_order_with_every_item_once() {
 
 #[test]
 fn retryable_failures_are_retried_with_attempt_numbers() {
-    let fake = Fake::new(0, |stage, _, n| {
+    let fake = Fake::new(0, |_, stage, _, n| {
         if stage == "cast-reduce" && n < 2 {
             Err(TaskFailure::new(RETRYABLE, "storage unavailable"))
         } else {
@@ -320,8 +519,43 @@ fn retryable_failures_are_retried_with_attempt_numbers() {
 }
 
 #[test]
+fn retry_backoff_is_waited_on_the_clock_after_scaling() {
+    let fake = Fake::new(0, |_, stage, _, n| {
+        if stage == "cast-reduce" && n < 2 {
+            Err(TaskFailure::new(RETRYABLE, "storage unavailable"))
+        } else {
+            Ok(json!({}))
+        }
+    });
+    let orchestrator = fake.hort(options(1));
+    let (out, events) = run_on(&orchestrator, &fake, input(), &store_with_items(1, 60));
+    out.unwrap();
+    let State::Map(map) = &orchestrator.machine().states["CastReduce"] else {
+        panic!("CastReduce is a Map")
+    };
+    let State::Task(task) = &map.processor.states["CastReduceTask"] else {
+        panic!("CastReduceTask is a Task")
+    };
+    // The third retrier (Hort.Retryable, …), with the seed 7 draws for item 0.
+    let retrier = &task.retry[2];
+    let expected: Vec<Duration> = (0..2)
+        .map(|n| retry_delay(retrier, n, 7, "CastReduce/CastReduceTask", Some(0)).mul_f64(SCALE))
+        .collect();
+    let delays: Vec<Duration> = events
+        .iter()
+        .filter_map(|e| match e {
+            Event::TaskAttemptFailed { retry_delay, .. } => Some(*retry_delay),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(delays, expected);
+    // The only time that passed is the backoff, waited on the execution's clock.
+    assert_eq!(fake.clock.now(), delays.iter().sum::<Duration>());
+}
+
+#[test]
 fn bad_input_is_not_retried_and_fails_the_job_naming_the_state() {
-    let fake = Fake::new(0, |stage, e, _| {
+    let fake = Fake::new(0, |_, stage, e, _| {
         if stage == "expand" && e["item"]["task"] == 1 {
             Err(TaskFailure::new(BAD_INPUT, "split 3 has a NaN vertex"))
         } else {
@@ -373,21 +607,28 @@ fn bad_input_is_not_retried_and_fails_the_job_naming_the_state() {
 
 #[test]
 fn a_task_past_its_timeout_is_retried_while_the_zombie_holds_its_slot() {
-    // time_scale 0.001: the 20 s timeout is 20 ms; the first attempt of each item sleeps 1 s.
-    let fake = Fake::new(0, |stage, _, n| {
+    // Items time out after 20 s. The first attempt of each TraceMap item is a zombie: once both
+    // run, the clock moves past their deadlines (once, so no retry can time out), and they
+    // block until the run has returned.
+    let moved = AtomicBool::new(false);
+    let fake = Fake::new(0, move |fake, stage, _, n| {
         if stage == "trace-map" && n == 0 {
-            std::thread::sleep(Duration::from_millis(1000));
+            fake.board
+                .wait("both zombies run", |s| s.started(TRACE_TASK, 0) == 2);
+            if !moved.swap(true, Ordering::SeqCst) {
+                fake.clock.advance(scaled(21.0));
+            }
+            fake.board.until_released();
         }
         Ok(json!({}))
     });
     let store = store_with_items(2, 20);
-    let started = Instant::now();
     let (out, events) = run_with(&fake, &store, options(4));
     out.unwrap();
-    assert!(
-        started.elapsed() < Duration::from_millis(700),
-        "the execution moved on without waiting for the zombies: {:?}",
-        started.elapsed()
+    assert_eq!(
+        fake.board.lock().in_flight_at_return,
+        Some(2),
+        "the execution moved on without waiting for the zombies"
     );
     let timeouts: Vec<(Option<usize>, u32, bool)> = events
         .iter()
@@ -400,7 +641,7 @@ fn a_task_past_its_timeout_is_retried_while_the_zombie_holds_its_slot() {
                 will_retry,
                 cause,
                 ..
-            } if state == "TraceMap/TraceMapTask" => {
+            } if state == TRACE_TASK => {
                 assert_eq!(error, TIMEOUT);
                 assert!(cause.contains("timeout of 20 s"), "{cause}");
                 Some((*item_index, *attempt, *will_retry))
@@ -411,29 +652,40 @@ fn a_task_past_its_timeout_is_retried_while_the_zombie_holds_its_slot() {
     let mut timeouts = timeouts;
     timeouts.sort();
     assert_eq!(timeouts, [(Some(0), 0, true), (Some(1), 0, true)]);
-    let attempts: Vec<u64> = fake
-        .worker_calls()
-        .into_iter()
-        .filter(|(s, t, _)| s == "trace-map" && *t == 0)
-        .map(|(_, _, a)| a)
-        .collect();
-    assert_eq!(attempts, [0, 1]);
+    for task in 0..2 {
+        let attempts: Vec<u64> = fake
+            .worker_calls()
+            .into_iter()
+            .filter(|(s, t, _)| s == "trace-map" && *t == task)
+            .map(|(_, _, a)| a)
+            .collect();
+        assert_eq!(attempts, [0, 1]);
+    }
     // Invocations, zombies included, never exceed the slots.
-    assert!(fake.peak.load(Ordering::SeqCst) <= 4);
+    assert!(fake.peak() <= 4);
 }
 
 #[test]
 fn in_flight_never_exceeds_max_concurrency_or_slots() {
     for (max_concurrency, slots, expect) in [(2, 8, 2), (0, 3, 3), (5, 2, 2)] {
-        let fake = Fake::new(max_concurrency, |_, _, _| {
-            std::thread::sleep(Duration::from_millis(3));
+        // The first `expect` items of each stage (claimed first, one per iteration thread)
+        // stay in flight until all of them are, proving the limit is reached; then they linger
+        // so that an invocation beyond the limit would show in the peak.
+        let fake = Fake::new(max_concurrency, move |fake, stage, e, _| {
+            let task = e["item"]["task"].as_u64().unwrap();
+            if stage != "combine" && task < expect as u64 {
+                fake.board.wait("the limit is reached", |s| {
+                    s.stages.get(stage).is_some_and(|&(_, peak)| peak >= expect)
+                });
+                fake.board.wait_for(GRACE, |s| s.in_flight > expect);
+            }
             Ok(json!({}))
         });
         let store = store_with_items(12, 60);
         let (out, events) = run_with(&fake, &store, options(slots));
         out.unwrap();
         assert_eq!(
-            fake.peak.load(Ordering::SeqCst),
+            fake.peak(),
             expect,
             "MaxConcurrency {max_concurrency}, slots {slots}"
         );
@@ -447,39 +699,69 @@ fn in_flight_never_exceeds_max_concurrency_or_slots() {
 #[test]
 fn slots_bound_zombies_too() {
     // One slot: the timed-out attempt keeps the slot, so its retry waits for it to end.
-    let fake = Fake::new(0, |stage, _, n| {
-        if stage == "cast-map" && n == 0 {
-            std::thread::sleep(Duration::from_millis(80));
+    let zombie_ended = Arc::new(AtomicBool::new(false));
+    let retry_saw_it_end = Arc::new(AtomicBool::new(false));
+    let fake = Fake::new(0, {
+        let zombie_ended = zombie_ended.clone();
+        let retry_saw_it_end = retry_saw_it_end.clone();
+        move |fake, stage, _, n| {
+            if stage == "cast-map" {
+                if n == 0 {
+                    // Past the 10 s timeout; the zombie runs on until the timeout is reported,
+                    // and a little longer in case the retry (wrongly) starts beside it.
+                    fake.clock.advance(scaled(11.0));
+                    fake.board.wait("the attempt times out", |s| {
+                        s.attempt_failed(CAST_TASK, Some(0), 0)
+                    });
+                    fake.board.wait_for(GRACE, |s| s.in_flight > 1);
+                    zombie_ended.store(true, Ordering::SeqCst);
+                } else {
+                    retry_saw_it_end.store(zombie_ended.load(Ordering::SeqCst), Ordering::SeqCst);
+                }
+            }
+            Ok(json!({}))
         }
-        Ok(json!({}))
     });
     let store = store_with_items(1, 10);
-    let started = Instant::now();
-    let (out, _) = run_with(&fake, &store, options(1));
+    let (out, events) = run_with(&fake, &store, options(1));
     out.unwrap();
-    assert_eq!(fake.peak.load(Ordering::SeqCst), 1);
-    assert!(started.elapsed() >= Duration::from_millis(80));
+    assert_eq!(fake.peak(), 1);
+    assert!(
+        retry_saw_it_end.load(Ordering::SeqCst),
+        "the retry started only after the zombie ended"
+    );
+    assert!(events.iter().any(|e| matches!(e,
+        Event::TaskAttemptFailed { state, attempt: 0, error, will_retry: true, .. }
+            if state == CAST_TASK && error == TIMEOUT)));
+    let attempts: Vec<u64> = fake
+        .worker_calls()
+        .into_iter()
+        .filter(|(s, _, _)| s == "cast-map")
+        .map(|(_, _, a)| a)
+        .collect();
+    assert_eq!(attempts, [0, 1]);
 }
 
 #[test]
 fn cancellation_stops_promptly() {
+    // The reduce tasks cancel the run and then never end by themselves: the run must return
+    // while they are still running.
     let opts = options(2);
     let cancel = opts.cancel.clone();
-    let fake = Fake::new(0, move |stage, _, _| {
+    let fake = Fake::new(0, move |fake, stage, _, _| {
         if stage == "cast-reduce" {
             cancel.store(true, Ordering::SeqCst);
-            std::thread::sleep(Duration::from_millis(500));
+            fake.board.until_released();
         }
         Ok(json!({}))
     });
     let store = store_with_items(6, 600);
-    let started = Instant::now();
     let (out, _) = run_with(&fake, &store, opts);
     let failure = out.unwrap_err();
+    let still_running = fake.board.lock().in_flight_at_return.unwrap();
     assert!(
-        started.elapsed() < Duration::from_millis(400),
-        "{:?}",
-        started.elapsed()
+        still_running >= 1,
+        "the run returned without waiting for the cancelled invocation"
     );
     assert_eq!(failure.error, CANCELLED);
     assert!(failure.state.starts_with("CastReduce"), "{}", failure.state);
@@ -511,11 +793,10 @@ fn a_missing_items_file_or_foreign_bucket_fails_the_map_clearly() {
     );
 
     let definition = HORT_DEFINITION.replace("\"Bucket.$\": \"$.bucket\"", "\"Bucket\": \"other\"");
-    let o = Orchestrator::new(&definition, options(2)).unwrap();
-    let invoker: Arc<dyn TaskInvoker> = Fake::ok();
-    let failure = o
-        .run(input(), invoker, &store_with_items(1, 60), &NoObserver)
-        .unwrap_err();
+    let fake = Fake::ok();
+    let o = fake.machine(&definition, options(2));
+    let (out, _) = run_on(&o, &fake, input(), &store_with_items(1, 60));
+    let failure = out.unwrap_err();
     assert_eq!(failure.error, ITEM_READER_FAILED);
     assert!(
         failure.cause.contains("\"other\"") && failure.cause.contains("\"b1\""),
@@ -526,24 +807,107 @@ fn a_missing_items_file_or_foreign_bucket_fails_the_map_clearly() {
 
 #[test]
 fn express_children_time_out_after_five_minutes() {
-    // Every attempt times out (10 s); retries with backoff push the child past 300 s.
+    // Every attempt times out (10 s): the clock moves past its deadline while it runs, and it
+    // runs on until its timeout is reported. Retries with backoff push the child past 300 s.
     let definition = HORT_DEFINITION.replace("\"MaxAttempts\": 4", "\"MaxAttempts\": 100");
-    let mut opts = options(4);
-    opts.time_scale = 0.0002;
-    let o = Orchestrator::new(&definition, opts).unwrap();
-    let fake = Fake::new(0, |stage, _, _| {
+    let fake = Fake::new(0, |fake, stage, e, _| {
         if stage == "cast-map" {
-            std::thread::sleep(Duration::from_millis(3));
+            let attempt = u32::try_from(e["attempt"].as_u64().unwrap()).unwrap();
+            fake.clock.advance(scaled(11.0));
+            fake.board.wait("the attempt times out", |s| {
+                s.released || s.attempt_failed(CAST_TASK, Some(0), attempt)
+            });
         }
         Ok(json!({}))
     });
-    let invoker: Arc<dyn TaskInvoker> = fake;
-    let failure = o
-        .run(input(), invoker, &store_with_items(1, 1), &NoObserver)
-        .unwrap_err();
+    let o = fake.machine(&definition, options(4));
+    let (out, events) = run_on(&o, &fake, input(), &store_with_items(1, 10));
+    let failure = out.unwrap_err();
     let item = failure.item.unwrap();
     assert_eq!(item.error, TIMEOUT);
     assert!(item.cause.contains("EXPRESS"), "{}", item.cause);
+    assert!(fake.clock.now() >= scaled(300.0), "{:?}", fake.clock.now());
+    // Every attempt before the limit timed out and was retried: the limit, not the retrier,
+    // ended the child.
+    let attempts = events
+        .iter()
+        .filter(|e| matches!(e, Event::TaskAttemptStarted { state, .. } if state == CAST_TASK))
+        .count();
+    assert!((2..=100).contains(&attempts), "{attempts}");
+    assert!(events.iter().all(|e| match e {
+        Event::TaskAttemptFailed {
+            state,
+            error,
+            will_retry,
+            ..
+        } if state == CAST_TASK => error == TIMEOUT && *will_retry,
+        _ => true,
+    }));
+}
+
+#[test]
+fn the_real_clock_waits_scaled_wall_clock_time() {
+    // Without a test clock: a 2 s backoff and a 3 s timeout at time_scale 0.01. The only
+    // attempt with a timeout is the one meant to time out, and it blocks until it has.
+    let machine = json!({
+        "StartAt": "Flaky",
+        "States": {
+            "Flaky": {
+                "Type": "Task",
+                "Resource": "arn:aws:states:::lambda:invoke",
+                "Parameters": {"FunctionName": "${WorkerFunctionArn}",
+                    "Payload": {"stage": "flaky", "item": {"task": 0}, "attempt.$": "$$.State.RetryCount"}},
+                "Retry": [{"ErrorEquals": [RETRYABLE], "IntervalSeconds": 2, "MaxAttempts": 1}],
+                "ResultPath": null,
+                "Next": "Slow"
+            },
+            "Slow": {
+                "Type": "Task",
+                "Resource": "arn:aws:states:::lambda:invoke",
+                "Parameters": {"FunctionName": "${WorkerFunctionArn}",
+                    "Payload": {"stage": "slow", "item": {"task": 0}, "attempt.$": "$$.State.RetryCount"}},
+                "TimeoutSeconds": 3,
+                "ResultPath": "$.slow",
+                "Catch": [{"ErrorEquals": [TIMEOUT], "ResultPath": "$.timeout", "Next": "Done"}],
+                "Next": "Done"
+            },
+            "Done": {"Type": "Succeed"}
+        }
+    });
+    let fake = Fake::new(0, |fake, stage, _, n| match stage {
+        "flaky" if n == 0 => Err(TaskFailure::new(RETRYABLE, "once")),
+        "slow" => {
+            fake.board.wait("the attempt times out", |s| {
+                s.released || s.attempt_failed("Slow", None, 0)
+            });
+            Ok(json!({}))
+        }
+        _ => Ok(json!({})),
+    });
+    let mut opts = options(2);
+    opts.time_scale = 0.01;
+    let o = Orchestrator::new(&machine.to_string(), opts).unwrap();
+    let started = Instant::now();
+    let (out, events) = run_on(&o, &fake, json!({}), &MemoryItems::new());
+    let elapsed = started.elapsed();
+    let out = out.unwrap();
+    assert_eq!(out["timeout"]["Error"], TIMEOUT);
+    let cause = out["timeout"]["Cause"].as_str().unwrap();
+    assert!(cause.contains("timeout of 3 s"), "{cause}");
+    let backoff = Duration::from_secs(2).mul_f64(0.01);
+    assert!(events.iter().any(|e| matches!(e,
+        Event::TaskAttemptFailed { state, retry_delay, will_retry: true, .. }
+            if state == "Flaky" && *retry_delay == backoff)));
+    // A lower bound only: real time cannot pass faster than the waits it holds.
+    assert!(
+        elapsed >= backoff + Duration::from_secs(3).mul_f64(0.01),
+        "{elapsed:?}"
+    );
+    assert_eq!(
+        fake.clock.now(),
+        Duration::ZERO,
+        "the test clock was not used"
+    );
 }
 
 #[test]
@@ -565,11 +929,10 @@ fn a_fail_state_reports_its_own_error_and_a_runtime_error_is_not_caught() {
             "F": {"Type": "Fail", "Error": "Custom.Error", "CausePath": "States.Format('because {}', $.r.why)"}
         }
     });
-    let o = Orchestrator::new(&machine.to_string(), options(1)).unwrap();
-    let invoker: Arc<dyn TaskInvoker> = Fake::ok();
-    let f = o
-        .run(json!({}), invoker.clone(), &MemoryItems::new(), &NoObserver)
-        .unwrap_err();
+    let fake = Fake::ok();
+    let o = fake.machine(&machine.to_string(), options(1));
+    let (out, _) = run_on(&o, &fake, json!({}), &MemoryItems::new());
+    let f = out.unwrap_err();
     assert_eq!(
         (f.error.as_str(), f.cause.as_str(), f.state.as_str()),
         ("Custom.Error", "because nope", "F")
@@ -588,10 +951,9 @@ fn a_fail_state_reports_its_own_error_and_a_runtime_error_is_not_caught() {
             "Caught": {"Type": "Succeed"}
         }
     });
-    let o = Orchestrator::new(&machine.to_string(), options(1)).unwrap();
-    let f = o
-        .run(json!({}), invoker, &MemoryItems::new(), &NoObserver)
-        .unwrap_err();
+    let o = fake.machine(&machine.to_string(), options(1));
+    let (out, _) = run_on(&o, &fake, json!({}), &MemoryItems::new());
+    let f = out.unwrap_err();
     assert_eq!(f.error, RUNTIME);
     assert!(f.cause.contains("$.missing"), "{}", f.cause);
 }
@@ -604,7 +966,10 @@ fn plan_failures_are_caught_into_plan_failed() {
             Err(TaskFailure::new(BAD_INPUT, "scene.obj line 4: bad face"))
         }
     }
-    let o = Orchestrator::new(HORT_DEFINITION, options(1)).unwrap();
+    // On a clock that never moves, Plan cannot time out however slow the machine.
+    let o = Orchestrator::new(HORT_DEFINITION, options(1))
+        .unwrap()
+        .with_clock(Arc::new(ManualClock::new()));
     let f = o
         .run(
             input(),
@@ -620,7 +985,7 @@ fn plan_failures_are_caught_into_plan_failed() {
 
 #[test]
 fn a_panicking_function_fails_like_an_unhandled_lambda_error_and_frees_its_slot() {
-    let fake = Fake::new(0, |stage, _, _| {
+    let fake = Fake::new(0, |_, stage, _, _| {
         if stage == "combine" {
             panic!("boom");
         }

@@ -1,11 +1,12 @@
 //! One Task attempt: an invocation on its own thread, holding a function slot until the
 //! function returns, raced against the attempt's timeout, the cancel flag and the EXPRESS limit.
+//! The timeout is a deadline on the execution's clock, fixed before the function is called.
 
 use std::panic::{self, AssertUnwindSafe};
 use std::sync::Arc;
 use std::sync::mpsc::{self, RecvTimeoutError};
 use std::thread;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use serde_json::Value;
 
@@ -27,11 +28,13 @@ impl Execution<'_> {
     ) -> Result<Result<Value, Failure>, Stop> {
         let Some(slot) = self
             .slots
-            .acquire(|| frame.halt.is_set() || frame.expired())
+            .acquire(|| frame.halt.is_set() || frame.expired(self.clock))
         else {
             self.check(frame, path)?;
             return Err(Stop::Halted(path.to_owned()));
         };
+        // Before the function can run (and, on a test clock, move time on).
+        let deadline = timeout.map(|t| self.clock.now().saturating_add(t));
         self.emit(Event::TaskAttemptStarted {
             state: path.to_owned(),
             item_index: frame.item,
@@ -62,11 +65,10 @@ impl Execution<'_> {
                 format!("{path}: cannot start the invocation thread: {e}"),
             )));
         }
-        let deadline = timeout.map(|t| Instant::now() + t);
         loop {
             let mut wait = POLL;
             if let Some(d) = deadline {
-                wait = wait.min(d.saturating_duration_since(Instant::now()));
+                wait = wait.min(d.saturating_sub(self.clock.now()));
             }
             match rx.recv_timeout(wait) {
                 Ok(Ok(Ok(value))) => return Ok(Ok(value)),
@@ -92,7 +94,7 @@ impl Execution<'_> {
                 }
                 Err(RecvTimeoutError::Timeout) => {
                     self.check(frame, path)?;
-                    if deadline.is_some_and(|d| Instant::now() >= d) {
+                    if deadline.is_some_and(|d| self.clock.now() >= d) {
                         let limit =
                             timeout.unwrap_or_default().as_secs_f64() / self.options.time_scale;
                         return Ok(Err(failure(

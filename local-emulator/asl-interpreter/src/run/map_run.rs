@@ -4,7 +4,6 @@
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::thread;
-use std::time::Instant;
 
 use serde_json::Value;
 
@@ -156,9 +155,11 @@ impl Execution<'_> {
                             map: Some(path),
                             item: Some(i),
                             halt,
-                            deadline: map
-                                .express
-                                .then(|| Instant::now() + self.scaled(EXPRESS_LIMIT_SECONDS)),
+                            deadline: map.express.then(|| {
+                                self.clock
+                                    .now()
+                                    .saturating_add(self.scaled(EXPRESS_LIMIT_SECONDS))
+                            }),
                         };
                         let child_ctx = self.context(name, attempt, Some((i, item)));
                         let child_input = match &map.item_selector {
