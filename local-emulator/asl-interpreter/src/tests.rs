@@ -29,6 +29,18 @@ pub(crate) const HORT_DEFINITION: &str = include_str!("../../../infra/statemachi
 const RETRYABLE: &str = "Hort.Retryable";
 const BAD_INPUT: &str = "Hort.BadInput";
 
+// The Step Functions error names, as AWS documents them ("Error names" in the Step Functions
+// developer guide), written out so the tests check the interpreter against the documented text
+// rather than against its own constants (these shadow the crate's constants here).
+const TIMEOUT: &str = "States.Timeout";
+const RUNTIME: &str = "States.Runtime";
+const ITEM_READER_FAILED: &str = "States.ItemReaderFailed";
+const EXCEED_TOLERATED_FAILURE: &str = "States.ExceedToleratedFailureThreshold";
+/// Not an AWS name: what this interpreter reports for an execution stopped by its cancel flag.
+const CANCELLED: &str = "States.Cancelled";
+/// How Lambda reports a function that crashed without an error type.
+const PANIC: &str = "Lambda.Unknown";
+
 /// The time scale of the tests' executions (virtual time, so it only shows in the numbers).
 const SCALE: f64 = 0.001;
 
