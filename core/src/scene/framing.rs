@@ -33,7 +33,9 @@ pub fn scene_bounds(mesh: &Mesh, path: &Path) -> Result<(DVec3, DVec3), SceneErr
 }
 
 /// With c the bounds' centre and D their diagonal length: eye = c + (0, 0.5, 1.25)·D, looking at
-/// c, up +y, vertical field of view 45 degrees.
+/// c, up +y, vertical field of view 45 degrees. The bounding sphere (radius D/2) fits the vertical
+/// field of view, and so the horizontal one of any landscape or square image; see
+/// [`framed_camera`] for the camera of a given image size.
 pub fn default_camera(lo: DVec3, hi: DVec3) -> CameraSpec {
     let c = (lo + hi) * 0.5;
     let d = (hi - lo).length();
@@ -42,6 +44,33 @@ pub fn default_camera(lo: DVec3, hi: DVec3) -> CameraSpec {
         look_at: c,
         up: DVec3::Y,
         vfov_degrees: 45.0,
+    }
+}
+
+/// The automatic camera for a `width` x `height` image. Landscape and square images
+/// (`width >= height`) get [`default_camera`] unchanged. For portrait images the eye moves back
+/// from c along the same direction until the bounding sphere (centre c, radius D/2) also fits the
+/// horizontal field of view: its distance from c becomes (D/2) / sin(h), with h the horizontal
+/// half angle, atan(tan(22.5 degrees)·W/H), when that is farther than the default distance.
+pub fn framed_camera(lo: DVec3, hi: DVec3, width: u32, height: u32) -> CameraSpec {
+    let camera = default_camera(lo, hi);
+    if width >= height || width == 0 {
+        return camera;
+    }
+    let c = camera.look_at;
+    let offset = camera.eye - c;
+    let distance = offset.length();
+    let radius = (hi - lo).length() / 2.0;
+    let half = camera.vfov_degrees * (std::f64::consts::PI / 180.0) / 2.0;
+    let tan_h = libm::tan(half) * f64::from(width) / f64::from(height);
+    let sin_h = tan_h / (1.0 + tan_h * tan_h).sqrt();
+    let needed = radius / sin_h;
+    if needed <= distance {
+        return camera;
+    }
+    CameraSpec {
+        eye: c + offset * (needed / distance),
+        ..camera
     }
 }
 

@@ -108,9 +108,9 @@ pub(super) fn load_manifest_scene(path: &Path) -> Result<Scene, SceneError> {
     }
     apply_material_overrides(&mut mesh, &manifest, path)?;
     let (lo, hi) = scene_bounds(&mesh, path)?;
-    let camera = match &manifest.camera {
-        Some(c) => camera_from(c, path)?,
-        None => default_camera(lo, hi),
+    let (camera, framed_bounds) = match &manifest.camera {
+        Some(c) => (camera_from(c, path)?, None),
+        None => (default_camera(lo, hi), Some((lo, hi))),
     };
     let lights = match &manifest.lights {
         Some(list) => list
@@ -123,10 +123,18 @@ pub(super) fn load_manifest_scene(path: &Path) -> Result<Scene, SceneError> {
     let ambient = colour(manifest.ambient.map(Rgb::to_array), "ambient", path)?;
     let background = colour(manifest.background, "background", path)?;
     let image = image_settings(&manifest, path)?;
+    warn_bright_overrides(&manifest, path, &mut warnings);
+    if let Some(w) = unlit_warning(&lights, ambient, path) {
+        warnings.push(w);
+    }
+    // Two meshes may share a material library: say each thing once.
+    let mut seen = std::collections::HashSet::new();
+    warnings.retain(|w| seen.insert(w.clone()));
     Ok(Scene {
         source: path.to_path_buf(),
         mesh,
         camera,
+        framed_bounds,
         lights,
         ambient,
         background,
@@ -180,6 +188,54 @@ fn apply_material_overrides(
         }
     }
     Ok(())
+}
+
+/// One warning for the manifest's material overrides whose `kd` exceeds 1 (more light out than
+/// in: not physically plausible). They are rendered as given.
+fn warn_bright_overrides(manifest: &Manifest, path: &Path, warnings: &mut Vec<String>) {
+    let mut bright = manifest
+        .materials
+        .iter()
+        .filter(|(_, m)| m.kd.iter().any(|&c| c > 1.0));
+    let Some((name, first)) = bright.next() else {
+        return;
+    };
+    let more = bright.count();
+    let [r, g, b] = first.kd;
+    let others = match more {
+        0 => String::new(),
+        1 => " (and 1 more material)".to_string(),
+        n => format!(" (and {n} more materials)"),
+    };
+    warnings.push(format!(
+        "{}: manifest field `materials.{name}.kd` is [{r}, {g}, {b}]{others}: a diffuse colour \
+         above 1 reflects more light than it receives, which is not physically plausible; it is \
+         rendered as given (use values from 0 to 1)",
+        path.display()
+    ));
+}
+
+/// The warning for a manifest whose lights cannot light anything (none, or all of zero
+/// strength) when there is no ambient light either: the image will be black.
+fn unlit_warning(lights: &[Light], ambient: [f32; 3], path: &Path) -> Option<String> {
+    let lit = lights.iter().any(|l| match l {
+        Light::Point { intensity, .. } => intensity.iter().any(|&c| c > 0.0),
+        Light::Directional { irradiance, .. } => irradiance.iter().any(|&c| c > 0.0),
+    });
+    if lit || ambient.iter().any(|&c| c > 0.0) {
+        return None;
+    }
+    let what = if lights.is_empty() {
+        "manifest field `lights` is an empty list"
+    } else {
+        "every light in manifest field `lights` has zero intensity or irradiance"
+    };
+    Some(format!(
+        "{}: {what} and `ambient` is 0, so nothing is lit and the image will be black (only the \
+         background shows); leave `lights` out to get the default light, or add one, e.g. \
+         \"lights\": [{{\"kind\": \"point\", \"position\": [x, y, z], \"intensity\": 100}}]",
+        path.display()
+    ))
 }
 
 fn finite_vec(v: [f64; 3], field: &str, path: &Path) -> Result<DVec3, SceneError> {

@@ -7,9 +7,10 @@
 mod framing;
 mod manifest;
 mod mesh;
+mod mtl;
 mod obj;
 
-pub use framing::{default_camera, default_light, scene_bounds};
+pub use framing::{default_camera, default_light, framed_camera, scene_bounds};
 pub use manifest::{MANIFEST_SCHEMA, Manifest, parse_manifest};
 pub use mesh::{Material, Mesh, NO_NORMAL};
 pub use obj::parse_obj;
@@ -73,15 +74,37 @@ pub struct Scene {
     /// The file the scene came from (OBJ or manifest), for messages.
     pub source: PathBuf,
     pub mesh: Mesh,
+    /// The camera as loaded. Render through [`Scene::camera_for`], which adapts an automatic
+    /// camera to the image's aspect ratio.
     pub camera: CameraSpec,
+    /// The bounds (min, max) that `camera` frames when it is the automatic camera (no manifest
+    /// camera); `None` for a manifest camera.
+    pub framed_bounds: Option<(DVec3, DVec3)>,
     pub lights: Vec<Light>,
     /// Constant ambient radiance factor per channel: adds `kd * ambient` to every hit.
     pub ambient: [f32; 3],
     /// Radiance of rays that hit nothing.
     pub background: [f32; 3],
     pub image: ImageSettings,
-    /// Things that were accepted but deserve a look (unknown material, missing MTL file).
+    /// Things that were accepted but deserve a look (unknown material, missing MTL file, MTL
+    /// features that are not rendered, unknown OBJ statements, no light), each naming its file.
     pub warnings: Vec<String>,
+}
+
+impl Scene {
+    /// The camera for a `width` x `height` image. A manifest camera is used as given. The
+    /// automatic camera is [`framed_camera`] of the scene bounds: the same as `camera` for
+    /// landscape and square images, moved back for portrait images so the whole bounding sphere
+    /// stays in the picture (docs/ARCHITECTURE.md, "Default scene"). If `camera` was replaced
+    /// after loading, it is used as given.
+    pub fn camera_for(&self, width: u32, height: u32) -> CameraSpec {
+        match self.framed_bounds {
+            Some((lo, hi)) if self.camera == default_camera(lo, hi) => {
+                framed_camera(lo, hi, width, height)
+            }
+            _ => self.camera,
+        }
+    }
 }
 
 /// Loads a scene from an OBJ file or a JSON manifest (chosen by the `.json` extension).
@@ -104,6 +127,7 @@ fn load_obj_scene(path: &Path) -> Result<Scene, SceneError> {
     Ok(Scene {
         source: path.to_path_buf(),
         camera: default_camera(lo, hi),
+        framed_bounds: Some((lo, hi)),
         lights: vec![default_light(lo, hi)],
         mesh,
         ambient: [0.0; 3],
@@ -156,3 +180,5 @@ pub fn check_image_size(width: u32, height: u32, spp: u32) -> Result<(), SceneEr
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod wild_tests;

@@ -2,53 +2,97 @@
 //!
 //! Why not `tobj` for the geometry: its errors carry no line numbers and it groups faces into
 //! models; we need `path:line` messages and exact file order. Material libraries (`mtllib`) are
-//! read with `tobj::load_mtl`.
+//! read with `tobj::load_mtl` (and checked for unrendered features by `mtl.rs`).
 //!
 //! Accepted: `v x y z [w]`, `vn`, `vt`, `f` with `v`, `v/vt`, `v//vn`, `v/vt/vn` corners and
-//! negative (relative) indices, `o`, `g`, `s`, `usemtl`, `mtllib`, comments, and the free-form
-//! curve statements (ignored). Any other statement, or binary data, is "not an OBJ file".
+//! negative (relative) indices, `o`, `g`, `s`, `mg`, `usemtl`, `mtllib` and comments (which may
+//! hold any bytes but NUL). Skipped with one warning per kind and file (naming the first line):
+//! valid OBJ statements a triangle renderer cannot show (points, lines, free-form geometry,
+//! texture maps, display attributes), unknown statements whose keyword looks like a word (a
+//! letter, then letters, digits, `_`, `-` or `.`; e.g. the `vw` skin-weight extension), faces
+//! naming normals or texture coordinates in a file that defines none (geometric normals are used).
+//! "Not an OBJ file": "binary data" for a NUL byte, control bytes or invalid UTF-8 in a keyword
+//! or invalid UTF-8 in a statement we read; "unknown statement" for a keyword that is not a word
+//! (`<html>`, `{`, `0.5`, `été`).
 
 use super::mesh::{Material, Mesh, NO_NORMAL};
+use super::mtl::mtl_warnings;
 use crate::error::SceneError;
 use glam::Vec3;
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::io::BufRead;
 use std::path::{Path, PathBuf};
 
 /// Grey of faces without a material (and of `usemtl` names no library defines).
 pub const DEFAULT_KD: [f32; 3] = [0.7, 0.7, 0.7];
 
-/// Statements that are valid OBJ but carry nothing a triangle renderer uses.
-const IGNORED: &[&str] = &[
-    "vp",
-    "l",
-    "p",
-    "cstype",
-    "deg",
-    "bmat",
-    "step",
-    "curv",
-    "curv2",
-    "surf",
-    "parm",
-    "trim",
-    "hole",
-    "scrv",
-    "sp",
-    "end",
-    "con",
-    "mg",
-    "bevel",
-    "c_interp",
-    "d_interp",
-    "lod",
-    "usemap",
-    "maplib",
-    "shadow_obj",
-    "trace_obj",
-    "ctech",
-    "stech",
+/// Valid OBJ statements that carry nothing a triangle renderer shows, by the kind of thing they
+/// describe; each kind is reported once per file.
+const UNRENDERED: &[(&str, Unrendered)] = &[
+    ("p", Unrendered::PointsAndLines),
+    ("l", Unrendered::PointsAndLines),
+    ("vp", Unrendered::FreeForm),
+    ("cstype", Unrendered::FreeForm),
+    ("deg", Unrendered::FreeForm),
+    ("bmat", Unrendered::FreeForm),
+    ("step", Unrendered::FreeForm),
+    ("curv", Unrendered::FreeForm),
+    ("curv2", Unrendered::FreeForm),
+    ("surf", Unrendered::FreeForm),
+    ("parm", Unrendered::FreeForm),
+    ("trim", Unrendered::FreeForm),
+    ("hole", Unrendered::FreeForm),
+    ("scrv", Unrendered::FreeForm),
+    ("sp", Unrendered::FreeForm),
+    ("end", Unrendered::FreeForm),
+    ("con", Unrendered::FreeForm),
+    ("ctech", Unrendered::FreeForm),
+    ("stech", Unrendered::FreeForm),
+    ("usemap", Unrendered::TextureMaps),
+    ("maplib", Unrendered::TextureMaps),
+    ("lod", Unrendered::Attributes),
+    ("bevel", Unrendered::Attributes),
+    ("c_interp", Unrendered::Attributes),
+    ("d_interp", Unrendered::Attributes),
+    ("shadow_obj", Unrendered::Attributes),
+    ("trace_obj", Unrendered::Attributes),
 ];
+
+/// Kinds of valid but unrendered OBJ statements.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+enum Unrendered {
+    PointsAndLines,
+    FreeForm,
+    TextureMaps,
+    Attributes,
+}
+
+impl Unrendered {
+    /// What is not rendered, and what happens instead.
+    fn explain(self, keyword: &str) -> String {
+        match self {
+            Unrendered::PointsAndLines => format!(
+                "point and line elements are not rendered; \"{keyword}\" and other point and \
+                 line statements are skipped (only faces are rendered)"
+            ),
+            Unrendered::FreeForm => format!(
+                "free-form curves and surfaces are not rendered; \"{keyword}\" and the other \
+                 free-form statements are skipped (only polygon faces are rendered)"
+            ),
+            Unrendered::TextureMaps => format!(
+                "texture maps are not rendered; \"{keyword}\" statements are skipped (surfaces \
+                 show their material's Kd colour)"
+            ),
+            Unrendered::Attributes => format!(
+                "display and render attributes are not supported; \"{keyword}\" and similar \
+                 statements are skipped"
+            ),
+        }
+    }
+}
+
+/// Unknown keywords reported one by one; more are counted in one last warning.
+const MAX_UNKNOWN_WARNINGS: usize = 8;
 
 /// Reads an OBJ file (and the MTL libraries it names, relative to its folder).
 pub fn load_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Mesh, SceneError> {
@@ -87,11 +131,28 @@ pub fn parse_obj(
             break;
         }
         parser.line += 1;
-        let text = std::str::from_utf8(&buf).map_err(|_| parser.not_obj("binary data"))?;
-        parser.statement(text)?;
+        let bytes = match buf.strip_prefix(b"\xEF\xBB\xBF") {
+            Some(rest) if parser.line == 1 => rest,
+            _ => &buf[..],
+        };
+        parser.statement(bytes)?;
     }
+    parser.finish();
     warnings.append(&mut parser.warnings);
     Ok(parser.mesh)
+}
+
+/// Whether an unknown keyword looks like a word of some OBJ extension (so it is skipped with a
+/// warning) rather than a sign that the file is something else.
+fn is_word(keyword: &str) -> bool {
+    let mut chars = keyword.chars();
+    chars.next().is_some_and(|c| c.is_ascii_alphabetic())
+        && chars.all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.'))
+}
+
+/// The first 24 characters of a keyword, for messages.
+fn shown(keyword: &str) -> String {
+    keyword.chars().take(24).collect()
 }
 
 struct ObjParser<'a> {
@@ -104,6 +165,19 @@ struct ObjParser<'a> {
     library: HashMap<String, ([f32; 3], Option<u32>)>,
     warnings: Vec<String>,
     corners: Vec<(u32, u32)>,
+    /// Material libraries already read by this file (each is checked and reported once).
+    libraries: HashSet<PathBuf>,
+    /// Kinds of unrendered statements already reported.
+    unrendered: HashSet<Unrendered>,
+    /// Unknown keywords already seen, and the first unknown keyword not reported one by one
+    /// (keyword, line) with the count of such keywords.
+    unknown: HashSet<String>,
+    unknown_unreported: Option<(String, u64, usize)>,
+    /// The first face that named a normal while none was defined: (line, index as written).
+    /// A warning if the file never defines one, else the error it always was.
+    normal_without_vn: Option<(u64, i64)>,
+    /// The same for texture coordinates.
+    texcoord_without_vt: Option<(u64, i64)>,
 }
 
 impl<'a> ObjParser<'a> {
@@ -122,6 +196,70 @@ impl<'a> ObjParser<'a> {
             library: HashMap::new(),
             warnings: Vec::new(),
             corners: Vec::new(),
+            libraries: HashSet::new(),
+            unrendered: HashSet::new(),
+            unknown: HashSet::new(),
+            unknown_unreported: None,
+            normal_without_vn: None,
+            texcoord_without_vt: None,
+        }
+    }
+
+    /// `file:line` of the current line, for warnings.
+    fn here(&self) -> String {
+        format!("{}:{}", self.path.display(), self.line)
+    }
+
+    /// The error a face referring to an undefined normal or texture coordinate always got.
+    fn undefined_index(&self, line: u64, what: &'static str, index: i64) -> SceneError {
+        SceneError::IndexOutOfRange {
+            path: self.path.to_path_buf(),
+            line,
+            what,
+            index,
+            count: 0,
+        }
+    }
+
+    /// End of file: report what was skipped as a whole.
+    fn finish(&mut self) {
+        let path = self.path.display();
+        if let Some((line, _)) = self.normal_without_vn {
+            self.warnings.push(format!(
+                "{path}:{line}: faces name vertex normals, but the file defines none (no \"vn\" \
+                 statements); those faces use their geometric normal (flat shading)"
+            ));
+        }
+        if let Some((line, _)) = self.texcoord_without_vt {
+            self.warnings.push(format!(
+                "{path}:{line}: faces name texture coordinates, but the file defines none (no \
+                 \"vt\" statements); they are ignored (texture coordinates are not used)"
+            ));
+        }
+        if let Some((keyword, line, more)) = self.unknown_unreported.take() {
+            self.warnings.push(format!(
+                "{path}: {more} more unknown statement keywords skipped (the first, \"{keyword}\", \
+                 at line {line}); is this really an OBJ file?"
+            ));
+        }
+    }
+
+    /// Notes an unknown keyword (known not to be a sign of another format): one warning per
+    /// keyword, up to [`MAX_UNKNOWN_WARNINGS`] keywords, then a count.
+    fn unknown_statement(&mut self, keyword: &str) {
+        if self.unknown.contains(keyword) {
+            return;
+        }
+        self.unknown.insert(keyword.to_string());
+        let keyword = shown(keyword);
+        if self.unknown.len() <= MAX_UNKNOWN_WARNINGS {
+            self.warnings.push(format!(
+                "{}: unknown statement \"{keyword}\" skipped",
+                self.here()
+            ));
+        } else {
+            let line = self.line;
+            self.unknown_unreported.get_or_insert((keyword, line, 0)).2 += 1;
         }
     }
 
@@ -141,34 +279,72 @@ impl<'a> ObjParser<'a> {
         }
     }
 
-    fn statement(&mut self, text: &str) -> Result<(), SceneError> {
-        let text = text.split('#').next().unwrap_or("");
-        let mut words = text.split_ascii_whitespace();
-        let Some(keyword) = words.next() else {
+    /// One line, comment included.
+    fn statement(&mut self, line: &[u8]) -> Result<(), SceneError> {
+        if line.contains(&0) {
+            return Err(self.not_obj("binary data"));
+        }
+        let code = line.split(|&b| b == b'#').next().unwrap_or_default();
+        let start = code
+            .iter()
+            .position(|b| !b.is_ascii_whitespace())
+            .unwrap_or(code.len());
+        let code = &code[start..];
+        let end = code
+            .iter()
+            .position(|b| b.is_ascii_whitespace())
+            .unwrap_or(code.len());
+        let (keyword, rest) = code.split_at(end);
+        if keyword.is_empty() {
             return Ok(());
-        };
+        }
+        // Control bytes or invalid UTF-8 in the keyword: not text.
+        if keyword.iter().any(u8::is_ascii_control) {
+            return Err(self.not_obj("binary data"));
+        }
+        let keyword = std::str::from_utf8(keyword).map_err(|_| self.not_obj("binary data"))?;
+        let text = |p: &Self| std::str::from_utf8(rest).map_err(|_| p.not_obj("binary data"));
         match keyword {
             "v" => {
-                let p = self.vector(&mut words, "vertex")?;
+                let p = self.vector(&mut text(self)?.split_ascii_whitespace(), "vertex")?;
                 self.mesh.positions.push(p);
             }
             "vn" => {
-                let n = self.vector(&mut words, "normal")?;
+                if let Some((line, index)) = self.normal_without_vn {
+                    return Err(self.undefined_index(line, "normal", index));
+                }
+                let n = self.vector(&mut text(self)?.split_ascii_whitespace(), "normal")?;
                 self.mesh.normals.push(n);
             }
-            "vt" => self.texcoords += 1,
-            "f" | "fo" => self.face(words)?,
-            "usemtl" => self.use_material(words.next().unwrap_or("")),
+            "vt" => {
+                if let Some((line, index)) = self.texcoord_without_vt {
+                    return Err(self.undefined_index(line, "texture coordinate", index));
+                }
+                self.texcoords += 1;
+            }
+            "f" | "fo" => self.face(text(self)?.split_ascii_whitespace())?,
+            "usemtl" => {
+                let name = text(self)?.split_ascii_whitespace().next().unwrap_or("");
+                self.use_material(name);
+            }
             "mtllib" => {
-                for file in words {
+                for file in text(self)?.split_ascii_whitespace() {
                     self.load_library(file)?;
                 }
             }
-            "o" | "g" | "s" => {}
-            k if IGNORED.contains(&k) => {}
+            "o" | "g" | "s" | "mg" => {}
             k => {
-                let shown: String = k.chars().take(24).collect();
-                return Err(self.not_obj(&format!("unknown statement \"{shown}\"")));
+                if let Some(&(_, kind)) = UNRENDERED.iter().find(|(name, _)| *name == k) {
+                    if self.unrendered.insert(kind) {
+                        let message = format!("{}: {}", self.here(), kind.explain(k));
+                        self.warnings.push(message);
+                    }
+                } else if is_word(k) {
+                    self.unknown_statement(k);
+                } else {
+                    let shown = shown(k);
+                    return Err(self.not_obj(&format!("unknown statement \"{shown}\"")));
+                }
             }
         }
         Ok(())
@@ -228,16 +404,33 @@ impl<'a> ObjParser<'a> {
     }
 
     /// Resolves one `v[/vt][/vn]` corner to (position index, normal index or NO_NORMAL).
-    fn corner(&self, word: &str) -> Result<(u32, u32), SceneError> {
+    /// A normal or texture coordinate named while the file has defined none is noted (see
+    /// `normal_without_vn`) and left out.
+    fn corner(&mut self, word: &str) -> Result<(u32, u32), SceneError> {
         let mut parts = word.split('/');
         let v = parts.next().unwrap_or("");
         let vt = parts.next().unwrap_or("");
         let vn = parts.next().unwrap_or("");
         let position = self.index(v, self.mesh.positions.len(), "vertex")?;
         if !vt.is_empty() {
-            self.index(vt, self.texcoords, "texture coordinate")?;
+            if self.texcoords == 0 {
+                let raw = self.raw_index(vt, "texture coordinate")?;
+                if raw == 0 {
+                    return Err(self.undefined_index(self.line, "texture coordinate", raw));
+                }
+                self.texcoord_without_vt.get_or_insert((self.line, raw));
+            } else {
+                self.index(vt, self.texcoords, "texture coordinate")?;
+            }
         }
         let normal = if vn.is_empty() {
+            NO_NORMAL
+        } else if self.mesh.normals.is_empty() {
+            let raw = self.raw_index(vn, "normal")?;
+            if raw == 0 {
+                return Err(self.undefined_index(self.line, "normal", raw));
+            }
+            self.normal_without_vn.get_or_insert((self.line, raw));
             NO_NORMAL
         } else {
             self.index(vn, self.mesh.normals.len(), "normal")?
@@ -245,10 +438,13 @@ impl<'a> ObjParser<'a> {
         Ok((position, normal))
     }
 
+    fn raw_index(&self, word: &str, what: &'static str) -> Result<i64, SceneError> {
+        word.parse()
+            .map_err(|_| self.syntax(format!("face {what} index \"{word}\" is not an integer")))
+    }
+
     fn index(&self, word: &str, count: usize, what: &'static str) -> Result<u32, SceneError> {
-        let raw: i64 = word
-            .parse()
-            .map_err(|_| self.syntax(format!("face {what} index \"{word}\" is not an integer")))?;
+        let raw = self.raw_index(word, what)?;
         let resolved = if raw > 0 { raw - 1 } else { count as i64 + raw };
         if raw == 0 || resolved < 0 || resolved >= count as i64 || resolved >= i64::from(NO_NORMAL)
         {
@@ -302,6 +498,12 @@ impl<'a> ObjParser<'a> {
             path: mtl_path.clone(),
             detail: e.to_string(),
         })?;
+        if self.libraries.insert(mtl_path.clone()) {
+            // tobj has read it as UTF-8 text; a file that changed since is not checked.
+            if let Ok(text) = std::fs::read_to_string(&mtl_path) {
+                self.warnings.extend(mtl_warnings(&mtl_path, &text));
+            }
+        }
         for m in materials {
             let kd = m.diffuse.unwrap_or(DEFAULT_KD);
             if kd.iter().any(|c| !c.is_finite()) {

@@ -1,0 +1,139 @@
+//! What a material library asks for that the renderer does not do. The renderer uses `Kd` only
+//! (two-sided Lambertian surfaces); textures, highlights, emission and transparency would change
+//! the image in another renderer, so each of them is reported, once per kind and file, naming
+//! the first material and line and counting the others. So is a `Kd` above 1.
+
+use std::path::Path;
+
+/// The kinds reported, in message order (the discriminant indexes [`KINDS`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kind {
+    Texture,
+    Specular,
+    Emission,
+    Transparency,
+    BrightKd,
+}
+
+const KINDS: [Kind; 5] = [
+    Kind::Texture,
+    Kind::Specular,
+    Kind::Emission,
+    Kind::Transparency,
+    Kind::BrightKd,
+];
+
+/// The first occurrence of a kind and the materials that show it.
+struct Found {
+    line: usize,
+    material: String,
+    /// The statement as written (keyword and values), whitespace collapsed.
+    statement: String,
+    materials: Vec<String>,
+}
+
+/// Warnings for the MTL file at `path` with contents `text`: one per kind found, in the order
+/// textures, specular, emission, transparency, Kd above 1.
+pub(super) fn mtl_warnings(path: &Path, text: &str) -> Vec<String> {
+    let mut found: [Option<Found>; 5] = Default::default();
+    let mut material = String::new();
+    for (i, raw) in text.lines().enumerate() {
+        let line = raw.trim();
+        let mut words = line.split_whitespace();
+        let Some(keyword) = words.next() else {
+            continue;
+        };
+        if keyword.starts_with('#') {
+            continue;
+        }
+        if keyword == "newmtl" {
+            material = line["newmtl".len()..].trim().to_string();
+            continue;
+        }
+        let values: Vec<&str> = words.collect();
+        let Some(kind) = classify(keyword, &values) else {
+            continue;
+        };
+        let slot = &mut found[kind as usize];
+        let entry = slot.get_or_insert_with(|| Found {
+            line: i + 1,
+            material: material.clone(),
+            statement: std::iter::once(keyword)
+                .chain(values.iter().copied())
+                .collect::<Vec<_>>()
+                .join(" "),
+            materials: Vec::new(),
+        });
+        if !entry.materials.contains(&material) {
+            entry.materials.push(material.clone());
+        }
+    }
+    KINDS
+        .iter()
+        .zip(found)
+        .filter_map(|(&kind, f)| f.map(|f| message(path, kind, &f)))
+        .collect()
+}
+
+/// Which kind a statement shows, if any: texture statements always, colours and factors only
+/// when they have a visible effect elsewhere (a nonzero `Ks` or `Ke`, `d` below 1, `Tr` above 0)
+/// and `Kd` when a channel exceeds 1.
+fn classify(keyword: &str, values: &[&str]) -> Option<Kind> {
+    let lower = keyword.to_ascii_lowercase();
+    let numbers = || values.iter().filter_map(|v| v.parse::<f32>().ok());
+    if lower.starts_with("map_") || matches!(lower.as_str(), "bump" | "disp" | "decal" | "refl") {
+        return Some(Kind::Texture);
+    }
+    match keyword {
+        "Ks" if numbers().any(|v| v > 0.0) => Some(Kind::Specular),
+        "Ke" if numbers().any(|v| v > 0.0) => Some(Kind::Emission),
+        "d" if numbers().any(|v| v < 1.0) => Some(Kind::Transparency),
+        "Tr" if numbers().any(|v| v > 0.0) => Some(Kind::Transparency),
+        "Kd" if numbers().any(|v| v > 1.0) => Some(Kind::BrightKd),
+        _ => None,
+    }
+}
+
+fn message(path: &Path, kind: Kind, f: &Found) -> String {
+    let name = if f.material.is_empty() {
+        "(before any newmtl)".to_string()
+    } else {
+        format!("\"{}\"", f.material)
+    };
+    let more = match f.materials.len() - 1 {
+        0 => String::new(),
+        1 => " (and 1 more material)".to_string(),
+        n => format!(" (and {n} more materials)"),
+    };
+    let what = match kind {
+        Kind::Texture => "uses a texture",
+        Kind::Specular => "has a specular colour",
+        Kind::Emission => "is emissive",
+        Kind::Transparency => "is partly transparent",
+        Kind::BrightKd => "has a diffuse colour above 1",
+    };
+    let instead = match kind {
+        Kind::Texture => {
+            "textures are not rendered, so the surface shows its flat Kd colour instead (grey 0.7 \
+             without Kd)"
+        }
+        Kind::Specular => {
+            "highlights and reflections are not rendered, the surface is purely diffuse (Kd only)"
+        }
+        Kind::Emission => {
+            "emission is not rendered, the surface neither glows nor lights the scene (give the \
+             scene lights in a manifest instead)"
+        }
+        Kind::Transparency => "transparency is not rendered, the surface is opaque",
+        Kind::BrightKd => {
+            "a surface that reflects more light than it receives is not physically plausible; \
+             it is rendered as given (use Kd values from 0 to 1)"
+        }
+    };
+    format!(
+        "{}:{}: material {name} {what} ({}){more}; {instead}",
+        path.display(),
+        f.line,
+        f.statement
+    )
+}
