@@ -9,6 +9,7 @@ use aws_config::timeout::TimeoutConfig;
 use aws_sdk_s3::Client;
 use aws_sdk_s3::config::{
     Credentials, Region, RequestChecksumCalculation, ResponseChecksumValidation,
+    SharedCredentialsProvider,
 };
 use hort_core::store::StoreError;
 
@@ -18,6 +19,8 @@ pub const DEFAULT_CONNECT_TIMEOUT: Duration = Duration::from_secs(3);
 pub const DEFAULT_ATTEMPT_TIMEOUT: Duration = Duration::from_secs(30);
 /// Default number of attempts per request (the first try plus retries), SDK standard mode.
 pub const DEFAULT_MAX_ATTEMPTS: u32 = 3;
+/// The region used when none is configured and the SDK's default chain finds none.
+pub const DEFAULT_REGION: &str = "us-east-1";
 
 /// Where credentials come from.
 #[derive(Clone, PartialEq, Eq)]
@@ -57,7 +60,8 @@ pub struct S3Config {
     /// The bucket every key lives in.
     pub bucket: String,
     /// The signing region; `None` takes it from the SDK's default chain (`AWS_REGION`, as set on
-    /// Lambda, or the profile). S3-compatible servers usually accept `us-east-1`.
+    /// Lambda, or the profile's `region`), else [`DEFAULT_REGION`]. S3-compatible servers
+    /// usually accept `us-east-1`.
     pub region: Option<String>,
     /// Where the credentials come from.
     pub credentials: S3Credentials,
@@ -75,7 +79,7 @@ pub struct S3Config {
 
 impl S3Config {
     /// AWS S3: default credential chain, virtual-hosted addressing, default timeouts; `region`
-    /// `None` reads it from the environment.
+    /// `None` reads it from the environment, else uses [`DEFAULT_REGION`].
     pub fn aws(bucket: impl Into<String>, region: Option<String>) -> Self {
         Self {
             endpoint: None,
@@ -114,9 +118,19 @@ impl S3Config {
 
     /// The SDK client for this configuration and the endpoint's name for messages (the URL,
     /// or `AWS S3 (REGION)`). Sends no request; fails with [`StoreError::Other`] on a
-    /// malformed endpoint or when no region is configured or found in the environment. Build it
-    /// once per process (a Lambda environment) and share it: clients pool connections.
+    /// malformed endpoint. The region is [`S3Config::region`], else the SDK's default chain's,
+    /// else [`DEFAULT_REGION`]. Build it once per process (a Lambda environment) and share it:
+    /// clients pool connections.
     pub async fn sdk_client(&self) -> Result<(Client, String), StoreError> {
+        let (client, label, _) = self.sdk_parts().await?;
+        Ok((client, label))
+    }
+
+    /// [`S3Config::sdk_client`] and the credentials provider the client signs with (`None` if
+    /// the SDK has none), so that a store can check for credentials before any request.
+    pub(crate) async fn sdk_parts(
+        &self,
+    ) -> Result<(Client, String, Option<SharedCredentialsProvider>), StoreError> {
         let endpoint = match &self.endpoint {
             Some(endpoint) => Some(checked_endpoint(endpoint)?),
             None => None,
@@ -143,16 +157,12 @@ impl S3Config {
             loader = loader.endpoint_url(endpoint);
         }
         let sdk_config = loader.load().await;
-        let Some(region) = sdk_config.region().map(ToString::to_string) else {
-            return Err(StoreError::Other {
-                what: format!(
-                    "no AWS region for bucket {:?}: set AWS_REGION or the store's region",
-                    self.bucket
-                ),
-            });
-        };
-        let mut s3 =
-            aws_sdk_s3::config::Builder::from(&sdk_config).force_path_style(self.force_path_style);
+        let region = sdk_config
+            .region()
+            .map_or_else(|| DEFAULT_REGION.to_owned(), ToString::to_string);
+        let mut s3 = aws_sdk_s3::config::Builder::from(&sdk_config)
+            .region(Region::new(region.clone()))
+            .force_path_style(self.force_path_style);
         if endpoint.is_some() {
             // Many S3-compatible servers reject the SDK's default CRC32 trailers; shuffle blocks
             // carry their own checksum, so only send checksums where S3 demands them.
@@ -161,7 +171,8 @@ impl S3Config {
                 .response_checksum_validation(ResponseChecksumValidation::WhenRequired);
         }
         let label = endpoint.unwrap_or_else(|| format!("AWS S3 ({region})"));
-        Ok((Client::from_conf(s3.build()), label))
+        let credentials = sdk_config.credentials_provider();
+        Ok((Client::from_conf(s3.build()), label, credentials))
     }
 }
 

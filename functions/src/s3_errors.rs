@@ -1,8 +1,10 @@
 //! The one place where AWS SDK errors become [`StoreError`]s with one-line messages.
 //!
 //! Classes: a missing object is `NotFound`; an unreachable endpoint, a timeout, a 5xx answer or
-//! throttling is `Unavailable` (retryable); a missing bucket, refused credentials or a refused
-//! permission is `Denied` (not retryable); anything else is `Other`. Messages start with the
+//! throttling is `Unavailable` (retryable); refused credentials or a refused permission is
+//! `Denied` (not retryable); a missing bucket, missing credentials and anything else is `Other`
+//! (not retryable either: "access denied" would send users looking for a permission problem
+//! they do not have). Messages start with the
 //! operation (`get "jobs/a/part-0"`), then say what went wrong in words, naming the bucket and
 //! the endpoint; they never contain SDK debug text or line breaks.
 
@@ -173,9 +175,9 @@ where
     } else {
         code.to_owned()
     };
-    if code == "NoSuchBucket" || (status == 404 && !request.object_read) {
-        return StoreError::Denied {
-            what: format!("{op}: bucket {bucket:?} does not exist at {ep}"),
+    if is_missing_bucket(err, request) {
+        return StoreError::Other {
+            what: missing_bucket(op, bucket, ep),
         };
     }
     if (status == 404 || code == "NoSuchKey")
@@ -199,10 +201,16 @@ where
         };
     }
     if code == "PermanentRedirect" || code == "AuthorizationHeaderMalformed" || status == 301 {
+        // S3 names the bucket's region in a header of the answer (HEAD answers have no body).
+        let region = err
+            .raw_response()
+            .and_then(|r| r.headers().get("x-amz-bucket-region"))
+            .map(|r| format!("; it is in {r}"))
+            .unwrap_or_default();
         return StoreError::Denied {
             what: format!(
                 "{op}: bucket {bucket:?} is not in the configured region at {ep} \
-                 ({code_or_status})"
+                 ({code_or_status}{region})"
             ),
         };
     }
@@ -222,6 +230,40 @@ where
             what: format!("{op}: S3 endpoint {ep} refused the request ({detail})"),
         }
     }
+}
+
+/// True if the answer means "no such bucket": the code `NoSuchBucket`, or a 404 to a request
+/// that is not an object read (HEAD answers carry no code).
+pub(crate) fn is_missing_bucket<E: ProvideErrorMetadata>(
+    err: &SdkError<E, HttpResponse>,
+    request: Request<'_>,
+) -> bool {
+    matches!(err, SdkError::ServiceError(_))
+        && (err.code() == Some("NoSuchBucket")
+            || (status_of(err) == Some(404) && !request.object_read))
+}
+
+/// The message of a missing bucket.
+pub(crate) fn missing_bucket(op: &str, bucket: &str, ep: &str) -> String {
+    format!("{op}: bucket {bucket:?} does not exist at {ep}")
+}
+
+/// The message of a credential chain that found nothing usable; `detail` is what the last
+/// source said when it failed for another reason than having nothing to offer.
+pub(crate) fn no_credentials(op: &str, target: &Target, detail: Option<&str>) -> String {
+    let detail = detail.map(|d| format!(" ({d})")).unwrap_or_default();
+    format!(
+        "{op}: no AWS credentials found for bucket {:?} at {}{detail}: set AWS_ACCESS_KEY_ID \
+         and AWS_SECRET_ACCESS_KEY (or configure an AWS profile)",
+        target.bucket, target.endpoint
+    )
+}
+
+/// Why loading credentials failed, for [`no_credentials`]: `None` when the chain simply found
+/// none (the SDK's `CredentialsNotLoaded`), else the innermost cause on one line.
+pub(crate) fn credentials_detail(err: &(dyn Error + 'static)) -> Option<String> {
+    // `CredentialsNotLoaded` is the one variant whose message is exactly this.
+    (err.to_string() != "the credential provider was not enabled").then(|| innermost(err))
 }
 
 /// Why a connection failed, in words: `connection refused`, `DNS lookup failed: ...`, or the

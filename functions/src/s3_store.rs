@@ -10,6 +10,7 @@
 use std::ops::Range;
 
 use aws_sdk_s3::Client;
+use aws_sdk_s3::config::{ProvideCredentials, SharedCredentialsProvider};
 use aws_sdk_s3::primitives::ByteStream;
 use aws_sdk_s3::types::{BucketLocationConstraint, CreateBucketConfiguration};
 use hort_core::store::{BlobStore, PutOutcome, StoreError};
@@ -26,6 +27,35 @@ const CONDITIONAL_CONFLICT_ATTEMPTS: u32 = 5;
 /// the store reserve memory it never fills.
 const MAX_PREALLOCATION: usize = 64 << 20;
 
+/// How many DELETE requests [`S3Store::delete_all`] keeps in flight.
+const PARALLEL_DELETES: usize = 32;
+
+/// Why the bucket cannot be used, as [`S3Store::probe_bucket`] finds out: the two cases callers
+/// explain in their own words, and every other classified failure.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum BucketProblem {
+    /// The credential chain found no credentials (only possible with
+    /// [`crate::S3Credentials::DefaultChain`]); `detail` is what its last source said when it
+    /// failed for another reason than having nothing to offer.
+    NoCredentials {
+        /// The last source's reason, on one line, if it gave one.
+        detail: Option<String>,
+    },
+    /// The bucket does not exist at the endpoint.
+    Missing,
+    /// Anything else (unreachable endpoint, refused credentials, refused permission, ...).
+    Store(StoreError),
+}
+
+/// One object of a listing with its size.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ListedObject {
+    /// The object's key.
+    pub key: String,
+    /// Its size in bytes.
+    pub bytes: u64,
+}
+
 /// A [`BlobStore`] on one S3 bucket.
 ///
 /// Guarantees the [`BlobStore`] contract (it passes `hort_core::store::conformance`) on AWS S3
@@ -38,6 +68,8 @@ pub struct S3Store {
     client: Client,
     target: Target,
     region: Option<String>,
+    /// The provider the client signs with, when known (not for [`S3Store::from_client`]).
+    credentials: Option<SharedCredentialsProvider>,
     handle: Handle,
     /// The runtime made by [`S3Store::open`], if this store owns one.
     runtime: Option<Runtime>,
@@ -56,9 +88,10 @@ impl S3Store {
                     .to_owned(),
             });
         }
-        let (client, label) = config.sdk_client().await?;
+        let (client, label, credentials) = config.sdk_parts().await?;
         let region = client.config().region().map(ToString::to_string);
         let mut store = Self::from_client(client, &config.bucket, label, handle);
+        store.credentials = credentials;
         store.target.connect_timeout = config.connect_timeout;
         store.target.attempt_timeout = config.attempt_timeout;
         store.region = region;
@@ -100,6 +133,7 @@ impl S3Store {
                 attempt_timeout: crate::s3_config::DEFAULT_ATTEMPT_TIMEOUT,
             },
             region,
+            credentials: None,
             handle,
             runtime: None,
         }
@@ -120,13 +154,77 @@ impl S3Store {
         &self.client
     }
 
-    /// Checks that the bucket exists and the credentials are accepted (HeadBucket), so a
-    /// misconfiguration fails up front with the same one-line errors as later requests:
-    /// `Denied` for a missing bucket, refused credentials or permissions, `Unavailable` for an
-    /// unreachable endpoint.
+    /// The signing region.
+    pub fn region(&self) -> Option<&str> {
+        self.region.as_deref()
+    }
+
+    /// Checks that credentials can be found (stores made by [`S3Store::connect`] or
+    /// [`S3Store::open`]), the bucket exists and the credentials are accepted
+    /// (HeadBucket), so a misconfiguration fails up front with one-line errors, prefixed
+    /// `check bucket`: `Other` for missing credentials or a missing bucket, `Denied` for
+    /// refused credentials or permissions, `Unavailable` for an unreachable endpoint.
     pub fn check_bucket(&self) -> Result<(), StoreError> {
+        let op = "check bucket";
         self.handle
-            .block_on(self.check_bucket_async("check bucket"))
+            .block_on(self.probe_bucket_async(op))
+            .map_err(|problem| self.problem_error(op, problem))
+    }
+
+    /// [`S3Store::check_bucket`], with the missing credentials and the missing bucket told
+    /// apart, for callers that explain them in their own words.
+    pub fn probe_bucket(&self) -> Result<(), BucketProblem> {
+        self.handle
+            .block_on(self.probe_bucket_async("check bucket"))
+    }
+
+    /// A [`BucketProblem`] as the one-line error of operation `op`.
+    fn problem_error(&self, op: &str, problem: BucketProblem) -> StoreError {
+        match problem {
+            BucketProblem::NoCredentials { detail } => StoreError::Other {
+                what: s3_errors::no_credentials(op, &self.target, detail.as_deref()),
+            },
+            BucketProblem::Missing => StoreError::Other {
+                what: s3_errors::missing_bucket(op, &self.target.bucket, &self.target.endpoint),
+            },
+            BucketProblem::Store(e) => e,
+        }
+    }
+
+    /// Every object under `prefix` with its size, sorted by key (all pages).
+    pub fn list_sizes(&self, prefix: &str) -> Result<Vec<ListedObject>, StoreError> {
+        self.handle.block_on(self.list_async(prefix))
+    }
+
+    /// Deletes every key of `keys` (missing ones included, as [`BlobStore::delete`]), with up
+    /// to 32 requests in flight; the first failure is returned after the requests in flight
+    /// end, and keys not yet sent are left alone.
+    pub fn delete_all(&self, keys: &[String]) -> Result<(), StoreError> {
+        self.handle.block_on(async {
+            for chunk in keys.chunks(PARALLEL_DELETES) {
+                let mut deletes = tokio::task::JoinSet::new();
+                for key in chunk {
+                    let (client, target, key) =
+                        (self.client.clone(), self.target.clone(), key.clone());
+                    deletes.spawn(async move { delete_object(&client, &target, &key).await });
+                }
+                let mut first_error = None;
+                while let Some(done) = deletes.join_next().await {
+                    let result = done.unwrap_or_else(|e| {
+                        Err(StoreError::Other {
+                            what: format!("delete: the request task failed ({e})"),
+                        })
+                    });
+                    if let Err(e) = result {
+                        first_error.get_or_insert(e);
+                    }
+                }
+                if let Some(e) = first_error {
+                    return Err(e);
+                }
+            }
+            Ok(())
+        })
     }
 
     /// Creates the bucket unless it exists (in the store's region), then checks it as
@@ -139,9 +237,9 @@ impl S3Store {
                 key: None,
                 object_read: false,
             };
-            match self.check_bucket_async(request.op).await {
-                Err(StoreError::Denied { what }) if what.contains("does not exist") => {}
-                other => return other,
+            match self.probe_bucket_async(request.op).await {
+                Err(BucketProblem::Missing) => {}
+                other => return other.map_err(|p| self.problem_error(request.op, p)),
             }
             let mut create = self.client.create_bucket().bucket(&self.target.bucket);
             if let Some(region) = self.region.as_deref().filter(|r| *r != "us-east-1") {
@@ -160,16 +258,27 @@ impl S3Store {
                     return Err(s3_errors::store_error(err, request, &self.target));
                 }
             }
-            self.check_bucket_async(request.op).await
+            self.probe_bucket_async(request.op)
+                .await
+                .map_err(|p| self.problem_error(request.op, p))
         })
     }
 
-    async fn check_bucket_async(&self, op: &str) -> Result<(), StoreError> {
+    async fn probe_bucket_async(&self, op: &str) -> Result<(), BucketProblem> {
         let request = Request {
             op,
             key: None,
             object_read: false,
         };
+        // Resolve the credentials first: a request would fail with the last source's reason
+        // (often the EC2 metadata service's), which does not say that none were found.
+        if let Some(provider) = &self.credentials
+            && let Err(e) = provider.provide_credentials().await
+        {
+            return Err(BucketProblem::NoCredentials {
+                detail: s3_errors::credentials_detail(&e),
+            });
+        }
         let head = self
             .client
             .head_bucket()
@@ -179,6 +288,9 @@ impl S3Store {
         let Err(err) = head else {
             return Ok(());
         };
+        if s3_errors::is_missing_bucket(&err, request) {
+            return Err(BucketProblem::Missing);
+        }
         if s3_errors::lacks_code(&err) {
             // A HEAD answer has no body, hence no error code: a GET tells which refusal it was.
             let list = self
@@ -189,10 +301,21 @@ impl S3Store {
                 .send()
                 .await;
             if let Err(list_err) = list {
-                return Err(s3_errors::store_error(list_err, request, &self.target));
+                if s3_errors::is_missing_bucket(&list_err, request) {
+                    return Err(BucketProblem::Missing);
+                }
+                return Err(BucketProblem::Store(s3_errors::store_error(
+                    list_err,
+                    request,
+                    &self.target,
+                )));
             }
         }
-        Err(s3_errors::store_error(err, request, &self.target))
+        Err(BucketProblem::Store(s3_errors::store_error(
+            err,
+            request,
+            &self.target,
+        )))
     }
 
     /// The length of object `key` (HeadObject).
@@ -355,7 +478,7 @@ impl S3Store {
         }
     }
 
-    async fn list_async(&self, prefix: &str) -> Result<Vec<String>, StoreError> {
+    async fn list_async(&self, prefix: &str) -> Result<Vec<ListedObject>, StoreError> {
         let request = Request {
             op: "list",
             key: Some(prefix),
@@ -373,11 +496,12 @@ impl S3Store {
                 .send()
                 .await
                 .map_err(|e| s3_errors::store_error(e, request, &self.target))?;
-            keys.extend(
-                page.contents()
-                    .iter()
-                    .filter_map(|object| object.key().map(str::to_owned)),
-            );
+            keys.extend(page.contents().iter().filter_map(|object| {
+                Some(ListedObject {
+                    key: object.key()?.to_owned(),
+                    bytes: u64::try_from(object.size().unwrap_or(0)).unwrap_or(0),
+                })
+            }));
             if !page.is_truncated().unwrap_or(false) {
                 break;
             }
@@ -394,8 +518,8 @@ impl S3Store {
                 }
             }
         }
-        keys.sort_unstable();
-        keys.dedup();
+        keys.sort_unstable_by(|a, b| a.key.cmp(&b.key));
+        keys.dedup_by(|a, b| a.key == b.key);
         Ok(keys)
     }
 }
@@ -452,34 +576,36 @@ impl BlobStore for S3Store {
     }
 
     fn list(&self, prefix: &str) -> Result<Vec<String>, StoreError> {
-        self.handle.block_on(self.list_async(prefix))
+        let objects = self.handle.block_on(self.list_async(prefix))?;
+        Ok(objects.into_iter().map(|o| o.key).collect())
     }
 
     fn delete(&self, key: &str) -> Result<(), StoreError> {
-        let request = Request {
-            op: "delete",
-            key: Some(key),
-            object_read: false,
-        };
-        self.handle.block_on(async {
-            match self
-                .client
-                .delete_object()
-                .bucket(&self.target.bucket)
-                .key(key)
-                .send()
-                .await
-            {
-                Ok(_) => Ok(()),
-                // Some servers answer 404 NoSuchKey where S3 answers 204: same meaning.
-                Err(err)
-                    if aws_sdk_s3::error::ProvideErrorMetadata::code(&err) == Some("NoSuchKey") =>
-                {
-                    Ok(())
-                }
-                Err(err) => Err(s3_errors::store_error(err, request, &self.target)),
-            }
-        })
+        self.handle
+            .block_on(delete_object(&self.client, &self.target, key))
+    }
+}
+
+/// One DELETE; a missing key is success (S3 semantics).
+async fn delete_object(client: &Client, target: &Target, key: &str) -> Result<(), StoreError> {
+    let request = Request {
+        op: "delete",
+        key: Some(key),
+        object_read: false,
+    };
+    match client
+        .delete_object()
+        .bucket(&target.bucket)
+        .key(key)
+        .send()
+        .await
+    {
+        Ok(_) => Ok(()),
+        // Some servers answer 404 NoSuchKey where S3 answers 204: same meaning.
+        Err(err) if aws_sdk_s3::error::ProvideErrorMetadata::code(&err) == Some("NoSuchKey") => {
+            Ok(())
+        }
+        Err(err) => Err(s3_errors::store_error(err, request, target)),
     }
 }
 

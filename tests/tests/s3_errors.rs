@@ -1,10 +1,12 @@
 //! `S3Store` errors are one clear line each, in the right class: an unreachable endpoint is
-//! retryable, a missing bucket or refused credentials are not.
+//! retryable, a missing bucket, missing credentials or refused credentials are not; a missing
+//! bucket and missing credentials are not called "access denied".
 
 mod s3_support;
 
 use hort_core::store::{BlobStore, StoreError};
-use hort_functions::{S3Config, S3Store};
+use hort_functions::s3_store::BucketProblem;
+use hort_functions::{S3Config, S3Credentials, S3Store};
 use s3_support::{ACCESS_KEY, Embedded};
 
 /// Asserts `err` is one line of plain words, not SDK debug output.
@@ -71,13 +73,13 @@ fn unresolvable_host_is_retryable_and_names_the_dns_failure() {
 }
 
 #[test]
-fn missing_bucket_is_denied_and_named() {
+fn missing_bucket_is_named_not_denied() {
     let embedded = Embedded::start(Some("present"));
     let endpoint = embedded.server.endpoint();
     let store = embedded.store("nope");
-    let says = |op: &str| {
-        format!("storage access denied: {op}: bucket \"nope\" does not exist at {endpoint}")
-    };
+    assert_eq!(store.probe_bucket(), Err(BucketProblem::Missing));
+    let says =
+        |op: &str| format!("storage error: {op}: bucket \"nope\" does not exist at {endpoint}");
 
     let err = store.check_bucket().expect_err("no such bucket");
     assert_eq!(err.to_string(), says("check bucket"));
@@ -90,7 +92,9 @@ fn missing_bucket_is_denied_and_named() {
     assert_eq!(err.to_string(), says("get \"k\""));
     let err = store.list("jobs/").expect_err("no such bucket");
     assert_eq!(err.to_string(), says("list \"jobs/\""));
-    assert!(matches!(err, StoreError::Denied { .. }));
+    assert!(matches!(err, StoreError::Other { .. }));
+    let err = store.delete("k").expect_err("no such bucket");
+    assert_eq!(err.to_string(), says("delete \"k\""));
     assert!(
         !embedded.dir.path().join("nope").exists(),
         "a put must not create the bucket"
@@ -113,6 +117,7 @@ fn unknown_access_key_is_denied_as_bad_credentials() {
     assert_eq!(err.to_string(), says("check bucket"));
     assert!(!err.is_retryable());
     assert_one_clean_line(&err);
+    assert_eq!(store.probe_bucket(), Err(BucketProblem::Store(err)));
 
     let err = store.get("k").expect_err("unknown key");
     assert_eq!(err.to_string(), says("get \"k\""));
@@ -165,4 +170,73 @@ fn malformed_endpoint_is_refused_before_any_request() {
         "storage error: invalid S3 endpoint \"127.0.0.1:9000\": expected http://HOST[:PORT] or \
          https://HOST[:PORT]"
     );
+}
+
+/// Set in the environment of the child process that [`missing_credentials_say_where_to_set_them`]
+/// starts; the child test runs only then.
+const CHILD: &str = "HORT_TEST_NO_CREDENTIALS_CHILD";
+
+#[test]
+fn missing_credentials_say_where_to_set_them() {
+    // The default credential chain reads the environment and the home folder: look at them in a
+    // child process with neither (and no EC2 metadata service), so this process stays as it is.
+    let home = tempfile::tempdir().expect("temporary directory");
+    let child = std::process::Command::new(std::env::current_exe().expect("test binary"))
+        .args([
+            "--exact",
+            "no_credentials_child",
+            "--nocapture",
+            "--test-threads",
+            "1",
+        ])
+        .env_clear()
+        .env("HOME", home.path())
+        .env("AWS_EC2_METADATA_DISABLED", "true")
+        .env(CHILD, "1")
+        .output()
+        .expect("the test binary runs");
+    let out = String::from_utf8_lossy(&child.stdout);
+    assert!(
+        child.status.success(),
+        "{out}{}",
+        String::from_utf8_lossy(&child.stderr)
+    );
+    let said: Vec<&str> = out
+        .lines()
+        .filter_map(|l| l.split_once("said: ").map(|(_, said)| said))
+        .collect();
+    assert_eq!(
+        said,
+        [
+            "storage error: check bucket: no AWS credentials found for bucket \"b\" at \
+             http://127.0.0.1:9: set AWS_ACCESS_KEY_ID and AWS_SECRET_ACCESS_KEY (or configure an \
+             AWS profile)",
+            // Without an endpoint the store is on AWS S3, in us-east-1 when nothing names a region.
+            "storage error: check bucket: no AWS credentials found for bucket \"b\" at AWS S3 \
+             (us-east-1): set AWS_ACCESS_KEY_ID and AWS_SECRET_ACCESS_KEY (or configure an AWS \
+             profile)",
+        ]
+    );
+}
+
+/// Run by [`missing_credentials_say_where_to_set_them`] in a child process; passes trivially
+/// otherwise. Prints each error as `said: ...` (after the harness's `test ... ` on the first).
+#[test]
+fn no_credentials_child() {
+    if std::env::var_os(CHILD).is_none() {
+        return;
+    }
+    let mut compatible = S3Config::compatible("http://127.0.0.1:9", "b", "", "");
+    compatible.credentials = S3Credentials::DefaultChain;
+    for config in [compatible, S3Config::aws("b", None)] {
+        let store = S3Store::open(&config).expect("client");
+        assert!(matches!(
+            store.probe_bucket(),
+            Err(BucketProblem::NoCredentials { detail: None })
+        ));
+        let err = store.check_bucket().expect_err("no credentials");
+        assert!(matches!(err, StoreError::Other { .. }));
+        assert_one_clean_line(&err);
+        println!("said: {err}");
+    }
 }
