@@ -1,18 +1,33 @@
-//! Where the emulator keeps objects: an S3 server embedded in the process (default) or any
-//! S3-compatible endpoint, always reached through the real S3 protocol with `S3Store`.
+//! Where the emulator keeps objects: an S3 server embedded in the process (default) or any S3
+//! bucket (an S3-compatible endpoint or AWS S3 itself), always reached through the real S3
+//! protocol with `S3Store`.
+//!
+//! Every run also gets a temporary folder, `{temp}/hort-s3-{pid}-{n}/`: the embedded server's
+//! objects when no data folder is given (`data/`) and the Plan function's scratch copy of the
+//! scene (`work/`). It is removed when the [`Storage`] is dropped, again by
+//! [`remove_temp_folders`] (which the command calls just before it exits, however it exits,
+//! since tasks a cancelled run abandoned may still write), and, if the process was killed
+//! outright (SIGKILL), by the next [`Storage::open`] once the owning process is gone.
 
+use anyhow::{Result, anyhow, bail};
 use embedded_s3::EmbeddedS3;
-use hort_core::store::{BlobStore, CountingStore, StoreError};
+use hort_core::store::{BlobStore, CountingStore};
+use hort_functions::s3_store::BucketProblem;
 use hort_functions::{S3Config, S3Credentials, S3Store};
-use std::path::PathBuf;
-use std::sync::Arc;
+use std::fs::File;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
 
 /// Keys of the embedded server (it only listens on 127.0.0.1).
 const EMBEDDED_ACCESS_KEY: &str = "hort-local";
 const EMBEDDED_SECRET_KEY: &str = "hort-local-secret";
 /// Bucket used with the embedded server.
 pub const EMBEDDED_BUCKET: &str = "hort";
+/// Name prefix of the per-run temporary folders, followed by `{pid}-{n}`.
+const TEMP_PREFIX: &str = "hort-s3-";
+/// The file inside a temporary folder that its process keeps locked while it lives.
+const OWNER_LOCK: &str = "owner.lock";
 
 /// Which S3 service to use.
 #[derive(Clone, Debug)]
@@ -22,15 +37,51 @@ pub enum StorageTarget {
         /// Where objects are kept after the run; a temporary folder, removed at exit, if `None`.
         data_dir: Option<PathBuf>,
     },
-    /// Use an S3-compatible endpoint (MinIO, Garage, Ceph RGW, moto, AWS).
+    /// An S3-compatible endpoint (MinIO, Garage, Ceph RGW, moto) with path-style requests and
+    /// region `us-east-1`: [`S3Config::compatible`] with these credentials.
     External {
         /// The endpoint URL, e.g. `http://127.0.0.1:9000`.
         endpoint: String,
-        /// The bucket holding the jobs (created if absent).
+        /// The bucket holding the jobs; it must exist.
         bucket: String,
         /// How requests are signed.
         credentials: S3Credentials,
     },
+    /// Any bucket as a full configuration: AWS S3 itself (`endpoint: None`) or an
+    /// S3-compatible endpoint with a chosen region. The bucket must exist.
+    Bucket(S3Config),
+}
+
+impl StorageTarget {
+    /// True if the objects outlive the process (a bucket, or an embedded data folder).
+    pub fn is_persistent(&self) -> bool {
+        !matches!(self, StorageTarget::Embedded { data_dir: None })
+    }
+
+    /// The `hort` storage flags naming this target, each preceded by a space, for commands
+    /// suggested in messages (credentials left out); empty for a temporary embedded server.
+    pub fn flags(&self) -> String {
+        match self {
+            StorageTarget::Embedded { data_dir: None } => String::new(),
+            StorageTarget::Embedded {
+                data_dir: Some(dir),
+            } => format!(" --data-dir {}", dir.display()),
+            StorageTarget::External {
+                endpoint, bucket, ..
+            } => format!(" --s3-endpoint {endpoint} --bucket {bucket}"),
+            StorageTarget::Bucket(config) => {
+                let mut flags = match &config.endpoint {
+                    Some(endpoint) => format!(" --s3-endpoint {endpoint}"),
+                    None => String::new(),
+                };
+                flags += &format!(" --bucket {}", config.bucket);
+                if let Some(region) = &config.region {
+                    flags += &format!(" --region {region}");
+                }
+                flags
+            }
+        }
+    }
 }
 
 /// An opened bucket: the store every function and the orchestrator use, with request counts.
@@ -39,52 +90,30 @@ pub struct Storage {
     pub store: Arc<CountingStore<S3Store>>,
     /// The bucket's name.
     pub bucket: String,
-    /// The S3 endpoint URL the store talks to.
+    /// The S3 endpoint URL the store talks to (`AWS S3 (REGION)` for AWS itself).
     pub endpoint: String,
-    /// Keeps the embedded server (and its temporary folder) alive.
+    /// Keeps the embedded server alive; dropped before the temporary folder.
     _server: Option<EmbeddedS3>,
-    _temp: Option<TempDir>,
-}
-
-/// A folder removed on drop.
-struct TempDir(PathBuf);
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
+    temp: TempFolder,
 }
 
 impl Storage {
-    /// Starts or connects to the target and checks the bucket, with one-line errors.
-    pub fn open(target: &StorageTarget) -> Result<Storage, StoreError> {
+    /// Starts or connects to the target and checks the bucket and the credentials, with
+    /// one-line errors that say what to do. First removes the temporary folders of runs whose
+    /// process is gone.
+    pub fn open(target: &StorageTarget) -> Result<Storage> {
+        remove_stale_temp_folders();
+        let temp = TempFolder::create()?;
         match target {
             StorageTarget::Embedded { data_dir } => {
-                let (dir, temp) = match data_dir {
-                    Some(d) => (d.clone(), None),
-                    None => {
-                        // Unique per run: several runs may share a process (benches, tests).
-                        static RUN: AtomicU64 = AtomicU64::new(0);
-                        let d = std::env::temp_dir().join(format!(
-                            "hort-s3-{}-{}",
-                            std::process::id(),
-                            RUN.fetch_add(1, Ordering::Relaxed)
-                        ));
-                        (d.clone(), Some(TempDir(d)))
-                    }
-                };
-                std::fs::create_dir_all(&dir).map_err(|e| StoreError::Other {
-                    what: format!("cannot create data folder {}: {e}", dir.display()),
-                })?;
+                let dir = data_dir.clone().unwrap_or_else(|| temp.path().join("data"));
+                std::fs::create_dir_all(&dir)
+                    .map_err(|e| anyhow!("cannot create data folder {}: {e}", dir.display()))?;
                 let server = EmbeddedS3::start(&dir, EMBEDDED_ACCESS_KEY, EMBEDDED_SECRET_KEY)
-                    .map_err(|e| StoreError::Other {
-                        what: format!("cannot start the embedded S3 server: {e}"),
-                    })?;
+                    .map_err(|e| anyhow!("cannot start the embedded S3 server: {e}"))?;
                 server
                     .ensure_bucket(EMBEDDED_BUCKET)
-                    .map_err(|e| StoreError::Other {
-                        what: format!("cannot create the embedded bucket: {e}"),
-                    })?;
+                    .map_err(|e| anyhow!("cannot create the embedded bucket: {e}"))?;
                 let config = S3Config::compatible(
                     server.endpoint(),
                     EMBEDDED_BUCKET,
@@ -98,7 +127,7 @@ impl Storage {
                     store: Arc::new(CountingStore::new(store)),
                     bucket: EMBEDDED_BUCKET.into(),
                     _server: Some(server),
-                    _temp: temp,
+                    temp,
                 })
             }
             StorageTarget::External {
@@ -108,21 +137,217 @@ impl Storage {
             } => {
                 let mut config = S3Config::compatible(endpoint.clone(), bucket.clone(), "", "");
                 config.credentials = credentials.clone();
-                let store = S3Store::open(&config)?;
-                store.check_bucket()?;
-                Ok(Storage {
-                    store: Arc::new(CountingStore::new(store)),
-                    bucket: bucket.clone(),
-                    endpoint: endpoint.clone(),
-                    _server: None,
-                    _temp: None,
-                })
+                open_bucket(&config, temp)
             }
+            StorageTarget::Bucket(config) => open_bucket(config, temp),
         }
     }
 
     /// The store as the trait object handlers take.
     pub fn blob_store(&self) -> Arc<dyn BlobStore> {
         self.store.clone()
+    }
+
+    /// The S3 store itself (listing with sizes, parallel deletes), without request counts.
+    pub fn s3(&self) -> &S3Store {
+        self.store.inner()
+    }
+
+    /// A scratch folder of this run (the Plan function's `/tmp`), removed with the storage.
+    pub fn work_dir(&self) -> PathBuf {
+        self.temp.path().join("work")
+    }
+}
+
+/// Opens a bucket that must exist, explaining missing credentials and a missing bucket.
+fn open_bucket(config: &S3Config, temp: TempFolder) -> Result<Storage> {
+    let store = S3Store::open(config)?;
+    let (bucket, endpoint) = (store.bucket().to_owned(), store.endpoint().to_owned());
+    match store.probe_bucket() {
+        Ok(()) => {}
+        Err(BucketProblem::NoCredentials { detail }) => {
+            let detail = detail.map(|d| format!(" ({d})")).unwrap_or_default();
+            bail!(
+                "no AWS credentials found for bucket {bucket:?} at {endpoint}{detail}: pass \
+                 --access-key/--secret-key or set AWS_ACCESS_KEY_ID and AWS_SECRET_ACCESS_KEY \
+                 (or configure an AWS profile)"
+            );
+        }
+        Err(BucketProblem::Missing) => {
+            let how = match &config.endpoint {
+                Some(_) => format!("--endpoint-url {endpoint}"),
+                None => format!("--region {}", store.region().unwrap_or("us-east-1")),
+            };
+            bail!(
+                "bucket {bucket:?} does not exist at {endpoint}: create it first, for example \
+                 with `aws s3 mb s3://{bucket} {how}` (hort does not create buckets)"
+            );
+        }
+        Err(BucketProblem::Store(e)) => return Err(e.into()),
+    }
+    Ok(Storage {
+        store: Arc::new(CountingStore::new(store)),
+        bucket,
+        endpoint,
+        _server: None,
+        temp,
+    })
+}
+
+/// Every temporary folder this process made (removed ones included: a request still in flight
+/// when a run was dropped may recreate part of one).
+static TEMP_FOLDERS: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// Removes every temporary folder of this process that exists now (objects of temporary
+/// embedded servers, scratch copies), in use or not. Call it last, just before the process
+/// exits: on exit paths that skip destructors, and after a run that was cancelled, whose
+/// abandoned tasks may still write.
+pub fn remove_temp_folders() {
+    let made = TEMP_FOLDERS
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .clone();
+    for dir in made.iter().filter(|d| d.exists()) {
+        remove_folder(dir);
+    }
+}
+
+/// Removes this process's temporary folders, then exits with `code` at once (for a second
+/// Ctrl-C, when destructors would not run).
+pub fn exit_now(code: i32) -> ! {
+    remove_temp_folders();
+    std::process::exit(code)
+}
+
+/// Removes `dir`, trying again a few times in case a request in flight recreated part of it.
+fn remove_folder(dir: &Path) {
+    for _ in 0..3 {
+        if std::fs::remove_dir_all(dir).is_ok() || !dir.exists() {
+            return;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+}
+
+/// One run's temporary folder `{temp}/hort-s3-{pid}-{n}`, locked while it lives, removed on
+/// drop.
+struct TempFolder {
+    path: PathBuf,
+    /// Holds the lock on `owner.lock` (released when the process ends, however it ends).
+    _lock: File,
+}
+
+impl TempFolder {
+    fn create() -> Result<TempFolder> {
+        // Unique per run: several runs may share a process (benches, tests).
+        static RUN: AtomicU64 = AtomicU64::new(0);
+        let path = std::env::temp_dir().join(format!(
+            "{TEMP_PREFIX}{}-{}",
+            std::process::id(),
+            RUN.fetch_add(1, Ordering::Relaxed)
+        ));
+        std::fs::create_dir_all(&path)
+            .map_err(|e| anyhow!("cannot create temporary folder {}: {e}", path.display()))?;
+        TEMP_FOLDERS
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push(path.clone());
+        let folder = |e: std::io::Error| {
+            anyhow!(
+                "cannot lock temporary folder {}: {e}",
+                path.join(OWNER_LOCK).display()
+            )
+        };
+        let lock = File::create(path.join(OWNER_LOCK)).map_err(folder)?;
+        lock.try_lock().map_err(|e| folder(e.into()))?;
+        Ok(TempFolder { path, _lock: lock })
+    }
+
+    fn path(&self) -> &Path {
+        &self.path
+    }
+}
+
+impl Drop for TempFolder {
+    fn drop(&mut self) {
+        remove_folder(&self.path);
+    }
+}
+
+/// The process id in a temporary folder's name `hort-s3-{pid}-{n}`, if it is one.
+fn temp_folder_pid(name: &str) -> Option<u32> {
+    let (pid, run) = name.strip_prefix(TEMP_PREFIX)?.split_once('-')?;
+    let digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
+    (digits(pid) && digits(run)).then(|| pid.parse().ok())?
+}
+
+/// True unless the process that made `dir` is known to be gone: on Linux, `/proc/{pid}` does
+/// not exist; elsewhere, nobody holds the lock on its `owner.lock`.
+fn owner_alive(dir: &Path, pid: u32) -> bool {
+    if cfg!(target_os = "linux") {
+        return Path::new("/proc").join(pid.to_string()).exists();
+    }
+    match File::open(dir.join(OWNER_LOCK)) {
+        Ok(file) => !matches!(file.try_lock(), Ok(())),
+        // Created but not yet locked, or not ours after all: leave it.
+        Err(_) => true,
+    }
+}
+
+/// Removes the temporary folders of other processes that are gone (killed before they could
+/// clean up). Errors are ignored: this is housekeeping.
+pub fn remove_stale_temp_folders() {
+    let Ok(entries) = std::fs::read_dir(std::env::temp_dir()) else {
+        return;
+    };
+    let me = std::process::id();
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(pid) = name.to_str().and_then(temp_folder_pid) else {
+            continue;
+        };
+        let dir = entry.path();
+        if pid != me && dir.is_dir() && !owner_alive(&dir, pid) {
+            remove_folder(&dir);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn temp_folder_names_give_their_pid() {
+        assert_eq!(temp_folder_pid("hort-s3-123-0"), Some(123));
+        assert_eq!(temp_folder_pid("hort-s3-77-12"), Some(77));
+        for other in [
+            "hort-s3-",
+            "hort-s3-12",
+            "hort-s3-12-",
+            "hort-s3-a-1",
+            "hort-s3-1-2-3",
+            "hort-plan-1-2",
+            "hort-s3--1",
+        ] {
+            assert_eq!(temp_folder_pid(other), None, "{other}");
+        }
+    }
+
+    #[test]
+    fn flags_name_the_target() {
+        let mut config = S3Config::aws("b", Some("eu-west-1".into()));
+        assert_eq!(
+            StorageTarget::Bucket(config.clone()).flags(),
+            " --bucket b --region eu-west-1"
+        );
+        config.endpoint = Some("http://h:9".into());
+        config.region = None;
+        assert_eq!(
+            StorageTarget::Bucket(config).flags(),
+            " --s3-endpoint http://h:9 --bucket b"
+        );
+        assert_eq!(StorageTarget::Embedded { data_dir: None }.flags(), "");
+        assert!(!StorageTarget::Embedded { data_dir: None }.is_persistent());
     }
 }

@@ -1,13 +1,35 @@
-//! Submitting a job: the scene files and the job request go to storage, as a client of the
-//! cloud deployment would upload them before starting an execution.
+//! A job's objects from the client's side: submitting a job (the scene files and the job
+//! request go to storage, as a client of the cloud deployment would upload them before starting
+//! an execution), resuming a stopped one, listing the jobs of a bucket, and deleting a job's
+//! objects or only its intermediates.
+//!
+//! What stays after a successful job (unless `--keep-intermediates`): `manifest.json` (the job
+//! request: the job's identity, so the id stays taken and `hort jobs list` shows the job),
+//! `plan.json` (small; needed to read the outputs back) and everything under `out/`. Deleted:
+//! `scene/` (the client's copy of the scene), `splits/`, `items/` and every stage's shuffle
+//! partitions.
+//!
+//! Resuming (`--resume`) reruns the state machine over the objects a stopped run left: the plan
+//! step runs again (deterministic: it rewrites the same bytes), and every later task whose
+//! output partitions all exist is skipped, since a task's outputs are a pure function of the
+//! plan and its inputs and a PUT is all or nothing. Tasks with some or none of their outputs
+//! run again and rewrite the same bytes. Combine always runs.
 
 use anyhow::{Context, Result, bail};
-use hort_core::ids::JobId;
-use hort_core::keys::{manifest_key, scene_prefix};
+use asl_interpreter::{TaskFailure, TaskInvoker};
+use hort_core::ids::{JobId, PartitionId, Stage, TaskId};
+use hort_core::keys::{hits_key, image_key, manifest_key, partition_key, plan_key, scene_prefix};
+use hort_core::pipeline::{JobPlan, TaskMetrics};
 use hort_core::scene::parse_manifest;
-use hort_core::store::{BlobStore, PutOutcome};
-use hort_functions::handlers::JobRequest;
+use hort_core::store::{BlobStore, PutOutcome, StoreError};
+use hort_functions::S3Store;
+use hort_functions::handlers::{JobRequest, WorkerEvent};
+use serde_json::Value;
+use std::collections::BTreeMap;
 use std::path::{Component, Path, PathBuf};
+use std::sync::Arc;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// The scene's files relative to the main file's folder: the main file, the OBJ files a
 /// manifest names, and the material libraries the OBJ files name.
@@ -69,19 +91,283 @@ pub fn submit_job(
     main: &Path,
     request: &JobRequest,
 ) -> Result<()> {
+    submit_or_resume(store, job, main, request, false, "").map(drop)
+}
+
+/// How [`submit_or_resume`] went.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Submitted {
+    /// A new job: the scene and the job request were stored.
+    New,
+    /// A stopped job of the same request and scene, to be continued.
+    Resumed,
+}
+
+/// Submits a new job, or with `resume` checks that the stopped job `job` has the same request
+/// and scene files and continues it. A job id that exists is an error without `resume` (the
+/// message suggests `--resume`, `hort jobs clean` with `flags`, the storage flags as
+/// [`super::StorageTarget::flags`] gives them, or another id); so is resuming a job that does
+/// not exist, that finished, or whose request or scene differ.
+pub fn submit_or_resume(
+    store: &dyn BlobStore,
+    job: &JobId,
+    main: &Path,
+    request: &JobRequest,
+    resume: bool,
+    flags: &str,
+) -> Result<Submitted> {
     let base = main.parent().unwrap_or(Path::new("."));
     let prefix = scene_prefix(job);
-    for rel in scene_files(main)? {
-        let bytes = std::fs::read(base.join(&rel))
-            .with_context(|| format!("cannot read {}", base.join(&rel).display()))?;
-        let key = format!("{prefix}{}", rel.to_string_lossy().replace('\\', "/"));
-        store.put(&key, &bytes)?;
+    let files = scene_files(main)?;
+    let stored = match store.get(&manifest_key(job)) {
+        Ok(bytes) => Some(bytes),
+        Err(StoreError::NotFound { .. }) => None,
+        Err(e) => return Err(e.into()),
+    };
+    let clean = format!("`hort jobs clean --job {job}{flags}`");
+    let Some(stored) = stored else {
+        if resume {
+            bail!("job \"{job}\" does not exist in this bucket: there is nothing to resume");
+        }
+        for rel in &files {
+            let bytes = std::fs::read(base.join(rel))
+                .with_context(|| format!("cannot read {}", base.join(rel).display()))?;
+            store.put(&scene_key(&prefix, rel), &bytes)?;
+        }
+        let json = serde_json::to_vec_pretty(request).context("job request")?;
+        return match store.put_if_absent(&manifest_key(job), &json)? {
+            PutOutcome::Created => Ok(Submitted::New),
+            PutOutcome::AlreadyExists => bail!(
+                "job \"{job}\" already exists in this bucket: add --resume to continue it, run \
+                 {clean} to delete it, or choose another --job id"
+            ),
+        };
+    };
+    if is_finished(&store.list(&format!("jobs/{job}/out/"))?, job) {
+        bail!(
+            "job \"{job}\" already exists in this bucket and finished (its outputs are under \
+             jobs/{job}/out/): run {clean} to delete it, or choose another --job id"
+        );
     }
-    let json = serde_json::to_vec_pretty(request).context("job request")?;
-    match store.put_if_absent(&manifest_key(job), &json)? {
-        PutOutcome::Created => Ok(()),
-        PutOutcome::AlreadyExists => bail!(
-            "job \"{job}\" already exists in this bucket: choose another --job id or another --data-dir"
-        ),
+    if !resume {
+        bail!(
+            "job \"{job}\" already exists in this bucket and did not finish: add --resume to \
+             continue it, run {clean} to delete it, or choose another --job id"
+        );
+    }
+    let stored: JobRequest = serde_json::from_slice(&stored)
+        .with_context(|| format!("cannot resume job \"{job}\": its job request"))?;
+    if stored.scene != request.scene || stored.render != request.render {
+        bail!(
+            "cannot resume job \"{job}\": it was started with other settings (scene {}, {}x{} \
+             at {} spp, splits {}, spans {}, split mode {}); resume it with those, or run {clean} \
+             to delete it",
+            stored.scene,
+            stored.render.width,
+            stored.render.height,
+            stored.render.spp,
+            count(stored.render.splits),
+            count(stored.render.spans),
+            serde_json::to_value(stored.render.mode)
+                .ok()
+                .and_then(|v| v.as_str().map(str::to_owned))
+                .unwrap_or_default(),
+        );
+    }
+    for rel in &files {
+        let bytes = std::fs::read(base.join(rel))
+            .with_context(|| format!("cannot read {}", base.join(rel).display()))?;
+        let key = scene_key(&prefix, rel);
+        match store.get(&key) {
+            Ok(old) if old == bytes => {}
+            Ok(_) => bail!(
+                "cannot resume job \"{job}\": {} changed since the job started; run {clean} to \
+                 delete it, or choose another --job id",
+                base.join(rel).display()
+            ),
+            // Deleted meanwhile: the plan step needs it again.
+            Err(StoreError::NotFound { .. }) => store.put(&key, &bytes)?,
+            Err(e) => return Err(e.into()),
+        }
+    }
+    Ok(Submitted::Resumed)
+}
+
+fn scene_key(prefix: &str, rel: &Path) -> String {
+    format!("{prefix}{}", rel.to_string_lossy().replace('\\', "/"))
+}
+
+fn count(n: Option<u32>) -> String {
+    n.map_or_else(|| "automatic".to_owned(), |n| n.to_string())
+}
+
+/// True if `keys` hold everything Combine writes for `job`.
+fn is_finished(keys: &[String], job: &JobId) -> bool {
+    [image_key(job, "png"), image_key(job, "pfm"), hits_key(job)]
+        .iter()
+        .all(|k| keys.contains(k))
+}
+
+/// True if `key` of `job` stays after the job succeeded: the job request, the plan, outputs.
+pub fn is_kept_after_success(job: &JobId, key: &str) -> bool {
+    key == manifest_key(job) || key == plan_key(job) || key.starts_with(&format!("jobs/{job}/out/"))
+}
+
+/// Objects deleted.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Deleted {
+    /// How many.
+    pub objects: u64,
+    /// Their bytes.
+    pub bytes: u64,
+}
+
+/// Deletes the intermediate objects of `job` (everything but what
+/// [`is_kept_after_success`] keeps).
+pub fn delete_intermediates(store: &S3Store, job: &JobId) -> Result<Deleted> {
+    let objects = store.list_sizes(&format!("jobs/{job}/"))?;
+    let doomed: Vec<_> = objects
+        .into_iter()
+        .filter(|o| !is_kept_after_success(job, &o.key))
+        .collect();
+    delete_objects(store, doomed)
+}
+
+/// Deletes every object of `job`.
+pub fn delete_job(store: &S3Store, job: &str) -> Result<Deleted> {
+    delete_objects(store, store.list_sizes(&format!("jobs/{job}/"))?)
+}
+
+fn delete_objects(
+    store: &S3Store,
+    objects: Vec<hort_functions::s3_store::ListedObject>,
+) -> Result<Deleted> {
+    let deleted = Deleted {
+        objects: objects.len() as u64,
+        bytes: objects.iter().map(|o| o.bytes).sum(),
+    };
+    let keys: Vec<String> = objects.into_iter().map(|o| o.key).collect();
+    store.delete_all(&keys)?;
+    Ok(deleted)
+}
+
+/// One job of a bucket, as `hort jobs list` shows it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct JobSummary {
+    /// The job id (the folder name under `jobs/`).
+    pub job: String,
+    /// True if Combine's outputs are all there.
+    pub finished: bool,
+    /// Objects under `jobs/{job}/`.
+    pub objects: u64,
+    /// Their bytes.
+    pub bytes: u64,
+}
+
+/// Every job with objects under `jobs/`, by id.
+pub fn list_jobs(store: &S3Store) -> Result<Vec<JobSummary>> {
+    let mut jobs: BTreeMap<String, (Vec<String>, u64)> = BTreeMap::new();
+    for object in store.list_sizes("jobs/")? {
+        let Some(job) = object
+            .key
+            .strip_prefix("jobs/")
+            .and_then(|rest| rest.split_once('/'))
+            .map(|(job, _)| job.to_owned())
+        else {
+            continue;
+        };
+        let entry = jobs.entry(job).or_default();
+        entry.0.push(object.key);
+        entry.1 += object.bytes;
+    }
+    Ok(jobs
+        .into_iter()
+        .map(|(job, (keys, bytes))| JobSummary {
+            finished: JobId::new(job.clone()).is_ok_and(|id| is_finished(&keys, &id)),
+            objects: keys.len() as u64,
+            bytes,
+            job,
+        })
+        .collect())
+}
+
+/// Wraps the functions of a resumed job: a Worker task whose output partitions all exist is
+/// not run again (its answer is empty metrics); every other invocation goes to `inner`.
+pub struct SkipFinishedTasks {
+    inner: Arc<dyn TaskInvoker>,
+    store: Arc<dyn BlobStore>,
+    job: JobId,
+    plan: Mutex<Option<Arc<JobPlan>>>,
+    /// Tasks skipped so far.
+    pub skipped: AtomicU64,
+}
+
+impl SkipFinishedTasks {
+    /// Skips the finished tasks of `job` in `store`, running the rest with `inner`.
+    pub fn new(inner: Arc<dyn TaskInvoker>, store: Arc<dyn BlobStore>, job: JobId) -> Self {
+        SkipFinishedTasks {
+            inner,
+            store,
+            job,
+            plan: Mutex::new(None),
+            skipped: AtomicU64::new(0),
+        }
+    }
+
+    /// The stored plan, read once (the plan step has run again by the time a Worker runs).
+    fn plan(&self) -> Option<Arc<JobPlan>> {
+        let mut cached = self.plan.lock().unwrap_or_else(|e| e.into_inner());
+        if cached.is_none() {
+            let key = plan_key(&self.job);
+            let bytes = self.store.get(&key).ok()?;
+            *cached = Some(Arc::new(JobPlan::from_json(&key, &bytes).ok()?));
+        }
+        cached.clone()
+    }
+
+    /// The partitions task `task` of `stage` writes; `None` for Plan and Combine (never
+    /// skipped) and for tasks the plan does not have.
+    fn outputs(&self, stage: Stage, task: u32) -> Option<Vec<String>> {
+        let plan = self.plan()?;
+        let parts: Vec<u32> = match stage {
+            Stage::CastMap => vec![plan.cast_tasks.get(task as usize)?.span],
+            Stage::TraceMap => vec![plan.trace_tasks.get(task as usize)?.span],
+            Stage::CastReduce | Stage::TraceReduce if (task as usize) < plan.spans.len() => {
+                vec![0]
+            }
+            Stage::Expand if (task as usize) < plan.spans.len() => (0..plan.k()).collect(),
+            _ => return None,
+        };
+        Some(
+            parts
+                .into_iter()
+                .map(|p| partition_key(&self.job, stage, TaskId(task), PartitionId(p)))
+                .collect(),
+        )
+    }
+
+    /// True if every output partition of the task exists.
+    fn finished(&self, stage: Stage, task: u32) -> bool {
+        let Some(outputs) = self.outputs(stage, task) else {
+            return false;
+        };
+        let prefix = format!("jobs/{}/{stage}/{:05}/", self.job, task);
+        match self.store.list(&prefix) {
+            Ok(keys) => outputs.iter().all(|k| keys.binary_search(k).is_ok()),
+            Err(_) => false,
+        }
+    }
+}
+
+impl TaskInvoker for SkipFinishedTasks {
+    fn invoke(&self, resource: &str, input: Value) -> Result<Value, TaskFailure> {
+        if let Ok(event) = serde_json::from_value::<WorkerEvent>(input.clone())
+            && event.job == self.job
+            && self.finished(event.stage, event.item.task.0)
+        {
+            self.skipped.fetch_add(1, Ordering::Relaxed);
+            return Ok(serde_json::to_value(TaskMetrics::default()).unwrap_or_default());
+        }
+        self.inner.invoke(resource, input)
     }
 }
