@@ -1,9 +1,13 @@
-//! Images: a linear-radiance RGB buffer and its encoders (8-bit sRGB PNG, PFM, OpenEXR).
+//! Images: a linear-radiance RGB buffer and its encoders (8-bit sRGB PNG and JPEG, PFM,
+//! OpenEXR).
 //!
 //! Every encoder is a pure function of the [`Image`]: the same pixels give the same bytes on
-//! every machine (no platform libm, fixed compression settings, explicit little-endian floats).
+//! every machine (no platform libm, fixed compression settings, explicit little-endian floats,
+//! no threads). PFM is written by hand; PNG by the `png` crate, JPEG by the `image` crate and
+//! OpenEXR by the `exr` crate, at the versions pinned by `Cargo.lock`.
 
 mod exr;
+mod jpeg;
 mod pfm;
 mod png8;
 
@@ -11,6 +15,7 @@ use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 
 pub use exr::encode_exr;
+pub use jpeg::{JPEG_QUALITY, encode_jpeg};
 pub use pfm::{decode_pfm, encode_pfm};
 pub use png8::{encode_png, linear_to_srgb8};
 
@@ -24,11 +29,17 @@ pub enum ImageError {
     /// The PNG encoder refused the image.
     #[error("PNG encoding failed: {0}")]
     Png(String),
+    /// The JPEG encoder refused the image (for example a dimension over 65535).
+    #[error("JPEG encoding failed: {0}")]
+    Jpeg(String),
+    /// The OpenEXR encoder refused the image.
+    #[error("OpenEXR encoding failed: {0}")]
+    Exr(String),
     /// A PFM file could not be parsed (bad header, short or excess data).
     #[error("malformed PFM: {0}")]
     Pfm(String),
-    /// `write_image` was given a path whose extension is not `.png`, `.pfm` or `.exr`.
-    #[error("unsupported image extension \"{ext}\" for {path}: use .png, .pfm or .exr", path = path.display())]
+    /// `write_image` was given a path whose extension is not one of [`IMAGE_EXTENSIONS`].
+    #[error("unsupported image extension \"{ext}\" for {path}: use .png, .jpg, .jpeg, .pfm or .exr", path = path.display())]
     UnsupportedExtension {
         /// The extension as given (without the dot; empty if the path has none).
         ext: String,
@@ -120,8 +131,13 @@ pub(crate) fn pixel_count(width: u32, height: u32) -> Option<usize> {
     (width as usize).checked_mul(height as usize)
 }
 
+/// The file extensions [`write_image`] accepts (compared case-insensitively), in the order the
+/// error for any other extension lists them.
+pub const IMAGE_EXTENSIONS: [&str; 5] = ["png", "jpg", "jpeg", "pfm", "exr"];
+
 /// Writes `image` to `path`, choosing the format by extension (case-insensitive): `.png`
-/// (8-bit sRGB), `.pfm` (linear, little-endian) or `.exr` (linear, 32-bit float).
+/// (8-bit sRGB), `.jpg` or `.jpeg` (8-bit sRGB, quality [`JPEG_QUALITY`]), `.pfm` (linear,
+/// little-endian) or `.exr` (linear, 32-bit float, ZIP compressed).
 ///
 /// The write is atomic: the bytes go to `{path}.tmp` in the same directory, which is then
 /// renamed over `path`, so readers never see a partial file. Any other extension is an
@@ -133,14 +149,12 @@ pub fn write_image(path: &Path, image: &Image) -> Result<(), ImageError> {
         .unwrap_or_default();
     let bytes = match ext.to_ascii_lowercase().as_str() {
         "png" => encode_png(image)?,
+        "jpg" | "jpeg" => encode_jpeg(image)?,
         "pfm" => {
             image.validate()?;
             encode_pfm(image)
         }
-        "exr" => {
-            image.validate()?;
-            encode_exr(image)
-        }
+        "exr" => encode_exr(image)?,
         _ => {
             return Err(ImageError::UnsupportedExtension {
                 ext,
@@ -211,7 +225,7 @@ mod tests {
         let dir = scratch_dir("write");
         let mut img = Image::new(2, 2);
         img.set(0, 0, [0.25, 0.5, 1.0]);
-        for name in ["a.png", "b.PFM", "c.Exr"] {
+        for name in ["a.png", "b.PFM", "c.Exr", "d.jpg", "e.JPEG"] {
             let path = dir.join(name);
             write_image(&path, &img).unwrap();
             assert!(path.exists());
@@ -231,21 +245,92 @@ mod tests {
         assert_eq!(decode_pfm(&pfm).unwrap(), img);
         let exr = std::fs::read(dir.join("c.Exr")).unwrap();
         assert_eq!(exr::tests::read_exr(&exr).unwrap().image, img);
+        for name in ["d.jpg", "e.JPEG"] {
+            let jpeg = std::fs::read(dir.join(name)).unwrap();
+            assert_eq!(jpeg, encode_jpeg(&img).unwrap());
+            let back = ::image::load_from_memory_with_format(&jpeg, ::image::ImageFormat::Jpeg)
+                .unwrap()
+                .into_rgb8();
+            assert_eq!(back.dimensions(), (2, 2));
+            // One 8x8 block holding one coloured and three black pixels: lossy, but close.
+            let near = |got: [u8; 3], want: [u8; 3]| {
+                got.iter().zip(want).all(|(g, w)| g.abs_diff(w) <= 40)
+            };
+            assert!(near(back.get_pixel(0, 0).0, [137, 188, 255]), "{back:?}");
+            assert!(near(back.get_pixel(1, 1).0, [0, 0, 0]), "{back:?}");
+        }
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
     fn write_image_rejects_unknown_extension() {
-        let err = write_image(Path::new("out/pic.jpg"), &Image::new(1, 1)).unwrap_err();
+        let err = write_image(Path::new("out/pic.gif"), &Image::new(1, 1)).unwrap_err();
         assert_eq!(
             err.to_string(),
-            "unsupported image extension \"jpg\" for out/pic.jpg: use .png, .pfm or .exr"
+            "unsupported image extension \"gif\" for out/pic.gif: use .png, .jpg, .jpeg, .pfm or .exr"
         );
+        let err = write_image(Path::new("out/pic.jpgx"), &Image::new(1, 1)).unwrap_err();
+        assert!(matches!(err, ImageError::UnsupportedExtension { ref ext, .. } if ext == "jpgx"));
         let err = write_image(Path::new("noext"), &Image::new(1, 1)).unwrap_err();
         assert!(
             err.to_string()
                 .starts_with("unsupported image extension \"\" for noext")
         );
+    }
+
+    #[test]
+    fn the_error_lists_exactly_the_accepted_extensions() {
+        let dir = scratch_dir("extensions");
+        let err = write_image(Path::new("x.tif"), &Image::new(1, 1)).unwrap_err();
+        let listed = err.to_string();
+        let listed = listed.split(": use ").nth(1).unwrap();
+        let listed: Vec<&str> = listed
+            .split([',', ' '])
+            .filter(|w| w.starts_with('.'))
+            .map(|w| &w[1..])
+            .collect();
+        assert_eq!(listed, IMAGE_EXTENSIONS);
+        for ext in IMAGE_EXTENSIONS {
+            write_image(&dir.join(format!("x.{ext}")), &Image::new(3, 2)).unwrap();
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// 64-bit FNV-1a, as in `core/tests/golden.rs`.
+    fn fnv1a64(bytes: &[u8]) -> u64 {
+        bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+            (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+        })
+    }
+
+    #[test]
+    fn encoder_bytes_are_pinned() {
+        // The same image gives the same bytes on every machine and every run. A change here
+        // means an encoder or its pinned dependency changed what it writes: check that the
+        // new files still decode (the tests above) and re-pin from the printed line.
+        let (w, h) = (48, 20);
+        let mut img = Image::new(w, h);
+        for y in 0..h {
+            for x in 0..w {
+                let (u, v) = (x as f32 / w as f32, y as f32 / h as f32);
+                img.set(x, y, [u * u, v, 1.5 * (1.0 - u) * v]);
+            }
+        }
+        let got = [
+            fnv1a64(&encode_png(&img).unwrap()),
+            fnv1a64(&encode_jpeg(&img).unwrap()),
+            fnv1a64(&encode_exr(&img).unwrap()),
+            fnv1a64(&encode_pfm(&img)),
+        ];
+        println!("{got:#018x?}");
+        #[rustfmt::skip]
+        let pinned = [
+            0x2c0d_0af9_40a5_f1c3, // PNG (the same as before the image crate came in)
+            0x9290_fbcd_a34e_1cef, // JPEG
+            0xbe03_61ba_0282_3d7f, // OpenEXR
+            0x233e_0514_4c2e_73a0, // PFM
+        ];
+        assert_eq!(got, pinned);
     }
 
     #[test]

@@ -17,18 +17,29 @@ pub fn linear_to_srgb8(v: f32) -> u8 {
     (s.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
 }
 
+/// The pixels as interleaved 8-bit sRGB R, G, B bytes, row-major from the top-left pixel,
+/// each channel mapped by [`linear_to_srgb8`] (shared by the PNG and JPEG encoders).
+pub(super) fn srgb8_rgb(image: &Image) -> Vec<u8> {
+    image
+        .pixels
+        .iter()
+        .flat_map(|p| p.map(linear_to_srgb8))
+        .collect()
+}
+
 /// Encodes `image` as an 8-bit RGB PNG with an sRGB chunk (perceptual intent), each channel
 /// mapped by [`linear_to_srgb8`].
 ///
 /// The bytes are deterministic: fixed filter (Paeth) and the pure-Rust `fdeflate` compressor,
 /// no CPU-dependent code paths. Fails if the image is inconsistent ([`Image::validate`]).
+///
+/// This drives the `png` crate directly rather than through `image::codecs::png::PngEncoder`:
+/// that encoder is a wrapper over the same crate (its `Fast` compression is this
+/// `FdeflateUltraFast`, so it would write the same pixel data), but it cannot write the sRGB
+/// chunk, only an ICC profile.
 pub fn encode_png(image: &Image) -> Result<Vec<u8>, ImageError> {
     image.validate()?;
-    let data: Vec<u8> = image
-        .pixels
-        .iter()
-        .flat_map(|p| p.map(linear_to_srgb8))
-        .collect();
+    let data = srgb8_rgb(image);
     let mut out = Vec::new();
     let png_err = |e: png::EncodingError| ImageError::Png(e.to_string());
     let mut encoder = png::Encoder::new(&mut out, image.width, image.height);
