@@ -87,7 +87,7 @@ fn run() -> Result<(), Box<dyn Error>> {
 
     let scene = load_scene(&path)?;
     let bvh = build_scene_bvh(&scene.mesh);
-    let camera = Camera::new(&scene.camera, width, height)?;
+    let camera = Camera::new(&scene.camera_for(width, height), width, height)?;
     let primary: Vec<Ray> = (0..height)
         .flat_map(|y| (0..width).map(move |x| camera.ray(f64::from(x) + 0.5, f64::from(y) + 0.5)))
         .collect();

@@ -91,8 +91,10 @@ pub const SFN_EXPRESS_BILLED_MEMORY_MB: u32 = 64;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Arch {
+    /// Graviton (`arm64`), the cheaper GB-second price; the default.
     #[default]
     Arm64,
+    /// Intel/AMD (`x86_64`).
     X86_64,
 }
 
@@ -110,6 +112,7 @@ impl Arch {
 /// `memory_mb`; for functions configured differently, estimate each group and add the totals.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct CostInputs {
+    /// Architecture of the Lambda functions; sets the GB-second price.
     pub arch: Arch,
     /// Configured Lambda memory, MB (128-10,240 on AWS).
     pub memory_mb: u32,
@@ -144,6 +147,7 @@ pub struct CostBreakdown {
     pub s3_storage: f64,
     /// Standard transitions, Express requests and Express duration.
     pub step_functions: f64,
+    /// All of the above, USD.
     pub total: f64,
 }
 

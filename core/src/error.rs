@@ -9,67 +9,113 @@ pub enum SceneError {
     /// The file could not be read at all.
     #[error("cannot read {path}: {source}")]
     Io {
+        /// The file that could not be opened or read.
         path: PathBuf,
+        /// The operating system's error.
         #[source]
         source: std::io::Error,
     },
     /// The file is not an OBJ (binary data, or a statement OBJ does not have).
     #[error("{path}:{line}: not an OBJ file: {detail}")]
     NotObj {
+        /// The OBJ file.
         path: PathBuf,
+        /// The 1-based line where it stopped looking like OBJ.
         line: u64,
+        /// What was found there.
         detail: String,
     },
     /// A statement of a known kind could not be parsed (bad number, too few values).
     #[error("{path}:{line}: {detail}")]
     Syntax {
+        /// The OBJ file.
         path: PathBuf,
+        /// The 1-based line of the statement.
         line: u64,
+        /// What is wrong with it.
         detail: String,
     },
     /// A face refers to a vertex or normal that does not exist.
     #[error(
-        "{path}:{line}: face refers to {what} {index}, but only {count} {what}s are defined so far"
+        "{path}:{line}: face refers to {what} {index}, but only {count} {plural} are defined so far",
+        plural = plural_of(what)
     )]
     IndexOutOfRange {
+        /// The OBJ file.
         path: PathBuf,
+        /// The 1-based line of the face.
         line: u64,
+        /// The element referred to: `"vertex"`, `"normal"` or `"texture coordinate"`.
         what: &'static str,
+        /// The index as written: 1-based, or negative to count back from the last defined.
         index: i64,
+        /// How many elements of that kind were defined before this line.
         count: usize,
     },
     /// A vertex or normal has a NaN or infinite coordinate.
     #[error("{path}:{line}: {what} has a non-finite coordinate ({text})")]
     NonFinite {
+        /// The OBJ file.
         path: PathBuf,
+        /// The 1-based line of the statement.
         line: u64,
+        /// The element: `"vertex"` or `"normal"`.
         what: &'static str,
+        /// The offending coordinate as written.
         text: String,
     },
     /// The scene has no triangles at all.
     #[error("{path}: the scene contains no triangles")]
-    Empty { path: PathBuf },
+    Empty {
+        /// The scene file (OBJ or manifest).
+        path: PathBuf,
+    },
     /// Every triangle is degenerate, so the scene has no extent to frame or light.
     #[error("{path}: the scene has no extent (all vertices coincide), so it cannot be framed")]
-    NoExtent { path: PathBuf },
+    NoExtent {
+        /// The scene file (OBJ or manifest).
+        path: PathBuf,
+    },
     /// A material library could not be read or parsed.
     #[error("{path}: material library: {detail}")]
-    Mtl { path: PathBuf, detail: String },
+    Mtl {
+        /// The `.mtl` file, resolved against the OBJ file's directory.
+        path: PathBuf,
+        /// What went wrong reading it.
+        detail: String,
+    },
     /// A JSON scene manifest is malformed; `field` is the JSON path of the bad field.
     #[error("{path}: manifest field `{field}`: {detail}")]
     Manifest {
+        /// The manifest file.
         path: PathBuf,
+        /// The JSON path of the bad field (`materials.steel.kd`), or `(root)`.
         field: String,
+        /// What is wrong with it.
         detail: String,
     },
     /// A size is outside the documented limits.
     #[error("{what} = {value} is out of range: {limit}")]
     OutOfRange {
+        /// The quantity checked (`"width"`, `"spp"`, `"width x height"`, ...).
         what: &'static str,
+        /// Its value, in decimal.
         value: String,
+        /// The limit it breaks, as a phrase (`must be 1 to 65536`).
         limit: String,
     },
     /// The camera cannot form a view (eye at the target, up parallel to the view direction).
     #[error("invalid camera: {detail}")]
-    Camera { detail: String },
+    Camera {
+        /// Which of the two it is.
+        detail: String,
+    },
+}
+
+/// The plural of an OBJ element name (`vertex` -> `vertices`, `normal` -> `normals`).
+fn plural_of(what: &str) -> String {
+    match what {
+        "vertex" => "vertices".into(),
+        other => format!("{other}s"),
+    }
 }

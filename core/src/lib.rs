@@ -2,6 +2,7 @@
 //! functions over bytes. No AWS, no async runtime, no platform libm in anything that reaches an
 //! output: the same inputs give the same bytes on every machine.
 #![forbid(unsafe_code)]
+#![warn(missing_docs)]
 
 pub mod error;
 mod error_type;

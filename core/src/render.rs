@@ -21,8 +21,11 @@ use std::time::Instant;
 /// Image size, samples per pixel and worker threads of one render.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RenderSettings {
+    /// Image width in pixels; [`render`] accepts 1 to 65536.
     pub width: u32,
+    /// Image height in pixels; [`render`] accepts 1 to 65536.
     pub height: u32,
+    /// Samples per pixel; [`render`] accepts 1 to 65536.
     pub spp: u32,
     /// Worker threads; 0 means one per available core.
     pub threads: usize,
@@ -44,7 +47,9 @@ pub struct RenderOutput {
 /// Logical ray counts of a render.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct RayCounts {
+    /// Camera rays: one per sample, hit or miss.
     pub primary: u64,
+    /// Shadow rays: one per light for every sample that hit, whether or not one was traced.
     pub shadow: u64,
 }
 
@@ -96,7 +101,7 @@ pub fn render(
         threads,
     } = settings;
     check_image_size(width, height, spp)?;
-    let camera = Camera::new(&scene.camera, width, height)?;
+    let camera = Camera::new(&scene.camera_for(width, height), width, height)?;
     let threads = if threads == 0 {
         available_cores()
     } else {

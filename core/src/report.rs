@@ -10,16 +10,27 @@ use serde::{Deserialize, Serialize};
 pub struct Report {
     /// `"monolithic"`, `"pipeline"` (in process, `--in-process`) or `"emulator"`.
     pub mode: String,
+    /// The scene file (OBJ or manifest) as named on the command line.
     pub scene: String,
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
+    /// Samples per pixel.
     pub spp: u32,
+    /// Triangles in the scene.
     pub triangles: u64,
+    /// Render threads (monolithic) or tasks run at once (pipeline modes).
     pub threads: usize,
+    /// Logical rays traced.
     pub rays: RayReport,
+    /// Where the wall-clock time went.
     pub seconds: Seconds,
+    /// Each pipeline stage's measurements; empty in monolithic mode.
     pub stages: Vec<StageReport>,
-    /// Split bytes read / scene bytes; null when no splits exist.
+    /// Scene replication: bytes of split objects the tasks read, over the bytes of all split
+    /// objects. 1 means each split was read once; k-split jobs whose every span needs every
+    /// split approach the number of spans. Null when no splits exist (monolithic).
     pub replication: Option<f64>,
     /// Estimated AWS cost of the render; null when it did not run as functions.
     pub cost_usd: Option<f64>,
@@ -29,12 +40,41 @@ pub struct Report {
     /// Lost or corrupt blocks that tasks recomputed from their lineage.
     #[serde(default)]
     pub recomputed_blocks: u64,
+    /// Scene splits k of the plan; null in monolithic mode.
+    #[serde(default)]
+    pub splits: Option<u32>,
+    /// Pixel spans s of the plan; null in monolithic mode.
+    #[serde(default)]
+    pub spans: Option<u32>,
+    /// Tasks running at once (function slots or worker threads); null in monolithic mode,
+    /// where `threads` says it.
+    #[serde(default)]
+    pub workers: Option<usize>,
+    /// The job's id (its objects are under `jobs/{job}/`); null when the run had no job.
+    #[serde(default)]
+    pub job: Option<String>,
+    /// The files the run wrote.
+    #[serde(default)]
+    pub outputs: Outputs,
+}
+
+/// The files a render wrote; null where not asked for (`report` is `-` for standard output).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Outputs {
+    /// The image.
+    pub image: Option<String>,
+    /// The hit buffer.
+    pub hits: Option<String>,
+    /// The report itself.
+    pub report: Option<String>,
 }
 
 /// Logical ray counts: one primary ray per sample, one shadow ray per hit sample and light.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct RayReport {
+    /// Camera rays: width × height × spp.
     pub primary: u64,
+    /// Shadow rays: the number of lights for every sample that hit a triangle.
     pub shadow: u64,
 }
 
@@ -52,17 +92,34 @@ pub struct Seconds {
 }
 
 /// One pipeline stage's measurements.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+///
+/// The `bytes_*` fields count one successful attempt per task: what the stage needs, the same
+/// for every run of the same job whatever faults happen. What every attempt moved (failed
+/// attempts, duplicate deliveries, stragglers abandoned past their timeout: the storage traffic
+/// that is billed) is in `attempts_bytes_read` and `attempts_bytes_written`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct StageReport {
+    /// The stage's name (`plan`, `cast-map`, ..., `combine`).
     pub name: String,
+    /// Tasks of the stage in the plan.
     pub tasks: u64,
+    /// Attempts started: `tasks` plus retries (and duplicate deliveries).
     pub attempts: u64,
+    /// Wall-clock seconds of the stage.
     pub seconds: f64,
+    /// Bytes the tasks read (one successful attempt per task).
     pub bytes_read: u64,
-    /// Compressed bytes written.
+    /// Compressed bytes the tasks wrote (one successful attempt per task).
     pub bytes_written: u64,
-    /// Bytes written before compression.
+    /// The same records before compression: `bytes_written_raw / bytes_written` is the
+    /// compression ratio.
     pub bytes_written_raw: u64,
+    /// Bytes read from storage by every attempt.
+    #[serde(default)]
+    pub attempts_bytes_read: u64,
+    /// Bytes written to storage by every attempt.
+    #[serde(default)]
+    pub attempts_bytes_written: u64,
 }
 
 impl Report {
@@ -103,11 +160,22 @@ mod tests {
                 bytes_read: 1000,
                 bytes_written: 300,
                 bytes_written_raw: 900,
+                attempts_bytes_read: 1100,
+                attempts_bytes_written: 350,
             }],
             replication: Some(1.25),
             cost_usd: None,
             retried_attempts: 2,
             recomputed_blocks: 1,
+            splits: Some(3),
+            spans: Some(4),
+            workers: Some(2),
+            job: Some("local".into()),
+            outputs: Outputs {
+                image: Some("x.png".into()),
+                hits: None,
+                report: Some("-".into()),
+            },
         }
     }
 
@@ -138,13 +206,24 @@ mod tests {
       "seconds": 1.5,
       "bytes_read": 1000,
       "bytes_written": 300,
-      "bytes_written_raw": 900
+      "bytes_written_raw": 900,
+      "attempts_bytes_read": 1100,
+      "attempts_bytes_written": 350
     }
   ],
   "replication": 1.25,
   "cost_usd": null,
   "retried_attempts": 2,
-  "recomputed_blocks": 1
+  "recomputed_blocks": 1,
+  "splits": 3,
+  "spans": 4,
+  "workers": 2,
+  "job": "local",
+  "outputs": {
+    "image": "x.png",
+    "hits": null,
+    "report": "-"
+  }
 }"#;
 
     #[test]
@@ -165,6 +244,11 @@ mod tests {
             "stages": [], "replication": null, "cost_usd": 0.75}"#;
         let r: Report = serde_json::from_str(old).unwrap();
         assert_eq!((r.retried_attempts, r.recomputed_blocks), (0, 0));
+        assert_eq!(
+            (r.splits, r.spans, r.workers, r.job),
+            (None, None, None, None)
+        );
+        assert_eq!(r.outputs, Outputs::default());
         assert_eq!(
             (r.mode.as_str(), r.cost_usd, r.replication),
             ("monolithic", Some(0.75), None)

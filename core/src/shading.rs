@@ -40,9 +40,12 @@ pub struct SurfacePoint {
 /// adds when nothing blocks it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ShadowTest {
+    /// From the offset hit point toward the light, as [`shadow_ray`] builds it: reaching a
+    /// point light at t = 1, or along the unit direction to a directional light.
     pub ray: Ray,
     /// Occluders count for `0 < t < t_max` along `ray`.
     pub t_max: f32,
+    /// Radiance per RGB channel the light adds toward the viewer if unblocked: kd/pi · E.
     pub unoccluded: [f32; 3],
 }
 

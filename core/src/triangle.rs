@@ -11,13 +11,16 @@ use glam::Vec3;
 /// A ray; `dir` need not be unit length (t is measured in units of `dir`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ray {
+    /// Start point (t = 0), world coordinates.
     pub origin: Vec3,
+    /// Direction; the point at parameter t is `origin + t * dir`.
     pub dir: Vec3,
 }
 
 /// Per-ray constants of the watertight test: the axis permutation and shear.
 #[derive(Clone, Copy, Debug)]
 pub struct RayPrep {
+    /// The ray's origin, unchanged; triangles are translated by it before the shear.
     pub origin: Vec3,
     kx: usize,
     ky: usize,
@@ -31,7 +34,9 @@ pub struct RayPrep {
 /// corners (b0 + b1 + b2 = 1 up to rounding, each >= 0).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TriangleHit {
+    /// Ray parameter, in units of `dir`: above its rounding error bound and below `t_max`.
     pub t: f32,
+    /// Barycentric weights of corners p0, p1, p2: the hit point is `b0·p0 + b1·p1 + b2·p2`.
     pub b: [f32; 3],
 }
 

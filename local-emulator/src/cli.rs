@@ -30,6 +30,11 @@ pub enum Command {
         #[command(subcommand)]
         command: BenchCommand,
     },
+    /// The jobs in a bucket or data folder: list them, delete their objects.
+    Jobs {
+        #[command(subcommand)]
+        command: crate::jobs_cmd::JobsCommand,
+    },
 }
 
 #[derive(Subcommand)]
@@ -48,49 +53,66 @@ pub enum SceneCommand {
     Generate(GenerateArgs),
 }
 
+/// The flags of `hort render`. One rule for flags that do not apply: a flag that belongs to
+/// another mode than the one chosen is refused, and the message names both flags (monolithic:
+/// `--threads`; in process: `--workers`, `--splits`, `--spans`, `--split-mode`; the emulator:
+/// those and the storage, job and fault flags).
 #[derive(Args)]
 pub struct RenderArgs {
     /// The scene: an OBJ file, or a JSON manifest (.json) naming OBJ files.
     pub scene: PathBuf,
-    /// Image width in pixels (default: manifest, else 960).
-    #[arg(long)]
+    /// Image width in pixels, 1 to 65536 (default: manifest, else 960).
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=65536))]
     pub width: Option<u32>,
-    /// Image height in pixels (default: manifest, else 540).
-    #[arg(long)]
+    /// Image height in pixels, 1 to 65536 (default: manifest, else 540).
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=65536))]
     pub height: Option<u32>,
-    /// Samples per pixel (default: manifest, else 1).
-    #[arg(long)]
+    /// Samples per pixel, 1 to 65536 (default: manifest, else 1).
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=65536))]
     pub spp: Option<u32>,
     /// Render in one process with one BVH over the whole scene.
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = [
+        "in_process", "workers", "splits", "spans", "split_mode", "s3_endpoint", "bucket",
+        "region", "access_key", "secret_key", "data_dir", "job", "resume", "keep_intermediates",
+        "fail_rate", "duplicate_rate", "slow_rate", "kill_slot_after", "seed", "task_timeout",
+        "time_scale", "memory_mb",
+    ])]
     pub monolithic: bool,
     /// Worker threads of a monolithic render (default: all cores).
-    #[arg(long)]
+    #[arg(long, requires = "monolithic", allow_negative_numbers = true, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=4096))]
     pub threads: Option<usize>,
     /// Scene splits k (default: about one per 250k triangles).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..))]
     pub splits: Option<u32>,
     /// Pixel spans s, one reduce task each; HORT's d = s x k map inputs (default: about one per
     /// 64k samples, at most 100).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..))]
     pub spans: Option<u32>,
     /// How the scene is cut: spatial clusters (default) or the paper's naive index ranges.
     #[arg(long, default_value = "spatial")]
     pub split_mode: SplitMode,
-    /// Function slots: tasks run concurrently (default: all cores).
-    #[arg(long)]
+    /// Function slots (emulator) or worker threads (--in-process): tasks run concurrently
+    /// (default: all cores).
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=4096))]
     pub workers: Option<usize>,
     /// Run the stages with the in-process driver over memory instead of the emulator (no S3,
     /// no state machine): the fastest way to check a scene through the pipeline.
-    #[arg(long, conflicts_with_all = ["s3_endpoint", "data_dir"])]
+    #[arg(long, conflicts_with_all = [
+        "s3_endpoint", "bucket", "region", "access_key", "secret_key", "data_dir", "job", "resume",
+        "keep_intermediates", "fail_rate", "duplicate_rate", "slow_rate", "kill_slot_after",
+        "seed", "task_timeout", "time_scale", "memory_mb",
+    ])]
     pub in_process: bool,
-    /// Use this S3-compatible endpoint (MinIO, Garage, Ceph RGW, moto, AWS) instead of the
+    /// Use this S3-compatible endpoint (MinIO, Garage, Ceph RGW, moto) instead of the
     /// embedded server; credentials from --access-key/--secret-key or the AWS environment.
     #[arg(long, requires = "bucket")]
     pub s3_endpoint: Option<String>,
-    /// Bucket at --s3-endpoint.
-    #[arg(long, requires = "s3_endpoint")]
+    /// Bucket at --s3-endpoint, or without it a bucket of AWS S3 itself; it must exist.
+    #[arg(long)]
     pub bucket: Option<String>,
+    /// Signing region of --bucket (default: AWS_REGION or the AWS profile's, else us-east-1).
+    #[arg(long, requires = "bucket")]
+    pub region: Option<String>,
     /// Access key for --s3-endpoint (else AWS_ACCESS_KEY_ID and the default chain).
     #[arg(long, requires = "secret_key", env = "HORT_S3_ACCESS_KEY")]
     pub access_key: Option<String>,
@@ -103,11 +125,18 @@ pub struct RenderArgs {
     )]
     pub secret_key: Option<String>,
     /// Keep the embedded server's objects in DIR (default: a temporary folder, removed after).
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = ["s3_endpoint", "bucket"])]
     pub data_dir: Option<PathBuf>,
     /// Job id (default: a fresh one); objects go under jobs/ID/.
     #[arg(long)]
     pub job: Option<String>,
+    /// Continue the stopped job --job ID: tasks whose outputs exist are skipped.
+    #[arg(long, requires = "job")]
+    pub resume: bool,
+    /// Keep the job's intermediate objects after success (default: only the job request,
+    /// plan.json and out/ stay in a bucket or --data-dir).
+    #[arg(long)]
+    pub keep_intermediates: bool,
     /// Probability that an attempt fails (before running, or after writing part of its outputs).
     #[arg(long, default_value_t = 0.0)]
     pub fail_rate: f64,
@@ -124,22 +153,24 @@ pub struct RenderArgs {
     /// Seed of fault injection and retry jitter.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Per-task timeout in seconds (default: derived from each task's work, 10 to 90 s).
-    #[arg(long)]
+    /// Per-task timeout in seconds, 1 to 300 (default: derived from each task's work, 10 to
+    /// 90 s); a Map item's attempts must fit an EXPRESS child's 5 minutes.
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=300))]
     pub task_timeout: Option<u32>,
     /// Multiplies every wait and timeout of the state machine (1 = real time).
     #[arg(long, default_value_t = 1.0, hide = true)]
     pub time_scale: f64,
-    /// Lambda memory (MB) the cost estimate assumes.
-    #[arg(long, default_value_t = 2048)]
+    /// Lambda memory (MB) the cost estimate assumes, 128 to 10240 as in Lambda.
+    #[arg(long, default_value_t = 2048, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(128..=10240))]
     pub memory_mb: u32,
-    /// Output image: .png (8-bit sRGB), .pfm or .exr (linear). Default: SCENE's name with .png.
+    /// Output image: .png or .jpg (8-bit sRGB), .pfm or .exr (linear). Default: the scene file's name
+    /// with .png, in the current folder. Checked before any work; written atomically.
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Write the hit buffer: per pixel a little-endian {u32 triangle, f32 t}.
     #[arg(long)]
     pub hits: Option<PathBuf>,
-    /// Write the JSON report.
+    /// Write the JSON report to this file, or to standard output with `-`.
     #[arg(long)]
     pub report: Option<PathBuf>,
 }
@@ -152,7 +183,11 @@ pub struct GenerateArgs {
     /// Seed: the same triangles and seed give the same bytes on every machine.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Output OBJ path.
+    /// Output OBJ path (must end in .obj). Also writes a manifest beside it, the same path
+    /// with .json, whose camera the scene fills. Neither file is overwritten without --force.
     #[arg(long)]
     pub out: PathBuf,
+    /// Overwrite the .obj and .json if they exist.
+    #[arg(long)]
+    pub force: bool,
 }

@@ -4,6 +4,8 @@
 
 mod bench;
 mod cli;
+mod jobs_cmd;
+mod outputs;
 mod render_cmd;
 mod scene_cmd;
 
@@ -32,6 +34,7 @@ fn main() -> std::process::ExitCode {
     let cli = cli::Cli::parse();
     let result = match cli.command {
         cli::Command::Render(args) => render_cmd::run(*args),
+        cli::Command::Jobs { command } => jobs_cmd::run(command),
         cli::Command::Scene {
             command: cli::SceneCommand::Generate(args),
         } => scene_cmd::generate(args),
@@ -45,11 +48,34 @@ fn main() -> std::process::ExitCode {
             command: cli::BenchCommand::Kernel(args),
         } => bench::run_kernel_bench(&args),
     };
+    // Last: tasks a cancelled run abandoned may have written into its temporary folder.
+    hort::emulator::remove_temp_folders();
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", error_chain(&e));
             std::process::ExitCode::FAILURE
         }
     }
+}
+
+/// The error and its causes joined by `: `, leaving out a cause whose text the message before
+/// it already contains (errors that print their source would otherwise say it twice), and the
+/// `(os error N)` suffixes of I/O errors.
+fn error_chain(e: &anyhow::Error) -> String {
+    let mut text = String::new();
+    for cause in e.chain() {
+        let part = cause.to_string();
+        let part = match part.find(" (os error ") {
+            Some(at) if part.ends_with(')') => part[..at].to_owned(),
+            _ => part,
+        };
+        if !text.contains(&part) {
+            if !text.is_empty() {
+                text.push_str(": ");
+            }
+            text.push_str(&part);
+        }
+    }
+    text
 }

@@ -2,19 +2,20 @@
 //! buffer and report.
 
 use crate::cli::RenderArgs;
-use anyhow::{Context, Result, bail};
-use hort::emulator::{EmulatorConfig, FaultSettings, StorageTarget, run_job};
+use crate::outputs::{check_distinct, check_image_path, check_output_path, write_output};
+use anyhow::{Context, Result, anyhow, bail};
+use hort::emulator::{EmulatorConfig, FaultSettings, JobOptions, run_job_with};
 use hort::progress::{ProgressMode, ProgressObserver, print_summary};
+use hort_core::camera::Camera;
 use hort_core::cost::Arch;
 use hort_core::hits::{Hit, encode_hits};
 use hort_core::ids::JobId;
 use hort_core::image::{Image, write_image};
 use hort_core::pipeline::{PipelineOptions, PlanRequest, resolve_counts, run_pipeline};
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
-use hort_core::report::{RayReport, Report, Seconds, StageReport};
+use hort_core::report::{Outputs, RayReport, Report, Seconds, StageReport};
 use hort_core::scene::{DEFAULT_HEIGHT, DEFAULT_WIDTH, Scene, check_image_size, load_scene};
 use hort_core::store::MemoryStore;
-use hort_functions::S3Credentials;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -33,13 +34,32 @@ struct Rendered {
     cost_usd: Option<f64>,
     retried_attempts: u64,
     recomputed_blocks: u64,
+    /// Splits and spans of the plan (pipeline modes).
+    plan: Option<(u32, u32)>,
+    /// Tasks at once (pipeline modes).
+    workers: Option<usize>,
+    /// The job id (pipeline modes).
+    job: Option<String>,
 }
 
 pub fn run(args: RenderArgs) -> Result<()> {
     let started = Instant::now();
-    if args.threads == Some(0) || args.workers == Some(0) {
-        bail!("--threads and --workers must be at least 1");
-    }
+    // Every output is checked before any work, so a bad path never costs a render.
+    let out = args.out.clone().unwrap_or_else(|| default_out(&args.scene));
+    check_image_path("--out", &out)?;
+    let hits_target = match &args.hits {
+        Some(path) => Some(check_output_path("--hits", path, false)?),
+        None => None,
+    };
+    let report_target = match &args.report {
+        Some(path) => Some(check_output_path("--report", path, true)?),
+        None => None,
+    };
+    let mut paths = vec![("--out", out.as_path())];
+    paths.extend(args.hits.as_deref().map(|p| ("--hits", p)));
+    paths.extend(args.report.as_deref().map(|p| ("--report", p)));
+    check_distinct(&paths)?;
+
     let scene = load_scene(&args.scene)?;
     for w in &scene.warnings {
         eprintln!("warning: {w}");
@@ -49,7 +69,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let height = args.height.or(scene.image.height).unwrap_or(DEFAULT_HEIGHT);
     let spp = args.spp.or(scene.image.spp).unwrap_or(1);
     check_image_size(width, height, spp)?;
-    let out = args.out.clone().unwrap_or_else(|| default_out(&args.scene));
+    // A camera that cannot be built is the scene's fault: say so before any upload or render.
+    Camera::new(&scene.camera_for(width, height), width, height)
+        .map_err(|e| anyhow!("{}: {e}", args.scene.display()))?;
     let request = PlanRequest {
         width,
         height,
@@ -58,18 +80,27 @@ pub fn run(args: RenderArgs) -> Result<()> {
         spans: args.spans,
         mode: args.split_mode,
     };
+    if !args.monolithic {
+        // Refuse impossible partitionings here, with the scene at hand, before any upload.
+        let triangles = scene.mesh.triangle_count() as u64;
+        let (k, s) = resolve_counts(&request, triangles)?;
+        warn_if_oversplit(triangles, k, s);
+    }
     let rendered = if args.monolithic {
         render_monolithic(&scene, width, height, spp, args.threads)?
     } else if args.in_process {
         render_pipeline(&scene, request, &args)?
     } else {
-        // Refuse impossible partitionings here, with the scene at hand, before any upload.
-        resolve_counts(&request, scene.mesh.triangle_count() as u64)?;
         render_emulated(&args, request)?
     };
+    let outputs = Outputs {
+        image: Some(out.display().to_string()),
+        hits: args.hits.as_ref().map(|p| p.display().to_string()),
+        report: args.report.as_ref().map(|p| p.display().to_string()),
+    };
     write_image(&out, &rendered.image)?;
-    if let Some(path) = &args.hits {
-        write_file(path, &encode_hits(&rendered.hits))?;
+    if let Some(target) = &hits_target {
+        write_output(target, &encode_hits(&rendered.hits))?;
     }
     let report = Report {
         mode: if args.monolithic {
@@ -98,11 +129,30 @@ pub fn run(args: RenderArgs) -> Result<()> {
         cost_usd: rendered.cost_usd,
         retried_attempts: rendered.retried_attempts,
         recomputed_blocks: rendered.recomputed_blocks,
+        splits: rendered.plan.map(|(k, _)| k),
+        spans: rendered.plan.map(|(_, s)| s),
+        workers: rendered.workers,
+        job: rendered.job,
+        outputs,
     };
-    if let Some(path) = &args.report {
-        write_file(path, report.to_json().as_bytes())?;
+    if let Some(target) = &report_target {
+        write_output(target, (report.to_json() + "\n").as_bytes())?;
     }
     print_run_summary(&report, rendered.render_seconds, &out)
+}
+
+/// Splits far smaller than useful multiply tasks and overhead for nothing: say so.
+fn warn_if_oversplit(triangles: u64, k: u32, s: u32) {
+    const USEFUL_TRIANGLES_PER_SPLIT: u64 = 1000;
+    if k > 1 && triangles / u64::from(k) < USEFUL_TRIANGLES_PER_SPLIT {
+        eprintln!(
+            "warning: --splits {k} leaves about {} triangles per split; the job will run up to \
+             {} map tasks, each paying a function call and storage round trips for little ray \
+             work (splits pay off from about {USEFUL_TRIANGLES_PER_SPLIT} triangles each)",
+            triangles.div_ceil(u64::from(k)),
+            2 * u64::from(k) * u64::from(s)
+        );
+    }
 }
 
 /// The summary every render mode prints to standard error: the stage table (pipeline modes),
@@ -115,12 +165,15 @@ fn print_run_summary(report: &Report, render_seconds: f64, out: &Path) -> Result
     }
     let (width, height, spp) = (report.width, report.height, report.spp);
     let mrays = (report.rays.primary + report.rays.shadow) as f64 / render_seconds.max(1e-9) / 1e6;
+    let threads = match report.threads {
+        1 => "1 thread".to_owned(),
+        n => format!("{n} threads"),
+    };
     eprintln!(
-        "rendered {width}x{height} at {spp} spp ({}), {} triangles: {:.3} s render ({mrays:.2} Mrays/s on {} threads), {:.3} s total -> {}",
+        "rendered {width}x{height} at {spp} spp ({}), {} triangles: {:.3} s render ({mrays:.2} Mrays/s on {threads}), {:.3} s total -> {}",
         report.mode,
         report.triangles,
         render_seconds,
-        report.threads,
         report.seconds.total,
         out.display()
     );
@@ -160,6 +213,9 @@ fn render_monolithic(
         cost_usd: None,
         retried_attempts: 0,
         recomputed_blocks: 0,
+        plan: None,
+        workers: None,
+        job: None,
     })
 }
 
@@ -187,6 +243,9 @@ fn render_pipeline(scene: &Scene, request: PlanRequest, args: &RenderArgs) -> Re
         cost_usd: None,
         retried_attempts: 0,
         recomputed_blocks: run.metrics.iter().map(|m| m.recomputed).sum(),
+        plan: Some((run.plan.k(), run.plan.spans.len() as u32)),
+        workers: Some(workers),
+        job: Some(options.job.to_string()),
     })
 }
 
@@ -204,28 +263,20 @@ fn render_emulated(args: &RenderArgs, request: PlanRequest) -> Result<Rendered> 
     if !(args.time_scale > 0.0 && args.time_scale.is_finite()) {
         bail!("--time-scale must be a positive number");
     }
-    let storage = match (&args.s3_endpoint, &args.bucket) {
-        (Some(endpoint), Some(bucket)) => StorageTarget::External {
-            endpoint: endpoint.clone(),
-            bucket: bucket.clone(),
-            credentials: match (&args.access_key, &args.secret_key) {
-                (Some(a), Some(s)) => S3Credentials::Static {
-                    access_key: a.clone(),
-                    secret_key: s.clone(),
-                },
-                _ => S3Credentials::DefaultChain,
-            },
-        },
-        _ => StorageTarget::Embedded {
-            data_dir: args.data_dir.clone(),
-        },
-    };
+    let storage = crate::jobs_cmd::storage_target(
+        args.s3_endpoint.as_deref(),
+        args.bucket.as_deref(),
+        args.region.as_deref(),
+        (args.access_key.as_deref(), args.secret_key.as_deref()),
+        args.data_dir.as_deref(),
+    );
     let cancel = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&cancel);
     // A second Ctrl-C (or a failure to install the handler) leaves the default behaviour.
     let _ = ctrlc::set_handler(move || {
         if flag.swap(true, Ordering::Relaxed) {
-            std::process::exit(130);
+            // Destructors do not run: remove the temporary folders first.
+            hort::emulator::exit_now(130);
         }
         eprintln!("\nstopping: no new tasks start; press Ctrl-C again to quit at once");
     });
@@ -248,7 +299,11 @@ fn render_emulated(args: &RenderArgs, request: PlanRequest) -> Result<Rendered> 
         cancel,
     };
     let progress = ProgressObserver::new(ProgressMode::detect());
-    let run = run_job(&config, &args.scene, request, &progress)?;
+    let options = JobOptions {
+        keep_intermediates: args.keep_intermediates,
+        resume: args.resume,
+    };
+    let run = run_job_with(&config, options, &args.scene, request, &progress)?;
     let retries = run.failed_attempts();
     if let Some(f) = &run.faults {
         eprintln!(
@@ -279,7 +334,8 @@ fn render_emulated(args: &RenderArgs, request: PlanRequest) -> Result<Rendered> 
         run.plan.spans.len(),
         run.cost.total
     );
-    let split_read: u64 = run.ledger.stages.values().map(|m| m.split_bytes_read).sum();
+    crate::jobs_cmd::print_job_objects(&run);
+    let split_read = run.ledger.total().split_bytes_read;
     let recomputed = run.recomputed();
     let render_seconds = run
         .stages
@@ -292,7 +348,7 @@ fn render_emulated(args: &RenderArgs, request: PlanRequest) -> Result<Rendered> 
         hits: run.hits,
         rays: RayReport {
             primary: u64::from(request.width) * u64::from(request.height) * u64::from(request.spp),
-            shadow: run.ledger.stages.values().map(|m| m.shadow_rays).sum(),
+            shadow: run.ledger.total().shadow_rays,
         },
         build_seconds: run.stages.first().map_or(0.0, |s| s.seconds),
         render_seconds,
@@ -300,6 +356,9 @@ fn render_emulated(args: &RenderArgs, request: PlanRequest) -> Result<Rendered> 
         replication: Some(split_read as f64 / run.plan.scene_bytes().max(1) as f64),
         retried_attempts: retries,
         recomputed_blocks: recomputed,
+        plan: Some((run.plan.k(), run.plan.spans.len() as u32)),
+        workers: Some(workers),
+        job: Some(run.job.to_string()),
         stages: run.stages,
         cost_usd: Some(run.cost.total),
     })
@@ -310,8 +369,4 @@ fn default_out(scene: &Path) -> PathBuf {
         .file_stem()
         .map_or("render".into(), |s| s.to_string_lossy().into_owned());
     PathBuf::from(format!("{stem}.png"))
-}
-
-fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
-    std::fs::write(path, bytes).with_context(|| format!("cannot write {}", path.display()))
 }

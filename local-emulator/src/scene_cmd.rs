@@ -2,12 +2,36 @@
 //! fills (the bare OBJ's default framing shows it small: it is wide and flat).
 
 use crate::cli::GenerateArgs;
-use anyhow::{Context, Result};
+use crate::outputs::{write_atomically, write_atomically_with};
+use anyhow::{Context, Result, bail};
 use hort_core::scene::{load_scene, scene_bounds};
-use std::io::Write;
 use std::path::Path;
 
 pub fn generate(args: GenerateArgs) -> Result<()> {
+    let is_obj = args
+        .out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("obj"));
+    if !is_obj {
+        bail!(
+            "--out {}: must end in .obj (a manifest is written beside it with .json)",
+            args.out.display()
+        );
+    }
+    let manifest = args.out.with_extension("json");
+    hort_core::generate::check_triangle_count(args.triangles).map_err(anyhow::Error::msg)?;
+    if !args.force {
+        for path in [&args.out, &manifest] {
+            if path.exists() {
+                bail!(
+                    "{} exists; pass --force to overwrite it (scene generate writes {} and {})",
+                    path.display(),
+                    args.out.display(),
+                    manifest.display()
+                );
+            }
+        }
+    }
     let summary = write_generated(args.triangles, args.seed, &args.out)?;
     eprintln!(
         "wrote {} triangles, {} vertices -> {} (and {} with a camera the scene fills)",
@@ -19,19 +43,17 @@ pub fn generate(args: GenerateArgs) -> Result<()> {
     Ok(())
 }
 
-/// Writes the OBJ at `out` and its manifest beside it (`out` with extension `.json`).
+/// Writes the OBJ at `out` and its manifest beside it (`out` with extension `.json`), each
+/// atomically (a temporary file renamed into place), replacing existing files.
 pub fn write_generated(
     triangles: u64,
     seed: u64,
     out: &Path,
 ) -> Result<hort_core::generate::GenerateSummary> {
     hort_core::generate::check_triangle_count(triangles).map_err(anyhow::Error::msg)?;
-    let file =
-        std::fs::File::create(out).with_context(|| format!("cannot create {}", out.display()))?;
-    let mut writer = std::io::BufWriter::new(file);
-    let summary = hort_core::generate::generate_scene(triangles, seed, &mut writer)
-        .and_then(|s| writer.flush().map(|()| s))
-        .with_context(|| format!("cannot write {}", out.display()))?;
+    let summary = write_atomically_with(out, |mut w| {
+        hort_core::generate::generate_scene(triangles, seed, &mut w)
+    })?;
     write_manifest(out)?;
     Ok(summary)
 }
@@ -54,5 +76,5 @@ fn write_manifest(obj: &Path) -> Result<()> {
     });
     let path = obj.with_extension("json");
     let text = serde_json::to_string_pretty(&manifest).context("manifest")?;
-    std::fs::write(&path, text + "\n").with_context(|| format!("cannot write {}", path.display()))
+    write_atomically(&path, (text + "\n").as_bytes())
 }

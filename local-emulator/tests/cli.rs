@@ -137,7 +137,7 @@ fn bad_input_prints_one_error_line_and_fails() {
     assert_eq!(
         err,
         format!(
-            "error: {}:4: face refers to vertex 9, but only 3 vertexs are defined so far\n",
+            "error: {}:4: face refers to vertex 9, but only 3 vertices are defined so far\n",
             bad.display()
         )
     );
@@ -148,22 +148,27 @@ fn bad_input_prints_one_error_line_and_fails() {
         "--width",
         "70000",
     ]);
-    assert_eq!(o.status.code(), Some(1));
-    assert_eq!(
-        String::from_utf8(o.stderr).unwrap(),
-        "error: width = 70000 is out of range: must be 1 to 65536\n"
-    );
+    // Ranges of single flags are checked by the command line parser (exit status 2).
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8(o.stderr).unwrap().starts_with(
+        "error: invalid value '70000' for '--width <WIDTH>': 70000 is not in 1..=65536\n"
+    ));
     let o = hort(&[
         "render",
         scene("bunny/bunny.obj").to_str().unwrap(),
         "--monolithic",
         "--out",
-        dir.join("x.jpg").to_str().unwrap(),
+        dir.join("x.gif").to_str().unwrap(),
     ]);
     assert_eq!(o.status.code(), Some(1));
     let err = String::from_utf8(o.stderr).unwrap();
+    let gif = dir.join("x.gif");
     assert!(
-        err.starts_with("error: unsupported image extension \"jpg\""),
+        err.starts_with(&format!(
+            "error: --out {}: unsupported image extension \"gif\" for {}",
+            gif.display(),
+            gif.display()
+        )),
         "{err}"
     );
 }
@@ -352,7 +357,12 @@ fn emulator_render_equals_monolithic_and_reports_cost() {
     assert_eq!(again.status.code(), Some(1));
     assert_eq!(
         String::from_utf8(again.stderr).unwrap(),
-        "error: job \"cli-test\" already exists in this bucket: choose another --job id or another --data-dir\n"
+        format!(
+            "error: job \"cli-test\" already exists in this bucket and finished (its outputs are \
+             under jobs/cli-test/out/): run `hort jobs clean --job cli-test --data-dir {}` to \
+             delete it, or choose another --job id\n",
+            data.display()
+        )
     );
 }
 
@@ -382,7 +392,8 @@ fn storage_problems_are_one_clear_line() {
             "right-key",
             "right-secret",
             format!(
-                "error: storage access denied: check bucket: bucket \"nope\" does not exist at {endpoint}\n"
+                "error: bucket \"nope\" does not exist at {endpoint}: create it first, for example \
+                 with `aws s3 mb s3://nope --endpoint-url {endpoint}` (hort does not create buckets)\n"
             ),
         ),
         (

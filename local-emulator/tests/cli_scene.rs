@@ -109,8 +109,6 @@ fn centre_lines(scene_file: &Path, dir: &Path) -> (Vec<Hit>, Vec<Hit>) {
 /// monolithic renderer, the in-process pipeline and the emulator (whose plan carries the camera
 /// to the tasks).
 #[test]
-#[ignore = "needs Scene::camera_for(width, height) wherever a Camera is built from a Scene \
-            (core/src/render.rs, core/src/pipeline/plan.rs), outside core/src/scene/"]
 fn a_portrait_image_of_a_bare_obj_shows_the_whole_model() {
     let dir = scratch("portrait");
     let bunny = scene("bunny/bunny.obj");

@@ -115,6 +115,22 @@ fn emulated_pipeline_equals_monolithic_for_several_partitionings() {
 fn injected_faults_give_the_identical_image_and_are_counted() {
     let server = s3_support::Embedded::start(Some("emu"));
     let mono = monolithic("cornell/cornell.json", 2);
+    let clean = run_job(
+        &config(&server, 4, FaultSettings::default()),
+        &scene_path("cornell/cornell.json"),
+        settings(2, 3, 6, SplitMode::Spatial),
+        &NoObserver,
+    )
+    .unwrap();
+    // What each task stage wrote, one successful attempt per task: the same under any faults.
+    // (The plan stage reports no task metrics: its bytes are its storage traffic.)
+    let useful = |run: &EmulatorRun| -> Vec<(String, u64, u64)> {
+        run.stages
+            .iter()
+            .filter(|s| s.name != "plan")
+            .map(|s| (s.name.clone(), s.bytes_written, s.bytes_written_raw))
+            .collect()
+    };
     let (mut failed_before, mut failed_after_writing) = (0, 0);
     for seed in [1u64, 2, 3] {
         let faults = FaultSettings {
@@ -137,6 +153,13 @@ fn injected_faults_give_the_identical_image_and_are_counted() {
         )
         .unwrap_or_else(|e| panic!("seed {seed}: {e:#}"));
         assert_same(&run, &mono, &format!("faults with seed {seed}"));
+        assert_eq!(useful(&run), useful(&clean), "seed {seed}: useful bytes");
+        let traffic: u64 = run.stages.iter().map(|s| s.attempts_bytes_written).sum();
+        let needed: u64 = run.stages.iter().map(|s| s.bytes_written).sum();
+        assert!(
+            traffic > needed,
+            "seed {seed}: failed and duplicated attempts wrote more ({traffic} <= {needed})"
+        );
         let counts = run.faults.as_ref().expect("fault counts");
         failed_before += counts.failed_before.load(Ordering::Relaxed);
         failed_after_writing += counts.failed_after_writing.load(Ordering::Relaxed);

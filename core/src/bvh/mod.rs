@@ -36,7 +36,9 @@ use glam::Vec3;
 /// An axis-aligned box.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Aabb {
+    /// Minimum corner, per axis; `lo > hi` on some axis means the box is empty.
     pub lo: Vec3,
+    /// Maximum corner, per axis (inclusive).
     pub hi: Vec3,
 }
 
@@ -74,8 +76,12 @@ impl Aabb {
 /// `first + 1`) or a leaf of `count` triangles starting at `first` in leaf order.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Node {
+    /// A box holding every triangle below the node.
     pub bounds: Aabb,
+    /// Inner node: index of the left child (the right is `first + 1`). Leaf: its first
+    /// triangle in leaf order.
     pub first: u32,
+    /// Triangles in the leaf; 0 marks an inner node.
     pub count: u32,
 }
 

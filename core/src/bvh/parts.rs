@@ -9,14 +9,28 @@ use glam::Vec3;
 /// Why stored BVH arrays cannot be used.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum BvhPartsError {
+    /// A node breaks the layout: children out of order or range, or a leaf out of place.
     #[error("BVH node {node}: {problem}")]
-    BadNode { node: usize, problem: String },
+    BadNode {
+        /// Index of the node in the node array (root = 0).
+        node: usize,
+        /// What is wrong with it.
+        problem: String,
+    },
+    /// There are triangle ids but no nodes to reach them.
     #[error("BVH with triangles has no nodes")]
     NoNodes,
+    /// A path from the root is deeper than the traversal stack, or nodes are reached twice.
     #[error("BVH is deeper than {MAX_DEPTH} levels")]
     TooDeep,
+    /// The leaves are consistent but cover only some of the triangles.
     #[error("BVH leaves cover {covered} of {triangles} triangles")]
-    Coverage { covered: usize, triangles: usize },
+    Coverage {
+        /// Triangles the leaves cover, fewer than `triangles`.
+        covered: usize,
+        /// Triangles the BVH holds (one per id).
+        triangles: usize,
+    },
 }
 
 impl Bvh {

@@ -20,8 +20,11 @@ pub(super) const STACK: usize = 3 * super::build::MAX_DEPTH + 1;
 /// The nearest hit of a ray: scene-wide triangle id, distance and barycentrics.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ClosestHit {
+    /// Scene-wide id of the triangle hit (ties in `t` go to the smaller id).
     pub id: u32,
+    /// Ray parameter of the hit, `t > 0`, in units of the ray's `dir`.
     pub t: f32,
+    /// Barycentrics of the corners, each >= 0, summing to 1 up to rounding.
     pub b: [f32; 3],
     /// The triangle's corners (as stored in the BVH), for shading without another lookup.
     pub corners: [Vec3; 3],

@@ -69,6 +69,8 @@ pub fn run_pipeline(
         bytes_read: 0,
         bytes_written: planned.bytes_written,
         bytes_written_raw: planned.bytes_written,
+        attempts_bytes_read: 0,
+        attempts_bytes_written: planned.bytes_written,
     }];
     let mut metrics = vec![TaskMetrics::default()];
     let render_start = Instant::now();
@@ -88,6 +90,8 @@ pub fn run_pipeline(
             bytes_read: m.bytes_read,
             bytes_written: m.bytes_written,
             bytes_written_raw: m.bytes_written_raw,
+            attempts_bytes_read: m.bytes_read,
+            attempts_bytes_written: m.bytes_written,
         });
         metrics.push(m);
     }

@@ -53,16 +53,22 @@ pub struct PlanRequest {
 /// A contiguous row-major range of pixels `[start, end)`; one reduce task each.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Span {
+    /// First pixel of the span (row-major index from the top-left).
     pub start: u64,
+    /// One past the last pixel (exclusive); in a plan, the next span starts here.
     pub end: u64,
 }
 
 /// One split's summary: id, triangle count, bounds (the root box of its BVH) and stored size.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SplitInfo {
+    /// The split's index, `0..k`.
     pub id: u32,
+    /// Triangles in the split.
     pub triangles: u64,
+    /// Minimum corner of the split's bounding box, world coordinates.
     pub lo: [f32; 3],
+    /// Maximum corner of the split's bounding box, world coordinates.
     pub hi: [f32; 3],
     /// Bytes of the stored split object.
     pub bytes: u64,
@@ -81,33 +87,52 @@ impl SplitInfo {
 /// A CastMap task: the span's primary rays against one split.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct CastTask {
+    /// The task's id: its index in [`JobPlan::cast_tasks`].
     pub task: u32,
+    /// Index of the span in [`JobPlan::spans`].
     pub span: u32,
+    /// Id of the split, `0..k`.
     pub split: u32,
 }
 
 /// A TraceMap task: the span's shadow queries routed to one split. Task id = span · k + split.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct TraceTask {
+    /// The task's id, `span · k + split`: its index in [`JobPlan::trace_tasks`].
     pub task: u32,
+    /// Index of the span in [`JobPlan::spans`].
     pub span: u32,
+    /// Id of the split, `0..k`.
     pub split: u32,
 }
 
 /// The whole plan of a job.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct JobPlan {
+    /// Layout version, [`PLAN_FORMAT_VERSION`] ([`JobPlan::from_json`] rejects others).
     pub format: u32,
+    /// Image width in pixels, 1 to 65536.
     pub width: u32,
+    /// Image height in pixels, 1 to 65536.
     pub height: u32,
+    /// Samples per pixel, 1 to 65536.
     pub spp: u32,
+    /// The camera for this image size ([`Scene::camera_for`]); every task rebuilds the same
+    /// camera rays from it.
     pub camera: CameraSpec,
+    /// The scene's lights, in scene order; a record's `light` indexes this list.
     pub lights: Vec<Light>,
+    /// Constant ambient radiance factor per channel: adds `kd * ambient` to every hit.
     pub ambient: [f32; 3],
+    /// Linear RGB radiance of samples that hit nothing.
     pub background: [f32; 3],
+    /// Triangles in the whole scene (the sum over the splits).
     pub triangles: u64,
+    /// How the scene was cut into splits.
     pub split_mode: SplitMode,
+    /// The k splits, in id order (`splits[i].id == i`).
     pub splits: Vec<SplitInfo>,
+    /// The s spans, in pixel order; together they cover every pixel exactly once.
     pub spans: Vec<Span>,
     /// Every (span, split) pair that can meet, span-major; pairs that cannot are absent.
     pub cast_tasks: Vec<CastTask>,
@@ -240,7 +265,8 @@ pub fn plan_job(
     splits: Vec<SplitInfo>,
     s: u32,
 ) -> Result<JobPlan, PipelineError> {
-    let camera = Camera::new(&scene.camera, request.width, request.height)?;
+    let camera_spec = scene.camera_for(request.width, request.height);
+    let camera = Camera::new(&camera_spec, request.width, request.height)?;
     let pixels = u64::from(request.width) * u64::from(request.height);
     let spans: Vec<Span> = (0..u64::from(s))
         .map(|i| Span {
@@ -273,7 +299,7 @@ pub fn plan_job(
         width: request.width,
         height: request.height,
         spp: request.spp,
-        camera: scene.camera,
+        camera: camera_spec,
         lights: scene.lights.clone(),
         ambient: scene.ambient,
         background: scene.background,

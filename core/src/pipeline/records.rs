@@ -11,11 +11,15 @@ use glam::Vec3;
 /// `CastCandidate`), CastReduce the nearest per sample (kind `Hit`). Key: (pixel, sample).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SurfaceHit {
+    /// Row-major pixel index from the top-left (x = pixel % width).
     pub pixel: u32,
+    /// Sample index within the pixel, `0..spp`.
     pub sample: u32,
+    /// Distance from the eye along the unit camera ray, in world units.
     pub t: f32,
     /// Global triangle id (scene order).
     pub triangle: u32,
+    /// Position, normals and reflectance of the hit, for shading.
     pub surface: SurfacePoint,
 }
 
@@ -23,17 +27,24 @@ pub struct SurfaceHit {
 /// rebuilt with [`crate::shading::shadow_ray`]). Key: (pixel, sample, light).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ShadowQuery {
+    /// Row-major pixel index of the hit sample.
     pub pixel: u32,
+    /// Sample index within the pixel, `0..spp`.
     pub sample: u32,
+    /// Index of the light in the plan's light list.
     pub light: u32,
+    /// Segment start in world space: the hit point pushed off the surface by its error bound.
     pub origin: Vec3,
 }
 
 /// A (pixel, sample, light) whose shadow segment one split blocks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct Occluded {
+    /// Row-major pixel index (the first sort key).
     pub pixel: u32,
+    /// Sample index within the pixel, `0..spp`.
     pub sample: u32,
+    /// Index of the light in the plan's light list.
     pub light: u32,
 }
 
@@ -42,6 +53,7 @@ pub struct Occluded {
 pub struct PixelBlock {
     /// First pixel (row-major index) of the span.
     pub start: u64,
+    /// Linear RGB radiance of each pixel from `start` on, the mean of its `spp` samples.
     pub colours: Vec<[f32; 3]>,
     /// Triangle id of sample 0, `u32::MAX` on a miss.
     pub triangles: Vec<u32>,

@@ -45,14 +45,18 @@ pub const SPLIT_FORMAT_VERSION: u32 = 2;
 /// Per-triangle shading data carried by a split.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TriangleShading {
+    /// The corners' vertex normals, in corner order; `None` shades with the geometric normal.
     pub normals: Option<[Vec3; 3]>,
+    /// Diffuse reflectance per RGB channel, from the triangle's material.
     pub kd: [f32; 3],
 }
 
 /// A decoded split: its BVH (triangles in leaf order) and the shading data in the same order.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SplitObject {
+    /// The split's id, `0..k`.
     pub split: u32,
+    /// BVH over the split's triangles, carrying their scene-wide ids.
     pub bvh: Bvh,
     /// `shading[i]` belongs to the BVH's i-th triangle in leaf order.
     pub shading: Vec<TriangleShading>,

@@ -25,15 +25,24 @@ pub const MANIFEST_SCHEMA: &str = r#"{
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Manifest {
+    /// OBJ files relative to the manifest, in triangle numbering order; at least one.
     pub meshes: Vec<String>,
+    /// The camera; automatic framing when absent.
     pub camera: Option<ManifestCamera>,
+    /// The lights; the default light when absent, none when an empty list.
     pub lights: Option<Vec<ManifestLight>>,
+    /// Constant ambient factor per channel (a number means grey); 0 when absent.
     pub ambient: Option<Rgb>,
+    /// Linear radiance of rays that hit nothing; black when absent.
     pub background: Option<[f32; 3]>,
+    /// Diffuse reflectance overrides by MTL material name (`default`: faces without one).
     #[serde(default)]
     pub materials: BTreeMap<String, ManifestMaterial>,
+    /// Image width in pixels; flags override it.
     pub width: Option<u32>,
+    /// Image height in pixels; flags override it.
     pub height: Option<u32>,
+    /// Samples per pixel; flags override it.
     pub spp: Option<u32>,
 }
 

@@ -8,6 +8,7 @@ pub const NO_NORMAL: u32 = u32::MAX;
 /// A Lambertian material.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
+    /// The MTL material name (or `default`).
     pub name: String,
     /// Diffuse reflectance per RGB channel, in [0, 1] for physical materials.
     pub kd: [f32; 3],
@@ -18,7 +19,9 @@ pub struct Material {
 /// and the three per-triangle arrays have the same length.
 #[derive(Clone, Debug, Default)]
 pub struct Mesh {
+    /// Vertex positions, world units, all finite.
     pub positions: Vec<Vec3>,
+    /// Vertex normals (`vn`), as given (not necessarily unit length).
     pub normals: Vec<Vec3>,
     /// Position indices of each triangle's corners.
     pub triangles: Vec<[u32; 3]>,
@@ -26,6 +29,7 @@ pub struct Mesh {
     pub triangle_normals: Vec<[u32; 3]>,
     /// Index into `materials` of each triangle.
     pub triangle_materials: Vec<u32>,
+    /// The materials the triangles name.
     pub materials: Vec<Material>,
 }
 

@@ -36,9 +36,13 @@ pub const DEFAULT_HEIGHT: u32 = 540;
 /// A pinhole camera: eye, target, up and vertical field of view in degrees.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct CameraSpec {
+    /// The eye position, world units.
     pub eye: DVec3,
+    /// The point the camera looks at; differs from `eye`.
     pub look_at: DVec3,
+    /// The up direction; not parallel to the view direction.
     pub up: DVec3,
+    /// The vertical field of view in degrees, in (0, 180).
     pub vfov_degrees: f64,
 }
 
@@ -49,13 +53,17 @@ pub struct CameraSpec {
 pub enum Light {
     /// An isotropic point light with radiant intensity in W/sr per RGB channel.
     Point {
+        /// The light's position, world units.
         position: DVec3,
+        /// Radiant intensity, W/sr per RGB channel.
         intensity: [f32; 3],
     },
     /// A light at infinity; `direction` is the way its light travels (unit length), `irradiance`
     /// is the irradiance on a surface facing it, per RGB channel.
     Directional {
+        /// The direction the light travels, unit length.
         direction: DVec3,
+        /// Irradiance on a surface facing the light, per RGB channel.
         irradiance: [f32; 3],
     },
 }
@@ -63,8 +71,11 @@ pub enum Light {
 /// Image settings a manifest may fix; flags override them.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ImageSettings {
+    /// Image width in pixels.
     pub width: Option<u32>,
+    /// Image height in pixels.
     pub height: Option<u32>,
+    /// Samples per pixel.
     pub spp: Option<u32>,
 }
 
@@ -73,6 +84,7 @@ pub struct ImageSettings {
 pub struct Scene {
     /// The file the scene came from (OBJ or manifest), for messages.
     pub source: PathBuf,
+    /// Every triangle of the scene, in scene order.
     pub mesh: Mesh,
     /// The camera as loaded. Render through [`Scene::camera_for`], which adapts an automatic
     /// camera to the image's aspect ratio.
@@ -80,11 +92,13 @@ pub struct Scene {
     /// The bounds (min, max) that `camera` frames when it is the automatic camera (no manifest
     /// camera); `None` for a manifest camera.
     pub framed_bounds: Option<(DVec3, DVec3)>,
+    /// The lights (possibly none).
     pub lights: Vec<Light>,
     /// Constant ambient radiance factor per channel: adds `kd * ambient` to every hit.
     pub ambient: [f32; 3],
     /// Radiance of rays that hit nothing.
     pub background: [f32; 3],
+    /// Image settings the manifest fixed.
     pub image: ImageSettings,
     /// Things that were accepted but deserve a look (unknown material, missing MTL file, MTL
     /// features that are not rendered, unknown OBJ statements, no light), each naming its file.

@@ -69,7 +69,7 @@ fn face_index_out_of_range_names_line_and_counts() {
     assert_eq!(
         e,
         format!(
-            "{}:4: face refers to vertex 4, but only 3 vertexs are defined so far",
+            "{}:4: face refers to vertex 4, but only 3 vertices are defined so far",
             p.display()
         )
     );
@@ -77,7 +77,7 @@ fn face_index_out_of_range_names_line_and_counts() {
     assert_eq!(
         e,
         format!(
-            "{}:4: face refers to vertex -4, but only 3 vertexs are defined so far",
+            "{}:4: face refers to vertex -4, but only 3 vertices are defined so far",
             p.display()
         )
     );

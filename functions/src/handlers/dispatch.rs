@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use hort_core::ids::Stage;
+use hort_core::ids::{Stage, TaskId};
 use hort_core::pipeline::{SplitCache, TaskMetrics};
 use hort_core::stage::{PLAN_FUNCTION, WORKER_FUNCTION};
 use serde_json::Value;
@@ -49,8 +49,19 @@ pub struct FunctionEnv<'a> {
 pub struct Invoked {
     /// The function's JSON answer (the `Payload` the state machine sees).
     pub output: Value,
-    /// For a Worker invocation, the task's stage and what it did.
-    pub task: Option<(Stage, TaskMetrics)>,
+    /// For a Worker invocation, which task ran and what it did.
+    pub task: Option<TaskDone>,
+}
+
+/// A task a Worker invocation completed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TaskDone {
+    /// The task's stage.
+    pub stage: Stage,
+    /// The task's index within its stage.
+    pub task: TaskId,
+    /// What the task read, wrote and computed.
+    pub metrics: TaskMetrics,
 }
 
 /// Runs `function` on the JSON `event`. A malformed event is [`HandlerError::bad_input`] naming
@@ -80,7 +91,11 @@ pub fn dispatch(
             let metrics = handle_worker(env.store, env.bucket, env.split_cache, &event)?;
             Ok(Invoked {
                 output: serde_json::to_value(metrics).map_err(encode)?,
-                task: Some((event.stage, metrics)),
+                task: Some(TaskDone {
+                    stage: event.stage,
+                    task: event.item.task,
+                    metrics,
+                }),
             })
         }
     }

@@ -14,7 +14,7 @@ mod events;
 mod plan;
 mod worker;
 
-pub use dispatch::{Function, FunctionEnv, Invoked, dispatch};
+pub use dispatch::{Function, FunctionEnv, Invoked, TaskDone, dispatch};
 pub use events::{JobRequest, PlanEvent, PlanOutput, TaskItem, WorkerEvent};
 pub use plan::{handle_plan, scene_prefix};
 pub use worker::handle_worker;

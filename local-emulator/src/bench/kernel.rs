@@ -201,7 +201,11 @@ fn bench_scene(
     let bvh = build_scene_bvh(&scene.mesh);
     let build_s = start.elapsed().as_secs_f64();
 
-    let camera = Camera::new(&scene.camera, args.width, args.height)?;
+    let camera = Camera::new(
+        &scene.camera_for(args.width, args.height),
+        args.width,
+        args.height,
+    )?;
     let primary: Vec<Ray> = (0..args.height)
         .flat_map(|y| {
             (0..args.width).map(move |x| camera.ray(f64::from(x) + 0.5, f64::from(y) + 0.5))

@@ -3,6 +3,7 @@
 //! a ledger of what the invocations did (for the report and the cost estimate).
 
 use asl_interpreter::{TaskFailure, TaskInvoker};
+use hort_core::ids::{Stage, TaskId};
 use hort_core::pipeline::{SplitCache, TaskMetrics};
 use hort_core::store::BlobStore;
 use hort_functions::handlers::{Function, FunctionEnv, dispatch};
@@ -15,10 +16,35 @@ use std::time::Instant;
 /// What the invocations did.
 #[derive(Clone, Debug, Default)]
 pub struct Ledger {
-    /// Metrics of successful task attempts, by stage name.
-    pub stages: BTreeMap<String, TaskMetrics>,
+    /// Metrics of each task's successful attempt (the last one, when a retry or a duplicate
+    /// delivery also succeeded: every successful attempt writes the same bytes), by stage and
+    /// task. Failed attempts are not here: their traffic is in the per-state accounting.
+    pub tasks: BTreeMap<(Stage, TaskId), TaskMetrics>,
     /// Duration of every invocation (successful or not), milliseconds.
     pub invocation_ms: Vec<f64>,
+}
+
+impl Ledger {
+    /// The summed metrics of one successful attempt per task of `stage`.
+    pub fn stage(&self, stage: Stage) -> TaskMetrics {
+        let mut total = TaskMetrics::default();
+        for (_, m) in self
+            .tasks
+            .range((stage, TaskId(0))..=(stage, TaskId(u32::MAX)))
+        {
+            total += *m;
+        }
+        total
+    }
+
+    /// The summed metrics of one successful attempt per task, over all stages.
+    pub fn total(&self) -> TaskMetrics {
+        let mut total = TaskMetrics::default();
+        for m in self.tasks.values() {
+            total += *m;
+        }
+        total
+    }
 }
 
 /// Runs the handlers in this process.
@@ -109,14 +135,12 @@ impl InProcessInvoker {
             .unwrap_or_else(|e| e.into_inner())
             .push(cache);
         let invoked = result.map_err(|e| TaskFailure::new(e.error_type.as_str(), e.cause))?;
-        if let Some((stage, metrics)) = invoked.task {
-            *self
-                .ledger
+        if let Some(done) = invoked.task {
+            self.ledger
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())
-                .stages
-                .entry(stage.to_string())
-                .or_default() += metrics;
+                .tasks
+                .insert((done.stage, done.task), done.metrics);
         }
         Ok(invoked.output)
     }

@@ -12,8 +12,14 @@ mod upload;
 pub use accounting::{Accounting, FanOut, StageUsage};
 pub use faults::{FaultCounts, FaultSettings, FaultyInvoker};
 pub use invoker::{InProcessInvoker, Ledger};
-pub use storage::{EMBEDDED_BUCKET, Storage, StorageTarget};
-pub use upload::{scene_files, submit_job};
+pub use storage::{
+    EMBEDDED_BUCKET, Storage, StorageTarget, exit_now, remove_stale_temp_folders,
+    remove_temp_folders,
+};
+pub use upload::{
+    Deleted, JobSummary, SkipFinishedTasks, Submitted, delete_intermediates, delete_job,
+    is_kept_after_success, list_jobs, scene_files, submit_job, submit_or_resume,
+};
 
 use crate::state_machine::{StoreItems, hort_orchestrator};
 use anyhow::{Context, Result, anyhow};
@@ -23,7 +29,7 @@ use hort_core::hits::Hit;
 use hort_core::ids::{JobId, Stage};
 use hort_core::image::Image;
 use hort_core::keys::{image_key, plan_key};
-use hort_core::pipeline::{JobOutputs, JobPlan, PlanRequest, TaskMetrics, read_outputs};
+use hort_core::pipeline::{JobOutputs, JobPlan, PlanRequest, read_outputs};
 use hort_core::report::StageReport;
 use hort_functions::handlers::JobRequest;
 use std::path::Path;
@@ -82,6 +88,22 @@ pub struct EmulatorRun {
     pub cost: CostBreakdown,
     /// Wall-clock seconds of the whole job, upload to outputs read back.
     pub seconds: f64,
+    /// Tasks of a resumed job skipped because their outputs were all there.
+    pub skipped_tasks: u64,
+    /// The intermediate objects deleted after the job succeeded, or why that failed; `None`
+    /// when they were kept (`JobOptions::keep_intermediates`, or a temporary embedded server).
+    pub deleted_intermediates: Option<Result<Deleted, String>>,
+}
+
+/// What happens to a job's objects.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct JobOptions {
+    /// Keep every object after success; by default the intermediates are deleted from a
+    /// bucket or data folder (see [`is_kept_after_success`]).
+    pub keep_intermediates: bool,
+    /// Continue a stopped job of the same id, request and scene, skipping the tasks whose
+    /// outputs exist (see [`submit_or_resume`]).
+    pub resume: bool,
 }
 
 impl EmulatorRun {
@@ -92,7 +114,7 @@ impl EmulatorRun {
 
     /// Input blocks recomputed from lineage, over all stages.
     pub fn recomputed(&self) -> u64 {
-        self.ledger.stages.values().map(|m| m.recomputed).sum()
+        self.ledger.total().recomputed
     }
 }
 
@@ -109,9 +131,21 @@ fn fresh_job_id() -> String {
 }
 
 /// Opens storage, uploads the scene and the job request, runs the state machine, and reads the
-/// outputs back. `observer` sees the orchestrator's events (progress display).
+/// outputs back, with the default [`JobOptions`]. `observer` sees the orchestrator's events
+/// (progress display).
 pub fn run_job(
     config: &EmulatorConfig,
+    scene: &Path,
+    settings: PlanRequest,
+    observer: &dyn Observer,
+) -> Result<EmulatorRun> {
+    run_job_with(config, JobOptions::default(), scene, settings, observer)
+}
+
+/// [`run_job`] with `options`: resume a stopped job, keep the intermediates.
+pub fn run_job_with(
+    config: &EmulatorConfig,
+    options: JobOptions,
     scene: &Path,
     settings: PlanRequest,
     observer: &dyn Observer,
@@ -130,9 +164,16 @@ pub fn run_job(
         task_timeout_seconds: config.task_timeout_seconds,
     };
     let store = storage.blob_store();
-    submit_job(store.as_ref(), &job, scene, &request)?;
+    let submitted = submit_or_resume(
+        store.as_ref(),
+        &job,
+        scene,
+        &request,
+        options.resume,
+        &config.storage.flags(),
+    )?;
 
-    let work_dir = std::env::temp_dir();
+    let work_dir = storage.work_dir();
     let functions = Arc::new(InProcessInvoker::new(
         Arc::clone(&store),
         &storage.bucket,
@@ -154,6 +195,17 @@ pub fn run_job(
     } else {
         (functions.clone(), None)
     };
+    let skipper = (submitted == Submitted::Resumed).then(|| {
+        Arc::new(SkipFinishedTasks::new(
+            Arc::clone(&invoker),
+            Arc::clone(&store),
+            job.clone(),
+        ))
+    });
+    let invoker: Arc<dyn TaskInvoker> = match &skipper {
+        Some(skipper) => skipper.clone(),
+        None => invoker,
+    };
     let orchestrator = hort_orchestrator(OrchestratorOptions {
         slots: config.workers.max(1),
         time_scale: config.time_scale,
@@ -172,7 +224,10 @@ pub fn run_job(
             // A temporary embedded store is removed on exit: promise nothing then.
             let kept = !matches!(config.storage, StorageTarget::Embedded { data_dir: None });
             return Err(if kept {
-                anyhow!("cancelled; objects so far are kept under jobs/{job}/")
+                anyhow!(
+                    "cancelled; objects so far are kept under jobs/{job}/: continue with --job \
+                     {job} --resume"
+                )
             } else {
                 anyhow!("cancelled")
             });
@@ -199,6 +254,8 @@ pub fn run_job(
     let plan = JobPlan::from_json(&plan_key(&job), &plan_bytes)?;
     let JobOutputs { image, hits } = read_outputs(store.as_ref(), &job, &plan)?;
     let png = store.get(&image_key(&job, "png"))?;
+    let deleted_intermediates = (config.storage.is_persistent() && !options.keep_intermediates)
+        .then(|| delete_intermediates(storage.s3(), &job).map_err(|e| format!("{e:#}")));
     let ledger = functions.ledger();
     let stages = stage_reports(&plan, &usage, &ledger);
     let seconds = started.elapsed().as_secs_f64();
@@ -216,6 +273,8 @@ pub fn run_job(
         faults: fault_counts,
         cost,
         seconds,
+        skipped_tasks: skipper.map_or(0, |s| s.skipped.load(Ordering::Relaxed)),
+        deleted_intermediates,
     })
 }
 
@@ -230,28 +289,30 @@ fn stage_reports(plan: &JobPlan, usage: &[StageUsage], ledger: &Ledger) -> Vec<S
         .iter()
         .filter(|u| u.attempts > 0 || u.items > 0)
         .map(|u| {
-            let name = stage_name(&u.state);
-            let metrics = ledger
-                .stages
-                .get(&name)
-                .copied()
-                .unwrap_or(TaskMetrics::default());
-            let tasks = name
-                .parse::<Stage>()
-                .map_or(1, |stage| plan.task_count(stage) as u64);
-            let raw = if name == "plan" {
-                u.traffic.bytes_written
-            } else {
-                metrics.bytes_written_raw
+            let stage = Stage::of_state(&u.state);
+            let tasks = stage.map_or(1, |stage| plan.task_count(stage) as u64);
+            // The Plan function reports no task metrics: its traffic is what it needed.
+            let (read, written, raw) = match stage {
+                Some(stage) if stage != Stage::Plan => {
+                    let m = ledger.stage(stage);
+                    (m.bytes_read, m.bytes_written, m.bytes_written_raw)
+                }
+                _ => (
+                    u.traffic.bytes_read,
+                    u.traffic.bytes_written,
+                    u.traffic.bytes_written,
+                ),
             };
             StageReport {
-                name,
+                name: stage_name(&u.state),
                 tasks,
                 attempts: u.attempts,
                 seconds: u.seconds,
-                bytes_read: u.traffic.bytes_read,
-                bytes_written: u.traffic.bytes_written,
+                bytes_read: read,
+                bytes_written: written,
                 bytes_written_raw: raw,
+                attempts_bytes_read: u.traffic.bytes_read,
+                attempts_bytes_written: u.traffic.bytes_written,
             }
         })
         .collect()

@@ -29,6 +29,8 @@ pub fn print_summary(stages: &[StageReport], out: &mut dyn Write) -> io::Result<
         bytes_read: stages.iter().map(|s| s.bytes_read).sum(),
         bytes_written: stages.iter().map(|s| s.bytes_written).sum(),
         bytes_written_raw: stages.iter().map(|s| s.bytes_written_raw).sum(),
+        attempts_bytes_read: stages.iter().map(|s| s.attempts_bytes_read).sum(),
+        attempts_bytes_written: stages.iter().map(|s| s.attempts_bytes_written).sum(),
     };
     let header: Vec<String> = HEADERS.iter().map(|h| (*h).to_owned()).collect();
     let rows: Vec<Vec<String>> = stages.iter().map(row).collect();

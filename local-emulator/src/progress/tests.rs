@@ -407,6 +407,7 @@ fn summary_table_is_aligned_with_a_total() {
         bytes_read: read,
         bytes_written: written,
         bytes_written_raw: raw,
+        ..StageReport::default()
     };
     let stages = [
         stage("plan", 1, 1, 0.125, 2_500_000, 10_000, 10_000),
