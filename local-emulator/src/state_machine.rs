@@ -29,7 +29,10 @@ mod tests {
 
     /// The stage of one top-level state as the definition spells it: the state's name, the
     /// `stage` literal it passes to the Worker (`None` for Plan), the function it invokes, and
-    /// for a Map state its items key path.
+    /// for a Map state its items key path. The main path goes through each Map stage's
+    /// `{Map}Check` Choice by its first rule (nothing lost); that Choice's other targets must be
+    /// the stage's rerun loop (`{Map}GiveUp`, `{Map}Rerun`), whose Map reruns the same stage
+    /// with the same function.
     fn stage_states(machine: &Value) -> Vec<(String, Option<String>, String, Option<String>)> {
         let states = &machine["States"];
         let mut out = Vec::new();
@@ -60,6 +63,32 @@ mod tests {
                             .as_str()
                             .map(str::to_owned),
                     ));
+                }
+                Some("Choice") => {
+                    let map = name
+                        .strip_suffix("Check")
+                        .expect("a Choice named {Map}Check");
+                    let rules = state["Choices"].as_array().unwrap();
+                    assert_eq!(rules[0]["IsPresent"], Value::Bool(false), "{name}");
+                    assert_eq!(rules[1]["Next"], format!("{map}GiveUp"), "{name}");
+                    assert_eq!(state["Default"], format!("{map}Rerun"), "{name}");
+                    let rerun = &states[format!("{map}Rerun")];
+                    let task = |m: &Value| {
+                        let p = &m["ItemProcessor"];
+                        p["States"][p["StartAt"].as_str().unwrap()]["Parameters"]["FunctionName"]
+                            .clone()
+                    };
+                    assert_eq!(
+                        rerun["ItemSelector"]["stage"],
+                        states[map]["ItemSelector"]["stage"]
+                    );
+                    assert_eq!(task(rerun), task(&states[map]), "{name}");
+                    assert_eq!(
+                        states[format!("{map}GiveUp")]["Next"],
+                        format!("{map}Failed")
+                    );
+                    next = rules[0]["Next"].as_str();
+                    continue;
                 }
                 Some("Succeed") => break,
                 other => panic!("state {name}: unexpected type {other:?} on the main path"),

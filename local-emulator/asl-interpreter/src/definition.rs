@@ -2,12 +2,15 @@
 //! and compiled once into [`StateMachine`].
 //!
 //! Supported: state types Task (`arn:aws:states:::lambda:invoke` with `Parameters.FunctionName`
-//! and `Parameters.Payload`), Map (Distributed, `ItemReader` from `s3:getObject` with JSON input),
-//! Pass, Succeed, Fail; fields InputPath, OutputPath, Parameters, ResultSelector, ResultPath,
-//! ItemSelector, TimeoutSeconds(Path), MaxConcurrency(Path), Retry, Catch, Next/End, Comment.
-//! Anything else (Choice, Wait, Parallel, HeartbeatSeconds, ResultWriter, ItemBatcher,
-//! ToleratedFailure*, JSONata, …) is a load error naming the state and the field: the emulator
-//! refuses what it would not run exactly as Step Functions does.
+//! and `Parameters.Payload`), Map (Distributed, items from an `ItemReader` of `s3:getObject`
+//! with JSON input, or from the state input through `ItemsPath`), Choice (rules of one
+//! `Variable` compared with `IsPresent` or a `Numeric…` operator against a literal, and
+//! `Default`), Pass, Succeed, Fail; fields InputPath, OutputPath, Parameters, ResultSelector,
+//! ResultPath, ItemSelector, TimeoutSeconds(Path), MaxConcurrency(Path), Retry, Catch,
+//! Next/End, Comment. Anything else (Wait, Parallel, HeartbeatSeconds, ResultWriter,
+//! ItemBatcher, ToleratedFailure*, And/Or/Not and string or timestamp comparisons in Choice,
+//! JSONata, …) is a load error naming the state and the field: the emulator refuses what it
+//! would not run exactly as Step Functions does.
 
 mod raw;
 mod states;
@@ -21,7 +24,7 @@ use serde_json::{Map, Value};
 use super::paths::{Path, ResultPath, Template};
 use super::retry::{Catcher, Retrier};
 use raw::{RawMachine, RawSucceed};
-use states::{fail, io, map, pass, task, typed};
+use states::{choice, fail, io, map, pass, task, typed};
 
 /// Why a definition cannot be run by the emulator. Every message names the state (as a path
 /// such as `CastMap/CastMapTask` for states inside a Map) and the field.
@@ -73,6 +76,8 @@ pub enum State {
     Map(MapState),
     /// Passes (and may reshape) its input.
     Pass(PassState),
+    /// Picks the next state from its input.
+    Choice(ChoiceState),
     /// Ends the machine successfully.
     Succeed(SucceedState),
     /// Ends the machine with an error.
@@ -141,11 +146,20 @@ pub struct TaskState {
     pub transition: Transition,
 }
 
-/// A Distributed Map state reading a JSON array of items from the store.
+/// Where a Map state's items come from.
+#[derive(Debug, Clone)]
+pub enum Items {
+    /// `ItemReader.Parameters`, evaluating to `{"Bucket": …, "Key": …}` of a JSON array.
+    Reader(Template),
+    /// `ItemsPath`: an array in the state's effective input.
+    Path(Path),
+}
+
+/// A Distributed Map state over a JSON array of items from the store or from its input.
 #[derive(Debug, Clone)]
 pub struct MapState {
-    /// `ItemReader.Parameters`, evaluating to `{"Bucket": …, "Key": …}`.
-    pub reader: Template,
+    /// Where the items come from.
+    pub items: Items,
     /// `ItemSelector`: each child's input, with `$$.Map.Item.{Index,Value}` in the context.
     pub item_selector: Option<Template>,
     /// `ItemProcessor`: the machine each item runs through.
@@ -181,6 +195,66 @@ pub struct PassState {
     pub io: Io,
     /// `Next` or `End`.
     pub transition: Transition,
+}
+
+/// A Choice state: the first rule that matches names the next state, else `Default`.
+#[derive(Debug, Clone)]
+pub struct ChoiceState {
+    /// `Choices`, in order.
+    pub choices: Vec<ChoiceRule>,
+    /// `Default`; without it, no match fails the execution with `States.NoChoiceMatched`.
+    pub default: Option<String>,
+    /// `InputPath` and `OutputPath`.
+    pub io: Io,
+}
+
+/// One rule of a Choice state.
+#[derive(Debug, Clone)]
+pub struct ChoiceRule {
+    /// `Variable`: the reference path compared.
+    pub variable: Path,
+    /// The comparison.
+    pub test: Comparison,
+    /// `Next`.
+    pub next: String,
+}
+
+/// A Choice rule's comparison of its `Variable`.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Comparison {
+    /// `IsPresent`: whether the path selects anything.
+    IsPresent(bool),
+    /// `NumericEquals`, `NumericLessThan`, …: the variable (which must be a number) against a
+    /// literal.
+    Numeric(NumericOp, f64),
+}
+
+/// A numeric comparison operator of a Choice rule.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NumericOp {
+    /// `NumericEquals`.
+    Equals,
+    /// `NumericLessThan`.
+    LessThan,
+    /// `NumericLessThanEquals`.
+    LessThanEquals,
+    /// `NumericGreaterThan`.
+    GreaterThan,
+    /// `NumericGreaterThanEquals`.
+    GreaterThanEquals,
+}
+
+impl NumericOp {
+    /// Whether `a op b`.
+    pub fn holds(self, a: f64, b: f64) -> bool {
+        match self {
+            NumericOp::Equals => a == b,
+            NumericOp::LessThan => a < b,
+            NumericOp::LessThanEquals => a <= b,
+            NumericOp::GreaterThan => a > b,
+            NumericOp::GreaterThanEquals => a >= b,
+        }
+    }
 }
 
 /// A Succeed state.
@@ -265,6 +339,14 @@ fn targets(state: &State) -> Vec<&String> {
         State::Task(t) => (&t.transition, t.catch.as_slice()),
         State::Map(m) => (&m.transition, m.catch.as_slice()),
         State::Pass(p) => (&p.transition, &[][..]),
+        State::Choice(c) => {
+            return c
+                .choices
+                .iter()
+                .map(|r| &r.next)
+                .chain(c.default.as_ref())
+                .collect();
+        }
         State::Succeed(_) | State::Fail(_) => return Vec::new(),
     };
     let mut out: Vec<&String> = catch.iter().map(|c| &c.next).collect();
@@ -288,6 +370,7 @@ fn one_state(path: &str, value: Value) -> Result<State, DefinitionError> {
         "Task" => typed(value).and_then(task).map_err(at),
         "Map" => map(path, typed(value).map_err(at)?),
         "Pass" => typed(value).and_then(pass).map_err(at),
+        "Choice" => typed(value).and_then(choice).map_err(at),
         "Succeed" => typed(value)
             .and_then(|raw: RawSucceed| {
                 Ok(State::Succeed(SucceedState {
@@ -298,7 +381,7 @@ fn one_state(path: &str, value: Value) -> Result<State, DefinitionError> {
         "Fail" => typed(value).and_then(fail).map_err(at),
         other => Err(at(format!(
             "state type {other:?} is not supported by the emulator (supported: Task, Map, \
-             Pass, Succeed, Fail)"
+             Choice, Pass, Succeed, Fail)"
         ))),
     }
 }

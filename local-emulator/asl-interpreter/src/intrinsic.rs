@@ -1,12 +1,13 @@
-//! Intrinsic functions of Amazon States Language. The emulator supports `States.Format`, the
-//! one the HORT definition uses (in the Fail states' `CausePath`); any other name is a load error.
+//! Intrinsic functions of Amazon States Language. The emulator supports the two the HORT
+//! definition uses: `States.Format` (the Fail causes) and `States.MathAdd` (the rerun round
+//! counters); any other name is a load error.
 
 use serde_json::Value;
 
 use super::paths::Path;
 
-/// An intrinsic function call. The emulator supports `States.Format` only (the one the HORT
-/// definition uses); any other name is a load error.
+/// An intrinsic function call. The emulator supports `States.Format` and `States.MathAdd` (the
+/// ones the HORT definition uses); any other name is a load error.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Intrinsic {
     /// The function name, e.g. `States.Format`.
@@ -26,7 +27,7 @@ pub enum Arg {
     Call(Intrinsic),
 }
 
-const SUPPORTED_INTRINSICS: [&str; 1] = ["States.Format"];
+const SUPPORTED_INTRINSICS: [&str; 2] = ["States.Format", "States.MathAdd"];
 
 impl Intrinsic {
     /// Parses `States.Name(arg, …)`; the whole text must be one call.
@@ -61,8 +62,27 @@ impl Intrinsic {
             .collect::<Result<Vec<_>, _>>()?;
         match self.name.as_str() {
             "States.Format" => format_call(&args),
+            "States.MathAdd" => math_add(&args),
             other => Err(format!("intrinsic function {other} is not supported")),
         }
+    }
+}
+
+/// `States.MathAdd(a, b)`: the sum of two integers (Step Functions accepts integers between
+/// -2147483648 and 2147483647 and so does this).
+fn math_add(args: &[Value]) -> Result<Value, String> {
+    let int = |v: &Value| v.as_i64().filter(|n| i32::try_from(*n).is_ok());
+    match args {
+        [a, b] => match (int(a), int(b)) {
+            (Some(a), Some(b)) => Ok(Value::from(a + b)),
+            _ => Err(format!(
+                "States.MathAdd needs two integers between -2147483648 and 2147483647, got {a}                  and {b}"
+            )),
+        },
+        _ => Err(format!(
+            "States.MathAdd takes 2 arguments, {} given",
+            args.len()
+        )),
     }
 }
 
@@ -242,6 +262,23 @@ const ESCAPED_BRACE: char = '\u{0}';
 mod tests {
     use super::*;
     use serde_json::json;
+
+    #[test]
+    fn math_add_adds_two_integers() {
+        let eval =
+            |text: &str, input: Value| Intrinsic::parse(text).unwrap().eval(&input, &json!({}));
+        assert_eq!(
+            eval("States.MathAdd($.n, 1)", json!({"n": 2})),
+            Ok(json!(3))
+        );
+        assert_eq!(
+            eval("States.MathAdd(-1, $.n)", json!({"n": 0})),
+            Ok(json!(-1))
+        );
+        assert!(eval("States.MathAdd($.n, 1)", json!({"n": "2"})).is_err());
+        assert!(eval("States.MathAdd(1.5, 1)", json!({})).is_err());
+        assert!(eval("States.MathAdd(1)", json!({})).is_err());
+    }
 
     #[test]
     fn format_handles_types_escapes_and_count_errors() {

@@ -61,7 +61,7 @@ pub use clock::{Clock, ManualClock, RealClock};
 pub use definition::{DefinitionError, State, StateMachine};
 pub use events::{Event, EventLog, NoObserver, Observer};
 pub use retry::{Jitter, Retrier, backoff_seconds, retry_delay};
-pub use run::{CANCELLED, EXCEED_TOLERATED_FAILURE, ITEM_READER_FAILED, PANIC};
+pub use run::{CANCELLED, EXCEED_TOLERATED_FAILURE, ITEM_READER_FAILED, NO_CHOICE_MATCHED, PANIC};
 
 /// The error of an attempt that ran past its `TimeoutSeconds`.
 pub const TIMEOUT: &str = retry::TIMEOUT;

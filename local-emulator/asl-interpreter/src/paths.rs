@@ -1,7 +1,12 @@
 //! The JSONPath subset of Amazon States Language: reference paths (`$`, `$.a.b`, `$.a[0]`,
 //! `$['a b']`, and `$$.…` into the context object), `ResultPath` targets, payload templates
 //! (`Parameters`, `ItemSelector`, `ResultSelector`, whose `.$` keys take a path or an intrinsic
-//! function, see [`super::intrinsic`]).
+//! function, see [`super::intrinsic`]). A template's `.$` path may also use the wildcard `[*]`
+//! (as in `$[*].lost`): such a path selects the array of every match, in order, leaving out the
+//! elements where the rest of the path finds nothing (an empty array if none), as Step
+//! Functions' JSONPath does for indefinite paths. Reference paths (`InputPath`, `ResultPath`,
+//! `ItemsPath`, a Choice `Variable`, intrinsic arguments) refuse wildcards, as in Step
+//! Functions.
 //!
 //! Everything is parsed once when the definition loads, so a malformed path is a load error
 //! naming the state and field; evaluation errors (a path that selects nothing) are runtime
@@ -18,6 +23,8 @@ pub enum Step {
     Field(String),
     /// `[n]`.
     Index(usize),
+    /// `[*]`: every element of an array (template paths only).
+    Each,
 }
 
 /// A reference path: `$` (the state's input) or `$$` (the context object) followed by steps.
@@ -35,6 +42,20 @@ impl Path {
     /// Parses a reference path. Filters, wildcards, slices and recursive descent are rejected
     /// with a message naming the construct.
     pub fn parse(text: &str) -> Result<Path, String> {
+        Path::parse_with(text, false)
+    }
+
+    /// Parses the path of a template's `.$` field: a reference path that may also use `[*]`.
+    pub fn parse_template(text: &str) -> Result<Path, String> {
+        Path::parse_with(text, true)
+    }
+
+    /// True if the path has a `[*]` step (it then selects an array of matches).
+    pub fn is_indefinite(&self) -> bool {
+        self.steps.contains(&Step::Each)
+    }
+
+    fn parse_with(text: &str, wildcard: bool) -> Result<Path, String> {
         let (context, rest) = if let Some(rest) = text.strip_prefix("$$") {
             (true, rest)
         } else if let Some(rest) = text.strip_prefix('$') {
@@ -83,6 +104,8 @@ impl Path {
                     if let Some(name) = inner.strip_prefix('\'').and_then(|s| s.strip_suffix('\''))
                     {
                         steps.push(Step::Field(name.to_owned()));
+                    } else if inner == "*" && wildcard {
+                        steps.push(Step::Each);
                     } else if !inner.is_empty() && inner.bytes().all(|b| b.is_ascii_digit()) {
                         let index = inner
                             .parse()
@@ -109,23 +132,57 @@ impl Path {
         })
     }
 
-    /// The selected value, or `None` if a step finds no such field or index.
+    /// The selected value, or `None` if a step finds no such field or index (or the path is
+    /// indefinite: see [`Path::resolve`]).
     pub fn select<'v>(&self, input: &'v Value, context: &'v Value) -> Option<&'v Value> {
         let mut at = if self.context { context } else { input };
         for step in &self.steps {
             at = match step {
                 Step::Field(name) => at.as_object()?.get(name)?,
                 Step::Index(i) => at.as_array()?.get(*i)?,
+                Step::Each => return None,
             };
         }
         Some(at)
     }
 
-    /// Like [`Path::select`], but a miss is an error naming the path.
+    /// Like [`Path::select`], but a miss is an error naming the path. An indefinite path
+    /// (with `[*]`) never misses: it gives the array of its matches, possibly empty.
     pub fn resolve(&self, input: &Value, context: &Value) -> Result<Value, String> {
+        if self.is_indefinite() {
+            let root = if self.context { context } else { input };
+            let mut out = Vec::new();
+            collect(root, &self.steps, &mut out);
+            return Ok(Value::Array(out));
+        }
         self.select(input, context)
             .cloned()
             .ok_or_else(|| format!("the path {:?} selects nothing", self.text))
+    }
+}
+
+/// Every value `steps` reach from `at`, in document order; dead ends are left out.
+fn collect(at: &Value, steps: &[Step], out: &mut Vec<Value>) {
+    let Some((step, rest)) = steps.split_first() else {
+        out.push(at.clone());
+        return;
+    };
+    match step {
+        Step::Field(name) => {
+            if let Some(v) = at.as_object().and_then(|o| o.get(name)) {
+                collect(v, rest, out);
+            }
+        }
+        Step::Index(i) => {
+            if let Some(v) = at.as_array().and_then(|a| a.get(*i)) {
+                collect(v, rest, out);
+            }
+        }
+        Step::Each => {
+            for v in at.as_array().into_iter().flatten() {
+                collect(v, rest, out);
+            }
+        }
     }
 }
 
@@ -156,7 +213,7 @@ impl ResultPath {
         for step in path.steps {
             match step {
                 Step::Field(name) => fields.push(name),
-                Step::Index(_) => {
+                Step::Index(_) | Step::Each => {
                     return Err(format!(
                         "ResultPath {text:?}: array indices are not allowed"
                     ));
@@ -245,7 +302,7 @@ impl Template {
     /// A path or an intrinsic call, as allowed in a `.$` field, `ErrorPath` or `CausePath`.
     pub fn expression(text: &str, field: &str) -> Result<Template, String> {
         if text.starts_with('$') {
-            Path::parse(text)
+            Path::parse_template(text)
                 .map(Template::Path)
                 .map_err(|e| format!("field {field:?}: {e}"))
         } else if text.starts_with("States.") {
@@ -320,6 +377,28 @@ mod tests {
             let err = Path::parse(bad).unwrap_err();
             assert!(err.contains(what), "{bad}: {err}");
         }
+    }
+
+    #[test]
+    fn template_paths_may_collect_with_a_wildcard() {
+        let results = json!([{}, {"lost": {"task": 3}}, {"other": 1}, {"lost": {"task": 7}}]);
+        let t = Template::compile(&json!({"lost.$": "$[*].lost", "tasks.$": "$[*].lost.task"}))
+            .unwrap();
+        assert_eq!(
+            t.eval(&results, &json!({})).unwrap(),
+            json!({"lost": [{"task": 3}, {"task": 7}], "tasks": [3, 7]})
+        );
+        assert_eq!(
+            t.eval(&json!([{}, {}]), &json!({})).unwrap(),
+            json!({"lost": [], "tasks": []})
+        );
+        assert_eq!(
+            t.eval(&json!({}), &json!({})).unwrap(),
+            json!({"lost": [], "tasks": []})
+        );
+        // Reference paths keep refusing it.
+        assert!(Path::parse("$[*].lost").unwrap_err().contains("[*]"));
+        assert!(ResultPath::parse(Some("$[*]")).is_err());
     }
 
     #[test]

@@ -23,6 +23,12 @@
 //! `States.ExceedToleratedFailureThreshold` (the tolerated failure count is 0), whose cause names
 //! the Map, the item and the child's error; the Map state's own Retry and Catch then apply.
 //! EXPRESS children fail with `States.Timeout` after 5 minutes, as Express executions do.
+//! A Map with `ItemsPath` runs the same way over an array of its effective input.
+//!
+//! A Choice state goes to the `Next` of its first rule that holds, else to `Default`; with
+//! neither, the execution fails with `States.NoChoiceMatched`. `IsPresent` holds when the
+//! `Variable` selects something (true) or nothing (false); a `Numeric…` rule whose `Variable`
+//! selects nothing or a non-number is `States.Runtime`, as in Step Functions.
 
 mod invoke;
 mod map_run;
@@ -34,7 +40,8 @@ use std::time::Duration;
 use serde_json::{Value, json};
 
 use super::definition::{
-    FailState, Number, PassState, Selector, State, StateMachine, TaskState, Transition,
+    ChoiceState, Comparison, FailState, Number, PassState, Selector, State, StateMachine,
+    TaskState, Transition,
 };
 use super::events::{Event, Observer};
 use super::retry::{self, Catcher, Decision, Retrier, RetryState};
@@ -50,6 +57,8 @@ pub const CANCELLED: &str = "States.Cancelled";
 /// The error a panicking invocation reports: Step Functions reports unhandled Lambda errors
 /// (crashes, out of memory, function timeouts) as `Lambda.Unknown`.
 pub const PANIC: &str = "Lambda.Unknown";
+/// The error of a Choice state none of whose rules held, without a `Default`.
+pub const NO_CHOICE_MATCHED: &str = "States.NoChoiceMatched";
 /// The longest an EXPRESS child execution may run, in seconds (before time scaling).
 const EXPRESS_LIMIT_SECONDS: f64 = 300.0;
 /// How often waits re-check the cancel flag and deadlines.
@@ -235,6 +244,7 @@ impl Execution<'_> {
                 State::Task(task) => self.task(task, &path, name, input, frame)?,
                 State::Map(map) => self.map(map, &path, name, input, frame)?,
                 State::Pass(pass) => self.pass(pass, &path, name, input)?,
+                State::Choice(choice) => self.choice(choice, &path, name, input)?,
                 State::Succeed(succeed) => {
                     let ctx = self.context(name, 0, None);
                     let run = select(&succeed.io.input_path, input, &ctx)
@@ -314,6 +324,53 @@ impl Execution<'_> {
         Ok(Step {
             output,
             next: next(&pass.transition),
+            caught: None,
+        })
+    }
+
+    fn choice<'m>(
+        &self,
+        choice: &'m ChoiceState,
+        path: &str,
+        name: &str,
+        raw: Value,
+    ) -> Result<Step<'m>, Stop> {
+        let ctx = self.context(name, 0, None);
+        let rt = |e: String| Stop::Failed(Self::runtime(path, e));
+        let effective = select(&choice.io.input_path, raw, &ctx).map_err(rt)?;
+        let mut target = None;
+        for (i, rule) in choice.choices.iter().enumerate() {
+            let value = rule.variable.select(&effective, &ctx);
+            let holds = match rule.test {
+                Comparison::IsPresent(present) => value.is_some() == present,
+                Comparison::Numeric(op, b) => {
+                    let a = value.and_then(Value::as_f64).ok_or_else(|| {
+                        rt(format!(
+                            "Choices[{i}]: the Variable {:?} must select a number, found {}",
+                            rule.variable.text,
+                            value.map_or("nothing".to_owned(), Value::to_string)
+                        ))
+                    })?;
+                    op.holds(a, b)
+                }
+            };
+            if holds {
+                target = Some(rule.next.as_str());
+                break;
+            }
+        }
+        let Some(next) = target.or(choice.default.as_deref()) else {
+            return Err(Stop::Failed(Failure {
+                error: NO_CHOICE_MATCHED.into(),
+                cause: format!("{path}: no choice rule matched and there is no Default"),
+                state: path.to_owned(),
+                item: None,
+            }));
+        };
+        let output = select(&choice.io.output_path, effective, &ctx).map_err(rt)?;
+        Ok(Step {
+            output,
+            next: Some(next),
             caught: None,
         })
     }

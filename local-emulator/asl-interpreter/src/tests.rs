@@ -461,13 +461,19 @@ fn all_stages_run_in_order_with_every_item_once() {
         [
             "Plan",
             "CastMap",
+            "CastMapCheck",
             "CastReduce",
+            "CastReduceCheck",
             "Expand",
+            "ExpandCheck",
             "TraceMap",
+            "TraceMapCheck",
             "TraceReduce",
+            "TraceReduceCheck",
             "Combine",
             "Done"
-        ]
+        ],
+        "no item was lost: no rerun"
     );
     let maps: Vec<(String, usize)> = events
         .iter()
@@ -1013,4 +1019,232 @@ fn a_panicking_function_fails_like_an_unhandled_lambda_error_and_frees_its_slot(
         .filter(|e| matches!(e, Event::TaskAttemptStarted { state, .. } if state == "Combine"))
         .count();
     assert_eq!(attempts, 6);
+}
+
+/// The (state, items) of every Map Run, in order.
+fn map_runs(events: &[Event]) -> Vec<(String, usize)> {
+    events
+        .iter()
+        .filter_map(|e| match e {
+            Event::MapStarted { state, items, .. } => Some((state.clone(), *items)),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn an_item_that_exhausts_its_retries_is_rerun_alone_and_the_job_succeeds() {
+    // Task 2 of TraceMap fails its six attempts (1 + 5 retries), then succeeds on the rerun.
+    let fake = Fake::new(0, |_, stage, e, n| {
+        if stage == "trace-map" && e["item"]["task"] == 2 && n < 6 {
+            Err(TaskFailure::new(RETRYABLE, "worker died"))
+        } else {
+            Ok(json!({}))
+        }
+    });
+    let store = store_with_items(4, 60);
+    let (out, events) = run_with(&fake, &store, options(2));
+    let out = out.unwrap();
+    assert_eq!(out["combine"], json!({"output": {}}));
+    let calls: Vec<(u64, u64)> = fake
+        .worker_calls()
+        .into_iter()
+        .filter(|(s, _, _)| s == "trace-map")
+        .map(|(_, t, a)| (t, a))
+        .collect();
+    let task2: Vec<u64> = calls.iter().filter(|c| c.0 == 2).map(|c| c.1).collect();
+    assert_eq!(
+        task2,
+        [0, 1, 2, 3, 4, 5, 0],
+        "six attempts, then a fresh child"
+    );
+    assert_eq!(calls.len(), 3 + 7, "the other items ran once");
+    let runs = map_runs(&events);
+    assert_eq!(
+        runs.iter()
+            .map(|(s, n)| (s.as_str(), *n))
+            .collect::<Vec<_>>(),
+        [
+            ("CastMap", 4),
+            ("CastReduce", 4),
+            ("Expand", 4),
+            ("TraceMap", 4),
+            ("TraceMapRerun", 1),
+            ("TraceReduce", 4),
+        ]
+    );
+    // The rerun ran item 2's own item object.
+    let rerun = fake
+        .calls()
+        .into_iter()
+        .rfind(|(_, s, e)| s == "trace-map" && e["item"]["task"] == 2)
+        .unwrap()
+        .2;
+    assert_eq!(rerun["item"], json!({"task": 2, "timeout_seconds": 60}));
+    assert_eq!(rerun.as_object().unwrap().len(), 5);
+    let order: Vec<String> = fake.worker_calls().into_iter().map(|c| c.0).collect();
+    let last_trace_map = order.iter().rposition(|s| s == "trace-map").unwrap();
+    let first_trace_reduce = order.iter().position(|s| s == "trace-reduce").unwrap();
+    assert!(
+        last_trace_map < first_trace_reduce,
+        "the rerun ends before the next stage"
+    );
+}
+
+#[test]
+fn an_item_that_keeps_failing_fails_the_job_after_three_reruns_naming_task_and_stage() {
+    let fake = Fake::new(0, |_, stage, e, _| {
+        if stage == "expand" && e["item"]["task"] == 1 {
+            Err(TaskFailure::new(RETRYABLE, "split 3 is corrupt"))
+        } else {
+            Ok(json!({}))
+        }
+    });
+    let store = store_with_items(3, 60);
+    let (out, events) = run_with(&fake, &store, options(2));
+    let f = out.unwrap_err();
+    assert_eq!(f.error, RETRYABLE);
+    assert_eq!(
+        f.cause,
+        "Expand failed: task 1 still failed after 3 reruns: split 3 is corrupt"
+    );
+    assert_eq!(f.state, "ExpandFailed");
+    let attempts = fake
+        .worker_calls()
+        .into_iter()
+        .filter(|(s, t, _)| s == "expand" && *t == 1)
+        .count();
+    assert_eq!(
+        attempts,
+        6 * 4,
+        "six attempts in the first run and in each of 3 reruns"
+    );
+    let runs = map_runs(&events);
+    assert_eq!(
+        runs.iter()
+            .map(|(s, n)| (s.as_str(), *n))
+            .collect::<Vec<_>>(),
+        [
+            ("CastMap", 3),
+            ("CastReduce", 3),
+            ("Expand", 3),
+            ("ExpandRerun", 1),
+            ("ExpandRerun", 1),
+            ("ExpandRerun", 1),
+        ]
+    );
+    assert!(fake.worker_calls().iter().all(|c| c.0 != "trace-map"));
+}
+
+#[test]
+fn bad_input_is_never_rerun() {
+    let fake = Fake::new(0, |_, stage, e, _| {
+        if stage == "cast-map" && e["item"]["task"] == 0 {
+            Err(TaskFailure::new(BAD_INPUT, "no such split"))
+        } else {
+            Ok(json!({}))
+        }
+    });
+    let store = store_with_items(2, 60);
+    let (out, events) = run_with(&fake, &store, options(1));
+    let f = out.unwrap_err();
+    assert_eq!(
+        (f.error.as_str(), f.state.as_str()),
+        (EXCEED_TOLERATED_FAILURE, "CastMap")
+    );
+    let item = f.item.unwrap();
+    assert_eq!((item.map_state.as_str(), item.index), ("CastMap", 0));
+    assert_eq!(
+        (item.state.as_str(), item.error.as_str()),
+        (CAST_TASK, BAD_INPUT)
+    );
+    assert!(map_runs(&events).iter().all(|(s, _)| s == "CastMap"));
+}
+
+#[test]
+fn choice_rules_pick_the_first_match_else_default() {
+    let machine = json!({
+        "StartAt": "C",
+        "States": {
+            "C": {"Type": "Choice", "Choices": [
+                {"Variable": "$.list[0]", "IsPresent": false, "Next": "Empty"},
+                {"Variable": "$.n", "NumericGreaterThanEquals": 3, "Next": "Big"},
+                {"Variable": "$.n", "NumericLessThan": 0, "Next": "Negative"}
+            ], "Default": "Other"},
+            "Empty": {"Type": "Pass", "Result": "empty", "End": true},
+            "Big": {"Type": "Pass", "Result": "big", "End": true},
+            "Negative": {"Type": "Pass", "Result": "negative", "End": true},
+            "Other": {"Type": "Pass", "Result": "other", "End": true}
+        }
+    });
+    let fake = Fake::ok();
+    let o = fake.machine(&machine.to_string(), options(1));
+    let run = |input: Value| run_on(&o, &fake, input, &MemoryItems::new()).0;
+    assert_eq!(run(json!({"list": [], "n": 9})), Ok(json!("empty")));
+    assert_eq!(run(json!({"list": [1], "n": 3})), Ok(json!("big")));
+    assert_eq!(run(json!({"list": [1], "n": -0.5})), Ok(json!("negative")));
+    assert_eq!(run(json!({"list": [1], "n": 1})), Ok(json!("other")));
+    let f = run(json!({"list": [1], "n": "3"})).unwrap_err();
+    assert_eq!(f.error, RUNTIME);
+    assert!(
+        f.cause.contains("$.n") && f.cause.contains("number"),
+        "{}",
+        f.cause
+    );
+
+    let machine = json!({
+        "StartAt": "C",
+        "States": {
+            "C": {"Type": "Choice", "Choices": [
+                {"Variable": "$.n", "NumericEquals": 1, "Next": "One"}
+            ]},
+            "One": {"Type": "Succeed"}
+        }
+    });
+    let o = fake.machine(&machine.to_string(), options(1));
+    let f = run_on(&o, &fake, json!({"n": 2}), &MemoryItems::new())
+        .0
+        .unwrap_err();
+    assert_eq!(
+        (f.error.as_str(), f.state.as_str()),
+        ("States.NoChoiceMatched", "C")
+    );
+}
+
+#[test]
+fn a_map_over_items_path_runs_each_inline_item() {
+    let machine = json!({
+        "StartAt": "M",
+        "States": {
+            "M": {
+                "Type": "Map",
+                "ItemsPath": "$.todo",
+                "ItemSelector": {"job.$": "$.job", "stage": "expand", "item.$": "$$.Map.Item.Value.item"},
+                "ItemProcessor": {
+                    "ProcessorConfig": {"Mode": "DISTRIBUTED", "ExecutionType": "EXPRESS"},
+                    "StartAt": "T",
+                    "States": {"T": {
+                        "Type": "Task",
+                        "Resource": "arn:aws:states:::lambda:invoke",
+                        "Parameters": {"FunctionName": "${WorkerFunctionArn}", "Payload": {
+                            "stage.$": "$.stage", "item.$": "$.item"}},
+                        "ResultSelector": {"task.$": "$.Payload.task"},
+                        "End": true
+                    }}
+                },
+                "ResultSelector": {"done.$": "$[*].task"},
+                "End": true
+            }
+        }
+    });
+    let fake = Fake::new(0, |_, _, e, _| Ok(json!({"task": e["item"]["task"]})));
+    let o = fake.machine(&machine.to_string(), options(2));
+    let input = json!({"job": "j1", "todo": [{"item": {"task": 5}}, {"item": {"task": 9}}]});
+    let (out, _) = run_on(&o, &fake, input, &MemoryItems::new());
+    assert_eq!(out.unwrap(), json!({"done": [5, 9]}));
+    let f = run_on(&o, &fake, json!({"todo": {}}), &MemoryItems::new())
+        .0
+        .unwrap_err();
+    assert_eq!(f.error, RUNTIME);
+    assert!(f.cause.contains("ItemsPath"), "{}", f.cause);
 }

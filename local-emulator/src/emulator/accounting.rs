@@ -3,6 +3,7 @@
 //! after another, so the traffic in between is the stage's).
 
 use asl_interpreter::{Event, Observer};
+use hort_core::ids::Stage;
 use hort_core::store::{CountingStore, StoreStats};
 use hort_functions::S3Store;
 use std::sync::{Arc, Mutex};
@@ -63,8 +64,21 @@ impl Accounting {
     }
 }
 
+/// The row a state's events count in: its top-level state, where the states of a Map stage's
+/// rerun loop (`CastMapCheck`, `CastMapRerun`, `CastMapRound`, `CastMapGiveUp`) count in the
+/// stage's own row (`CastMap`).
 fn top_level(state: &str) -> Option<&str> {
-    state.split('/').next()
+    let top = state.split('/').next()?;
+    Some(
+        Stage::ALL
+            .iter()
+            .map(|s| s.state_name())
+            .find(|name| {
+                top.strip_prefix(name)
+                    .is_some_and(|rest| ["Check", "Rerun", "Round", "GiveUp"].contains(&rest))
+            })
+            .unwrap_or(top),
+    )
 }
 
 impl Observer for Accounting {
@@ -75,6 +89,7 @@ impl Observer for Accounting {
                 state,
                 item_index: None,
             } if !state.contains('/') => {
+                let state = &top_level(state).unwrap_or(state).to_owned();
                 if s.rows.last().is_some_and(|r| &r.state == state) {
                     return;
                 }
@@ -86,7 +101,8 @@ impl Observer for Accounting {
                 s.started = Some((Instant::now(), self.store.stats()));
             }
             Event::MapStarted { state, items, .. } => {
-                if let Some(row) = s.rows.iter_mut().rev().find(|r| &r.state == state) {
+                let top = top_level(state).unwrap_or_default().to_string();
+                if let Some(row) = s.rows.iter_mut().rev().find(|r| r.state == top) {
                     row.items += *items as u64;
                 }
             }

@@ -1,7 +1,9 @@
 //! Seeded fault injection around the in-process functions: attempts that fail before running or
 //! after writing part of their outputs, duplicated concurrent attempts, and stragglers that
-//! outlive their timeout. Each decision is a pure function of (seed, stage, task, attempt), so a
-//! run is reproducible. None of it may change the image: every task writes the same bytes on
+//! outlive their timeout. Each decision is a pure function of (seed, stage, task, attempt,
+//! round), so a run is reproducible; the round counts earlier invocations of the same (stage,
+//! task, attempt), so that a Map item the state machine runs again (its rerun loop starts the
+//! attempts of a rerun at 0 again) meets fresh faults, as it would in the cloud. None of it may change the image: every task writes the same bytes on
 //! every attempt.
 
 use super::invoker::InProcessInvoker;
@@ -10,8 +12,9 @@ use asl_interpreter::{TaskFailure, TaskInvoker};
 use hort_core::ErrorType;
 use hort_core::store::{BlobStore, PutOutcome, StoreError};
 use serde_json::Value;
-use std::sync::Arc;
+use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 /// Probabilities (per attempt) and seed of the injected faults.
@@ -57,6 +60,9 @@ pub struct FaultCounts {
     pub slots_killed: AtomicU64,
 }
 
+/// (stage, task, attempt) of an invocation.
+type AttemptKey = (String, Option<u64>, u64);
+
 /// Wraps the functions with seeded faults.
 pub struct FaultyInvoker {
     inner: Arc<InProcessInvoker>,
@@ -69,6 +75,8 @@ pub struct FaultyInvoker {
     started: Instant,
     /// Set when the run is over: releases a dead slot's thread.
     pub finished: Arc<AtomicBool>,
+    /// Invocations so far of each (stage, task, attempt).
+    rounds: Mutex<HashMap<AttemptKey, u32>>,
 }
 
 impl FaultyInvoker {
@@ -88,6 +96,7 @@ impl FaultyInvoker {
             counts: Arc::new(FaultCounts::default()),
             started: Instant::now(),
             finished: Arc::new(AtomicBool::new(false)),
+            rounds: Mutex::new(HashMap::new()),
         }
     }
 
@@ -103,9 +112,30 @@ impl FaultyInvoker {
                 .is_ok()
     }
 
-    /// A uniform draw in [0, 1) for this attempt (stage, task, attempt) and purpose (`salt`):
-    /// the same seeded draw the state machine's retry jitter uses.
-    fn draw(&self, input: &Value, salt: u64) -> f64 {
+    /// How many invocations of this (stage, task, attempt) came before this one.
+    fn round(&self, input: &Value) -> u32 {
+        let key = (
+            input
+                .get("stage")
+                .and_then(Value::as_str)
+                .unwrap_or("")
+                .to_owned(),
+            input
+                .get("item")
+                .and_then(|i| i.get("task"))
+                .and_then(Value::as_u64),
+            input.get("attempt").and_then(Value::as_u64).unwrap_or(0),
+        );
+        let mut rounds = self.rounds.lock().unwrap_or_else(|p| p.into_inner());
+        let n = rounds.entry(key).or_insert(0);
+        *n += 1;
+        *n - 1
+    }
+
+    /// A uniform draw in [0, 1) for this attempt (stage, task, attempt), its round and purpose
+    /// (`salt`): the same seeded draw the state machine's retry jitter uses. Round 0 draws as
+    /// before rounds existed.
+    fn draw(&self, input: &Value, round: u32, salt: u64) -> f64 {
         let stage = input.get("stage").and_then(Value::as_str).unwrap_or("");
         let task = input
             .get("item")
@@ -113,12 +143,11 @@ impl FaultyInvoker {
             .and_then(Value::as_u64)
             .map(|t| t as usize);
         let attempt = input.get("attempt").and_then(Value::as_u64).unwrap_or(0);
-        unit_draw(
-            self.settings.seed,
-            &format!("fault-{salt}/{stage}"),
-            task,
-            attempt as u32,
-        )
+        let label = match round {
+            0 => format!("fault-{salt}/{stage}"),
+            r => format!("fault-{salt}/{stage}/round-{r}"),
+        };
+        unit_draw(self.settings.seed, &label, task, attempt as u32)
     }
 }
 
@@ -138,7 +167,8 @@ impl TaskInvoker for FaultyInvoker {
             .get("item")
             .and_then(|i| i.get("timeout_seconds"))
             .and_then(Value::as_f64);
-        if self.draw(&input, 1) < self.settings.duplicate_rate {
+        let round = self.round(&input);
+        if self.draw(&input, round, 1) < self.settings.duplicate_rate {
             self.counts.duplicated.fetch_add(1, Ordering::Relaxed);
             let (inner, resource, twin) =
                 (Arc::clone(&self.inner), resource.to_string(), input.clone());
@@ -149,14 +179,14 @@ impl TaskInvoker for FaultyInvoker {
             });
         }
         if let Some(seconds) = timeout
-            && self.draw(&input, 2) < self.settings.slow_rate
+            && self.draw(&input, round, 2) < self.settings.slow_rate
         {
             self.counts.slowed.fetch_add(1, Ordering::Relaxed);
             std::thread::sleep(Duration::from_secs_f64(
                 seconds * self.time_scale * 1.2 + 0.05,
             ));
         }
-        let fail = self.draw(&input, 3);
+        let fail = self.draw(&input, round, 3);
         if fail < self.settings.fail_rate / 2.0 {
             self.counts.failed_before.fetch_add(1, Ordering::Relaxed);
             return Err(TaskFailure::new(
@@ -168,7 +198,7 @@ impl TaskInvoker for FaultyInvoker {
             self.counts
                 .failed_after_writing
                 .fetch_add(1, Ordering::Relaxed);
-            let puts = 1 + (self.draw(&input, 4) * 3.0) as usize;
+            let puts = 1 + (self.draw(&input, round, 4) * 3.0) as usize;
             let failing = FailAfterPuts {
                 inner: self.store.as_ref(),
                 puts_left: AtomicUsize::new(puts),

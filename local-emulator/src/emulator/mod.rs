@@ -278,10 +278,20 @@ pub fn run_job_with(
     })
 }
 
-/// The stage name of a state path (`CastMap/CastMapTask` -> `cast-map`); a state outside the
-/// stage table keeps its own name.
+/// The stage name of a state path (`CastMap/CastMapTask` -> `cast-map`, and the states of its
+/// rerun loop and its Fail state, `CastMapRerun/CastMapRerunTask` or `CastMapFailed`, too); a
+/// state outside the stage table keeps its own name.
 pub fn stage_name(state: &str) -> String {
-    Stage::of_state(state).map_or_else(|| state.to_owned(), |s| s.to_string())
+    let top = state.split('/').next().unwrap_or(state);
+    Stage::of_state(state)
+        .or_else(|| {
+            Stage::ALL.into_iter().find(|s| {
+                top.strip_prefix(s.state_name()).is_some_and(|rest| {
+                    ["Check", "Rerun", "Round", "GiveUp", "Failed"].contains(&rest)
+                })
+            })
+        })
+        .map_or_else(|| state.to_owned(), |s| s.to_string())
 }
 
 fn stage_reports(plan: &JobPlan, usage: &[StageUsage], ledger: &Ledger) -> Vec<StageReport> {

@@ -64,7 +64,8 @@ pub(super) struct RawMap {
     pub(super) _type: String,
     #[serde(rename = "Comment")]
     pub(super) _comment: Option<String>,
-    pub(super) item_reader: RawItemReader,
+    pub(super) item_reader: Option<RawItemReader>,
+    pub(super) items_path: Option<String>,
     pub(super) item_selector: Option<Value>,
     pub(super) item_processor: RawProcessor,
     pub(super) max_concurrency: Option<u64>,
@@ -182,4 +183,19 @@ pub(super) struct RawFail {
     pub(super) error_path: Option<String>,
     pub(super) cause: Option<String>,
     pub(super) cause_path: Option<String>,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "PascalCase", deny_unknown_fields)]
+pub(super) struct RawChoice {
+    #[serde(rename = "Type")]
+    pub(super) _type: String,
+    #[serde(rename = "Comment")]
+    pub(super) _comment: Option<String>,
+    pub(super) choices: Vec<Map<String, Value>>,
+    pub(super) default: Option<String>,
+    #[serde(default)]
+    pub(super) input_path: Nullable,
+    #[serde(default)]
+    pub(super) output_path: Nullable,
 }

@@ -4,10 +4,10 @@
 use serde::de::DeserializeOwned;
 use serde_json::Value;
 
-use super::raw::{Nullable, RawCatcher, RawFail, RawMap, RawPass, RawRetrier, RawTask};
+use super::raw::{Nullable, RawCatcher, RawChoice, RawFail, RawMap, RawPass, RawRetrier, RawTask};
 use super::{
-    DefinitionError, FailState, Io, MapState, Number, PassState, Selector, State, StateMachine,
-    TaskState, Transition, machine,
+    ChoiceRule, ChoiceState, Comparison, DefinitionError, FailState, Io, Items, MapState, Number,
+    NumericOp, PassState, Selector, State, StateMachine, TaskState, Transition, machine,
 };
 use crate::paths::{Path, ResultPath, Template};
 use crate::retry::{self, Catcher, Jitter, Retrier};
@@ -262,24 +262,35 @@ fn map_fields(raw: RawMap, processor: StateMachine) -> Result<State, String> {
             ));
         }
     };
-    let reader = raw.item_reader;
-    if reader.resource != S3_GET_OBJECT {
-        return Err(format!(
-            "ItemReader.Resource {:?} is not supported by the emulator (only {S3_GET_OBJECT:?})",
-            reader.resource
-        ));
-    }
-    if reader.reader_config.input_type != "JSON" {
-        return Err(format!(
-            "ItemReader.ReaderConfig.InputType {:?} is not supported by the emulator (only \
-             \"JSON\")",
-            reader.reader_config.input_type
-        ));
-    }
-    let reader_params = template("ItemReader.Parameters", Some(reader.parameters))?
-        .ok_or("ItemReader.Parameters is required")?;
+    let items = match (raw.item_reader, raw.items_path) {
+        (Some(_), Some(_)) => return Err("has both ItemReader and ItemsPath".into()),
+        (None, None) => return Err("needs an ItemReader or an ItemsPath".into()),
+        (None, Some(text)) => {
+            Items::Path(Path::parse(&text).map_err(|e| format!("ItemsPath: {e}"))?)
+        }
+        (Some(reader), None) => {
+            if reader.resource != S3_GET_OBJECT {
+                return Err(format!(
+                    "ItemReader.Resource {:?} is not supported by the emulator (only \
+                     {S3_GET_OBJECT:?})",
+                    reader.resource
+                ));
+            }
+            if reader.reader_config.input_type != "JSON" {
+                return Err(format!(
+                    "ItemReader.ReaderConfig.InputType {:?} is not supported by the emulator \
+                     (only \"JSON\")",
+                    reader.reader_config.input_type
+                ));
+            }
+            Items::Reader(
+                template("ItemReader.Parameters", Some(reader.parameters))?
+                    .ok_or("ItemReader.Parameters is required")?,
+            )
+        }
+    };
     Ok(State::Map(MapState {
-        reader: reader_params,
+        items,
         item_selector: template("ItemSelector", raw.item_selector)?,
         processor,
         express,
@@ -308,6 +319,86 @@ pub(super) fn pass(raw: RawPass) -> Result<State, String> {
         result_path: result_path(raw.result_path, "ResultPath")?,
         io: io(raw.input_path, raw.output_path)?,
         transition: transition(raw.next, raw.end)?,
+    }))
+}
+
+const NUMERIC: [(&str, NumericOp); 5] = [
+    ("NumericEquals", NumericOp::Equals),
+    ("NumericLessThan", NumericOp::LessThan),
+    ("NumericLessThanEquals", NumericOp::LessThanEquals),
+    ("NumericGreaterThan", NumericOp::GreaterThan),
+    ("NumericGreaterThanEquals", NumericOp::GreaterThanEquals),
+];
+
+pub(super) fn choice(raw: RawChoice) -> Result<State, String> {
+    if raw.choices.is_empty() {
+        return Err("Choices is empty".into());
+    }
+    let supported = || {
+        let mut names = vec!["IsPresent"];
+        names.extend(NUMERIC.iter().map(|(n, _)| *n));
+        names.join(", ")
+    };
+    let choices = raw
+        .choices
+        .into_iter()
+        .enumerate()
+        .map(|(i, mut rule)| {
+            let at = |m: String| format!("Choices[{i}]: {m}");
+            rule.remove("Comment");
+            let next = match rule.remove("Next") {
+                Some(Value::String(n)) => n,
+                _ => return Err(at("needs a string Next".into())),
+            };
+            let variable = match rule.remove("Variable") {
+                Some(Value::String(v)) => {
+                    Path::parse(&v).map_err(|e| at(format!("Variable: {e}")))?
+                }
+                _ => {
+                    return Err(at(format!(
+                        "needs a string Variable (And, Or and Not are not supported by the \
+                         emulator; supported comparisons: {})",
+                        supported()
+                    )));
+                }
+            };
+            let mut fields = rule.into_iter();
+            let (Some((op, value)), None) = (fields.next(), fields.next()) else {
+                return Err(at(format!(
+                    "needs exactly one comparison besides Variable and Next (supported: {})",
+                    supported()
+                )));
+            };
+            let test = if op == "IsPresent" {
+                Comparison::IsPresent(
+                    value
+                        .as_bool()
+                        .ok_or_else(|| at("IsPresent must be true or false".into()))?,
+                )
+            } else if let Some((_, numeric)) = NUMERIC.iter().find(|(n, _)| *n == op) {
+                Comparison::Numeric(
+                    *numeric,
+                    value
+                        .as_f64()
+                        .ok_or_else(|| at(format!("{op} must be a number")))?,
+                )
+            } else {
+                return Err(at(format!(
+                    "{op} is not supported by the emulator (supported: {})",
+                    supported()
+                )));
+            };
+            Ok(ChoiceRule {
+                variable,
+                test,
+                next,
+            })
+        })
+        .collect::<Result<_, String>>()?;
+    Ok(State::Choice(ChoiceState {
+        choices,
+        default: raw.default,
+        io: io(raw.input_path, raw.output_path)?,
     }))
 }
 

@@ -89,15 +89,76 @@ fn unsupported_states_and_fields_are_named() {
     );
 
     let mut machine: Value = serde_json::from_str(HORT_DEFINITION).unwrap();
-    machine["States"]["Plan"]["ResultSelector"]["x.$"] = json!("$.a[*]");
+    machine["States"]["Plan"]["ResultSelector"]["x.$"] = json!("$.a[?(@.x)]");
     let err = load_error(machine);
-    assert!(err.contains("\"Plan\"") && err.contains("[*]"), "{err}");
+    assert!(
+        err.contains("\"Plan\"") && err.contains("[?(@.x)]"),
+        "{err}"
+    );
+
+    // A wildcard is for template paths only, never a reference path.
+    let mut machine: Value = serde_json::from_str(HORT_DEFINITION).unwrap();
+    machine["States"]["CastMapRerun"]["ItemsPath"] = json!("$.rerun[*]");
+    let err = load_error(machine);
+    assert!(
+        err.contains("\"CastMapRerun\"") && err.contains("ItemsPath") && err.contains("[*]"),
+        "{err}"
+    );
+
+    let mut machine: Value = serde_json::from_str(HORT_DEFINITION).unwrap();
+    machine["States"]["CastMapRerun"]["ItemReader"] =
+        machine["States"]["CastMap"]["ItemReader"].clone();
+    let err = load_error(machine);
+    assert!(
+        err.contains("\"CastMapRerun\"") && err.contains("both ItemReader and ItemsPath"),
+        "{err}"
+    );
+
+    let mut machine: Value = serde_json::from_str(HORT_DEFINITION).unwrap();
+    machine["States"]["CastMap"]["ToleratedFailurePercentage"] = json!(100);
+    let err = load_error(machine);
+    assert!(
+        err.contains("\"CastMap\"") && err.contains("ToleratedFailurePercentage"),
+        "{err}"
+    );
 
     let err = load_error(
         json!({"StartAt": "S", "States": {"S": {"Type": "Succeed"}}, "TimeoutSeconds": 5}),
     );
     assert!(err.contains("TimeoutSeconds"), "{err}");
     assert!(load("{").unwrap_err().to_string().contains("JSON"));
+}
+
+#[test]
+fn unsupported_choice_rules_are_named() {
+    let choice = |rule: Value| {
+        load_error(json!({"StartAt": "C", "States": {
+            "C": {"Type": "Choice", "Choices": [rule], "Default": "D"},
+            "D": {"Type": "Succeed"}
+        }}))
+    };
+    let err = choice(json!({"Variable": "$.a", "StringEquals": "x", "Next": "D"}));
+    assert!(
+        err.contains("\"C\"") && err.contains("Choices[0]") && err.contains("StringEquals"),
+        "{err}"
+    );
+    let err = choice(json!({"And": [], "Next": "D"}));
+    assert!(err.contains("Choices[0]") && err.contains("And"), "{err}");
+    let err = choice(json!({"Variable": "$.a", "IsPresent": 1, "Next": "D"}));
+    assert!(err.contains("IsPresent must be true or false"), "{err}");
+    let err = choice(json!({"Variable": "$.a", "NumericLessThan": "3", "Next": "D"}));
+    assert!(err.contains("NumericLessThan must be a number"), "{err}");
+    let err =
+        choice(json!({"Variable": "$.a", "IsPresent": true, "NumericEquals": 1, "Next": "D"}));
+    assert!(err.contains("exactly one comparison"), "{err}");
+    let err = choice(json!({"Variable": "$.a", "IsPresent": true}));
+    assert!(err.contains("Next"), "{err}");
+    let err = choice(json!({"Variable": "$.a", "IsPresent": true, "Next": "Nowhere"}));
+    assert!(err.contains("\"Nowhere\""), "{err}");
+    let err = load_error(json!({"StartAt": "C", "States": {
+        "C": {"Type": "Choice", "Choices": [], "Default": "C"}
+    }}));
+    assert!(err.contains("Choices is empty"), "{err}");
 }
 
 #[test]
@@ -123,7 +184,22 @@ fn the_hort_definition_compiles_to_the_documented_graph() {
         panic!("TraceMap is a Map");
     };
     assert!(map.express);
-    assert_eq!(map.result_path, crate::paths::ResultPath::Discard);
+    assert_eq!(
+        map.result_path,
+        crate::paths::ResultPath::Field(vec!["rerun".into()], "$.rerun".into())
+    );
+    // Every Map stage reruns its lost items in a bounded loop before its Fail state.
+    for stage in ["CastMap", "CastReduce", "Expand", "TraceMap", "TraceReduce"] {
+        let state = |suffix: &str| &machine.states[&format!("{stage}{suffix}")];
+        assert!(matches!(state("Check"), super::State::Choice(_)), "{stage}");
+        assert!(
+            matches!(state("Rerun"), super::State::Map(m)
+            if matches!(m.items, super::Items::Path(_))),
+            "{stage}"
+        );
+        assert!(matches!(state("Round"), super::State::Pass(_)), "{stage}");
+        assert!(matches!(state("GiveUp"), super::State::Pass(_)), "{stage}");
+    }
     let super::State::Task(task) = &map.processor.states["TraceMapTask"] else {
         panic!("TraceMapTask is a Task");
     };

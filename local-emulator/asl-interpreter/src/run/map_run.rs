@@ -12,7 +12,7 @@ use super::{
     ITEM_READER_FAILED, Step, Stop, lock, next, positive, select,
 };
 use crate::ItemFailure;
-use crate::definition::MapState;
+use crate::definition::{Items, MapState};
 use crate::events::Event;
 
 impl Execution<'_> {
@@ -51,8 +51,8 @@ impl Execution<'_> {
         }
     }
 
-    /// Reads the items: `ItemReader.Parameters` must give `Bucket` (the execution's bucket)
-    /// and `Key` of a JSON array.
+    /// Reads the items: the array at `ItemsPath`, or the object `ItemReader.Parameters` names
+    /// (`Bucket`, the execution's bucket, and `Key` of a JSON array).
     fn read_items(
         &self,
         map: &MapState,
@@ -60,8 +60,23 @@ impl Execution<'_> {
         input: &Value,
         ctx: &Value,
     ) -> Result<Vec<Value>, Failure> {
-        let params = map
-            .reader
+        let reader = match &map.items {
+            Items::Reader(reader) => reader,
+            Items::Path(items) => {
+                return match items.resolve(input, ctx) {
+                    Ok(Value::Array(items)) => Ok(items),
+                    Ok(other) => Err(Self::runtime(
+                        path,
+                        format!(
+                            "ItemsPath {:?} must select an array, found {other}",
+                            items.text
+                        ),
+                    )),
+                    Err(e) => Err(Self::runtime(path, format!("ItemsPath: {e}"))),
+                };
+            }
+        };
+        let params = reader
             .eval(input, ctx)
             .map_err(|e| Self::runtime(path, format!("ItemReader.Parameters: {e}")))?;
         let (Some(bucket), Some(key)) = (
