@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Runs a command against a fresh moto S3 server on 127.0.0.1.
+# Runs a command against a fresh moto server (S3, SQS, Step Functions) on 127.0.0.1.
 #
 #   bash tests/s3-servers/with-moto.sh cargo test -p hort-tests --test s3_conformance
 #
@@ -8,6 +8,8 @@
 #   HORT_TEST_S3_ENDPOINT  http://127.0.0.1:PORT
 #   HORT_TEST_S3_BUCKET    hort-test (not created here: tests call S3Store::create_bucket_if_missing)
 #   HORT_TEST_S3_ACCESS_KEY / HORT_TEST_S3_SECRET_KEY  (moto accepts any credentials)
+#   HORT_TEST_AWS_ENDPOINT the same URL: the one moto server also speaks SQS and Step Functions
+#                          (tests/tests/aws_moto.rs; moto records executions, it does not run them)
 # runs the command, stops the server on exit, and exits with the command's status.
 # The server log goes to $TOOLS/moto-server.log.
 set -euo pipefail
@@ -70,6 +72,7 @@ export HORT_TEST_S3_ENDPOINT="$endpoint"
 export HORT_TEST_S3_BUCKET="${HORT_TEST_S3_BUCKET:-hort-test}"
 export HORT_TEST_S3_ACCESS_KEY="${HORT_TEST_S3_ACCESS_KEY:-testing}"
 export HORT_TEST_S3_SECRET_KEY="${HORT_TEST_S3_SECRET_KEY:-testing}"
+export HORT_TEST_AWS_ENDPOINT="$endpoint"
 echo "with-moto: moto $("$venv/bin/python" -c 'import moto; print(moto.__version__)') at $endpoint (bucket $HORT_TEST_S3_BUCKET)" >&2
 
 status=0

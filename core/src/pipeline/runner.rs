@@ -42,6 +42,9 @@ pub struct TaskMetrics {
     pub shadow_rays: u64,
     /// Map tasks that found no work and did not load their split.
     pub skipped_tasks: u64,
+    /// Split objects taken from the worker's [`SplitCache`] instead of storage.
+    #[serde(default)]
+    pub split_cache_hits: u64,
 }
 
 impl std::ops::AddAssign for TaskMetrics {
@@ -54,6 +57,7 @@ impl std::ops::AddAssign for TaskMetrics {
         self.recomputed += o.recomputed;
         self.shadow_rays += o.shadow_rays;
         self.skipped_tasks += o.skipped_tasks;
+        self.split_cache_hits += o.split_cache_hits;
     }
 }
 
@@ -230,6 +234,7 @@ impl Task<'_> {
     fn read_split(&mut self, split: u32) -> Result<Arc<SplitObject>, PipelineError> {
         let key = split_key(self.job, SplitId(split));
         if let Some(object) = self.cache.get(&key) {
+            self.metrics.split_cache_hits += 1;
             return Ok(object);
         }
         let bytes = self.store.get(&key)?;
@@ -317,4 +322,47 @@ fn raw_length(block: &[u8]) -> u64 {
         .get(20..28)
         .and_then(|b| b.try_into().ok())
         .map_or(0, u64::from_le_bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pipeline::{PlanRequest, SplitMode, plan_into_store};
+    use crate::store::MemoryStore;
+
+    #[test]
+    fn split_cache_hits_are_counted_and_change_no_output() {
+        let dir = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../scenes/cornell/cornell.json"
+        );
+        let scene = crate::scene::load_scene(std::path::Path::new(dir)).unwrap();
+        let store = MemoryStore::new();
+        let job = JobId::new("cache").unwrap();
+        let request = PlanRequest {
+            width: 16,
+            height: 12,
+            spp: 1,
+            splits: Some(2),
+            spans: Some(1),
+            mode: SplitMode::Spatial,
+        };
+        let plan = plan_into_store(&store, &job, &scene, &request)
+            .unwrap()
+            .plan;
+        let cache = SplitCache::new(1 << 24);
+        let output = |m: &TaskMetrics| (m.bytes_written, m.records);
+        let cold = run_task_cached(&store, &job, &plan, Stage::CastMap, 0, &cache).unwrap();
+        assert_eq!(cold.split_cache_hits, 0);
+        assert!(cold.split_bytes_read > 0);
+        let warm = run_task_cached(&store, &job, &plan, Stage::CastMap, 0, &cache).unwrap();
+        assert_eq!(warm.split_cache_hits, 1);
+        assert_eq!(warm.split_bytes_read, 0);
+        assert_eq!(output(&warm), output(&cold));
+        let uncached = run_task(&store, &job, &plan, Stage::CastMap, 0).unwrap();
+        assert_eq!(uncached.split_cache_hits, 0);
+        let mut total = cold;
+        total += warm;
+        assert_eq!(total.split_cache_hits, 1);
+    }
 }

@@ -1,0 +1,307 @@
+//! What the Lambda entry points (`src/bin/plan.rs`, `worker.rs`, `starter.rs`) share: settings
+//! from environment variables, SDK clients and the split cache built once per container, the
+//! synchronous handlers run on tokio's blocking threads, and failures reported as Lambda errors
+//! whose error type is the state machine's (`Hort.Retryable`, `Hort.BadInput`).
+//!
+//! Environment variables (set by `infra/template.yaml`):
+//!
+//! | variable | used by | meaning |
+//! |---|---|---|
+//! | `HORT_BUCKET` | all | the bucket the functions serve (required) |
+//! | `HORT_SPLIT_CACHE_MB` | worker | decoded splits kept between invocations, in MiB (default: 1024, at most half the function's memory) |
+//! | `HORT_STATE_MACHINE_ARN` | starter | the state machine to start (required) |
+//! | `HORT_S3_ENDPOINT` | plan, worker | an S3-compatible server instead of AWS S3 (local runs), path-style |
+//! | `HORT_AWS_ENDPOINT` | starter | a server for the Step Functions API instead of AWS (local runs) |
+//!
+//! Credentials and region come from the SDK's default chains (on Lambda: the function's role and
+//! `AWS_REGION`).
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use aws_lambda_events::event::sqs::SqsEvent;
+use hort_core::pipeline::SplitCache;
+use lambda_runtime::{Diagnostic, LambdaEvent, service_fn};
+use serde_json::Value;
+
+use super::AwsSettings;
+use super::sfn::Executions;
+use super::starter::start_batch;
+use crate::handlers::{Function, FunctionEnv, HandlerError, Invoked, dispatch};
+use crate::{S3Config, S3Store};
+
+/// The bucket the functions serve.
+pub const BUCKET_VAR: &str = "HORT_BUCKET";
+/// The split cache's budget in MiB.
+pub const SPLIT_CACHE_VAR: &str = "HORT_SPLIT_CACHE_MB";
+/// The state machine the Starter starts.
+pub const STATE_MACHINE_VAR: &str = "HORT_STATE_MACHINE_ARN";
+/// An S3-compatible endpoint instead of AWS S3.
+pub const S3_ENDPOINT_VAR: &str = "HORT_S3_ENDPOINT";
+/// An endpoint for the Step Functions API instead of AWS.
+pub const AWS_ENDPOINT_VAR: &str = "HORT_AWS_ENDPOINT";
+/// Lambda's variable holding the function's memory in MiB.
+pub const MEMORY_VAR: &str = "AWS_LAMBDA_FUNCTION_MEMORY_SIZE";
+/// The split cache budget without [`SPLIT_CACHE_VAR`], before the half-memory cap.
+pub const DEFAULT_SPLIT_CACHE_MB: u64 = 1024;
+
+/// The settings of a Plan or Worker function.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct FunctionSettings {
+    /// The bucket served.
+    pub bucket: String,
+    /// The split cache's budget in bytes (0 for the Plan function, which reads no split).
+    pub split_cache_bytes: u64,
+    /// An S3-compatible endpoint instead of AWS S3.
+    pub s3_endpoint: Option<String>,
+}
+
+impl FunctionSettings {
+    /// The settings of `function` from the variables `var` returns (the process environment in
+    /// [`FunctionSettings::from_env`]); the error names the variable.
+    pub fn from_vars(
+        function: Function,
+        var: impl Fn(&str) -> Option<String>,
+    ) -> Result<Self, String> {
+        let bucket = required(&var, BUCKET_VAR)?;
+        let split_cache_bytes = match function {
+            Function::Plan => 0,
+            Function::Worker => {
+                let memory_cap = match var(MEMORY_VAR) {
+                    Some(mb) => parse_mb(MEMORY_VAR, &mb)? / 2,
+                    None => u64::MAX,
+                };
+                let mb = match var(SPLIT_CACHE_VAR) {
+                    Some(mb) => parse_mb(SPLIT_CACHE_VAR, &mb)?,
+                    None => DEFAULT_SPLIT_CACHE_MB.min(memory_cap),
+                };
+                mb << 20
+            }
+        };
+        Ok(FunctionSettings {
+            bucket,
+            split_cache_bytes,
+            s3_endpoint: var(S3_ENDPOINT_VAR).filter(|v| !v.is_empty()),
+        })
+    }
+
+    /// [`FunctionSettings::from_vars`] over the process environment.
+    pub fn from_env(function: Function) -> Result<Self, String> {
+        Self::from_vars(function, |name| std::env::var(name).ok())
+    }
+
+    /// The S3 configuration: AWS S3 with the default chains, or the endpoint path-style.
+    pub fn s3_config(&self) -> S3Config {
+        let mut config = S3Config::aws(self.bucket.clone(), None);
+        if let Some(endpoint) = &self.s3_endpoint {
+            config.endpoint = Some(endpoint.clone());
+            config.force_path_style = true;
+        }
+        config
+    }
+}
+
+fn required(var: &impl Fn(&str) -> Option<String>, name: &str) -> Result<String, String> {
+    var(name)
+        .filter(|v| !v.is_empty())
+        .ok_or_else(|| format!("the environment variable {name} is not set"))
+}
+
+fn parse_mb(name: &str, value: &str) -> Result<u64, String> {
+    value
+        .trim()
+        .parse::<u64>()
+        .ok()
+        .filter(|mb| *mb <= 1 << 20)
+        .ok_or_else(|| format!("{name}={value:?} is not a size in MiB (0 to 1048576)"))
+}
+
+/// The Lambda error of a handler failure: error type `Hort.Retryable` or `Hort.BadInput`
+/// (what the state machine's `Retry` and `Catch` match), message the cause.
+pub fn diagnostic(e: &HandlerError) -> Diagnostic {
+    Diagnostic {
+        error_type: e.error_type.as_str().to_owned(),
+        error_message: e.cause.clone(),
+    }
+}
+
+/// What a warm container keeps between invocations.
+struct Container {
+    function: Function,
+    store: S3Store,
+    bucket: String,
+    work_dir: PathBuf,
+    split_cache: SplitCache,
+}
+
+/// The tokio runtime of an entry point (multi-threaded: the S3 store blocks handler threads
+/// while runtime workers drive the sockets).
+fn runtime() -> Result<tokio::runtime::Runtime, lambda_runtime::Error> {
+    Ok(tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()?)
+}
+
+/// The whole life of a Plan or Worker container: read the settings, build the S3 client and
+/// the split cache once, then serve invocations until Lambda ends the process. Each event goes
+/// to [`dispatch`] on a blocking thread.
+pub fn run_handler_function(function: Function) -> Result<(), lambda_runtime::Error> {
+    let name = function_name(function);
+    let settings = FunctionSettings::from_env(function).map_err(|e| format!("{name}: {e}"))?;
+    runtime()?.block_on(async move {
+        let store = S3Store::connect(&settings.s3_config())
+            .await
+            .map_err(|e| format!("{name}: {e}"))?;
+        let container = Arc::new(Container {
+            function,
+            store,
+            bucket: settings.bucket,
+            work_dir: std::env::temp_dir(),
+            split_cache: SplitCache::new(settings.split_cache_bytes),
+        });
+        lambda_runtime::run(service_fn(move |event: LambdaEvent<Value>| {
+            invoke(Arc::clone(&container), event.payload)
+        }))
+        .await
+    })
+}
+
+async fn invoke(container: Arc<Container>, event: Value) -> Result<Value, Diagnostic> {
+    let name = function_name(container.function);
+    let joined = tokio::task::spawn_blocking(move || {
+        let env = FunctionEnv {
+            store: &container.store,
+            bucket: &container.bucket,
+            work_dir: &container.work_dir,
+            split_cache: &container.split_cache,
+        };
+        dispatch(container.function, event, &env)
+    })
+    .await;
+    match joined {
+        Ok(Ok(Invoked { output, task })) => {
+            match task {
+                Some(done) => println!(
+                    "{name}: {} task {} done: {}",
+                    done.stage,
+                    done.task.0,
+                    serde_json::to_string(&done.metrics).unwrap_or_default()
+                ),
+                None => println!("{name}: done: {output}"),
+            }
+            Ok(output)
+        }
+        Ok(Err(e)) => {
+            eprintln!("{name}: {e}");
+            Err(diagnostic(&e))
+        }
+        Err(join) => {
+            // A panic is a bug, but the state machine retries crashed functions
+            // (`Lambda.Unknown`) and the emulator reports a panic that way: retryable here too.
+            let e = HandlerError::retryable(format!("the {name} handler panicked: {join}"));
+            eprintln!("{name}: {e}");
+            Err(diagnostic(&e))
+        }
+    }
+}
+
+fn function_name(function: Function) -> &'static str {
+    match function {
+        Function::Plan => "plan",
+        Function::Worker => "worker",
+    }
+}
+
+/// The whole life of a Starter container: the Step Functions client built once, then each SQS
+/// batch handed to [`start_batch`].
+pub fn run_starter() -> Result<(), lambda_runtime::Error> {
+    let var = |name: &str| std::env::var(name).ok();
+    let bucket = required(&var, BUCKET_VAR).map_err(|e| format!("starter: {e}"))?;
+    let machine = required(&var, STATE_MACHINE_VAR).map_err(|e| format!("starter: {e}"))?;
+    let settings = AwsSettings {
+        endpoint: var(AWS_ENDPOINT_VAR).filter(|v| !v.is_empty()),
+        ..AwsSettings::aws()
+    };
+    runtime()?.block_on(async move {
+        let config = settings.sdk_config().await;
+        let executions = Arc::new(Executions::new(
+            aws_sdk_sfn::Client::new(&config),
+            machine,
+            AwsSettings::label(&config),
+        ));
+        let bucket = Arc::new(bucket);
+        lambda_runtime::run(service_fn(move |event: LambdaEvent<SqsEvent>| {
+            let (executions, bucket) = (Arc::clone(&executions), Arc::clone(&bucket));
+            async move { Ok::<_, Diagnostic>(start_batch(&executions, &bucket, &event.payload).await) }
+        }))
+        .await
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::collections::HashMap;
+
+    fn vars(pairs: &[(&str, &str)]) -> impl Fn(&str) -> Option<String> {
+        let map: HashMap<String, String> = pairs
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.to_string()))
+            .collect();
+        move |name| map.get(name).cloned()
+    }
+
+    #[test]
+    fn settings_come_from_the_environment() {
+        let worker =
+            |pairs: &[(&str, &str)]| FunctionSettings::from_vars(Function::Worker, vars(pairs));
+        let e = worker(&[]).unwrap_err();
+        assert_eq!(e, "the environment variable HORT_BUCKET is not set");
+        let s = worker(&[("HORT_BUCKET", "b")]).unwrap();
+        assert_eq!(s.split_cache_bytes, 1024 << 20);
+        assert_eq!(s.s3_endpoint, None);
+        assert_eq!(s.s3_config().endpoint, None);
+        let s = worker(&[("HORT_BUCKET", "b"), (MEMORY_VAR, "1024")]).unwrap();
+        assert_eq!(s.split_cache_bytes, 512 << 20, "half the memory");
+        let s = worker(&[
+            ("HORT_BUCKET", "b"),
+            (MEMORY_VAR, "1024"),
+            (SPLIT_CACHE_VAR, "700"),
+        ])
+        .unwrap();
+        assert_eq!(s.split_cache_bytes, 700 << 20, "an explicit budget wins");
+        let e = worker(&[("HORT_BUCKET", "b"), (SPLIT_CACHE_VAR, "lots")]).unwrap_err();
+        assert!(e.contains("HORT_SPLIT_CACHE_MB=\"lots\""), "{e}");
+        let plan = FunctionSettings::from_vars(
+            Function::Plan,
+            vars(&[
+                ("HORT_BUCKET", "b"),
+                (S3_ENDPOINT_VAR, "http://127.0.0.1:9"),
+            ]),
+        )
+        .unwrap();
+        assert_eq!(plan.split_cache_bytes, 0);
+        let config = plan.s3_config();
+        assert_eq!(config.endpoint.as_deref(), Some("http://127.0.0.1:9"));
+        assert!(config.force_path_style);
+    }
+
+    #[test]
+    fn handler_errors_become_typed_lambda_errors() {
+        let d = diagnostic(&HandlerError::bad_input(
+            "job request jobs/j/manifest.json does not exist",
+        ));
+        assert_eq!(d.error_type, "Hort.BadInput");
+        assert_eq!(
+            d.error_message,
+            "job request jobs/j/manifest.json does not exist"
+        );
+        let d = diagnostic(&HandlerError::retryable("get: unreachable"));
+        assert_eq!(d.error_type, "Hort.Retryable");
+        // What the Runtime API receives.
+        assert_eq!(
+            serde_json::to_value(&d).unwrap(),
+            serde_json::json!({"errorType": "Hort.Retryable", "errorMessage": "get: unreachable"})
+        );
+    }
+}

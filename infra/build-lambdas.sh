@@ -1,0 +1,53 @@
+#!/usr/bin/env bash
+# Builds the Lambda bootstraps (functions/src/bin/) with cargo lambda and prints the size of
+# each bootstrap and of its zip (what Lambda receives):
+#
+#   bash infra/build-lambdas.sh            # debug, arm64: proves they compile and link (CI)
+#   bash infra/build-lambdas.sh --release  # release, arm64: what `sam build` deploys
+#
+# Output: target/lambda/<arch>-<profile>/<bin>/bootstrap (one folder per architecture and
+# profile: cargo lambda's default target/lambda/ is shared by all builds).
+# HORT_LAMBDA_ARCH=x86-64 builds for x86-64 instead; arm64 falls back to x86-64, saying so, when
+# rustup cannot add the aarch64-unknown-linux-gnu target. HORT_LAMBDA_BINS overrides the binaries
+# (default "worker plan starter"). cargo-lambda comes from infra/install-cargo-lambda.sh.
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+
+profile=debug
+release=()
+if [[ "${1:-}" == "--release" ]]; then
+    profile=release
+    release=(--release)
+fi
+arch="${HORT_LAMBDA_ARCH:-arm64}"
+if [[ "$arch" == arm64 ]] && ! rustup target list --installed 2>/dev/null | grep -qx aarch64-unknown-linux-gnu; then
+    if ! rustup target add aarch64-unknown-linux-gnu >&2; then
+        echo "build-lambdas: cannot add the aarch64 Rust target; building for x86-64 instead" >&2
+        arch=x86-64
+    fi
+fi
+bins=()
+for bin in ${HORT_LAMBDA_BINS:-worker plan starter}; do
+    bins+=(--bin "$bin")
+done
+out="target/lambda/$arch-$profile"
+
+PATH="$(bash infra/install-cargo-lambda.sh):$PATH"
+echo "build-lambdas: cargo lambda build ${release[*]} --$arch ${bins[*]} --lambda-dir $out" >&2
+start=$(date +%s)
+cargo lambda build "${release[@]}" "--$arch" "${bins[@]}" --lambda-dir "$out"
+echo "build-lambdas: built in $(( $(date +%s) - start )) s"
+
+# Sizes: the bootstrap, and the zip Lambda receives (deflate, as `sam build` and cargo lambda
+# package it).
+python3 - "$out" ${HORT_LAMBDA_BINS:-worker plan starter} <<'PY'
+import io, os, sys, zipfile
+out, bins = sys.argv[1], sys.argv[2:]
+for b in bins:
+    path = os.path.join(out, b, "bootstrap")
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
+        z.write(path, "bootstrap")
+    size = os.path.getsize(path)
+    print(f"build-lambdas: {path}: {size / 2**20:.1f} MiB, zipped {len(buf.getvalue()) / 2**20:.1f} MiB")
+PY

@@ -1,0 +1,413 @@
+//! The SQS and Step Functions wrappers (`hort_functions::aws`) and the Starter function's batch
+//! logic against a real server: moto, started by `tests/s3-servers/with-moto.sh`, which sets
+//! `HORT_TEST_AWS_ENDPOINT`:
+//!
+//!     bash tests/s3-servers/with-moto.sh cargo test -p hort-tests --test aws_moto -- --nocapture
+//!
+//! Without that variable the moto tests say they are skipped and pass; `.ci/run` always runs
+//! them with it. moto keeps real time: visibility timeouts expire, and a message received
+//! `maxReceiveCount` times moves to the dead-letter queue on the next receive. moto records
+//! Step Functions executions (start, describe, stop) but does not run the state machine.
+
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::time::Duration;
+
+use hort_core::ids::JobId;
+use hort_functions::S3Credentials;
+use hort_functions::aws::aws_lambda_events::event::sqs::{SqsEvent, SqsMessage};
+use hort_functions::aws::aws_sdk_sqs::types::QueueAttributeName;
+use hort_functions::aws::starter::start_batch;
+use hort_functions::aws::{
+    AwsErrorKind, AwsSettings, ExecutionInput, ExecutionStatus, Executions, JobQueue,
+    ReceivedMessage, aws_sdk_sfn, aws_sdk_sqs,
+};
+
+const ROLE_ARN: &str = "arn:aws:iam::123456789012:role/hort-state-machine";
+
+/// The moto server's SDK configuration, or `None` (after saying so) without
+/// `HORT_TEST_AWS_ENDPOINT`.
+async fn moto() -> Option<(hort_functions::aws::SdkConfig, String)> {
+    let Some(endpoint) = std::env::var("HORT_TEST_AWS_ENDPOINT")
+        .ok()
+        .filter(|e| !e.is_empty())
+    else {
+        println!("skipped: set HORT_TEST_AWS_ENDPOINT (see tests/s3-servers/with-moto.sh)");
+        return None;
+    };
+    println!("AWS endpoint (SQS, Step Functions): {endpoint}");
+    let settings = AwsSettings {
+        endpoint: Some(endpoint),
+        region: Some("us-east-1".into()),
+        credentials: S3Credentials::Static {
+            access_key: "testing".into(),
+            secret_key: "testing".into(),
+        },
+    };
+    let config = settings.sdk_config().await;
+    let label = AwsSettings::label(&config);
+    Some((config, label))
+}
+
+fn runtime() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("tokio runtime")
+}
+
+/// A name no other test of this run (nor an earlier run on the same server) uses.
+fn unique(prefix: &str) -> String {
+    static N: AtomicU32 = AtomicU32::new(0);
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .subsec_nanos();
+    format!(
+        "{prefix}-{}-{}-{nanos}",
+        std::process::id(),
+        N.fetch_add(1, Ordering::Relaxed)
+    )
+}
+
+fn input(job: &str, bucket: &str) -> ExecutionInput {
+    ExecutionInput {
+        job: JobId::new(job).unwrap(),
+        bucket: bucket.into(),
+    }
+}
+
+/// Creates queue `name` with `attributes`; returns its wrapper.
+async fn queue(
+    client: &aws_sdk_sqs::Client,
+    label: &str,
+    name: &str,
+    attributes: &[(QueueAttributeName, String)],
+) -> JobQueue {
+    let mut create = client.create_queue().queue_name(name);
+    for (key, value) in attributes {
+        create = create.attributes(key.clone(), value);
+    }
+    create.send().await.expect("create queue");
+    JobQueue::by_name(client.clone(), name, label)
+        .await
+        .expect("queue URL")
+}
+
+/// The state machine of `infra/statemachine.asl.json` with placeholder function ARNs.
+async fn state_machine(client: &aws_sdk_sfn::Client, name: &str) -> String {
+    let definition = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../infra/statemachine.asl.json"
+    ))
+    .expect("state machine file")
+    .replace(
+        "${PlanFunctionArn}",
+        "arn:aws:lambda:us-east-1:123456789012:function:hort-plan",
+    )
+    .replace(
+        "${WorkerFunctionArn}",
+        "arn:aws:lambda:us-east-1:123456789012:function:hort-worker",
+    );
+    assert!(!definition.contains("${"), "every placeholder substituted");
+    client
+        .create_state_machine()
+        .name(name)
+        .definition(definition)
+        .role_arn(ROLE_ARN)
+        .send()
+        .await
+        .expect("create state machine")
+        .state_machine_arn
+}
+
+/// The SQS records of a Lambda event for `messages`.
+fn sqs_event(messages: &[ReceivedMessage]) -> SqsEvent {
+    let mut event = SqsEvent::default();
+    for m in messages {
+        let mut record = SqsMessage::default();
+        record.message_id = Some(m.message_id.clone());
+        record.receipt_handle = Some(m.receipt_handle.clone());
+        record.body = Some(m.body.clone());
+        record.event_source = Some("aws:sqs".into());
+        event.records.push(record);
+    }
+    event
+}
+
+#[test]
+fn a_message_that_keeps_failing_lands_in_the_dead_letter_queue() {
+    runtime().block_on(async {
+        let Some((config, label)) = moto().await else {
+            return;
+        };
+        let client = aws_sdk_sqs::Client::new(&config);
+        let dlq = queue(&client, &label, &unique("hort-dlq"), &[]).await;
+        let dlq_arn = client
+            .get_queue_attributes()
+            .queue_url(dlq.url())
+            .attribute_names(QueueAttributeName::QueueArn)
+            .send()
+            .await
+            .expect("DLQ attributes")
+            .attributes
+            .and_then(|a| a.get(&QueueAttributeName::QueueArn).cloned())
+            .expect("DLQ ARN");
+        let redrive = format!(r#"{{"deadLetterTargetArn":"{dlq_arn}","maxReceiveCount":"2"}}"#);
+        let intake = queue(
+            &client,
+            &label,
+            &unique("hort-intake"),
+            &[
+                (QueueAttributeName::VisibilityTimeout, "1".into()),
+                (QueueAttributeName::RedrivePolicy, redrive),
+            ],
+        )
+        .await;
+
+        let failing = input("job-fails", "b");
+        let handled = input("job-ok", "b");
+        intake.enqueue(&failing).await.expect("enqueue");
+        intake.enqueue(&handled).await.expect("enqueue");
+        let first = intake.receive(10, Duration::ZERO).await.expect("receive");
+        assert_eq!(first.len(), 2, "{first:?}");
+        for m in &first {
+            assert_eq!(m.receive_count, 1);
+            let body: ExecutionInput = serde_json::from_str(&m.body).expect("a job message");
+            if body == handled {
+                intake.delete(&m.receipt_handle).await.expect("delete");
+            } else {
+                assert_eq!(body, failing);
+            }
+        }
+        // Within the visibility timeout nothing is visible: one message is deleted, the other
+        // is in flight.
+        let hidden = intake.receive(10, Duration::ZERO).await.expect("receive");
+        assert_eq!(hidden, []);
+
+        tokio::time::sleep(Duration::from_millis(1500)).await;
+        let second = intake.receive(10, Duration::ZERO).await.expect("receive");
+        assert_eq!(second.len(), 1, "the undeleted message is back: {second:?}");
+        assert_eq!(second[0].receive_count, 2);
+        assert_eq!(
+            second[0].message_id,
+            first
+                .iter()
+                .find(|m| m.body == second[0].body)
+                .unwrap()
+                .message_id
+        );
+
+        // Received maxReceiveCount (2) times and not deleted: the next receive moves it.
+        tokio::time::sleep(Duration::from_millis(1500)).await;
+        let third = intake.receive(10, Duration::ZERO).await.expect("receive");
+        assert_eq!(third, [], "the message left the intake queue");
+        let dead = dlq.receive(10, Duration::ZERO).await.expect("receive DLQ");
+        assert_eq!(dead.len(), 1, "{dead:?}");
+        let body: ExecutionInput = serde_json::from_str(&dead[0].body).expect("a job message");
+        assert_eq!(body, failing);
+    });
+}
+
+#[test]
+fn executions_are_named_by_job_and_start_at_most_once() {
+    runtime().block_on(async {
+        let Some((config, label)) = moto().await else {
+            return;
+        };
+        let client = aws_sdk_sfn::Client::new(&config);
+        let arn = state_machine(&client, &unique("hort-jobs")).await;
+        let executions = Executions::new(client.clone(), &arn, &label);
+        let job = JobId::new("render-1").unwrap();
+        let request = input("render-1", "bucket-a");
+
+        let started = executions.start(&request).await.expect("start");
+        assert_eq!(started.execution_arn, executions.execution_arn(&job));
+        assert!(!started.already_started);
+        // The same start again (a redelivered message): the same execution, no second one.
+        let again = executions.start(&request).await.expect("start again");
+        assert_eq!(again.execution_arn, started.execution_arn);
+        // Another input under the same name: the name is taken, which is success.
+        let other = executions
+            .start(&input("render-1", "bucket-b"))
+            .await
+            .expect("start with other input");
+        assert!(other.already_started);
+        assert_eq!(other.execution_arn, started.execution_arn);
+        let listed = client
+            .list_executions()
+            .state_machine_arn(&arn)
+            .send()
+            .await
+            .expect("list executions")
+            .executions;
+        assert_eq!(listed.len(), 1, "{listed:?}");
+
+        let running = executions.describe(&job).await.expect("describe");
+        assert_eq!(running.status, ExecutionStatus::Running);
+        assert!(!running.status.is_final());
+        assert_eq!(running.name, "render-1");
+        assert_eq!(running.arn, started.execution_arn);
+        let seen: ExecutionInput =
+            serde_json::from_str(running.input.as_deref().expect("input")).expect("input JSON");
+        assert_eq!(seen, request);
+
+        executions
+            .stop(&job, "Hort.Cancelled", "stopped by the test")
+            .await
+            .expect("stop");
+        let stopped = executions.describe(&job).await.expect("describe");
+        assert_eq!(stopped.status, ExecutionStatus::Aborted);
+        assert!(stopped.status.is_final());
+        let after = executions.start(&request).await.expect("start after stop");
+        assert!(after.already_started, "a finished execution keeps its name");
+
+        let missing = executions
+            .describe(&JobId::new("never-started").unwrap())
+            .await
+            .expect_err("no such execution");
+        assert_eq!(missing.kind, AwsErrorKind::NotFound, "{missing}");
+        assert!(
+            missing.to_string().starts_with(&format!(
+                "describe execution \"never-started\": Step Functions at {label}"
+            )),
+            "{missing}"
+        );
+
+        let nowhere = Executions::new(
+            client.clone(),
+            arn.replace(":stateMachine:hort-jobs", ":stateMachine:no-such-machine"),
+            &label,
+        );
+        let e = nowhere.start(&request).await.expect_err("no such machine");
+        assert_eq!(e.kind, AwsErrorKind::NotFound, "{e}");
+        assert!(!e.is_retryable());
+    });
+}
+
+#[test]
+fn the_starter_starts_each_job_once_and_reports_only_bad_messages() {
+    runtime().block_on(async {
+        let Some((config, label)) = moto().await else {
+            return;
+        };
+        let sqs = aws_sdk_sqs::Client::new(&config);
+        let sfn = aws_sdk_sfn::Client::new(&config);
+        let arn = state_machine(&sfn, &unique("hort-starter")).await;
+        let executions = Executions::new(sfn.clone(), &arn, &label);
+        let intake = queue(&sqs, &label, &unique("hort-intake"), &[]).await;
+        intake
+            .enqueue(&input("job-a", "bucket"))
+            .await
+            .expect("enqueue");
+        intake
+            .enqueue(&input("job-b", "bucket"))
+            .await
+            .expect("enqueue");
+        for body in ["not json", r#"{"job":"job-c","bucket":"elsewhere"}"#] {
+            sqs.send_message()
+                .queue_url(intake.url())
+                .message_body(body)
+                .send()
+                .await
+                .expect("send");
+        }
+        let messages = intake.receive(10, Duration::ZERO).await.expect("receive");
+        assert_eq!(messages.len(), 4, "{messages:?}");
+        let event = sqs_event(&messages);
+        let mut bad: Vec<String> = messages
+            .iter()
+            .filter(|m| !m.body.contains(r#""bucket":"bucket""#))
+            .map(|m| m.message_id.clone())
+            .collect();
+        bad.sort();
+
+        let failed =
+            |response: &hort_functions::aws::aws_lambda_events::event::sqs::SqsBatchResponse| {
+                let mut ids: Vec<String> = response
+                    .batch_item_failures
+                    .iter()
+                    .map(|f| f.item_identifier.clone())
+                    .collect();
+                ids.sort();
+                ids
+            };
+        let response = start_batch(&executions, "bucket", &event).await;
+        assert_eq!(failed(&response), bad);
+        // The Lambda answer is the documented partial batch response.
+        let json = serde_json::to_value(&response).expect("response JSON");
+        assert_eq!(
+            json["batchItemFailures"].as_array().map(Vec::len),
+            Some(2),
+            "{json}"
+        );
+        assert!(
+            json["batchItemFailures"][0]["itemIdentifier"].is_string(),
+            "{json}"
+        );
+
+        for job in ["job-a", "job-b"] {
+            let execution = executions
+                .describe(&JobId::new(job).unwrap())
+                .await
+                .expect("started");
+            assert_eq!(execution.status, ExecutionStatus::Running);
+        }
+        // SQS delivers at least once: the same batch again starts nothing new and fails only
+        // the bad messages.
+        let response = start_batch(&executions, "bucket", &event).await;
+        assert_eq!(failed(&response), bad);
+        let listed = sfn
+            .list_executions()
+            .state_machine_arn(&arn)
+            .send()
+            .await
+            .expect("list executions")
+            .executions;
+        assert_eq!(listed.len(), 2, "{listed:?}");
+    });
+}
+
+#[test]
+fn an_unreachable_endpoint_is_retryable_and_named() {
+    runtime().block_on(async {
+        // Port 1 on the loopback address: nothing listens there, the connection is refused.
+        let settings = AwsSettings {
+            endpoint: Some("http://127.0.0.1:1".into()),
+            region: Some("us-east-1".into()),
+            credentials: S3Credentials::Static {
+                access_key: "testing".into(),
+                secret_key: "testing".into(),
+            },
+        };
+        let config = settings.sdk_config().await;
+        let label = AwsSettings::label(&config);
+        assert_eq!(label, "http://127.0.0.1:1");
+        let queue = JobQueue::new(
+            aws_sdk_sqs::Client::new(&config),
+            "http://127.0.0.1:1/123456789012/q",
+            &label,
+        );
+        let e = queue
+            .enqueue(&input("j", "b"))
+            .await
+            .expect_err("unreachable");
+        assert_eq!(e.kind, AwsErrorKind::Unavailable, "{e}");
+        assert!(e.is_retryable());
+        assert!(
+            e.to_string()
+                .starts_with("enqueue job \"j\": SQS at http://127.0.0.1:1 is unreachable"),
+            "{e}"
+        );
+        let executions = Executions::new(
+            aws_sdk_sfn::Client::new(&config),
+            "arn:aws:states:us-east-1:123456789012:stateMachine:m",
+            &label,
+        );
+        let e = executions
+            .start(&input("j", "b"))
+            .await
+            .expect_err("unreachable");
+        assert_eq!(e.kind, AwsErrorKind::Unavailable, "{e}");
+    });
+}
