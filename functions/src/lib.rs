@@ -12,6 +12,7 @@
 
 pub use hort_core as core;
 
+pub mod api;
 pub mod aws;
 pub mod handlers;
 pub mod s3_config;

@@ -1,0 +1,182 @@
+//! What the router needs from whatever runs the jobs: the [`RenderBackend`] trait, and the
+//! values that cross it. The emulator (`hort serve`) implements it over its embedded S3 server
+//! and background threads; a Lambda deployment would implement it over S3 and Step Functions.
+
+use std::collections::BTreeMap;
+
+use hort_core::pipeline::PlanRequest;
+use serde::{Deserialize, Serialize};
+
+use super::error::ApiError;
+use super::predict::{Prediction, PredictionModel, predict};
+use hort_core::pipeline::JobPlan;
+
+/// A job's state. Serialized in capitals (`"RUNNING"`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "UPPERCASE")]
+pub enum JobState {
+    /// Accepted, not started yet.
+    Queued,
+    /// Its state machine is running.
+    Running,
+    /// Done: the image and the report can be fetched.
+    Succeeded,
+    /// Stopped by a failure (`error` says which).
+    Failed,
+    /// Stopped by `DELETE /renders/{id}`; its intermediate objects are deleted.
+    Cancelled,
+}
+
+impl JobState {
+    /// True once the job can no longer change.
+    pub fn is_final(self) -> bool {
+        matches!(
+            self,
+            JobState::Succeeded | JobState::Failed | JobState::Cancelled
+        )
+    }
+
+    /// The name as in JSON (`RUNNING`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            JobState::Queued => "QUEUED",
+            JobState::Running => "RUNNING",
+            JobState::Succeeded => "SUCCEEDED",
+            JobState::Failed => "FAILED",
+            JobState::Cancelled => "CANCELLED",
+        }
+    }
+}
+
+/// The answer of `GET /renders/{id}`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct JobStatus {
+    /// The job id.
+    pub job: String,
+    /// Its state.
+    pub status: JobState,
+    /// The stage running (or the last one entered); `null` before the plan step starts.
+    pub stage: Option<String>,
+    /// Tasks finished, over all stages.
+    pub tasks_done: u64,
+    /// Tasks of the whole job (known from the plan before it runs).
+    pub tasks_total: u64,
+    /// Task attempts that failed and were retried.
+    pub retried_attempts: u64,
+    /// Seconds since the job was accepted, until it ended.
+    pub elapsed_seconds: f64,
+    /// The cost estimate of the finished job (`hort_core::cost`, as `hort render` reports it);
+    /// `null` until the job succeeded.
+    pub cost_usd: Option<f64>,
+    /// The cost predicted when the job was accepted.
+    pub predicted_cost_usd: f64,
+    /// Why the job failed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+    /// Where the image is, once the job succeeded (set by the router).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub image_url: Option<String>,
+}
+
+/// A validated job, ready to run.
+#[derive(Clone, Debug)]
+pub struct JobSpec {
+    /// How the scene is named in reports: the main file, or its key.
+    pub scene_name: String,
+    /// The main file, relative to the scene's folder.
+    pub main: String,
+    /// Every file of the scene, relative to the scene's folder.
+    pub files: BTreeMap<String, Vec<u8>>,
+    /// Image size, samples, splits, spans (resolved and checked) and split mode.
+    pub request: PlanRequest,
+    /// The prediction the request was checked against.
+    pub prediction: Prediction,
+    /// The budget, if one was given.
+    pub max_cost_usd: Option<f64>,
+    /// The client's `Idempotency-Key`: a second submission with the same key names the job of
+    /// the first and starts nothing.
+    pub idempotency_key: Option<String>,
+}
+
+/// What [`RenderBackend::submit`] did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Submission {
+    /// The job's id.
+    pub job: String,
+    /// True if the idempotency key named an existing job, so nothing new was started.
+    pub replayed: bool,
+}
+
+/// Image formats the API serves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImageFormat {
+    /// 8-bit sRGB PNG (the default).
+    Png,
+    /// Linear RGB Portable FloatMap, bit-exact.
+    Pfm,
+    /// Linear RGB OpenEXR, bit-exact.
+    Exr,
+}
+
+impl ImageFormat {
+    /// The format named by `?format=`.
+    pub fn parse(name: &str) -> Option<ImageFormat> {
+        match name {
+            "png" => Some(ImageFormat::Png),
+            "pfm" => Some(ImageFormat::Pfm),
+            "exr" => Some(ImageFormat::Exr),
+            _ => None,
+        }
+    }
+
+    /// The file extension (`png`).
+    pub fn extension(self) -> &'static str {
+        match self {
+            ImageFormat::Png => "png",
+            ImageFormat::Pfm => "pfm",
+            ImageFormat::Exr => "exr",
+        }
+    }
+
+    /// The `Content-Type` of the format.
+    pub fn content_type(self) -> &'static str {
+        match self {
+            ImageFormat::Png => "image/png",
+            ImageFormat::Pfm => "image/x-portable-floatmap",
+            ImageFormat::Exr => "image/x-exr",
+        }
+    }
+}
+
+/// Whatever runs the jobs. Every method may block (storage, threads); the router calls them
+/// from the request's thread. Unknown jobs are [`ApiError::not_found`].
+pub trait RenderBackend: Send + Sync {
+    /// An object of the bucket, for scenes given by key; `None` if there is none.
+    fn read_object(&self, key: &str) -> Result<Option<Vec<u8>>, ApiError>;
+
+    /// What jobs run on, for predictions.
+    fn prediction_model(&self) -> PredictionModel;
+
+    /// The predicted stages, time and cost of `plan` (the dry run, and the budget check).
+    fn predict(&self, plan: &JobPlan) -> Prediction {
+        predict(plan, &self.prediction_model())
+    }
+
+    /// Accepts a validated job and starts it (or, with a known idempotency key, names the job
+    /// that key started).
+    fn submit(&self, job: JobSpec) -> Result<Submission, ApiError>;
+
+    /// The job's state and progress.
+    fn status(&self, job: &str) -> Result<JobStatus, ApiError>;
+
+    /// The finished job's image; [`ApiError::not_found`] until it succeeded.
+    fn image(&self, job: &str, format: ImageFormat) -> Result<Vec<u8>, ApiError>;
+
+    /// The finished job's report (the JSON of `hort render --report`); not found until it
+    /// succeeded.
+    fn report(&self, job: &str) -> Result<Vec<u8>, ApiError>;
+
+    /// Stops a queued or running job and deletes its intermediate objects (state
+    /// [`JobState::Cancelled`]); a finished job is left as it is. Returns the state after.
+    fn cancel(&self, job: &str) -> Result<JobStatus, ApiError>;
+}

@@ -1,0 +1,159 @@
+//! The body of `POST /renders`, decoded strictly: unknown fields are refused, and every error
+//! names the JSON path of the field at fault (`scene.files.x.obj`, `width`).
+
+use std::collections::BTreeMap;
+
+use hort_core::pipeline::SplitMode;
+use serde::Deserialize;
+
+use super::error::ApiError;
+
+/// What a client asks to render. All but `scene` are optional, as for `hort render`.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RenderRequest {
+    /// The scene: inline files, or the key of its main file in the bucket.
+    pub scene: SceneSpec,
+    /// Image width in pixels, 1 to 65536 (default: the manifest's, else 960).
+    #[serde(default)]
+    pub width: Option<u32>,
+    /// Image height in pixels, 1 to 65536 (default: the manifest's, else 540).
+    #[serde(default)]
+    pub height: Option<u32>,
+    /// Samples per pixel, 1 to 65536 (default: the manifest's, else 1).
+    #[serde(default)]
+    pub spp: Option<u32>,
+    /// Scene splits k (default: automatic).
+    #[serde(default)]
+    pub splits: Option<u32>,
+    /// Pixel spans s (default: automatic).
+    #[serde(default)]
+    pub spans: Option<u32>,
+    /// `spatial` (default) or `naive`.
+    #[serde(default)]
+    pub split_mode: Option<SplitMode>,
+    /// A hard budget: the request is refused (422) when the predicted cost is higher.
+    #[serde(default)]
+    pub max_cost_usd: Option<f64>,
+}
+
+/// Where the scene comes from: `{"main", "files"}` inline, or `{"key"}` in the bucket.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneSpec {
+    /// The main file (an OBJ, or a `.json` manifest), one of `files`.
+    #[serde(default)]
+    pub main: Option<String>,
+    /// File name (relative to the scene's folder) to its text.
+    #[serde(default)]
+    pub files: Option<BTreeMap<String, String>>,
+    /// The key of the main file in the bucket; the files it names are read beside it.
+    #[serde(default)]
+    pub key: Option<String>,
+}
+
+/// Decodes a request body: not JSON is `invalid_json`; a field of the wrong type, unknown or
+/// missing is `invalid_request` naming its JSON path.
+pub fn parse_render_request(body: &[u8]) -> Result<RenderRequest, ApiError> {
+    if body.iter().all(u8::is_ascii_whitespace) {
+        return Err(ApiError::invalid_json(
+            "the request body is empty: send a JSON object with at least \"scene\"",
+        ));
+    }
+    let de = &mut serde_json::Deserializer::from_slice(body);
+    let request: RenderRequest = serde_path_to_error::deserialize(&mut *de).map_err(|e| {
+        let path = e.path().to_string();
+        let inner = e.into_inner();
+        if !inner.is_data() {
+            return ApiError::invalid_json(format!("the request body is not valid JSON: {inner}"));
+        }
+        field_error(&path, &without_position(&inner))
+    })?;
+    de.end()
+        .map_err(|e| ApiError::invalid_json(format!("the request body is not valid JSON: {e}")))?;
+    Ok(request)
+}
+
+/// A serde data error's message without serde_json's ` at line L column C` suffix (the JSON
+/// path says where).
+fn without_position(e: &serde_json::Error) -> String {
+    let text = e.to_string();
+    let suffix = format!(" at line {} column {}", e.line(), e.column());
+    match text.strip_suffix(&suffix) {
+        Some(t) => t.to_owned(),
+        None => text,
+    }
+}
+
+/// The error of a bad field at `path` (serde_path_to_error's form: `.` for the root,
+/// `scene.files`). Unknown and missing fields are named by serde's message, so their own name
+/// is appended to the path of the object holding them.
+fn field_error(path: &str, message: &str) -> ApiError {
+    let parent = if path == "." || path == "?" { "" } else { path };
+    let named = ["unknown field `", "missing field `"]
+        .iter()
+        .find_map(|start| message.strip_prefix(start))
+        .and_then(|rest| rest.split_once('`'))
+        .map(|(name, _)| name);
+    let field = match named {
+        // serde_path_to_error already ends the path with the unknown key in some versions.
+        Some(name) if parent == name || parent.ends_with(&format!(".{name}")) => parent.to_owned(),
+        Some(name) if parent.is_empty() => name.to_owned(),
+        Some(name) => format!("{parent}.{name}"),
+        None if parent.is_empty() => "(root)".to_owned(),
+        None => parent.to_owned(),
+    };
+    ApiError::invalid_field(field.clone(), format!("{field}: {message}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn err(body: &str) -> ApiError {
+        parse_render_request(body.as_bytes()).unwrap_err()
+    }
+
+    #[test]
+    fn errors_name_the_json_path() {
+        let e = err(r#"{"scene": {"key": "a.obj"}, "width": "wide"}"#);
+        assert_eq!(e.code, "invalid_request");
+        assert_eq!(e.field.as_deref(), Some("width"));
+        assert_eq!(
+            e.message,
+            "width: invalid type: string \"wide\", expected u32"
+        );
+        let e = err(r#"{"scene": {"key": "a.obj", "colour": 1}}"#);
+        assert_eq!(e.field.as_deref(), Some("scene.colour"));
+        assert_eq!(
+            e.message,
+            "scene.colour: unknown field `colour`, expected one of `main`, `files`, `key`"
+        );
+        let e = err(r#"{"width": 3}"#);
+        assert_eq!(e.field.as_deref(), Some("scene"));
+        assert_eq!(e.message, "scene: missing field `scene`");
+        let e = err(r#"{"scene": {"main": "a.obj", "files": {"a.obj": 7}}}"#);
+        assert_eq!(e.field.as_deref(), Some("scene.files.a.obj"));
+        let e = err(r#"{"scene": {"key": "a"}, "split_mode": "clever"}"#);
+        assert_eq!(
+            e.message,
+            "split_mode: unknown variant `clever`, expected `naive` or `spatial`"
+        );
+        let e = err(r#"{"scene": {"key": "a"}, "spp": -1}"#);
+        assert_eq!(e.message, "spp: invalid value: integer `-1`, expected u32");
+    }
+
+    #[test]
+    fn malformed_json_is_invalid_json() {
+        let e = err(r#"{"scene": "#);
+        assert_eq!(e.code, "invalid_json");
+        assert_eq!(
+            e.message,
+            "the request body is not valid JSON: EOF while parsing a value at line 1 column 10"
+        );
+        assert_eq!(err("  ").code, "invalid_json");
+        assert_eq!(err(r#"{"scene": {"key": "a"}} x"#).code, "invalid_json");
+        let ok = parse_render_request(br#"{"scene": {"key": "a"}, "width": null}"#).unwrap();
+        assert_eq!(ok.width, None);
+    }
+}

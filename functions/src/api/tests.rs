@@ -1,0 +1,377 @@
+//! The router over a fake backend: routes, methods, content types, limits, request and scene
+//! validation, dry runs and budgets.
+
+use std::collections::BTreeMap;
+use std::sync::Mutex;
+
+use http::{Method, Request, StatusCode};
+use serde_json::{Value, json};
+
+use super::*;
+
+/// Keeps submitted jobs in memory; objects for scenes by key.
+#[derive(Default)]
+struct Fake {
+    objects: BTreeMap<String, Vec<u8>>,
+    jobs: Mutex<Vec<JobSpec>>,
+}
+
+impl RenderBackend for Fake {
+    fn read_object(&self, key: &str) -> Result<Option<Vec<u8>>, ApiError> {
+        Ok(self.objects.get(key).cloned())
+    }
+    fn prediction_model(&self) -> PredictionModel {
+        PredictionModel::reference(4)
+    }
+    fn submit(&self, job: JobSpec) -> Result<Submission, ApiError> {
+        let mut jobs = self.jobs.lock().unwrap();
+        if let Some(key) = &job.idempotency_key
+            && let Some(i) = jobs
+                .iter()
+                .position(|j| j.idempotency_key.as_ref() == Some(key))
+        {
+            return Ok(Submission {
+                job: format!("job-{i}"),
+                replayed: true,
+            });
+        }
+        jobs.push(job);
+        Ok(Submission {
+            job: format!("job-{}", jobs.len() - 1),
+            replayed: false,
+        })
+    }
+    fn status(&self, job: &str) -> Result<JobStatus, ApiError> {
+        let jobs = self.jobs.lock().unwrap();
+        let i: usize = job
+            .strip_prefix("job-")
+            .and_then(|n| n.parse().ok())
+            .filter(|&i| i < jobs.len())
+            .ok_or_else(|| ApiError::not_found(format!("no render {job:?}")))?;
+        Ok(JobStatus {
+            job: job.to_owned(),
+            status: JobState::Succeeded,
+            stage: Some("combine".into()),
+            tasks_done: jobs[i].prediction.tasks_total,
+            tasks_total: jobs[i].prediction.tasks_total,
+            retried_attempts: 0,
+            elapsed_seconds: 1.0,
+            cost_usd: Some(0.001),
+            predicted_cost_usd: jobs[i].prediction.predicted_cost_usd,
+            error: None,
+            image_url: None,
+        })
+    }
+    fn image(&self, job: &str, format: ImageFormat) -> Result<Vec<u8>, ApiError> {
+        self.status(job)?;
+        Ok(format.extension().as_bytes().to_vec())
+    }
+    fn report(&self, job: &str) -> Result<Vec<u8>, ApiError> {
+        self.status(job)?;
+        Ok(b"{}".to_vec())
+    }
+    fn cancel(&self, job: &str) -> Result<JobStatus, ApiError> {
+        self.status(job)
+    }
+}
+
+fn scene_file(rel: &str) -> String {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/");
+    std::fs::read_to_string(format!("{path}{rel}")).unwrap()
+}
+
+fn cornell() -> Value {
+    json!({
+        "main": "cornell.json",
+        "files": {
+            "cornell.json": scene_file("cornell/cornell.json"),
+            "cornell.obj": scene_file("cornell/cornell.obj"),
+            "cornell.mtl": scene_file("cornell/cornell.mtl"),
+        }
+    })
+}
+
+fn call(backend: &Fake, method: Method, uri: &str, body: &[u8]) -> (StatusCode, Value) {
+    let request = Request::builder()
+        .method(method)
+        .uri(uri)
+        .header("content-type", "application/json")
+        .body(body.to_vec())
+        .unwrap();
+    let response = handle(backend, request);
+    let status = response.status();
+    let value = serde_json::from_slice(response.body()).unwrap_or(Value::Null);
+    (status, value)
+}
+
+fn post(backend: &Fake, uri: &str, body: &Value) -> (StatusCode, Value) {
+    call(backend, Method::POST, uri, body.to_string().as_bytes())
+}
+
+/// The error of a response: (code, message, field).
+fn error(value: &Value) -> (String, String, Option<String>) {
+    let e = &value["error"];
+    (
+        e["code"].as_str().unwrap().to_owned(),
+        e["message"].as_str().unwrap().to_owned(),
+        e["field"].as_str().map(str::to_owned),
+    )
+}
+
+#[test]
+fn a_valid_request_is_accepted_and_its_plan_is_exact() {
+    let fake = Fake::default();
+    let body =
+        json!({"scene": cornell(), "width": 64, "height": 48, "spp": 2, "splits": 3, "spans": 4});
+    let (status, value) = post(&fake, "/renders", &body);
+    assert_eq!(status, StatusCode::ACCEPTED, "{value}");
+    assert_eq!(value["job"], "job-0");
+    assert_eq!(value["status_url"], "/renders/job-0");
+    let jobs = fake.jobs.lock().unwrap();
+    let job = &jobs[0];
+    assert_eq!(job.main, "cornell.json");
+    assert_eq!(
+        job.files.keys().collect::<Vec<_>>(),
+        ["cornell.json", "cornell.mtl", "cornell.obj"]
+    );
+    assert_eq!(
+        (job.request.width, job.request.height, job.request.spp),
+        (64, 48, 2)
+    );
+    let p = &job.prediction;
+    assert_eq!((p.splits, p.spans), (3, 4));
+    let tasks: Vec<u64> = p.stages.iter().map(|s| s.tasks).collect();
+    assert_eq!(tasks[0], 1);
+    assert!(tasks[1] >= 1 && tasks[1] <= 12, "cast-map pairs: {tasks:?}");
+    assert_eq!(&tasks[2..], [4, 4, 12, 4, 1]);
+    assert_eq!(p.tasks_total, tasks.iter().sum::<u64>());
+    assert!(p.predicted_cost_usd > 0.0 && p.predicted_seconds > 0.0);
+}
+
+#[test]
+fn a_dry_run_answers_the_plan_and_starts_nothing() {
+    let fake = Fake::default();
+    let body = json!({"scene": cornell(), "width": 64, "height": 48, "splits": 2});
+    let (status, value) = post(&fake, "/renders?dry_run=true", &body);
+    assert_eq!(status, StatusCode::OK, "{value}");
+    assert_eq!(value["dry_run"], true);
+    assert_eq!(value["splits"], 2);
+    assert_eq!(value["spans"], 1);
+    assert_eq!(value["stages"][4]["stage"], "trace-map");
+    assert_eq!(value["stages"][4]["tasks"], 2);
+    assert!(value["predicted_cost_usd"].as_f64().unwrap() > 0.0);
+    assert!(fake.jobs.lock().unwrap().is_empty());
+}
+
+#[test]
+fn over_budget_is_422_naming_prediction_and_budget() {
+    let fake = Fake::default();
+    let body = json!({"scene": cornell(), "width": 64, "height": 48, "max_cost_usd": 1e-9});
+    let (status, value) = post(&fake, "/renders", &body);
+    assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY);
+    let (code, message, field) = error(&value);
+    assert_eq!(code, "over_budget");
+    assert_eq!(field.as_deref(), Some("max_cost_usd"));
+    assert!(
+        message.starts_with("the predicted cost $0.0")
+            && message.contains("over the budget max_cost_usd = $0.00000000100"),
+        "{message}"
+    );
+    assert!(fake.jobs.lock().unwrap().is_empty());
+}
+
+#[test]
+fn bad_scenes_name_file_and_line() {
+    let fake = Fake::default();
+    let mut scene = cornell();
+    scene["files"]["cornell.obj"] = json!("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n");
+    let (status, value) = post(&fake, "/renders", &json!({"scene": scene}));
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+    assert_eq!(
+        error(&value),
+        (
+            "invalid_scene".into(),
+            "cornell.obj:4: face refers to vertex 9, but only 3 vertices are defined so far".into(),
+            Some("scene".into())
+        )
+    );
+    let mut scene = cornell();
+    scene["files"]
+        .as_object_mut()
+        .unwrap()
+        .remove("cornell.obj");
+    let (_, value) = post(&fake, "/renders", &json!({"scene": scene}));
+    assert_eq!(
+        error(&value).1,
+        "cornell.json: the mesh cornell.obj does not exist"
+    );
+    let scene = json!({"main": "a.json", "files": {"a.json": "{\"meshes\": [\"../etc/x.obj\"]}"}});
+    let (_, value) = post(&fake, "/renders", &json!({"scene": scene}));
+    assert!(
+        error(&value)
+            .1
+            .starts_with("a.json: mesh \"../etc/x.obj\" is not a relative path"),
+        "{value}"
+    );
+    let scene =
+        json!({"main": "a.json", "files": {"a.json": "{\"meshes\": [\"a.obj\"], \"fov\": 3}"}});
+    let (_, value) = post(&fake, "/renders", &json!({"scene": scene}));
+    assert!(
+        error(&value).1.starts_with("a.json: manifest field `fov`"),
+        "{value}"
+    );
+}
+
+#[test]
+fn scenes_by_key_are_read_beside_their_main_file() {
+    let mut fake = Fake::default();
+    for (name, rel) in [
+        ("scenes/c/cornell.json", "cornell/cornell.json"),
+        ("scenes/c/cornell.obj", "cornell/cornell.obj"),
+        ("scenes/c/cornell.mtl", "cornell/cornell.mtl"),
+    ] {
+        fake.objects
+            .insert(name.into(), scene_file(rel).into_bytes());
+    }
+    let body = json!({"scene": {"key": "scenes/c/cornell.json"}, "width": 32, "height": 32});
+    let (status, value) = post(&fake, "/renders", &body);
+    assert_eq!(status, StatusCode::ACCEPTED, "{value}");
+    assert_eq!(
+        fake.jobs.lock().unwrap()[0].scene_name,
+        "scenes/c/cornell.json"
+    );
+    let body = json!({"scene": {"key": "scenes/c/none.json"}});
+    let (status, value) = post(&fake, "/renders", &body);
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+    assert_eq!(
+        error(&value).1,
+        "scene.key: there is no object scenes/c/none.json in the bucket"
+    );
+    fake.objects.insert(
+        "scenes/c/cornell.obj".into(),
+        b"v 0 0 0\nf 1 2 3\n".to_vec(),
+    );
+    let body = json!({"scene": {"key": "scenes/c/cornell.json"}});
+    let (_, value) = post(&fake, "/renders", &body);
+    assert_eq!(
+        error(&value).1,
+        "scenes/c/cornell.obj:2: face refers to vertex 2, but only 1 vertices are defined so far"
+    );
+}
+
+#[test]
+fn request_fields_are_checked() {
+    let fake = Fake::default();
+    let cases = [
+        (
+            json!({"scene": cornell(), "width": 0}),
+            "width",
+            "width: 0 is out of range: must be 1 to 65536",
+        ),
+        (
+            json!({"scene": cornell(), "splits": 99}),
+            "splits",
+            "splits: 99 is out of range: the scene has 36 triangles, so use 1 to 36",
+        ),
+        (
+            json!({"scene": cornell(), "max_cost_usd": -1}),
+            "max_cost_usd",
+            "max_cost_usd: -1 is not a positive number of dollars",
+        ),
+        (
+            json!({"scene": {"key": "a.json", "main": "a.json"}}),
+            "scene",
+            "scene: give either {\"main\", \"files\"} (the files inline) or {\"key\"} (the main file's key in the bucket)",
+        ),
+        (
+            json!({"scene": {"main": "b.json", "files": {"a.json": ""}}}),
+            "scene.main",
+            "scene.main: \"b.json\" is not one of scene.files",
+        ),
+        (
+            json!({"scene": {"key": "/etc/passwd"}}),
+            "scene.key",
+            "scene.key: scene.key \"/etc/passwd\" is not a relative path inside the scene's folder (1 to 1024 bytes, parts separated by /, no empty, . or .. parts, no \\)",
+        ),
+    ];
+    for (body, field, message) in cases {
+        let (status, value) = post(&fake, "/renders", &body);
+        assert_eq!(status, StatusCode::BAD_REQUEST, "{body}");
+        let (code, got, got_field) = error(&value);
+        assert_eq!(code, "invalid_request");
+        assert_eq!(got, message);
+        assert_eq!(got_field.as_deref(), Some(field));
+    }
+}
+
+#[test]
+fn routes_methods_types_and_limits() {
+    let fake = Fake::default();
+    let (status, value) = call(&fake, Method::GET, "/nope", b"");
+    assert_eq!(status, StatusCode::NOT_FOUND);
+    assert_eq!(error(&value).0, "not_found");
+    let (status, value) = call(&fake, Method::GET, "/renders/job-7", b"");
+    assert_eq!(status, StatusCode::NOT_FOUND);
+    assert_eq!(error(&value).1, "no render \"job-7\"");
+    let (status, value) = call(&fake, Method::GET, "/renders/Bad_Id", b"");
+    assert_eq!(
+        (status, error(&value).1),
+        (StatusCode::NOT_FOUND, "no render \"Bad_Id\"".to_owned())
+    );
+
+    let request = Request::builder()
+        .method(Method::PUT)
+        .uri("/renders/x")
+        .body(Vec::new())
+        .unwrap();
+    let response = handle(&fake, request);
+    assert_eq!(response.status(), StatusCode::METHOD_NOT_ALLOWED);
+    assert_eq!(response.headers()["allow"], "GET, DELETE");
+
+    let request = Request::builder()
+        .method(Method::POST)
+        .uri("/renders")
+        .header("content-type", "text/plain")
+        .body(b"{}".to_vec())
+        .unwrap();
+    let response = handle(&fake, request);
+    assert_eq!(response.status(), StatusCode::UNSUPPORTED_MEDIA_TYPE);
+
+    let big = vec![b' '; MAX_BODY_BYTES + 1];
+    let (status, value) = call(&fake, Method::POST, "/renders", &big);
+    assert_eq!(status, StatusCode::PAYLOAD_TOO_LARGE);
+    assert_eq!(error(&value).0, "payload_too_large");
+
+    let (status, value) = post(&fake, "/renders?dry_run=maybe", &json!({}));
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+    assert_eq!(error(&value).2.as_deref(), Some("query.dry_run"));
+
+    let (_, value) = post(
+        &fake,
+        "/renders",
+        &json!({"scene": cornell(), "width": 8, "height": 8}),
+    );
+    let job = value["job"].as_str().unwrap();
+    let (status, value) = call(&fake, Method::GET, &format!("/renders/{job}"), b"");
+    assert_eq!(status, StatusCode::OK);
+    assert_eq!(value["status"], "SUCCEEDED");
+    assert_eq!(value["image_url"], format!("/renders/{job}/image"));
+    let request = Request::builder()
+        .uri(format!("/renders/{job}/image?format=exr"))
+        .body(Vec::new())
+        .unwrap();
+    let response = handle(&fake, request);
+    assert_eq!(response.headers()["content-type"], "image/x-exr");
+    assert_eq!(response.body(), b"exr");
+    let (status, value) = call(
+        &fake,
+        Method::GET,
+        &format!("/renders/{job}/image?format=tga"),
+        b"",
+    );
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+    assert_eq!(
+        error(&value).1,
+        "query.format: \"tga\" is not one of png, pfm, exr"
+    );
+}

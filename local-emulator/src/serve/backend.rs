@@ -1,0 +1,611 @@
+//! The emulator behind `hort serve`: a [`RenderBackend`] that runs every job on a background
+//! thread through the emulator's `run_job_with` (the state machine interpreted, the function
+//! handlers in process, an embedded S3 server over the data folder), keeps each job's record in
+//! the bucket so a restarted server still answers for it, and cancels jobs on request.
+//!
+//! Objects of the API (beside the jobs' own `jobs/{job}/...`):
+//!
+//! ```text
+//! api/renders/{job}/status.json   the job's record (state, progress, times, cost, request)
+//! api/renders/{job}/report.json   the report of a succeeded job (hort render --report's JSON)
+//! ```
+
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+use anyhow::{Context, Result};
+use asl_interpreter::{Event, Observer};
+use hort::emulator::{
+    EmulatorConfig, EmulatorRun, FaultSettings, JobOptions, Storage, StorageTarget, run_job_with,
+    stage_name,
+};
+use hort_core::cost::Arch;
+use hort_core::ids::{JobId, Stage};
+use hort_core::image::{decode_pfm, encode_exr};
+use hort_core::keys::{image_key, manifest_key};
+use hort_core::pipeline::PlanRequest;
+use hort_core::report::{Outputs, RayReport, Report, Seconds};
+use hort_core::store::{BlobStore, CountingStore, StoreError};
+use hort_functions::S3Store;
+use hort_functions::api::{
+    ApiError, ImageFormat, JobSpec, JobState, JobStatus, PredictionModel, RenderBackend, Submission,
+};
+use serde::{Deserialize, Serialize};
+
+/// Where the API keeps its own objects.
+const API_PREFIX: &str = "api/renders/";
+/// How long `DELETE` waits for a job to stop before answering with its state so far.
+const CANCEL_WAIT: Duration = Duration::from_secs(60);
+
+fn status_key(job: &str) -> String {
+    format!("{API_PREFIX}{job}/status.json")
+}
+
+fn report_key(job: &str) -> String {
+    format!("{API_PREFIX}{job}/report.json")
+}
+
+fn now_unix() -> f64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
+}
+
+/// A job's record, as stored at `api/renders/{job}/status.json`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+struct JobRecord {
+    job: String,
+    status: JobState,
+    stage: Option<String>,
+    tasks_done: u64,
+    tasks_total: u64,
+    retried_attempts: u64,
+    /// Unix seconds when the job was accepted, started, ended.
+    created_unix: f64,
+    started_unix: Option<f64>,
+    finished_unix: Option<f64>,
+    cost_usd: Option<f64>,
+    predicted_cost_usd: f64,
+    predicted_seconds: f64,
+    error: Option<String>,
+    idempotency_key: Option<String>,
+    scene: String,
+    triangles: u64,
+    request: PlanRequest,
+    max_cost_usd: Option<f64>,
+}
+
+/// Live progress of a running job, from the orchestrator's events.
+#[derive(Default)]
+struct Live {
+    stage: Mutex<Option<String>>,
+    tasks_done: AtomicU64,
+    retried: AtomicU64,
+}
+
+impl Observer for Live {
+    fn event(&self, e: &Event) {
+        match e {
+            Event::StateEntered { state, .. } if Stage::of_state(state).is_some() => {
+                *lock(&self.stage) = Some(stage_name(state));
+            }
+            Event::TaskSucceeded { .. } => {
+                self.tasks_done.fetch_add(1, Ordering::Relaxed);
+            }
+            Event::TaskAttemptFailed {
+                will_retry: true, ..
+            } => {
+                self.retried.fetch_add(1, Ordering::Relaxed);
+            }
+            _ => {}
+        }
+    }
+}
+
+/// One job of this server.
+struct Job {
+    record: Mutex<JobRecord>,
+    live: Live,
+    cancel: Arc<AtomicBool>,
+    /// Set when the job's thread has ended (or the job was loaded already ended).
+    ended: Mutex<bool>,
+    ended_signal: Condvar,
+}
+
+impl Job {
+    fn new(record: JobRecord) -> Job {
+        let ended = record.status.is_final();
+        Job {
+            record: Mutex::new(record),
+            live: Live::default(),
+            cancel: Arc::new(AtomicBool::new(false)),
+            ended: Mutex::new(ended),
+            ended_signal: Condvar::new(),
+        }
+    }
+
+    fn status(&self) -> JobStatus {
+        let r = lock(&self.record).clone();
+        let running = r.status == JobState::Running;
+        let end = r.finished_unix.unwrap_or_else(now_unix);
+        JobStatus {
+            stage: if running {
+                lock(&self.live.stage).clone().or(r.stage)
+            } else {
+                r.stage
+            },
+            tasks_done: if running {
+                self.live
+                    .tasks_done
+                    .load(Ordering::Relaxed)
+                    .min(r.tasks_total)
+            } else {
+                r.tasks_done
+            },
+            retried_attempts: if running {
+                self.live.retried.load(Ordering::Relaxed)
+            } else {
+                r.retried_attempts
+            },
+            elapsed_seconds: (end - r.created_unix).max(0.0),
+            job: r.job,
+            status: r.status,
+            tasks_total: r.tasks_total,
+            cost_usd: r.cost_usd,
+            predicted_cost_usd: r.predicted_cost_usd,
+            error: r.error,
+            image_url: None,
+        }
+    }
+
+    fn wait_ended(&self, limit: Duration) {
+        let ended = lock(&self.ended);
+        let _ = self
+            .ended_signal
+            .wait_timeout_while(ended, limit, |ended| !*ended);
+    }
+
+    fn mark_ended(&self) {
+        *lock(&self.ended) = true;
+        self.ended_signal.notify_all();
+    }
+}
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// The jobs, and the job each idempotency key started.
+#[derive(Default)]
+struct Registry {
+    jobs: BTreeMap<String, Arc<Job>>,
+    by_key: HashMap<String, String>,
+}
+
+/// What job threads share with the server.
+struct Shared {
+    data_dir: PathBuf,
+    workers: usize,
+    /// The bucket, through the server's own embedded S3 server over `data_dir`.
+    store: Arc<CountingStore<S3Store>>,
+    /// Scene files of jobs about to start, `{scratch}/{job}/...` (removed when they end).
+    scratch: PathBuf,
+    /// Set when the server stops: jobs still running end as FAILED (interrupted), their
+    /// objects kept.
+    stopping: AtomicBool,
+}
+
+impl Shared {
+    fn save(&self, record: &JobRecord) -> Result<(), ApiError> {
+        let json = serde_json::to_vec_pretty(record)
+            .map_err(|e| ApiError::internal(format!("cannot encode the job record: {e}")))?;
+        self.store
+            .put(&status_key(&record.job), &json)
+            .map_err(|e| ApiError::internal(format!("cannot store the job record: {e}")))
+    }
+}
+
+/// The emulator as a [`RenderBackend`].
+pub struct EmulatorBackend {
+    shared: Arc<Shared>,
+    registry: Mutex<Registry>,
+    /// Keeps the embedded S3 server of `shared.store` alive.
+    _storage: Storage,
+    next_id: AtomicU64,
+}
+
+impl EmulatorBackend {
+    /// Opens the bucket over `data_dir` (an embedded S3 server) and loads the records of the
+    /// jobs a previous server left there; jobs that were still queued or running then are
+    /// marked FAILED (interrupted).
+    pub fn open(data_dir: &Path, workers: usize) -> Result<EmulatorBackend> {
+        let storage = Storage::open(&StorageTarget::Embedded {
+            data_dir: Some(data_dir.to_path_buf()),
+        })?;
+        let scratch = storage.work_dir().join("serve-scenes");
+        let shared = Arc::new(Shared {
+            data_dir: data_dir.to_path_buf(),
+            workers,
+            store: Arc::clone(&storage.store),
+            scratch,
+            stopping: AtomicBool::new(false),
+        });
+        let mut registry = Registry::default();
+        let keys = shared
+            .store
+            .list(API_PREFIX)
+            .context("cannot list the job records")?;
+        for key in keys.iter().filter(|k| k.ends_with("/status.json")) {
+            let bytes = shared.store.get(key)?;
+            let mut record: JobRecord =
+                serde_json::from_slice(&bytes).with_context(|| format!("the job record {key}"))?;
+            if !record.status.is_final() {
+                record.error = Some(format!(
+                    "interrupted: hort serve stopped while the job was {}; submit it again",
+                    record.status.as_str()
+                ));
+                record.status = JobState::Failed;
+                record.finished_unix = Some(now_unix());
+                shared
+                    .save(&record)
+                    .map_err(|e| anyhow::anyhow!("{}", e.message))?;
+            }
+            if let Some(k) = &record.idempotency_key {
+                registry.by_key.insert(k.clone(), record.job.clone());
+            }
+            registry
+                .jobs
+                .insert(record.job.clone(), Arc::new(Job::new(record)));
+        }
+        Ok(EmulatorBackend {
+            shared,
+            registry: Mutex::new(registry),
+            _storage: storage,
+            next_id: AtomicU64::new(0),
+        })
+    }
+
+    /// Jobs known (loaded or submitted).
+    pub fn job_count(&self) -> usize {
+        lock(&self.registry).jobs.len()
+    }
+
+    /// Stops every running job (they end FAILED, interrupted, objects kept) and waits a little
+    /// for their threads, so their records say so.
+    pub fn stop(&self) {
+        self.shared.stopping.store(true, Ordering::SeqCst);
+        let jobs: Vec<Arc<Job>> = lock(&self.registry).jobs.values().cloned().collect();
+        for job in &jobs {
+            job.cancel.store(true, Ordering::SeqCst);
+        }
+        for job in &jobs {
+            job.wait_ended(Duration::from_secs(10));
+        }
+    }
+
+    fn job(&self, id: &str) -> Result<Arc<Job>, ApiError> {
+        lock(&self.registry)
+            .jobs
+            .get(id)
+            .cloned()
+            .ok_or_else(|| ApiError::not_found(format!("no render {id:?}")))
+    }
+
+    /// A fresh job id: `r-{unix milliseconds}-{n}`, unused in the registry.
+    fn fresh_id(&self, registry: &Registry) -> String {
+        let millis = SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .map_or(0, |d| d.as_millis());
+        loop {
+            let n = self.next_id.fetch_add(1, Ordering::Relaxed);
+            let id = format!("r-{millis}-{n}");
+            if !registry.jobs.contains_key(&id) {
+                return id;
+            }
+        }
+    }
+
+    /// The finished output of a job, or why there is none.
+    fn require_succeeded(&self, id: &str, what: &str) -> Result<(), ApiError> {
+        let status = self.job(id)?.status().status;
+        match status {
+            JobState::Succeeded => Ok(()),
+            s if s.is_final() => Err(ApiError::not_found(format!(
+                "render {id} has no {what}: the job is {}",
+                s.as_str()
+            ))),
+            s => Err(ApiError::not_found(format!(
+                "render {id} has no {what} yet: the job is {}",
+                s.as_str()
+            ))),
+        }
+    }
+
+    fn get(&self, key: &str) -> Result<Vec<u8>, ApiError> {
+        self.shared
+            .store
+            .get(key)
+            .map_err(|e| ApiError::internal(format!("cannot read {key}: {e}")))
+    }
+}
+
+impl RenderBackend for EmulatorBackend {
+    fn read_object(&self, key: &str) -> Result<Option<Vec<u8>>, ApiError> {
+        match self.shared.store.get(key) {
+            Ok(bytes) => Ok(Some(bytes)),
+            Err(StoreError::NotFound { .. }) => Ok(None),
+            Err(e) => Err(ApiError::internal(format!("cannot read {key}: {e}"))),
+        }
+    }
+
+    fn prediction_model(&self) -> PredictionModel {
+        PredictionModel::reference(self.shared.workers as u32)
+    }
+
+    fn submit(&self, spec: JobSpec) -> Result<Submission, ApiError> {
+        let mut registry = lock(&self.registry);
+        if let Some(key) = &spec.idempotency_key
+            && let Some(job) = registry.by_key.get(key)
+        {
+            return Ok(Submission {
+                job: job.clone(),
+                replayed: true,
+            });
+        }
+        let id = self.fresh_id(&registry);
+        let record = JobRecord {
+            job: id.clone(),
+            status: JobState::Queued,
+            stage: None,
+            tasks_done: 0,
+            tasks_total: spec.prediction.tasks_total,
+            retried_attempts: 0,
+            created_unix: now_unix(),
+            started_unix: None,
+            finished_unix: None,
+            cost_usd: None,
+            predicted_cost_usd: spec.prediction.predicted_cost_usd,
+            predicted_seconds: spec.prediction.predicted_seconds,
+            error: None,
+            idempotency_key: spec.idempotency_key.clone(),
+            scene: spec.scene_name.clone(),
+            triangles: spec.prediction.triangles,
+            request: spec.request,
+            max_cost_usd: spec.max_cost_usd,
+        };
+        self.shared.save(&record)?;
+        let job = Arc::new(Job::new(record));
+        registry.jobs.insert(id.clone(), Arc::clone(&job));
+        if let Some(key) = &spec.idempotency_key {
+            registry.by_key.insert(key.clone(), id.clone());
+        }
+        drop(registry);
+        let shared = Arc::clone(&self.shared);
+        let thread_job = Arc::clone(&job);
+        let spawned = std::thread::Builder::new()
+            .name(format!("hort-serve {id}"))
+            .spawn(move || run(&shared, &thread_job, &spec));
+        if let Err(e) = spawned {
+            let mut r = lock(&job.record);
+            r.status = JobState::Failed;
+            r.error = Some(format!("cannot start the job's thread: {e}"));
+            r.finished_unix = Some(now_unix());
+            let _ = self.shared.save(&r);
+            drop(r);
+            job.mark_ended();
+        }
+        Ok(Submission {
+            job: id,
+            replayed: false,
+        })
+    }
+
+    fn status(&self, id: &str) -> Result<JobStatus, ApiError> {
+        Ok(self.job(id)?.status())
+    }
+
+    fn image(&self, id: &str, format: ImageFormat) -> Result<Vec<u8>, ApiError> {
+        self.require_succeeded(id, "image")?;
+        let job = JobId::new(id).map_err(|_| ApiError::not_found(format!("no render {id:?}")))?;
+        match format {
+            ImageFormat::Png | ImageFormat::Pfm => self.get(&image_key(&job, format.extension())),
+            ImageFormat::Exr => {
+                let pfm = self.get(&image_key(&job, "pfm"))?;
+                let image = decode_pfm(&pfm)
+                    .map_err(|e| ApiError::internal(format!("the stored image of {id}: {e}")))?;
+                encode_exr(&image)
+                    .map_err(|e| ApiError::internal(format!("cannot encode OpenEXR: {e}")))
+            }
+        }
+    }
+
+    fn report(&self, id: &str) -> Result<Vec<u8>, ApiError> {
+        self.require_succeeded(id, "report")?;
+        self.get(&report_key(id))
+    }
+
+    fn cancel(&self, id: &str) -> Result<JobStatus, ApiError> {
+        let job = self.job(id)?;
+        if !job.status().status.is_final() {
+            job.cancel.store(true, Ordering::SeqCst);
+            job.wait_ended(CANCEL_WAIT);
+        }
+        Ok(job.status())
+    }
+}
+
+/// A job's thread: write the scene files where the emulator reads them, run the job, record
+/// how it ended.
+fn run(shared: &Shared, job: &Job, spec: &JobSpec) {
+    let id = lock(&job.record).job.clone();
+    let folder = shared.scratch.join(&id);
+    let outcome = if job.cancel.load(Ordering::SeqCst) {
+        None
+    } else {
+        {
+            let mut r = lock(&job.record);
+            r.status = JobState::Running;
+            r.started_unix = Some(now_unix());
+            let _ = shared.save(&r);
+        }
+        Some(write_scene(&folder, spec).and_then(|main| {
+            let config = EmulatorConfig {
+                storage: StorageTarget::Embedded {
+                    data_dir: Some(shared.data_dir.clone()),
+                },
+                job: Some(id.clone()),
+                workers: shared.workers,
+                faults: FaultSettings::default(),
+                time_scale: 1.0,
+                task_timeout_seconds: None,
+                split_cache_bytes: 1 << 30,
+                memory_mb: 2048,
+                arch: Arch::Arm64,
+                cancel: Arc::clone(&job.cancel),
+            };
+            run_job_with(
+                &config,
+                JobOptions::default(),
+                &main,
+                spec.request,
+                &job.live,
+            )
+        }))
+    };
+    let _ = std::fs::remove_dir_all(&folder);
+    let cancelled = job.cancel.load(Ordering::SeqCst);
+    let mut r = lock(&job.record);
+    r.stage = lock(&job.live.stage).clone();
+    r.tasks_done = job
+        .live
+        .tasks_done
+        .load(Ordering::Relaxed)
+        .min(r.tasks_total);
+    r.retried_attempts = job.live.retried.load(Ordering::Relaxed);
+    match outcome {
+        Some(Ok(run)) => match store_report(shared, &r, &run) {
+            Ok(()) => {
+                r.status = JobState::Succeeded;
+                r.tasks_done = r.tasks_total;
+                r.retried_attempts = run.failed_attempts();
+                r.cost_usd = Some(run.cost.total);
+            }
+            Err(e) => {
+                r.status = JobState::Failed;
+                r.error = Some(e.message);
+            }
+        },
+        _ if cancelled && shared.stopping.load(Ordering::SeqCst) => {
+            r.status = JobState::Failed;
+            r.error = Some(
+                "interrupted: hort serve stopped while the job was running; submit it again".into(),
+            );
+        }
+        _ if cancelled => {
+            r.status = JobState::Cancelled;
+            if let Err(e) = delete_intermediates(&shared.store, &id) {
+                r.error = Some(format!(
+                    "cancelled, but its intermediate objects were not all deleted: {e:#}"
+                ));
+            }
+        }
+        // Not started means cancelled before it started: the arm above.
+        None => {
+            r.status = JobState::Failed;
+            r.error = Some("the job did not start".into());
+        }
+        Some(Err(e)) => {
+            r.status = JobState::Failed;
+            r.error = Some(format!("{e:#}"));
+        }
+    }
+    r.finished_unix = Some(now_unix());
+    if let Err(e) = shared.save(&r) {
+        eprintln!("hort serve: job {id}: {}", e.message);
+    }
+    drop(r);
+    job.mark_ended();
+}
+
+/// Writes the scene's files under `folder`; the main file's path.
+fn write_scene(folder: &Path, spec: &JobSpec) -> Result<PathBuf> {
+    for (name, bytes) in &spec.files {
+        let path = folder.join(name);
+        if let Some(parent) = path.parent() {
+            std::fs::create_dir_all(parent)
+                .with_context(|| format!("cannot create {}", parent.display()))?;
+        }
+        std::fs::write(&path, bytes).with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    Ok(folder.join(&spec.main))
+}
+
+/// Deletes every object of a cancelled job but its job request (`manifest.json`, the job's
+/// identity: the id stays taken).
+fn delete_intermediates(store: &CountingStore<S3Store>, id: &str) -> Result<()> {
+    let job = JobId::new(id)?;
+    let s3 = store.inner();
+    let keep = manifest_key(&job);
+    let doomed: Vec<String> = s3
+        .list_sizes(&format!("jobs/{id}/"))?
+        .into_iter()
+        .map(|o| o.key)
+        .filter(|k| *k != keep)
+        .collect();
+    s3.delete_all(&doomed)?;
+    Ok(())
+}
+
+/// The report of `hort render --report` for a job run by the server, stored beside its record.
+fn store_report(shared: &Shared, r: &JobRecord, run: &EmulatorRun) -> Result<(), ApiError> {
+    let request = r.request;
+    let render_seconds = run
+        .stages
+        .iter()
+        .filter(|s| s.name != "plan")
+        .map(|s| s.seconds)
+        .sum();
+    let report = Report {
+        mode: "emulator".into(),
+        scene: r.scene.clone(),
+        width: request.width,
+        height: request.height,
+        spp: request.spp,
+        triangles: r.triangles,
+        threads: shared.workers,
+        rays: RayReport {
+            primary: u64::from(request.width) * u64::from(request.height) * u64::from(request.spp),
+            shadow: run.ledger.total().shadow_rays,
+        },
+        seconds: Seconds {
+            total: run.seconds,
+            render: render_seconds,
+            // The scene was parsed when the request was checked, not by the job.
+            load: 0.0,
+            build: run.stages.first().map_or(0.0, |s| s.seconds),
+        },
+        stages: run.stages.clone(),
+        replication: Some(
+            run.ledger.total().split_bytes_read as f64 / run.plan.scene_bytes().max(1) as f64,
+        ),
+        cost_usd: Some(run.cost.total),
+        retried_attempts: run.failed_attempts(),
+        recomputed_blocks: run.recomputed(),
+        splits: Some(run.plan.k()),
+        spans: Some(run.plan.spans.len() as u32),
+        workers: Some(shared.workers),
+        job: Some(r.job.clone()),
+        outputs: Outputs {
+            image: Some(format!("/renders/{}/image", r.job)),
+            hits: None,
+            report: Some(format!("/renders/{}/report", r.job)),
+        },
+    };
+    shared
+        .store
+        .put(&report_key(&r.job), (report.to_json() + "\n").as_bytes())
+        .map_err(|e| ApiError::internal(format!("cannot store the report: {e}")))
+}

@@ -1,0 +1,96 @@
+//! `hort serve`: the HTTP API of `hort_functions::api` on 127.0.0.1, its jobs run by the local
+//! emulator ([`backend::EmulatorBackend`]) on background threads, its objects and job records
+//! in an embedded S3 server over `--data-dir`, so a restarted server answers for finished jobs.
+
+mod backend;
+mod server;
+
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+
+use anyhow::{Result, bail};
+use clap::Args;
+use hort_core::render::available_cores;
+use tokio::sync::oneshot;
+
+pub use backend::EmulatorBackend;
+
+/// The flags of `hort serve`.
+#[derive(Args)]
+pub struct ServeArgs {
+    /// Port on 127.0.0.1 (0: any free port; the address is printed at start).
+    #[arg(long, default_value_t = 8080)]
+    pub port: u16,
+    /// Keep the jobs' objects and records in DIR (`DIR/hort/...`), so a restarted server
+    /// answers for them (default: a temporary folder, removed when the server stops).
+    #[arg(long)]
+    pub data_dir: Option<PathBuf>,
+    /// Function slots of each job: its tasks running at once (default: all cores).
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=4096))]
+    pub workers: Option<usize>,
+}
+
+/// Runs the server until Ctrl-C or SIGTERM; then running jobs stop (they end FAILED,
+/// interrupted, their objects kept) and the server exits.
+pub fn run(args: ServeArgs) -> Result<()> {
+    let workers = args.workers.unwrap_or_else(available_cores);
+    let (data_dir, temporary) = match &args.data_dir {
+        Some(dir) => {
+            if dir.exists() && !dir.is_dir() {
+                bail!("--data-dir {}: is not a folder", dir.display());
+            }
+            (dir.clone(), false)
+        }
+        None => (
+            std::env::temp_dir().join(format!("hort-serve-{}", std::process::id())),
+            true,
+        ),
+    };
+    std::fs::create_dir_all(&data_dir)
+        .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", data_dir.display()))?;
+    let result = serve_over(&data_dir, workers, args.port, temporary);
+    if temporary {
+        let _ = std::fs::remove_dir_all(&data_dir);
+    }
+    result
+}
+
+fn serve_over(
+    data_dir: &std::path::Path,
+    workers: usize,
+    port: u16,
+    temporary: bool,
+) -> Result<()> {
+    let backend = Arc::new(EmulatorBackend::open(data_dir, workers)?);
+    let (stop_tx, stop_rx) = oneshot::channel();
+    let stop_tx = Mutex::new(Some(stop_tx));
+    let _ = ctrlc::set_handler(move || {
+        match stop_tx.lock().unwrap_or_else(|e| e.into_inner()).take() {
+            Some(tx) => {
+                eprintln!("hort serve: stopping; press Ctrl-C again to quit at once");
+                let _ = tx.send(());
+            }
+            None => hort::emulator::exit_now(130),
+        }
+    });
+    let jobs = backend.job_count();
+    let kept = if temporary {
+        " (temporary: removed when the server stops; --data-dir keeps jobs across restarts)"
+    } else {
+        ""
+    };
+    server::serve(
+        backend.clone(),
+        port,
+        |addr| {
+            eprintln!(
+                "hort serve: listening on http://{addr} ({workers} function slots per job, data \
+                 in {}{kept}, {jobs} jobs known)",
+                data_dir.display()
+            );
+        },
+        stop_rx,
+    )?;
+    backend.stop();
+    Ok(())
+}
