@@ -1,27 +1,11 @@
 //! The `hort` command as users and scripts call it: files it writes and errors it prints.
 
+mod common;
+
+use common::{hort, scene, scratch};
 use hort_core::hits::decode_hits;
 use hort_core::image::decode_pfm;
-use std::path::{Path, PathBuf};
-use std::process::Command;
-
-const HORT: &str = env!("CARGO_BIN_EXE_hort");
-
-fn scene(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../scenes")
-        .join(rel)
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("hort-cli-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn hort(args: &[&str]) -> std::process::Output {
-    Command::new(HORT).args(args).output().expect("hort runs")
-}
+use std::path::Path;
 
 fn render(scene_file: &Path, dir: &Path, extra: &[&str]) -> (Vec<u8>, Vec<u8>, serde_json::Value) {
     let (out, hits, report) = (dir.join("o.pfm"), dir.join("h.bin"), dir.join("r.json"));

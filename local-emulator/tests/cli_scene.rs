@@ -1,32 +1,17 @@
 //! `hort render` on scenes as new users bring them: a bare OBJ in a portrait image, manifests
 //! without light, MTL features that are not rendered, OBJ files from the wild.
 
+mod common;
+
+use common::{hort, scene, scratch};
 use hort_core::hits::{Hit, decode_hits};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-const HORT: &str = env!("CARGO_BIN_EXE_hort");
-
-fn scene(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../scenes")
-        .join(rel)
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("hort-cli-scene-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+use std::process::Output;
 
 fn write(dir: &Path, name: &str, text: &[u8]) -> PathBuf {
     let p = dir.join(name);
     std::fs::write(&p, text).unwrap();
     p
-}
-
-fn hort(args: &[&str]) -> Output {
-    Command::new(HORT).args(args).output().expect("hort runs")
 }
 
 fn stderr(o: &Output) -> String {
