@@ -48,10 +48,12 @@ fn report_key(job: &str) -> String {
     format!("{API_PREFIX}{job}/report.json")
 }
 
-fn now_unix() -> f64 {
+/// Microseconds since the Unix epoch: integers, so a record read back gives the same elapsed
+/// time to the bit (JSON floats need not parse back exactly).
+fn now_unix_us() -> u64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64())
+        .map_or(0, |d| d.as_micros() as u64)
 }
 
 /// A job's record, as stored at `api/renders/{job}/status.json`.
@@ -63,10 +65,10 @@ struct JobRecord {
     tasks_done: u64,
     tasks_total: u64,
     retried_attempts: u64,
-    /// Unix seconds when the job was accepted, started, ended.
-    created_unix: f64,
-    started_unix: Option<f64>,
-    finished_unix: Option<f64>,
+    /// When the job was accepted, started, ended: microseconds since the Unix epoch.
+    created_unix_us: u64,
+    started_unix_us: Option<u64>,
+    finished_unix_us: Option<u64>,
     cost_usd: Option<f64>,
     predicted_cost_usd: f64,
     predicted_seconds: f64,
@@ -130,7 +132,7 @@ impl Job {
     fn status(&self) -> JobStatus {
         let r = lock(&self.record).clone();
         let running = r.status == JobState::Running;
-        let end = r.finished_unix.unwrap_or_else(now_unix);
+        let end = r.finished_unix_us.unwrap_or_else(now_unix_us);
         JobStatus {
             stage: if running {
                 lock(&self.live.stage).clone().or(r.stage)
@@ -150,7 +152,7 @@ impl Job {
             } else {
                 r.retried_attempts
             },
-            elapsed_seconds: (end - r.created_unix).max(0.0),
+            elapsed_seconds: end.saturating_sub(r.created_unix_us) as f64 / 1e6,
             job: r.job,
             status: r.status,
             tasks_total: r.tasks_total,
@@ -199,9 +201,14 @@ struct Shared {
 }
 
 impl Shared {
-    fn save(&self, record: &JobRecord) -> Result<(), ApiError> {
+    /// Stores `record`, and replaces it with the record as read back, so what this server
+    /// answers is exactly what a restarted one would (JSON numbers need not parse back to the
+    /// same bits).
+    fn save(&self, record: &mut JobRecord) -> Result<(), ApiError> {
         let json = serde_json::to_vec_pretty(record)
             .map_err(|e| ApiError::internal(format!("cannot encode the job record: {e}")))?;
+        *record = serde_json::from_slice(&json)
+            .map_err(|e| ApiError::internal(format!("cannot decode the job record: {e}")))?;
         self.store
             .put(&status_key(&record.job), &json)
             .map_err(|e| ApiError::internal(format!("cannot store the job record: {e}")))
@@ -248,9 +255,9 @@ impl EmulatorBackend {
                     record.status.as_str()
                 ));
                 record.status = JobState::Failed;
-                record.finished_unix = Some(now_unix());
+                record.finished_unix_us = Some(now_unix_us());
                 shared
-                    .save(&record)
+                    .save(&mut record)
                     .map_err(|e| anyhow::anyhow!("{}", e.message))?;
             }
             if let Some(k) = &record.idempotency_key {
@@ -363,9 +370,9 @@ impl RenderBackend for EmulatorBackend {
             tasks_done: 0,
             tasks_total: spec.prediction.tasks_total,
             retried_attempts: 0,
-            created_unix: now_unix(),
-            started_unix: None,
-            finished_unix: None,
+            created_unix_us: now_unix_us(),
+            started_unix_us: None,
+            finished_unix_us: None,
             cost_usd: None,
             predicted_cost_usd: spec.prediction.predicted_cost_usd,
             predicted_seconds: spec.prediction.predicted_seconds,
@@ -376,7 +383,8 @@ impl RenderBackend for EmulatorBackend {
             request: spec.request,
             max_cost_usd: spec.max_cost_usd,
         };
-        self.shared.save(&record)?;
+        let mut record = record;
+        self.shared.save(&mut record)?;
         let job = Arc::new(Job::new(record));
         registry.jobs.insert(id.clone(), Arc::clone(&job));
         if let Some(key) = &spec.idempotency_key {
@@ -392,8 +400,8 @@ impl RenderBackend for EmulatorBackend {
             let mut r = lock(&job.record);
             r.status = JobState::Failed;
             r.error = Some(format!("cannot start the job's thread: {e}"));
-            r.finished_unix = Some(now_unix());
-            let _ = self.shared.save(&r);
+            r.finished_unix_us = Some(now_unix_us());
+            let _ = self.shared.save(&mut r);
             drop(r);
             job.mark_ended();
         }
@@ -448,8 +456,8 @@ fn run(shared: &Shared, job: &Job, spec: &JobSpec) {
         {
             let mut r = lock(&job.record);
             r.status = JobState::Running;
-            r.started_unix = Some(now_unix());
-            let _ = shared.save(&r);
+            r.started_unix_us = Some(now_unix_us());
+            let _ = shared.save(&mut r);
         }
         Some(write_scene(&folder, spec).and_then(|main| {
             let config = EmulatorConfig {
@@ -522,8 +530,8 @@ fn run(shared: &Shared, job: &Job, spec: &JobSpec) {
             r.error = Some(format!("{e:#}"));
         }
     }
-    r.finished_unix = Some(now_unix());
-    if let Err(e) = shared.save(&r) {
+    r.finished_unix_us = Some(now_unix_us());
+    if let Err(e) = shared.save(&mut r) {
         eprintln!("hort serve: job {id}: {}", e.message);
     }
     drop(r);
