@@ -35,6 +35,9 @@ pub enum Command {
         #[command(subcommand)]
         command: crate::jobs_cmd::JobsCommand,
     },
+    /// Serve the HTTP API (POST /renders, GET /renders/{id}, ...) on 127.0.0.1, jobs run by
+    /// the emulator.
+    Serve(crate::serve::ServeArgs),
 }
 
 #[derive(Subcommand)]

@@ -8,6 +8,7 @@ mod jobs_cmd;
 mod outputs;
 mod render_cmd;
 mod scene_cmd;
+mod serve;
 
 use clap::Parser;
 use peak_alloc::PeakAlloc;
@@ -35,6 +36,7 @@ fn main() -> std::process::ExitCode {
     let result = match cli.command {
         cli::Command::Render(args) => render_cmd::run(*args),
         cli::Command::Jobs { command } => jobs_cmd::run(command),
+        cli::Command::Serve(args) => serve::run(args),
         cli::Command::Scene {
             command: cli::SceneCommand::Generate(args),
         } => scene_cmd::generate(args),

@@ -1,0 +1,701 @@
+//! `hort serve` over loopback, as a client sees it: the binary on a free port with a temporary
+//! data folder, spoken to in plain HTTP/1.1 over a `TcpStream`.
+
+use hort_functions::api::usd;
+use serde_json::{Value, json};
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Mutex, mpsc};
+use std::time::{Duration, Instant};
+
+const HORT: &str = env!("CARGO_BIN_EXE_hort");
+
+fn scenes() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("hort-serve-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// The bundled Cornell box as inline files.
+fn cornell() -> Value {
+    let file = |name: &str| std::fs::read_to_string(scenes().join("cornell").join(name)).unwrap();
+    json!({
+        "main": "cornell.json",
+        "files": {
+            "cornell.json": file("cornell.json"),
+            "cornell.obj": file("cornell.obj"),
+            "cornell.mtl": file("cornell.mtl"),
+        }
+    })
+}
+
+/// A running `hort serve`; stopped with SIGTERM on drop.
+struct Serve {
+    child: Child,
+    port: u16,
+    log: Arc<Mutex<String>>,
+}
+
+impl Serve {
+    fn start(data: &Path) -> Serve {
+        let mut child = Command::new(HORT)
+            .args(["serve", "--port", "0", "--workers", "2", "--data-dir"])
+            .arg(data)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("hort serve starts");
+        let stderr = child.stderr.take().unwrap();
+        let log = Arc::new(Mutex::new(String::new()));
+        let (tx, rx) = mpsc::channel();
+        let sink = Arc::clone(&log);
+        std::thread::spawn(move || {
+            for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+                if let Some(rest) = line.split("listening on http://127.0.0.1:").nth(1) {
+                    let port: String = rest.chars().take_while(char::is_ascii_digit).collect();
+                    let _ = tx.send(port.parse::<u16>().unwrap());
+                }
+                let mut log = sink.lock().unwrap();
+                log.push_str(&line);
+                log.push('\n');
+            }
+        });
+        let port = match rx.recv_timeout(Duration::from_secs(60)) {
+            Ok(port) => port,
+            Err(_) => panic!(
+                "hort serve did not say where it listens: {}",
+                log.lock().unwrap()
+            ),
+        };
+        Serve { child, port, log }
+    }
+
+    /// Ends the server as a crash would (SIGKILL): nothing is saved on the way out.
+    fn kill_hard(mut self) {
+        self.child.kill().unwrap();
+        self.child.wait().unwrap();
+    }
+
+    fn call(&self, method: &str, path: &str, headers: &[(&str, &str)], body: &[u8]) -> Reply {
+        call(self.port, method, path, headers, body)
+    }
+
+    fn post(&self, path: &str, body: &Value, headers: &[(&str, &str)]) -> Reply {
+        let mut all = vec![("Content-Type", "application/json")];
+        all.extend_from_slice(headers);
+        self.call("POST", path, &all, body.to_string().as_bytes())
+    }
+
+    fn get(&self, path: &str) -> Reply {
+        self.call("GET", path, &[], b"")
+    }
+
+    /// Polls the job until it ends; panics with the server's log if it takes too long.
+    fn wait_done(&self, job: &str, limit: Duration) -> Value {
+        let t0 = Instant::now();
+        loop {
+            let status = self.get(&format!("/renders/{job}")).json();
+            match status["status"].as_str().unwrap() {
+                "QUEUED" | "RUNNING" => {}
+                _ => return status,
+            }
+            assert!(
+                t0.elapsed() < limit,
+                "job {job} still {status} after {limit:?}; server log:\n{}",
+                self.log.lock().unwrap()
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+}
+
+impl Drop for Serve {
+    fn drop(&mut self) {
+        if let Ok(Some(_)) = self.child.try_wait() {
+            return;
+        }
+        let _ = Command::new("kill")
+            .arg(self.child.id().to_string())
+            .status();
+        let t0 = Instant::now();
+        while t0.elapsed() < Duration::from_secs(15) {
+            if let Ok(Some(_)) = self.child.try_wait() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// One HTTP response.
+struct Reply {
+    status: u16,
+    headers: Vec<(String, String)>,
+    body: Vec<u8>,
+}
+
+impl Reply {
+    fn json(&self) -> Value {
+        serde_json::from_slice(&self.body).unwrap_or_else(|e| {
+            panic!(
+                "not JSON ({e}): {} {}",
+                self.status,
+                String::from_utf8_lossy(&self.body)
+            )
+        })
+    }
+
+    fn header(&self, name: &str) -> Option<&str> {
+        self.headers
+            .iter()
+            .find(|(k, _)| k.eq_ignore_ascii_case(name))
+            .map(|(_, v)| v.as_str())
+    }
+
+    /// (code, message, field) of an error answer.
+    fn error(&self) -> (String, String, Option<String>) {
+        let v = self.json();
+        let e = &v["error"];
+        (
+            e["code"]
+                .as_str()
+                .unwrap_or_else(|| panic!("{v}"))
+                .to_owned(),
+            e["message"].as_str().unwrap().to_owned(),
+            e["field"].as_str().map(str::to_owned),
+        )
+    }
+}
+
+/// Sends one request (`Content-Length` added unless given) and reads the whole answer.
+fn call(port: u16, method: &str, path: &str, headers: &[(&str, &str)], body: &[u8]) -> Reply {
+    let mut stream = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    stream
+        .set_read_timeout(Some(Duration::from_secs(120)))
+        .unwrap();
+    let mut head = format!("{method} {path} HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n");
+    for (k, v) in headers {
+        head += &format!("{k}: {v}\r\n");
+    }
+    if !headers
+        .iter()
+        .any(|(k, _)| k.eq_ignore_ascii_case("content-length"))
+    {
+        head += &format!("Content-Length: {}\r\n", body.len());
+    }
+    head += "\r\n";
+    stream.write_all(head.as_bytes()).unwrap();
+    stream.write_all(body).unwrap();
+    let mut raw = Vec::new();
+    stream.read_to_end(&mut raw).unwrap();
+    let end = raw
+        .windows(4)
+        .position(|w| w == b"\r\n\r\n")
+        .unwrap_or_else(|| panic!("no HTTP head in {:?}", String::from_utf8_lossy(&raw)));
+    let head = String::from_utf8_lossy(&raw[..end]).into_owned();
+    let mut lines = head.split("\r\n");
+    let status = lines
+        .next()
+        .unwrap()
+        .split(' ')
+        .nth(1)
+        .unwrap()
+        .parse()
+        .unwrap();
+    let headers = lines
+        .filter_map(|l| l.split_once(':'))
+        .map(|(k, v)| (k.trim().to_owned(), v.trim().to_owned()))
+        .collect();
+    Reply {
+        status,
+        headers,
+        body: raw[end + 4..].to_vec(),
+    }
+}
+
+fn monolithic_pfm(dir: &Path, args: &[&str]) -> Vec<u8> {
+    let out = dir.join("monolithic.pfm");
+    let scene = scenes().join("cornell/cornell.json");
+    let o = Command::new(HORT)
+        .args(["render", scene.to_str().unwrap(), "--monolithic", "--out"])
+        .arg(&out)
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    std::fs::read(out).unwrap()
+}
+
+/// Files under `dir`, relative, sorted.
+fn files_under(dir: &Path) -> Vec<String> {
+    fn walk(root: &Path, dir: &Path, out: &mut Vec<String>) {
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            return;
+        };
+        for e in entries.flatten() {
+            let path = e.path();
+            if path.is_dir() {
+                walk(root, &path, out);
+            } else {
+                out.push(path.strip_prefix(root).unwrap().display().to_string());
+            }
+        }
+    }
+    let mut out = Vec::new();
+    walk(dir, dir, &mut out);
+    out.sort();
+    out
+}
+
+#[test]
+fn a_render_equals_the_monolithic_one_and_outlives_the_server() {
+    let dir = scratch("render");
+    let data = dir.join("data");
+    let server = Serve::start(&data);
+    let body = json!({
+        "scene": cornell(), "width": 64, "height": 48, "spp": 2, "splits": 2, "spans": 3
+    });
+
+    let dry = server.post("/renders?dry_run=true", &body, &[]);
+    assert_eq!(dry.status, 200, "{}", String::from_utf8_lossy(&dry.body));
+    let dry = dry.json();
+    assert_eq!(
+        (dry["splits"].as_u64(), dry["spans"].as_u64()),
+        (Some(2), Some(3))
+    );
+    assert!(
+        !data.join("hort/jobs").exists() && !data.join("hort/api").exists(),
+        "a dry run stores nothing"
+    );
+
+    let t0 = Instant::now();
+    let key = [("Idempotency-Key", "cornell-64x48")];
+    let first = server.post("/renders", &body, &key);
+    assert_eq!(
+        first.status,
+        202,
+        "{}",
+        String::from_utf8_lossy(&first.body)
+    );
+    let first = first.json();
+    let job = first["job"].as_str().unwrap().to_owned();
+    assert_eq!(first["status_url"], format!("/renders/{job}"));
+    assert_eq!(first["replayed"], false);
+    let again = server.post("/renders", &body, &key);
+    assert_eq!(again.status, 202);
+    assert_eq!(
+        again.json()["job"],
+        job.as_str(),
+        "the same key names the same job"
+    );
+    assert_eq!(again.json()["replayed"], true);
+
+    let status = server.wait_done(&job, Duration::from_secs(120));
+    let seconds = t0.elapsed().as_secs_f64();
+    assert_eq!(status["status"], "SUCCEEDED", "{status}");
+    eprintln!(
+        "time to SUCCEEDED: {seconds:.2} s (server's elapsed_seconds {:.2} s, predicted {:.2} s); \
+         cost ${:.6} (predicted ${:.6})",
+        status["elapsed_seconds"].as_f64().unwrap(),
+        dry["predicted_seconds"].as_f64().unwrap(),
+        status["cost_usd"].as_f64().unwrap(),
+        dry["predicted_cost_usd"].as_f64().unwrap(),
+    );
+    assert_eq!(status["stage"], "combine");
+    assert_eq!(status["tasks_done"], status["tasks_total"]);
+    assert_eq!(status["tasks_total"], dry["tasks_total"]);
+    assert_eq!(status["retried_attempts"], 0);
+    assert!(status["cost_usd"].as_f64().unwrap() > 0.0);
+    assert_eq!(status["image_url"], format!("/renders/{job}/image"));
+    let renders = std::fs::read_dir(data.join("hort/api/renders"))
+        .unwrap()
+        .count();
+    assert_eq!(renders, 1, "two posts with one key made one job");
+
+    let pfm = server.get(&format!("/renders/{job}/image?format=pfm"));
+    assert_eq!(pfm.status, 200);
+    assert_eq!(
+        pfm.header("content-type"),
+        Some("image/x-portable-floatmap")
+    );
+    let reference = monolithic_pfm(&dir, &["--width", "64", "--height", "48", "--spp", "2"]);
+    assert!(
+        pfm.body == reference,
+        "the served image equals the monolithic render"
+    );
+    let png = server.get(&format!("/renders/{job}/image"));
+    assert_eq!(png.header("content-type"), Some("image/png"));
+    assert!(png.body.starts_with(b"\x89PNG\r\n\x1a\n"));
+    let exr = server.get(&format!("/renders/{job}/image?format=exr"));
+    assert!(
+        exr.body.starts_with(&[0x76, 0x2f, 0x31, 0x01]),
+        "OpenEXR magic"
+    );
+
+    let report = server.get(&format!("/renders/{job}/report"));
+    assert_eq!(report.status, 200);
+    let r = report.json();
+    assert_eq!(r["mode"], "emulator");
+    assert_eq!(r["job"], job.as_str());
+    assert_eq!(r["scene"], "cornell.json");
+    assert_eq!(
+        (r["splits"].as_u64(), r["spans"].as_u64()),
+        (Some(2), Some(3))
+    );
+    assert_eq!(r["rays"]["primary"], 64 * 48 * 2);
+    assert_eq!(r["cost_usd"], status["cost_usd"]);
+    let tasks = |stages: &Value, key: &str| -> Vec<u64> {
+        let list = stages.as_array().unwrap();
+        list.iter().map(|s| s[key].as_u64().unwrap()).collect()
+    };
+    assert_eq!(
+        tasks(&r["stages"], "tasks"),
+        tasks(&dry["stages"], "tasks"),
+        "the dry run's plan is the plan that ran"
+    );
+
+    // A crash, then a new server over the same data folder answers for the finished job.
+    server.kill_hard();
+    let server = Serve::start(&data);
+    let after = server.get(&format!("/renders/{job}"));
+    assert_eq!(after.status, 200);
+    let after = after.json();
+    for field in [
+        "status",
+        "tasks_done",
+        "tasks_total",
+        "cost_usd",
+        "elapsed_seconds",
+        "image_url",
+    ] {
+        assert_eq!(after[field], status[field], "{field} after a restart");
+    }
+    assert!(server.get(&format!("/renders/{job}/image?format=pfm")).body == reference);
+    assert_eq!(
+        server.get(&format!("/renders/{job}/report")).body,
+        report.body
+    );
+    let replay = server.post("/renders", &body, &key).json();
+    assert_eq!(
+        (replay["job"].as_str(), replay["replayed"].as_bool()),
+        (Some(job.as_str()), Some(true)),
+        "idempotency keys outlive the server too"
+    );
+    drop(server);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// One bad request: what it is, its answer, and the status, code, message and field wanted.
+type Case<'a> = (&'a str, Reply, u16, &'a str, String, Option<&'a str>);
+
+#[test]
+fn bad_requests_get_their_status_and_exact_message() {
+    let dir = scratch("errors");
+    let data = dir.join("data");
+    // A scene in the bucket, as the embedded server stores objects: key + "~obj".
+    let in_bucket = data.join("hort/scenes/box");
+    std::fs::create_dir_all(&in_bucket).unwrap();
+    for name in ["cornell.json", "cornell.obj", "cornell.mtl"] {
+        std::fs::copy(
+            scenes().join("cornell").join(name),
+            in_bucket.join(format!("{name}~obj")),
+        )
+        .unwrap();
+    }
+    let server = Serve::start(&data);
+    let json_type = [("Content-Type", "application/json")];
+    let mut bad_obj = cornell();
+    bad_obj["files"]["cornell.obj"] = json!("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n");
+
+    let dry = server
+        .post(
+            "/renders?dry_run=true",
+            &json!({"scene": cornell(), "width": 64, "height": 48}),
+            &[],
+        )
+        .json();
+    let over = format!(
+        "the predicted cost {} is over the budget max_cost_usd = $0.000100 ({} tasks, about \
+         {:.1} s); raise the budget or render fewer pixels or samples",
+        usd(dry["predicted_cost_usd"].as_f64().unwrap()),
+        dry["tasks_total"],
+        dry["predicted_seconds"].as_f64().unwrap()
+    );
+    let cases: Vec<Case> =
+        vec![
+        (
+            "malformed JSON",
+            server.call("POST", "/renders", &json_type, br#"{"scene": "#),
+            400,
+            "invalid_json",
+            "the request body is not valid JSON: EOF while parsing a value at line 1 column 10"
+                .into(),
+            None,
+        ),
+        (
+            "unknown field",
+            server.post("/renders", &json!({"scene": cornell(), "colour": "red"}), &[]),
+            400,
+            "invalid_request",
+            "colour: unknown field `colour`, expected one of `scene`, `width`, `height`, `spp`, \
+             `splits`, `spans`, `split_mode`, `max_cost_usd`"
+                .into(),
+            Some("colour"),
+        ),
+        (
+            "unknown nested field",
+            server.post("/renders", &json!({"scene": {"key": "a.json", "url": "x"}}), &[]),
+            400,
+            "invalid_request",
+            "scene.url: unknown field `url`, expected one of `main`, `files`, `key`".into(),
+            Some("scene.url"),
+        ),
+        (
+            "wrong type",
+            server.post("/renders", &json!({"scene": cornell(), "width": "wide"}), &[]),
+            400,
+            "invalid_request",
+            "width: invalid type: string \"wide\", expected u32".into(),
+            Some("width"),
+        ),
+        (
+            "missing scene",
+            server.post("/renders", &json!({"width": 64}), &[]),
+            400,
+            "invalid_request",
+            "scene: missing field `scene`".into(),
+            Some("scene"),
+        ),
+        (
+            "bad scene file and line",
+            server.post("/renders", &json!({"scene": bad_obj}), &[]),
+            400,
+            "invalid_scene",
+            "cornell.obj:4: face refers to vertex 9, but only 3 vertices are defined so far".into(),
+            Some("scene"),
+        ),
+        (
+            "missing key",
+            server.post("/renders", &json!({"scene": {"key": "scenes/none.json"}}), &[]),
+            400,
+            "invalid_request",
+            "scene.key: there is no object scenes/none.json in the bucket".into(),
+            Some("scene.key"),
+        ),
+        (
+            "unknown job",
+            server.get("/renders/r-0-0"),
+            404,
+            "not_found",
+            "no render \"r-0-0\"".into(),
+            None,
+        ),
+        (
+            "no image of an unknown job",
+            server.get("/renders/r-0-0/image?format=pfm"),
+            404,
+            "not_found",
+            "no render \"r-0-0\"".into(),
+            None,
+        ),
+        (
+            "unknown route",
+            server.get("/jobs"),
+            404,
+            "not_found",
+            "no route GET /jobs: the API has /renders, /renders/{id}, /renders/{id}/image and \
+             /renders/{id}/report"
+                .into(),
+            None,
+        ),
+        (
+            "wrong method",
+            server.call("PUT", "/renders/r-0-0", &[], b""),
+            405,
+            "method_not_allowed",
+            "PUT is not allowed on /renders/r-0-0; allowed: GET, DELETE".into(),
+            None,
+        ),
+        (
+            // Only the head is sent: the answer comes without the body being read.
+            "body over the limit",
+            server.call(
+                "POST",
+                "/renders",
+                &[("Content-Type", "application/json"), ("Content-Length", "7340033")],
+                b"",
+            ),
+            413,
+            "payload_too_large",
+            "the request body is 7340033 bytes, over the limit of 6291456 bytes; give a large \
+             scene by key ({\"scene\": {\"key\": \"...\"}}) instead of inline files"
+                .into(),
+            None,
+        ),
+        (
+            "not JSON",
+            server.call("POST", "/renders", &[("Content-Type", "text/plain")], b"{}"),
+            415,
+            "unsupported_media_type",
+            "the request body must be JSON (Content-Type: application/json), not text/plain".into(),
+            None,
+        ),
+        (
+            "over budget",
+            server.post(
+                "/renders",
+                &json!({"scene": cornell(), "width": 64, "height": 48, "max_cost_usd": 0.0001}),
+                &[],
+            ),
+            422,
+            "over_budget",
+            over,
+            Some("max_cost_usd"),
+        ),
+    ];
+    for (what, reply, status, code, message, field) in cases {
+        assert_eq!(
+            reply.status,
+            status,
+            "{what}: {}",
+            String::from_utf8_lossy(&reply.body)
+        );
+        assert_eq!(
+            reply.header("content-type"),
+            Some("application/json"),
+            "{what}"
+        );
+        let (got_code, got_message, got_field) = reply.error();
+        assert_eq!(got_code, code, "{what}");
+        assert_eq!(got_message, message, "{what}");
+        assert_eq!(got_field.as_deref(), field, "{what}");
+        if status == 405 {
+            assert_eq!(reply.header("allow"), Some("GET, DELETE"));
+        }
+    }
+    assert!(
+        !data.join("hort/jobs").exists(),
+        "no bad request started a job"
+    );
+
+    // A scene given by key is read from the bucket beside its main file.
+    let by_key = server.post(
+        "/renders?dry_run=true",
+        &json!({"scene": {"key": "scenes/box/cornell.json"}, "width": 64, "height": 48}),
+        &[],
+    );
+    assert_eq!(
+        by_key.status,
+        200,
+        "{}",
+        String::from_utf8_lossy(&by_key.body)
+    );
+    let by_key = by_key.json();
+    assert_eq!(by_key["scene"], "scenes/box/cornell.json");
+    assert_eq!(
+        by_key["stages"], dry["stages"],
+        "the same scene, the same plan"
+    );
+    drop(server);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn delete_cancels_a_running_job_and_removes_its_intermediates() {
+    let dir = scratch("cancel");
+    let data = dir.join("data");
+    let server = Serve::start(&data);
+    // About 17 million camera samples in 100 spans: minutes of work on two slots.
+    let body = json!({"scene": cornell(), "width": 1024, "height": 1024, "spp": 16});
+    let accepted = server.post("/renders", &body, &[]);
+    assert_eq!(
+        accepted.status,
+        202,
+        "{}",
+        String::from_utf8_lossy(&accepted.body)
+    );
+    let job = accepted.json()["job"].as_str().unwrap().to_owned();
+    let t0 = Instant::now();
+    loop {
+        let s = server.get(&format!("/renders/{job}")).json();
+        assert_eq!(s["error"], Value::Null, "{s}");
+        if s["status"] == "RUNNING" && s["tasks_done"].as_u64().unwrap() >= 3 {
+            assert_eq!(s["stage"], "cast-map", "{s}");
+            break;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(120), "{s}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let job_dir = data.join(format!("hort/jobs/{job}"));
+    assert!(
+        files_under(&job_dir)
+            .iter()
+            .any(|f| f.starts_with("splits/")),
+        "the job has intermediates to delete: {:?}",
+        files_under(&job_dir)
+    );
+    let t1 = Instant::now();
+    let deleted = server.call("DELETE", &format!("/renders/{job}"), &[], b"");
+    assert_eq!(
+        deleted.status,
+        200,
+        "{}",
+        String::from_utf8_lossy(&deleted.body)
+    );
+    let deleted = deleted.json();
+    eprintln!("DELETE answered in {:.2} s", t1.elapsed().as_secs_f64());
+    assert_eq!(deleted["status"], "CANCELLED", "{deleted}");
+    assert!(deleted["tasks_done"].as_u64() < deleted["tasks_total"].as_u64());
+    assert_eq!(files_under(&job_dir), ["manifest.json~obj"]);
+    std::thread::sleep(Duration::from_millis(500));
+    assert_eq!(
+        files_under(&job_dir),
+        ["manifest.json~obj"],
+        "nothing of the job's is written after the cancel"
+    );
+    let status = server.get(&format!("/renders/{job}")).json();
+    assert_eq!(status["status"], "CANCELLED");
+    let image = server.get(&format!("/renders/{job}/image"));
+    assert_eq!(image.status, 404);
+    assert_eq!(
+        image.error().1,
+        format!("render {job} has no image: the job is CANCELLED")
+    );
+    // Cancelling again changes nothing.
+    let again = server
+        .call("DELETE", &format!("/renders/{job}"), &[], b"")
+        .json();
+    assert_eq!(again["status"], "CANCELLED");
+
+    // A client that leaves before the answer does not stop its job.
+    let small = json!({"scene": cornell(), "width": 32, "height": 32});
+    let mut stream = TcpStream::connect(("127.0.0.1", server.port)).unwrap();
+    let text = small.to_string();
+    write!(
+        stream,
+        "POST /renders HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\nIdempotency-Key: \
+         gone\r\nContent-Length: {}\r\n\r\n{text}",
+        text.len()
+    )
+    .unwrap();
+    drop(stream);
+    std::thread::sleep(Duration::from_millis(1000));
+    let replay = server
+        .post("/renders", &small, &[("Idempotency-Key", "gone")])
+        .json();
+    assert_eq!(replay["replayed"], true, "{replay}");
+    let job = replay["job"].as_str().unwrap();
+    let done = server.wait_done(job, Duration::from_secs(120));
+    assert_eq!(done["status"], "SUCCEEDED", "{done}");
+    drop(server);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
