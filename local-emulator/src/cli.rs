@@ -46,6 +46,9 @@ pub enum BenchCommand {
     Pipeline(crate::bench::PipelineBenchArgs),
     /// The local emulator end to end against the monolithic renderer, and a dying slot.
     Emulator(crate::bench::EmulatorBenchArgs),
+    /// Time under injected faults over fault-free time: failures, duplicates and stragglers,
+    /// and a dying function slot, over several seeds.
+    Faults(crate::bench::FaultsBenchArgs),
     /// Single-thread BVH kernel against native Embree on identical rays: Mrays/s, build, load.
     Kernel(crate::bench::KernelBenchArgs),
 }

@@ -47,6 +47,9 @@ fn main() -> std::process::ExitCode {
             command: cli::BenchCommand::Emulator(args),
         } => bench::run_emulator_bench(&args),
         cli::Command::Bench {
+            command: cli::BenchCommand::Faults(args),
+        } => bench::run_faults_bench(&args),
+        cli::Command::Bench {
             command: cli::BenchCommand::Kernel(args),
         } => bench::run_kernel_bench(&args),
     };

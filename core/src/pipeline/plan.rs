@@ -23,12 +23,19 @@ const AUTO_TRIANGLES_PER_SPLIT: u64 = 250_000;
 const AUTO_SAMPLES_PER_SPAN: u64 = 65_536;
 
 /// Shortest per-task timeout a plan gives, seconds.
-const MIN_TIMEOUT_SECONDS: u32 = 10;
-/// Longest per-task timeout a plan gives, seconds: three attempts must fit an EXPRESS child's
-/// 5 minutes.
-const MAX_TIMEOUT_SECONDS: u32 = 90;
-/// Rays per second a task is assumed to manage at the least, for its timeout.
-const SLOWEST_RAYS_PER_SECOND: u64 = 100_000;
+const MIN_TIMEOUT_SECONDS: u64 = 2;
+/// Longest per-task timeout a plan gives, seconds: the five timed-out attempts the state
+/// machine allows, with their backoff, must fit an EXPRESS child's 5 minutes.
+const MAX_TIMEOUT_SECONDS: u64 = 40;
+/// A task's timeout is this many times its predicted time.
+const TIMEOUT_MULTIPLE: u64 = 3;
+/// Predicted start-up of any task (invocation, first storage round trips), microseconds.
+const STARTUP_MICROS: u64 = 500_000;
+/// Rays (in the stage's unit, see [`JobPlan::task_timeout_seconds`]) one function is
+/// predicted to process per second.
+const RAYS_PER_SECOND: u64 = 1_000_000;
+/// Triangles of a split object one function is predicted to fetch and decode per second.
+const SPLIT_TRIANGLES_PER_SECOND: u64 = 2_000_000;
 
 /// What the user asked for; `None` means choose automatically. Stored inside the job request,
 /// so its JSON field names are part of the job request's format.
@@ -167,31 +174,42 @@ impl JobPlan {
         }
     }
 
-    /// The timeout of task `task` of `stage`, seconds: 10 s plus its rays at a pessimistic
-    /// 100k rays/s, at most 90 s. A task that does not exist gets the 10 s floor.
+    /// The timeout of task `task` of `stage`, seconds: a few times its predicted time.
+    ///
+    /// The prediction is 0.5 s of start-up, plus R rays at 1,000,000 per second, plus (for
+    /// CastMap and TraceMap) the split's triangles at 2,000,000 per second (fetching and
+    /// decoding the split object), where R is the span's samples (pixels x spp) for CastMap,
+    /// samples x lights for TraceMap, samples x (1 + lights) / 4 for the reduce stages and
+    /// Expand, and width x height / 4 for Plan and Combine. The timeout is 3 times that,
+    /// rounded up to whole seconds, at least 2 s and at most 40 s (integer arithmetic in
+    /// microseconds). A task that does not exist gets the 2 s floor.
     pub fn task_timeout_seconds(&self, stage: Stage, task: u32) -> u32 {
         let span_samples = |span: u32| {
             self.spans
                 .get(span as usize)
                 .map_or(0, |s| (s.end - s.start) * u64::from(self.spp))
         };
+        let split_triangles =
+            |split: u32| self.splits.get(split as usize).map_or(0, |s| s.triangles);
         let lights = self.lights.len() as u64;
-        let rays = match stage {
+        let (rays, triangles) = match stage {
             Stage::CastMap => self
                 .cast_tasks
                 .get(task as usize)
-                .map_or(0, |t| span_samples(t.span)),
-            Stage::TraceMap => self
-                .trace_tasks
-                .get(task as usize)
-                .map_or(0, |t| span_samples(t.span) * lights),
+                .map_or((0, 0), |t| (span_samples(t.span), split_triangles(t.split))),
+            Stage::TraceMap => self.trace_tasks.get(task as usize).map_or((0, 0), |t| {
+                (span_samples(t.span) * lights, split_triangles(t.split))
+            }),
             Stage::CastReduce | Stage::Expand | Stage::TraceReduce => {
-                span_samples(task) * (1 + lights) / 4
+                (span_samples(task) * (1 + lights) / 4, 0)
             }
-            Stage::Combine | Stage::Plan => u64::from(self.width) * u64::from(self.height) / 4,
+            Stage::Combine | Stage::Plan => (u64::from(self.width) * u64::from(self.height) / 4, 0),
         };
-        let seconds = u64::from(MIN_TIMEOUT_SECONDS) + rays / SLOWEST_RAYS_PER_SECOND;
-        seconds.min(u64::from(MAX_TIMEOUT_SECONDS)) as u32
+        let micros = STARTUP_MICROS
+            .saturating_add(rays.saturating_mul(1_000_000) / RAYS_PER_SECOND)
+            .saturating_add(triangles.saturating_mul(1_000_000) / SPLIT_TRIANGLES_PER_SECOND);
+        let seconds = micros.saturating_mul(TIMEOUT_MULTIPLE).div_ceil(1_000_000);
+        seconds.clamp(MIN_TIMEOUT_SECONDS, MAX_TIMEOUT_SECONDS) as u32
     }
 
     /// Total bytes of all split objects (the scene as stored).
@@ -378,18 +396,21 @@ mod tests {
         assert_eq!(counts, [1, plan.cast_tasks.len(), 7, 7, 21, 7, 1]);
         // 64x48 over 7 spans: span 0 holds 438 pixels; cornell has one light.
         assert_eq!(plan.spans[0].end - plan.spans[0].start, 438);
-        assert_eq!(plan.task_timeout_seconds(Stage::TraceMap, 0), 10);
-        assert_eq!(plan.task_timeout_seconds(Stage::TraceMap, 999), 10);
+        // 438 shadow rays and a few triangles: 3 x 0.5 s of start-up, rounded up to the floor.
+        assert_eq!(plan.task_timeout_seconds(Stage::TraceMap, 0), 2);
+        assert_eq!(plan.task_timeout_seconds(Stage::TraceMap, 999), 2);
         let mut dense = plan.clone();
-        dense.spp = 1000; // 438,000 camera rays in span 0: 10 s + 4 s
+        dense.spp = 1000; // 438,000 camera rays in span 0: 3 x (0.5 + 0.438 + ~0) s = 2.8 s
         assert_eq!(dense.cast_tasks[0].span, 0);
-        assert_eq!(dense.task_timeout_seconds(Stage::CastMap, 0), 14);
-        assert_eq!(
-            dense.task_timeout_seconds(Stage::CastReduce, 0),
-            10 + 876_000 / 4 / 100_000
-        );
-        dense.spp = 100_000; // 438 s of rays at the floor rate: capped
-        assert_eq!(dense.task_timeout_seconds(Stage::CastMap, 0), 90);
+        assert_eq!(dense.task_timeout_seconds(Stage::CastMap, 0), 3);
+        // 876,000 samples x (1 + 1 light) / 4 = 438,000 units: the same 3 s.
+        assert_eq!(dense.task_timeout_seconds(Stage::CastReduce, 0), 3);
+        // A split of 4 million triangles adds 2 s of loading: 3 x 2.938 s = 8.8 s.
+        let split = dense.cast_tasks[0].split as usize;
+        dense.splits[split].triangles = 4_000_000;
+        assert_eq!(dense.task_timeout_seconds(Stage::CastMap, 0), 9);
+        dense.spp = 100_000; // 43.8 million rays: 132 s predicted x 3, capped
+        assert_eq!(dense.task_timeout_seconds(Stage::CastMap, 0), 40);
         let e = JobPlan::from_json("jobs/x/plan.json", b"{")
             .unwrap_err()
             .to_string();

@@ -2,6 +2,7 @@
 //! same run, and append the rows to a CSV file.
 
 mod emulator;
+mod faults;
 mod kernel;
 #[cfg(feature = "obvhs-bench")]
 mod obvhs_kernel;
@@ -10,6 +11,7 @@ mod scenes;
 mod table;
 
 pub use emulator::{EmulatorBenchArgs, run_emulator_bench};
+pub use faults::{FaultsBenchArgs, run_faults_bench};
 pub use kernel::{KernelBenchArgs, run_kernel_bench};
 pub use pipeline::{PipelineBenchArgs, run_pipeline_bench};
 

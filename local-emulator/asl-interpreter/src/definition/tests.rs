@@ -204,7 +204,7 @@ fn the_hort_definition_compiles_to_the_documented_graph() {
         panic!("TraceMapTask is a Task");
     };
     assert_eq!(task.function, "WorkerFunctionArn");
-    assert_eq!(task.retry.len(), 3);
+    assert_eq!(task.retry.len(), 4);
     assert_eq!(task.retry[0].max_attempts, 0);
     assert_eq!(task.retry[0].error_equals, ["Hort.BadInput"]);
     assert!(
