@@ -9,7 +9,7 @@
 # profile: cargo lambda's default target/lambda/ is shared by all builds).
 # HORT_LAMBDA_ARCH=x86-64 builds for x86-64 instead; arm64 falls back to x86-64, saying so, when
 # rustup cannot add the aarch64-unknown-linux-gnu target. HORT_LAMBDA_BINS overrides the binaries
-# (default "worker plan starter"). cargo-lambda comes from infra/install-cargo-lambda.sh.
+# (default "worker plan starter api"). cargo-lambda comes from infra/install-cargo-lambda.sh.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
@@ -27,7 +27,7 @@ if [[ "$arch" == arm64 ]] && ! rustup target list --installed 2>/dev/null | grep
     fi
 fi
 bins=()
-for bin in ${HORT_LAMBDA_BINS:-worker plan starter}; do
+for bin in ${HORT_LAMBDA_BINS:-worker plan starter api}; do
     bins+=(--bin "$bin")
 done
 out="target/lambda/$arch-$profile"
@@ -40,7 +40,7 @@ echo "build-lambdas: built in $(( $(date +%s) - start )) s"
 
 # Sizes: the bootstrap, and the zip Lambda receives (deflate, as `sam build` and cargo lambda
 # package it).
-python3 - "$out" ${HORT_LAMBDA_BINS:-worker plan starter} <<'PY'
+python3 - "$out" ${HORT_LAMBDA_BINS:-worker plan starter api} <<'PY'
 import io, os, sys, zipfile
 out, bins = sys.argv[1], sys.argv[2:]
 for b in bins:

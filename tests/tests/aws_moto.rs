@@ -4,6 +4,7 @@
 //!
 //!     bash tests/s3-servers/with-moto.sh cargo test -p hort-tests --test aws_moto -- --nocapture
 //!
+//! The API's deployment backend is driven through the router (`hort_functions::api::handle`).
 //! Without that variable the moto tests say they are skipped and pass; `.ci/run` always runs
 //! them with it. moto keeps real time: visibility timeouts expire, and a message received
 //! `maxReceiveCount` times moves to the dead-letter queue on the next receive. moto records
@@ -13,6 +14,7 @@ use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::Duration;
 
 use hort_core::ids::JobId;
+use hort_core::store::BlobStore;
 use hort_functions::S3Credentials;
 use hort_functions::aws::aws_lambda_events::event::sqs::{SqsEvent, SqsMessage};
 use hort_functions::aws::aws_sdk_sqs::types::QueueAttributeName;
@@ -410,4 +412,178 @@ fn an_unreachable_endpoint_is_retryable_and_named() {
             .expect_err("unreachable");
         assert_eq!(e.kind, AwsErrorKind::Unavailable, "{e}");
     });
+}
+
+/// One request through the HTTP API's router over `backend`: (status, JSON body).
+fn call(
+    backend: &hort_functions::aws::api_backend::AwsBackend,
+    method: &str,
+    uri: &str,
+    body: Option<serde_json::Value>,
+    key: Option<&str>,
+) -> (u16, serde_json::Value) {
+    let mut request = http::Request::builder()
+        .method(method)
+        .uri(uri)
+        .header("host", "api.example");
+    if body.is_some() {
+        request = request.header("content-type", "application/json");
+    }
+    if let Some(key) = key {
+        request = request.header("idempotency-key", key);
+    }
+    let bytes = body.map(|b| b.to_string().into_bytes()).unwrap_or_default();
+    let response = hort_functions::api::handle(backend, request.body(bytes).unwrap());
+    let status = response.status().as_u16();
+    let json = serde_json::from_slice(response.body()).unwrap_or(serde_json::Value::Null);
+    (status, json)
+}
+
+#[test]
+fn the_deployment_api_backend_queues_starts_reports_and_cancels_jobs() {
+    let runtime = runtime();
+    let Some((config, label)) = runtime.block_on(moto()) else {
+        return;
+    };
+    let endpoint = std::env::var("HORT_TEST_AWS_ENDPOINT").unwrap();
+    let bucket = unique("hort-api");
+    let (backend, intake, executions) = runtime.block_on(async {
+        let s3 = hort_functions::S3Config::compatible(&endpoint, &bucket, "testing", "testing");
+        let store = hort_functions::S3Store::connect(&s3)
+            .await
+            .expect("S3 client");
+        let sqs = aws_sdk_sqs::Client::new(&config);
+        let sfn = aws_sdk_sfn::Client::new(&config);
+        let intake = queue(&sqs, &label, &unique("hort-api-intake"), &[]).await;
+        let arn = state_machine(&sfn, &unique("hort-api-jobs")).await;
+        let executions = Executions::new(sfn, &arn, &label);
+        let backend = hort_functions::aws::api_backend::AwsBackend::new(
+            store,
+            intake.clone(),
+            executions.clone(),
+            tokio::runtime::Handle::current(),
+            hort_functions::aws::api_backend::DeploymentLimits {
+                max_concurrency: 50,
+                worker_memory_mb: 2048,
+            },
+        );
+        (backend, intake, executions)
+    });
+    // The store blocks on the runtime: from here on, call it from this (non-runtime) thread.
+    let store = hort_functions::S3Store::open(&hort_functions::S3Config::compatible(
+        &endpoint, &bucket, "testing", "testing",
+    ))
+    .expect("S3 client");
+    store.create_bucket_if_missing().expect("bucket");
+    let triangle = serde_json::json!({
+        "scene": {"main": "a.obj", "files": {"a.obj": "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"}},
+        "width": 32, "height": 24
+    });
+
+    let (status, accepted) = call(
+        &backend,
+        "POST",
+        "/renders",
+        Some(triangle.clone()),
+        Some("k1"),
+    );
+    assert_eq!(status, 202, "{accepted}");
+    let job = accepted["job"].as_str().expect("job id").to_owned();
+    let job_id = JobId::new(&job).unwrap();
+    let (status, again) = call(
+        &backend,
+        "POST",
+        "/renders",
+        Some(triangle.clone()),
+        Some("k1"),
+    );
+    assert!(status < 300, "{status} {again}");
+    assert_eq!(
+        again["job"], accepted["job"],
+        "the idempotency key names the first job"
+    );
+    // The job is stored as the Plan function reads it.
+    let manifest: hort_functions::handlers::JobRequest =
+        serde_json::from_slice(&store.get(&format!("jobs/{job}/manifest.json")).unwrap()).unwrap();
+    assert_eq!(manifest.scene, "a.obj");
+    assert_eq!(manifest.max_concurrency, 50);
+    assert_eq!((manifest.render.width, manifest.render.height), (32, 24));
+    assert!(store.get(&format!("jobs/{job}/scene/a.obj")).is_ok());
+
+    let (status, queued) = call(&backend, "GET", &format!("/renders/{job}"), None, None);
+    assert_eq!(
+        (status, queued["status"].as_str()),
+        (200, Some("QUEUED")),
+        "{queued}"
+    );
+    let (status, _) = call(
+        &backend,
+        "GET",
+        &format!("/renders/{job}/image"),
+        None,
+        None,
+    );
+    assert_eq!(status, 404, "no image before the job succeeds");
+    let (status, _) = call(&backend, "GET", "/renders/r-nosuchjob", None, None);
+    assert_eq!(status, 404);
+
+    // The Starter takes the queued message(s): one execution, named by the job.
+    let messages = runtime
+        .block_on(intake.receive(10, Duration::ZERO))
+        .expect("receive");
+    assert!(!messages.is_empty());
+    let response = runtime.block_on(start_batch(&executions, &bucket, &sqs_event(&messages)));
+    assert!(response.batch_item_failures.is_empty(), "{response:?}");
+    let (_, running) = call(&backend, "GET", &format!("/renders/{job}"), None, None);
+    assert_eq!(running["status"], "RUNNING", "{running}");
+
+    // Cancelling stops the execution and deletes intermediate objects, keeping the request.
+    let block = hort_core::keys::partition_key(
+        &job_id,
+        hort_core::ids::Stage::CastMap,
+        hort_core::ids::TaskId(0),
+        hort_core::ids::PartitionId(0),
+    );
+    store.put(&block, b"block").unwrap();
+    let (_, progress) = call(&backend, "GET", &format!("/renders/{job}"), None, None);
+    assert_eq!(progress["tasks_done"], 1, "{progress}");
+    assert_eq!(progress["stage"], "cast-map", "{progress}");
+    let (status, cancelled) = call(&backend, "DELETE", &format!("/renders/{job}"), None, None);
+    assert_eq!(
+        (status, cancelled["status"].as_str()),
+        (200, Some("CANCELLED")),
+        "{cancelled}"
+    );
+    assert!(store.get(&block).unwrap_err().is_not_found());
+    assert!(store.get(&format!("jobs/{job}/manifest.json")).is_ok());
+    let described = runtime.block_on(executions.describe(&job_id)).unwrap();
+    assert_eq!(described.status, ExecutionStatus::Aborted);
+
+    // A job cancelled while queued never runs: its message later starts nothing.
+    let (_, second) = call(&backend, "POST", "/renders", Some(triangle), None);
+    let second = second["job"].as_str().expect("job id").to_owned();
+    assert_ne!(second, job);
+    let (_, cancelled) = call(
+        &backend,
+        "DELETE",
+        &format!("/renders/{second}"),
+        None,
+        None,
+    );
+    assert_eq!(cancelled["status"], "CANCELLED", "{cancelled}");
+    let messages = runtime
+        .block_on(intake.receive(10, Duration::ZERO))
+        .expect("receive");
+    let response = runtime.block_on(start_batch(&executions, &bucket, &sqs_event(&messages)));
+    assert!(response.batch_item_failures.is_empty(), "{response:?}");
+    let (_, still) = call(&backend, "GET", &format!("/renders/{second}"), None, None);
+    assert_eq!(still["status"], "CANCELLED", "{still}");
+    let (status, report) = call(
+        &backend,
+        "GET",
+        &format!("/renders/{second}/report"),
+        None,
+        None,
+    );
+    assert_eq!(status, 404, "{report}");
 }

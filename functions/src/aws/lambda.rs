@@ -9,9 +9,12 @@
 //! |---|---|---|
 //! | `HORT_BUCKET` | all | the bucket the functions serve (required) |
 //! | `HORT_SPLIT_CACHE_MB` | worker | decoded splits kept between invocations, in MiB (default: 1024, at most half the function's memory) |
-//! | `HORT_STATE_MACHINE_ARN` | starter | the state machine to start (required) |
-//! | `HORT_S3_ENDPOINT` | plan, worker | an S3-compatible server instead of AWS S3 (local runs), path-style |
-//! | `HORT_AWS_ENDPOINT` | starter | a server for the Step Functions API instead of AWS (local runs) |
+//! | `HORT_STATE_MACHINE_ARN` | starter, api | the state machine to start (required) |
+//! | `HORT_QUEUE_URL` | api | the intake queue (required) |
+//! | `HORT_MAX_CONCURRENCY` | api | the Map concurrency of submitted jobs (default 0: no limit) |
+//! | `HORT_WORKER_MEMORY_MB` | api | the Worker's memory, for predictions (default 2048) |
+//! | `HORT_S3_ENDPOINT` | plan, worker, api | an S3-compatible server instead of AWS S3 (local runs), path-style |
+//! | `HORT_AWS_ENDPOINT` | starter, api | a server for the SQS and Step Functions APIs instead of AWS (local runs) |
 //!
 //! Credentials and region come from the SDK's default chains (on Lambda: the function's role and
 //! `AWS_REGION`).
@@ -25,7 +28,9 @@ use lambda_runtime::{Diagnostic, LambdaEvent, service_fn};
 use serde_json::Value;
 
 use super::AwsSettings;
+use super::api_backend::{AwsBackend, DeploymentLimits};
 use super::sfn::Executions;
+use super::sqs::JobQueue;
 use super::starter::start_batch;
 use crate::handlers::{Function, FunctionEnv, HandlerError, Invoked, dispatch};
 use crate::{S3Config, S3Store};
@@ -40,6 +45,12 @@ pub const STATE_MACHINE_VAR: &str = "HORT_STATE_MACHINE_ARN";
 pub const S3_ENDPOINT_VAR: &str = "HORT_S3_ENDPOINT";
 /// An endpoint for the Step Functions API instead of AWS.
 pub const AWS_ENDPOINT_VAR: &str = "HORT_AWS_ENDPOINT";
+/// The intake queue's URL (the api function).
+pub const QUEUE_URL_VAR: &str = "HORT_QUEUE_URL";
+/// The Map concurrency written into job requests (the api function; default 0, no limit).
+pub const MAX_CONCURRENCY_VAR: &str = "HORT_MAX_CONCURRENCY";
+/// The Worker's memory in MB, for predictions (the api function; default 2048).
+pub const WORKER_MEMORY_VAR: &str = "HORT_WORKER_MEMORY_MB";
 /// Lambda's variable holding the function's memory in MiB.
 pub const MEMORY_VAR: &str = "AWS_LAMBDA_FUNCTION_MEMORY_SIZE";
 /// The split cache budget without [`SPLIT_CACHE_VAR`], before the half-memory cap.
@@ -114,6 +125,80 @@ fn parse_mb(name: &str, value: &str) -> Result<u64, String> {
         .ok()
         .filter(|mb| *mb <= 1 << 20)
         .ok_or_else(|| format!("{name}={value:?} is not a size in MiB (0 to 1048576)"))
+}
+
+/// The settings of the api function.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ApiSettings {
+    /// The bucket served.
+    pub bucket: String,
+    /// The intake queue.
+    pub queue_url: String,
+    /// The job state machine.
+    pub state_machine_arn: String,
+    /// What jobs run with.
+    pub limits: DeploymentLimits,
+    /// An S3-compatible endpoint instead of AWS S3.
+    pub s3_endpoint: Option<String>,
+    /// An endpoint for SQS and Step Functions instead of AWS.
+    pub aws_endpoint: Option<String>,
+}
+
+impl ApiSettings {
+    /// The settings from the variables `var` returns; the error names the variable.
+    pub fn from_vars(var: impl Fn(&str) -> Option<String>) -> Result<Self, String> {
+        let number = |name: &str, default: u32| match var(name).filter(|v| !v.is_empty()) {
+            None => Ok(default),
+            Some(v) => v
+                .trim()
+                .parse::<u32>()
+                .map_err(|_| format!("{name}={v:?} is not a whole number")),
+        };
+        Ok(ApiSettings {
+            bucket: required(&var, BUCKET_VAR)?,
+            queue_url: required(&var, QUEUE_URL_VAR)?,
+            state_machine_arn: required(&var, STATE_MACHINE_VAR)?,
+            limits: DeploymentLimits {
+                max_concurrency: number(MAX_CONCURRENCY_VAR, 0)?,
+                worker_memory_mb: number(WORKER_MEMORY_VAR, 2048)?,
+            },
+            s3_endpoint: var(S3_ENDPOINT_VAR).filter(|v| !v.is_empty()),
+            aws_endpoint: var(AWS_ENDPOINT_VAR).filter(|v| !v.is_empty()),
+        })
+    }
+
+    /// [`ApiSettings::from_vars`] over the process environment.
+    pub fn from_env() -> Result<Self, String> {
+        Self::from_vars(|name| std::env::var(name).ok())
+    }
+
+    /// The backend: the S3 store, the queue and the executions, built once on the current
+    /// (multi-threaded) runtime.
+    pub async fn backend(&self) -> Result<AwsBackend, String> {
+        let mut s3 = S3Config::aws(self.bucket.clone(), None);
+        if let Some(endpoint) = &self.s3_endpoint {
+            s3.endpoint = Some(endpoint.clone());
+            s3.force_path_style = true;
+        }
+        let store = S3Store::connect(&s3).await.map_err(|e| e.to_string())?;
+        let settings = AwsSettings {
+            endpoint: self.aws_endpoint.clone(),
+            ..AwsSettings::aws()
+        };
+        let config = settings.sdk_config().await;
+        let label = AwsSettings::label(&config);
+        Ok(AwsBackend::new(
+            store,
+            JobQueue::new(aws_sdk_sqs::Client::new(&config), &self.queue_url, &label),
+            Executions::new(
+                aws_sdk_sfn::Client::new(&config),
+                &self.state_machine_arn,
+                &label,
+            ),
+            tokio::runtime::Handle::current(),
+            self.limits,
+        ))
+    }
 }
 
 /// The Lambda error of a handler failure: error type `Hort.Retryable` or `Hort.BadInput`
@@ -284,6 +369,33 @@ mod tests {
         let config = plan.s3_config();
         assert_eq!(config.endpoint.as_deref(), Some("http://127.0.0.1:9"));
         assert!(config.force_path_style);
+    }
+
+    #[test]
+    fn api_settings_come_from_the_environment() {
+        let e = ApiSettings::from_vars(vars(&[("HORT_BUCKET", "b")])).unwrap_err();
+        assert_eq!(e, "the environment variable HORT_QUEUE_URL is not set");
+        let all = [
+            ("HORT_BUCKET", "b"),
+            ("HORT_QUEUE_URL", "https://sqs/q"),
+            (
+                "HORT_STATE_MACHINE_ARN",
+                "arn:aws:states:r:1:stateMachine:m",
+            ),
+        ];
+        let s = ApiSettings::from_vars(vars(&all)).unwrap();
+        assert_eq!(
+            s.limits,
+            DeploymentLimits {
+                max_concurrency: 0,
+                worker_memory_mb: 2048
+            }
+        );
+        let mut more = all.to_vec();
+        more.push((MAX_CONCURRENCY_VAR, "100"));
+        more.push((WORKER_MEMORY_VAR, "lots"));
+        let e = ApiSettings::from_vars(vars(&more)).unwrap_err();
+        assert!(e.contains("HORT_WORKER_MEMORY_MB=\"lots\""), "{e}");
     }
 
     #[test]

@@ -6,6 +6,8 @@
 //!   id (idempotent), describe it, stop it.
 //! - [`starter`]: the Starter function's logic: an SQS batch of job messages becomes executions,
 //!   with partial batch failures.
+//! - [`api_backend`]: the HTTP API's backend in a deployment ([`api_backend::AwsBackend`]):
+//!   jobs stored in the bucket and sent to the intake queue, status from their executions.
 //! - [`lambda`]: what the Plan and Worker entry points share: settings from the environment,
 //!   clients built once per container, the handlers run on blocking threads, failures as Lambda
 //!   errors typed `Hort.Retryable` or `Hort.BadInput`.
@@ -14,6 +16,7 @@
 //! are re-exported ([`aws_sdk_sqs`], [`aws_sdk_sfn`]) for what the wrappers do not cover (tests
 //! create queues and state machines with them).
 
+pub mod api_backend;
 pub mod error;
 pub mod lambda;
 pub mod sfn;

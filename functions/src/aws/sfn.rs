@@ -79,6 +79,8 @@ pub struct Execution {
     pub error: Option<String>,
     /// The cause of a failed execution (`"<Stage> failed: ..."`).
     pub cause: Option<String>,
+    /// When it ended, in microseconds since the Unix epoch, once it did.
+    pub stopped_unix_us: Option<u64>,
 }
 
 /// A successful [`Executions::start`].
@@ -195,6 +197,10 @@ impl Executions {
             output: out.output,
             error: out.error,
             cause: out.cause,
+            stopped_unix_us: out.stop_date.and_then(|d| {
+                let micros = d.to_millis().ok()?.checked_mul(1000)?;
+                u64::try_from(micros).ok()
+            }),
         })
     }
 

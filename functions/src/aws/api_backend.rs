@@ -1,0 +1,417 @@
+//! [`AwsBackend`]: the HTTP API's [`RenderBackend`] in a deployment. A submitted job is stored
+//! in the bucket (`jobs/{job}/scene/`, `manifest.json`, and the API's own record
+//! `jobs/{job}/api.json`) and its message sent to the intake queue, where the Starter function
+//! starts the execution named by the job id. Status comes from that execution and the job's
+//! objects; images are read from `jobs/{job}/out/`.
+//!
+//! What a deployment does not report (yet): `cost_usd` (no per-task accounting in the cloud:
+//! `null`), `retried_attempts` (0), and the report JSON of `hort render --report` (404 saying so).
+//! `tasks_done` counts the tasks whose outputs are stored.
+//!
+//! Every method blocks: S3 through the store, SQS and Step Functions on the runtime `handle`.
+//! Call them from a blocking thread (`tokio::task::spawn_blocking`), never from an async task.
+
+use std::collections::BTreeSet;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{SystemTime, UNIX_EPOCH};
+
+use hort_core::cost::Arch;
+use hort_core::ids::{JobId, Stage};
+use hort_core::image::{decode_pfm, encode_exr};
+use hort_core::keys::{image_key, manifest_key, parse_partition_key, scene_prefix};
+use hort_core::store::{BlobStore, PutOutcome, StoreError};
+use serde::{Deserialize, Serialize};
+use tokio::runtime::Handle;
+
+use super::error::AwsErrorKind;
+use super::sfn::{ExecutionInput, ExecutionStatus, Executions};
+use super::sqs::JobQueue;
+use crate::S3Store;
+use crate::api::{
+    ApiError, ImageFormat, JobSpec, JobState, JobStatus, PredictionModel, RATES, RenderBackend,
+    Submission,
+};
+use crate::handlers::JobRequest;
+
+/// What a deployment's jobs run with, for the job requests and the predictions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DeploymentLimits {
+    /// The Map states' concurrency written into each job request (the Worker's reserved
+    /// concurrency; 0: no limit).
+    pub max_concurrency: u32,
+    /// The Worker's memory in MB.
+    pub worker_memory_mb: u32,
+}
+
+/// The API's record of a job, at `jobs/{job}/api.json` (created once, with `put_if_absent`).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct JobRecord {
+    job: String,
+    scene: String,
+    tasks_total: u64,
+    predicted_cost_usd: f64,
+    predicted_seconds: f64,
+    /// When the job was accepted: microseconds since the Unix epoch.
+    created_unix_us: u64,
+    idempotency_key: Option<String>,
+    max_cost_usd: Option<f64>,
+}
+
+fn record_key(job: &JobId) -> String {
+    format!("jobs/{job}/api.json")
+}
+
+fn now_unix_us() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_micros() as u64)
+}
+
+/// The job id an idempotency key always names: `key-` and a 64-bit FNV-1a hash of the key.
+fn keyed_id(key: &str) -> JobId {
+    let hash = key.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    });
+    JobId::new(format!("key-{hash:016x}")).expect("a valid job id")
+}
+
+/// A job id not used before: `r-`, the time in microseconds, and a per-process counter mixed
+/// with the process id.
+fn fresh_id() -> JobId {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    let salt = (u64::from(std::process::id()) << 20) ^ n;
+    JobId::new(format!("r-{}-{salt:x}", now_unix_us())).expect("a valid job id")
+}
+
+/// The render API's backend over S3, the intake queue and the state machine.
+pub struct AwsBackend {
+    store: S3Store,
+    queue: JobQueue,
+    executions: Executions,
+    handle: Handle,
+    limits: DeploymentLimits,
+}
+
+impl AwsBackend {
+    /// A backend storing jobs through `store` (its bucket is the functions' bucket), sending
+    /// them to `queue`, finding them among the executions of `executions`; SQS and Step
+    /// Functions calls block on `handle` (a multi-threaded runtime's).
+    pub fn new(
+        store: S3Store,
+        queue: JobQueue,
+        executions: Executions,
+        handle: Handle,
+        limits: DeploymentLimits,
+    ) -> Self {
+        AwsBackend {
+            store,
+            queue,
+            executions,
+            handle,
+            limits,
+        }
+    }
+
+    fn job_id(id: &str) -> Result<JobId, ApiError> {
+        JobId::new(id).map_err(|_| ApiError::not_found(format!("no render {id:?}")))
+    }
+
+    fn storage_error(what: &str, e: StoreError) -> ApiError {
+        ApiError::internal(format!("{what}: {e}"))
+    }
+
+    fn record(&self, job: &JobId) -> Result<JobRecord, ApiError> {
+        let key = record_key(job);
+        let bytes = self.store.get(&key).map_err(|e| match e {
+            StoreError::NotFound { .. } => ApiError::not_found(format!("no render {job}")),
+            e => Self::storage_error("cannot read the job's record", e),
+        })?;
+        serde_json::from_slice(&bytes)
+            .map_err(|e| ApiError::internal(format!("the record {key} is malformed: {e}")))
+    }
+
+    /// Stores the scene and the job request of `spec` as job `job`.
+    fn store_job(&self, job: &JobId, spec: &JobSpec) -> Result<(), ApiError> {
+        let prefix = scene_prefix(job);
+        for (name, bytes) in &spec.files {
+            self.store
+                .put(&format!("{prefix}{name}"), bytes)
+                .map_err(|e| Self::storage_error("cannot store the scene", e))?;
+        }
+        let request = JobRequest {
+            scene: spec.main.clone(),
+            render: spec.request,
+            max_concurrency: self.limits.max_concurrency,
+            task_timeout_seconds: None,
+        };
+        let json = serde_json::to_vec(&request)
+            .map_err(|e| ApiError::internal(format!("cannot encode the job request: {e}")))?;
+        self.store
+            .put(&manifest_key(job), &json)
+            .map_err(|e| Self::storage_error("cannot store the job request", e))
+    }
+
+    fn enqueue(&self, job: &JobId) -> Result<(), ApiError> {
+        let input = ExecutionInput {
+            job: job.clone(),
+            bucket: self.store.bucket().to_owned(),
+        };
+        self.handle
+            .block_on(self.queue.enqueue(&input))
+            .map(drop)
+            .map_err(|e| ApiError::internal(e.to_string()))
+    }
+
+    /// The execution's status, `None` while the job waits in the queue.
+    fn execution(&self, job: &JobId) -> Result<Option<super::sfn::Execution>, ApiError> {
+        match self.handle.block_on(self.executions.describe(job)) {
+            Ok(execution) => Ok(Some(execution)),
+            Err(e) if e.kind == AwsErrorKind::NotFound => Ok(None),
+            Err(e) => Err(ApiError::internal(e.to_string())),
+        }
+    }
+
+    /// Tasks whose outputs are stored, and the latest stage with any, from a listing.
+    fn progress(&self, job: &JobId) -> Result<(u64, Option<Stage>), ApiError> {
+        let keys = self
+            .store
+            .list(&format!("jobs/{job}/"))
+            .map_err(|e| Self::storage_error("cannot list the job's objects", e))?;
+        let mut tasks = BTreeSet::new();
+        for key in &keys {
+            if let Some((_, stage, task, _)) = parse_partition_key(key) {
+                tasks.insert((stage, task.0));
+            }
+        }
+        let plan = keys.iter().any(|k| k.ends_with("/plan.json"));
+        let latest = tasks
+            .iter()
+            .map(|(stage, _)| *stage)
+            .max_by_key(|stage| Stage::ALL.iter().position(|s| s == stage))
+            .or(plan.then_some(Stage::Plan));
+        Ok((tasks.len() as u64 + u64::from(plan), latest))
+    }
+
+    fn status_of(&self, job: &JobId, record: &JobRecord) -> Result<JobStatus, ApiError> {
+        let execution = self.execution(job)?;
+        let status = match execution.as_ref().map(|e| &e.status) {
+            None => JobState::Queued,
+            Some(ExecutionStatus::Running | ExecutionStatus::PendingRedrive) => JobState::Running,
+            Some(ExecutionStatus::Succeeded) => JobState::Succeeded,
+            Some(ExecutionStatus::Aborted) => JobState::Cancelled,
+            Some(
+                ExecutionStatus::Failed | ExecutionStatus::TimedOut | ExecutionStatus::Unknown(_),
+            ) => JobState::Failed,
+        };
+        let (mut tasks_done, stage) = self.progress(job)?;
+        if status == JobState::Succeeded {
+            tasks_done = record.tasks_total;
+        }
+        let error = match (status, &execution) {
+            (JobState::Failed, Some(e)) => Some(format!(
+                "{}: {}",
+                e.error.as_deref().unwrap_or("failed"),
+                e.cause.as_deref().unwrap_or("no cause given")
+            )),
+            _ => None,
+        };
+        let end = if status.is_final() {
+            execution
+                .as_ref()
+                .and_then(|e| e.stopped_unix_us)
+                .unwrap_or_else(now_unix_us)
+        } else {
+            now_unix_us()
+        };
+        Ok(JobStatus {
+            job: job.to_string(),
+            status,
+            stage: stage.map(|s| s.to_string()),
+            tasks_done: tasks_done.min(record.tasks_total),
+            tasks_total: record.tasks_total,
+            retried_attempts: 0,
+            elapsed_seconds: end.saturating_sub(record.created_unix_us) as f64 / 1e6,
+            cost_usd: None,
+            predicted_cost_usd: record.predicted_cost_usd,
+            error,
+            image_url: None,
+        })
+    }
+
+    fn get_output(&self, key: &str) -> Result<Vec<u8>, ApiError> {
+        self.store
+            .get(key)
+            .map_err(|e| Self::storage_error("cannot read the image", e))
+    }
+}
+
+impl RenderBackend for AwsBackend {
+    fn read_object(&self, key: &str) -> Result<Option<Vec<u8>>, ApiError> {
+        match self.store.get(key) {
+            Ok(bytes) => Ok(Some(bytes)),
+            Err(StoreError::NotFound { .. }) => Ok(None),
+            Err(e) => Err(Self::storage_error(&format!("cannot read {key}"), e)),
+        }
+    }
+
+    fn prediction_model(&self) -> PredictionModel {
+        PredictionModel {
+            // No limit means the account's default Lambda concurrency quota.
+            concurrency: match self.limits.max_concurrency {
+                0 => 1000,
+                n => n,
+            },
+            memory_mb: self.limits.worker_memory_mb,
+            arch: Arch::Arm64,
+            speed: 1.0,
+            rates: RATES,
+        }
+    }
+
+    fn submit(&self, spec: JobSpec) -> Result<Submission, ApiError> {
+        let job = match &spec.idempotency_key {
+            Some(key) => keyed_id(key),
+            None => fresh_id(),
+        };
+        let record = JobRecord {
+            job: job.to_string(),
+            scene: spec.scene_name.clone(),
+            tasks_total: spec.prediction.tasks_total,
+            predicted_cost_usd: spec.prediction.predicted_cost_usd,
+            predicted_seconds: spec.prediction.predicted_seconds,
+            created_unix_us: now_unix_us(),
+            idempotency_key: spec.idempotency_key.clone(),
+            max_cost_usd: spec.max_cost_usd,
+        };
+        let json = serde_json::to_vec(&record)
+            .map_err(|e| ApiError::internal(format!("cannot encode the job's record: {e}")))?;
+        let outcome = self
+            .store
+            .put_if_absent(&record_key(&job), &json)
+            .map_err(|e| Self::storage_error("cannot store the job's record", e))?;
+        let replayed = match outcome {
+            PutOutcome::Created => false,
+            PutOutcome::AlreadyExists if spec.idempotency_key.is_some() => true,
+            PutOutcome::AlreadyExists => {
+                return Err(ApiError::internal(format!(
+                    "job id {job} is taken; try again"
+                )));
+            }
+        };
+        if replayed {
+            // The first submission may have stopped between its record and its message: finish
+            // its work (the Starter starts each job once, whatever the messages).
+            if self.execution(&job)?.is_some() {
+                return Ok(Submission {
+                    job: job.to_string(),
+                    replayed,
+                });
+            }
+            let stored = self.read_object(&manifest_key(&job))?.is_some();
+            if !stored {
+                self.store_job(&job, &spec)?;
+            }
+        } else {
+            self.store_job(&job, &spec)?;
+        }
+        self.enqueue(&job)?;
+        Ok(Submission {
+            job: job.to_string(),
+            replayed,
+        })
+    }
+
+    fn status(&self, id: &str) -> Result<JobStatus, ApiError> {
+        let job = Self::job_id(id)?;
+        let record = self.record(&job)?;
+        self.status_of(&job, &record)
+    }
+
+    fn image(&self, id: &str, format: ImageFormat) -> Result<Vec<u8>, ApiError> {
+        let status = self.status(id)?;
+        if status.status != JobState::Succeeded {
+            return Err(ApiError::not_found(format!(
+                "render {id} has no image: it is {}",
+                status.status.as_str()
+            )));
+        }
+        let job = Self::job_id(id)?;
+        match format {
+            ImageFormat::Png | ImageFormat::Pfm => {
+                self.get_output(&image_key(&job, format.extension()))
+            }
+            ImageFormat::Exr => {
+                let pfm = self.get_output(&image_key(&job, "pfm"))?;
+                let image = decode_pfm(&pfm)
+                    .map_err(|e| ApiError::internal(format!("the stored image of {id}: {e}")))?;
+                encode_exr(&image)
+                    .map_err(|e| ApiError::internal(format!("cannot encode OpenEXR: {e}")))
+            }
+        }
+    }
+
+    fn report(&self, id: &str) -> Result<Vec<u8>, ApiError> {
+        self.status(id)?;
+        Err(ApiError::not_found(format!(
+            "render {id}: a deployment keeps no report (no per-task accounting in the cloud \
+             yet); the image and GET /renders/{id} are available"
+        )))
+    }
+
+    fn cancel(&self, id: &str) -> Result<JobStatus, ApiError> {
+        let job = Self::job_id(id)?;
+        let record = self.record(&job)?;
+        let status = self.status_of(&job, &record)?;
+        if status.status.is_final() {
+            return Ok(status);
+        }
+        let aws = |e: super::AwsError| ApiError::internal(e.to_string());
+        if status.status == JobState::Queued {
+            // Start it under its name so that the queued message starts nothing, then stop it.
+            let input = ExecutionInput {
+                job: job.clone(),
+                bucket: self.store.bucket().to_owned(),
+            };
+            self.handle
+                .block_on(self.executions.start(&input))
+                .map_err(aws)?;
+        }
+        self.handle
+            .block_on(
+                self.executions
+                    .stop(&job, "Hort.Cancelled", "DELETE /renders"),
+            )
+            .map_err(aws)?;
+        // Intermediate objects go; the request, the scene and the record stay.
+        let keep = |key: &str| {
+            let rel = key.strip_prefix(&format!("jobs/{job}/")).unwrap_or(key);
+            rel == "manifest.json" || rel == "api.json" || rel.starts_with("scene/")
+        };
+        let keys: Vec<String> = self
+            .store
+            .list(&format!("jobs/{job}/"))
+            .map_err(|e| Self::storage_error("cannot list the job's objects", e))?
+            .into_iter()
+            .filter(|k| !keep(k))
+            .collect();
+        self.store
+            .delete_all(&keys)
+            .map_err(|e| Self::storage_error("cannot delete the job's objects", e))?;
+        self.status_of(&job, &record)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ids_are_valid_and_keys_name_one_job() {
+        assert_eq!(keyed_id("k1"), keyed_id("k1"));
+        assert_ne!(keyed_id("k1"), keyed_id("k2"));
+        assert!(keyed_id(&"x".repeat(255)).as_str().len() <= 64);
+        assert_ne!(fresh_id(), fresh_id());
+        assert!(fresh_id().as_str().len() <= 64);
+    }
+}
