@@ -302,7 +302,8 @@ fn connection_reason(err: &(dyn Error + 'static)) -> String {
 }
 
 /// The message of the last error in the source chain, on one line, without `(os error N)`.
-fn innermost(err: &(dyn Error + 'static)) -> String {
+/// Shared by the SQS and Step Functions error classification (`aws::error`).
+pub(crate) fn innermost(err: &(dyn Error + 'static)) -> String {
     let mut last = err;
     while let Some(next) = last.source() {
         last = next;
@@ -315,7 +316,7 @@ fn innermost(err: &(dyn Error + 'static)) -> String {
 }
 
 /// `text` with every run of whitespace (line breaks included) collapsed to one space.
-fn one_line(text: &str) -> String {
+pub(crate) fn one_line(text: &str) -> String {
     text.split_whitespace().collect::<Vec<_>>().join(" ")
 }
 

@@ -9,6 +9,7 @@
 
 use std::error::Error;
 
+use crate::s3_errors::{innermost, one_line};
 use aws_sdk_sqs::config::http::HttpResponse;
 use aws_sdk_sqs::error::{ProvideErrorMetadata, SdkError};
 use hort_core::ErrorType;
@@ -204,24 +205,6 @@ fn service_error<E: ProvideErrorMetadata>(
 /// The HTTP status of the answer, if the service answered at all.
 fn status_of<E>(err: &SdkError<E, HttpResponse>) -> Option<u16> {
     err.raw_response().map(|r| r.status().as_u16())
-}
-
-/// The message of the last error in the source chain, on one line, without `(os error N)`.
-fn innermost(err: &(dyn Error + 'static)) -> String {
-    let mut last = err;
-    while let Some(next) = last.source() {
-        last = next;
-    }
-    let text = one_line(&last.to_string());
-    match text.rfind(" (os error ") {
-        Some(at) if text.ends_with(')') => text[..at].to_owned(),
-        _ => text,
-    }
-}
-
-/// `text` with every run of whitespace (line breaks included) collapsed to one space.
-fn one_line(text: &str) -> String {
-    text.split_whitespace().collect::<Vec<_>>().join(" ")
 }
 
 #[cfg(test)]
