@@ -81,7 +81,7 @@ pub struct RenderArgs {
         "in_process", "workers", "splits", "spans", "split_mode", "s3_endpoint", "bucket",
         "region", "access_key", "secret_key", "data_dir", "job", "resume", "keep_intermediates",
         "fail_rate", "duplicate_rate", "slow_rate", "kill_slot_after", "seed", "task_timeout",
-        "time_scale", "memory_mb",
+        "time_scale", "memory_mb", "lambda_endpoint",
     ])]
     pub monolithic: bool,
     /// Worker threads of a monolithic render (default: all cores).
@@ -106,7 +106,7 @@ pub struct RenderArgs {
     #[arg(long, conflicts_with_all = [
         "s3_endpoint", "bucket", "region", "access_key", "secret_key", "data_dir", "job", "resume",
         "keep_intermediates", "fail_rate", "duplicate_rate", "slow_rate", "kill_slot_after",
-        "seed", "task_timeout", "time_scale", "memory_mb",
+        "seed", "task_timeout", "time_scale", "memory_mb", "lambda_endpoint",
     ])]
     pub in_process: bool,
     /// Use this S3-compatible endpoint (MinIO, Garage, Ceph RGW, moto) instead of the
@@ -166,6 +166,19 @@ pub struct RenderArgs {
     /// Multiplies every wait and timeout of the state machine (1 = real time).
     #[arg(long, default_value_t = 1.0, hide = true)]
     pub time_scale: f64,
+    /// Invoke the Plan and Worker functions through the Lambda Invoke API at URL (for example
+    /// `cargo lambda watch` at http://127.0.0.1:9000) instead of in this process. They read and
+    /// write the bucket themselves: give --s3-endpoint and --bucket they can reach too.
+    #[arg(long, requires = "bucket", conflicts_with_all = [
+        "fail_rate", "duplicate_rate", "slow_rate", "kill_slot_after", "data_dir", "resume",
+    ])]
+    pub lambda_endpoint: Option<String>,
+    /// The Plan function's name at --lambda-endpoint.
+    #[arg(long, default_value = "plan", requires = "lambda_endpoint")]
+    pub plan_function: String,
+    /// The Worker function's name at --lambda-endpoint.
+    #[arg(long, default_value = "worker", requires = "lambda_endpoint")]
+    pub worker_function: String,
     /// Lambda memory (MB) the cost estimate assumes, 128 to 10240 as in Lambda.
     #[arg(long, default_value_t = 2048, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(128..=10240))]
     pub memory_mb: u32,

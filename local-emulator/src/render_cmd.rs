@@ -4,7 +4,7 @@
 use crate::cli::RenderArgs;
 use crate::outputs::{check_distinct, check_image_path, check_output_path, write_output};
 use anyhow::{Context, Result, anyhow, bail};
-use hort::emulator::{EmulatorConfig, FaultSettings, JobOptions, run_job_with};
+use hort::emulator::{EmulatorConfig, FaultSettings, JobOptions, LambdaTarget, run_job_with};
 use hort::progress::{ProgressMode, ProgressObserver, print_summary};
 use hort_core::camera::Camera;
 use hort_core::cost::Arch;
@@ -297,6 +297,11 @@ fn render_emulated(args: &RenderArgs, request: PlanRequest) -> Result<Rendered> 
         memory_mb: args.memory_mb,
         arch: Arch::Arm64,
         cancel,
+        lambda: args.lambda_endpoint.as_ref().map(|endpoint| LambdaTarget {
+            endpoint: Some(endpoint.clone()),
+            plan: args.plan_function.clone(),
+            worker: args.worker_function.clone(),
+        }),
     };
     let progress = ProgressObserver::new(ProgressMode::detect());
     let options = JobOptions {

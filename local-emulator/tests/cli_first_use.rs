@@ -142,7 +142,7 @@ fn outputs_are_written_whole_and_report_dash_is_standard_output() {
 
 #[test]
 fn flags_of_another_mode_are_refused_naming_both() {
-    let cases: [(&[&str], &str); 8] = [
+    let cases: [(&[&str], &str); 11] = [
         (
             &["--threads", "2"],
             "error: the following required arguments were not provided:\n  --monolithic",
@@ -181,6 +181,26 @@ fn flags_of_another_mode_are_refused_naming_both() {
                 "/tmp/x",
             ],
             "error: the argument '--s3-endpoint <S3_ENDPOINT>' cannot be used with '--data-dir <DATA_DIR>'",
+        ),
+        (
+            &["--monolithic", "--lambda-endpoint", "http://127.0.0.1:1"],
+            "error: the argument '--monolithic' cannot be used with '--lambda-endpoint <LAMBDA_ENDPOINT>'",
+        ),
+        (
+            // The functions must reach the run's bucket: the embedded server's is not theirs.
+            &["--lambda-endpoint", "http://127.0.0.1:1"],
+            "error: the following required arguments were not provided:\n  --bucket <BUCKET>",
+        ),
+        (
+            &[
+                "--lambda-endpoint",
+                "http://127.0.0.1:1",
+                "--bucket",
+                "b",
+                "--fail-rate",
+                "0.1",
+            ],
+            "error: the argument '--lambda-endpoint <LAMBDA_ENDPOINT>' cannot be used with '--fail-rate <FAIL_RATE>'",
         ),
     ];
     for (flags, expected) in cases {

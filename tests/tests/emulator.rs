@@ -44,6 +44,7 @@ fn config(server: &s3_support::Embedded, workers: usize, faults: FaultSettings) 
         memory_mb: 2048,
         arch: Arch::Arm64,
         cancel: Arc::new(AtomicBool::new(false)),
+        lambda: None,
     }
 }
 

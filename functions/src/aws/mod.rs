@@ -8,6 +8,8 @@
 //!   with partial batch failures.
 //! - [`api_backend`]: the HTTP API's backend in a deployment ([`api_backend::AwsBackend`]):
 //!   jobs stored in the bucket and sent to the intake queue, status from their executions.
+//! - [`invoke`]: invoking a function through the Lambda Invoke API ([`LambdaFunctions`]), as
+//!   Step Functions does (`hort render --lambda-endpoint`).
 //! - [`lambda`]: what the Plan and Worker entry points share: settings from the environment,
 //!   clients built once per container, the handlers run on blocking threads, failures as Lambda
 //!   errors typed `Hort.Retryable` or `Hort.BadInput`.
@@ -18,6 +20,7 @@
 
 pub mod api_backend;
 pub mod error;
+pub mod invoke;
 pub mod lambda;
 pub mod sfn;
 pub mod sqs;
@@ -28,6 +31,7 @@ pub use aws_lambda_events;
 pub use aws_sdk_sfn;
 pub use aws_sdk_sqs;
 pub use error::{AwsError, AwsErrorKind};
+pub use invoke::{InvokeFailure, LambdaFunctions};
 pub use sfn::{Execution, ExecutionInput, ExecutionStatus, Executions, Started};
 pub use sqs::{JobQueue, ReceivedMessage};
 

@@ -47,6 +47,7 @@ fn emulator_config(workers: usize, faults: FaultSettings) -> EmulatorConfig {
         memory_mb: 2048,
         arch: Arch::Arm64,
         cancel: Arc::new(AtomicBool::new(false)),
+        lambda: None,
     }
 }
 

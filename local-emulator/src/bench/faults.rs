@@ -63,6 +63,7 @@ fn config(slots: usize, faults: FaultSettings) -> EmulatorConfig {
         memory_mb: 2048,
         arch: Arch::Arm64,
         cancel: Arc::new(AtomicBool::new(false)),
+        lambda: None,
     }
 }
 

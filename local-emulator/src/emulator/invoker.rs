@@ -6,7 +6,7 @@ use asl_interpreter::{TaskFailure, TaskInvoker};
 use hort_core::ids::{Stage, TaskId};
 use hort_core::pipeline::{SplitCache, TaskMetrics};
 use hort_core::store::BlobStore;
-use hort_functions::handlers::{Function, FunctionEnv, dispatch};
+use hort_functions::handlers::{Function, FunctionEnv, Invoked, TaskDone, dispatch};
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -25,6 +25,15 @@ pub struct Ledger {
 }
 
 impl Ledger {
+    /// Records one invocation of `ms` milliseconds and, for a successful Worker attempt, its
+    /// task's metrics (replacing an earlier successful attempt's: both wrote the same bytes).
+    pub fn record(&mut self, ms: f64, done: Option<TaskDone>) {
+        self.invocation_ms.push(ms);
+        if let Some(done) = done {
+            self.tasks.insert((done.stage, done.task), done.metrics);
+        }
+    }
+
     /// The summed metrics of one successful attempt per task of `stage`.
     pub fn stage(&self, stage: Stage) -> TaskMetrics {
         let mut total = TaskMetrics::default();
@@ -96,11 +105,14 @@ impl InProcessInvoker {
         let started = Instant::now();
         let result = self.dispatch(function, input, store);
         let ms = started.elapsed().as_secs_f64() * 1e3;
+        let (result, done) = match result {
+            Ok(invoked) => (Ok(invoked.output), invoked.task),
+            Err(e) => (Err(e), None),
+        };
         self.ledger
             .lock()
             .unwrap_or_else(|e| e.into_inner())
-            .invocation_ms
-            .push(ms);
+            .record(ms, done);
         result
     }
 
@@ -109,7 +121,7 @@ impl InProcessInvoker {
         function: &str,
         input: Value,
         store: &dyn BlobStore,
-    ) -> Result<Value, TaskFailure> {
+    ) -> Result<Invoked, TaskFailure> {
         let Some(function) = Function::from_state_machine_name(function) else {
             return Err(TaskFailure::new(
                 "Lambda.ResourceNotFoundException",
@@ -134,15 +146,7 @@ impl InProcessInvoker {
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .push(cache);
-        let invoked = result.map_err(|e| TaskFailure::new(e.error_type.as_str(), e.cause))?;
-        if let Some(done) = invoked.task {
-            self.ledger
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .tasks
-                .insert((done.stage, done.task), done.metrics);
-        }
-        Ok(invoked.output)
+        result.map_err(|e| TaskFailure::new(e.error_type.as_str(), e.cause))
     }
 }
 

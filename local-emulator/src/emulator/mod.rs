@@ -6,12 +6,14 @@
 mod accounting;
 mod faults;
 mod invoker;
+mod lambda_invoker;
 mod storage;
 mod upload;
 
 pub use accounting::{Accounting, FanOut, StageUsage};
 pub use faults::{FaultCounts, FaultSettings, FaultyInvoker};
 pub use invoker::{InProcessInvoker, Ledger};
+pub use lambda_invoker::{LambdaInvoker, LambdaTarget};
 pub use storage::{
     EMBEDDED_BUCKET, Storage, StorageTarget, exit_now, remove_stale_temp_folders,
     remove_temp_folders,
@@ -60,6 +62,9 @@ pub struct EmulatorConfig {
     pub arch: Arch,
     /// Set to stop the run (Ctrl-C).
     pub cancel: Arc<AtomicBool>,
+    /// Invoke the Plan and Worker functions through the Lambda Invoke API instead of in this
+    /// process (`--lambda-endpoint`); they must serve the run's bucket.
+    pub lambda: Option<LambdaTarget>,
 }
 
 /// A finished job as the emulator saw it.
@@ -173,27 +178,39 @@ pub fn run_job_with(
         &config.storage.flags(),
     )?;
 
-    let work_dir = storage.work_dir();
-    let functions = Arc::new(InProcessInvoker::new(
-        Arc::clone(&store),
-        &storage.bucket,
-        work_dir,
-        // The budget is for the whole emulator: each warm worker gets its share.
-        config.split_cache_bytes / config.workers.max(1) as u64,
-    ));
     let finished = Arc::new(AtomicBool::new(false));
-    let (invoker, fault_counts): (Arc<dyn TaskInvoker>, _) = if config.faults.any() {
-        let mut faulty = FaultyInvoker::new(
-            Arc::clone(&functions),
+    let functions = match &config.lambda {
+        Some(target) => {
+            if config.faults.any() {
+                return Err(anyhow!(
+                    "fault injection needs the functions in process: it cannot be combined with \
+                     --lambda-endpoint"
+                ));
+            }
+            Functions::Lambda(Arc::new(LambdaInvoker::new(target.clone())?))
+        }
+        None => Functions::InProcess(Arc::new(InProcessInvoker::new(
             Arc::clone(&store),
-            config.faults,
-            config.time_scale,
-        );
-        faulty.finished = Arc::clone(&finished);
-        let counts = Arc::clone(&faulty.counts);
-        (Arc::new(faulty), Some(counts))
-    } else {
-        (functions.clone(), None)
+            &storage.bucket,
+            storage.work_dir(),
+            // The budget is for the whole emulator: each warm worker gets its share.
+            config.split_cache_bytes / config.workers.max(1) as u64,
+        ))),
+    };
+    let (invoker, fault_counts): (Arc<dyn TaskInvoker>, _) = match &functions {
+        Functions::InProcess(in_process) if config.faults.any() => {
+            let mut faulty = FaultyInvoker::new(
+                Arc::clone(in_process),
+                Arc::clone(&store),
+                config.faults,
+                config.time_scale,
+            );
+            faulty.finished = Arc::clone(&finished);
+            let counts = Arc::clone(&faulty.counts);
+            (Arc::new(faulty), Some(counts))
+        }
+        Functions::InProcess(in_process) => (in_process.clone(), None),
+        Functions::Lambda(lambda) => (lambda.clone(), None),
     };
     let skipper = (submitted == Submitted::Resumed).then(|| {
         Arc::new(SkipFinishedTasks::new(
@@ -276,6 +293,21 @@ pub fn run_job_with(
         skipped_tasks: skipper.map_or(0, |s| s.skipped.load(Ordering::Relaxed)),
         deleted_intermediates,
     })
+}
+
+/// Where the functions run.
+enum Functions {
+    InProcess(Arc<InProcessInvoker>),
+    Lambda(Arc<LambdaInvoker>),
+}
+
+impl Functions {
+    fn ledger(&self) -> Ledger {
+        match self {
+            Functions::InProcess(f) => f.ledger(),
+            Functions::Lambda(f) => f.ledger(),
+        }
+    }
 }
 
 /// The stage name of a state path (`CastMap/CastMapTask` -> `cast-map`, and the states of its

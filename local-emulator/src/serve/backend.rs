@@ -473,6 +473,7 @@ fn run(shared: &Shared, job: &Job, spec: &JobSpec) {
                 memory_mb: 2048,
                 arch: Arch::Arm64,
                 cancel: Arc::clone(&job.cancel),
+                lambda: None,
             };
             run_job_with(
                 &config,
