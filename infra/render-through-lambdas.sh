@@ -5,23 +5,46 @@
 # every Plan and Worker task through that API. The image must be byte-identical to
 # `hort render --monolithic`, and the functions' log must show that they ran every stage.
 #
-#   bash infra/render-through-lambdas.sh [SCENE]    # default: scenes/cornell/cornell.json
+#   bash infra/render-through-lambdas.sh [--arm64] [SCENE]  # default: scenes/cornell/cornell.json
+#
+# --arm64: the functions are the aarch64 builds of `plan` and `worker`, run under qemu-user
+# (Debian's qemu-user and the aarch64 cross linker, installed with apt-get when missing), so the
+# arm64 code Lambda runs renders the same bytes as x86-64's --monolithic.
 #
 # Installs cargo-lambda (infra/install-cargo-lambda.sh) and moto (tests/s3-servers/with-moto.sh)
 # itself. Run by .ci/run. Everything it writes lands in target/lambda-e2e/.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
+target=()
+label=x86-64
+if [[ "${1:-}" == "--arm64" ]]; then
+    shift
+    label=arm64
+    triple=aarch64-unknown-linux-gnu
+    target=(--target "$triple")
+    if ! command -v aarch64-linux-gnu-gcc >/dev/null || ! command -v qemu-aarch64 >/dev/null; then
+        echo "render-through-lambdas: installing the aarch64 cross linker and qemu-user (apt-get)" >&2
+        sudo=(); [[ "$(id -u)" == 0 ]] || sudo=(sudo)
+        "${sudo[@]}" apt-get update -qq >&2
+        DEBIAN_FRONTEND=noninteractive "${sudo[@]}" apt-get install -y -qq \
+            gcc-aarch64-linux-gnu libc6-dev-arm64-cross qemu-user >&2
+    fi
+    rustup target list --installed | grep -qx "$triple" || rustup target add "$triple" >&2
+    export CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_LINKER=aarch64-linux-gnu-gcc
+    export CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_RUNNER="qemu-aarch64 -L /usr/aarch64-linux-gnu"
+fi
 scene="${1:-scenes/cornell/cornell.json}"
-out=target/lambda-e2e
+out="target/lambda-e2e/$label"
 mkdir -p "$out"
 rm -f "$out"/*.pfm "$out"/watch.log
 
 PATH="$(bash infra/install-cargo-lambda.sh):$PATH"
 # Build before the watch starts, so that no invocation waits for a compilation.
-cargo build -p hort -p hort-functions --bin hort --bin plan --bin worker >&2
+cargo build -p hort --bin hort >&2
+cargo build "${target[@]}" -p hort-functions --bin plan --bin worker >&2
 
-export SCENE="$scene" OUT="$out"
+export SCENE="$scene" OUT="$out" LABEL="$label" TARGET="${target[*]}"
 exec bash tests/s3-servers/with-moto.sh bash -c '
 set -euo pipefail
 venv="${HORT_TOOLS_DIR:-$HOME/.cache/hort-tools}/moto-venv"
@@ -33,7 +56,8 @@ port="$("$venv/bin/python" -c "import socket
 s = socket.socket()
 s.bind((\"127.0.0.1\", 0))
 print(s.getsockname()[1])")"
-cargo lambda watch --ignore-changes --invoke-address 127.0.0.1 --invoke-port "$port" \
+# shellcheck disable=SC2086 # TARGET is empty or "--target TRIPLE"
+cargo lambda watch $TARGET --ignore-changes --invoke-address 127.0.0.1 --invoke-port "$port" \
     --concurrency 2 \
     --env-var HORT_BUCKET="$bucket" \
     --env-var HORT_S3_ENDPOINT="$HORT_TEST_S3_ENDPOINT" \
@@ -56,7 +80,7 @@ hort=target/debug/hort
     --lambda-endpoint "http://127.0.0.1:$port" --out "$OUT/lambda.pfm"
 "$hort" render "$SCENE" "${settings[@]}" --monolithic --out "$OUT/monolithic.pfm"
 cmp "$OUT/lambda.pfm" "$OUT/monolithic.pfm"
-echo "render-through-lambdas: the image through cargo lambda watch equals --monolithic ($(wc -c <"$OUT/lambda.pfm") bytes)"
+echo "render-through-lambdas: the image through cargo lambda watch ($LABEL functions) equals x86-64 --monolithic ($(wc -c <"$OUT/lambda.pfm") bytes)"
 
 # The functions, not this process, did the work: one log line per task of every stage.
 for stage in cast-map cast-reduce expand trace-map trace-reduce combine; do
