@@ -1,12 +1,17 @@
-//! `hort bench faults`: what injected faults cost. For each seed, the same job runs fault-free
-//! and then (a) with 20% failed attempts, 20% duplicated deliveries and 10% stragglers, and (b)
-//! with one of the function slots dying halfway through the fault-free run's time; the table
-//! gives each faulted time over the fault-free time of the same seed, and whether the image is
-//! identical. Targets: at most 2x for (a), at most +60% for (b) (the paper's Hadoop figure).
+//! `hort bench faults`: what injected faults cost, and a campaign proving they change nothing.
+//! For each seed the same job runs fault-free, then once per fault mix; the table gives each
+//! faulted time over the fault-free time of the same seed, the attempts and rerun rounds it
+//! took, and whether the image and hit buffer are identical. A faulted job that fails or
+//! differs is a row saying so, and the command then fails after printing the whole table.
+//!
+//! Mixes (`--mixes`): `a` 20% failed attempts + 20% duplicated deliveries + 10% stragglers
+//! (target: at most 2x); `b` one of the function slots dies halfway through the fault-free run's
+//! time (target: at most +60%, the paper's Hadoop figure); `fail` 20% failures alone; `dup` 20%
+//! duplicates alone; `slow` 10% stragglers alone; `heavy` 40% + 30% + 20%.
 
 use super::scenes::generated;
 use super::table::{Table, f3};
-use anyhow::Result;
+use anyhow::{Result, bail};
 use asl_interpreter::{Event, Observer};
 use hort::emulator::{EmulatorConfig, EmulatorRun, FaultSettings, StorageTarget, run_job};
 use hort_core::cost::Arch;
@@ -40,15 +45,93 @@ pub struct FaultsBenchArgs {
     /// Function slots (the paper's experiment has 16).
     #[arg(long, default_value_t = 16)]
     pub slots: usize,
-    /// Fault seeds, one fault-free and two faulted runs each.
-    #[arg(long, value_delimiter = ',', default_value = "1,2,3")]
-    pub seeds: Vec<u64>,
+    /// Fault seeds: a list of numbers and ranges, such as `1,2,3` or `1-20`.
+    #[arg(long, value_delimiter = ',', value_parser = parse_seed_range, default_value = "1-3")]
+    pub seeds: Vec<(u64, u64)>,
+    /// Fault mixes, each run per seed: a, b, fail, dup, slow, heavy (see the module docs).
+    #[arg(long, value_delimiter = ',', default_value = "a,b")]
+    pub mixes: Vec<Mix>,
     /// Append the table to this CSV file.
     #[arg(long)]
     pub csv: Option<PathBuf>,
+    /// Write the table as Markdown to this file.
+    #[arg(long)]
+    pub markdown: Option<PathBuf>,
     /// Where generated scenes are cached.
     #[arg(long, default_value = "target/bench-scenes")]
     pub scene_dir: PathBuf,
+}
+
+/// A named fault mix.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mix {
+    /// 20% failed attempts + 20% duplicated deliveries + 10% stragglers.
+    A,
+    /// One of the slots dies halfway through the fault-free run's time.
+    B,
+    /// 20% failed attempts.
+    Fail,
+    /// 20% duplicated deliveries.
+    Dup,
+    /// 10% stragglers.
+    Slow,
+    /// 40% failed attempts + 30% duplicated deliveries + 20% stragglers.
+    Heavy,
+}
+
+impl Mix {
+    fn label(self) -> &'static str {
+        match self {
+            Mix::A => "(a) 20% fail + 20% dup + 10% slow",
+            Mix::B => "(b) 1 slot dies halfway",
+            Mix::Fail => "20% fail",
+            Mix::Dup => "20% dup",
+            Mix::Slow => "10% slow",
+            Mix::Heavy => "40% fail + 30% dup + 20% slow",
+        }
+    }
+
+    /// The faults of this mix for `seed`, given the fault-free run's time.
+    fn faults(self, seed: u64, clean_seconds: f64) -> FaultSettings {
+        let rates = |fail_rate, duplicate_rate, slow_rate| FaultSettings {
+            fail_rate,
+            duplicate_rate,
+            slow_rate,
+            seed,
+            kill_slot_after: None,
+        };
+        match self {
+            Mix::A => rates(0.2, 0.2, 0.1),
+            Mix::B => FaultSettings {
+                seed,
+                kill_slot_after: Some(clean_seconds / 2.0),
+                ..FaultSettings::default()
+            },
+            Mix::Fail => rates(0.2, 0.0, 0.0),
+            Mix::Dup => rates(0.0, 0.2, 0.0),
+            Mix::Slow => rates(0.0, 0.0, 0.1),
+            Mix::Heavy => rates(0.4, 0.3, 0.2),
+        }
+    }
+}
+
+/// `7` or `1-20` (inclusive).
+fn parse_seed_range(text: &str) -> Result<(u64, u64), String> {
+    let number = |s: &str| {
+        s.trim()
+            .parse::<u64>()
+            .map_err(|_| format!("{s:?} is not a seed (a whole number)"))
+    };
+    match text.split_once('-') {
+        None => number(text).map(|n| (n, n)),
+        Some((a, b)) => {
+            let (a, b) = (number(a)?, number(b)?);
+            if a > b {
+                return Err(format!("the seed range {text:?} is empty"));
+            }
+            Ok((a, b))
+        }
+    }
 }
 
 fn config(slots: usize, faults: FaultSettings) -> EmulatorConfig {
@@ -81,11 +164,12 @@ impl Observer for Reruns {
     }
 }
 
+/// One job's run: what it produced (or why it failed), its seconds and its rerun rounds.
 fn timed(
     args: &FaultsBenchArgs,
     path: &Path,
     faults: FaultSettings,
-) -> Result<(EmulatorRun, f64, u64)> {
+) -> (Result<EmulatorRun>, f64, u64) {
     let request = PlanRequest {
         width: args.width,
         height: args.height,
@@ -96,102 +180,130 @@ fn timed(
     };
     let reruns = Reruns::default();
     let t = Instant::now();
-    let run = run_job(&config(args.slots, faults), path, request, &reruns)?;
-    Ok((run, t.elapsed().as_secs_f64(), reruns.0.into_inner()))
+    let run = run_job(&config(args.slots, faults), path, request, &reruns);
+    (run, t.elapsed().as_secs_f64(), reruns.0.into_inner())
+}
+
+/// Total attempts over all stages.
+fn attempts(run: &EmulatorRun) -> u64 {
+    run.stages.iter().map(|s| s.attempts).sum()
 }
 
 pub fn run_faults_bench(args: &FaultsBenchArgs) -> Result<()> {
     let path = generated(&args.scene_dir, args.triangles, 1)?;
+    let seeds: Vec<u64> = args.seeds.iter().flat_map(|&(a, b)| a..=b).collect();
     let mut table = Table::new(
         &format!(
-            "faults: {} triangles, {}x{} spp {}, k={} s={}, {} slots (ratio = faulted / fault-free \
-             time of the same seed; targets: (a) <= 2x, (b) <= 1.6x)",
-            args.triangles, args.width, args.height, args.spp, args.splits, args.spans, args.slots
+            "faults: {} triangles, {}x{} spp {}, k={} s={}, {} slots, {} seeds (ratio = faulted / \
+             fault-free time of the same seed; targets: (a) <= 2x, (b) <= 1.6x)",
+            args.triangles,
+            args.width,
+            args.height,
+            args.spp,
+            args.splits,
+            args.spans,
+            args.slots,
+            seeds.len()
         ),
         &[
             "seed",
             "faults",
             "fault-free s",
-            "its failed attempts",
             "faulted s",
             "ratio",
+            "attempts (fault-free)",
+            "attempts",
             "failed attempts",
             "reruns",
             "identical",
         ],
     );
-    let mut ratios: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
-    for &seed in &args.seeds {
-        let (clean, clean_seconds, _) = timed(args, &path, FaultSettings::default())?;
-        let scenarios = [
-            (
-                "(a) 20% fail + 20% dup + 10% slow",
-                FaultSettings {
-                    fail_rate: 0.2,
-                    duplicate_rate: 0.2,
-                    slow_rate: 0.1,
-                    seed,
-                    kill_slot_after: None,
-                },
-            ),
-            (
-                "(b) 1 slot dies halfway",
-                FaultSettings {
-                    seed,
-                    kill_slot_after: Some(clean_seconds / 2.0),
-                    ..FaultSettings::default()
-                },
-            ),
-        ];
-        for (i, (name, faults)) in scenarios.into_iter().enumerate() {
-            let (run, seconds, reruns) = timed(args, &path, faults)?;
+    let mut ratios: Vec<Vec<f64>> = vec![Vec::new(); args.mixes.len()];
+    let mut bad = Vec::new();
+    for &seed in &seeds {
+        let (clean, clean_seconds, _) = timed(args, &path, FaultSettings::default());
+        let clean = clean?;
+        for (i, &mix) in args.mixes.iter().enumerate() {
+            let (run, seconds, reruns) = timed(args, &path, mix.faults(seed, clean_seconds));
             let ratio = seconds / clean_seconds;
-            if std::env::var_os("HORT_BENCH_STAGES").is_some() {
-                for (c, f) in clean.stages.iter().zip(&run.stages) {
-                    eprintln!(
-                        "{name} {}: {:.2}s -> {:.2}s, attempts {} -> {}",
-                        c.name, c.seconds, f.seconds, c.attempts, f.attempts
-                    );
-                }
-            }
-            ratios[i].push(ratio);
-            table.push(vec![
+            let mut row = vec![
                 seed.to_string(),
-                name.into(),
+                mix.label().into(),
                 f3(clean_seconds),
-                clean.failed_attempts().to_string(),
                 f3(seconds),
                 f3(ratio),
-                run.failed_attempts().to_string(),
-                reruns.to_string(),
-                if run.image.pixels == clean.image.pixels && run.hits == clean.hits {
-                    "yes"
-                } else {
-                    "NO"
+                attempts(&clean).to_string(),
+            ];
+            match run {
+                Ok(run) => {
+                    ratios[i].push(ratio);
+                    let identical =
+                        run.image.pixels == clean.image.pixels && run.hits == clean.hits;
+                    if !identical {
+                        bad.push(format!("seed {seed}, {}: the image differs", mix.label()));
+                    }
+                    row.extend([
+                        attempts(&run).to_string(),
+                        run.failed_attempts().to_string(),
+                        reruns.to_string(),
+                        if identical { "yes" } else { "NO" }.into(),
+                    ]);
                 }
-                .into(),
-            ]);
+                Err(e) => {
+                    bad.push(format!(
+                        "seed {seed}, {}: the job failed: {e:#}",
+                        mix.label()
+                    ));
+                    row.extend(["-".into(), "-".into(), reruns.to_string(), "FAILED".into()]);
+                }
+            }
+            table.push(row);
         }
     }
-    for (i, name) in ["(a) mean", "(b) mean"].into_iter().enumerate() {
+    for (i, mix) in args.mixes.iter().enumerate() {
         let n = ratios[i].len().max(1) as f64;
         let mean = ratios[i].iter().sum::<f64>() / n;
         let worst = ratios[i].iter().copied().fold(0.0, f64::max);
-        table.push(vec![
-            "all".into(),
-            name.into(),
-            "-".into(),
-            "-".into(),
-            "-".into(),
-            format!("{} (worst {})", f3(mean), f3(worst)),
-            "-".into(),
-            "-".into(),
-            "-".into(),
-        ]);
+        let mut row = vec!["all".into(), format!("{} mean", mix.label())];
+        row.extend(["-".into(), "-".into()]);
+        row.push(format!("{} (worst {})", f3(mean), f3(worst)));
+        row.extend(["-".into(), "-".into(), "-".into(), "-".into(), "-".into()]);
+        table.push(row);
     }
     table.print();
     if let Some(csv) = &args.csv {
         table.append_csv(csv)?;
     }
+    if let Some(md) = &args.markdown {
+        std::fs::write(md, table.markdown())
+            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", md.display()))?;
+    }
+    if !bad.is_empty() {
+        bail!(
+            "{} of {} faulted jobs failed or differ: {}",
+            bad.len(),
+            seeds.len() * args.mixes.len(),
+            bad.join("; ")
+        );
+    }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn seeds_are_numbers_or_inclusive_ranges() {
+        assert_eq!(parse_seed_range("7"), Ok((7, 7)));
+        assert_eq!(parse_seed_range("1-20"), Ok((1, 20)));
+        assert_eq!(
+            parse_seed_range("5-2"),
+            Err("the seed range \"5-2\" is empty".into())
+        );
+        assert_eq!(
+            parse_seed_range("x"),
+            Err("\"x\" is not a seed (a whole number)".into())
+        );
+    }
 }

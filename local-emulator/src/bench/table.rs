@@ -46,6 +46,18 @@ impl Table {
         }
     }
 
+    /// The table as Markdown (title as a paragraph, then a pipe table), for docs.
+    pub fn markdown(&self) -> String {
+        let row = |cells: &[String]| format!("| {} |\n", cells.join(" | "));
+        let mut out = format!("{}\n\n", self.title);
+        out += &row(&self.header);
+        out += &row(&vec!["---".to_string(); self.header.len()]);
+        for r in &self.rows {
+            out += &row(r);
+        }
+        out
+    }
+
     /// Appends the table to `path` as CSV (one `table` column naming it).
     pub fn append_csv(&self, path: &Path) -> Result<()> {
         use std::io::Write;
