@@ -88,7 +88,7 @@ fn plan_then_every_worker_task_produces_the_outputs() {
                 item,
                 attempt: 0,
             };
-            handle_worker(&store, "b", &cache, &event).unwrap();
+            handle_worker(&store, "b", &cache, &event, &std::env::temp_dir()).unwrap();
         }
     }
     let combine = WorkerEvent {
@@ -101,7 +101,7 @@ fn plan_then_every_worker_task_produces_the_outputs() {
         },
         attempt: 0,
     };
-    handle_worker(&store, "b", &cache, &combine).unwrap();
+    handle_worker(&store, "b", &cache, &combine, &std::env::temp_dir()).unwrap();
     assert_eq!(store.get(&hits_key(&job)).unwrap().len(), 32 * 24 * 8);
 }
 
@@ -193,7 +193,14 @@ fn a_missing_plan_and_a_bad_scene_are_not_retried() {
         },
         attempt: 0,
     };
-    let e = handle_worker(&store, "b", &SplitCache::new(0), &worker).unwrap_err();
+    let e = handle_worker(
+        &store,
+        "b",
+        &SplitCache::new(0),
+        &worker,
+        &std::env::temp_dir(),
+    )
+    .unwrap_err();
     // S3 is strongly consistent: an object that is not there now will not appear on a retry.
     assert_eq!(
         e,

@@ -1,29 +1,51 @@
 //! The Worker function: run one task of one stage (the plan names its inputs and outputs).
 
 use super::events::WorkerEvent;
+use super::plan::load_job_scene;
 use super::{HandlerError, check_bucket};
+use hort_core::ErrorType;
 use hort_core::keys::plan_key;
-use hort_core::pipeline::{JobPlan, SplitCache, TaskMetrics, run_task_cached};
+use hort_core::pipeline::{
+    JobPlan, PipelineError, SplitCache, TaskMetrics, rebuild_split, run_task_with,
+};
 use hort_core::store::BlobStore;
+use std::path::Path;
 
 /// Runs `event.stage` task `event.item.task` of `event.job`; `cache` is the worker's decoded
 /// splits (a warm container's memory). Returns what the task did. The outputs are the same bytes
-/// on every attempt.
+/// on every attempt. A lost or corrupt input block is recomputed from its producer; a lost or
+/// corrupt split object is rebuilt from the job's scene, copied into `work_dir` (the function's
+/// `/tmp`) for the purpose.
 pub fn handle_worker(
     store: &dyn BlobStore,
     bucket: &str,
     cache: &SplitCache,
     event: &WorkerEvent,
+    work_dir: &Path,
 ) -> Result<TaskMetrics, HandlerError> {
     check_bucket(&event.bucket, bucket)?;
     let key = plan_key(&event.job);
     let plan = JobPlan::from_json(&key, &store.get(&key)?)?;
-    Ok(run_task_cached(
+    let rebuild = |split: u32| -> Result<Vec<u8>, PipelineError> {
+        let label = format!("split-{split}-{}-{}", event.stage, event.item.task.0);
+        let (_, scene) = load_job_scene(store, &event.job, work_dir, &label).map_err(|e| {
+            // Same class and cause once the handler reports it.
+            match e.error_type {
+                ErrorType::Retryable => PipelineError::Corrupt(e.cause),
+                ErrorType::BadInput => PipelineError::BadInput(e.cause),
+            }
+        })?;
+        rebuild_split(&scene.mesh, plan.k() as usize, plan.split_mode, split).ok_or_else(|| {
+            PipelineError::BadInput(format!("split {split} is not in the plan {key}"))
+        })
+    };
+    Ok(run_task_with(
         store,
         &event.job,
         &plan,
         event.stage,
         event.item.task.0,
         cache,
+        Some(&rebuild),
     )?)
 }
