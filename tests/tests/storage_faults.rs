@@ -186,8 +186,14 @@ fn a_persistent_fault_fails_the_job_with_one_line_naming_the_key() {
              {endpoint} failed (HTTP 503 SlowDown: Please reduce your request rate.)"
         )
     );
-    // Each of the 4 rounds of 6 attempts sent the PUT 3 times (the SDK's attempts).
-    assert_eq!(counts.persistent, 4 * 6 * 3);
+    // 4 rounds (the first run and 3 reruns) of 6 attempts each sent the PUT, each up to 3 times
+    // (the SDK's attempts; fewer once the SDK's retry quota, shared by every client of the
+    // process, runs low).
+    assert!(
+        (4 * 6..=4 * 6 * 3).contains(&counts.persistent),
+        "{} requests met the persistent fault",
+        counts.persistent
+    );
     assert_eq!(counts.total(), counts.persistent);
 }
 
