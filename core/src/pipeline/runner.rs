@@ -424,4 +424,98 @@ mod tests {
         total += warm;
         assert_eq!(total.split_cache_hits, 1);
     }
+
+    #[test]
+    fn a_lost_or_corrupt_split_is_rebuilt_only_with_a_rebuilder_and_checked() {
+        let dir = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../scenes/cornell/cornell.json"
+        );
+        let scene = crate::scene::load_scene(std::path::Path::new(dir)).unwrap();
+        let store = MemoryStore::new();
+        let job = JobId::new("rebuild").unwrap();
+        let request = PlanRequest {
+            width: 16,
+            height: 12,
+            spp: 1,
+            splits: Some(2),
+            spans: Some(1),
+            mode: SplitMode::Naive,
+        };
+        let plan = plan_into_store(&store, &job, &scene, &request)
+            .unwrap()
+            .plan;
+        let key = split_key(&job, SplitId(1));
+        let stored = store.get(&key).unwrap();
+        let task = plan.cast_tasks.iter().find(|t| t.split == 1).unwrap().task;
+        let reference = run_task(&store, &job, &plan, Stage::CastMap, task).unwrap();
+        let output = partition_key(&job, Stage::CastMap, TaskId(task), PartitionId(0));
+        let expected = store.get(&output).unwrap();
+        let cache = SplitCache::new(0);
+        let rebuild = |split: u32| {
+            crate::pipeline::rebuild_split(&scene.mesh, 2, SplitMode::Naive, split)
+                .ok_or_else(|| PipelineError::BadInput("no split".into()))
+        };
+
+        // Missing: an error without a rebuilder, rebuilt with one.
+        store.delete(&key).unwrap();
+        let err = run_task(&store, &job, &plan, Stage::CastMap, task).unwrap_err();
+        assert!(
+            matches!(err, PipelineError::Store(ref e) if e.is_not_found()),
+            "{err}"
+        );
+        let m = run_task_with(
+            &store,
+            &job,
+            &plan,
+            Stage::CastMap,
+            task,
+            &cache,
+            Some(&rebuild),
+        )
+        .unwrap();
+        assert_eq!((m.recomputed, m.records), (1, reference.records));
+        assert_eq!(store.get(&key).unwrap(), stored);
+        assert_eq!(store.get(&output).unwrap(), expected);
+
+        // Corrupt: rebuilt the same way.
+        let mut bad = stored.clone();
+        let at = bad.len() / 2;
+        bad[at] ^= 0x5a;
+        store.put(&key, &bad).unwrap();
+        let m = run_task_with(
+            &store,
+            &job,
+            &plan,
+            Stage::CastMap,
+            task,
+            &cache,
+            Some(&rebuild),
+        )
+        .unwrap();
+        assert_eq!(m.recomputed, 1);
+        assert_eq!(store.get(&key).unwrap(), stored);
+
+        // A rebuild that disagrees with the plan is refused, naming the object.
+        store.delete(&key).unwrap();
+        let wrong = |_: u32| Ok(vec![0u8; 10]);
+        let err = run_task_with(
+            &store,
+            &job,
+            &plan,
+            Stage::CastMap,
+            task,
+            &cache,
+            Some(&wrong),
+        )
+        .unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            format!(
+                "split object {key}: rebuilt from the scene it has 10 bytes, the plan says {}",
+                stored.len()
+            )
+        );
+        assert!(err.is_retryable());
+    }
 }

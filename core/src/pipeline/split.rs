@@ -211,6 +211,27 @@ mod tests {
     }
 
     #[test]
+    fn a_rebuilt_split_has_exactly_the_bytes_split_scene_emitted() {
+        let mesh = grid_mesh(301);
+        for mode in [SplitMode::Naive, SplitMode::Spatial] {
+            let mut emitted = Vec::new();
+            split_scene(&mesh, 5, mode, |split, bytes| {
+                emitted.push((split, bytes));
+                Ok::<(), ()>(())
+            })
+            .unwrap();
+            for (split, bytes) in emitted {
+                assert_eq!(
+                    rebuild_split(&mesh, 5, mode, split).as_deref(),
+                    Some(bytes.as_slice()),
+                    "{mode:?} split {split}"
+                );
+            }
+            assert_eq!(rebuild_split(&mesh, 5, mode, 5), None);
+        }
+    }
+
+    #[test]
     fn morton_spread_interleaves() {
         assert_eq!(spread(0b11), 0b1001);
         assert_eq!(spread(0x1f_ffff).count_ones(), 21);
