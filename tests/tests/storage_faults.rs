@@ -270,7 +270,8 @@ fn a_cut_body_is_never_taken_for_the_object() {
 }
 
 /// Deletes the first and corrupts the last input object of each stage as it starts: the split
-/// objects cast-map reads, and the shuffle partitions of the stages before for the others.
+/// objects cast-map reads, and the shuffle partitions of the stages before for the others; and
+/// deletes `plan.json` before expand and cuts it before trace-map.
 struct DamageEveryStage {
     store: S3Store,
     /// (stage, deleted key, corrupted key), in order.
@@ -321,6 +322,14 @@ impl Observer for DamageEveryStage {
             .lock()
             .unwrap()
             .push((state.clone(), first.clone(), last.clone()));
+        // Every worker reads the plan: lose it before expand, cut it in half before trace-map.
+        let plan = keys[0].split("/").take(2).collect::<Vec<_>>().join("/") + "/plan.json";
+        if state == "Expand" {
+            self.store.delete(&plan).unwrap();
+        } else if state == "TraceMap" {
+            let bytes = self.store.get(&plan).unwrap();
+            self.store.put(&plan, &bytes[..bytes.len() / 2]).unwrap();
+        }
     }
 }
 
@@ -362,8 +371,8 @@ fn objects_lost_or_corrupted_before_every_stage_are_recomputed() {
     assert_eq!(run.png, png, "PNG bytes");
     assert_eq!(
         run.recomputed(),
-        12,
-        "each damaged object was recomputed once"
+        14,
+        "each damaged object (12 blocks and splits, the plan twice) was recomputed once"
     );
     assert_eq!(
         run.failed_attempts(),
@@ -386,8 +395,8 @@ fn objects_lost_or_corrupted_before_every_stage_are_recomputed() {
         [
             ("cast-map".to_owned(), 2),
             ("cast-reduce".to_owned(), 2),
-            ("expand".to_owned(), 2),
-            ("trace-map".to_owned(), 2),
+            ("expand".to_owned(), 3),
+            ("trace-map".to_owned(), 3),
             ("trace-reduce".to_owned(), 2),
             ("combine".to_owned(), 2),
         ]
