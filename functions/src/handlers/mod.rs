@@ -6,7 +6,7 @@
 //! Error contract with the state machine (`infra/statemachine.asl.json`): a handler fails with
 //! [`ErrorType::Retryable`] (`Hort.Retryable`: storage trouble, a corrupt object; retried with
 //! backoff) or [`ErrorType::BadInput`] (`Hort.BadInput`: a bad scene, request or event, a missing
-//! object; never retried). Missing or corrupt shuffle blocks and split objects never reach the
+//! object; never retried). Missing or corrupt shuffle blocks, split objects and plans never reach the
 //! state machine: the consuming task recomputes them from lineage (their producer task, or the
 //! job's scene) first.
 
