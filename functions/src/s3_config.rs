@@ -19,6 +19,9 @@ pub const DEFAULT_CONNECT_TIMEOUT: Duration = Duration::from_secs(3);
 pub const DEFAULT_ATTEMPT_TIMEOUT: Duration = Duration::from_secs(30);
 /// Default number of attempts per request (the first try plus retries), SDK standard mode.
 pub const DEFAULT_MAX_ATTEMPTS: u32 = 3;
+/// Default wait before the first retry of a request (the SDK's standard mode: each retry waits
+/// a random fraction of this times 2^retry, at most 20 s).
+pub const DEFAULT_INITIAL_BACKOFF: Duration = Duration::from_secs(1);
 /// The region used when none is configured and the SDK's default chain finds none.
 pub const DEFAULT_REGION: &str = "us-east-1";
 
@@ -75,6 +78,9 @@ pub struct S3Config {
     /// Attempts per request, at least 1; the SDK retries transient failures (connection errors,
     /// timeouts, 5xx, throttling) with exponential backoff and jitter in between.
     pub max_attempts: u32,
+    /// The scale of the SDK's backoff between attempts ([`DEFAULT_INITIAL_BACKOFF`]); tests
+    /// that inject many storage faults shorten it.
+    pub initial_backoff: Duration,
 }
 
 impl S3Config {
@@ -90,6 +96,7 @@ impl S3Config {
             connect_timeout: DEFAULT_CONNECT_TIMEOUT,
             attempt_timeout: DEFAULT_ATTEMPT_TIMEOUT,
             max_attempts: DEFAULT_MAX_ATTEMPTS,
+            initial_backoff: DEFAULT_INITIAL_BACKOFF,
         }
     }
 
@@ -113,6 +120,7 @@ impl S3Config {
             connect_timeout: DEFAULT_CONNECT_TIMEOUT,
             attempt_timeout: DEFAULT_ATTEMPT_TIMEOUT,
             max_attempts: DEFAULT_MAX_ATTEMPTS,
+            initial_backoff: DEFAULT_INITIAL_BACKOFF,
         }
     }
 
@@ -141,7 +149,11 @@ impl S3Config {
             .build();
         let mut loader = aws_config::defaults(BehaviorVersion::latest())
             .timeout_config(timeouts)
-            .retry_config(RetryConfig::standard().with_max_attempts(self.max_attempts.max(1)));
+            .retry_config(
+                RetryConfig::standard()
+                    .with_max_attempts(self.max_attempts.max(1))
+                    .with_initial_backoff(self.initial_backoff),
+            );
         if let Some(region) = &self.region {
             loader = loader.region(Region::new(region.clone()));
         }

@@ -1,7 +1,7 @@
 //! The one place where AWS SDK errors become [`StoreError`]s with one-line messages.
 //!
-//! Classes: a missing object is `NotFound`; an unreachable endpoint, a timeout, a 5xx answer or
-//! throttling is `Unavailable` (retryable); refused credentials or a refused permission is
+//! Classes: a missing object is `NotFound`; an unreachable endpoint, a timeout, a 5xx answer,
+//! throttling or an answer that breaks off is `Unavailable` (retryable); refused credentials or a refused permission is
 //! `Denied` (not retryable); a missing bucket, missing credentials and anything else is `Other`
 //! (not retryable either: "access denied" would send users looking for a permission problem
 //! they do not have). Messages start with the
@@ -144,15 +144,15 @@ where
                 innermost(&err)
             ),
         },
-        SdkError::ResponseError(_) => {
-            let status = status_of(&err).unwrap_or(0);
-            let what = format!("{op}: S3 endpoint {ep} sent an unreadable answer (HTTP {status})");
-            if status >= 500 {
-                StoreError::Unavailable { what }
-            } else {
-                StoreError::Other { what }
-            }
-        }
+        // The answer's body broke off or did not parse. The SDK counts this as transient (it
+        // retried already), and a connection cut in the middle of a listing looks exactly so.
+        SdkError::ResponseError(_) => StoreError::Unavailable {
+            what: format!(
+                "{op}: S3 endpoint {ep} sent an unreadable answer (HTTP {}: {})",
+                status_of(&err).unwrap_or(0),
+                innermost(&err)
+            ),
+        },
         _ => service_error(&err, request, &op, ep, bucket),
     }
 }

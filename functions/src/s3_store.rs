@@ -63,7 +63,9 @@ pub struct ListedObject {
 /// in one place (module `s3_errors`). Objects are sent with one PUT each (S3 caps those at 5 GiB)
 /// and read whole into memory. Each request is retried by the SDK (standard mode,
 /// [`S3Config::max_attempts`] attempts) on connection failures, timeouts, 5xx and throttling
-/// before an error is returned.
+/// before an error is returned. A GET whose body breaks off (reset, or fewer bytes than its
+/// `Content-Length`) is sent again by the store itself, up to the same number of times; a body
+/// shorter than announced is never returned.
 pub struct S3Store {
     client: Client,
     target: Target,
@@ -73,6 +75,8 @@ pub struct S3Store {
     handle: Handle,
     /// The runtime made by [`S3Store::open`], if this store owns one.
     runtime: Option<Runtime>,
+    /// Times a GET is sent when its body breaks off ([`S3Config::max_attempts`]).
+    body_attempts: u32,
 }
 
 impl S3Store {
@@ -94,6 +98,7 @@ impl S3Store {
         store.credentials = credentials;
         store.target.connect_timeout = config.connect_timeout;
         store.target.attempt_timeout = config.attempt_timeout;
+        store.body_attempts = config.max_attempts.max(1);
         store.region = region;
         Ok(store)
     }
@@ -136,6 +141,7 @@ impl S3Store {
             credentials: None,
             handle,
             runtime: None,
+            body_attempts: crate::s3_config::DEFAULT_MAX_ATTEMPTS,
         }
     }
 
@@ -397,23 +403,33 @@ impl S3Store {
             key: Some(key),
             object_read: true,
         };
-        let answer = self
-            .client
-            .get_object()
-            .bucket(&self.target.bucket)
-            .key(key)
-            .range(header)
-            .send()
-            .await;
-        let out = match answer {
-            Ok(out) => out,
-            Err(err) if s3_errors::is_invalid_range(&err) => {
-                return Err(invalid(self.object_len(key, op).await?));
+        let mut attempt = 1;
+        let (content_range, bytes) = loop {
+            let answer = self
+                .client
+                .get_object()
+                .bucket(&self.target.bucket)
+                .key(key)
+                .range(&header)
+                .send()
+                .await;
+            let out = match answer {
+                Ok(out) => out,
+                Err(err) if s3_errors::is_invalid_range(&err) => {
+                    return Err(invalid(self.object_len(key, op).await?));
+                }
+                Err(err) => return Err(s3_errors::store_error(err, request, &self.target)),
+            };
+            let content_range = out.content_range().map(str::to_owned);
+            match self.collect(out.body, out.content_length, request).await {
+                Ok(bytes) => break (content_range, bytes),
+                Err(_) if attempt < self.body_attempts => {
+                    body_retry_pause(attempt).await;
+                    attempt += 1;
+                }
+                Err(e) => return Err(e),
             }
-            Err(err) => return Err(s3_errors::store_error(err, request, &self.target)),
         };
-        let content_range = out.content_range().map(str::to_owned);
-        let bytes = self.collect(out.body, out.content_length, request).await?;
         match content_range.as_deref().and_then(parse_content_range) {
             Some((first, total)) => {
                 if range.start >= total {
@@ -532,15 +548,24 @@ impl BlobStore for S3Store {
             object_read: true,
         };
         self.handle.block_on(async {
-            let out = self
-                .client
-                .get_object()
-                .bucket(&self.target.bucket)
-                .key(key)
-                .send()
-                .await
-                .map_err(|e| s3_errors::store_error(e, request, &self.target))?;
-            self.collect(out.body, out.content_length, request).await
+            let mut attempt = 1;
+            loop {
+                let out = self
+                    .client
+                    .get_object()
+                    .bucket(&self.target.bucket)
+                    .key(key)
+                    .send()
+                    .await
+                    .map_err(|e| s3_errors::store_error(e, request, &self.target))?;
+                match self.collect(out.body, out.content_length, request).await {
+                    Err(_) if attempt < self.body_attempts => {
+                        body_retry_pause(attempt).await;
+                        attempt += 1;
+                    }
+                    read => return read,
+                }
+            }
         })
     }
 
@@ -584,6 +609,14 @@ impl BlobStore for S3Store {
         self.handle
             .block_on(delete_object(&self.client, &self.target, key))
     }
+}
+
+/// The wait before sending a GET again whose body broke off: 20 ms, doubling per attempt, at
+/// most 1 s. The SDK retries failures before an answer's head (with its own backoff) but hands
+/// the body over as a stream, so a connection reset or cut in the body reaches the store.
+async fn body_retry_pause(attempt: u32) {
+    let ms = (20u64 << attempt.min(6).saturating_sub(1)).min(1000);
+    tokio::time::sleep(std::time::Duration::from_millis(ms)).await;
 }
 
 /// One DELETE; a missing key is success (S3 semantics).

@@ -468,3 +468,74 @@ fn injected_failures_are_counted_in_the_report_and_change_nothing() {
     assert_eq!(attempts, tasks + retried);
     assert!(stderr.contains("faults injected:"), "{stderr}");
 }
+
+#[test]
+fn storage_faults_from_the_environment_change_no_byte() {
+    let mono = render(
+        &scene("cornell/cornell.json"),
+        &scratch("s3-faults-mono"),
+        &[],
+    );
+    let dir = scratch("s3-faults");
+    let (out, hits) = (dir.join("o.pfm"), dir.join("h.bin"));
+    let cornell = scene("cornell/cornell.json");
+    let args = [
+        "render",
+        cornell.to_str().unwrap(),
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--splits",
+        "2",
+        "--spans",
+        "3",
+        "--time-scale",
+        "0.02",
+        "--out",
+        out.to_str().unwrap(),
+        "--hits",
+        hits.to_str().unwrap(),
+    ];
+    let spec = "seed=3,slow-down=0.04,internal-error=0.04,latency=0.04,latency-ms=10,reset=0.04,\
+                truncate=0.04";
+    let o = std::process::Command::new(common::HORT)
+        .args(args)
+        .env("HORT_S3_FAULTS", spec)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    assert_eq!(std::fs::read(&out).unwrap(), mono.0);
+    assert_eq!(std::fs::read(&hits).unwrap(), mono.1);
+    let line = stderr
+        .lines()
+        .find_map(|l| l.strip_prefix("hort: HORT_S3_FAULTS: the embedded S3 server injected "))
+        .unwrap_or_else(|| panic!("no fault counts in {stderr}"));
+    eprintln!("hort render under HORT_S3_FAULTS: {line}");
+    // "N slow-down, N internal-error, N latency, N reset, N truncate, 0 persistent"
+    let counts: Vec<u64> = line
+        .split(", ")
+        .map(|part| part.split(' ').next().unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(counts.len(), 6, "{line}");
+    assert!(counts[..5].iter().sum::<u64>() > 0, "{line}");
+    assert_eq!(counts[5], 0, "{line}");
+
+    let bad = std::process::Command::new(common::HORT)
+        .args(args)
+        .env("HORT_S3_FAULTS", "reset=2")
+        .output()
+        .unwrap();
+    assert_eq!(bad.status.code(), Some(1));
+    // (After the warning about tiny splits that these flags earn.)
+    let errors: Vec<&str> = std::str::from_utf8(&bad.stderr)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with("warning: "))
+        .collect();
+    assert_eq!(
+        errors,
+        ["error: HORT_S3_FAULTS=\"reset=2\": reset: the rate 2 is not between 0 and 1"]
+    );
+}

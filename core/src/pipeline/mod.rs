@@ -39,8 +39,10 @@ pub use plan::{
 };
 pub use plan_step::{PlannedJob, plan_into_store};
 pub use records::{Occluded, PixelBlock, ShadowQuery, SurfaceHit};
-pub use runner::{TaskMetrics, producer_of, run_task, run_task_cached};
-pub use split::{SplitMode, assign_splits, split_scene};
+pub use runner::{
+    RebuildSplit, TaskMetrics, producer_of, run_task, run_task_cached, run_task_with,
+};
+pub use split::{SplitMode, assign_splits, rebuild_split, split_scene};
 pub use split_cache::SplitCache;
 pub use split_object::TriangleShading;
 pub use split_object::{SPLIT_FORMAT_VERSION, SplitObject, decode_split, encode_split};

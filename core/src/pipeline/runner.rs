@@ -3,8 +3,10 @@
 //!
 //! Lineage: when an input shuffle block is missing or corrupt, the task recomputes it by running
 //! its producer task (a pure function of the producer's own inputs), which rewrites it, and goes
-//! on; [`TaskMetrics::recomputed`] counts these. Split objects come from the plan step and are
-//! not recomputed.
+//! on; [`TaskMetrics::recomputed`] counts these. Split objects come from the plan step: given a
+//! [`RebuildSplit`] (which needs the scene, so only callers that can load it pass one), a
+//! missing or corrupt split object is rebuilt, checked against the plan's size and rewritten;
+//! without one it is an error.
 
 use super::PipelineError;
 use super::plan::JobPlan;
@@ -61,6 +63,10 @@ impl std::ops::AddAssign for TaskMetrics {
     }
 }
 
+/// Builds the encoded split object with the given id from the job's scene, exactly as the plan
+/// step stored it (see `rebuild_split`): the lineage of split objects.
+pub type RebuildSplit<'a> = &'a dyn Fn(u32) -> Result<Vec<u8>, PipelineError>;
+
 /// The task that writes partition `key`, if it is a shuffle partition of this job.
 pub fn producer_of(key: &str) -> Option<(Stage, u32)> {
     parse_partition_key(key).map(|(_, stage, task, _)| (stage, task.0))
@@ -86,11 +92,25 @@ pub fn run_task_cached(
     task: u32,
     cache: &SplitCache,
 ) -> Result<TaskMetrics, PipelineError> {
+    run_task_with(store, job, plan, stage, task, cache, None)
+}
+
+/// [`run_task_cached`] that rebuilds lost or corrupt split objects with `rebuild`, if given.
+pub fn run_task_with(
+    store: &dyn BlobStore,
+    job: &JobId,
+    plan: &JobPlan,
+    stage: Stage,
+    task: u32,
+    cache: &SplitCache,
+    rebuild: Option<RebuildSplit<'_>>,
+) -> Result<TaskMetrics, PipelineError> {
     let mut ctx = Task {
         store,
         job,
         plan,
         cache,
+        rebuild,
         metrics: TaskMetrics::default(),
         depth: 0,
     };
@@ -103,6 +123,7 @@ struct Task<'a> {
     job: &'a JobId,
     plan: &'a JobPlan,
     cache: &'a SplitCache,
+    rebuild: Option<RebuildSplit<'a>>,
     metrics: TaskMetrics,
     /// Nesting of lineage recomputation (bounded by the stage chain).
     depth: u32,
@@ -237,12 +258,50 @@ impl Task<'_> {
             self.metrics.split_cache_hits += 1;
             return Ok(object);
         }
-        let bytes = self.store.get(&key)?;
-        self.metrics.bytes_read += bytes.len() as u64;
-        self.metrics.split_bytes_read += bytes.len() as u64;
-        let object = Arc::new(decode_split(&key, &bytes)?);
+        let first = self
+            .store
+            .get(&key)
+            .map_err(PipelineError::from)
+            .and_then(|bytes| {
+                self.metrics.bytes_read += bytes.len() as u64;
+                self.metrics.split_bytes_read += bytes.len() as u64;
+                decode_split(&key, &bytes)
+            });
+        let lost = match &first {
+            Err(PipelineError::Store(e)) => e.is_not_found(),
+            Err(PipelineError::Corrupt(_)) => true,
+            _ => false,
+        };
+        let object = match (first, self.rebuild) {
+            (Err(_), Some(rebuild)) if lost => self.rebuilt_split(&key, split, rebuild)?,
+            (first, _) => first?,
+        };
+        let object = Arc::new(object);
         self.cache.insert(&key, Arc::clone(&object));
         Ok(object)
+    }
+
+    /// Rebuilds split object `split` (stored at `key`) from the scene, checks its size against
+    /// the plan, stores it and decodes it.
+    fn rebuilt_split(
+        &mut self,
+        key: &str,
+        split: u32,
+        rebuild: RebuildSplit<'_>,
+    ) -> Result<SplitObject, PipelineError> {
+        let bytes = rebuild(split)?;
+        let planned = self.plan.splits.get(split as usize).map(|s| s.bytes);
+        if planned != Some(bytes.len() as u64) {
+            return Err(PipelineError::Corrupt(format!(
+                "split object {key}: rebuilt from the scene it has {} bytes, the plan says {}",
+                bytes.len(),
+                planned.map_or_else(|| "no such split".to_owned(), |n| n.to_string())
+            )));
+        }
+        self.metrics.bytes_written += bytes.len() as u64;
+        self.store.put(key, &bytes)?;
+        self.metrics.recomputed += 1;
+        decode_split(key, &bytes)
     }
 
     fn read_span_hits(&mut self, span: u32) -> Result<Vec<super::SurfaceHit>, PipelineError> {
@@ -364,5 +423,99 @@ mod tests {
         let mut total = cold;
         total += warm;
         assert_eq!(total.split_cache_hits, 1);
+    }
+
+    #[test]
+    fn a_lost_or_corrupt_split_is_rebuilt_only_with_a_rebuilder_and_checked() {
+        let dir = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../scenes/cornell/cornell.json"
+        );
+        let scene = crate::scene::load_scene(std::path::Path::new(dir)).unwrap();
+        let store = MemoryStore::new();
+        let job = JobId::new("rebuild").unwrap();
+        let request = PlanRequest {
+            width: 16,
+            height: 12,
+            spp: 1,
+            splits: Some(2),
+            spans: Some(1),
+            mode: SplitMode::Naive,
+        };
+        let plan = plan_into_store(&store, &job, &scene, &request)
+            .unwrap()
+            .plan;
+        let key = split_key(&job, SplitId(1));
+        let stored = store.get(&key).unwrap();
+        let task = plan.cast_tasks.iter().find(|t| t.split == 1).unwrap().task;
+        let reference = run_task(&store, &job, &plan, Stage::CastMap, task).unwrap();
+        let output = partition_key(&job, Stage::CastMap, TaskId(task), PartitionId(0));
+        let expected = store.get(&output).unwrap();
+        let cache = SplitCache::new(0);
+        let rebuild = |split: u32| {
+            crate::pipeline::rebuild_split(&scene.mesh, 2, SplitMode::Naive, split)
+                .ok_or_else(|| PipelineError::BadInput("no split".into()))
+        };
+
+        // Missing: an error without a rebuilder, rebuilt with one.
+        store.delete(&key).unwrap();
+        let err = run_task(&store, &job, &plan, Stage::CastMap, task).unwrap_err();
+        assert!(
+            matches!(err, PipelineError::Store(ref e) if e.is_not_found()),
+            "{err}"
+        );
+        let m = run_task_with(
+            &store,
+            &job,
+            &plan,
+            Stage::CastMap,
+            task,
+            &cache,
+            Some(&rebuild),
+        )
+        .unwrap();
+        assert_eq!((m.recomputed, m.records), (1, reference.records));
+        assert_eq!(store.get(&key).unwrap(), stored);
+        assert_eq!(store.get(&output).unwrap(), expected);
+
+        // Corrupt: rebuilt the same way.
+        let mut bad = stored.clone();
+        let at = bad.len() / 2;
+        bad[at] ^= 0x5a;
+        store.put(&key, &bad).unwrap();
+        let m = run_task_with(
+            &store,
+            &job,
+            &plan,
+            Stage::CastMap,
+            task,
+            &cache,
+            Some(&rebuild),
+        )
+        .unwrap();
+        assert_eq!(m.recomputed, 1);
+        assert_eq!(store.get(&key).unwrap(), stored);
+
+        // A rebuild that disagrees with the plan is refused, naming the object.
+        store.delete(&key).unwrap();
+        let wrong = |_: u32| Ok(vec![0u8; 10]);
+        let err = run_task_with(
+            &store,
+            &job,
+            &plan,
+            Stage::CastMap,
+            task,
+            &cache,
+            Some(&wrong),
+        )
+        .unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            format!(
+                "split object {key}: rebuilt from the scene it has 10 bytes, the plan says {}",
+                stored.len()
+            )
+        );
+        assert!(err.is_retryable());
     }
 }

@@ -102,35 +102,51 @@ pub fn split_scene<E>(
 ) -> Result<Vec<super::SplitInfo>, E> {
     let mut infos = Vec::with_capacity(k);
     for (split, ids) in assign_splits(mesh, k, mode).into_iter().enumerate() {
-        let triangles = ids.iter().map(|&i| mesh.corners(i as usize)).collect();
-        let bvh = Bvh::build(triangles, ids);
-        let shading = bvh
-            .ids()
-            .iter()
-            .map(|&id| {
-                let (normals, kd) = shading_of(mesh, id);
-                TriangleShading { normals, kd }
-            })
-            .collect();
-        let object = SplitObject {
-            split: split as u32,
-            bvh,
-            shading,
-        };
-        let bounds = object.bvh.bounds();
-        let triangles = object.bvh.triangle_count() as u64;
-        let bytes = encode_split(&object);
-        infos.push(super::SplitInfo {
-            id: split as u32,
-            triangles,
-            lo: bounds.lo.to_array(),
-            hi: bounds.hi.to_array(),
-            bytes: bytes.len() as u64,
-        });
-        drop(object);
+        let (info, bytes) = build_split(mesh, split as u32, ids);
+        infos.push(info);
         emit(split as u32, bytes)?;
     }
     Ok(infos)
+}
+
+/// The encoded split object `split` of `k` in `mode`: exactly the bytes [`split_scene`] emits
+/// for it, built alone (lineage recomputation of a lost or corrupt split object). `None` if
+/// `split` is not below `k`.
+pub fn rebuild_split(mesh: &Mesh, k: usize, mode: SplitMode, split: u32) -> Option<Vec<u8>> {
+    let ids = assign_splits(mesh, k, mode)
+        .into_iter()
+        .nth(split as usize)?;
+    Some(build_split(mesh, split, ids).1)
+}
+
+/// Builds split `split` of the triangles `ids`: its summary and its encoded object.
+fn build_split(mesh: &Mesh, split: u32, ids: Vec<u32>) -> (super::SplitInfo, Vec<u8>) {
+    let triangles = ids.iter().map(|&i| mesh.corners(i as usize)).collect();
+    let bvh = Bvh::build(triangles, ids);
+    let shading = bvh
+        .ids()
+        .iter()
+        .map(|&id| {
+            let (normals, kd) = shading_of(mesh, id);
+            TriangleShading { normals, kd }
+        })
+        .collect();
+    let object = SplitObject {
+        split,
+        bvh,
+        shading,
+    };
+    let bounds = object.bvh.bounds();
+    let triangles = object.bvh.triangle_count() as u64;
+    let bytes = encode_split(&object);
+    let info = super::SplitInfo {
+        id: split,
+        triangles,
+        lo: bounds.lo.to_array(),
+        hi: bounds.hi.to_array(),
+        bytes: bytes.len() as u64,
+    };
+    (info, bytes)
 }
 
 #[cfg(test)]
@@ -191,6 +207,27 @@ mod tests {
             let span = xs.iter().cloned().fold(f32::MIN, f32::max)
                 - xs.iter().cloned().fold(f32::MAX, f32::min);
             assert!(span < 260.0, "split spans {span} of 1000");
+        }
+    }
+
+    #[test]
+    fn a_rebuilt_split_has_exactly_the_bytes_split_scene_emitted() {
+        let mesh = grid_mesh(301);
+        for mode in [SplitMode::Naive, SplitMode::Spatial] {
+            let mut emitted = Vec::new();
+            split_scene(&mesh, 5, mode, |split, bytes| {
+                emitted.push((split, bytes));
+                Ok::<(), ()>(())
+            })
+            .unwrap();
+            for (split, bytes) in emitted {
+                assert_eq!(
+                    rebuild_split(&mesh, 5, mode, split).as_deref(),
+                    Some(bytes.as_slice()),
+                    "{mode:?} split {split}"
+                );
+            }
+            assert_eq!(rebuild_split(&mesh, 5, mode, 5), None);
         }
     }
 

@@ -88,7 +88,8 @@ pub fn dispatch(
         Function::Worker => {
             let event: WorkerEvent =
                 serde_json::from_value(event).map_err(|e| malformed("Worker", e))?;
-            let metrics = handle_worker(env.store, env.bucket, env.split_cache, &event)?;
+            let metrics =
+                handle_worker(env.store, env.bucket, env.split_cache, &event, env.work_dir)?;
             Ok(Invoked {
                 output: serde_json::to_value(metrics).map_err(encode)?,
                 task: Some(TaskDone {

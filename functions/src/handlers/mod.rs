@@ -6,8 +6,9 @@
 //! Error contract with the state machine (`infra/statemachine.asl.json`): a handler fails with
 //! [`ErrorType::Retryable`] (`Hort.Retryable`: storage trouble, a corrupt object; retried with
 //! backoff) or [`ErrorType::BadInput`] (`Hort.BadInput`: a bad scene, request or event, a missing
-//! object; never retried). Missing or corrupt shuffle blocks never reach the state machine: the
-//! consuming task recomputes them from lineage first.
+//! object; never retried). Missing or corrupt shuffle blocks, split objects and plans never reach the
+//! state machine: the consuming task recomputes them from lineage (their producer task, or the
+//! job's scene) first.
 
 mod dispatch;
 mod events;

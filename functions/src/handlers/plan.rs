@@ -6,7 +6,7 @@ use super::{HandlerError, check_bucket};
 use hort_core::ids::{JobId, Stage, TaskId};
 use hort_core::keys::{items_key, manifest_key};
 use hort_core::pipeline::plan_into_store;
-use hort_core::scene::load_scene;
+use hort_core::scene::{Scene, load_scene};
 use hort_core::store::BlobStore;
 use std::path::{Component, Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -24,19 +24,8 @@ pub fn handle_plan(
 ) -> Result<PlanOutput, HandlerError> {
     let job = &event.job;
     check_bucket(&event.bucket, bucket)?;
-    let request = read_request(store, job)?;
-    // Unique per invocation: a duplicated delivery of the same attempt must not share it.
-    static INVOCATION: AtomicU64 = AtomicU64::new(0);
-    let scene_dir = work_dir.join(format!(
-        "hort-plan-{job}-{}-{}-{}",
-        event.attempt,
-        std::process::id(),
-        INVOCATION.fetch_add(1, Ordering::Relaxed)
-    ));
-    let scene_path = download_scene(store, job, &request, &scene_dir)?;
-    let loaded = load_scene(&scene_path);
-    let _ = std::fs::remove_dir_all(&scene_dir);
-    let scene = loaded.map_err(|e| HandlerError::bad_input(e.to_string()))?;
+    let (request, scene) =
+        load_job_scene(store, job, work_dir, &format!("plan-{}", event.attempt))?;
     let plan = plan_into_store(store, job, &scene, &request.render)?.plan;
     let mut items = std::collections::BTreeMap::new();
     for stage in Stage::ALL {
@@ -63,6 +52,29 @@ pub fn handle_plan(
         items,
         max_concurrency: request.max_concurrency,
     })
+}
+
+/// Reads the job request and loads the job's scene from a scratch copy under `work_dir` (in a
+/// folder named after `label`, unique per call, removed afterwards).
+pub(super) fn load_job_scene(
+    store: &dyn BlobStore,
+    job: &JobId,
+    work_dir: &Path,
+    label: &str,
+) -> Result<(JobRequest, Scene), HandlerError> {
+    let request = read_request(store, job)?;
+    // Unique per invocation: a duplicated delivery of the same attempt must not share it.
+    static INVOCATION: AtomicU64 = AtomicU64::new(0);
+    let scene_dir = work_dir.join(format!(
+        "hort-{label}-{job}-{}-{}",
+        std::process::id(),
+        INVOCATION.fetch_add(1, Ordering::Relaxed)
+    ));
+    let scene_path = download_scene(store, job, &request, &scene_dir);
+    let loaded = scene_path
+        .and_then(|path| load_scene(&path).map_err(|e| HandlerError::bad_input(e.to_string())));
+    let _ = std::fs::remove_dir_all(&scene_dir);
+    Ok((request, loaded?))
 }
 
 fn read_request(store: &dyn BlobStore, job: &JobId) -> Result<JobRequest, HandlerError> {

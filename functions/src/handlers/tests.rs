@@ -88,7 +88,7 @@ fn plan_then_every_worker_task_produces_the_outputs() {
                 item,
                 attempt: 0,
             };
-            handle_worker(&store, "b", &cache, &event).unwrap();
+            handle_worker(&store, "b", &cache, &event, &std::env::temp_dir()).unwrap();
         }
     }
     let combine = WorkerEvent {
@@ -101,7 +101,7 @@ fn plan_then_every_worker_task_produces_the_outputs() {
         },
         attempt: 0,
     };
-    handle_worker(&store, "b", &cache, &combine).unwrap();
+    handle_worker(&store, "b", &cache, &combine, &std::env::temp_dir()).unwrap();
     assert_eq!(store.get(&hits_key(&job)).unwrap().len(), 32 * 24 * 8);
 }
 
@@ -181,7 +181,7 @@ fn bad_requests_are_bad_input_with_clear_causes() {
 }
 
 #[test]
-fn a_missing_plan_and_a_bad_scene_are_not_retried() {
+fn a_missing_plan_is_rebuilt_and_a_missing_request_or_bad_scene_is_not_retried() {
     let store = submitted("j3");
     let worker = WorkerEvent {
         job: JobId::new("j3").unwrap(),
@@ -193,13 +193,39 @@ fn a_missing_plan_and_a_bad_scene_are_not_retried() {
         },
         attempt: 0,
     };
-    let e = handle_worker(&store, "b", &SplitCache::new(0), &worker).unwrap_err();
-    // S3 is strongly consistent: an object that is not there now will not appear on a retry.
+    // A missing plan is rebuilt from the scene (the plan step again), with its split objects.
+    let done = handle_worker(
+        &store,
+        "b",
+        &SplitCache::new(0),
+        &worker,
+        &std::env::temp_dir(),
+    )
+    .unwrap();
+    assert_eq!(done.recomputed, 1);
+    let rebuilt = store.get("jobs/j3/plan.json").unwrap();
+    let planned = submitted("j3");
+    handle_plan(&planned, "b", &plan_event("j3"), &std::env::temp_dir()).unwrap();
+    assert_eq!(rebuilt, planned.get("jobs/j3/plan.json").unwrap());
+    // Without the job request it cannot be: S3 is strongly consistent, so an object that is
+    // not there now will not appear on a retry.
+    store.delete("jobs/j3/plan.json").unwrap();
+    store.delete("jobs/j3/manifest.json").unwrap();
+    let e = handle_worker(
+        &store,
+        "b",
+        &SplitCache::new(0),
+        &worker,
+        &std::env::temp_dir(),
+    )
+    .unwrap_err();
     assert_eq!(
         e,
-        HandlerError::bad_input("object not found: jobs/j3/plan.json")
+        HandlerError::bad_input("job request jobs/j3/manifest.json does not exist")
     );
 
+    let manifest = planned.get("jobs/j3/manifest.json").unwrap();
+    store.put("jobs/j3/manifest.json", &manifest).unwrap();
     store
         .put("jobs/j3/scene/cornell.obj", b"v 0 0 0\nf 1 2 3\n")
         .unwrap();

@@ -1,29 +1,70 @@
 //! The Worker function: run one task of one stage (the plan names its inputs and outputs).
 
 use super::events::WorkerEvent;
+use super::plan::load_job_scene;
 use super::{HandlerError, check_bucket};
+use hort_core::ErrorType;
 use hort_core::keys::plan_key;
-use hort_core::pipeline::{JobPlan, SplitCache, TaskMetrics, run_task_cached};
+use hort_core::pipeline::{
+    JobPlan, PipelineError, SplitCache, TaskMetrics, plan_into_store, rebuild_split, run_task_with,
+};
 use hort_core::store::BlobStore;
+use std::path::Path;
 
 /// Runs `event.stage` task `event.item.task` of `event.job`; `cache` is the worker's decoded
 /// splits (a warm container's memory). Returns what the task did. The outputs are the same bytes
-/// on every attempt.
+/// on every attempt. A lost or corrupt input block is recomputed from its producer; a lost or
+/// corrupt split object, or a lost or unreadable `plan.json`, is rebuilt from the job's scene,
+/// copied into `work_dir` (the function's `/tmp`) for the purpose (the plan step again, for
+/// the plan: the same bytes, split objects included).
 pub fn handle_worker(
     store: &dyn BlobStore,
     bucket: &str,
     cache: &SplitCache,
     event: &WorkerEvent,
+    work_dir: &Path,
 ) -> Result<TaskMetrics, HandlerError> {
     check_bucket(&event.bucket, bucket)?;
     let key = plan_key(&event.job);
-    let plan = JobPlan::from_json(&key, &store.get(&key)?)?;
-    Ok(run_task_cached(
+    let load = |what: &str| {
+        let label = format!("{what}-{}-{}", event.stage, event.item.task.0);
+        load_job_scene(store, &event.job, work_dir, &label).map_err(|e| {
+            // Same class and cause once the handler reports it.
+            match e.error_type {
+                ErrorType::Retryable => PipelineError::Corrupt(e.cause),
+                ErrorType::BadInput => PipelineError::BadInput(e.cause),
+            }
+        })
+    };
+    let stored = store
+        .get(&key)
+        .map_err(PipelineError::from)
+        .and_then(|bytes| JobPlan::from_json(&key, &bytes));
+    let (plan, replanned) = match stored {
+        Ok(plan) => (plan, false),
+        Err(PipelineError::Store(e)) if !e.is_not_found() => return Err(e.into()),
+        Err(PipelineError::Store(_) | PipelineError::Corrupt(_)) => {
+            let (request, scene) = load("plan")?;
+            let plan = plan_into_store(store, &event.job, &scene, &request.render)?.plan;
+            (plan, true)
+        }
+        Err(e) => return Err(e.into()),
+    };
+    let rebuild = |split: u32| -> Result<Vec<u8>, PipelineError> {
+        let (_, scene) = load(&format!("split-{split}"))?;
+        rebuild_split(&scene.mesh, plan.k() as usize, plan.split_mode, split).ok_or_else(|| {
+            PipelineError::BadInput(format!("split {split} is not in the plan {key}"))
+        })
+    };
+    let mut metrics = run_task_with(
         store,
         &event.job,
         &plan,
         event.stage,
         event.item.task.0,
         cache,
-    )?)
+        Some(&rebuild),
+    )?;
+    metrics.recomputed += u64::from(replanned);
+    Ok(metrics)
 }

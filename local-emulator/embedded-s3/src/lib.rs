@@ -14,23 +14,30 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+mod fault_layer;
+mod faults;
 mod object_files;
+
+pub use faults::{FaultCounts, FaultKind, PersistentFault, StorageFaults};
 
 use std::io;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Duration;
 
 use hyper_util::rt::{TokioExecutor, TokioIo};
 use hyper_util::server::conn::auto::Builder as ConnBuilder;
 use hyper_util::server::graceful::GracefulShutdown;
 use s3s::auth::{S3Auth, SecretKey};
-use s3s::service::{S3Service, S3ServiceBuilder};
+use s3s::service::S3ServiceBuilder;
 use s3s::{S3Result, s3_error};
 use tokio::net::TcpListener;
 use tokio::runtime::Runtime;
 use tokio::sync::oneshot;
 use tokio::task::JoinHandle;
 
+use self::fault_layer::{FaultyService, ResetFlag, ResettableStream};
+use self::faults::Injector;
 use self::object_files::ObjectFiles;
 
 /// How long dropping the server waits for requests in flight before cutting them off.
@@ -57,6 +64,12 @@ pub enum EmbeddedS3Error {
         /// The rejected name.
         name: String,
     },
+    /// The fault specification is out of range.
+    #[error("embedded S3 server: invalid faults: {reason}")]
+    InvalidFaults {
+        /// What is wrong, naming the field.
+        reason: String,
+    },
 }
 
 /// A running S3 server on `127.0.0.1` storing objects under one data directory.
@@ -72,6 +85,8 @@ pub struct EmbeddedS3 {
     shutdown: Option<oneshot::Sender<()>>,
     server: Option<JoinHandle<()>>,
     runtime: Option<Runtime>,
+    /// The fault injector, when started with faults.
+    injector: Option<Arc<Injector>>,
 }
 
 impl EmbeddedS3 {
@@ -83,6 +98,36 @@ impl EmbeddedS3 {
         data_dir: &Path,
         access_key: &str,
         secret_key: &str,
+    ) -> Result<Self, EmbeddedS3Error> {
+        Self::start_inner(data_dir, access_key, secret_key, None)
+    }
+
+    /// [`EmbeddedS3::start`], injecting `faults` into the HTTP exchanges (see
+    /// [`StorageFaults`]): error answers, delays, reset connections and cut bodies, drawn per
+    /// request from the seed. Objects are stored exactly as without faults; only the answers
+    /// are damaged. Fails with [`EmbeddedS3Error::InvalidFaults`] if the rates are out of range.
+    pub fn start_with_faults(
+        data_dir: &Path,
+        access_key: &str,
+        secret_key: &str,
+        faults: StorageFaults,
+    ) -> Result<Self, EmbeddedS3Error> {
+        faults
+            .validate()
+            .map_err(|reason| EmbeddedS3Error::InvalidFaults { reason })?;
+        Self::start_inner(
+            data_dir,
+            access_key,
+            secret_key,
+            Some(Arc::new(Injector::new(faults))),
+        )
+    }
+
+    fn start_inner(
+        data_dir: &Path,
+        access_key: &str,
+        secret_key: &str,
+        injector: Option<Arc<Injector>>,
     ) -> Result<Self, EmbeddedS3Error> {
         std::fs::create_dir_all(data_dir).map_err(|cause| EmbeddedS3Error::Io {
             what: format!("create data directory {}", data_dir.display()),
@@ -125,14 +170,23 @@ impl EmbeddedS3 {
             cause,
         })?;
         let (shutdown, stop) = oneshot::channel();
-        let server = runtime.spawn(serve(listener, service, stop));
+        let server = runtime.spawn(serve(listener, service, injector.clone(), stop));
         Ok(Self {
             endpoint: format!("http://{addr}"),
             data_dir,
             shutdown: Some(shutdown),
             server: Some(server),
             runtime: Some(runtime),
+            injector,
         })
+    }
+
+    /// The faults injected so far (all zero for a server started without faults).
+    pub fn fault_counts(&self) -> FaultCounts {
+        self.injector
+            .as_ref()
+            .map(|i| i.counts())
+            .unwrap_or_default()
     }
 
     /// The URL to give an S3 client: `http://127.0.0.1:PORT`, no trailing slash.
@@ -194,7 +248,12 @@ impl Drop for EmbeddedS3 {
 
 /// Accepts connections until `stop` fires, then waits up to [`GRACEFUL_SHUTDOWN`] for open
 /// connections to finish their current request.
-async fn serve(listener: TcpListener, service: S3Service, mut stop: oneshot::Receiver<()>) {
+async fn serve(
+    listener: TcpListener,
+    service: s3s::service::S3Service,
+    injector: Option<Arc<Injector>>,
+    mut stop: oneshot::Receiver<()>,
+) {
     let http = ConnBuilder::new(TokioExecutor::new());
     let graceful = GracefulShutdown::new();
     loop {
@@ -203,7 +262,14 @@ async fn serve(listener: TcpListener, service: S3Service, mut stop: oneshot::Rec
                 Ok((socket, _peer)) => {
                     // Small request/response pairs stall ~40 ms under Nagle + delayed ACK.
                     let _ = socket.set_nodelay(true);
-                    let conn = http.serve_connection(TokioIo::new(socket), service.clone());
+                    let reset = Arc::new(ResetFlag::default());
+                    let service = FaultyService {
+                        inner: service.clone(),
+                        injector: injector.clone(),
+                        reset: Arc::clone(&reset),
+                    };
+                    let socket = ResettableStream::new(socket, reset);
+                    let conn = http.serve_connection(TokioIo::new(socket), service);
                     let conn = graceful.watch(conn.into_owned());
                     // A connection error means the client went away; nothing to report.
                     tokio::spawn(async move {

@@ -15,7 +15,7 @@ pub use faults::{FaultCounts, FaultSettings, FaultyInvoker};
 pub use invoker::{InProcessInvoker, Ledger};
 pub use lambda_invoker::{LambdaInvoker, LambdaTarget};
 pub use storage::{
-    EMBEDDED_BUCKET, Storage, StorageTarget, exit_now, remove_stale_temp_folders,
+    EMBEDDED_BUCKET, S3_FAULTS_VAR, Storage, StorageTarget, exit_now, remove_stale_temp_folders,
     remove_temp_folders,
 };
 pub use upload::{
@@ -50,7 +50,8 @@ pub struct EmulatorConfig {
     pub workers: usize,
     /// Seeded faults to inject (none by default).
     pub faults: FaultSettings,
-    /// Multiplies the state machine's waits and timeouts (1.0 = real time).
+    /// Multiplies the state machine's waits and timeouts and the S3 client's backoff between
+    /// attempts (1.0 = real time).
     pub time_scale: f64,
     /// Per-task timeout override, seconds (default: derived from each task's work).
     pub task_timeout_seconds: Option<u32>,
@@ -156,7 +157,7 @@ pub fn run_job_with(
     observer: &dyn Observer,
 ) -> Result<EmulatorRun> {
     let started = Instant::now();
-    let storage = Storage::open(&config.storage)?;
+    let storage = Storage::open_scaled(&config.storage, config.time_scale)?;
     let job = JobId::new(config.job.clone().unwrap_or_else(fresh_job_id))?;
     let request = JobRequest {
         scene: scene

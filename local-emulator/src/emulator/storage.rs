@@ -10,7 +10,7 @@
 //! outright (SIGKILL), by the next [`Storage::open`] once the owning process is gone.
 
 use anyhow::{Result, anyhow, bail};
-use embedded_s3::EmbeddedS3;
+use embedded_s3::{EmbeddedS3, StorageFaults};
 use hort_core::store::{BlobStore, CountingStore};
 use hort_functions::s3_store::BucketProblem;
 use hort_functions::{S3Config, S3Credentials, S3Store};
@@ -24,6 +24,10 @@ const EMBEDDED_ACCESS_KEY: &str = "hort-local";
 const EMBEDDED_SECRET_KEY: &str = "hort-local-secret";
 /// Bucket used with the embedded server.
 pub const EMBEDDED_BUCKET: &str = "hort";
+/// The environment variable holding storage faults for the embedded server (a specification
+/// `embedded_s3::StorageFaults` parses, such as `seed=1,slow-down=0.05,reset=0.05`): a testing
+/// aid, not a command-line flag.
+pub const S3_FAULTS_VAR: &str = "HORT_S3_FAULTS";
 /// Name prefix of the per-run temporary folders, followed by `{pid}-{n}`.
 const TEMP_PREFIX: &str = "hort-s3-";
 /// The file inside a temporary folder that its process keeps locked while it lives.
@@ -93,8 +97,33 @@ pub struct Storage {
     /// The S3 endpoint URL the store talks to (`AWS S3 (REGION)` for AWS itself).
     pub endpoint: String,
     /// Keeps the embedded server alive; dropped before the temporary folder.
-    _server: Option<EmbeddedS3>,
+    server: Option<EmbeddedS3>,
+    /// Whether the embedded server injects faults ([`S3_FAULTS_VAR`]).
+    injecting: bool,
     temp: TempFolder,
+}
+
+impl Drop for Storage {
+    /// Reports the storage faults injected, if any were asked for.
+    fn drop(&mut self) {
+        if let Some(server) = self.server.as_ref().filter(|_| self.injecting) {
+            eprintln!(
+                "hort: {S3_FAULTS_VAR}: the embedded S3 server injected {}",
+                server.fault_counts()
+            );
+        }
+    }
+}
+
+/// The storage faults of [`S3_FAULTS_VAR`], if it is set and not empty.
+fn faults_from_env() -> Result<Option<StorageFaults>> {
+    match std::env::var(S3_FAULTS_VAR) {
+        Ok(spec) if !spec.trim().is_empty() => spec
+            .parse()
+            .map(Some)
+            .map_err(|e| anyhow!("{S3_FAULTS_VAR}={spec:?}: {e}")),
+        _ => Ok(None),
+    }
 }
 
 impl Storage {
@@ -102,31 +131,60 @@ impl Storage {
     /// one-line errors that say what to do. First removes the temporary folders of runs whose
     /// process is gone.
     pub fn open(target: &StorageTarget) -> Result<Storage> {
+        Self::open_scaled(target, 1.0)
+    }
+
+    /// [`Storage::open`], with the S3 client's backoff between attempts of a request scaled by
+    /// `time_scale` (the orchestrator's), for the embedded server and `External` endpoints;
+    /// a `Bucket` configuration is used as given. With [`S3_FAULTS_VAR`] set, the embedded
+    /// server injects those faults (and reports their counts on standard error when the
+    /// storage is dropped); with another target it is an error.
+    pub fn open_scaled(target: &StorageTarget, time_scale: f64) -> Result<Storage> {
         remove_stale_temp_folders();
+        let faults = faults_from_env()?;
+        if faults.is_some() && !matches!(target, StorageTarget::Embedded { .. }) {
+            bail!(
+                "{S3_FAULTS_VAR} injects faults into the embedded S3 server only: unset it to                  use another S3 endpoint"
+            );
+        }
+        let scaled = |mut config: S3Config| {
+            config.initial_backoff = config.initial_backoff.mul_f64(time_scale.clamp(1e-3, 1e3));
+            config
+        };
         let temp = TempFolder::create()?;
         match target {
             StorageTarget::Embedded { data_dir } => {
                 let dir = data_dir.clone().unwrap_or_else(|| temp.path().join("data"));
                 std::fs::create_dir_all(&dir)
                     .map_err(|e| anyhow!("cannot create data folder {}: {e}", dir.display()))?;
-                let server = EmbeddedS3::start(&dir, EMBEDDED_ACCESS_KEY, EMBEDDED_SECRET_KEY)
-                    .map_err(|e| anyhow!("cannot start the embedded S3 server: {e}"))?;
+                let injecting = faults.is_some();
+                let server = match faults {
+                    Some(faults) => EmbeddedS3::start_with_faults(
+                        &dir,
+                        EMBEDDED_ACCESS_KEY,
+                        EMBEDDED_SECRET_KEY,
+                        faults,
+                    ),
+                    None => EmbeddedS3::start(&dir, EMBEDDED_ACCESS_KEY, EMBEDDED_SECRET_KEY),
+                }
+                .map_err(|e| anyhow!("cannot start the embedded S3 server: {e}"))?;
                 server
                     .ensure_bucket(EMBEDDED_BUCKET)
                     .map_err(|e| anyhow!("cannot create the embedded bucket: {e}"))?;
-                let config = S3Config::compatible(
+                let config = scaled(S3Config::compatible(
                     server.endpoint(),
                     EMBEDDED_BUCKET,
                     EMBEDDED_ACCESS_KEY,
                     EMBEDDED_SECRET_KEY,
-                );
+                ));
                 let store = S3Store::open(&config)?;
                 store.check_bucket()?;
                 Ok(Storage {
                     endpoint: server.endpoint(),
                     store: Arc::new(CountingStore::new(store)),
                     bucket: EMBEDDED_BUCKET.into(),
-                    _server: Some(server),
+                    server: Some(server),
+                    injecting,
                     temp,
                 })
             }
@@ -137,7 +195,7 @@ impl Storage {
             } => {
                 let mut config = S3Config::compatible(endpoint.clone(), bucket.clone(), "", "");
                 config.credentials = credentials.clone();
-                open_bucket(&config, temp)
+                open_bucket(&scaled(config), temp)
             }
             StorageTarget::Bucket(config) => open_bucket(config, temp),
         }
@@ -189,7 +247,8 @@ fn open_bucket(config: &S3Config, temp: TempFolder) -> Result<Storage> {
         store: Arc::new(CountingStore::new(store)),
         bucket,
         endpoint,
-        _server: None,
+        server: None,
+        injecting: false,
         temp,
     })
 }

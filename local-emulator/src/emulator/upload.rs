@@ -137,6 +137,11 @@ pub fn submit_or_resume(
         let json = serde_json::to_vec_pretty(request).context("job request")?;
         return match store.put_if_absent(&manifest_key(job), &json)? {
             PutOutcome::Created => Ok(Submitted::New),
+            // Our own write whose answer was lost (a reset connection): the client's retry
+            // found it. Same bytes mean same job request, so the job is ours to run.
+            PutOutcome::AlreadyExists if store.get(&manifest_key(job))? == json => {
+                Ok(Submitted::New)
+            }
             PutOutcome::AlreadyExists => bail!(
                 "job \"{job}\" already exists in this bucket: add --resume to continue it, run \
                  {clean} to delete it, or choose another --job id"

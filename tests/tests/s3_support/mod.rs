@@ -29,6 +29,15 @@ impl Embedded {
         Embedded { server, dir }
     }
 
+    /// [`Embedded::start`] with storage faults injected into every HTTP exchange.
+    pub fn start_with_faults(bucket: &str, faults: embedded_s3::StorageFaults) -> Embedded {
+        let dir = tempfile::tempdir().expect("temporary directory");
+        let server = EmbeddedS3::start_with_faults(dir.path(), ACCESS_KEY, SECRET_KEY, faults)
+            .expect("embedded S3 starts");
+        server.ensure_bucket(bucket).expect("bucket created");
+        Embedded { server, dir }
+    }
+
     /// A store on `bucket` of this server, signing with the given key pair.
     pub fn store_with_keys(&self, bucket: &str, access_key: &str, secret_key: &str) -> S3Store {
         let config = S3Config::compatible(self.server.endpoint(), bucket, access_key, secret_key);
