@@ -57,21 +57,14 @@ fn a_name_with_a_backslash_is_refused() {
 
 #[test]
 fn a_name_over_1024_bytes_or_a_part_over_255_is_refused() {
-    let long = format!(
-        "{}/{}.obj",
-        vec!["a".repeat(200); 5].join("/"),
-        "b".repeat(16)
-    );
+    let a = "a".repeat(200);
+    let long = format!("{}/{}.obj", [a.as_str(); 5].join("/"), "b".repeat(16));
     assert_eq!(long.len(), 1024 + 1);
     refused_name(&long, &format!("{long:?}"));
     let part = format!("{}.obj", "a".repeat(252));
     refused_name(&part, &format!("{part:?}"));
     // 1024 bytes in parts of at most 255 are fine (and then the scene loads).
-    let ok = format!(
-        "{}/{}.obj",
-        vec!["a".repeat(200); 4].join("/"),
-        "d".repeat(216)
-    );
+    let ok = format!("{}/{}.obj", [a.as_str(); 4].join("/"), "d".repeat(216));
     assert_eq!(ok.len(), 1024);
     let body = json!({"scene": {"main": ok, "files": {&ok: TRIANGLE}}, "width": 4, "height": 4});
     let (status, value) = post(&Fake::default(), "/renders?dry_run=true", &body);
