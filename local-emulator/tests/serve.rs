@@ -522,7 +522,7 @@ fn bad_requests_get_their_status_and_exact_message() {
             404,
             "not_found",
             "no route GET /jobs: the API has /renders, /renders/{id}, /renders/{id}/image and \
-             /renders/{id}/report"
+             /renders/{id}/report, and the dashboard at /"
                 .into(),
             None,
         ),
