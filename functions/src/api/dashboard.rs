@@ -22,8 +22,11 @@ pub const DASHBOARD_JOBS: usize = 50;
 
 const TEMPLATE: &str = include_str!("dashboard.html");
 
+/// A scene's files: (name relative to its folder, text).
+type Files = &'static [(&'static str, &'static str)];
+
 /// The scenes the page offers without an upload: (name, main file, files).
-const BUNDLED: &[(&str, &str, &[(&str, &str)])] = &[
+const BUNDLED: &[(&str, &str, Files)] = &[
     (
         "cornell",
         "cornell.json",
