@@ -92,7 +92,8 @@ job = page.wait("(m => m && m[1])(document.getElementById('answer').textContent"
 print(f"browser: submitted {job} from the page", flush=True)
 row = f"document.querySelector('#jobs tr[data-job=\"{job}\"]')"
 page.wait(f"{row} !== null", 30, "the job's row")
-check("the job is listed", True, job)
+listed = page.js(f"{row}.querySelector('td.id').textContent")
+check("the job is listed", listed == job, listed)
 page.wait(f"{row}.dataset.status === 'SUCCEEDED' && {row}.querySelector('img.result') "
           f"&& {row}.querySelector('img.result').complete", 120, "the job's image")
 status = page.js(f"{row}.querySelector('.status').textContent")

@@ -24,9 +24,13 @@ hort="$target/debug/hort"
 work="$(mktemp -d)"
 serve_pid="" chrome_pid=""
 cleanup() {
-  [ -n "$chrome_pid" ] && kill "$chrome_pid" 2>/dev/null && wait "$chrome_pid" 2>/dev/null
-  [ -n "$serve_pid" ] && kill "$serve_pid" 2>/dev/null && wait "$serve_pid" 2>/dev/null
+  local status=$?
+  for pid in $chrome_pid $serve_pid; do
+    kill "$pid" 2>/dev/null || true
+    wait "$pid" 2>/dev/null || true
+  done
   rm -rf "$work"
+  exit "$status"
 }
 trap cleanup EXIT
 
