@@ -63,13 +63,16 @@ impl Serve {
         let sink = Arc::clone(&log);
         std::thread::spawn(move || {
             for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+                // Logged before the port is sent, so a test that has the port sees the line.
+                {
+                    let mut log = sink.lock().unwrap_or_else(|e| e.into_inner());
+                    log.push_str(&line);
+                    log.push('\n');
+                }
                 if let Some(rest) = line.split("listening on http://127.0.0.1:").nth(1) {
                     let port: String = rest.chars().take_while(char::is_ascii_digit).collect();
                     let _ = tx.send(port.parse::<u16>().unwrap());
                 }
-                let mut log = sink.lock().unwrap();
-                log.push_str(&line);
-                log.push('\n');
             }
         });
         let port = match rx.recv_timeout(Duration::from_secs(60)) {
@@ -714,14 +717,14 @@ fn a_full_server_answers_429_binds_loopback_and_keeps_its_keys_private() {
     use std::os::unix::fs::PermissionsExt;
     let dir = scratch("full");
     let server = Serve::start_with(&dir.join("data"), &["--max-jobs", "1"]);
+    let log = server.log.lock().unwrap().clone();
     assert!(
-        server.log.lock().unwrap().contains(&format!(
+        log.contains(&format!(
             "listening on http://127.0.0.1:{} (loopback only: other machines cannot connect; \
              --bind ADDRESS to change; dashboard at http://127.0.0.1:{}/;",
             server.port, server.port
         )),
-        "{}",
-        server.log.lock().unwrap()
+        "{log}"
     );
     // The embedded S3 server's key pair: random, in the data folder, owner-only.
     let key_file = dir.join("data/.hort-s3-key");
