@@ -34,7 +34,8 @@ problems = []
 
 # The routes and methods of functions/src/api/mod.rs.
 routes = {
-    "/renders": {"post"},
+    "/": {"get"},
+    "/renders": {"get", "post"},
     "/renders/{id}": {"get", "delete"},
     "/renders/{id}/image": {"get"},
     "/renders/{id}/report": {"get"},
@@ -46,7 +47,9 @@ if described != routes:
 
 # The statuses of the contract.
 expected = {
-    ("/renders", "post"): {"200", "202", "400", "404", "405", "413", "415", "422"},
+    ("/", "get"): {"200", "400", "405"},
+    ("/renders", "get"): {"200", "400", "405"},
+    ("/renders", "post"): {"200", "202", "400", "404", "405", "413", "415", "422", "429"},
     ("/renders/{id}", "get"): {"200", "404", "405"},
     ("/renders/{id}", "delete"): {"200", "404", "405"},
     ("/renders/{id}/image", "get"): {"200", "400", "404", "405"},

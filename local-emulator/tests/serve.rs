@@ -45,9 +45,14 @@ struct Serve {
 
 impl Serve {
     fn start(data: &Path) -> Serve {
+        Serve::start_with(data, &[])
+    }
+
+    fn start_with(data: &Path, extra: &[&str]) -> Serve {
         let mut child = Command::new(HORT)
             .args(["serve", "--port", "0", "--workers", "2", "--data-dir"])
             .arg(data)
+            .args(extra)
             .stdout(Stdio::null())
             .stderr(Stdio::piped())
             .spawn()
@@ -58,13 +63,16 @@ impl Serve {
         let sink = Arc::clone(&log);
         std::thread::spawn(move || {
             for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+                // Logged before the port is sent, so a test that has the port sees the line.
+                {
+                    let mut log = sink.lock().unwrap_or_else(|e| e.into_inner());
+                    log.push_str(&line);
+                    log.push('\n');
+                }
                 if let Some(rest) = line.split("listening on http://127.0.0.1:").nth(1) {
                     let port: String = rest.chars().take_while(char::is_ascii_digit).collect();
                     let _ = tx.send(port.parse::<u16>().unwrap());
                 }
-                let mut log = sink.lock().unwrap();
-                log.push_str(&line);
-                log.push('\n');
             }
         });
         let port = match rx.recv_timeout(Duration::from_secs(60)) {
@@ -154,6 +162,10 @@ impl Reply {
         })
     }
 
+    fn text(&self) -> String {
+        String::from_utf8_lossy(&self.body).into_owned()
+    }
+
     fn header(&self, name: &str) -> Option<&str> {
         self.headers
             .iter()
@@ -176,7 +188,8 @@ impl Reply {
     }
 }
 
-/// Sends one request (`Content-Length` added unless given) and reads the whole answer.
+/// Sends one request (`Content-Length` added unless it or `Transfer-Encoding` is given) and
+/// reads the whole answer.
 fn call(port: u16, method: &str, path: &str, headers: &[(&str, &str)], body: &[u8]) -> Reply {
     let mut stream = TcpStream::connect(("127.0.0.1", port)).unwrap();
     stream
@@ -186,10 +199,9 @@ fn call(port: u16, method: &str, path: &str, headers: &[(&str, &str)], body: &[u
     for (k, v) in headers {
         head += &format!("{k}: {v}\r\n");
     }
-    if !headers
-        .iter()
-        .any(|(k, _)| k.eq_ignore_ascii_case("content-length"))
-    {
+    if !headers.iter().any(|(k, _)| {
+        k.eq_ignore_ascii_case("content-length") || k.eq_ignore_ascii_case("transfer-encoding")
+    }) {
         head += &format!("Content-Length: {}\r\n", body.len());
     }
     head += "\r\n";
@@ -513,7 +525,7 @@ fn bad_requests_get_their_status_and_exact_message() {
             404,
             "not_found",
             "no route GET /jobs: the API has /renders, /renders/{id}, /renders/{id}/image and \
-             /renders/{id}/report"
+             /renders/{id}/report, and the dashboard at /"
                 .into(),
             None,
         ),
@@ -698,4 +710,96 @@ fn delete_cancels_a_running_job_and_removes_its_intermediates() {
     assert_eq!(done["status"], "SUCCEEDED", "{done}");
     drop(server);
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_full_server_answers_429_binds_loopback_and_keeps_its_keys_private() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = scratch("full");
+    let server = Serve::start_with(&dir.join("data"), &["--max-jobs", "1"]);
+    let log = server.log.lock().unwrap().clone();
+    assert!(
+        log.contains(&format!(
+            "listening on http://127.0.0.1:{} (loopback only: other machines cannot connect; \
+             --bind ADDRESS to change; dashboard at http://127.0.0.1:{}/;",
+            server.port, server.port
+        )),
+        "{log}"
+    );
+    // The embedded S3 server's key pair: random, in the data folder, owner-only.
+    let key_file = dir.join("data/.hort-s3-key");
+    let mode = std::fs::metadata(&key_file).unwrap().permissions().mode() & 0o777;
+    assert_eq!(mode, 0o600);
+    let keys = std::fs::read_to_string(&key_file).unwrap();
+    assert!(!keys.contains("hort-local-secret"), "{keys}");
+    assert_eq!(keys.split_whitespace().nth(1).unwrap().len(), 64);
+
+    let long = json!({"scene": cornell(), "width": 320, "height": 240, "spp": 16});
+    let first = server.post("/renders", &long, &[]);
+    assert_eq!(first.status, 202, "{}", first.text());
+    let job = first.json()["job"].as_str().unwrap().to_owned();
+    let second = server.post("/renders", &long, &[]);
+    assert_eq!(second.status, 429, "{}", second.text());
+    assert_eq!(
+        second.error(),
+        (
+            "too_many_jobs".to_owned(),
+            "1 jobs are queued or running, the most this server runs at once (hort serve \
+             --max-jobs 1); submit again once one has ended"
+                .to_owned(),
+            None
+        )
+    );
+    // The listing and the dashboard name the one job.
+    let listing = server.get("/renders").json();
+    assert_eq!(listing["renders"].as_array().unwrap().len(), 1);
+    assert_eq!(listing["renders"][0]["job"], job.as_str());
+    assert_eq!(listing["renders"][0]["scene"], "cornell.json");
+    let page = server.get("/");
+    assert_eq!(page.status, 200);
+    assert_eq!(
+        page.header("content-type"),
+        Some("text/html; charset=utf-8")
+    );
+    assert!(page.text().contains(&format!("<tr data-job=\"{job}\"")));
+    let cancelled = server
+        .call("DELETE", &format!("/renders/{job}"), &[], b"")
+        .json();
+    assert_eq!(cancelled["status"], "CANCELLED");
+    // Once it ended, a job is taken again.
+    let third = server.post(
+        "/renders",
+        &json!({"scene": cornell(), "width": 8, "height": 8}),
+        &[],
+    );
+    assert_eq!(third.status, 202, "{}", third.text());
+}
+
+#[test]
+fn a_chunked_body_over_the_limit_is_read_no_further_than_the_limit() {
+    let dir = scratch("chunked");
+    let server = Serve::start(&dir.join("data"));
+    // 7 chunks of 1 MiB, no length declared: the server stops at 6 MiB and answers 413.
+    let mut body = Vec::new();
+    for _ in 0..7 {
+        body.extend_from_slice(format!("{:x}\r\n", 1 << 20).as_bytes());
+        body.extend(std::iter::repeat_n(b' ', 1 << 20));
+        body.extend_from_slice(b"\r\n");
+    }
+    body.extend_from_slice(b"0\r\n\r\n");
+    let reply = server.call(
+        "POST",
+        "/renders",
+        &[
+            ("Content-Type", "application/json"),
+            ("Transfer-Encoding", "chunked"),
+        ],
+        &body,
+    );
+    assert_eq!(reply.status, 413);
+    assert_eq!(
+        reply.error().1,
+        "the request body is over the limit of 6291456 bytes; give a large scene by key \
+         ({\"scene\": {\"key\": \"...\"}}) instead of inline files"
+    );
 }

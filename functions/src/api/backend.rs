@@ -70,12 +70,33 @@ pub struct JobStatus {
     pub cost_usd: Option<f64>,
     /// The cost predicted when the job was accepted.
     pub predicted_cost_usd: f64,
+    /// The job's budget (`max_cost_usd` of its request), if it had one.
+    #[serde(default)]
+    pub max_cost_usd: Option<f64>,
     /// Why the job failed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
     /// Where the image is, once the job succeeded (set by the router).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub image_url: Option<String>,
+    /// How the job's scene is named (its main file, or its key); `null` if the backend does
+    /// not know.
+    #[serde(default)]
+    pub scene: Option<String>,
+    /// Tasks done per stage, in stage order (empty if the backend does not count them).
+    #[serde(default)]
+    pub stages: Vec<StageProgress>,
+}
+
+/// One stage's progress in a [`JobStatus`].
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct StageProgress {
+    /// The stage's name (`plan`, `cast-map`, ...).
+    pub stage: String,
+    /// Its tasks that succeeded.
+    pub done: u64,
+    /// Its tasks (from the plan).
+    pub total: u64,
 }
 
 /// A validated job, ready to run.
@@ -163,11 +184,15 @@ pub trait RenderBackend: Send + Sync {
     }
 
     /// Accepts a validated job and starts it (or, with a known idempotency key, names the job
-    /// that key started).
+    /// that key started). A backend that already runs as many jobs as it takes answers
+    /// [`ApiError::too_many_jobs`] (429) and starts nothing.
     fn submit(&self, job: JobSpec) -> Result<Submission, ApiError>;
 
     /// The job's state and progress.
     fn status(&self, job: &str) -> Result<JobStatus, ApiError>;
+
+    /// The jobs this backend knows, newest first, at most `limit` of them.
+    fn list(&self, limit: usize) -> Result<Vec<JobStatus>, ApiError>;
 
     /// The finished job's image; [`ApiError::not_found`] until it succeeded.
     fn image(&self, job: &str, format: ImageFormat) -> Result<Vec<u8>, ApiError>;

@@ -100,6 +100,12 @@ impl ApiError {
         e
     }
 
+    /// 429 `too_many_jobs`: the backend runs as many jobs as it takes; submit again once one
+    /// ended.
+    pub fn too_many_jobs(message: impl Into<String>) -> Self {
+        Self::new(StatusCode::TOO_MANY_REQUESTS, "too_many_jobs", message)
+    }
+
     /// 500 `internal`: the backend failed (storage, a thread); the request may be retried.
     pub fn internal(message: impl Into<String>) -> Self {
         Self::new(StatusCode::INTERNAL_SERVER_ERROR, "internal", message)

@@ -5,6 +5,8 @@
 //!
 //! | route | answer |
 //! |---|---|
+//! | `GET /` | 200 the job dashboard, one self-contained HTML page (`?view=jobs`: its job table alone) |
+//! | `GET /renders[?limit=N]` | 200 `{"renders": [...]}`: the newest jobs' statuses, newest first (default 50) |
 //! | `POST /renders` | 202 `{"job", "status_url", ...}` once the request and the scene are valid; `?dry_run=true`: 200 with the plan and the prediction, nothing started |
 //! | `GET /renders/{id}` | 200 the job's status ([`JobStatus`]) |
 //! | `GET /renders/{id}/image[?format=png\|pfm\|exr]` | 200 the image; 404 until the job succeeded |
@@ -15,26 +17,33 @@
 //! not JSON, a bad field (named by its JSON path; unknown fields are refused) or a bad scene
 //! (named by file and line), 404 for an unknown job or route, 405 for a method the route does
 //! not take, 413 for a body over [`MAX_BODY_BYTES`], 415 for a body that is not
-//! `application/json`, 422 for a predicted cost over `max_cost_usd`.
+//! `application/json`, 422 for a predicted cost over `max_cost_usd`, 429 when the backend runs
+//! as many jobs as it takes.
 //!
 //! A server that streams bodies calls [`check_head`] before reading the body, so a request
 //! whose `Content-Length` is over the limit is refused without reading it, and stops reading at
 //! the limit otherwise; [`handle`] checks both again.
 
 mod backend;
+mod dashboard;
 mod error;
+#[cfg(test)]
+mod hostile_tests;
 mod predict;
 mod request;
 mod scene;
 #[cfg(test)]
 mod tests;
 
-pub use backend::{ImageFormat, JobSpec, JobState, JobStatus, RenderBackend, Submission};
+pub use backend::{
+    ImageFormat, JobSpec, JobState, JobStatus, RenderBackend, StageProgress, Submission,
+};
+pub use dashboard::{DASHBOARD_JOBS, escape_html, jobs_table, page};
 pub use error::ApiError;
 pub use predict::{
     Prediction, PredictionModel, RATES, Rates, StagePrediction, predict, preview_plan, usd,
 };
-pub use request::{RenderRequest, SceneSpec, parse_render_request};
+pub use request::{MAX_JSON_DEPTH, RenderRequest, SceneSpec, parse_render_request};
 pub use scene::{LoadedScene, MAX_SCENE_FILES, SceneFiles, check_relative};
 
 use std::collections::BTreeMap;
@@ -58,6 +67,7 @@ pub const MAX_IDEMPOTENCY_KEY_BYTES: usize = 255;
 /// The routes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Route<'a> {
+    Dashboard,
     Renders,
     Render(&'a str),
     Image(&'a str),
@@ -66,6 +76,9 @@ enum Route<'a> {
 
 impl Route<'_> {
     fn parse(path: &str) -> Option<Route<'_>> {
+        if path == "/" {
+            return Some(Route::Dashboard);
+        }
         let rest = path.strip_prefix("/renders")?;
         if rest.is_empty() {
             return Some(Route::Renders);
@@ -89,7 +102,8 @@ impl Route<'_> {
     /// The methods the route takes, as the `Allow` header lists them.
     fn allow(self) -> &'static str {
         match self {
-            Route::Renders => "POST",
+            Route::Dashboard => "GET",
+            Route::Renders => "GET, POST",
             Route::Render(_) => "GET, DELETE",
             Route::Image(_) | Route::Report(_) => "GET",
         }
@@ -97,7 +111,8 @@ impl Route<'_> {
 
     fn takes(self, method: &Method) -> bool {
         match self {
-            Route::Renders => method == Method::POST,
+            Route::Dashboard => method == Method::GET,
+            Route::Renders => method == Method::GET || method == Method::POST,
             Route::Render(_) => method == Method::GET || method == Method::DELETE,
             Route::Image(_) | Route::Report(_) => method == Method::GET,
         }
@@ -112,7 +127,7 @@ pub fn check_head(method: &Method, uri: &http::Uri, headers: &HeaderMap) -> Resu
     let Some(route) = Route::parse(path) else {
         return Err(ApiError::not_found(format!(
             "no route {method} {path}: the API has /renders, /renders/{{id}}, \
-             /renders/{{id}}/image and /renders/{{id}}/report"
+             /renders/{{id}}/image and /renders/{{id}}/report, and the dashboard at /"
         )));
     };
     if !route.takes(method) {
@@ -124,7 +139,7 @@ pub fn check_head(method: &Method, uri: &http::Uri, headers: &HeaderMap) -> Resu
             route.allow(),
         ));
     }
-    if route == Route::Renders {
+    if route == Route::Renders && method == Method::POST {
         check_content_type(headers)?;
         if let Some(length) = headers
             .get(header::CONTENT_LENGTH)
@@ -194,6 +209,52 @@ fn route<B: AsRef<[u8]>>(
     let query = parse_query(parts.uri.query().unwrap_or(""))?;
     let route = Route::parse(parts.uri.path()).ok_or_else(|| ApiError::internal("no route"))?;
     match route {
+        Route::Dashboard => {
+            only_params(&query, &["view"])?;
+            let jobs = backend.list(DASHBOARD_JOBS)?;
+            let html = match query.get("view").map(String::as_str) {
+                None => page(&jobs),
+                Some("jobs") => jobs_table(&jobs),
+                Some(other) => {
+                    return Err(ApiError::invalid_field(
+                        "query.view",
+                        format!("query.view: \"{other}\" is not jobs"),
+                    ));
+                }
+            };
+            let mut response = bytes_response("text/html; charset=utf-8", html.into_bytes())?;
+            // The page runs only its own inline script and loads nothing from elsewhere.
+            response.headers_mut().insert(
+                header::CONTENT_SECURITY_POLICY,
+                http::HeaderValue::from_static(
+                    "default-src 'self'; script-src 'unsafe-inline'; style-src \
+                     'unsafe-inline'; img-src 'self'; frame-ancestors 'none'",
+                ),
+            );
+            Ok(response)
+        }
+        Route::Renders if parts.method == Method::GET => {
+            only_params(&query, &["limit"])?;
+            let limit = match query.get("limit") {
+                None => DASHBOARD_JOBS,
+                Some(text) => text
+                    .parse::<usize>()
+                    .ok()
+                    .filter(|n| (1..=1000).contains(n))
+                    .ok_or_else(|| {
+                        ApiError::invalid_field(
+                            "query.limit",
+                            format!("query.limit: \"{text}\" is not a number from 1 to 1000"),
+                        )
+                    })?,
+            };
+            let renders: Vec<JobStatus> = backend
+                .list(limit)?
+                .into_iter()
+                .map(with_image_url)
+                .collect();
+            json(StatusCode::OK, &serde_json::json!({ "renders": renders }))
+        }
         Route::Renders => {
             let body = body.as_ref();
             if body.len() > MAX_BODY_BYTES {

@@ -52,13 +52,24 @@ pub struct SceneSpec {
     pub key: Option<String>,
 }
 
-/// Decodes a request body: not JSON is `invalid_json`; a field of the wrong type, unknown or
-/// missing is `invalid_request` naming its JSON path.
+/// Deepest nesting of JSON arrays and objects a request body may have (a valid request needs
+/// 3: the body, `scene`, `scene.files`).
+pub const MAX_JSON_DEPTH: usize = 8;
+
+/// Decodes a request body: not JSON, or nested deeper than [`MAX_JSON_DEPTH`], is
+/// `invalid_json`; a field of the wrong type, unknown or missing is `invalid_request` naming
+/// its JSON path.
 pub fn parse_render_request(body: &[u8]) -> Result<RenderRequest, ApiError> {
     if body.iter().all(u8::is_ascii_whitespace) {
         return Err(ApiError::invalid_json(
             "the request body is empty: send a JSON object with at least \"scene\"",
         ));
+    }
+    if let Some(at) = too_deep(body, MAX_JSON_DEPTH) {
+        return Err(ApiError::invalid_json(format!(
+            "the request body nests arrays or objects more than {MAX_JSON_DEPTH} levels deep \
+             (at byte {at}); a render request needs 3"
+        )));
     }
     let de = &mut serde_json::Deserializer::from_slice(body);
     let request: RenderRequest = serde_path_to_error::deserialize(&mut *de).map_err(|e| {
@@ -72,6 +83,36 @@ pub fn parse_render_request(body: &[u8]) -> Result<RenderRequest, ApiError> {
     de.end()
         .map_err(|e| ApiError::invalid_json(format!("the request body is not valid JSON: {e}")))?;
     Ok(request)
+}
+
+/// The offset of the first `[` or `{` (outside strings) that opens level `limit + 1`, if any.
+/// Brackets inside strings, escaped quotes included, do not count; malformed JSON is left to
+/// the parser.
+fn too_deep(body: &[u8], limit: usize) -> Option<usize> {
+    let (mut depth, mut in_string, mut escaped) = (0usize, false, false);
+    for (i, &b) in body.iter().enumerate() {
+        if in_string {
+            match b {
+                _ if escaped => escaped = false,
+                b'\\' => escaped = true,
+                b'"' => in_string = false,
+                _ => {}
+            }
+            continue;
+        }
+        match b {
+            b'"' => in_string = true,
+            b'[' | b'{' => {
+                depth += 1;
+                if depth > limit {
+                    return Some(i);
+                }
+            }
+            b']' | b'}' => depth = depth.saturating_sub(1),
+            _ => {}
+        }
+    }
+    None
 }
 
 /// A serde data error's message without serde_json's ` at line L column C` suffix (the JSON
@@ -141,6 +182,35 @@ mod tests {
         );
         let e = err(r#"{"scene": {"key": "a"}, "spp": -1}"#);
         assert_eq!(e.message, "spp: invalid value: integer `-1`, expected u32");
+    }
+
+    #[test]
+    fn nesting_is_bounded_before_parsing() {
+        let deep = format!("{}{}", "[".repeat(9), "]".repeat(9));
+        let e = err(&deep);
+        assert_eq!(e.code, "invalid_json");
+        assert_eq!(
+            e.message,
+            "the request body nests arrays or objects more than 8 levels deep (at byte 8); a \
+             render request needs 3"
+        );
+        // A million brackets are refused at the ninth, without recursing.
+        let e = err(&"{\"a\":".repeat(1_000_000));
+        assert_eq!(e.code, "invalid_json");
+        assert!(e.message.contains("(at byte 40)"), "{}", e.message);
+        // Brackets and escaped quotes inside strings are text.
+        let text = format!(
+            r#"{{"scene": {{"main": "a.obj", "files": {{"a.obj": "\"{}"}}}}}}"#,
+            "[{".repeat(50)
+        );
+        assert!(parse_render_request(text.as_bytes()).is_ok());
+        // Eight levels are allowed (and then refused for their content, not their depth).
+        let e = err(&format!(
+            r#"{{"scene": {}1{}}}"#,
+            "[".repeat(7),
+            "]".repeat(7)
+        ));
+        assert_eq!(e.code, "invalid_request");
     }
 
     #[test]

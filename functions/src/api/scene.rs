@@ -15,6 +15,8 @@ use super::error::ApiError;
 pub const MAX_SCENE_FILES: usize = 256;
 /// Longest file name or key, bytes.
 pub const MAX_NAME_BYTES: usize = 1024;
+/// Longest part of a name between slashes, bytes (a file name on Linux file systems).
+pub const MAX_PART_BYTES: usize = 255;
 
 /// A scene's files, gathered and loaded.
 #[derive(Clone, Debug)]
@@ -39,21 +41,23 @@ pub struct LoadedScene {
 }
 
 /// Checks that `name` is a plain relative path (`a.obj`, `sub/a.obj`): no empty, `.` or `..`
-/// parts, no leading `/`, no backslash. `what` names it in the message.
+/// parts, no leading `/`, no backslash, no control character (NUL, newline, ...), at most
+/// [`MAX_NAME_BYTES`] bytes, each part at most [`MAX_PART_BYTES`]. `what` names it in the message.
 pub fn check_relative(name: &str, what: &str) -> Result<(), String> {
     let ok = !name.is_empty()
         && name.len() <= MAX_NAME_BYTES
         && !name.contains('\\')
-        && !name.contains('\0')
-        && name
-            .split('/')
-            .all(|part| !part.is_empty() && part != "." && part != "..");
+        && !name.chars().any(char::is_control)
+        && name.split('/').all(|part| {
+            !part.is_empty() && part.len() <= MAX_PART_BYTES && part != "." && part != ".."
+        });
     if ok {
         Ok(())
     } else {
         Err(format!(
-            "{what} \"{name}\" is not a relative path inside the scene's folder (1 to \
-             {MAX_NAME_BYTES} bytes, parts separated by /, no empty, . or .. parts, no \\)"
+            "{what} {name:?} is not a relative path inside the scene's folder (1 to \
+             {MAX_NAME_BYTES} bytes, parts of at most {MAX_PART_BYTES} bytes separated by /, no empty, . or .. parts, no \\ or \
+             control characters)"
         ))
     }
 }

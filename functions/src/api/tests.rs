@@ -9,11 +9,13 @@ use serde_json::{Value, json};
 
 use super::*;
 
-/// Keeps submitted jobs in memory; objects for scenes by key.
+/// Keeps submitted jobs in memory; objects for scenes by key. With `capacity`, refuses (429)
+/// a job past that many.
 #[derive(Default)]
-struct Fake {
-    objects: BTreeMap<String, Vec<u8>>,
-    jobs: Mutex<Vec<JobSpec>>,
+pub(super) struct Fake {
+    pub(super) objects: BTreeMap<String, Vec<u8>>,
+    pub(super) jobs: Mutex<Vec<JobSpec>>,
+    pub(super) capacity: Option<usize>,
 }
 
 impl RenderBackend for Fake {
@@ -34,6 +36,13 @@ impl RenderBackend for Fake {
                 job: format!("job-{i}"),
                 replayed: true,
             });
+        }
+        if let Some(cap) = self.capacity
+            && jobs.len() >= cap
+        {
+            return Err(ApiError::too_many_jobs(format!(
+                "{cap} jobs are running, the most this server runs at once"
+            )));
         }
         jobs.push(job);
         Ok(Submission {
@@ -58,9 +67,29 @@ impl RenderBackend for Fake {
             elapsed_seconds: 1.0,
             cost_usd: Some(0.001),
             predicted_cost_usd: jobs[i].prediction.predicted_cost_usd,
+            max_cost_usd: jobs[i].max_cost_usd,
             error: None,
             image_url: None,
+            scene: Some(jobs[i].scene_name.clone()),
+            stages: jobs[i]
+                .prediction
+                .stages
+                .iter()
+                .map(|s| StageProgress {
+                    stage: s.stage.clone(),
+                    done: s.tasks,
+                    total: s.tasks,
+                })
+                .collect(),
         })
+    }
+    fn list(&self, limit: usize) -> Result<Vec<JobStatus>, ApiError> {
+        let n = self.jobs.lock().unwrap().len();
+        (0..n)
+            .rev()
+            .take(limit)
+            .map(|i| self.status(&format!("job-{i}")))
+            .collect()
     }
     fn image(&self, job: &str, format: ImageFormat) -> Result<Vec<u8>, ApiError> {
         self.status(job)?;
@@ -75,12 +104,12 @@ impl RenderBackend for Fake {
     }
 }
 
-fn scene_file(rel: &str) -> String {
+pub(super) fn scene_file(rel: &str) -> String {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/");
     std::fs::read_to_string(format!("{path}{rel}")).unwrap()
 }
 
-fn cornell() -> Value {
+pub(super) fn cornell() -> Value {
     json!({
         "main": "cornell.json",
         "files": {
@@ -91,7 +120,7 @@ fn cornell() -> Value {
     })
 }
 
-fn call(backend: &Fake, method: Method, uri: &str, body: &[u8]) -> (StatusCode, Value) {
+pub(super) fn call(backend: &Fake, method: Method, uri: &str, body: &[u8]) -> (StatusCode, Value) {
     let request = Request::builder()
         .method(method)
         .uri(uri)
@@ -104,12 +133,12 @@ fn call(backend: &Fake, method: Method, uri: &str, body: &[u8]) -> (StatusCode, 
     (status, value)
 }
 
-fn post(backend: &Fake, uri: &str, body: &Value) -> (StatusCode, Value) {
+pub(super) fn post(backend: &Fake, uri: &str, body: &Value) -> (StatusCode, Value) {
     call(backend, Method::POST, uri, body.to_string().as_bytes())
 }
 
 /// The error of a response: (code, message, field).
-fn error(value: &Value) -> (String, String, Option<String>) {
+pub(super) fn error(value: &Value) -> (String, String, Option<String>) {
     let e = &value["error"];
     (
         e["code"].as_str().unwrap().to_owned(),
@@ -291,7 +320,7 @@ fn request_fields_are_checked() {
         (
             json!({"scene": {"key": "/etc/passwd"}}),
             "scene.key",
-            "scene.key: scene.key \"/etc/passwd\" is not a relative path inside the scene's folder (1 to 1024 bytes, parts separated by /, no empty, . or .. parts, no \\)",
+            "scene.key: scene.key \"/etc/passwd\" is not a relative path inside the scene's folder (1 to 1024 bytes, parts of at most 255 bytes separated by /, no empty, . or .. parts, no \\ or control characters)",
         ),
     ];
     for (body, field, message) in cases {

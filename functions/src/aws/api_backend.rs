@@ -234,8 +234,11 @@ impl AwsBackend {
             elapsed_seconds: end.saturating_sub(record.created_unix_us) as f64 / 1e6,
             cost_usd: None,
             predicted_cost_usd: record.predicted_cost_usd,
+            max_cost_usd: record.max_cost_usd,
             error,
             image_url: None,
+            scene: Some(record.scene.clone()),
+            stages: Vec::new(),
         })
     }
 
@@ -326,6 +329,32 @@ impl RenderBackend for AwsBackend {
         let job = Self::job_id(id)?;
         let record = self.record(&job)?;
         self.status_of(&job, &record)
+    }
+
+    /// Lists `jobs/` for the records (`jobs/{job}/api.json`), so it reads every key of the
+    /// bucket's jobs: fine for a dashboard of a few hundred jobs.
+    fn list(&self, limit: usize) -> Result<Vec<JobStatus>, ApiError> {
+        let keys = self
+            .store
+            .list("jobs/")
+            .map_err(|e| Self::storage_error("cannot list the jobs", e))?;
+        let mut records = Vec::new();
+        for key in keys.iter().filter(|k| k.ends_with("/api.json")) {
+            let id = key
+                .strip_prefix("jobs/")
+                .and_then(|k| k.strip_suffix("/api.json"))
+                .unwrap_or_default();
+            let Ok(job) = Self::job_id(id) else { continue };
+            records.push((self.record(&job)?, job));
+        }
+        records.sort_by(|(a, _), (b, _)| {
+            (b.created_unix_us, &b.job).cmp(&(a.created_unix_us, &a.job))
+        });
+        records
+            .iter()
+            .take(limit)
+            .map(|(record, job)| self.status_of(job, record))
+            .collect()
     }
 
     fn image(&self, id: &str, format: ImageFormat) -> Result<Vec<u8>, ApiError> {

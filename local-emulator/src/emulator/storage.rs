@@ -19,9 +19,9 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
-/// Keys of the embedded server (it only listens on 127.0.0.1).
-const EMBEDDED_ACCESS_KEY: &str = "hort-local";
-const EMBEDDED_SECRET_KEY: &str = "hort-local-secret";
+/// The file in a data folder holding its embedded server's key pair (`ACCESS SECRET`), owner
+/// read and write only.
+pub const EMBEDDED_KEY_FILE: &str = ".hort-s3-key";
 /// Bucket used with the embedded server.
 pub const EMBEDDED_BUCKET: &str = "hort";
 /// The environment variable holding storage faults for the embedded server (a specification
@@ -157,15 +157,14 @@ impl Storage {
                 let dir = data_dir.clone().unwrap_or_else(|| temp.path().join("data"));
                 std::fs::create_dir_all(&dir)
                     .map_err(|e| anyhow!("cannot create data folder {}: {e}", dir.display()))?;
+                let (access, secret) = match data_dir {
+                    Some(dir) => data_dir_keys(dir)?,
+                    None => random_keys()?,
+                };
                 let injecting = faults.is_some();
                 let server = match faults {
-                    Some(faults) => EmbeddedS3::start_with_faults(
-                        &dir,
-                        EMBEDDED_ACCESS_KEY,
-                        EMBEDDED_SECRET_KEY,
-                        faults,
-                    ),
-                    None => EmbeddedS3::start(&dir, EMBEDDED_ACCESS_KEY, EMBEDDED_SECRET_KEY),
+                    Some(faults) => EmbeddedS3::start_with_faults(&dir, &access, &secret, faults),
+                    None => EmbeddedS3::start(&dir, &access, &secret),
                 }
                 .map_err(|e| anyhow!("cannot start the embedded S3 server: {e}"))?;
                 server
@@ -174,8 +173,8 @@ impl Storage {
                 let config = scaled(S3Config::compatible(
                     server.endpoint(),
                     EMBEDDED_BUCKET,
-                    EMBEDDED_ACCESS_KEY,
-                    EMBEDDED_SECRET_KEY,
+                    &access,
+                    &secret,
                 ));
                 let store = S3Store::open(&config)?;
                 store.check_bucket()?;
@@ -214,6 +213,77 @@ impl Storage {
     /// A scratch folder of this run (the Plan function's `/tmp`), removed with the storage.
     pub fn work_dir(&self) -> PathBuf {
         self.temp.path().join("work")
+    }
+}
+
+/// A fresh key pair for an embedded server: `hort-` and 16 random bytes in hex as the access
+/// key, 32 random bytes in hex as the secret (from the kernel's random source), so no other
+/// local process can sign requests to it.
+fn random_keys() -> Result<(String, String)> {
+    let mut bytes = [0u8; 48];
+    std::io::Read::read_exact(
+        &mut File::open("/dev/urandom")
+            .map_err(|e| anyhow!("cannot open /dev/urandom for the S3 server's keys: {e}"))?,
+        &mut bytes,
+    )
+    .map_err(|e| anyhow!("cannot read /dev/urandom for the S3 server's keys: {e}"))?;
+    let hex = |b: &[u8]| b.iter().map(|x| format!("{x:02x}")).collect::<String>();
+    Ok((format!("hort-{}", hex(&bytes[..16])), hex(&bytes[16..])))
+}
+
+/// The key pair of a data folder: read from `{dir}/.hort-s3-key`, or made by [`random_keys`]
+/// and written there first, created with mode 0600 (owner read and write only). A key file
+/// that others may read or write, or that is malformed, is an error naming it.
+fn data_dir_keys(dir: &Path) -> Result<(String, String)> {
+    use std::io::Write;
+    use std::os::unix::fs::{OpenOptionsExt, PermissionsExt};
+    let path = dir.join(EMBEDDED_KEY_FILE);
+    match std::fs::read_to_string(&path) {
+        Ok(text) => {
+            let mode = std::fs::metadata(&path)
+                .map_err(|e| anyhow!("{}: {e}", path.display()))?
+                .permissions()
+                .mode();
+            if mode & 0o077 != 0 {
+                bail!(
+                    "{}: others may read or change this key file (mode {:o}); run `chmod 600 {}`",
+                    path.display(),
+                    mode & 0o777,
+                    path.display()
+                );
+            }
+            match text.split_whitespace().collect::<Vec<_>>()[..] {
+                [access, secret] if !access.is_empty() && secret.len() >= 32 => {
+                    Ok((access.to_owned(), secret.to_owned()))
+                }
+                _ => bail!(
+                    "{}: not a key file (expected `ACCESS SECRET` on one line, the secret at \
+                     least 32 characters); delete it and a new key pair is made",
+                    path.display()
+                ),
+            }
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            let (access, secret) = random_keys()?;
+            let file = std::fs::OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .mode(0o600)
+                .open(&path);
+            let mut file = match file {
+                Ok(file) => file,
+                // Another run over the same folder made it first: use its pair.
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                    std::thread::sleep(std::time::Duration::from_millis(50));
+                    return data_dir_keys(dir);
+                }
+                Err(e) => bail!("cannot create {}: {e}", path.display()),
+            };
+            file.write_all(format!("{access} {secret}\n").as_bytes())
+                .map_err(|e| anyhow!("cannot write {}: {e}", path.display()))?;
+            Ok((access, secret))
+        }
+        Err(e) => bail!("cannot read {}: {e}", path.display()),
     }
 }
 
@@ -391,6 +461,35 @@ mod tests {
         ] {
             assert_eq!(temp_folder_pid(other), None, "{other}");
         }
+    }
+
+    #[test]
+    fn keys_are_random_and_a_data_folder_keeps_its_pair_private() {
+        use std::os::unix::fs::PermissionsExt;
+        let (a1, s1) = random_keys().unwrap();
+        let (a2, s2) = random_keys().unwrap();
+        assert_ne!((&a1, &s1), (&a2, &s2));
+        assert_eq!((a1.len(), s1.len()), (37, 64));
+        let dir = std::env::temp_dir().join(format!("hort-keys-test-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let first = data_dir_keys(&dir).unwrap();
+        let path = dir.join(EMBEDDED_KEY_FILE);
+        let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode, 0o600);
+        assert_eq!(data_dir_keys(&dir).unwrap(), first);
+        assert_ne!(first.1, "hort-local-secret");
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o644)).unwrap();
+        let e = data_dir_keys(&dir).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            format!(
+                "{}: others may read or change this key file (mode 644); run `chmod 600 {}`",
+                path.display(),
+                path.display()
+            )
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

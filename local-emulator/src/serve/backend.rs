@@ -31,7 +31,8 @@ use hort_core::report::{Outputs, RayReport, Report, Seconds};
 use hort_core::store::{BlobStore, CountingStore, StoreError};
 use hort_functions::S3Store;
 use hort_functions::api::{
-    ApiError, ImageFormat, JobSpec, JobState, JobStatus, PredictionModel, RenderBackend, Submission,
+    ApiError, ImageFormat, JobSpec, JobState, JobStatus, PredictionModel, RenderBackend,
+    StageProgress, Submission,
 };
 use serde::{Deserialize, Serialize};
 
@@ -78,6 +79,9 @@ struct JobRecord {
     triangles: u64,
     request: PlanRequest,
     max_cost_usd: Option<f64>,
+    /// Tasks done of each stage's tasks, in stage order (records of older servers have none).
+    #[serde(default)]
+    stages: Vec<StageProgress>,
 }
 
 /// Live progress of a running job, from the orchestrator's events.
@@ -86,6 +90,22 @@ struct Live {
     stage: Mutex<Option<String>>,
     tasks_done: AtomicU64,
     retried: AtomicU64,
+    /// Tasks that succeeded, by stage name.
+    done_by_stage: Mutex<BTreeMap<String, u64>>,
+}
+
+impl Live {
+    /// `stages` with their done counts as counted so far (each at most its total).
+    fn stages(&self, stages: &[StageProgress]) -> Vec<StageProgress> {
+        let done = lock(&self.done_by_stage);
+        stages
+            .iter()
+            .map(|s| StageProgress {
+                done: done.get(&s.stage).copied().unwrap_or(0).min(s.total),
+                ..s.clone()
+            })
+            .collect()
+    }
 }
 
 impl Observer for Live {
@@ -94,8 +114,11 @@ impl Observer for Live {
             Event::StateEntered { state, .. } if Stage::of_state(state).is_some() => {
                 *lock(&self.stage) = Some(stage_name(state));
             }
-            Event::TaskSucceeded { .. } => {
+            Event::TaskSucceeded { state, .. } => {
                 self.tasks_done.fetch_add(1, Ordering::Relaxed);
+                *lock(&self.done_by_stage)
+                    .entry(stage_name(state))
+                    .or_default() += 1;
             }
             Event::TaskAttemptFailed {
                 will_retry: true, ..
@@ -158,8 +181,15 @@ impl Job {
             tasks_total: r.tasks_total,
             cost_usd: r.cost_usd,
             predicted_cost_usd: r.predicted_cost_usd,
+            max_cost_usd: r.max_cost_usd,
             error: r.error,
             image_url: None,
+            stages: if running {
+                self.live.stages(&r.stages)
+            } else {
+                r.stages
+            },
+            scene: Some(r.scene),
         }
     }
 
@@ -222,13 +252,15 @@ pub struct EmulatorBackend {
     /// Keeps the embedded S3 server of `shared.store` alive.
     _storage: Storage,
     next_id: AtomicU64,
+    /// Most jobs queued or running at once; a submission past it is refused (429).
+    max_jobs: usize,
 }
 
 impl EmulatorBackend {
     /// Opens the bucket over `data_dir` (an embedded S3 server) and loads the records of the
     /// jobs a previous server left there; jobs that were still queued or running then are
     /// marked FAILED (interrupted).
-    pub fn open(data_dir: &Path, workers: usize) -> Result<EmulatorBackend> {
+    pub fn open(data_dir: &Path, workers: usize, max_jobs: usize) -> Result<EmulatorBackend> {
         let storage = Storage::open(&StorageTarget::Embedded {
             data_dir: Some(data_dir.to_path_buf()),
         })?;
@@ -272,6 +304,7 @@ impl EmulatorBackend {
             registry: Mutex::new(registry),
             _storage: storage,
             next_id: AtomicU64::new(0),
+            max_jobs,
         })
     }
 
@@ -362,6 +395,18 @@ impl RenderBackend for EmulatorBackend {
                 replayed: true,
             });
         }
+        let active = registry
+            .jobs
+            .values()
+            .filter(|j| !lock(&j.record).status.is_final())
+            .count();
+        if active >= self.max_jobs {
+            return Err(ApiError::too_many_jobs(format!(
+                "{active} jobs are queued or running, the most this server runs at once \
+                 (hort serve --max-jobs {}); submit again once one has ended",
+                self.max_jobs
+            )));
+        }
         let id = self.fresh_id(&registry);
         let record = JobRecord {
             job: id.clone(),
@@ -382,6 +427,16 @@ impl RenderBackend for EmulatorBackend {
             triangles: spec.prediction.triangles,
             request: spec.request,
             max_cost_usd: spec.max_cost_usd,
+            stages: spec
+                .prediction
+                .stages
+                .iter()
+                .map(|s| StageProgress {
+                    stage: s.stage.clone(),
+                    done: 0,
+                    total: s.tasks,
+                })
+                .collect(),
         };
         let mut record = record;
         self.shared.save(&mut record)?;
@@ -413,6 +468,20 @@ impl RenderBackend for EmulatorBackend {
 
     fn status(&self, id: &str) -> Result<JobStatus, ApiError> {
         Ok(self.job(id)?.status())
+    }
+
+    fn list(&self, limit: usize) -> Result<Vec<JobStatus>, ApiError> {
+        let jobs: Vec<Arc<Job>> = lock(&self.registry).jobs.values().cloned().collect();
+        let mut statuses: Vec<(u64, JobStatus)> = jobs
+            .iter()
+            .map(|j| {
+                // The record's lock is released before `status` takes it again.
+                let created = lock(&j.record).created_unix_us;
+                (created, j.status())
+            })
+            .collect();
+        statuses.sort_by(|(a, x), (b, y)| (b, &y.job).cmp(&(a, &x.job)));
+        Ok(statuses.into_iter().take(limit).map(|(_, s)| s).collect())
     }
 
     fn image(&self, id: &str, format: ImageFormat) -> Result<Vec<u8>, ApiError> {
@@ -494,11 +563,15 @@ fn run(shared: &Shared, job: &Job, spec: &JobSpec) {
         .load(Ordering::Relaxed)
         .min(r.tasks_total);
     r.retried_attempts = job.live.retried.load(Ordering::Relaxed);
+    r.stages = job.live.stages(&r.stages);
     match outcome {
         Some(Ok(run)) => match store_report(shared, &r, &run) {
             Ok(()) => {
                 r.status = JobState::Succeeded;
                 r.tasks_done = r.tasks_total;
+                for s in &mut r.stages {
+                    s.done = s.total;
+                }
                 r.retried_attempts = run.failed_attempts();
                 r.cost_usd = Some(run.cost.total);
             }

@@ -1,4 +1,5 @@
-//! `hort serve`: the HTTP API of `hort_functions::api` on 127.0.0.1, its jobs run by the local
+//! `hort serve`: the HTTP API of `hort_functions::api` and its dashboard (`GET /`) on
+//! 127.0.0.1 (another address only with `--bind`), its jobs run by the local
 //! emulator ([`backend::EmulatorBackend`]) on background threads, its objects and job records
 //! in an embedded S3 server over `--data-dir`, so a restarted server answers for finished jobs.
 
@@ -18,9 +19,16 @@ pub use backend::EmulatorBackend;
 /// The flags of `hort serve`.
 #[derive(Args)]
 pub struct ServeArgs {
-    /// Port on 127.0.0.1 (0: any free port; the address is printed at start).
+    /// Port (0: any free port; the address is printed at start).
     #[arg(long, default_value_t = 8080)]
     pub port: u16,
+    /// Address to listen on. The API has no authentication: anything but a loopback address
+    /// lets every machine that reaches it run jobs and read their images.
+    #[arg(long, default_value = "127.0.0.1")]
+    pub bind: std::net::IpAddr,
+    /// Most jobs queued or running at once; a submission past it is refused with 429.
+    #[arg(long, default_value_t = 4, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=1024))]
+    pub max_jobs: usize,
     /// Keep the jobs' objects and records in DIR (`DIR/hort/...`), so a restarted server
     /// answers for them (default: a temporary folder, removed when the server stops).
     #[arg(long)]
@@ -48,7 +56,8 @@ pub fn run(args: ServeArgs) -> Result<()> {
     };
     std::fs::create_dir_all(&data_dir)
         .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", data_dir.display()))?;
-    let result = serve_over(&data_dir, workers, args.port, temporary);
+    let addr = std::net::SocketAddr::new(args.bind, args.port);
+    let result = serve_over(&data_dir, workers, args.max_jobs, addr, temporary);
     if temporary {
         let _ = std::fs::remove_dir_all(&data_dir);
     }
@@ -58,10 +67,11 @@ pub fn run(args: ServeArgs) -> Result<()> {
 fn serve_over(
     data_dir: &std::path::Path,
     workers: usize,
-    port: u16,
+    max_jobs: usize,
+    addr: std::net::SocketAddr,
     temporary: bool,
 ) -> Result<()> {
-    let backend = Arc::new(EmulatorBackend::open(data_dir, workers)?);
+    let backend = Arc::new(EmulatorBackend::open(data_dir, workers, max_jobs)?);
     let (stop_tx, stop_rx) = oneshot::channel();
     let stop_tx = Mutex::new(Some(stop_tx));
     let _ = ctrlc::set_handler(move || {
@@ -81,11 +91,21 @@ fn serve_over(
     };
     server::serve(
         backend.clone(),
-        port,
+        addr,
         |addr| {
+            let reach = if addr.ip().is_loopback() {
+                "loopback only: other machines cannot connect; --bind ADDRESS to change".to_owned()
+            } else {
+                format!(
+                    "bound to {}: every machine that reaches it can submit and read jobs, with \
+                     no authentication",
+                    addr.ip()
+                )
+            };
             eprintln!(
-                "hort serve: listening on http://{addr} ({workers} function slots per job, data \
-                 in {}{kept}, {jobs} jobs known)",
+                "hort serve: listening on http://{addr} ({reach}; dashboard at http://{addr}/; \
+                 {workers} function slots per job, at most {max_jobs} jobs at once, data in \
+                 {}{kept}, {jobs} jobs known)",
                 data_dir.display()
             );
         },

@@ -1,4 +1,5 @@
-//! The HTTP side of `hort serve`: hyper 1 over HTTP/1.1 on 127.0.0.1, each request answered by
+//! The HTTP side of `hort serve`: hyper 1 over HTTP/1.1 (on 127.0.0.1 unless told otherwise),
+//! each request answered by
 //! the router of `hort_functions::api` on a thread of its own (the router blocks on storage and
 //! scene parsing). Bodies are checked before they are read: the head first
 //! ([`api::check_head`]: route, method, content type, a declared length over the limit), then
@@ -21,11 +22,11 @@ use hyper_util::rt::TokioIo;
 use tokio::net::TcpListener;
 use tokio::sync::oneshot;
 
-/// Serves `backend` on 127.0.0.1:`port` until `stop` fires. `ready` gets the bound address
-/// (the port may be 0: a free one).
+/// Serves `backend` on `addr` until `stop` fires. `ready` gets the bound address (the port may
+/// be 0: a free one).
 pub fn serve(
     backend: Arc<dyn RenderBackend>,
-    port: u16,
+    addr: SocketAddr,
     ready: impl FnOnce(SocketAddr),
     stop: oneshot::Receiver<()>,
 ) -> Result<()> {
@@ -36,9 +37,9 @@ pub fn serve(
         .build()
         .context("cannot start the HTTP server's runtime")?;
     runtime.block_on(async move {
-        let listener = TcpListener::bind(("127.0.0.1", port))
+        let listener = TcpListener::bind(addr)
             .await
-            .with_context(|| format!("cannot listen on 127.0.0.1:{port}"))?;
+            .with_context(|| format!("cannot listen on {addr}"))?;
         ready(listener.local_addr()?);
         let started = Instant::now();
         let mut stop = stop;
