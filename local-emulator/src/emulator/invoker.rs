@@ -65,6 +65,9 @@ pub struct InProcessInvoker {
     /// Idle warm containers' caches; an invocation takes one (or a cold one) and gives it back.
     caches: Mutex<Vec<SplitCache>>,
     ledger: Mutex<Ledger>,
+    /// Invocations running now (abandoned ones included, until their handler returns).
+    in_flight: Mutex<usize>,
+    idle: std::sync::Condvar,
 }
 
 impl InProcessInvoker {
@@ -83,6 +86,8 @@ impl InProcessInvoker {
             cache_bytes,
             caches: Mutex::new(Vec::new()),
             ledger: Mutex::new(Ledger::default()),
+            in_flight: Mutex::new(0),
+            idle: std::sync::Condvar::new(),
         }
     }
 
@@ -94,6 +99,18 @@ impl InProcessInvoker {
             .clone()
     }
 
+    /// Waits until no invocation runs, at most `limit`; true if none does. The state machine
+    /// abandons attempts (timeouts, a cancelled run) whose handlers may still be writing: a
+    /// caller that deletes a job's objects waits here first, so nothing lands after.
+    pub fn wait_idle(&self, limit: std::time::Duration) -> bool {
+        let running = self.in_flight.lock().unwrap_or_else(|e| e.into_inner());
+        let (running, _) = self
+            .idle
+            .wait_timeout_while(running, limit, |n| *n > 0)
+            .unwrap_or_else(|e| e.into_inner());
+        *running == 0
+    }
+
     /// Invokes `function` with `input` against `store` (the fault injector passes a failing
     /// store here).
     pub fn invoke_with_store(
@@ -102,9 +119,17 @@ impl InProcessInvoker {
         input: Value,
         store: &dyn BlobStore,
     ) -> Result<Value, TaskFailure> {
+        *self.in_flight.lock().unwrap_or_else(|e| e.into_inner()) += 1;
         let started = Instant::now();
         let result = self.dispatch(function, input, store);
         let ms = started.elapsed().as_secs_f64() * 1e3;
+        {
+            let mut running = self.in_flight.lock().unwrap_or_else(|e| e.into_inner());
+            *running -= 1;
+            if *running == 0 {
+                self.idle.notify_all();
+            }
+        }
         let (result, done) = match result {
             Ok(invoked) => (Ok(invoked.output), invoked.task),
             Err(e) => (Err(e), None),

@@ -239,6 +239,11 @@ pub fn run_job_with(
     let usage = accounting.finish();
     if let Err(failure) = outcome {
         if config.cancel.load(Ordering::Relaxed) {
+            // Attempts the cancel abandoned may still be writing: let them end, so that a
+            // caller deleting the job's objects next finds nothing landing after.
+            if let Functions::InProcess(functions) = &functions {
+                functions.wait_idle(std::time::Duration::from_secs(60));
+            }
             // A temporary embedded store is removed on exit: promise nothing then.
             let kept = !matches!(config.storage, StorageTarget::Embedded { data_dir: None });
             return Err(if kept {

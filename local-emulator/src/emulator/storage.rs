@@ -96,6 +96,9 @@ pub struct Storage {
     pub bucket: String,
     /// The S3 endpoint URL the store talks to (`AWS S3 (REGION)` for AWS itself).
     pub endpoint: String,
+    /// How the store's client reaches the bucket: other runs can open the same bucket with
+    /// `StorageTarget::Bucket(config)` while this storage (and its embedded server) lives.
+    pub config: S3Config,
     /// Keeps the embedded server alive; dropped before the temporary folder.
     server: Option<EmbeddedS3>,
     /// Whether the embedded server injects faults ([`S3_FAULTS_VAR`]).
@@ -182,6 +185,7 @@ impl Storage {
                     endpoint: server.endpoint(),
                     store: Arc::new(CountingStore::new(store)),
                     bucket: EMBEDDED_BUCKET.into(),
+                    config,
                     server: Some(server),
                     injecting,
                     temp,
@@ -317,6 +321,7 @@ fn open_bucket(config: &S3Config, temp: TempFolder) -> Result<Storage> {
         store: Arc::new(CountingStore::new(store)),
         bucket,
         endpoint,
+        config: config.clone(),
         server: None,
         injecting: false,
         temp,

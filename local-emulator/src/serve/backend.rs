@@ -29,11 +29,11 @@ use hort_core::keys::{image_key, manifest_key};
 use hort_core::pipeline::PlanRequest;
 use hort_core::report::{Outputs, RayReport, Report, Seconds};
 use hort_core::store::{BlobStore, CountingStore, StoreError};
-use hort_functions::S3Store;
 use hort_functions::api::{
     ApiError, ImageFormat, JobSpec, JobState, JobStatus, PredictionModel, RenderBackend,
     StageProgress, Submission,
 };
+use hort_functions::{S3Config, S3Store};
 use serde::{Deserialize, Serialize};
 
 /// Where the API keeps its own objects.
@@ -219,7 +219,10 @@ struct Registry {
 
 /// What job threads share with the server.
 struct Shared {
-    data_dir: PathBuf,
+    /// How jobs reach the bucket: the server's one embedded S3 server over its data folder
+    /// (a job never starts a server of its own there: two servers over one folder would clean
+    /// up each other's uploads in progress).
+    s3: S3Config,
     workers: usize,
     /// The bucket, through the server's own embedded S3 server over `data_dir`.
     store: Arc<CountingStore<S3Store>>,
@@ -266,7 +269,7 @@ impl EmulatorBackend {
         })?;
         let scratch = storage.work_dir().join("serve-scenes");
         let shared = Arc::new(Shared {
-            data_dir: data_dir.to_path_buf(),
+            s3: storage.config.clone(),
             workers,
             store: Arc::clone(&storage.store),
             scratch,
@@ -530,9 +533,7 @@ fn run(shared: &Shared, job: &Job, spec: &JobSpec) {
         }
         Some(write_scene(&folder, spec).and_then(|main| {
             let config = EmulatorConfig {
-                storage: StorageTarget::Embedded {
-                    data_dir: Some(shared.data_dir.clone()),
-                },
+                storage: StorageTarget::Bucket(shared.s3.clone()),
                 job: Some(id.clone()),
                 workers: shared.workers,
                 faults: FaultSettings::default(),

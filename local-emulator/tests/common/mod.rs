@@ -33,6 +33,8 @@ pub fn stderr(o: &Output) -> String {
 }
 
 /// The files in `dir`, sorted.
+pub mod server;
+
 pub fn files_in(dir: &Path) -> Vec<String> {
     let mut names: Vec<String> = std::fs::read_dir(dir)
         .unwrap()
