@@ -372,7 +372,9 @@ fn bare_obj_is_framed_as_documented() {
     let dir = scratch();
     let p = write(&dir, "x.obj", b"v 0 0 0\nv 2 0 0\nv 0 2 2\nf 1 2 3\n");
     let s = load_scene(&p).unwrap();
-    let c = DVec3::new(1.0, 1.0, 1.0);
+    // The box's centre is the local origin: c in the file is 0 in the scene.
+    assert_eq!(s.origin, DVec3::new(1.0, 1.0, 1.0));
+    let c = DVec3::ZERO;
     let d = 12f64.sqrt();
     assert_eq!(s.camera.eye, c + DVec3::new(0.0, 0.5, 1.25) * d);
     assert_eq!(s.camera.look_at, c);
