@@ -8,3 +8,4 @@ mod coplanar;
 mod degenerate;
 mod grazing;
 mod support;
+mod transformed;

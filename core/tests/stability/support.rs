@@ -130,19 +130,22 @@ pub fn assert_every_k_identical(
     mono
 }
 
-/// How two renders of the same view differ: pixels whose hit names another triangle (or hit
-/// against miss), pixels whose 8-bit sRGB value differs in some channel, pixels that are
-/// either, and the largest relative difference of a linear channel.
+/// How two renders of the same view differ. A pixel *differs* if its sample-0 hit names another
+/// triangle (or hit against miss) or some 8-bit sRGB channel changes by more than one level;
+/// a change of exactly one level is what any last-bit change of a value near a rounding step
+/// of the 8-bit encoding gives, and is counted apart (`srgb8_one_level`).
 #[derive(Debug, Default, PartialEq)]
 pub struct Difference {
     /// Pixels whose sample-0 hit names a different triangle.
     pub hits: usize,
-    /// Pixels whose 8-bit sRGB colour differs in some channel.
-    pub srgb8: usize,
-    /// Pixels counted by either.
+    /// Pixels whose 8-bit sRGB colour changes by exactly one level (and whose hit agrees).
+    pub srgb8_one_level: usize,
+    /// Pixels that differ: another triangle, or a channel more than one level off.
     pub pixels: usize,
     /// Largest |a - b| / max(|a|, |b|) over all channels (0 where both are 0).
     pub max_relative: f32,
+    /// Largest difference of an 8-bit sRGB channel, in levels.
+    pub max_srgb8: u8,
 }
 
 /// Compares two renders of the same size pixel by pixel.
@@ -150,13 +153,16 @@ pub fn difference(a: &RenderOutput, b: &RenderOutput) -> Difference {
     let mut d = Difference::default();
     for (i, (pa, pb)) in a.image.pixels.iter().zip(&b.image.pixels).enumerate() {
         let hit = a.hits[i].triangle != b.hits[i].triangle;
-        let srgb = pa
+        let levels = pa
             .iter()
             .zip(pb)
-            .any(|(x, y)| linear_to_srgb8(*x) != linear_to_srgb8(*y));
+            .map(|(x, y)| linear_to_srgb8(*x).abs_diff(linear_to_srgb8(*y)))
+            .max()
+            .unwrap_or(0);
+        d.max_srgb8 = d.max_srgb8.max(levels);
         d.hits += usize::from(hit);
-        d.srgb8 += usize::from(srgb);
-        d.pixels += usize::from(hit || srgb);
+        d.srgb8_one_level += usize::from(!hit && levels == 1);
+        d.pixels += usize::from(hit || levels > 1);
         for (x, y) in pa.iter().zip(pb) {
             let m = x.abs().max(y.abs());
             if m > 0.0 {
