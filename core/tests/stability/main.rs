@@ -7,5 +7,6 @@ mod closed_meshes;
 mod coplanar;
 mod degenerate;
 mod grazing;
+mod splits;
 mod support;
 mod transformed;
