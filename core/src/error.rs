@@ -76,6 +76,15 @@ pub enum SceneError {
         /// The scene file (OBJ or manifest).
         path: PathBuf,
     },
+    /// Some vertices lie farther from the scene's centre than f32 can hold.
+    #[error(
+        "{path}: the scene is too large: vertices lie farther than 3.4e38 from its centre, \
+         beyond single precision"
+    )]
+    TooLarge {
+        /// The scene file (OBJ or manifest).
+        path: PathBuf,
+    },
     /// A material library could not be read or parsed.
     #[error("{path}: material library: {detail}")]
     Mtl {

@@ -61,7 +61,9 @@ pub fn write_generated(
 /// A manifest looking down at the scene from the front, so the ground fills the frame.
 fn write_manifest(obj: &Path) -> Result<()> {
     let scene = load_scene(obj)?;
+    // The loaded mesh is relative to the scene's origin; the manifest is in the file's frame.
     let (lo, hi) = scene_bounds(&scene.mesh, obj)?;
+    let (lo, hi) = (lo + scene.origin, hi + scene.origin);
     let c = (lo + hi) * 0.5;
     let x = hi.x - lo.x;
     let eye = [c.x, lo.y + 0.33 * x, hi.z + 0.28 * x];

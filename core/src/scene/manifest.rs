@@ -3,6 +3,7 @@
 
 use super::framing::{default_camera, default_light, scene_bounds};
 use super::mesh::Mesh;
+use super::world::WorldMesh;
 use super::{CameraSpec, ImageSettings, Light, MAX_IMAGE_SIDE, MAX_SPP, Scene, obj};
 use crate::error::SceneError;
 use glam::DVec3;
@@ -111,21 +112,23 @@ pub(super) fn load_manifest_scene(path: &Path) -> Result<Scene, SceneError> {
     }
     let base = path.parent().unwrap_or(Path::new("."));
     let mut warnings = Vec::new();
-    let mut mesh = Mesh::default();
+    let mut world = WorldMesh::default();
     for file in &manifest.meshes {
-        mesh.append(obj::load_obj(&base.join(file), &mut warnings)?);
+        world.append(obj::load_obj(&base.join(file), &mut warnings)?);
     }
+    // The local frame (see `Scene`): the manifest's positions are moved by the same origin.
+    let (mut mesh, origin) = world.localise(path)?;
     apply_material_overrides(&mut mesh, &manifest, path)?;
     let (lo, hi) = scene_bounds(&mesh, path)?;
     let (camera, framed_bounds) = match &manifest.camera {
-        Some(c) => (camera_from(c, path)?, None),
+        Some(c) => (camera_from(c, origin, path)?, None),
         None => (default_camera(lo, hi), Some((lo, hi))),
     };
     let lights = match &manifest.lights {
         Some(list) => list
             .iter()
             .enumerate()
-            .map(|(i, l)| light_from(l, i, path))
+            .map(|(i, l)| light_from(l, i, origin, path))
             .collect::<Result<Vec<_>, _>>()?,
         None => vec![default_light(lo, hi)],
     };
@@ -141,6 +144,7 @@ pub(super) fn load_manifest_scene(path: &Path) -> Result<Scene, SceneError> {
     warnings.retain(|w| seen.insert(w.clone()));
     Ok(Scene {
         source: path.to_path_buf(),
+        origin,
         mesh,
         camera,
         framed_bounds,
@@ -259,7 +263,8 @@ fn finite_vec(v: [f64; 3], field: &str, path: &Path) -> Result<DVec3, SceneError
     }
 }
 
-fn camera_from(c: &ManifestCamera, path: &Path) -> Result<CameraSpec, SceneError> {
+/// The manifest camera, moved into the local frame whose origin is `origin`.
+fn camera_from(c: &ManifestCamera, origin: DVec3, path: &Path) -> Result<CameraSpec, SceneError> {
     let vfov = c.vfov.unwrap_or(45.0);
     if !(vfov > 0.0 && vfov < 180.0) {
         return Err(SceneError::Manifest {
@@ -269,20 +274,26 @@ fn camera_from(c: &ManifestCamera, path: &Path) -> Result<CameraSpec, SceneError
         });
     }
     Ok(CameraSpec {
-        eye: finite_vec(c.eye, "camera.eye", path)?,
-        look_at: finite_vec(c.look_at, "camera.look_at", path)?,
+        eye: finite_vec(c.eye, "camera.eye", path)? - origin,
+        look_at: finite_vec(c.look_at, "camera.look_at", path)? - origin,
         up: finite_vec(c.up.unwrap_or([0.0, 1.0, 0.0]), "camera.up", path)?,
         vfov_degrees: vfov,
     })
 }
 
-fn light_from(l: &ManifestLight, i: usize, path: &Path) -> Result<Light, SceneError> {
+/// The manifest light, moved into the local frame whose origin is `origin`.
+fn light_from(
+    l: &ManifestLight,
+    i: usize,
+    origin: DVec3,
+    path: &Path,
+) -> Result<Light, SceneError> {
     match l {
         ManifestLight::Point {
             position,
             intensity,
         } => Ok(Light::Point {
-            position: finite_vec(*position, &format!("lights[{i}].position"), path)?,
+            position: finite_vec(*position, &format!("lights[{i}].position"), path)? - origin,
             intensity: colour(
                 Some(intensity.to_array()),
                 &format!("lights[{i}].intensity"),

@@ -52,6 +52,12 @@ impl Mesh {
     /// Appends `other`, renumbering its indices; triangle order is `self` then `other`.
     pub fn append(&mut self, other: Mesh) {
         let pos_base = self.positions.len() as u32;
+        self.append_with_position_base(other, pos_base);
+    }
+
+    /// [`Mesh::append`] with `other`'s position indices shifted by `pos_base` (for meshes whose
+    /// positions are kept elsewhere while loading).
+    pub(super) fn append_with_position_base(&mut self, other: Mesh, pos_base: u32) {
         let nrm_base = self.normals.len() as u32;
         let mat_base = self.materials.len() as u32;
         self.positions.extend(other.positions);

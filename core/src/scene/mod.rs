@@ -9,6 +9,7 @@ mod manifest;
 mod mesh;
 mod mtl;
 mod obj;
+mod world;
 
 pub use framing::{default_camera, default_light, framed_camera, scene_bounds};
 pub use manifest::{MANIFEST_SCHEMA, Manifest, parse_manifest};
@@ -80,19 +81,27 @@ pub struct ImageSettings {
 }
 
 /// A loaded scene: geometry plus everything needed to light and view it.
+///
+/// Everything positional (mesh, camera, lights, framed bounds) is in the scene's local frame,
+/// whose origin is [`Scene::origin`] in the files' world coordinates: a point at `p` in the
+/// files is at `p - origin` here. Directions and distances are the same in both frames.
 #[derive(Clone, Debug)]
 pub struct Scene {
     /// The file the scene came from (OBJ or manifest), for messages.
     pub source: PathBuf,
-    /// Every triangle of the scene, in scene order.
+    /// Where the local frame's origin lies in world coordinates: the centre of the bounding box
+    /// of the vertices used by triangles, computed in double precision from the files.
+    pub origin: DVec3,
+    /// Every triangle of the scene, in scene order, positions relative to `origin` (each the
+    /// f64 offset rounded once to f32).
     pub mesh: Mesh,
-    /// The camera as loaded. Render through [`Scene::camera_for`], which adapts an automatic
+    /// The camera as loaded, in the local frame. Render through [`Scene::camera_for`], which adapts an automatic
     /// camera to the image's aspect ratio.
     pub camera: CameraSpec,
     /// The bounds (min, max) that `camera` frames when it is the automatic camera (no manifest
     /// camera); `None` for a manifest camera.
     pub framed_bounds: Option<(DVec3, DVec3)>,
-    /// The lights (possibly none).
+    /// The lights (possibly none); point lights in the local frame.
     pub lights: Vec<Light>,
     /// Constant ambient radiance factor per channel: adds `kd * ambient` to every hit.
     pub ambient: [f32; 3],
@@ -122,6 +131,8 @@ impl Scene {
 }
 
 /// Loads a scene from an OBJ file or a JSON manifest (chosen by the `.json` extension).
+/// Coordinates are read in double precision and the scene is moved into its local frame (see
+/// [`Scene`]), so its f32 geometry does not depend on where it sits in the world.
 pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
     let is_json = path
         .extension()
@@ -136,10 +147,11 @@ pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
 /// Loads a bare OBJ file and frames it with the documented defaults.
 fn load_obj_scene(path: &Path) -> Result<Scene, SceneError> {
     let mut warnings = Vec::new();
-    let mesh = obj::load_obj(path, &mut warnings)?;
+    let (mesh, origin) = obj::load_obj(path, &mut warnings)?.localise(path)?;
     let (lo, hi) = scene_bounds(&mesh, path)?;
     Ok(Scene {
         source: path.to_path_buf(),
+        origin,
         camera: default_camera(lo, hi),
         framed_bounds: Some((lo, hi)),
         lights: vec![default_light(lo, hi)],

@@ -17,8 +17,9 @@
 
 use super::mesh::{Material, Mesh, NO_NORMAL};
 use super::mtl::mtl_warnings;
+use super::world::WorldMesh;
 use crate::error::SceneError;
-use glam::Vec3;
+use glam::DVec3;
 use std::collections::{HashMap, HashSet};
 use std::io::BufRead;
 use std::path::{Path, PathBuf};
@@ -94,15 +95,16 @@ impl Unrendered {
 /// Unknown keywords reported one by one; more are counted in one last warning.
 const MAX_UNKNOWN_WARNINGS: usize = 8;
 
-/// Reads an OBJ file (and the MTL libraries it names, relative to its folder).
-pub fn load_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Mesh, SceneError> {
+/// Reads an OBJ file (and the MTL libraries it names, relative to its folder), positions in
+/// double precision.
+pub(super) fn load_obj(path: &Path, warnings: &mut Vec<String>) -> Result<WorldMesh, SceneError> {
     let file = std::fs::File::open(path).map_err(|source| SceneError::Io {
         path: path.to_path_buf(),
         source,
     })?;
     let reader = std::io::BufReader::with_capacity(1 << 20, file);
-    let mesh = parse_obj(reader, path, warnings)?;
-    if mesh.triangles.is_empty() {
+    let mesh = parse_obj_world(reader, path, warnings)?;
+    if mesh.mesh.triangles.is_empty() {
         return Err(SceneError::Empty {
             path: path.to_path_buf(),
         });
@@ -111,12 +113,24 @@ pub fn load_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Mesh, SceneEr
 }
 
 /// Parses OBJ text from `reader`; `path` names the file in errors and locates `mtllib` files.
-/// An empty result is not an error here (the caller decides).
+/// An empty result is not an error here (the caller decides). Positions are the file's
+/// coordinates rounded to f32, in the file's own frame (no re-centring: [`crate::scene::load_scene`]
+/// is what keeps far-away scenes precise).
 pub fn parse_obj(
-    mut reader: impl BufRead,
+    reader: impl BufRead,
     path: &Path,
     warnings: &mut Vec<String>,
 ) -> Result<Mesh, SceneError> {
+    let world = parse_obj_world(reader, path, warnings)?;
+    world.into_local(DVec3::ZERO, path)
+}
+
+/// [`parse_obj`] with the positions in double precision, as written in the file.
+pub(super) fn parse_obj_world(
+    mut reader: impl BufRead,
+    path: &Path,
+    warnings: &mut Vec<String>,
+) -> Result<WorldMesh, SceneError> {
     let mut parser = ObjParser::new(path);
     let mut buf = Vec::with_capacity(256);
     loop {
@@ -139,7 +153,10 @@ pub fn parse_obj(
     }
     parser.finish();
     warnings.append(&mut parser.warnings);
-    Ok(parser.mesh)
+    Ok(WorldMesh {
+        mesh: parser.mesh,
+        positions: parser.positions,
+    })
 }
 
 /// Whether an unknown keyword looks like a word of some OBJ extension (so it is skipped with a
@@ -158,7 +175,10 @@ fn shown(keyword: &str) -> String {
 struct ObjParser<'a> {
     path: &'a Path,
     line: u64,
+    /// Everything but the positions, which are in `positions` until the scene is localised.
     mesh: Mesh,
+    /// Vertex positions as written, in double precision.
+    positions: Vec<DVec3>,
     texcoords: usize,
     current_material: u32,
     /// Materials known from `mtllib` files, by name, as (kd, index in mesh.materials if used).
@@ -191,6 +211,7 @@ impl<'a> ObjParser<'a> {
             path,
             line: 0,
             mesh,
+            positions: Vec::new(),
             texcoords: 0,
             current_material: 0,
             library: HashMap::new(),
@@ -307,14 +328,14 @@ impl<'a> ObjParser<'a> {
         match keyword {
             "v" => {
                 let p = self.vector(&mut text(self)?.split_ascii_whitespace(), "vertex")?;
-                self.mesh.positions.push(p);
+                self.positions.push(p);
             }
             "vn" => {
                 if let Some((line, index)) = self.normal_without_vn {
                     return Err(self.undefined_index(line, "normal", index));
                 }
                 let n = self.vector(&mut text(self)?.split_ascii_whitespace(), "normal")?;
-                self.mesh.normals.push(n);
+                self.mesh.normals.push(n.as_vec3());
             }
             "vt" => {
                 if let Some((line, index)) = self.texcoord_without_vt {
@@ -354,16 +375,18 @@ impl<'a> ObjParser<'a> {
         &self,
         words: &mut impl Iterator<Item = &'w str>,
         what: &'static str,
-    ) -> Result<Vec3, SceneError> {
-        let mut xyz = [0.0f32; 3];
+    ) -> Result<DVec3, SceneError> {
+        let mut xyz = [0.0f64; 3];
         for (axis, slot) in xyz.iter_mut().enumerate() {
             let word = words
                 .next()
                 .ok_or_else(|| self.syntax(format!("{what} needs 3 coordinates, found {axis}")))?;
-            let value: f32 = word.parse().map_err(|_| {
+            // Read in double precision (the scene is re-centred before rounding to f32), but
+            // refused, as always, where f32 cannot hold the coordinate.
+            let value: f64 = word.parse().map_err(|_| {
                 self.syntax(format!("{what} coordinate \"{word}\" is not a number"))
             })?;
-            if !value.is_finite() {
+            if !(value as f32).is_finite() {
                 return Err(SceneError::NonFinite {
                     path: self.path.to_path_buf(),
                     line: self.line,
@@ -373,7 +396,7 @@ impl<'a> ObjParser<'a> {
             }
             *slot = value;
         }
-        Ok(Vec3::from(xyz))
+        Ok(DVec3::from(xyz))
     }
 
     fn face<'w>(&mut self, words: impl Iterator<Item = &'w str>) -> Result<(), SceneError> {
@@ -411,7 +434,7 @@ impl<'a> ObjParser<'a> {
         let v = parts.next().unwrap_or("");
         let vt = parts.next().unwrap_or("");
         let vn = parts.next().unwrap_or("");
-        let position = self.index(v, self.mesh.positions.len(), "vertex")?;
+        let position = self.index(v, self.positions.len(), "vertex")?;
         if !vt.is_empty() {
             if self.texcoords == 0 {
                 let raw = self.raw_index(vt, "texture coordinate")?;

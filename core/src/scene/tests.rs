@@ -372,7 +372,9 @@ fn bare_obj_is_framed_as_documented() {
     let dir = scratch();
     let p = write(&dir, "x.obj", b"v 0 0 0\nv 2 0 0\nv 0 2 2\nf 1 2 3\n");
     let s = load_scene(&p).unwrap();
-    let c = DVec3::new(1.0, 1.0, 1.0);
+    // The box's centre is the local origin: c in the file is 0 in the scene.
+    assert_eq!(s.origin, DVec3::new(1.0, 1.0, 1.0));
+    let c = DVec3::ZERO;
     let d = 12f64.sqrt();
     assert_eq!(s.camera.eye, c + DVec3::new(0.0, 0.5, 1.25) * d);
     assert_eq!(s.camera.look_at, c);
@@ -385,5 +387,61 @@ fn bare_obj_is_framed_as_documented() {
             position: light,
             intensity: [i; 3]
         }]
+    );
+}
+
+/// Positions are read in f64 and stored relative to the scene's centre: a triangle a million
+/// units away keeps offsets that f32 at 1e6 (ulp 0.0625) could not hold, and a manifest's camera
+/// and point light move into the same frame.
+#[test]
+fn far_scenes_are_stored_relative_to_their_centre() {
+    let dir = scratch();
+    write(
+        &dir,
+        "far.obj",
+        b"v 1000000.001 -2000000 3000000.25\nv 1000000.003 -2000000 3000000.25\n\
+          v 1000000.001 -1999999.998 3000000.25\nv 5e30 0 0\nf 1 2 3\n",
+    );
+    let p = write(
+        &dir,
+        "far.json",
+        br#"{"meshes": ["far.obj"],
+             "camera": {"eye": [1000000.002, -1999999.999, 3000001.25],
+                        "look_at": [1000000.002, -1999999.999, 3000000.25]},
+             "lights": [{"kind": "point", "position": [1000000.002, -1999999.999, 3000000.5],
+                         "intensity": 1}]}"#,
+    );
+    let s = load_scene(&p).unwrap();
+    // The unused vertex at 5e30 does not move the centre.
+    let centre = DVec3::new(1000000.002, -1999999.999, 3000000.25);
+    assert!((s.origin - centre).length() < 1e-9, "{:?}", s.origin);
+    let local = |i: usize| s.mesh.positions[i].as_dvec3();
+    for (i, expected) in [(0, [-0.001, -0.001, 0.0]), (1, [0.001, -0.001, 0.0])] {
+        let d = local(i) - DVec3::from(expected);
+        assert!(d.abs().max_element() < 1e-9, "vertex {i}: {:?}", local(i));
+    }
+    assert!((s.camera.eye - DVec3::new(0.0, 0.0, 1.0)).length() < 1e-9);
+    assert!(s.camera.look_at.length() < 1e-9);
+    let Light::Point { position, .. } = s.lights[0] else {
+        panic!("point light expected")
+    };
+    assert!((position - DVec3::new(0.0, 0.0, 0.25)).length() < 1e-9);
+}
+
+/// Vertices farther from the centre than f32 can hold are refused, naming the file (here an
+/// unused vertex 6e38 from a triangle at 3e38).
+#[test]
+fn scenes_wider_than_f32_are_refused() {
+    let (e, p) = error_of(
+        "wide.obj",
+        "v 3e38 0 0\nv 3e38 1 0\nv 3e38 0 1\nv -3e38 0 0\nf 1 2 3\n",
+    );
+    assert_eq!(
+        e,
+        format!(
+            "{}: the scene is too large: vertices lie farther than 3.4e38 from its centre, \
+             beyond single precision",
+            p.display()
+        )
     );
 }
