@@ -7,6 +7,7 @@
 
 mod counting;
 mod memory;
+mod patient;
 
 pub mod conformance;
 
@@ -15,6 +16,7 @@ use std::sync::Arc;
 
 pub use counting::CountingStore;
 pub use memory::MemoryStore;
+pub use patient::PatientStore;
 
 /// Why a storage request failed. Every message names the key or the operation.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]

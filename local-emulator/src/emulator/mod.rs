@@ -33,11 +33,18 @@ use hort_core::image::Image;
 use hort_core::keys::{image_key, plan_key};
 use hort_core::pipeline::{JobOutputs, JobPlan, PlanRequest, read_outputs};
 use hort_core::report::StageReport;
+use hort_core::store::{BlobStore, PatientStore};
 use hort_functions::handlers::JobRequest;
 use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
+
+/// Tries of each request the emulator's client makes itself (upload, items, outputs), each
+/// already retried by the SDK.
+const CLIENT_ATTEMPTS: u32 = 5;
+/// The client's first wait between those tries, doubled after each (times `time_scale`).
+const CLIENT_FIRST_WAIT: std::time::Duration = std::time::Duration::from_millis(200);
 
 /// How the emulator runs a job.
 #[derive(Clone, Debug)]
@@ -170,8 +177,15 @@ pub fn run_job_with(
         task_timeout_seconds: config.task_timeout_seconds,
     };
     let store = storage.blob_store();
+    // The client's own requests (upload, items, outputs) have no state machine to retry them:
+    // a few more tries than the SDK's own keep one unlucky request from failing the run.
+    let client = PatientStore::new(
+        Arc::clone(&store),
+        CLIENT_ATTEMPTS,
+        CLIENT_FIRST_WAIT.mul_f64(config.time_scale.clamp(1e-3, 1e3)),
+    );
     let submitted = submit_or_resume(
-        store.as_ref(),
+        &client,
         &job,
         scene,
         &request,
@@ -234,7 +248,7 @@ pub fn run_job_with(
     let accounting = Accounting::new(Arc::clone(&storage.store));
     let fan_out = FanOut(vec![&accounting, observer]);
     let input = serde_json::json!({"job": job.as_str(), "bucket": storage.bucket});
-    let outcome = orchestrator.run(input, invoker, &StoreItems(store.as_ref()), &fan_out);
+    let outcome = orchestrator.run(input, invoker, &StoreItems(&client), &fan_out);
     finished.store(true, Ordering::Relaxed);
     let usage = accounting.finish();
     if let Err(failure) = outcome {
@@ -273,10 +287,10 @@ pub fn run_job_with(
         return Err(anyhow!("job {job} failed in {detail}"));
     }
 
-    let plan_bytes = store.get(&plan_key(&job))?;
+    let plan_bytes = client.get(&plan_key(&job))?;
     let plan = JobPlan::from_json(&plan_key(&job), &plan_bytes)?;
-    let JobOutputs { image, hits } = read_outputs(store.as_ref(), &job, &plan)?;
-    let png = store.get(&image_key(&job, "png"))?;
+    let JobOutputs { image, hits } = read_outputs(&client, &job, &plan)?;
+    let png = client.get(&image_key(&job, "png"))?;
     let deleted_intermediates = (config.storage.is_persistent() && !options.keep_intermediates)
         .then(|| delete_intermediates(storage.s3(), &job).map_err(|e| format!("{e:#}")));
     let ledger = functions.ledger();

@@ -1,0 +1,145 @@
+//! [`PatientStore`]: retries what storage calls retryable, for callers with no orchestrator
+//! behind them (a client uploading a job, reading its outputs back), where one unlucky request
+//! would otherwise fail the whole run.
+
+use super::{BlobStore, PutOutcome, StoreError};
+use std::ops::Range;
+use std::time::Duration;
+
+/// A store that repeats a request failing with [`StoreError::Unavailable`], up to `attempts`
+/// times in all, waiting `first_wait`, then twice that, and so on between them. Every other
+/// result is returned at once. Safe for every operation: puts replace whole objects, and a
+/// repeated `put_if_absent` whose first answer was lost sees [`PutOutcome::AlreadyExists`]
+/// (callers compare the stored bytes, as the job upload does).
+pub struct PatientStore<S> {
+    inner: S,
+    attempts: u32,
+    first_wait: Duration,
+}
+
+impl<S: BlobStore> PatientStore<S> {
+    /// `inner` with up to `attempts` tries per request (at least 1).
+    pub fn new(inner: S, attempts: u32, first_wait: Duration) -> Self {
+        PatientStore {
+            inner,
+            attempts: attempts.max(1),
+            first_wait,
+        }
+    }
+
+    fn patiently<T>(&self, op: impl Fn() -> Result<T, StoreError>) -> Result<T, StoreError> {
+        let mut wait = self.first_wait;
+        let mut tries = 1;
+        loop {
+            match op() {
+                Err(e) if e.is_retryable() && tries < self.attempts => {
+                    std::thread::sleep(wait);
+                    wait = wait.saturating_mul(2);
+                    tries += 1;
+                }
+                result => return result,
+            }
+        }
+    }
+}
+
+impl<S: BlobStore> BlobStore for PatientStore<S> {
+    fn get(&self, key: &str) -> Result<Vec<u8>, StoreError> {
+        self.patiently(|| self.inner.get(key))
+    }
+
+    fn get_range(&self, key: &str, range: Range<u64>) -> Result<Vec<u8>, StoreError> {
+        self.patiently(|| self.inner.get_range(key, range.clone()))
+    }
+
+    fn put(&self, key: &str, bytes: &[u8]) -> Result<(), StoreError> {
+        self.patiently(|| self.inner.put(key, bytes))
+    }
+
+    fn put_if_absent(&self, key: &str, bytes: &[u8]) -> Result<PutOutcome, StoreError> {
+        self.patiently(|| self.inner.put_if_absent(key, bytes))
+    }
+
+    fn list(&self, prefix: &str) -> Result<Vec<String>, StoreError> {
+        self.patiently(|| self.inner.list(prefix))
+    }
+
+    fn delete(&self, key: &str) -> Result<(), StoreError> {
+        self.patiently(|| self.inner.delete(key))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::store::MemoryStore;
+    use std::sync::atomic::{AtomicU32, Ordering};
+
+    /// Fails the first `failures` calls of each kind with `error`, then passes through.
+    struct Flaky {
+        inner: MemoryStore,
+        failures: u32,
+        calls: AtomicU32,
+        error: fn() -> StoreError,
+    }
+
+    impl BlobStore for Flaky {
+        fn get(&self, key: &str) -> Result<Vec<u8>, StoreError> {
+            if self.calls.fetch_add(1, Ordering::SeqCst) < self.failures {
+                return Err((self.error)());
+            }
+            self.inner.get(key)
+        }
+        fn get_range(&self, key: &str, range: Range<u64>) -> Result<Vec<u8>, StoreError> {
+            self.inner.get_range(key, range)
+        }
+        fn put(&self, key: &str, bytes: &[u8]) -> Result<(), StoreError> {
+            self.inner.put(key, bytes)
+        }
+        fn put_if_absent(&self, key: &str, bytes: &[u8]) -> Result<PutOutcome, StoreError> {
+            self.inner.put_if_absent(key, bytes)
+        }
+        fn list(&self, prefix: &str) -> Result<Vec<String>, StoreError> {
+            self.inner.list(prefix)
+        }
+        fn delete(&self, key: &str) -> Result<(), StoreError> {
+            self.inner.delete(key)
+        }
+    }
+
+    fn flaky(failures: u32, error: fn() -> StoreError) -> PatientStore<Flaky> {
+        let inner = MemoryStore::new();
+        inner.put("k", b"v").unwrap();
+        let flaky = Flaky {
+            inner,
+            failures,
+            calls: AtomicU32::new(0),
+            error,
+        };
+        PatientStore::new(flaky, 4, Duration::ZERO)
+    }
+
+    fn unavailable() -> StoreError {
+        StoreError::Unavailable { what: "503".into() }
+    }
+
+    #[test]
+    fn retryable_failures_are_repeated_up_to_the_attempts() {
+        let store = flaky(3, unavailable);
+        assert_eq!(store.get("k").unwrap(), b"v");
+        assert_eq!(store.inner.calls.load(Ordering::SeqCst), 4);
+        let store = flaky(4, unavailable);
+        assert_eq!(store.get("k"), Err(unavailable()));
+        assert_eq!(store.inner.calls.load(Ordering::SeqCst), 4);
+    }
+
+    #[test]
+    fn other_failures_are_returned_at_once() {
+        let store = flaky(1, || StoreError::Denied { what: "no".into() });
+        assert_eq!(
+            store.get("k"),
+            Err(StoreError::Denied { what: "no".into() })
+        );
+        assert_eq!(store.inner.calls.load(Ordering::SeqCst), 1);
+    }
+}
