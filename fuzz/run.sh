@@ -19,6 +19,8 @@ target=${1:?usage: fuzz/run.sh TARGET SECONDS [--keep]}
 seconds=${2:?usage: fuzz/run.sh TARGET SECONDS [--keep]}
 keep=${3:-}
 [ -d "fuzz/corpus/$target" ] || { echo "fuzz/run.sh: no target $target (no fuzz/corpus/$target)" >&2; exit 2; }
+# FUZZ_IN: start from another folder (e.g. the queue of an earlier run) instead of the corpus.
+inputs=${FUZZ_IN:-fuzz/corpus/$target}
 
 command -v cargo-afl >/dev/null || cargo install cargo-afl --locked --version 0.18.2
 export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-target}/afl
@@ -36,10 +38,9 @@ dict=()
 
 # No CPU binding (the machine is shared), no UI, a crash-reporting core pattern is not needed.
 export AFL_NO_AFFINITY=1 AFL_NO_UI=1 AFL_SKIP_CPUFREQ=1 AFL_I_DONT_CARE_ABOUT_MISSING_CRASHES=1
-export AFL_SKIP_BIN_CHECK=0 AFL_QUIET=1
-# -m: a target that allocates more than 2 GiB has an unbounded allocation (a finding).
+# No -m: the binaries abort on any allocation over 256 MiB themselves (src/capped_alloc.rs).
 # -t: 2 s per input (the OBJ and manifest targets write and read files).
-cargo afl fuzz -V "$seconds" -m 2048 -t 2000 -i "fuzz/corpus/$target" -o "$out" "${dict[@]}" \
+cargo afl fuzz -V "$seconds" -t 2000 -i "$inputs" -o "$out" "${dict[@]}" \
   -- "$binary" > "$out/afl.log" 2>&1 || { tail -20 "$out/afl.log" >&2; exit 1; }
 
 stats=$out/default/fuzzer_stats
@@ -49,7 +50,7 @@ echo "fuzz $target: $(field run_time) s, $(field execs_done) executions ($(field
 
 if [ "$keep" = "--keep" ]; then
   min=$out/cmin
-  AFL_PATH= cargo afl cmin -m 2048 -t 2000 -i "$out/default/queue" -o "$min" -- "$binary" >/dev/null
+  AFL_PATH= cargo afl cmin -t 2000 -i "$out/default/queue" -o "$min" -- "$binary" >/dev/null
   rm -rf "fuzz/corpus/$target"
   mkdir -p "fuzz/corpus/$target"
   for f in "$min"/*; do
