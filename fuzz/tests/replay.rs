@@ -1,6 +1,7 @@
-//! Replays every kept corpus input (`corpus/<target>/`) through its target on the stable
-//! toolchain: the CI smoke pass of the fuzzers. A target that panics on an input fails the test
-//! naming the file.
+//! Replays every kept corpus input (`corpus/<target>/`) and every input of a past finding
+//! (`regressions/<target>/`, kept when a corpus is minimized anew) through its target on the
+//! stable toolchain: the CI smoke pass of the fuzzers. A target that panics on an input fails
+//! the test naming the file.
 
 use std::path::{Path, PathBuf};
 
