@@ -30,9 +30,12 @@ pub use http::http;
 pub use scene::{manifest, obj};
 pub use shuffle::{shuffle_block, split_object};
 
+/// A fuzz target: takes any bytes, panics only on a finding.
+pub type Target = fn(&[u8]);
+
 /// Every target by name (the name is its corpus folder and its AFL++ binary); `http` only with
 /// the `http` feature (the default).
-pub const TARGETS: &[(&str, fn(&[u8]))] = &[
+pub const TARGETS: &[(&str, Target)] = &[
     ("obj", obj),
     ("manifest", manifest),
     ("split_object", split_object),
