@@ -52,7 +52,7 @@ echo "fuzz $target: $(field run_time) s, $(field execs_done) executions ($(field
 
 if [ "$keep" = "--keep" ]; then
   min=$out/cmin
-  AFL_PATH= cargo afl cmin -t 2000 -i "$out/default/queue" -o "$min" -- "$binary" >/dev/null
+  cargo afl cmin -t 2000 -i "$out/default/queue" -o "$min" -- "$binary" >/dev/null
   rm -rf "fuzz/corpus/$target"
   mkdir -p "fuzz/corpus/$target"
   for f in "$min"/*; do
