@@ -103,22 +103,7 @@ fn field_error(path: &str, message: &str) -> ApiError {
         None if parent.is_empty() => "(root)".to_owned(),
         None => parent.to_owned(),
     };
-    let field = printable(&field);
-    ApiError::invalid_field(field.clone(), format!("{field}: {}", printable(message)))
-}
-
-/// `text` with control characters escaped (`\r`, `\u{1b}`): a JSON key that holds them keeps
-/// the message on one line.
-fn printable(text: &str) -> String {
-    text.chars()
-        .map(|c| {
-            if c.is_control() {
-                c.escape_default().to_string()
-            } else {
-                c.to_string()
-            }
-        })
-        .collect()
+    ApiError::invalid_field(field.clone(), format!("{field}: {message}"))
 }
 
 #[cfg(test)]
