@@ -39,6 +39,11 @@ pub use plan::{
 };
 pub use plan_step::{PlannedJob, plan_into_store};
 pub use records::{Occluded, PixelBlock, ShadowQuery, SurfaceHit};
+/// The shuffle record decoders and encoders, public for the fuzz targets in `fuzz/`.
+pub use records::{
+    decode_occluded, decode_pixels, decode_queries, decode_surface_hits, encode_occluded,
+    encode_pixels, encode_queries, encode_surface_hits,
+};
 pub use runner::{
     RebuildSplit, TaskMetrics, producer_of, run_task, run_task_cached, run_task_with,
 };

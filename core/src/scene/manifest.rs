@@ -157,10 +157,11 @@ pub(super) fn load_manifest_scene(path: &Path) -> Result<Scene, SceneError> {
 }
 
 /// Parses manifest JSON; errors carry the JSON path of the offending field.
+/// Text after the JSON object (`{...} trailing`) is an error too, at the root.
 pub fn parse_manifest(text: &str, path: &Path) -> Result<Manifest, SceneError> {
     let de = &mut serde_json::Deserializer::from_str(text);
-    serde_path_to_error::deserialize(de).map_err(|e| {
-        let field = e.path().to_string();
+    let manifest = serde_path_to_error::deserialize(&mut *de).map_err(|e| {
+        let field = printable(&e.path().to_string());
         SceneError::Manifest {
             path: path.to_path_buf(),
             field: if field == "." || field == "?" {
@@ -168,9 +169,29 @@ pub fn parse_manifest(text: &str, path: &Path) -> Result<Manifest, SceneError> {
             } else {
                 field
             },
-            detail: e.into_inner().to_string(),
+            detail: printable(&e.into_inner().to_string()),
         }
-    })
+    })?;
+    de.end().map_err(|e| SceneError::Manifest {
+        path: path.to_path_buf(),
+        field: "(root)".into(),
+        detail: e.to_string(),
+    })?;
+    Ok(manifest)
+}
+
+/// `text` with control characters escaped (`\r`, `\u{1b}`), so a JSON key or value that holds
+/// them keeps a message on one line.
+fn printable(text: &str) -> String {
+    text.chars()
+        .map(|c| {
+            if c.is_control() {
+                c.escape_default().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect()
 }
 
 fn apply_material_overrides(
@@ -179,7 +200,8 @@ fn apply_material_overrides(
     path: &Path,
 ) -> Result<(), SceneError> {
     for (name, m) in &manifest.materials {
-        let field = format!("materials.{name}.kd");
+        let shown = printable(name);
+        let field = format!("materials.{shown}.kd");
         if m.kd.iter().any(|c| !c.is_finite() || *c < 0.0) {
             return Err(SceneError::Manifest {
                 path: path.to_path_buf(),
@@ -195,7 +217,7 @@ fn apply_material_overrides(
         if !found {
             return Err(SceneError::Manifest {
                 path: path.to_path_buf(),
-                field: format!("materials.{name}"),
+                field: format!("materials.{shown}"),
                 detail: "no mesh uses a material of that name".into(),
             });
         }
@@ -214,6 +236,7 @@ fn warn_bright_overrides(manifest: &Manifest, path: &Path, warnings: &mut Vec<St
         return;
     };
     let more = bright.count();
+    let name = printable(name);
     let [r, g, b] = first.kd;
     let others = match more {
         0 => String::new(),

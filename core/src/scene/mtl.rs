@@ -75,6 +75,47 @@ pub(super) fn mtl_warnings(path: &Path, text: &str) -> Vec<String> {
         .collect()
 }
 
+/// Colour statements, which `tobj` reads as exactly three numbers.
+const COLOURS: [&str; 4] = ["Ka", "Kd", "Ks", "Ke"];
+
+/// The library text as `tobj` can read it: a colour statement (`Ka`, `Kd`, `Ks`, `Ke`) with one
+/// value is written out with three (the MTL rule: g and b default to r); one with no or two
+/// values is an error, returned as (1-based line, statement), since `tobj` 4.0.5 panics on it.
+/// Every other line is kept as it is, so line numbers do not change.
+pub(super) fn with_full_colours(text: &str) -> Result<String, (usize, String)> {
+    let mut out = String::with_capacity(text.len() + 16);
+    for (i, line) in text.lines().enumerate() {
+        let words: Vec<&str> = line.split_whitespace().collect();
+        match words[..] {
+            [keyword, ref values @ ..] if COLOURS.contains(&keyword) && values.len() < 3 => {
+                let [grey] = values else {
+                    return Err((i + 1, words.join(" ").chars().take(60).collect()));
+                };
+                out.push_str(&format!("{keyword} {grey} {grey} {grey}"));
+            }
+            _ => out.push_str(line),
+        }
+        out.push('\n');
+    }
+    Ok(out)
+}
+
+/// Statements whose values must be numbers (as `tobj` reads them).
+const NUMERIC: [&str; 10] = ["Ka", "Kd", "Ks", "Ke", "Tf", "Ns", "Ni", "d", "Tr", "illum"];
+
+/// The first line (1-based) of `text` holding a numeric statement without values or with a value
+/// that is not a number, with the statement (whitespace collapsed, at most 60 characters): where
+/// a library that `tobj` refused as a whole is wrong. `None` if every such statement parses.
+pub(super) fn first_bad_number(text: &str) -> Option<(usize, String)> {
+    text.lines().enumerate().find_map(|(i, raw)| {
+        let words: Vec<&str> = raw.split_whitespace().collect();
+        let (&keyword, values) = words.split_first()?;
+        let bad = NUMERIC.contains(&keyword)
+            && (values.is_empty() || values.iter().any(|v| v.parse::<f32>().is_err()));
+        bad.then(|| (i + 1, words.join(" ").chars().take(60).collect()))
+    })
+}
+
 /// Which kind a statement shows, if any: texture statements always, colours and factors only
 /// when they have a visible effect elsewhere (a nonzero `Ks` or `Ke`, `d` below 1, `Tr` above 0)
 /// and `Kd` when a channel exceeds 1.
@@ -98,7 +139,7 @@ fn message(path: &Path, kind: Kind, f: &Found) -> String {
     let name = if f.material.is_empty() {
         "(before any newmtl)".to_string()
     } else {
-        format!("\"{}\"", f.material)
+        format!("{:?}", f.material)
     };
     let more = match f.materials.len() - 1 {
         0 => String::new(),

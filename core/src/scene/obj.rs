@@ -16,7 +16,7 @@
 //! (`<html>`, `{`, `0.5`, `été`).
 
 use super::mesh::{Material, Mesh, NO_NORMAL};
-use super::mtl::mtl_warnings;
+use super::mtl::{first_bad_number, mtl_warnings, with_full_colours};
 use super::world::WorldMesh;
 use crate::error::SceneError;
 use glam::DVec3;
@@ -496,7 +496,7 @@ impl<'a> ObjParser<'a> {
             }
             None => {
                 self.warnings.push(format!(
-                    "{}:{}: material \"{name}\" is not defined by any mtllib; using grey {}",
+                    "{}:{}: material {name:?} is not defined by any mtllib; using grey {}",
                     self.path.display(),
                     self.line,
                     DEFAULT_KD[0]
@@ -517,22 +517,47 @@ impl<'a> ObjParser<'a> {
             ));
             return Ok(());
         }
-        let (materials, _) = tobj::load_mtl(&mtl_path).map_err(|e| SceneError::Mtl {
+        let mtl_error = |detail: String| SceneError::Mtl {
             path: mtl_path.clone(),
-            detail: e.to_string(),
+            detail,
+        };
+        let bytes = std::fs::read(&mtl_path).map_err(|source| SceneError::Io {
+            path: mtl_path.clone(),
+            source,
+        })?;
+        let text = std::str::from_utf8(&bytes).map_err(|e| {
+            mtl_error(format!(
+                "not UTF-8 text (invalid UTF-8 at byte offset {})",
+                e.valid_up_to()
+            ))
+        })?;
+        let full = with_full_colours(text).map_err(|(line, statement)| {
+            mtl_error(format!(
+                "line {line}: {statement:?} needs 3 values (r g b) or 1 (grey)"
+            ))
+        })?;
+        let (materials, _) = tobj::load_mtl_buf(&mut full.as_bytes()).map_err(|e| {
+            // tobj says only what failed; find the line for the message.
+            let detail = match first_bad_number(text) {
+                Some((line, statement)) => {
+                    format!("line {line}: {statement:?} is not a valid statement ({e})")
+                }
+                None => e.to_string(),
+            };
+            SceneError::Mtl {
+                path: mtl_path.clone(),
+                detail,
+            }
         })?;
         if self.libraries.insert(mtl_path.clone()) {
-            // tobj has read it as UTF-8 text; a file that changed since is not checked.
-            if let Ok(text) = std::fs::read_to_string(&mtl_path) {
-                self.warnings.extend(mtl_warnings(&mtl_path, &text));
-            }
+            self.warnings.extend(mtl_warnings(&mtl_path, text));
         }
         for m in materials {
             let kd = m.diffuse.unwrap_or(DEFAULT_KD);
             if kd.iter().any(|c| !c.is_finite()) {
                 return Err(SceneError::Mtl {
                     path: mtl_path,
-                    detail: format!("material \"{}\" has a non-finite Kd", m.name),
+                    detail: format!("material {:?} has a non-finite Kd", m.name),
                 });
             }
             self.library.entry(m.name).or_insert((kd, None));

@@ -445,3 +445,115 @@ fn scenes_wider_than_f32_are_refused() {
         )
     );
 }
+
+/// Found by the bad input table: text after the manifest's JSON object was ignored.
+#[test]
+fn text_after_the_manifest_object_is_refused() {
+    let (e, p) = manifest_error(r#"{"meshes": ["t.obj"]} trailing"#);
+    assert_eq!(
+        e,
+        format!(
+            "{}: manifest field `(root)`: trailing characters at line 1 column 23",
+            p.display()
+        )
+    );
+}
+
+/// Found by the bad input table: a material library tobj refuses was reported without a line.
+#[test]
+fn a_malformed_material_library_names_the_line() {
+    let dir = scratch();
+    let mtl = write(&dir, "m.mtl", b"newmtl a\n# fine\nKd 0.5 x 0.5\n");
+    let obj = write(
+        &dir,
+        "s.obj",
+        format!("mtllib m.mtl\nusemtl a\n{TRIANGLE}").as_bytes(),
+    );
+    assert_eq!(
+        load_scene(&obj).unwrap_err().to_string(),
+        format!(
+            "{}: material library: line 3: \"Kd 0.5 x 0.5\" is not a valid statement \
+             (material parse error)",
+            mtl.display()
+        )
+    );
+}
+
+/// Found by fuzzing (fuzz/, target `obj`): tobj 4.0.5 panics on a colour statement with fewer
+/// than three values. One value is grey (the MTL rule); none or two is an error naming the line.
+#[test]
+fn short_colour_statements_are_grey_or_refused_never_a_panic() {
+    let load = |mtl: &[u8]| {
+        let dir = scratch();
+        let mtl_path = write(&dir, "m.mtl", mtl);
+        let obj = write(
+            &dir,
+            "s.obj",
+            format!("mtllib m.mtl\nusemtl a\n{TRIANGLE}").as_bytes(),
+        );
+        (load_scene(&obj).map(|s| s.mesh.materials), mtl_path)
+    };
+    let (materials, _) = load(b"newmtl a\nKd 0.25\nKs 0.5\n");
+    assert_eq!(materials.unwrap()[1].kd, [0.25; 3]);
+    for (text, statement) in [
+        (&b"newmtl a\nKd 0.8 0.1\n"[..], "Kd 0.8 0.1"),
+        (b"newmtl a\n\nKa\n", "Ka"),
+        (b"newmtl a\nKe 1 x\n", "Ke 1 x"),
+    ] {
+        let (result, path) = load(text);
+        let line = if statement == "Ka" { 3 } else { 2 };
+        assert_eq!(
+            result.unwrap_err().to_string(),
+            format!(
+                "{}: material library: line {line}: \"{statement}\" needs 3 values (r g b) or 1 \
+                 (grey)",
+                path.display()
+            )
+        );
+    }
+    let (result, path) = load(b"newmtl a\nKd 1 1 1\n\xff\n");
+    assert_eq!(
+        result.unwrap_err().to_string(),
+        format!(
+            "{}: material library: not UTF-8 text (invalid UTF-8 at byte offset 18)",
+            path.display()
+        )
+    );
+}
+
+/// Found by fuzzing (target `obj`): a material name holding a carriage return (old Mac line
+/// ends) was echoed raw, so the warning spanned two lines. Names are quoted with escapes.
+#[test]
+fn names_with_control_characters_stay_on_one_line() {
+    let dir = scratch();
+    write(&dir, "m.mtl", b"newmtl red\rKs 0.5 0.5 0.5\nmap_Kd t.png\n");
+    let obj = write(
+        &dir,
+        "s.obj",
+        format!("mtllib m.mtl\nusemtl red\n{TRIANGLE}").as_bytes(),
+    );
+    let scene = load_scene(&obj).unwrap();
+    assert_eq!(scene.warnings.len(), 2, "{:?}", scene.warnings);
+    assert!(
+        scene.warnings[0].contains(r#"material "red\rKs 0.5 0.5 0.5" uses a texture"#),
+        "{}",
+        scene.warnings[0]
+    );
+    assert!(
+        scene.warnings[1].contains(r#"material "red" is not defined by any mtllib"#),
+        "{}",
+        scene.warnings[1]
+    );
+    let (e, _) = manifest_error(
+        "{\"meshes\": [\"t.obj\"], \"materials\": {\"a\\rb\": {\"kd\": [1, 1, 1]}}}",
+    );
+    assert!(
+        e.ends_with("manifest field `materials.a\\rb`: no mesh uses a material of that name"),
+        "{e}"
+    );
+    let (e, _) = manifest_error("{\"meshes\": [\"t.obj\"], \"x\\ny\": 1}");
+    assert!(
+        !e.contains('\n') && e.contains("unknown field `x\\ny`"),
+        "{e}"
+    );
+}

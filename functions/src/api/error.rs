@@ -33,12 +33,28 @@ struct ErrorFields<'a> {
     field: Option<&'a str>,
 }
 
+/// `text` with control characters escaped (`\r`, `\n`, `\u{1b}`): file names, keys and JSON
+/// keys from a request keep a message on one line.
+pub(super) fn printable(text: &str) -> String {
+    text.chars()
+        .map(|c| {
+            if c.is_control() {
+                c.escape_default().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect()
+}
+
 impl ApiError {
+    /// Control characters in `message` (a file name or key from the request) are escaped, so
+    /// it stays one line.
     fn new(status: StatusCode, code: &'static str, message: impl Into<String>) -> Self {
         ApiError {
             status,
             code,
-            message: message.into(),
+            message: printable(&message.into()),
             field: None,
             allow: None,
         }
@@ -52,7 +68,7 @@ impl ApiError {
     /// 400 `invalid_request`: a field is missing, unknown, of the wrong type or out of range.
     pub fn invalid_field(field: impl Into<String>, message: impl Into<String>) -> Self {
         let mut e = Self::new(StatusCode::BAD_REQUEST, "invalid_request", message);
-        e.field = Some(field.into());
+        e.field = Some(printable(&field.into()));
         e
     }
 
@@ -149,3 +165,19 @@ impl std::fmt::Display for ApiError {
 }
 
 impl std::error::Error for ApiError {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Found by fuzzing (fuzz/, target `http`): a file name or key with a newline, echoed in
+    /// a message, made it two lines. Every message and field is escaped.
+    #[test]
+    fn names_from_the_request_stay_on_one_line() {
+        let e = ApiError::invalid_field("scene.files.a\nb", "file \"a\nb\" is not relative");
+        assert_eq!(e.field.as_deref(), Some("scene.files.a\\nb"));
+        assert_eq!(e.message, "file \"a\\nb\" is not relative");
+        let e = ApiError::invalid_scene("s.obj\r:1: bad");
+        assert_eq!(e.message, "s.obj\\r:1: bad");
+    }
+}

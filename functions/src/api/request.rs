@@ -226,4 +226,19 @@ mod tests {
         let ok = parse_render_request(br#"{"scene": {"key": "a"}, "width": null}"#).unwrap();
         assert_eq!(ok.width, None);
     }
+
+    /// A JSON key holding a control character (`"\r"` escaped in the body) is echoed escaped,
+    /// so the message stays one line.
+    #[test]
+    fn control_characters_in_keys_stay_escaped() {
+        let e = err(r#"{"scene": {"key": "a"}, "x\ry": 1}"#);
+        assert_eq!(e.field.as_deref(), Some("x\\ry"));
+        assert!(
+            e.message.starts_with("x\\ry: unknown field `x\\ry`"),
+            "{}",
+            e.message
+        );
+        let e = err(r#"{"scene": {"main": "a", "files": {"a\nb": 7}}}"#);
+        assert_eq!(e.field.as_deref(), Some("scene.files.a\\nb"));
+    }
 }

@@ -213,3 +213,17 @@ fn the_hort_definition_compiles_to_the_documented_graph() {
             .all(|r| r.jitter == crate::Jitter::Full)
     );
 }
+
+/// Found by fuzzing (fuzz/, target `asl`): a field name holding a carriage return or newline
+/// was echoed raw, so the error spanned lines. It is escaped.
+#[test]
+fn control_characters_in_field_names_stay_escaped() {
+    let e = load_error(with_state(
+        json!({"Type": "Pass", "End": true, "Comm\rent": "x"}),
+    ));
+    assert!(!e.contains(['\r', '\n']), "{e}");
+    assert!(
+        e.starts_with(r#"state "S": Comm\rent: unknown field `Comm\rent`, expected one of"#),
+        "{e}"
+    );
+}

@@ -1,0 +1,11 @@
+//! AFL++ entry point of the `asl` target ([`hort_fuzz::asl`]).
+
+#[path = "../capped_alloc.rs"]
+mod capped_alloc;
+
+#[global_allocator]
+static ALLOCATOR: capped_alloc::Capped = capped_alloc::Capped;
+
+fn main() {
+    afl::fuzz!(|data: &[u8]| hort_fuzz::asl(data));
+}

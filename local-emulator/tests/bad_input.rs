@@ -1,0 +1,392 @@
+//! `docs/bad-input.md` as a test: every row's input is given to the code that reads it, and what
+//! the user sees must be the row's message, exactly.
+//!
+//! Rows by kind (the input cell's escapes: `\n` newline, `\r` carriage return, `\t` tab, `\\` backslash, `\|` a pipe,
+//! `\xNN` a byte):
+//!
+//! | kind | input | what is compared |
+//! |---|---|---|
+//! | `obj` | `scene.obj` (the text after a `#MTL` line is `m.mtl`) | a line of `hort render scene.obj --monolithic` standard error, run in the scene's folder |
+//! | `manifest` | `scene.json`, beside `a.obj` (one triangle, material `red` from `m.mtl`) | the same for `hort render scene.json` |
+//! | `flags` | arguments of `hort`, split at spaces, run beside a valid `scene.obj` | a line of standard error |
+//! | `http` | a request: `METHOD URI`, header lines, an empty line, the body | `STATUS body` of the API router's answer |
+//! | `split` | an edit of the plan's split object of a one-triangle scene | the decoder's error |
+//! | `block` | an edit of a valid `Hit` shuffle block | the decoder's error |
+//! | `job` | an edit of a planned one-triangle job's object, then `run STAGE TASK` | the task's error |
+//! | `asl` | a state machine definition | the loader's error |
+//!
+//! Edits: `delete`, `truncate N` (keep N bytes), `flip N` (invert byte N), `append N` (N zero
+//! bytes), `as KIND` (read as another record kind).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use hort_core::ids::{JobId, SplitId};
+use hort_core::keys::split_key;
+use hort_core::pipeline::{
+    PlanRequest, SplitMode, SurfaceHit, decode_split, decode_surface_hits, encode_surface_hits,
+    plan_into_store, run_task,
+};
+use hort_core::scene::load_scene;
+use hort_core::shading::SurfacePoint;
+use hort_core::shuffle::RecordKind;
+use hort_core::stage::Stage;
+use hort_core::store::{BlobStore, MemoryStore};
+
+const TRIANGLE: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+const MANIFEST_OBJ: &str = "mtllib m.mtl\nusemtl red\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+const MANIFEST_MTL: &str = "newmtl red\nKd 0.8 0.1 0.1\n";
+
+/// One row of the table.
+struct Row {
+    line: usize,
+    kind: String,
+    input: Vec<u8>,
+    message: String,
+}
+
+/// The rows of `docs/bad-input.md`: every table row whose first cell is a number.
+fn rows() -> Vec<Row> {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/bad-input.md");
+    let text = std::fs::read_to_string(&path).expect("docs/bad-input.md");
+    let mut rows = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let cells = split_cells(line);
+        if cells.len() != 4 || cells[0].parse::<u32>().is_err() {
+            continue;
+        }
+        rows.push(Row {
+            line: i + 1,
+            kind: code(&cells[1]),
+            input: unescape(&code(&cells[2])),
+            message: code(&cells[3]),
+        });
+    }
+    rows
+}
+
+/// The cells of a table line (`| a | b |`), with `\|` kept inside a cell.
+fn split_cells(line: &str) -> Vec<String> {
+    let Some(inner) = line
+        .trim()
+        .strip_prefix('|')
+        .and_then(|l| l.strip_suffix('|'))
+    else {
+        return Vec::new();
+    };
+    let mut cells = vec![String::new()];
+    let mut chars = inner.chars().peekable();
+    while let Some(c) = chars.next() {
+        match c {
+            '\\' if chars.peek() == Some(&'|') => {
+                chars.next();
+                cells.last_mut().unwrap().push('|');
+            }
+            '|' => cells.push(String::new()),
+            _ => cells.last_mut().unwrap().push(c),
+        }
+    }
+    cells.iter().map(|c| c.trim().to_owned()).collect()
+}
+
+/// The text of a code span (`` `x` `` or ``` `` x `` ```).
+fn code(cell: &str) -> String {
+    if let Some(inner) = cell.strip_prefix("`` ").and_then(|c| c.strip_suffix(" ``")) {
+        return inner.to_owned();
+    }
+    cell.strip_prefix('`')
+        .and_then(|c| c.strip_suffix('`'))
+        .unwrap_or(cell)
+        .to_owned()
+}
+
+/// The bytes an input cell stands for.
+fn unescape(text: &str) -> Vec<u8> {
+    let mut out = Vec::new();
+    let mut rest = text.as_bytes();
+    while let Some((&b, tail)) = rest.split_first() {
+        rest = tail;
+        if b != b'\\' {
+            out.push(b);
+            continue;
+        }
+        let (byte, used) = match rest {
+            [b'n', ..] => (b'\n', 1),
+            [b't', ..] => (b'\t', 1),
+            [b'r', ..] => (b'\r', 1),
+            [b'\\', ..] => (b'\\', 1),
+            [b'x', a, b, ..] => {
+                let hex = std::str::from_utf8(&[*a, *b]).unwrap().to_owned();
+                (u8::from_str_radix(&hex, 16).expect("\\xNN"), 3)
+            }
+            _ => (b'\\', 0),
+        };
+        out.push(byte);
+        rest = &rest[used..];
+    }
+    out
+}
+
+/// A fresh folder for one row.
+fn folder(row: &Row) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!(
+        "hort-bad-input-{}-{}",
+        std::process::id(),
+        row.line
+    ));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Runs `hort` in `dir`; returns standard error.
+fn hort(dir: &Path, args: &[&str]) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_hort"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("hort runs");
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// Renders `scene` (a file in `dir`) tiny and in process.
+fn render(dir: &Path, scene: &str) -> String {
+    hort(
+        dir,
+        &[
+            "render",
+            scene,
+            "--monolithic",
+            "--width",
+            "8",
+            "--height",
+            "6",
+            "--out",
+            "o.png",
+        ],
+    )
+}
+
+/// Applies an edit (`delete`, `truncate N`, `flip N`, `append N`) to `bytes`; `None` deletes.
+fn edit(bytes: Vec<u8>, op: &str) -> Option<Vec<u8>> {
+    let mut bytes = bytes;
+    let (verb, arg) = op.split_once(' ').unwrap_or((op, ""));
+    let n = || arg.parse::<usize>().expect("an edit's number");
+    match verb {
+        "delete" => return None,
+        "truncate" => bytes.truncate(n()),
+        "flip" => bytes[n()] ^= 0xff,
+        "append" => bytes.extend(std::iter::repeat_n(0, n())),
+        _ => panic!("unknown edit {op:?}"),
+    }
+    Some(bytes)
+}
+
+/// A one-triangle scene planned into a fresh store (1 split, 1 span, 8x6, 1 spp).
+fn planned_job(dir: &Path) -> (MemoryStore, JobId, hort_core::pipeline::JobPlan) {
+    std::fs::write(dir.join("scene.obj"), TRIANGLE).unwrap();
+    let scene = load_scene(&dir.join("scene.obj")).unwrap();
+    let store = MemoryStore::new();
+    let job = JobId::new("bad-input").unwrap();
+    let request = PlanRequest {
+        width: 8,
+        height: 6,
+        spp: 1,
+        splits: Some(1),
+        spans: Some(1),
+        mode: SplitMode::Spatial,
+    };
+    let planned = plan_into_store(&store, &job, &scene, &request).unwrap();
+    (store, job, planned.plan)
+}
+
+fn stage(name: &str) -> Stage {
+    match name {
+        "cast-map" => Stage::CastMap,
+        "cast-reduce" => Stage::CastReduce,
+        "expand" => Stage::Expand,
+        "trace-map" => Stage::TraceMap,
+        "trace-reduce" => Stage::TraceReduce,
+        "combine" => Stage::Combine,
+        _ => panic!("unknown stage {name:?}"),
+    }
+}
+
+/// What the user sees for `row`, in the form the table gives it.
+fn actual(row: &Row) -> Vec<String> {
+    let dir = folder(row);
+    let text = String::from_utf8_lossy(&row.input).into_owned();
+    let lines = |s: String| s.lines().map(str::to_owned).collect();
+    match row.kind.as_str() {
+        "obj" => {
+            let marker = b"\n#MTL\n";
+            let at = row.input.windows(marker.len()).position(|w| w == marker);
+            let obj = &row.input[..at.unwrap_or(row.input.len())];
+            std::fs::write(dir.join("scene.obj"), obj).unwrap();
+            if let Some(at) = at {
+                std::fs::write(dir.join("m.mtl"), &row.input[at + marker.len()..]).unwrap();
+            }
+            lines(render(&dir, "scene.obj"))
+        }
+        "manifest" => {
+            std::fs::write(dir.join("a.obj"), MANIFEST_OBJ).unwrap();
+            std::fs::write(dir.join("m.mtl"), MANIFEST_MTL).unwrap();
+            std::fs::write(dir.join("scene.json"), &row.input).unwrap();
+            lines(render(&dir, "scene.json"))
+        }
+        "flags" => {
+            std::fs::write(dir.join("scene.obj"), TRIANGLE).unwrap();
+            let args: Vec<&str> = text.split(' ').collect();
+            lines(hort(&dir, &args))
+        }
+        "http" => vec![http(&row.input)],
+        "split" => {
+            let (store, job, _) = planned_job(&dir);
+            let key = split_key(&job, SplitId(0));
+            let bytes = edit(store.get(&key).unwrap(), &text).expect("an edit that keeps bytes");
+            vec![decode_split(&key, &bytes).unwrap_err().to_string()]
+        }
+        "block" => {
+            let key = "jobs/bad-input/cast-reduce/00000/part-00000";
+            let bytes = encode_surface_hits(RecordKind::Hit, &[hit()]);
+            let (bytes, kind) = match text.strip_prefix("as ") {
+                Some("ShadowQuery") => (bytes, RecordKind::ShadowQuery),
+                Some(other) => panic!("unknown kind {other}"),
+                None => (edit(bytes, &text).unwrap(), RecordKind::Hit),
+            };
+            let result = match kind {
+                RecordKind::Hit => decode_surface_hits(key, &bytes, kind).map(|_| ()),
+                _ => hort_core::pipeline::decode_queries(key, &bytes).map(|_| ()),
+            };
+            vec![result.unwrap_err().to_string()]
+        }
+        "job" => {
+            let (store, job, plan) = planned_job(&dir);
+            let (object, run) = text
+                .split_once("; run ")
+                .expect("EDIT OBJECT; run STAGE TASK");
+            let (op, object) = object.rsplit_once(' ').expect("EDIT OBJECT");
+            let key = match object {
+                "split" => split_key(&job, SplitId(0)),
+                _ => panic!("unknown object {object:?}"),
+            };
+            match edit(store.get(&key).unwrap(), op) {
+                None => store.delete(&key).unwrap(),
+                Some(bytes) => store.put(&key, &bytes).unwrap(),
+            }
+            let (stage_name, task) = run.split_once(' ').unwrap();
+            let err = run_task(
+                &store,
+                &job,
+                &plan,
+                stage(stage_name),
+                task.parse().unwrap(),
+            )
+            .unwrap_err();
+            vec![format!("{}: {err}", err.error_type())]
+        }
+        "asl" => {
+            let options = asl_interpreter::OrchestratorOptions::default();
+            match asl_interpreter::Orchestrator::new(&text, options) {
+                Ok(_) => vec!["(the definition loaded)".to_owned()],
+                Err(e) => vec![e.to_string()],
+            }
+        }
+        other => panic!("line {}: unknown kind {other:?}", row.line),
+    }
+}
+
+fn hit() -> SurfaceHit {
+    let v = glam::Vec3::new(0.25, 0.25, 0.0);
+    SurfaceHit {
+        pixel: 3,
+        sample: 0,
+        t: 2.0,
+        triangle: 0,
+        surface: SurfacePoint {
+            p: v,
+            p_error: glam::Vec3::splat(1e-6),
+            n_geo: glam::Vec3::Z,
+            n_shade: glam::Vec3::Z,
+            kd: [0.5; 3],
+        },
+    }
+}
+
+/// The API router's answer to a request, as `STATUS body`.
+fn http(input: &[u8]) -> String {
+    use hort_functions::api::{
+        ApiError, ImageFormat, JobSpec, JobStatus, PredictionModel, RenderBackend, Submission,
+        handle,
+    };
+    struct Backend;
+    impl RenderBackend for Backend {
+        fn read_object(&self, _key: &str) -> Result<Option<Vec<u8>>, ApiError> {
+            Ok(None)
+        }
+        fn prediction_model(&self) -> PredictionModel {
+            PredictionModel::reference(4)
+        }
+        fn submit(&self, _job: JobSpec) -> Result<Submission, ApiError> {
+            Ok(Submission {
+                job: "job-0".into(),
+                replayed: false,
+            })
+        }
+        fn status(&self, job: &str) -> Result<JobStatus, ApiError> {
+            Err(ApiError::not_found(format!("no render {job:?}")))
+        }
+        fn list(&self, _limit: usize) -> Result<Vec<JobStatus>, ApiError> {
+            Ok(Vec::new())
+        }
+        fn image(&self, job: &str, _format: ImageFormat) -> Result<Vec<u8>, ApiError> {
+            Err(ApiError::not_found(format!("no render {job:?}")))
+        }
+        fn report(&self, job: &str) -> Result<Vec<u8>, ApiError> {
+            Err(ApiError::not_found(format!("no render {job:?}")))
+        }
+        fn cancel(&self, job: &str) -> Result<JobStatus, ApiError> {
+            Err(ApiError::not_found(format!("no render {job:?}")))
+        }
+    }
+    let split = input.windows(2).position(|w| w == b"\n\n");
+    let (head, body) = match split {
+        Some(i) => (&input[..i], input[i + 2..].to_vec()),
+        None => (input, Vec::new()),
+    };
+    let head = std::str::from_utf8(head).unwrap();
+    let mut lines = head.split('\n');
+    let (method, uri) = lines.next().unwrap().split_once(' ').unwrap();
+    let mut builder = hyper::Request::builder().method(method).uri(uri);
+    for line in lines {
+        let (name, value) = line.split_once(':').unwrap();
+        builder = builder.header(name.trim(), value.trim());
+    }
+    let response = handle(&Backend, builder.body(body).unwrap());
+    let body = String::from_utf8_lossy(response.body());
+    format!("{} {}", response.status().as_u16(), body.trim_end())
+}
+
+#[test]
+fn every_row_of_the_bad_input_table_is_what_the_user_sees() {
+    let rows = rows();
+    assert!(
+        rows.len() >= 40,
+        "docs/bad-input.md has {} rows",
+        rows.len()
+    );
+    let mut wrong = Vec::new();
+    for row in &rows {
+        let seen = actual(row);
+        if !seen.contains(&row.message) {
+            wrong.push(format!(
+                "docs/bad-input.md:{} ({}): the table says\n  {}\nbut the user sees\n  {}",
+                row.line,
+                row.kind,
+                row.message,
+                seen.join("\n  ")
+            ));
+        }
+    }
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+}
