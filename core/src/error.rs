@@ -3,6 +3,20 @@
 
 use std::path::PathBuf;
 
+/// `text` with control characters escaped (`\r`, `\n`, `\u{1b}`), so a name, key or JSON
+/// field taken from user input keeps a message on one line.
+pub fn printable(text: &str) -> String {
+    text.chars()
+        .map(|c| {
+            if c.is_control() {
+                c.escape_default().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect()
+}
+
 /// Why a scene could not be loaded or rendered. `Display` is one line meant for a user.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {

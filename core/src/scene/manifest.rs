@@ -5,7 +5,7 @@ use super::framing::{default_camera, default_light, scene_bounds};
 use super::mesh::Mesh;
 use super::world::WorldMesh;
 use super::{CameraSpec, ImageSettings, Light, MAX_IMAGE_SIDE, MAX_SPP, Scene, obj};
-use crate::error::SceneError;
+use crate::error::{SceneError, printable};
 use glam::DVec3;
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -178,20 +178,6 @@ pub fn parse_manifest(text: &str, path: &Path) -> Result<Manifest, SceneError> {
         detail: e.to_string(),
     })?;
     Ok(manifest)
-}
-
-/// `text` with control characters escaped (`\r`, `\u{1b}`), so a JSON key or value that holds
-/// them keeps a message on one line.
-fn printable(text: &str) -> String {
-    text.chars()
-        .map(|c| {
-            if c.is_control() {
-                c.escape_default().to_string()
-            } else {
-                c.to_string()
-            }
-        })
-        .collect()
 }
 
 fn apply_material_overrides(

@@ -1,6 +1,7 @@
 //! The API's errors: an HTTP status, a stable code, a one-line message and, where one field is
 //! at fault, its JSON path. Every error response is `{"error": {"code", "message", "field"?}}`.
 
+use hort_core::error::printable;
 use http::{Response, StatusCode, header};
 use serde::Serialize;
 
@@ -31,20 +32,6 @@ struct ErrorFields<'a> {
     message: &'a str,
     #[serde(skip_serializing_if = "Option::is_none")]
     field: Option<&'a str>,
-}
-
-/// `text` with control characters escaped (`\r`, `\n`, `\u{1b}`): file names, keys and JSON
-/// keys from a request keep a message on one line.
-pub(super) fn printable(text: &str) -> String {
-    text.chars()
-        .map(|c| {
-            if c.is_control() {
-                c.escape_default().to_string()
-            } else {
-                c.to_string()
-            }
-        })
-        .collect()
 }
 
 impl ApiError {
