@@ -46,6 +46,12 @@ pub struct Report {
     /// Pixel spans s of the plan; null in monolithic mode.
     #[serde(default)]
     pub spans: Option<u32>,
+    /// `"fused"` or `"staged"`: how the plan ran the job; null in monolithic mode.
+    #[serde(default)]
+    pub execution: Option<String>,
+    /// Why the plan chose that mode and split count; null in monolithic mode.
+    #[serde(default)]
+    pub execution_reason: Option<String>,
     /// Tasks running at once (function slots or worker threads); null in monolithic mode,
     /// where `threads` says it.
     #[serde(default)]
@@ -169,6 +175,8 @@ mod tests {
             recomputed_blocks: 1,
             splits: Some(3),
             spans: Some(4),
+            execution: Some("staged".into()),
+            execution_reason: Some("--splits 3: HORT's staged shuffle over 3 splits".into()),
             workers: Some(2),
             job: Some("local".into()),
             outputs: Outputs {
@@ -217,6 +225,8 @@ mod tests {
   "recomputed_blocks": 1,
   "splits": 3,
   "spans": 4,
+  "execution": "staged",
+  "execution_reason": "--splits 3: HORT's staged shuffle over 3 splits",
   "workers": 2,
   "job": "local",
   "outputs": {

@@ -4,6 +4,7 @@
 //! | stage | name | state | items field | function |
 //! |---|---|---|---|---|
 //! | [`Stage::Plan`] | `plan` | `Plan` | - | `PlanFunctionArn` |
+//! | [`Stage::Render`] | `render` | `Render` | `render` | `WorkerFunctionArn` |
 //! | [`Stage::CastMap`] | `cast-map` | `CastMap` | `cast_map` | `WorkerFunctionArn` |
 //! | [`Stage::CastReduce`] | `cast-reduce` | `CastReduce` | `cast_reduce` | `WorkerFunctionArn` |
 //! | [`Stage::Expand`] | `expand` | `Expand` | `expand` | `WorkerFunctionArn` |
@@ -11,6 +12,8 @@
 //! | [`Stage::TraceReduce`] | `trace-reduce` | `TraceReduce` | `trace_reduce` | `WorkerFunctionArn` |
 //! | [`Stage::Combine`] | `combine` | `Combine` | - | `WorkerFunctionArn` |
 //!
+//! A job runs either the fused path (Plan, Render, Combine) or HORT's staged path (Plan,
+//! CastMap to TraceReduce, Combine); [`crate::pipeline::ExecutionMode::stages`] lists each.
 //! The task count and timeout of each stage for a given job are [`crate::pipeline::JobPlan`]'s
 //! (`task_count`, `task_timeout_seconds`). `infra/statemachine.asl.json` spells the same table
 //! out for Step Functions; a test of the emulator checks the two agree.
@@ -28,6 +31,9 @@ use crate::ids::{IdError, JobId};
 pub enum Stage {
     /// Cut the scene into split objects, each with its own BVH, and plan the job's tasks.
     Plan,
+    /// Fused mode only: one span's whole render (cast, shadow rays, shading) against every
+    /// split it loads, with no shuffle in between.
+    Render,
     /// Primary rays of one span against one split: candidate hits.
     CastMap,
     /// Nearest candidate per pixel sample.
@@ -49,8 +55,9 @@ pub const WORKER_FUNCTION: &str = "WorkerFunctionArn";
 
 impl Stage {
     /// Every stage, in pipeline order.
-    pub const ALL: [Stage; 7] = [
+    pub const ALL: [Stage; 8] = [
         Stage::Plan,
+        Stage::Render,
         Stage::CastMap,
         Stage::CastReduce,
         Stage::Expand,
@@ -67,6 +74,7 @@ impl Stage {
     pub const fn as_str(self) -> &'static str {
         match self {
             Stage::Plan => "plan",
+            Stage::Render => "render",
             Stage::CastMap => "cast-map",
             Stage::CastReduce => "cast-reduce",
             Stage::Expand => "expand",
@@ -80,6 +88,7 @@ impl Stage {
     pub const fn state_name(self) -> &'static str {
         match self {
             Stage::Plan => "Plan",
+            Stage::Render => "Render",
             Stage::CastMap => "CastMap",
             Stage::CastReduce => "CastReduce",
             Stage::Expand => "Expand",
@@ -94,6 +103,7 @@ impl Stage {
     /// stages run as one Task state (plan, combine).
     pub const fn items_field(self) -> Option<&'static str> {
         match self {
+            Stage::Render => Some("render"),
             Stage::CastMap => Some("cast_map"),
             Stage::CastReduce => Some("cast_reduce"),
             Stage::Expand => Some("expand"),
@@ -158,6 +168,7 @@ mod tests {
             rows,
             [
                 ("plan", "Plan", None, "PlanFunctionArn"),
+                ("render", "Render", Some("render"), "WorkerFunctionArn"),
                 ("cast-map", "CastMap", Some("cast_map"), "WorkerFunctionArn"),
                 (
                     "cast-reduce",
@@ -197,7 +208,7 @@ mod tests {
         }
         assert_eq!(
             "Split".parse::<Stage>().unwrap_err().to_string(),
-            "unknown stage \"Split\": expected one of plan, cast-map, cast-reduce, expand, \
+            "unknown stage \"Split\": expected one of plan, render, cast-map, cast-reduce, expand, \
              trace-map, trace-reduce, combine"
         );
         assert!(serde_json::from_str::<Stage>("\"cast_map\"").is_err());

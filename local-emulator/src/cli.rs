@@ -2,7 +2,7 @@
 //! rely on.
 
 use clap::{Args, Parser, Subcommand};
-use hort_core::pipeline::SplitMode;
+use hort_core::pipeline::{ExecutionMode, SplitMode};
 use std::path::PathBuf;
 
 #[derive(Parser)]
@@ -81,19 +81,25 @@ pub struct RenderArgs {
         "in_process", "workers", "splits", "spans", "split_mode", "s3_endpoint", "bucket",
         "region", "access_key", "secret_key", "data_dir", "job", "resume", "keep_intermediates",
         "fail_rate", "duplicate_rate", "slow_rate", "kill_slot_after", "seed", "task_timeout",
-        "time_scale", "memory_mb", "lambda_endpoint",
+        "time_scale", "memory_mb", "lambda_endpoint", "mode",
     ])]
     pub monolithic: bool,
     /// Worker threads of a monolithic render (default: all cores).
     #[arg(long, requires = "monolithic", allow_negative_numbers = true, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=4096))]
     pub threads: Option<usize>,
-    /// Scene splits k (default: about one per 250k triangles).
+    /// Scene splits k. 1 runs fused (one task renders a span against the whole scene), K > 1
+    /// runs HORT's staged shuffle over K splits (default: fused when one function holds the
+    /// whole scene within --memory-mb, else staged with the fewest splits that fit).
     #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..))]
     pub splits: Option<u32>,
     /// Pixel spans s, one reduce task each; HORT's d = s x k map inputs (default: about one per
     /// 64k samples, at most 100).
     #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..))]
     pub spans: Option<u32>,
+    /// Force fused (no shuffle) or staged (HORT's map/reduce stages) execution, for tests and
+    /// benchmarks; by default the plan chooses from the scene's size and --memory-mb.
+    #[arg(long)]
+    pub mode: Option<ExecutionMode>,
     /// How the scene is cut: spatial clusters (default) or the paper's naive index ranges.
     #[arg(long, default_value = "spatial")]
     pub split_mode: SplitMode,
@@ -106,7 +112,7 @@ pub struct RenderArgs {
     #[arg(long, conflicts_with_all = [
         "s3_endpoint", "bucket", "region", "access_key", "secret_key", "data_dir", "job", "resume",
         "keep_intermediates", "fail_rate", "duplicate_rate", "slow_rate", "kill_slot_after",
-        "seed", "task_timeout", "time_scale", "memory_mb", "lambda_endpoint",
+        "seed", "task_timeout", "time_scale", "lambda_endpoint",
     ])]
     pub in_process: bool,
     /// Use this S3-compatible endpoint (MinIO, Garage, Ceph RGW, moto) instead of the
@@ -179,7 +185,8 @@ pub struct RenderArgs {
     /// The Worker function's name at --lambda-endpoint.
     #[arg(long, default_value = "worker", requires = "lambda_endpoint")]
     pub worker_function: String,
-    /// Lambda memory (MB) the cost estimate assumes, 128 to 10240 as in Lambda.
+    /// Memory of one function, MB, 128 to 10240 as in Lambda: the plan keeps every task within
+    /// it (choosing fused or staged and the split count), and the cost estimate assumes it.
     #[arg(long, default_value_t = 2048, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(128..=10240))]
     pub memory_mb: u32,
     /// Output image: .png or .jpg (8-bit sRGB), .pfm or .exr (linear). Default: the scene file's name

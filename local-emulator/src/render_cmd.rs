@@ -11,7 +11,9 @@ use hort_core::cost::Arch;
 use hort_core::hits::{Hit, encode_hits};
 use hort_core::ids::JobId;
 use hort_core::image::{Image, write_image};
-use hort_core::pipeline::{PipelineOptions, PlanRequest, resolve_counts, run_pipeline};
+use hort_core::pipeline::{
+    ExecutionMode, PipelineOptions, PlanRequest, resolve_counts, run_pipeline,
+};
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
 use hort_core::report::{Outputs, RayReport, Report, Seconds, StageReport};
 use hort_core::scene::{DEFAULT_HEIGHT, DEFAULT_WIDTH, Scene, check_image_size, load_scene};
@@ -36,6 +38,8 @@ struct Rendered {
     recomputed_blocks: u64,
     /// Splits and spans of the plan (pipeline modes).
     plan: Option<(u32, u32)>,
+    /// The plan's mode and why it was chosen (pipeline modes).
+    execution: Option<(ExecutionMode, String)>,
     /// Tasks at once (pipeline modes).
     workers: Option<usize>,
     /// The job id (pipeline modes).
@@ -79,12 +83,14 @@ pub fn run(args: RenderArgs) -> Result<()> {
         splits: args.splits,
         spans: args.spans,
         mode: args.split_mode,
+        execution: args.mode,
+        memory_mb: args.memory_mb,
     };
     if !args.monolithic {
         // Refuse impossible partitionings here, with the scene at hand, before any upload.
         let triangles = scene.mesh.triangle_count() as u64;
-        let (k, s) = resolve_counts(&request, triangles)?;
-        warn_if_oversplit(triangles, k, s);
+        let (shape, s) = resolve_counts(&request, triangles)?;
+        warn_if_oversplit(triangles, shape.splits, s);
     }
     let rendered = if args.monolithic {
         render_monolithic(&scene, width, height, spp, args.threads)?
@@ -131,6 +137,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
         recomputed_blocks: rendered.recomputed_blocks,
         splits: rendered.plan.map(|(k, _)| k),
         spans: rendered.plan.map(|(_, s)| s),
+        execution: rendered.execution.as_ref().map(|(m, _)| m.to_string()),
+        execution_reason: rendered.execution.map(|(_, why)| why),
         workers: rendered.workers,
         job: rendered.job,
         outputs,
@@ -214,6 +222,7 @@ fn render_monolithic(
         retried_attempts: 0,
         recomputed_blocks: 0,
         plan: None,
+        execution: None,
         workers: None,
         job: None,
     })
@@ -244,6 +253,7 @@ fn render_pipeline(scene: &Scene, request: PlanRequest, args: &RenderArgs) -> Re
         retried_attempts: 0,
         recomputed_blocks: run.metrics.iter().map(|m| m.recomputed).sum(),
         plan: Some((run.plan.k(), run.plan.spans.len() as u32)),
+        execution: Some((run.plan.mode, run.plan.mode_reason.clone())),
         workers: Some(workers),
         job: Some(options.job.to_string()),
     })
@@ -332,9 +342,11 @@ fn render_emulated(args: &RenderArgs, request: PlanRequest) -> Result<Rendered> 
         );
     }
     eprintln!(
-        "job {} on {} ({} splits, {} spans); estimated AWS cost ${:.6}",
+        "job {} on {} ({}: {}; {} splits, {} spans); estimated AWS cost ${:.6}",
         run.job,
         run.endpoint,
+        run.plan.mode,
+        run.plan.mode_reason,
         run.plan.k(),
         run.plan.spans.len(),
         run.cost.total
@@ -362,6 +374,7 @@ fn render_emulated(args: &RenderArgs, request: PlanRequest) -> Result<Rendered> 
         retried_attempts: retries,
         recomputed_blocks: recomputed,
         plan: Some((run.plan.k(), run.plan.spans.len() as u32)),
+        execution: Some((run.plan.mode, run.plan.mode_reason.clone())),
         workers: Some(workers),
         job: Some(run.job.to_string()),
         stages: run.stages,

@@ -25,6 +25,7 @@ impl ItemReader for StoreItems<'_> {
 mod tests {
     use super::HORT_DEFINITION;
     use hort_core::ids::Stage;
+    use hort_core::pipeline::ExecutionMode;
     use serde_json::Value;
 
     /// The stage of one top-level state as the definition spells it: the state's name, the
@@ -33,7 +34,12 @@ mod tests {
     /// `{Map}Check` Choice by its first rule (nothing lost); that Choice's other targets must be
     /// the stage's rerun loop (`{Map}GiveUp`, `{Map}Rerun`), whose Map reruns the same stage
     /// with the same function.
-    fn stage_states(machine: &Value) -> Vec<(String, Option<String>, String, Option<String>)> {
+    /// `ChooseMode`, the Choice after Plan, is followed to the branch of `mode` (its rule whose
+    /// `StringEquals` is the mode, else its `Default`).
+    fn stage_states(
+        machine: &Value,
+        mode: ExecutionMode,
+    ) -> Vec<(String, Option<String>, String, Option<String>)> {
         let states = &machine["States"];
         let mut out = Vec::new();
         let mut next = machine["StartAt"].as_str();
@@ -63,6 +69,15 @@ mod tests {
                             .as_str()
                             .map(str::to_owned),
                     ));
+                }
+                Some("Choice") if name == "ChooseMode" => {
+                    let rules = state["Choices"].as_array().unwrap();
+                    assert_eq!(rules[0]["Variable"], "$.plan.mode");
+                    next = rules
+                        .iter()
+                        .find(|r| r["StringEquals"] == mode.as_str())
+                        .map_or(state["Default"].as_str(), |r| r["Next"].as_str());
+                    continue;
                 }
                 Some("Choice") => {
                     let map = name
@@ -99,19 +114,26 @@ mod tests {
     }
 
     #[test]
-    fn the_definition_runs_the_stage_table_in_order() {
+    fn the_definition_runs_the_stage_table_of_each_mode_in_order() {
         let machine: Value = serde_json::from_str(HORT_DEFINITION).unwrap();
-        let expected: Vec<_> = Stage::ALL
-            .iter()
-            .map(|s| {
-                (
-                    s.state_name().to_owned(),
-                    (*s != Stage::Plan).then(|| s.as_str().to_owned()),
-                    format!("${{{}}}", s.function()),
-                    s.items_field().map(|f| format!("$.plan.items.{f}")),
-                )
-            })
-            .collect();
-        assert_eq!(stage_states(&machine), expected);
+        for mode in [ExecutionMode::Fused, ExecutionMode::Staged] {
+            let expected: Vec<_> = mode
+                .stages()
+                .iter()
+                .map(|s| {
+                    (
+                        s.state_name().to_owned(),
+                        (*s != Stage::Plan).then(|| s.as_str().to_owned()),
+                        format!("${{{}}}", s.function()),
+                        s.items_field().map(|f| format!("$.plan.items.{f}")),
+                    )
+                })
+                .collect();
+            assert_eq!(stage_states(&machine, mode), expected, "{mode}");
+        }
+        // Every stage of the table is on one of the two paths.
+        let mut both: Vec<Stage> = ExecutionMode::Fused.stages().to_vec();
+        both.extend(ExecutionMode::Staged.stages());
+        assert!(Stage::ALL.iter().all(|s| both.contains(s)));
     }
 }

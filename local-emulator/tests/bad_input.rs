@@ -195,6 +195,8 @@ fn planned_job(dir: &Path) -> (MemoryStore, JobId, hort_core::pipeline::JobPlan)
         splits: Some(1),
         spans: Some(1),
         mode: SplitMode::Spatial,
+        execution: None,
+        memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
     };
     let planned = plan_into_store(&store, &job, &scene, &request).unwrap();
     (store, job, planned.plan)

@@ -56,6 +56,8 @@ fn settings(spp: u32, k: u32, s: u32, mode: SplitMode) -> PlanRequest {
         splits: Some(k),
         spans: Some(s),
         mode,
+        execution: None,
+        memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
     }
 }
 

@@ -34,6 +34,8 @@ fn check_scene(rel: &str, spps: &[u32]) {
                         splits: Some(k),
                         spans: Some(s),
                         mode,
+                        execution: None,
+                        memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
                     };
                     let options = PipelineOptions {
                         job: JobId::new("eq").unwrap(),
@@ -107,6 +109,8 @@ fn run_in_memory(rel: &str, spp: u32, k: u32, s: u32) -> (MemoryStore, PipelineR
         splits: Some(k),
         spans: Some(s),
         mode: SplitMode::Spatial,
+        execution: None,
+        memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
     };
     let job = JobId::new("memory").unwrap();
     let options = PipelineOptions {

@@ -60,6 +60,8 @@ fn settings() -> PlanRequest {
         splits: Some(2),
         spans: Some(3),
         mode: SplitMode::Spatial,
+        execution: None,
+        memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
     }
 }
 

@@ -36,7 +36,7 @@ pub struct PipelineRun {
     pub image: Image,
     /// The hit buffer (sample 0 of each pixel), row-major from the top-left.
     pub hits: Vec<Hit>,
-    /// Per stage: `plan` then the task stages in order.
+    /// Per stage: `plan` then the task stages of the plan's mode, in order.
     pub stages: Vec<StageReport>,
     /// Summed task metrics per stage, same order as `stages`.
     pub metrics: Vec<TaskMetrics>,
@@ -78,7 +78,7 @@ pub fn run_pipeline(
     let caches: Vec<SplitCache> = (0..options.workers.max(1))
         .map(|_| SplitCache::new(options.split_cache_bytes))
         .collect();
-    for &stage in Stage::TASKS {
+    for &stage in plan.mode.task_stages() {
         let stage_start = Instant::now();
         let tasks = plan.task_count(stage);
         let m = run_stage(store, job, &plan, stage, tasks, &caches)?;

@@ -6,12 +6,16 @@
 //! | stage | tasks | reads | writes |
 //! |---|---|---|---|
 //! | plan | 1 | scene | k split objects (triangles + BVH), `plan.json` |
+//! | render (fused mode only) | one per span | every split | shaded pixels + sample-0 hits (part 0) |
 //! | cast-map | one per (span, split) pair whose bounds can meet | split | candidate hits of the span's samples (part = span) |
 //! | cast-reduce | one per span | the span's candidates | nearest hit per sample (part 0) |
 //! | expand | one per span | the span's hits | shadow queries per split (part = split) |
 //! | trace-map | one per (span, split) | queries, split (only if any) | occluded (sample, light) keys (part = span) |
 //! | trace-reduce | one per span | hits + occlusion of every split | shaded pixels + sample-0 hits (part 0) |
 //! | combine | 1 | every span's pixels | image and hit buffer |
+//!
+//! A fused job runs plan, render, combine; a staged one plan, cast-map to trace-reduce, combine
+//! (see [`ExecutionMode`]). Render runs the staged stage functions in memory, in order.
 //!
 //! Guarantee: every task's output is a pure function of its inputs, and the nearest hit is
 //! chosen by (t, then global triangle id) with the same triangle test as the monolithic
@@ -20,6 +24,7 @@
 
 mod driver;
 mod frustum;
+mod mode;
 mod outputs;
 mod plan;
 mod plan_step;
@@ -32,6 +37,10 @@ mod stages;
 
 pub use driver::{PipelineOptions, PipelineRun, run_pipeline};
 pub use frustum::span_may_meet_box;
+pub use mode::{
+    DEFAULT_MEMORY_MB, ExecutionMode, JobShape, RUNTIME_BYTES, SAMPLE_BYTES, TRIANGLE_BYTES,
+    choose_shape, task_bytes,
+};
 pub use outputs::{JobOutputs, read_outputs};
 pub use plan::{
     CastTask, JobPlan, MAX_SPANS, MAX_SPLITS, PLAN_FORMAT_VERSION, PlanRequest, Span, SplitInfo,
@@ -51,7 +60,7 @@ pub use split::{SplitMode, assign_splits, rebuild_split, split_scene};
 pub use split_cache::SplitCache;
 pub use split_object::TriangleShading;
 pub use split_object::{SPLIT_FORMAT_VERSION, SplitObject, decode_split, encode_split};
-pub use stages::{cast_map, cast_reduce, combine, expand, trace_map, trace_reduce};
+pub use stages::{cast_map, cast_reduce, combine, expand, render_span, trace_map, trace_reduce};
 
 use crate::ErrorType;
 use crate::store::StoreError;

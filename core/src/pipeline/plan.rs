@@ -3,6 +3,7 @@
 
 use super::PipelineError;
 use super::frustum::span_may_meet_box;
+use super::mode::{DEFAULT_MEMORY_MB, ExecutionMode, JobShape, choose_shape};
 use super::split::SplitMode;
 use crate::bvh::Aabb;
 use crate::camera::Camera;
@@ -11,14 +12,12 @@ use crate::stage::Stage;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
-/// Version of the plan's JSON layout; bump on any change.
-pub const PLAN_FORMAT_VERSION: u32 = 1;
+/// Version of the plan's JSON layout; bump on any change (2: fused or staged `mode`).
+pub const PLAN_FORMAT_VERSION: u32 = 2;
 /// Most splits a job may have.
 pub const MAX_SPLITS: u32 = 4096;
 /// Most spans a job may have.
 pub const MAX_SPANS: u32 = 10_000;
-/// Triangles per split when the split count is chosen automatically.
-const AUTO_TRIANGLES_PER_SPLIT: u64 = 250_000;
 /// Samples per span when the span count is chosen automatically.
 const AUTO_SAMPLES_PER_SPAN: u64 = 65_536;
 
@@ -48,13 +47,24 @@ pub struct PlanRequest {
     pub height: u32,
     /// Samples per pixel, 1 to 65536.
     pub spp: u32,
-    /// Scene splits k; automatic (about 250k triangles each) when `None`.
+    /// Scene splits k; when `None`, 1 if one task holds the whole scene within `memory_mb`,
+    /// else the fewest whose tasks fit (see [`choose_shape`]).
     pub splits: Option<u32>,
     /// Pixel spans s; automatic (about 64k samples each) when `None`.
     pub spans: Option<u32>,
     /// How the scene is cut into splits.
     #[serde(rename = "split_mode")]
     pub mode: SplitMode,
+    /// Fused or staged, forced; `None` lets the plan choose (see [`choose_shape`]).
+    #[serde(rename = "mode", default)]
+    pub execution: Option<ExecutionMode>,
+    /// Memory of one function, MB (Lambda's setting): no task may need more.
+    #[serde(default = "default_memory_mb")]
+    pub memory_mb: u32,
+}
+
+fn default_memory_mb() -> u32 {
+    DEFAULT_MEMORY_MB
 }
 
 /// A contiguous row-major range of pixels `[start, end)`; one reduce task each.
@@ -118,6 +128,12 @@ pub struct TraceTask {
 pub struct JobPlan {
     /// Layout version, [`PLAN_FORMAT_VERSION`] ([`JobPlan::from_json`] rejects others).
     pub format: u32,
+    /// Fused (one Render task per span) or staged (HORT's shuffle stages).
+    pub mode: ExecutionMode,
+    /// Why the plan chose `mode` and the split count, in one sentence with the figures.
+    pub mode_reason: String,
+    /// The memory budget of one function, MB, that the choice was made for.
+    pub memory_mb: u32,
     /// Image width in pixels, 1 to 65536.
     pub width: u32,
     /// Image height in pixels, 1 to 65536.
@@ -141,9 +157,10 @@ pub struct JobPlan {
     pub splits: Vec<SplitInfo>,
     /// The s spans, in pixel order; together they cover every pixel exactly once.
     pub spans: Vec<Span>,
-    /// Every (span, split) pair that can meet, span-major; pairs that cannot are absent.
+    /// Staged mode: every (span, split) pair that can meet, span-major; pairs that cannot are
+    /// absent. Empty in fused mode.
     pub cast_tasks: Vec<CastTask>,
-    /// Every (span, split) pair, span-major.
+    /// Staged mode: every (span, split) pair, span-major. Empty in fused mode.
     pub trace_tasks: Vec<TraceTask>,
 }
 
@@ -163,15 +180,26 @@ impl JobPlan {
         span * self.k() + split
     }
 
-    /// Number of tasks of `stage` in this plan: one per CastMap/TraceMap pair, one per span for
-    /// the reduce stages and Expand, one for Plan and Combine.
+    /// Number of tasks of `stage` in this plan: one for Plan and Combine; in fused mode one
+    /// Render task per span; in staged mode one per CastMap/TraceMap pair and one per span for
+    /// the reduce stages and Expand. Stages of the other mode have none.
     pub fn task_count(&self, stage: Stage) -> usize {
+        if !self.mode.stages().contains(&stage) {
+            return 0;
+        }
         match stage {
             Stage::CastMap => self.cast_tasks.len(),
             Stage::TraceMap => self.trace_tasks.len(),
-            Stage::CastReduce | Stage::Expand | Stage::TraceReduce => self.spans.len(),
+            Stage::Render | Stage::CastReduce | Stage::Expand | Stage::TraceReduce => {
+                self.spans.len()
+            }
             Stage::Combine | Stage::Plan => 1,
         }
+    }
+
+    /// The stages this job runs, in order.
+    pub fn stages(&self) -> &'static [Stage] {
+        self.mode.stages()
     }
 
     /// The timeout of task `task` of `stage`, seconds: a few times its predicted time.
@@ -179,7 +207,8 @@ impl JobPlan {
     /// The prediction is 0.5 s of start-up, plus R rays at 1,000,000 per second, plus (for
     /// CastMap and TraceMap) the split's triangles at 2,000,000 per second (fetching and
     /// decoding the split object), where R is the span's samples (pixels x spp) for CastMap,
-    /// samples x lights for TraceMap, samples x (1 + lights) / 4 for the reduce stages and
+    /// samples x lights for TraceMap, samples x (1 + lights) for Render (which also loads every
+    /// split), samples x (1 + lights) / 4 for the reduce stages and
     /// Expand, and width x height / 4 for Plan and Combine. The timeout is 3 times that,
     /// rounded up to whole seconds, at least 2 s and at most 40 s (integer arithmetic in
     /// microseconds). A task that does not exist gets the 2 s floor.
@@ -193,6 +222,7 @@ impl JobPlan {
             |split: u32| self.splits.get(split as usize).map_or(0, |s| s.triangles);
         let lights = self.lights.len() as u64;
         let (rays, triangles) = match stage {
+            Stage::Render => (span_samples(task) * (1 + lights), self.triangles),
             Stage::CastMap => self
                 .cast_tasks
                 .get(task as usize)
@@ -228,6 +258,13 @@ impl JobPlan {
             )));
         }
         let (k, s) = (plan.splits.len() as u32, plan.spans.len() as u32);
+        let fused_with_pairs = plan.mode == ExecutionMode::Fused
+            && !(plan.cast_tasks.is_empty() && plan.trace_tasks.is_empty());
+        if fused_with_pairs {
+            return Err(PipelineError::Corrupt(format!(
+                "plan {key}: a fused plan lists staged tasks"
+            )));
+        }
         let task_ok = |span: u32, split: u32| span < s && split < k;
         if !plan.cast_tasks.iter().all(|t| task_ok(t.span, t.split))
             || !plan.trace_tasks.iter().all(|t| task_ok(t.span, t.split))
@@ -240,24 +277,24 @@ impl JobPlan {
     }
 }
 
-/// The split and span counts for `request` on a scene of `triangles` triangles: the given ones
-/// after range checks, else automatic (about 250k triangles per split, 64k samples per span).
-pub fn resolve_counts(request: &PlanRequest, triangles: u64) -> Result<(u32, u32), PipelineError> {
+/// The shape (mode and split count, see [`choose_shape`]) and span count for `request` on a
+/// scene of `triangles` triangles: the given counts after range checks, else automatic (the
+/// fewest splits that fit the memory budget, about 64k samples per span).
+pub fn resolve_counts(
+    request: &PlanRequest,
+    triangles: u64,
+) -> Result<(JobShape, u32), PipelineError> {
     check_image_size(request.width, request.height, request.spp)?;
     let pixels = u64::from(request.width) * u64::from(request.height);
     let max_k = triangles.min(u64::from(MAX_SPLITS)) as u32;
     let max_s = pixels.min(u64::from(MAX_SPANS)) as u32;
-    let k = match request.splits {
-        Some(k) if k == 0 || k > max_k => {
+    if let Some(k) = request.splits {
+        if k == 0 || k > max_k {
             return Err(PipelineError::BadInput(format!(
                 "--splits {k} is out of range: the scene has {triangles} triangles, so use 1 to {max_k}"
             )));
         }
-        Some(k) => k,
-        None => triangles
-            .div_ceil(AUTO_TRIANGLES_PER_SPLIT)
-            .clamp(1, u64::from(max_k).min(64)) as u32,
-    };
+    }
     let s = match request.spans {
         Some(s) if s == 0 || s > max_s => {
             return Err(PipelineError::BadInput(format!(
@@ -272,15 +309,26 @@ pub fn resolve_counts(request: &PlanRequest, triangles: u64) -> Result<(u32, u32
                 .clamp(1, u64::from(max_s).min(100)) as u32
         }
     };
-    Ok((k, s))
+    let span_samples = pixels.div_ceil(u64::from(s)) * u64::from(request.spp);
+    let shape = choose_shape(
+        triangles,
+        span_samples,
+        request.memory_mb,
+        request.splits,
+        request.execution,
+        max_k.max(1),
+    )?;
+    Ok((shape, s))
 }
 
-/// The plan for `scene` cut into the given splits, with `s` spans. In spatial mode, CastMap
-/// pairs whose span cannot see the split's box are left out; naive mode keeps all pairs.
+/// The plan for `scene` cut into the given splits, with `s` spans, in `shape`'s mode. Staged:
+/// in spatial split mode, CastMap pairs whose span cannot see the split's box are left out;
+/// naive mode keeps all pairs. Fused: no pairs (one Render task per span).
 pub fn plan_job(
     scene: &Scene,
     request: &PlanRequest,
     splits: Vec<SplitInfo>,
+    shape: &JobShape,
     s: u32,
 ) -> Result<JobPlan, PipelineError> {
     let camera_spec = scene.camera_for(request.width, request.height);
@@ -294,7 +342,12 @@ pub fn plan_job(
         .collect();
     let mut cast_tasks = Vec::new();
     let mut trace_tasks = Vec::new();
-    for (span_index, span) in spans.iter().enumerate() {
+    let pairs = if shape.mode == ExecutionMode::Staged {
+        spans.as_slice()
+    } else {
+        &[]
+    };
+    for (span_index, span) in pairs.iter().enumerate() {
         for split in &splits {
             let visible = request.mode == SplitMode::Naive
                 || span_may_meet_box(&camera, request.width, span, &split.bounds());
@@ -314,6 +367,9 @@ pub fn plan_job(
     }
     Ok(JobPlan {
         format: PLAN_FORMAT_VERSION,
+        mode: shape.mode,
+        mode_reason: shape.reason.clone(),
+        memory_mb: request.memory_mb,
         width: request.width,
         height: request.height,
         spp: request.spp,
@@ -342,28 +398,30 @@ mod tests {
             splits,
             spans,
             mode: SplitMode::Spatial,
+            execution: None,
+            memory_mb: DEFAULT_MEMORY_MB,
         }
+    }
+
+    fn counts(request: &PlanRequest, triangles: u64) -> Result<(u32, u32), PipelineError> {
+        resolve_counts(request, triangles).map(|(shape, s)| (shape.splits, s))
     }
 
     #[test]
     fn counts_are_checked_with_clear_messages() {
-        assert_eq!(resolve_counts(&req(Some(3), Some(7)), 100).unwrap(), (3, 7));
-        assert_eq!(resolve_counts(&req(None, None), 100).unwrap(), (1, 1));
-        assert_eq!(resolve_counts(&req(None, None), 1_000_000).unwrap(), (4, 1));
+        assert_eq!(counts(&req(Some(3), Some(7)), 100).unwrap(), (3, 7));
+        assert_eq!(counts(&req(None, None), 100).unwrap(), (1, 1));
+        assert_eq!(counts(&req(None, None), 1_000_000).unwrap(), (1, 1));
         assert_eq!(
-            resolve_counts(&req(Some(0), None), 100)
-                .unwrap_err()
-                .to_string(),
+            counts(&req(Some(0), None), 100).unwrap_err().to_string(),
             "--splits 0 is out of range: the scene has 100 triangles, so use 1 to 100"
         );
         assert_eq!(
-            resolve_counts(&req(Some(101), None), 100)
-                .unwrap_err()
-                .to_string(),
+            counts(&req(Some(101), None), 100).unwrap_err().to_string(),
             "--splits 101 is out of range: the scene has 100 triangles, so use 1 to 100"
         );
         assert_eq!(
-            resolve_counts(&req(None, Some(10_001)), 100)
+            counts(&req(None, Some(10_001)), 100)
                 .unwrap_err()
                 .to_string(),
             "--spans 10001 is out of range: the image has 3072 pixels, so use 1 to 3072"
@@ -380,7 +438,9 @@ mod tests {
         let infos =
             super::super::split_scene(&scene.mesh, 3, SplitMode::Spatial, |_, _| Ok::<(), ()>(()))
                 .unwrap();
-        let plan = plan_job(&scene, &req(Some(3), Some(7)), infos, 7).unwrap();
+        let (shape, _) = resolve_counts(&req(Some(3), Some(7)), 100).unwrap();
+        assert_eq!(shape.mode, ExecutionMode::Staged);
+        let plan = plan_job(&scene, &req(Some(3), Some(7)), infos, &shape, 7).unwrap();
         assert_eq!(plan.spans.first().unwrap().start, 0);
         assert_eq!(plan.spans.last().unwrap().end, 64 * 48);
         assert!(plan.spans.windows(2).all(|w| w[0].end == w[1].start));
@@ -393,7 +453,7 @@ mod tests {
         let json = serde_json::to_vec(&plan).unwrap();
         assert_eq!(JobPlan::from_json("p", &json).unwrap(), plan);
         let counts: Vec<usize> = Stage::ALL.iter().map(|&st| plan.task_count(st)).collect();
-        assert_eq!(counts, [1, plan.cast_tasks.len(), 7, 7, 21, 7, 1]);
+        assert_eq!(counts, [1, 0, plan.cast_tasks.len(), 7, 7, 21, 7, 1]);
         // 64x48 over 7 spans: span 0 holds 438 pixels; cornell has one light.
         assert_eq!(plan.spans[0].end - plan.spans[0].start, 438);
         // 438 shadow rays and a few triangles: 3 x 0.5 s of start-up, rounded up to the floor.

@@ -27,11 +27,14 @@ pub fn plan_into_store(
     scene: &Scene,
     request: &PlanRequest,
 ) -> Result<PlannedJob, PipelineError> {
-    let (k, s) = resolve_counts(request, scene.mesh.triangle_count() as u64)?;
-    let infos = split_scene(&scene.mesh, k as usize, request.mode, |split, bytes| {
-        store.put(&split_key(job, SplitId(split)), &bytes)
-    })?;
-    let plan = plan_job(scene, request, infos, s)?;
+    let (shape, s) = resolve_counts(request, scene.mesh.triangle_count() as u64)?;
+    let infos = split_scene(
+        &scene.mesh,
+        shape.splits as usize,
+        request.mode,
+        |split, bytes| store.put(&split_key(job, SplitId(split)), &bytes),
+    )?;
+    let plan = plan_job(scene, request, infos, &shape, s)?;
     let plan_json = serde_json::to_vec_pretty(&plan)
         .map_err(|e| PipelineError::BadInput(format!("cannot encode the plan: {e}")))?;
     store.put(&plan_key(job), &plan_json)?;

@@ -138,6 +138,21 @@ impl Task<'_> {
             ))
         };
         match stage {
+            Stage::Render => {
+                let span = *plan
+                    .spans
+                    .get(task as usize)
+                    .filter(|_| plan.task_count(Stage::Render) > 0)
+                    .ok_or_else(|| missing("render tasks"))?;
+                let splits = (0..plan.k())
+                    .map(|split| self.read_split(split))
+                    .collect::<Result<Vec<_>, _>>()?;
+                let splits: Vec<&SplitObject> = splits.iter().map(Arc::as_ref).collect();
+                let (block, shadow_rays) = stages::render_span(plan, &span, &splits)?;
+                self.metrics.shadow_rays += shadow_rays;
+                let n = block.colours.len();
+                self.write(&self.key(stage, task, 0), encode_pixels(&block), n)
+            }
             Stage::CastMap => {
                 let t = *plan
                     .cast_tasks
@@ -219,7 +234,7 @@ impl Task<'_> {
             Stage::Combine => {
                 let mut blocks = Vec::with_capacity(plan.spans.len());
                 for (i, span) in plan.spans.iter().enumerate() {
-                    let key = self.key(Stage::TraceReduce, i as u32, 0);
+                    let key = self.key(plan.mode.pixel_stage(), i as u32, 0);
                     let block = self.read(&key, decode_pixels)?;
                     if block.start != span.start
                         || block.colours.len() as u64 != span.end - span.start
@@ -405,6 +420,8 @@ mod tests {
             splits: Some(2),
             spans: Some(1),
             mode: SplitMode::Spatial,
+            execution: None,
+            memory_mb: crate::pipeline::DEFAULT_MEMORY_MB,
         };
         let plan = plan_into_store(&store, &job, &scene, &request)
             .unwrap()
@@ -441,6 +458,8 @@ mod tests {
             splits: Some(2),
             spans: Some(1),
             mode: SplitMode::Naive,
+            execution: None,
+            memory_mb: crate::pipeline::DEFAULT_MEMORY_MB,
         };
         let plan = plan_into_store(&store, &job, &scene, &request)
             .unwrap()

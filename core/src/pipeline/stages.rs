@@ -1,6 +1,7 @@
 //! The stage functions: pure, deterministic transformations of decoded records. The runner
 //! (`runner.rs`) moves their inputs and outputs through storage.
 
+use super::PipelineError;
 use super::plan::{JobPlan, Span};
 use super::records::{Occluded, PixelBlock, ShadowQuery, SurfaceHit};
 use super::split::SplitMode;
@@ -196,6 +197,41 @@ pub fn trace_reduce(
         block.ts.push(first.t);
     }
     block
+}
+
+/// Render (fused mode): the span's pixels from every split in memory, by running CastMap on
+/// each split, CastReduce, Expand, TraceMap on each split and TraceReduce in turn, with no
+/// encoding in between; so the block is bit-identical to the staged path's. `splits` are the
+/// plan's splits in id order. Returns the block and the logical shadow rays (hit samples x
+/// lights).
+pub fn render_span(
+    plan: &JobPlan,
+    span: &Span,
+    splits: &[&SplitObject],
+) -> Result<(PixelBlock, u64), PipelineError> {
+    let candidates = splits
+        .iter()
+        .map(|split| cast_map(plan, span, split))
+        .collect::<Result<Vec<_>, _>>()?;
+    // One split's hits are already the nearest per sample, in order.
+    let hits = if candidates.len() == 1 {
+        candidates.into_iter().next().unwrap_or_default()
+    } else {
+        cast_reduce(candidates)
+    };
+    let queries = expand(plan, &hits);
+    let mut occluded = Vec::with_capacity(splits.len());
+    for (split, queries) in splits.iter().zip(&queries) {
+        let blocked = trace_map(plan, split, queries).map_err(|light| {
+            PipelineError::BadInput(format!(
+                "expand named light {light}, the plan has {}",
+                plan.lights.len()
+            ))
+        })?;
+        occluded.push(blocked);
+    }
+    let shadow_rays = hits.len() as u64 * plan.lights.len() as u64;
+    Ok((trace_reduce(plan, span, &hits, occluded), shadow_rays))
 }
 
 /// Combine: the image and the hit buffer from every span's pixels (in any order).

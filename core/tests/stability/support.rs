@@ -82,6 +82,8 @@ pub fn distributed(
         splits: Some(k),
         spans: Some(spans),
         mode,
+        execution: None,
+        memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
     };
     let options = PipelineOptions {
         job: JobId::new("stability").unwrap(),

@@ -481,7 +481,19 @@ fn post_renders(
         splits: request.splits,
         spans: request.spans,
         mode: request.split_mode.unwrap_or(SplitMode::Spatial),
+        execution: request.mode,
+        memory_mb: request
+            .memory_mb
+            .unwrap_or(hort_core::pipeline::DEFAULT_MEMORY_MB),
     };
+    if let Some(mb) = request.memory_mb
+        && !(128..=10240).contains(&mb)
+    {
+        return Err(ApiError::invalid_field(
+            "memory_mb",
+            format!("memory_mb: {mb} is out of range: use 128 to 10240, as Lambda does"),
+        ));
+    }
     let max_k = triangles.min(u64::from(MAX_SPLITS)) as u32;
     let max_s = pixels.min(u64::from(MAX_SPANS)) as u32;
     if let Some(k) = request.splits
@@ -504,9 +516,9 @@ fn post_renders(
             ),
         ));
     }
-    let (k, s) = hort_core::pipeline::resolve_counts(&plan_request, triangles)
+    let (shape, s) = hort_core::pipeline::resolve_counts(&plan_request, triangles)
         .map_err(|e| ApiError::invalid_field("splits", e.to_string()))?;
-    let plan = preview_plan(scene, &plan_request, k, s)?;
+    let plan = preview_plan(scene, &plan_request, &shape, s)?;
     let prediction = backend.predict(&plan);
     if let Some(budget) = request.max_cost_usd
         && prediction.predicted_cost_usd > budget

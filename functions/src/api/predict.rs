@@ -25,7 +25,7 @@
 
 use hort_core::cost::{Arch, CostBreakdown, CostInputs, estimate, standard_transitions_for};
 use hort_core::ids::Stage;
-use hort_core::pipeline::{JobPlan, PlanRequest, SplitInfo, assign_splits, plan_job};
+use hort_core::pipeline::{JobPlan, JobShape, PlanRequest, SplitInfo, assign_splits, plan_job};
 use hort_core::scene::Scene;
 use serde::Serialize;
 
@@ -155,15 +155,16 @@ const SPLIT_BYTES_PER_TRIANGLE: u64 = 60;
 /// Estimated stored bytes of one shuffle record (compressed).
 const RECORD_BYTES: f64 = 8.0;
 
-/// The plan `hort render` would make for `scene` with `request`, counts `(k, s)` already
-/// checked: split triangle counts and bounds as the Plan function computes them, no BVH built.
+/// The plan `hort render` would make for `scene` with `request`, shape and span count `s`
+/// already resolved: split triangle counts and bounds as the Plan function computes them, no
+/// BVH built.
 pub fn preview_plan(
     scene: &Scene,
     request: &PlanRequest,
-    k: u32,
+    shape: &JobShape,
     s: u32,
 ) -> Result<JobPlan, ApiError> {
-    let groups = assign_splits(&scene.mesh, k as usize, request.mode);
+    let groups = assign_splits(&scene.mesh, shape.splits as usize, request.mode);
     let infos = groups
         .iter()
         .enumerate()
@@ -188,7 +189,7 @@ pub fn preview_plan(
             }
         })
         .collect();
-    plan_job(scene, request, infos, s).map_err(|e| ApiError::invalid_scene(e.to_string()))
+    plan_job(scene, request, infos, shape, s).map_err(|e| ApiError::invalid_scene(e.to_string()))
 }
 
 /// The predicted stages, time and cost of `plan` under `model` (see the module documentation).
@@ -210,6 +211,14 @@ pub fn predict(plan: &JobPlan, model: &PredictionModel) -> Prediction {
             plan.triangles as f64,
             r.plan_us_per_triangle,
         ),
+        // The staged stages' work in one task, without their shuffle.
+        Stage::Render => ms(
+            r.task_overhead_ms,
+            1.0,
+            span_samples * r.cast_us_per_sample
+                + queries * (r.expand_us_per_query + r.trace_us_per_query)
+                + (span_samples + queries) * r.trace_reduce_us_per_query,
+        ),
         Stage::CastMap => ms(r.task_overhead_ms, span_samples, r.cast_us_per_sample),
         Stage::CastReduce => ms(
             r.task_overhead_ms,
@@ -229,7 +238,7 @@ pub fn predict(plan: &JobPlan, model: &PredictionModel) -> Prediction {
     let mut seconds = r.job_overhead_ms / 1000.0;
     let mut cost = CostBreakdown::default();
     let mut children = 0u64;
-    for &stage in Stage::ALL.iter() {
+    for &stage in plan.stages() {
         let tasks = plan.task_count(stage) as u64;
         let one_ms = task_ms(stage);
         let waves = tasks.div_ceil(concurrency).max(1) as f64;
@@ -291,6 +300,19 @@ pub fn predict(plan: &JobPlan, model: &PredictionModel) -> Prediction {
 /// S3 GET-like and PUT-like requests of a run without retries: the client's upload, the plan
 /// step, each task's inputs and outputs (and its read of the plan), the item files.
 fn s3_requests(plan: &JobPlan, s: u64, k: u64) -> (u64, u64) {
+    if plan.mode == hort_core::pipeline::ExecutionMode::Fused {
+        let tasks = s + 1;
+        let gets = 4 // the plan step: manifest, scene files (about three)
+            + s * k // Render: every split
+            + s // Combine: every span's pixels
+            + tasks // every worker task reads the plan
+            + 1; // the Map state's ItemReader
+        let puts = 5 // the client: scene files and the job request
+            + k + 1 + 1 + 1 // the plan step: splits, plan, the items file, a listing
+            + s // one partition per Render task
+            + 3; // Combine: PNG, PFM, hit buffer
+        return (gets, puts);
+    }
     let cast = plan.cast_tasks.len() as u64;
     let trace = plan.trace_tasks.len() as u64;
     let tasks = cast + 3 * s + trace + 1;

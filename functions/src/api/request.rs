@@ -3,7 +3,7 @@
 
 use std::collections::BTreeMap;
 
-use hort_core::pipeline::SplitMode;
+use hort_core::pipeline::{ExecutionMode, SplitMode};
 use serde::Deserialize;
 
 use super::error::ApiError;
@@ -32,6 +32,12 @@ pub struct RenderRequest {
     /// `spatial` (default) or `naive`.
     #[serde(default)]
     pub split_mode: Option<SplitMode>,
+    /// `fused` or `staged`, forced (default: the plan chooses from the scene and `memory_mb`).
+    #[serde(default)]
+    pub mode: Option<ExecutionMode>,
+    /// Memory of one function, MB, 128 to 10240 (default 2048): no task may need more.
+    #[serde(default)]
+    pub memory_mb: Option<u32>,
     /// A hard budget: the request is refused (422) when the predicted cost is higher.
     #[serde(default)]
     pub max_cost_usd: Option<f64>,

@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 
 use hort_core::ids::{JobId, Stage, TaskId};
-use hort_core::pipeline::PlanRequest;
+use hort_core::pipeline::{ExecutionMode, PlanRequest};
 use serde::{Deserialize, Serialize};
 
 /// What the client stores at `jobs/{job}/manifest.json` (created once, with `put_if_absent`).
@@ -64,9 +64,12 @@ pub struct WorkerEvent {
     pub attempt: u32,
 }
 
-/// Output of the Plan function: where each Map state reads its items, and its concurrency.
+/// Output of the Plan function: the job's mode (the state machine's Choice after Plan follows
+/// it), where each Map state of that mode reads its items, and its concurrency.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct PlanOutput {
+    /// `fused` (Render, then Combine) or `staged` (CastMap to TraceReduce, then Combine).
+    pub mode: ExecutionMode,
     /// Items file key per Map stage, by [`Stage::items_field`] (`$.plan.items.cast_map`, ...).
     pub items: BTreeMap<String, String>,
     /// Map iterations at once (0: no limit beyond the account's concurrency).

@@ -1,9 +1,10 @@
 //! The Plan task: read the job request and scene from storage, split the scene (one split
-//! object at a time), write the plan and one items file per Map state.
+//! object at a time), write the plan and one items file per Map state of the plan's mode
+//! (fused: `render`; staged: `cast_map` to `trace_reduce`).
 
 use super::events::{JobRequest, PlanEvent, PlanOutput, TaskItem};
 use super::{HandlerError, check_bucket};
-use hort_core::ids::{JobId, Stage, TaskId};
+use hort_core::ids::{JobId, TaskId};
 use hort_core::keys::{items_key, manifest_key};
 use hort_core::pipeline::plan_into_store;
 use hort_core::scene::{Scene, load_scene};
@@ -28,7 +29,7 @@ pub fn handle_plan(
         load_job_scene(store, job, work_dir, &format!("plan-{}", event.attempt))?;
     let plan = plan_into_store(store, job, &scene, &request.render)?.plan;
     let mut items = std::collections::BTreeMap::new();
-    for stage in Stage::ALL {
+    for &stage in plan.stages() {
         let Some(field) = stage.items_field() else {
             continue;
         };
@@ -49,6 +50,7 @@ pub fn handle_plan(
         items.insert(field.to_owned(), key);
     }
     Ok(PlanOutput {
+        mode: plan.mode,
         items,
         max_concurrency: request.max_concurrency,
     })

@@ -17,6 +17,8 @@ fn request(scene: &str) -> JobRequest {
             splits: Some(2),
             spans: Some(3),
             mode: SplitMode::Spatial,
+            execution: None,
+            memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
         },
         max_concurrency: 4,
         task_timeout_seconds: None,

@@ -343,6 +343,16 @@ impl Execution<'_> {
             let value = rule.variable.select(&effective, &ctx);
             let holds = match rule.test {
                 Comparison::IsPresent(present) => value.is_some() == present,
+                Comparison::StringEquals(ref b) => {
+                    let a = value.and_then(Value::as_str).ok_or_else(|| {
+                        rt(format!(
+                            "Choices[{i}]: the Variable {:?} must select a string, found {}",
+                            rule.variable.text,
+                            value.map_or("nothing".to_owned(), Value::to_string)
+                        ))
+                    })?;
+                    a == b
+                }
                 Comparison::Numeric(op, b) => {
                     let a = value.and_then(Value::as_f64).ok_or_else(|| {
                         rt(format!(

@@ -1212,6 +1212,34 @@ fn choice_rules_pick_the_first_match_else_default() {
 }
 
 #[test]
+fn string_equals_picks_the_branch_and_a_non_string_is_a_runtime_error() {
+    let fake = Fake::ok();
+    let machine = json!({
+        "StartAt": "C",
+        "States": {
+            "C": {"Type": "Choice", "Choices": [
+                {"Variable": "$.mode", "StringEquals": "fused", "Next": "Fused"}
+            ], "Default": "Staged"},
+            "Fused": {"Type": "Pass", "Result": "fused", "End": true},
+            "Staged": {"Type": "Pass", "Result": "staged", "End": true}
+        }
+    });
+    let o = fake.machine(&machine.to_string(), options(1));
+    let run = |input: Value| run_on(&o, &fake, input, &MemoryItems::new()).0;
+    assert_eq!(run(json!({"mode": "fused"})).unwrap(), json!("fused"));
+    assert_eq!(run(json!({"mode": "staged"})).unwrap(), json!("staged"));
+    assert_eq!(run(json!({"mode": "Fused"})).unwrap(), json!("staged"));
+    let f = run(json!({"mode": 1})).unwrap_err();
+    assert_eq!(f.error, "States.Runtime");
+    assert!(
+        f.cause
+            .contains("the Variable \"$.mode\" must select a string, found 1"),
+        "{}",
+        f.cause
+    );
+}
+
+#[test]
 fn a_map_over_items_path_runs_each_inline_item() {
     let machine = json!({
         "StartAt": "M",

@@ -100,6 +100,8 @@ pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
             splits: Some(k),
             spans: Some(16),
             mode: SplitMode::Spatial,
+            execution: None,
+            memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
         };
         let options = PipelineOptions {
             job: JobId::new("bench")?,
@@ -172,6 +174,8 @@ fn fault_table(
         splits: Some(8),
         spans: Some(16),
         mode: SplitMode::Spatial,
+        execution: None,
+        memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
     };
     let t = Instant::now();
     let clean = run_job(

@@ -177,6 +177,8 @@ fn timed(
         splits: Some(args.splits),
         spans: Some(args.spans),
         mode: SplitMode::Spatial,
+        execution: None,
+        memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
     };
     let reruns = Reruns::default();
     let t = Instant::now();

@@ -67,6 +67,8 @@ fn request(args: &PipelineBenchArgs, k: u32, s: u32, mode: SplitMode) -> PlanReq
         splits: Some(k),
         spans: Some(s),
         mode,
+        execution: None,
+        memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
     }
 }
 
@@ -273,7 +275,8 @@ fn memory_table(
     let store = MemoryStore::new();
     let job = JobId::new("memory")?;
     let req = request(args, 16, 16, SplitMode::Spatial);
-    let (k, s) = resolve_counts(&req, scene.mesh.triangle_count() as u64)?;
+    let (shape, s) = resolve_counts(&req, scene.mesh.triangle_count() as u64)?;
+    let k = shape.splits;
     meter.reset_peak();
     let before_split = meter.current();
     let infos = split_scene(&scene.mesh, k as usize, req.mode, |i, bytes| {
@@ -281,11 +284,11 @@ fn memory_table(
     })?;
     let stored: usize = infos.iter().map(|i| i.bytes as usize).sum();
     let splitter_peak = meter.peak() - before_split - stored + scene_mem;
-    let plan = plan_job(&scene, &req, infos, s)?;
+    let plan = plan_job(&scene, &req, infos, &shape, s)?;
     drop(scene);
     // Map tasks, one at a time, each measured from its own start.
     let mut peaks: Vec<(Stage, usize)> = Vec::new();
-    for &stage in Stage::TASKS {
+    for &stage in plan.mode.task_stages() {
         for task in 0..plan.task_count(stage) {
             let before = meter.current();
             meter.reset_peak();

@@ -337,7 +337,9 @@ impl SkipFinishedTasks {
         let parts: Vec<u32> = match stage {
             Stage::CastMap => vec![plan.cast_tasks.get(task as usize)?.span],
             Stage::TraceMap => vec![plan.trace_tasks.get(task as usize)?.span],
-            Stage::CastReduce | Stage::TraceReduce if (task as usize) < plan.spans.len() => {
+            Stage::CastReduce | Stage::TraceReduce | Stage::Render
+                if (task as usize) < plan.task_count(stage) =>
+            {
                 vec![0]
             }
             Stage::Expand if (task as usize) < plan.spans.len() => (0..plan.k()).collect(),

@@ -679,6 +679,8 @@ fn store_report(shared: &Shared, r: &JobRecord, run: &EmulatorRun) -> Result<(),
         recomputed_blocks: run.recomputed(),
         splits: Some(run.plan.k()),
         spans: Some(run.plan.spans.len() as u32),
+        execution: Some(run.plan.mode.to_string()),
+        execution_reason: Some(run.plan.mode_reason.clone()),
         workers: Some(shared.workers),
         job: Some(r.job.clone()),
         outputs: Outputs {

@@ -349,7 +349,7 @@ pub(super) fn choice(raw: RawChoice) -> Result<State, String> {
         return Err("Choices is empty".into());
     }
     let supported = || {
-        let mut names = vec!["IsPresent"];
+        let mut names = vec!["IsPresent", "StringEquals"];
         names.extend(NUMERIC.iter().map(|(n, _)| *n));
         names.join(", ")
     };
@@ -388,6 +388,13 @@ pub(super) fn choice(raw: RawChoice) -> Result<State, String> {
                     value
                         .as_bool()
                         .ok_or_else(|| at("IsPresent must be true or false".into()))?,
+                )
+            } else if op == "StringEquals" {
+                Comparison::StringEquals(
+                    value
+                        .as_str()
+                        .ok_or_else(|| at("StringEquals must be a string".into()))?
+                        .to_owned(),
                 )
             } else if let Some((_, numeric)) = NUMERIC.iter().find(|(n, _)| *n == op) {
                 Comparison::Numeric(

@@ -137,11 +137,13 @@ fn unsupported_choice_rules_are_named() {
             "D": {"Type": "Succeed"}
         }}))
     };
-    let err = choice(json!({"Variable": "$.a", "StringEquals": "x", "Next": "D"}));
+    let err = choice(json!({"Variable": "$.a", "StringLessThan": "x", "Next": "D"}));
     assert!(
-        err.contains("\"C\"") && err.contains("Choices[0]") && err.contains("StringEquals"),
+        err.contains("\"C\"") && err.contains("Choices[0]") && err.contains("StringLessThan"),
         "{err}"
     );
+    let err = choice(json!({"Variable": "$.a", "StringEquals": 3, "Next": "D"}));
+    assert!(err.contains("StringEquals must be a string"), "{err}");
     let err = choice(json!({"And": [], "Next": "D"}));
     assert!(err.contains("Choices[0]") && err.contains("And"), "{err}");
     let err = choice(json!({"Variable": "$.a", "IsPresent": 1, "Next": "D"}));

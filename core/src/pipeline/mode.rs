@@ -1,0 +1,313 @@
+//! Fused or staged: how a job runs, chosen by the plan from the scene's size and the function
+//! memory budget, so a job models no more than its scene needs.
+//!
+//! - **Fused** ([`Stage::Render`]): one task per span loads every split, casts the span's camera
+//!   rays, traces their shadow rays and shades, all in memory, and writes its pixel block; no hit
+//!   record is shuffled. Chosen whenever one task can hold the whole scene.
+//! - **Staged** (HORT's dataflow: CastMap, CastReduce, Expand, TraceMap, TraceReduce): only for
+//!   scenes one task cannot hold, and then with the fewest splits whose tasks fit the budget.
+//!
+//! Both run the same stage functions on the same split objects, so they produce the same image
+//! and hit buffer, bit for bit, as the monolithic renderer.
+//!
+//! The memory model ([`task_bytes`]) is deliberately simple and conservative: a fixed runtime
+//! allowance, bytes per triangle resident in a task (the stored split object while it is decoded,
+//! the decoded BVH and the per-triangle shading data), and bytes per camera sample of the span
+//! (candidate hits, shadow queries, occlusion keys and their encodings).
+
+use super::PipelineError;
+use crate::stage::Stage;
+use serde::{Deserialize, Serialize};
+
+/// How a job's tasks are arranged.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ExecutionMode {
+    /// Plan, one Render task per span, Combine: no shuffle of hit records.
+    Fused,
+    /// Plan, HORT's five shuffle stages, Combine.
+    Staged,
+}
+
+impl ExecutionMode {
+    /// The stages a job of this mode runs, in order.
+    pub fn stages(self) -> &'static [Stage] {
+        match self {
+            ExecutionMode::Fused => &[Stage::Plan, Stage::Render, Stage::Combine],
+            ExecutionMode::Staged => &[
+                Stage::Plan,
+                Stage::CastMap,
+                Stage::CastReduce,
+                Stage::Expand,
+                Stage::TraceMap,
+                Stage::TraceReduce,
+                Stage::Combine,
+            ],
+        }
+    }
+
+    /// The stages whose tasks the Worker function runs (all but [`Stage::Plan`]), in order.
+    pub fn task_stages(self) -> &'static [Stage] {
+        &self.stages()[1..]
+    }
+
+    /// The stage whose outputs Combine assembles.
+    pub fn pixel_stage(self) -> Stage {
+        match self {
+            ExecutionMode::Fused => Stage::Render,
+            ExecutionMode::Staged => Stage::TraceReduce,
+        }
+    }
+
+    /// `"fused"` or `"staged"`, as in JSON and on the command line.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ExecutionMode::Fused => "fused",
+            ExecutionMode::Staged => "staged",
+        }
+    }
+}
+
+impl std::fmt::Display for ExecutionMode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl std::str::FromStr for ExecutionMode {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "fused" => Ok(ExecutionMode::Fused),
+            "staged" => Ok(ExecutionMode::Staged),
+            other => Err(format!("unknown mode \"{other}\": use fused or staged")),
+        }
+    }
+}
+
+/// Lambda's default memory size, MB: the budget when a request names none.
+pub const DEFAULT_MEMORY_MB: u32 = 2048;
+/// Memory a task needs besides its scene data and span records: the runtime, the storage
+/// client, code and buffers (bytes).
+pub const RUNTIME_BYTES: u64 = 96 << 20;
+/// Bytes a triangle costs while it is resident in a task: its share of the stored split object
+/// (held while decoding), of the decoded BVH (4-wide leaves and nodes) and of the shading data
+/// (vertex normals, reflectance, global id).
+pub const TRIANGLE_BYTES: u64 = 320;
+/// Bytes one camera sample of a span costs a task at its peak: its candidate hit, shadow
+/// queries and occlusion keys, decoded and encoded.
+pub const SAMPLE_BYTES: u64 = 256;
+
+/// Predicted peak memory of a task holding `triangles` triangles for a span of
+/// `span_samples` camera samples (bytes).
+pub fn task_bytes(triangles: u64, span_samples: u64) -> u64 {
+    RUNTIME_BYTES
+        .saturating_add(triangles.saturating_mul(TRIANGLE_BYTES))
+        .saturating_add(span_samples.saturating_mul(SAMPLE_BYTES))
+}
+
+/// What the plan chose: the mode, the split count and why, in one sentence.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct JobShape {
+    /// Fused or staged.
+    pub mode: ExecutionMode,
+    /// Splits k.
+    pub splits: u32,
+    /// Why, in one sentence naming the figures (stored in the plan as `mode_reason`).
+    pub reason: String,
+}
+
+/// Chooses mode and split count for `triangles` triangles, spans of at most `span_samples`
+/// camera samples, a budget of `memory_mb`, the user's `splits` (if given) and `mode` (if
+/// forced). `max_splits` is the most splits the scene allows.
+///
+/// - `mode` forced: that mode; splits as given, else 1 (fused) or the fewest that fit (staged).
+/// - else `splits` = 1: fused; `splits` = K > 1: staged with K splits;
+/// - else fused if one task holds the whole scene, otherwise staged with the fewest splits
+///   whose tasks fit.
+///
+/// A task of the chosen shape that does not fit the budget is refused with the figures named.
+pub fn choose_shape(
+    triangles: u64,
+    span_samples: u64,
+    memory_mb: u32,
+    splits: Option<u32>,
+    mode: Option<ExecutionMode>,
+    max_splits: u32,
+) -> Result<JobShape, PipelineError> {
+    let budget = u64::from(memory_mb) << 20;
+    let fits = |k: u64| task_bytes(triangles.div_ceil(k.max(1)), span_samples) <= budget;
+    let mib = |b: u64| b.div_ceil(1 << 20);
+    let whole = task_bytes(triangles, span_samples);
+    let fewest = || {
+        // Task memory falls as k grows, so the fewest fitting k is found by bisection.
+        let (mut lo, mut hi) = (1u64, u64::from(max_splits.max(1)));
+        if !fits(hi) {
+            return None;
+        }
+        while lo < hi {
+            let mid = (lo + hi) / 2;
+            if fits(mid) { hi = mid } else { lo = mid + 1 }
+        }
+        Some(lo as u32)
+    };
+    let (mode, k, reason) = match (mode, splits) {
+        (Some(ExecutionMode::Fused), k) => {
+            let k = k.unwrap_or(1);
+            (
+                ExecutionMode::Fused,
+                k,
+                format!("forced by --mode fused ({k} split(s) per task)"),
+            )
+        }
+        (Some(ExecutionMode::Staged), Some(k)) => (
+            ExecutionMode::Staged,
+            k,
+            format!("forced by --mode staged with --splits {k}"),
+        ),
+        (Some(ExecutionMode::Staged), None) => {
+            let k = fewest().ok_or_else(|| too_big(triangles, memory_mb, max_splits))?;
+            let reason = format!(
+                "forced by --mode staged; {k} split(s) is the fewest whose tasks fit {memory_mb} MB"
+            );
+            (ExecutionMode::Staged, k, reason)
+        }
+        (None, Some(1)) => (
+            ExecutionMode::Fused,
+            1,
+            "--splits 1: the whole scene in one split, so every span renders in one task".into(),
+        ),
+        (None, Some(k)) => (
+            ExecutionMode::Staged,
+            k,
+            format!("--splits {k}: HORT's staged shuffle over {k} splits"),
+        ),
+        (None, None) if fits(1) => (
+            ExecutionMode::Fused,
+            1,
+            format!(
+                "one task holds the whole scene ({triangles} triangles, about {} MB of {memory_mb} MB)",
+                mib(whole)
+            ),
+        ),
+        (None, None) => {
+            let k = fewest().ok_or_else(|| too_big(triangles, memory_mb, max_splits))?;
+            let reason = format!(
+                "the whole scene needs about {} MB, over {memory_mb} MB: {k} splits is the fewest whose tasks fit",
+                mib(whole)
+            );
+            (ExecutionMode::Staged, k, reason)
+        }
+    };
+    let held = match mode {
+        ExecutionMode::Fused => triangles,
+        ExecutionMode::Staged => triangles.div_ceil(u64::from(k.max(1))),
+    };
+    let need = task_bytes(held, span_samples);
+    if need > budget {
+        return Err(PipelineError::BadInput(format!(
+            "a {mode} task of this job would need about {} MB ({held} triangles, {span_samples} samples per span), over --memory-mb {memory_mb}: raise --memory-mb or use more splits",
+            mib(need)
+        )));
+    }
+    Ok(JobShape {
+        mode,
+        splits: k,
+        reason,
+    })
+}
+
+fn too_big(triangles: u64, memory_mb: u32, max_splits: u32) -> PipelineError {
+    PipelineError::BadInput(format!(
+        "the scene's {triangles} triangles do not fit --memory-mb {memory_mb} even in {max_splits} splits: raise --memory-mb"
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn shape(
+        triangles: u64,
+        memory_mb: u32,
+        splits: Option<u32>,
+        mode: Option<ExecutionMode>,
+    ) -> Result<(ExecutionMode, u32), String> {
+        choose_shape(triangles, 65_536, memory_mb, splits, mode, 4096)
+            .map(|s| (s.mode, s.splits))
+            .map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn a_large_budget_chooses_fused_and_a_tiny_one_the_fewest_splits_that_fit() {
+        use ExecutionMode::*;
+        assert_eq!(shape(1_000_000, 2048, None, None), Ok((Fused, 1)));
+        // 128 MB leaves 128 - 96 - 16 (65,536 samples x 256 B) = 16 MB, 52,428 triangles.
+        assert_eq!(shape(100_000, 128, None, None), Ok((Staged, 2)));
+        assert_eq!(shape(52_428, 128, None, None), Ok((Fused, 1)));
+        assert_eq!(shape(52_429, 128, None, None), Ok((Staged, 2)));
+        // 1,024 MB: (1024 - 96 - 16) MB / 320 B = 2,988,441 triangles per task.
+        assert_eq!(shape(20_000_000, 1024, None, None), Ok((Staged, 7)));
+        let fewest = shape(20_000_000, 1024, None, None).unwrap().1 as u64;
+        assert!(task_bytes(20_000_000u64.div_ceil(fewest), 65_536) <= 1024 << 20);
+        assert!(task_bytes(20_000_000u64.div_ceil(fewest - 1), 65_536) > 1024 << 20);
+    }
+
+    #[test]
+    fn the_users_counts_and_forced_modes_win_and_their_reasons_say_so() {
+        use ExecutionMode::*;
+        assert_eq!(shape(100, 2048, Some(1), None), Ok((Fused, 1)));
+        assert_eq!(shape(100, 2048, Some(4), None), Ok((Staged, 4)));
+        assert_eq!(shape(100, 2048, None, Some(Staged)), Ok((Staged, 1)));
+        assert_eq!(shape(100, 2048, Some(3), Some(Fused)), Ok((Fused, 3)));
+        let reason = |splits, mode| {
+            choose_shape(100_000, 65_536, 128, splits, mode, 4096)
+                .unwrap()
+                .reason
+        };
+        assert_eq!(
+            reason(None, None),
+            "the whole scene needs about 143 MB, over 128 MB: 2 splits is the fewest whose tasks fit"
+        );
+        assert_eq!(
+            reason(None, Some(Staged)),
+            "forced by --mode staged; 2 split(s) is the fewest whose tasks fit 128 MB"
+        );
+        assert_eq!(
+            reason(Some(2), None),
+            "--splits 2: HORT's staged shuffle over 2 splits"
+        );
+    }
+
+    #[test]
+    fn what_cannot_fit_is_refused_with_the_figures() {
+        assert_eq!(
+            shape(1_000_000, 128, Some(1), None).unwrap_err(),
+            "a fused task of this job would need about 418 MB (1000000 triangles, 65536 samples per span), over --memory-mb 128: raise --memory-mb or use more splits"
+        );
+        assert_eq!(
+            choose_shape(10_000_000_000, 65_536, 128, None, None, 4096)
+                .unwrap_err()
+                .to_string(),
+            "the scene's 10000000000 triangles do not fit --memory-mb 128 even in 4096 splits: raise --memory-mb"
+        );
+    }
+
+    #[test]
+    fn modes_name_their_stages_and_parse() {
+        assert_eq!(
+            ExecutionMode::Fused.task_stages(),
+            [Stage::Render, Stage::Combine]
+        );
+        assert_eq!(ExecutionMode::Staged.stages().len(), 7);
+        assert_eq!("fused".parse(), Ok(ExecutionMode::Fused));
+        assert_eq!(
+            "both".parse::<ExecutionMode>(),
+            Err("unknown mode \"both\": use fused or staged".to_owned())
+        );
+        assert_eq!(
+            serde_json::to_string(&ExecutionMode::Staged).unwrap(),
+            "\"staged\""
+        );
+    }
+}
