@@ -195,7 +195,7 @@ fn planned_job(dir: &Path) -> (MemoryStore, JobId, hort_core::pipeline::JobPlan)
         splits: Some(1),
         spans: Some(1),
         mode: SplitMode::Spatial,
-        execution: None,
+        execution: Some(hort_core::pipeline::ExecutionMode::Staged),
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
     };
     let planned = plan_into_store(&store, &job, &scene, &request).unwrap();

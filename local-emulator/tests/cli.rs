@@ -196,41 +196,51 @@ fn scene_generate_is_deterministic_and_exact() {
 fn pipeline_render_equals_monolithic_byte_for_byte() {
     let mono_dir = scratch("pipe-mono");
     let mono = render(&scene("teapot/teapot.json"), &mono_dir, &[]);
-    for (k, s, mode, workers) in [
-        ("1", "16", "spatial", "2"),
-        ("5", "3", "naive", "1"),
-        ("7", "13", "spatial", "3"),
+    // --splits 1 runs fused, K > 1 staged, unless --mode forces the other.
+    for (k, s, mode, workers, forced, execution) in [
+        ("1", "16", "spatial", "2", None, "fused"),
+        ("1", "4", "spatial", "1", Some("staged"), "staged"),
+        ("5", "3", "naive", "1", None, "staged"),
+        ("3", "5", "spatial", "2", Some("fused"), "fused"),
+        ("7", "13", "spatial", "3", None, "staged"),
     ] {
-        let dir = scratch(&format!("pipe-{k}-{s}-{mode}"));
+        let dir = scratch(&format!("pipe-{k}-{s}-{mode}-{execution}"));
         let (out, hits, report) = (dir.join("o.pfm"), dir.join("h.bin"), dir.join("r.json"));
-        let o = hort(&[
-            "render",
-            scene("teapot/teapot.json").to_str().unwrap(),
-            "--width",
-            "64",
-            "--height",
-            "48",
-            "--in-process",
-            "--splits",
-            k,
-            "--spans",
-            s,
-            "--split-mode",
-            mode,
-            "--workers",
-            workers,
-            "--out",
-            out.to_str().unwrap(),
-            "--hits",
-            hits.to_str().unwrap(),
-            "--report",
-            report.to_str().unwrap(),
-        ]);
+        let forced: Vec<&str> = forced.map_or(vec![], |m| vec!["--mode", m]);
+        let o = hort(
+            &[
+                "render",
+                scene("teapot/teapot.json").to_str().unwrap(),
+                "--width",
+                "64",
+                "--height",
+                "48",
+                "--in-process",
+                "--splits",
+                k,
+                "--spans",
+                s,
+                "--split-mode",
+                mode,
+                "--workers",
+                workers,
+                "--out",
+                out.to_str().unwrap(),
+                "--hits",
+                hits.to_str().unwrap(),
+                "--report",
+                report.to_str().unwrap(),
+            ]
+            .iter()
+            .chain(&forced)
+            .copied()
+            .collect::<Vec<_>>(),
+        );
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         assert_eq!(
             std::fs::read(&out).unwrap(),
             mono.0,
-            "image, k={k} s={s} {mode}"
+            "image, k={k} s={s} {mode} {execution}"
         );
         assert_eq!(
             std::fs::read(&hits).unwrap(),
@@ -239,26 +249,33 @@ fn pipeline_render_equals_monolithic_byte_for_byte() {
         );
         let r: serde_json::Value = serde_json::from_slice(&std::fs::read(report).unwrap()).unwrap();
         assert_eq!(r["mode"], "pipeline");
+        assert_eq!(r["execution"], execution);
+        assert_eq!(r["splits"].as_u64().unwrap(), k.parse::<u64>().unwrap());
         let names: Vec<&str> = r["stages"]
             .as_array()
             .unwrap()
             .iter()
             .map(|s| s["name"].as_str().unwrap())
             .collect();
+        let (expected, per_span): (&[&str], usize) = if execution == "fused" {
+            (&["plan", "render", "combine"], 1)
+        } else {
+            (
+                &[
+                    "plan",
+                    "cast-map",
+                    "cast-reduce",
+                    "expand",
+                    "trace-map",
+                    "trace-reduce",
+                    "combine",
+                ],
+                2,
+            )
+        };
+        assert_eq!(names, expected);
         assert_eq!(
-            names,
-            [
-                "plan",
-                "cast-map",
-                "cast-reduce",
-                "expand",
-                "trace-map",
-                "trace-reduce",
-                "combine"
-            ]
-        );
-        assert_eq!(
-            r["stages"][2]["tasks"].as_u64().unwrap(),
+            r["stages"][per_span]["tasks"].as_u64().unwrap(),
             s.parse::<u64>().unwrap()
         );
         assert!(r["replication"].as_f64().unwrap() > 0.0);
@@ -490,8 +507,8 @@ fn storage_faults_from_the_environment_change_no_byte() {
         "2",
         "--spans",
         "3",
-        "--time-scale",
-        "0.02",
+        // Real time: the storage client's own retry backoff (about a second) is not scaled,
+        // so a scaled-down task timeout would expire during it.
         "--out",
         out.to_str().unwrap(),
         "--hits",

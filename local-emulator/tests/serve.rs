@@ -237,7 +237,7 @@ fn bad_requests_get_their_status_and_exact_message() {
             400,
             "invalid_request",
             "colour: unknown field `colour`, expected one of `scene`, `width`, `height`, `spp`, \
-             `splits`, `spans`, `split_mode`, `max_cost_usd`"
+             `splits`, `spans`, `split_mode`, `mode`, `memory_mb`, `max_cost_usd`"
                 .into(),
             Some("colour"),
         ),
