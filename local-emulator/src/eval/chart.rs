@@ -34,12 +34,14 @@ fn register_font() -> Result<()> {
     result
 }
 
-/// What one chart shows: its title line per panel and its x axis.
+/// What one chart shows: its title line per panel, its x axis, and the references' floors.
 pub struct ChartText<'a> {
     /// Appended to each panel's scene name.
     pub title: &'a str,
     /// The x axis description.
     pub x_desc: &'a str,
+    /// Per scene, the reference's own RMSE, drawn as a grey horizontal line when given.
+    pub floors: &'a [(String, f64)],
 }
 
 /// The PNG of one panel per scene (in `scenes` order) of `points` (seconds against RMSE), the
@@ -87,10 +89,17 @@ fn draw_panel(
     if mine.is_empty() {
         return Err(anyhow!("no points to chart for scene {scene}"));
     }
-    let range = |f: fn(&Point) -> f64| {
-        let lo = mine.iter().map(|(_, p)| f(p)).fold(f64::INFINITY, f64::min);
-        let hi = mine.iter().map(|(_, p)| f(p)).fold(0.0, f64::max);
-        (lo / 1.5)..(hi * 1.5)
+    let floor = text
+        .floors
+        .iter()
+        .find(|(s, _)| s == scene)
+        .map(|&(_, rmse)| rmse);
+    // Whole decades, so every axis has at least two labelled ticks.
+    let range = |f: &dyn Fn(&Point) -> f64, extra: Option<f64>| {
+        let values = mine.iter().map(|(_, p)| f(p)).chain(extra);
+        let lo = values.clone().fold(f64::INFINITY, f64::min);
+        let hi = values.fold(0.0, f64::max);
+        10f64.powf(lo.log10().floor())..10f64.powf(hi.log10().ceil())
     };
     let mut chart = ChartBuilder::on(panel)
         .caption(format!("{scene}: {}", text.title), (FAMILY, 17))
@@ -98,8 +107,8 @@ fn draw_panel(
         .x_label_area_size(42)
         .y_label_area_size(70)
         .build_cartesian_2d(
-            range(|p| p.seconds).log_scale(),
-            range(|p| p.errors.rmse).log_scale(),
+            range(&|p| p.seconds, None).log_scale(),
+            range(&|p| p.errors.rmse, floor).log_scale(),
         )
         .map_err(plot_err)?;
     chart
@@ -107,10 +116,24 @@ fn draw_panel(
         .x_desc(text.x_desc)
         .y_desc("RMSE (linear, vs reference)")
         .label_style((FAMILY, 12))
-        .x_label_formatter(&|v| format!("{v:.3}"))
+        .x_label_formatter(&|v| tick(*v))
         .y_label_formatter(&|v| format!("{v:.0e}"))
         .draw()
         .map_err(plot_err)?;
+    if let Some(rmse) = floor {
+        let (x0, x1) = (chart.x_range().start, chart.x_range().end);
+        let grey = RGBColor(150, 150, 150);
+        chart
+            .draw_series(LineSeries::new(
+                vec![(x0, rmse), (x1, rmse)],
+                grey.stroke_width(2),
+            ))
+            .map_err(plot_err)?
+            .label("reference's own error")
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], grey.stroke_width(2))
+            });
+    }
     let mut on_front: Vec<(f64, f64)> = mine
         .iter()
         .filter(|(i, _)| front[*i])
@@ -156,10 +179,25 @@ fn draw_panel(
         .label_font((FAMILY, 13))
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperRight)
+        .position(SeriesLabelPosition::LowerLeft)
         .draw()
         .map_err(plot_err)?;
     Ok(())
+}
+
+/// A log axis label: the value when its leading digit is 1, 2 or 5, else nothing (so ticks
+/// within one decade do not collide), with as many decimals as its magnitude needs.
+fn tick(v: f64) -> String {
+    if v.is_nan() || v <= 0.0 {
+        return String::new();
+    }
+    let decade = v.log10().floor();
+    let mantissa = v / 10f64.powf(decade);
+    if [1.0, 2.0, 5.0].iter().any(|m| (mantissa - m).abs() < 1e-6) {
+        format!("{v:.*}", (-decade).max(0.0) as usize)
+    } else {
+        String::new()
+    }
 }
 
 /// An 8-bit RGB PNG of `rgb` (row-major, top row first), deterministic (fixed filter and
@@ -176,4 +214,19 @@ fn encode_png(rgb: &[u8], width: u32, height: u32) -> Result<Vec<u8>> {
     writer.write_image_data(rgb)?;
     writer.finish()?;
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::tick;
+
+    #[test]
+    fn ticks_label_1_2_5_only() {
+        assert_eq!(tick(0.01), "0.01");
+        assert_eq!(tick(0.02), "0.02");
+        assert_eq!(tick(0.03), "");
+        assert_eq!(tick(5.0), "5");
+        assert_eq!(tick(10.0), "10");
+        assert_eq!(tick(0.0), "");
+    }
 }

@@ -6,6 +6,7 @@
 //! (`eval-distributed.png`), one series per `--distributed` entry.
 
 mod chart;
+mod floor_csv;
 mod metrics;
 mod mitsuba_csv;
 mod output;
@@ -130,6 +131,17 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         .with_context(|| format!("reading {}", csv_path.display()))?;
     let mitsuba = mitsuba_csv::parse(&csv_path.display().to_string(), &csv_text)
         .map_err(anyhow::Error::msg)?;
+    // The references' own error, when the folder has it.
+    let floor_path = args.references.join("floor.csv");
+    let floors = match std::fs::read_to_string(&floor_path) {
+        Ok(text) => floor_csv::parse(&floor_path.display().to_string(), &text)
+            .map_err(anyhow::Error::msg)?,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Vec::new(),
+        Err(e) => return Err(e).with_context(|| format!("reading {}", floor_path.display())),
+    };
+    let workers = args
+        .workers
+        .unwrap_or_else(hort_core::render::available_cores);
     let mut single = Vec::new();
     let mut distributed = Vec::new();
     let mut names = Vec::new();
@@ -158,6 +170,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
     }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
+    let distributed_x = format!("job seconds (emulator, {workers} function slots)");
     let charts = [
         (
             "single-core",
@@ -166,6 +179,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
             chart::ChartText {
                 title: "1 thread, time vs error",
                 x_desc: "render seconds, 1 thread",
+                floors: &floors,
             },
         ),
         (
@@ -174,7 +188,8 @@ pub fn run(args: &EvalArgs) -> Result<()> {
             "eval-distributed.png",
             chart::ChartText {
                 title: "emulator, time vs error",
-                x_desc: "job seconds (emulator, all slots)",
+                x_desc: &distributed_x,
+                floors: &floors,
             },
         ),
     ];
