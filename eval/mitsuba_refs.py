@@ -194,6 +194,18 @@ def metrics(x, r):
     return rmse, relmse, psnr
 
 
+def read_pfm(path):
+    try:
+        data = open(path, "rb").read()
+    except OSError as e:
+        fail(f"cannot read {path}: {e.strerror}")
+    head = data.split(b"\n", 3)
+    if len(head) != 4 or head[0] != b"PF" or head[2] != b"-1.0":
+        fail(f"{path}: not a little-endian RGB PFM as this script writes")
+    w, h = map(int, head[1].split())
+    return np.frombuffer(head[3], "<f4").reshape(h, w, 3)[::-1].astype(np.float64)
+
+
 def write_pfm(path, img):
     h, w, _ = img.shape
     with open(path + ".tmp", "wb") as fh:
@@ -211,6 +223,8 @@ def main():
     ap.add_argument("--ref-spp", type=int, default=4096)
     ap.add_argument("--sweep-spp", default="1,2,4,8,16,32,64,128,256")
     ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--reuse-references", action="store_true",
+                    help="keep OUT_DIR's references and floor.csv; run the timed sweep only")
     ap.add_argument("--ref-threads", type=int, default=0, help="threads of the reference render (0: all)")
     a = ap.parse_args()
     sweep = [int(s) for s in a.sweep_spp.split(",")]
@@ -230,19 +244,25 @@ def main():
     for path in a.manifests:
         manifest = load_manifest(path)
         name = manifest[0]
-        dr.set_thread_count(a.ref_threads or all_threads)
-        half = a.ref_spp // 2
-        halves = []
-        for seed in REF_SEEDS:
-            scene = build_scene(mi, manifest, a.width, a.height, "multijitter", half, seed)
-            ref_taken = scene.sensors()[0].sampler().sample_count()
-            halves.append(render(mi, dr, scene, ref_taken, seed))
-        ref = 0.5 * (halves[0] + halves[1])
-        write_pfm(os.path.join(a.out_dir, f"{name}.pfm"), ref)
-        diff = 0.5 * (halves[0] - halves[1])
-        floor_rmse = math.sqrt(float((diff ** 2).mean()))
-        floors.append((name, floor_rmse, 10 * math.log10(1 / floor_rmse ** 2)))
-        print(f"{name}: reference 2 x {ref_taken} spp, own RMSE ~{floor_rmse:.3e}", file=sys.stderr)
+        if a.reuse_references:
+            ref = read_pfm(os.path.join(a.out_dir, f"{name}.pfm"))
+            if ref.shape != (a.height, a.width, 3):
+                fail(f"{name}.pfm: {ref.shape[1]}x{ref.shape[0]}, not {a.width}x{a.height}")
+        else:
+            dr.set_thread_count(a.ref_threads or all_threads)
+            half = a.ref_spp // 2
+            halves = []
+            for seed in REF_SEEDS:
+                scene = build_scene(mi, manifest, a.width, a.height, "multijitter", half, seed)
+                ref_taken = scene.sensors()[0].sampler().sample_count()
+                halves.append(render(mi, dr, scene, ref_taken, seed))
+            # Errors are measured against the stored float32 values, as `hort eval` reads them.
+            ref = (0.5 * (halves[0] + halves[1])).astype(np.float32).astype(np.float64)
+            write_pfm(os.path.join(a.out_dir, f"{name}.pfm"), ref)
+            diff = 0.5 * (halves[0] - halves[1])
+            floor_rmse = math.sqrt(float((diff ** 2).mean()))
+            floors.append((name, floor_rmse, 10 * math.log10(1 / floor_rmse ** 2)))
+            print(f"{name}: reference 2 x {ref_taken} spp, own RMSE ~{floor_rmse:.3e}", file=sys.stderr)
         dr.set_thread_count(1)
         for sampler in SAMPLERS:
             for spp in sweep:
@@ -264,10 +284,11 @@ def main():
         fh.write("scene,sampler,spp,seconds,rmse,relmse,psnr\n")
         for r in rows:
             fh.write(f"{r[0]},{r[1]},{r[2]},{r[3]:.6f},{r[4]:.6e},{r[5]:.6e},{r[6]:.4f}\n")
-    with open(os.path.join(a.out_dir, "floor.csv"), "w") as fh:
-        fh.write("scene,rmse,psnr\n")
-        for r in floors:
-            fh.write(f"{r[0]},{r[1]:.6e},{r[2]:.4f}\n")
+    if not a.reuse_references:
+        with open(os.path.join(a.out_dir, "floor.csv"), "w") as fh:
+            fh.write("scene,rmse,psnr\n")
+            for r in floors:
+                fh.write(f"{r[0]},{r[1]:.6e},{r[2]:.4f}\n")
     settings = {
         "renderer": "Mitsuba 3", "mitsuba": mi.__version__, "drjit": dr.__version__,
         "python": platform.python_version(), "variant": variant,
@@ -287,6 +308,9 @@ def main():
         "metrics": {"relmse_eps": RELMSE_EPS, "psnr_peak": 1.0},
         "scenes": [os.path.relpath(p, a.out_dir) for p in a.manifests],
     }
+    if a.reuse_references:
+        with open(os.path.join(a.out_dir, "settings.json")) as fh:
+            settings["reference"] = json.load(fh)["reference"]
     with open(os.path.join(a.out_dir, "settings.json"), "w") as fh:
         json.dump(settings, fh, indent=2)
         fh.write("\n")
