@@ -35,6 +35,9 @@ pub enum Command {
         #[command(subcommand)]
         command: crate::jobs_cmd::JobsCommand,
     },
+    /// Speed against accuracy: time and error (RMSE, relative MSE, PSNR) against reference
+    /// images, over samples per pixel, ours and Mitsuba's; writes eval.csv and PNG charts.
+    Eval(Box<crate::eval::EvalArgs>),
     /// Serve the HTTP API (POST /renders, GET /renders/{id}, ...) on 127.0.0.1, jobs run by
     /// the emulator.
     Serve(crate::serve::ServeArgs),

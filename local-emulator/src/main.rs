@@ -4,6 +4,7 @@
 
 mod bench;
 mod cli;
+mod eval;
 mod jobs_cmd;
 mod outputs;
 mod render_cmd;
@@ -36,6 +37,7 @@ fn main() -> std::process::ExitCode {
     let result = match cli.command {
         cli::Command::Render(args) => render_cmd::run(*args),
         cli::Command::Jobs { command } => jobs_cmd::run(command),
+        cli::Command::Eval(args) => eval::run(&args),
         cli::Command::Serve(args) => serve::run(args),
         cli::Command::Scene {
             command: cli::SceneCommand::Generate(args),

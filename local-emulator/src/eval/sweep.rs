@@ -1,0 +1,154 @@
+//! The measurements of `hort eval`: our monolithic renderer on one thread, and distributed
+//! series through the local emulator, each image compared with the scene's reference.
+
+use super::metrics::errors;
+use super::{Point, Series};
+use anyhow::{Context, Result, anyhow, bail};
+use asl_interpreter::NoObserver;
+use hort::emulator::{EmulatorConfig, FaultSettings, StorageTarget, run_job};
+use hort_core::bvh::Bvh;
+use hort_core::cost::Arch;
+use hort_core::image::{Image, decode_pfm};
+use hort_core::pipeline::{PlanRequest, SplitMode};
+use hort_core::render::{RenderSettings, build_scene_bvh, render};
+use hort_core::scene::{Scene, load_scene};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+/// A loaded scene, its BVH and its reference image.
+pub struct SceneUnderTest {
+    /// The scene file's stem (`bunny` for `bunny.json`).
+    pub name: String,
+    /// The scene file.
+    pub path: PathBuf,
+    scene: Scene,
+    bvh: Bvh,
+    reference: Image,
+    width: u32,
+    height: u32,
+}
+
+impl SceneUnderTest {
+    /// Loads `path` and `{references}/{stem}.pfm`, which must be `width x height`.
+    pub fn load(path: &Path, references: &Path, width: u32, height: u32) -> Result<Self> {
+        let name = path
+            .file_stem()
+            .with_context(|| format!("{}: the scene path names no file", path.display()))?
+            .to_string_lossy()
+            .into_owned();
+        let scene = load_scene(path).with_context(|| format!("loading {}", path.display()))?;
+        let reference_path = references.join(format!("{name}.pfm"));
+        let bytes = std::fs::read(&reference_path)
+            .with_context(|| format!("reading the reference {}", reference_path.display()))?;
+        let reference =
+            decode_pfm(&bytes).map_err(|e| anyhow!("{}: {e}", reference_path.display()))?;
+        if (reference.width, reference.height) != (width, height) {
+            bail!(
+                "{}: the reference is {}x{} but the sweep renders {width}x{height} (--width, --height)",
+                reference_path.display(),
+                reference.width,
+                reference.height
+            );
+        }
+        let bvh = build_scene_bvh(&scene.mesh);
+        Ok(SceneUnderTest {
+            name,
+            path: path.to_owned(),
+            scene,
+            bvh,
+            reference,
+            width,
+            height,
+        })
+    }
+
+    fn point(&self, method: &str, spp: u32, seconds: f64, image: &Image) -> Result<Point> {
+        Ok(Point {
+            scene: self.name.clone(),
+            method: method.to_owned(),
+            spp,
+            seconds,
+            errors: errors(image, &self.reference)
+                .map_err(|e| anyhow!("{}: {e}", self.path.display()))?,
+        })
+    }
+}
+
+/// Our monolithic renderer on one thread at each of `spp`: the best render time of `runs`
+/// (rendering only, the BVH is built once), and the error of the image (the same bytes every
+/// run: rendering is deterministic).
+pub fn monolithic(scene: &SceneUnderTest, spp: &[u32], runs: u32) -> Result<Vec<Point>> {
+    let mut points = Vec::new();
+    for &n in spp {
+        let settings = RenderSettings {
+            width: scene.width,
+            height: scene.height,
+            spp: n,
+            threads: 1,
+        };
+        let mut best = f64::INFINITY;
+        let mut image = None;
+        for _ in 0..runs {
+            let out = render(&scene.scene, &scene.bvh, settings)?;
+            best = best.min(out.render_seconds);
+            image = Some(out.image);
+        }
+        let image = image.context("no run")?;
+        let point = scene.point("ours", n, best, &image)?;
+        eprintln!(
+            "{} ours {n} spp: {best:.4} s, PSNR {:.2} dB",
+            scene.name, point.errors.psnr
+        );
+        points.push(point);
+    }
+    Ok(points)
+}
+
+/// Each distributed series at each of `spp` through the emulator (embedded S3 server, state
+/// machine, function handlers) with `workers` slots: wall time of the whole job, one run.
+pub fn distributed(
+    scene: &SceneUnderTest,
+    series: &[Series],
+    spp: &[u32],
+    workers: usize,
+) -> Result<Vec<Point>> {
+    let config = EmulatorConfig {
+        storage: StorageTarget::Embedded { data_dir: None },
+        job: None,
+        workers,
+        faults: FaultSettings::default(),
+        time_scale: 1.0,
+        task_timeout_seconds: None,
+        split_cache_bytes: 1 << 30,
+        memory_mb: 2048,
+        arch: Arch::Arm64,
+        cancel: Arc::new(AtomicBool::new(false)),
+        lambda: None,
+    };
+    let mut points = Vec::new();
+    for s in series {
+        for &n in spp {
+            let request = PlanRequest {
+                width: scene.width,
+                height: scene.height,
+                spp: n,
+                splits: Some(s.splits),
+                spans: Some(s.spans),
+                mode: SplitMode::Spatial,
+            };
+            let start = Instant::now();
+            let run = run_job(&config, &scene.path, request, &NoObserver)
+                .with_context(|| format!("{} {} at {n} spp", scene.name, s.name))?;
+            let seconds = start.elapsed().as_secs_f64();
+            let point = scene.point(&s.name, n, seconds, &run.image)?;
+            eprintln!(
+                "{} {} {n} spp: {seconds:.3} s, PSNR {:.2} dB",
+                scene.name, s.name, point.errors.psnr
+            );
+            points.push(point);
+        }
+    }
+    Ok(points)
+}
