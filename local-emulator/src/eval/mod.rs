@@ -45,8 +45,8 @@ pub struct EvalArgs {
     /// Timed runs per setting; the best counts.
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=100))]
     pub runs: u32,
-    /// Distributed series `NAME:SPLITS:SPANS` through the emulator (repeatable); none given
-    /// means `splits=1:1:16` and `splits=4:4:16`.
+    /// Distributed series `NAME:SPLITS:SPANS` through the emulator (repeatable; one split runs
+    /// fused, more run staged); none given means `fused:1:16` and `staged:4:16`.
     #[arg(long = "distributed", value_parser = parse_series)]
     pub distributed: Vec<Series>,
     /// Samples per pixel of the distributed sweep, comma-separated.
@@ -120,8 +120,8 @@ pub fn run(args: &EvalArgs) -> Result<()> {
     }
     let series = if args.distributed.is_empty() {
         vec![
-            parse_series("splits=1:1:16").map_err(anyhow::Error::msg)?,
-            parse_series("splits=4:4:16").map_err(anyhow::Error::msg)?,
+            parse_series("fused:1:16").map_err(anyhow::Error::msg)?,
+            parse_series("staged:4:16").map_err(anyhow::Error::msg)?,
         ]
     } else {
         args.distributed.clone()

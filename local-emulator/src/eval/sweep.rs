@@ -137,6 +137,8 @@ pub fn distributed(
                 splits: Some(s.splits),
                 spans: Some(s.spans),
                 mode: SplitMode::Spatial,
+                execution: None,
+                memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
             };
             let start = Instant::now();
             let run = run_job(&config, &scene.path, request, &NoObserver)
