@@ -78,10 +78,21 @@ fn assert_same(run: &EmulatorRun, mono: &RenderOutput, what: &str) {
 fn emulated_pipeline_equals_monolithic_for_several_partitionings() {
     let server = s3_support::Embedded::start(Some("emu"));
     let mono = monolithic("bunny/bunny.json", 1);
-    for (k, s, workers, mode) in [
-        (1, 1, 1, SplitMode::Spatial),
-        (3, 7, 4, SplitMode::Spatial),
-        (8, 5, 3, SplitMode::Naive),
+    let fused: &[&str] = &["plan", "render", "combine"];
+    let staged: &[&str] = &[
+        "plan",
+        "cast-map",
+        "cast-reduce",
+        "expand",
+        "trace-map",
+        "trace-reduce",
+        "combine",
+    ];
+    for (k, s, workers, mode, stages) in [
+        (1, 1, 1, SplitMode::Spatial, fused),
+        (1, 6, 3, SplitMode::Spatial, fused),
+        (3, 7, 4, SplitMode::Spatial, staged),
+        (8, 5, 3, SplitMode::Naive, staged),
     ] {
         let run = run_job(
             &config(&server, workers, FaultSettings::default()),
@@ -97,20 +108,11 @@ fn emulated_pipeline_equals_monolithic_for_several_partitionings() {
         );
         assert_eq!(run.failed_attempts(), 0);
         let names: Vec<&str> = run.stages.iter().map(|s| s.name.as_str()).collect();
-        assert_eq!(
-            names,
-            [
-                "plan",
-                "cast-map",
-                "cast-reduce",
-                "expand",
-                "trace-map",
-                "trace-reduce",
-                "combine"
-            ]
-        );
+        assert_eq!(names, stages);
         assert!(run.cost.total > 0.0);
-        assert_eq!(run.stages[2].tasks, u64::from(s));
+        // The first stage after plan has one task per span (render), or a reduce stage does.
+        let per_span = if stages == fused { 1 } else { 2 };
+        assert_eq!(run.stages[per_span].tasks, u64::from(s));
     }
 }
 
@@ -125,6 +127,17 @@ fn injected_faults_give_the_identical_image_and_are_counted() {
         &NoObserver,
     )
     .unwrap();
+    let clean_fused = run_job(
+        &config(&server, 4, FaultSettings::default()),
+        &scene_path("cornell/cornell.json"),
+        settings(2, 1, 16, SplitMode::Spatial),
+        &NoObserver,
+    )
+    .unwrap();
+    assert_eq!(
+        clean_fused.plan.mode,
+        hort_core::pipeline::ExecutionMode::Fused
+    );
     // What each task stage wrote, one successful attempt per task: the same under any faults.
     // (The plan stage reports no task metrics: its bytes are its storage traffic.)
     let useful = |run: &EmulatorRun| -> Vec<(String, u64, u64)> {
@@ -135,7 +148,8 @@ fn injected_faults_give_the_identical_image_and_are_counted() {
             .collect()
     };
     let (mut failed_before, mut failed_after_writing) = (0, 0);
-    for seed in [1u64, 2, 3] {
+    // Seeds 1 to 3 staged (3 splits, 6 spans), 4 and 5 fused (one split, 16 spans).
+    for (seed, k) in [(1u64, 3), (2, 3), (3, 3), (4, 1), (5, 1)] {
         let faults = FaultSettings {
             fail_rate: 0.2,
             duplicate_rate: 0.2,
@@ -151,12 +165,14 @@ fn injected_faults_give_the_identical_image_and_are_counted() {
         let run = run_job(
             &config,
             &scene_path("cornell/cornell.json"),
-            settings(2, 3, 6, SplitMode::Spatial),
+            // Fused jobs have fewer tasks: more spans give each fault kind a chance.
+            settings(2, k, if k == 1 { 16 } else { 6 }, SplitMode::Spatial),
             &NoObserver,
         )
         .unwrap_or_else(|e| panic!("seed {seed}: {e:#}"));
-        assert_same(&run, &mono, &format!("faults with seed {seed}"));
-        assert_eq!(useful(&run), useful(&clean), "seed {seed}: useful bytes");
+        assert_same(&run, &mono, &format!("faults with seed {seed}, k={k}"));
+        let clean = if k == 1 { &clean_fused } else { &clean };
+        assert_eq!(useful(&run), useful(clean), "seed {seed}: useful bytes");
         let traffic: u64 = run.stages.iter().map(|s| s.attempts_bytes_written).sum();
         let needed: u64 = run.stages.iter().map(|s| s.bytes_written).sum();
         assert!(

@@ -2,7 +2,9 @@
 //! count, split mode, sample count and worker count.
 
 use hort_core::ids::{JobId, Stage};
-use hort_core::pipeline::{PipelineOptions, PipelineRun, PlanRequest, SplitMode, run_pipeline};
+use hort_core::pipeline::{
+    ExecutionMode, PipelineOptions, PipelineRun, PlanRequest, SplitMode, run_pipeline,
+};
 use hort_core::scene::{Scene, load_scene};
 use hort_core::store::{BlobStore, MemoryStore};
 use hort_tests::{hit_bits, pixel_bits, scene_path};
@@ -24,7 +26,16 @@ fn check_scene(rel: &str, spps: &[u32]) {
             "{rel}: the render must not be black"
         );
         for mode in [SplitMode::Spatial, SplitMode::Naive] {
-            for k in [1u32, 2, 3, 7, 16] {
+            // One split runs fused and more run staged, unless the mode is forced.
+            for (k, forced) in [
+                (1u32, None),
+                (1, Some(ExecutionMode::Staged)),
+                (2, None),
+                (3, None),
+                (3, Some(ExecutionMode::Fused)),
+                (7, None),
+                (16, None),
+            ] {
                 for (s, workers) in [(1u32, 1usize), (7, 3), (16, 2)] {
                     let store = MemoryStore::new();
                     let request = PlanRequest {
@@ -34,7 +45,7 @@ fn check_scene(rel: &str, spps: &[u32]) {
                         splits: Some(k),
                         spans: Some(s),
                         mode,
-                        execution: None,
+                        execution: forced,
                         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
                     };
                     let options = PipelineOptions {
@@ -45,7 +56,16 @@ fn check_scene(rel: &str, spps: &[u32]) {
                     };
                     let run = run_pipeline(&store, &scene, request, &options)
                         .unwrap_or_else(|e| panic!("{rel} k={k} s={s} {mode:?}: {e}"));
-                    let what = format!("{rel} spp={spp} {mode:?} k={k} s={s} workers={workers}");
+                    let execution = run.plan.mode;
+                    let what = format!(
+                        "{rel} spp={spp} {mode:?} k={k} s={s} workers={workers} {execution}"
+                    );
+                    let expected = forced.unwrap_or(if k == 1 {
+                        ExecutionMode::Fused
+                    } else {
+                        ExecutionMode::Staged
+                    });
+                    assert_eq!(execution, expected, "{what}");
                     assert_eq!(
                         pixel_bits(&run.image.pixels),
                         mono_bits,
