@@ -169,7 +169,9 @@ fn decode(bytes: &[u8]) -> Result<Scene, String> {
     }
     let reserved = u16::from_le_bytes([head[10], head[11]]);
     if reserved != 0 {
-        return Err(format!("reserved field at byte 10 is {reserved}, expected 0"));
+        return Err(format!(
+            "reserved field at byte 10 is {reserved}, expected 0"
+        ));
     }
     let declared = u64::from_le_bytes(head[12..20].try_into().unwrap_or_default());
     if declared != body.len() as u64 {
@@ -186,7 +188,10 @@ fn decode(bytes: &[u8]) -> Result<Scene, String> {
              the object is corrupt"
         ));
     }
-    let mut r = Reader { bytes, at: SCENE_BINARY_HEADER_LEN };
+    let mut r = Reader {
+        bytes,
+        at: SCENE_BINARY_HEADER_LEN,
+    };
     let origin = r.dvec3("origin")?;
     let source = PathBuf::from(r.string("source")?);
     let count_at = r.at;
@@ -215,7 +220,14 @@ fn decode(bytes: &[u8]) -> Result<Scene, String> {
         let kd = r.rgb(&format!("materials[{i}].kd"))?;
         materials.push(Material { name, kd });
     }
-    check_indices(&triangles, positions.len(), triangles_at, "triangles", "positions", None)?;
+    check_indices(
+        &triangles,
+        positions.len(),
+        triangles_at,
+        "triangles",
+        "positions",
+        None,
+    )?;
     check_indices(
         &triangle_normals,
         normals.len(),
@@ -409,7 +421,9 @@ impl<'a> Reader<'a> {
         match self.take(1, field)?[0] {
             0 => Ok(false),
             1 => Ok(true),
-            other => Err(format!("byte {at}: {field} flag is {other}, expected 0 or 1")),
+            other => Err(format!(
+                "byte {at}: {field} flag is {other}, expected 0 or 1"
+            )),
         }
     }
 

@@ -13,16 +13,17 @@ fn scenes() -> PathBuf {
 /// finite values; the mesh arrays are compared by bits as well.)
 fn assert_same(a: &Scene, b: &Scene) {
     let bits = |v: &[Vec3]| -> Vec<[u32; 3]> {
-        v.iter()
-            .map(|p| p.to_array().map(f32::to_bits))
-            .collect()
+        v.iter().map(|p| p.to_array().map(f32::to_bits)).collect()
     };
     assert_eq!(bits(&a.mesh.positions), bits(&b.mesh.positions));
     assert_eq!(bits(&a.mesh.normals), bits(&b.mesh.normals));
     assert_eq!(a.mesh.triangles, b.mesh.triangles);
     assert_eq!(a.mesh.triangle_normals, b.mesh.triangle_normals);
     assert_eq!(a.mesh.triangle_materials, b.mesh.triangle_materials);
-    assert_eq!(a.origin.to_array().map(f64::to_bits), b.origin.to_array().map(f64::to_bits));
+    assert_eq!(
+        a.origin.to_array().map(f64::to_bits),
+        b.origin.to_array().map(f64::to_bits)
+    );
     assert_eq!(format!("{a:?}"), format!("{b:?}"));
 }
 
@@ -175,7 +176,9 @@ fn header_errors_name_the_object_and_the_byte() {
     bytes[..8].copy_from_slice(b"HORTBLK\0");
     assert_eq!(
         error(&bytes),
-        format!("{name}: not a binary scene: bytes 0..8 are \"HORTBLK\\0\", expected \"HORTSCN\\0\"")
+        format!(
+            "{name}: not a binary scene: bytes 0..8 are \"HORTBLK\\0\", expected \"HORTSCN\\0\""
+        )
     );
     let mut bytes = small();
     bytes[8] = 2;
@@ -222,9 +225,17 @@ fn every_single_bit_flip_is_refused() {
 fn body_errors_name_the_field_and_its_byte() {
     let name = "jobs/j/scene/scene.bin";
     let cases: Vec<(usize, Vec<u8>, &str)> = vec![
-        (24, f64::NAN.to_le_bytes().to_vec(), "byte 24: origin is [NaN, -0, 0.1], not finite"),
+        (
+            24,
+            f64::NAN.to_le_bytes().to_vec(),
+            "byte 24: origin is [NaN, -0, 0.1], not finite",
+        ),
         (53, vec![0xff], "byte 48: source is not valid UTF-8"),
-        (48, 400u32.to_le_bytes().to_vec(), "byte 52: source needs 400 bytes, but only 279 are left"),
+        (
+            48,
+            400u32.to_le_bytes().to_vec(),
+            "byte 52: source needs 400 bytes, but only 279 are left",
+        ),
         (
             57,
             0u64.to_le_bytes().to_vec(),
@@ -280,8 +291,16 @@ fn body_errors_name_the_field_and_its_byte() {
             f64::INFINITY.to_le_bytes().to_vec(),
             "byte 250: camera.vfov_degrees is inf, not finite",
         ),
-        (258, vec![2], "byte 258: framed_bounds flag is 2, expected 0 or 1"),
-        (263, vec![7], "byte 263: lights[0].kind is 7, expected 0 (point) or 1 (directional)"),
+        (
+            258,
+            vec![2],
+            "byte 258: framed_bounds flag is 2, expected 0 or 1",
+        ),
+        (
+            263,
+            vec![7],
+            "byte 263: lights[0].kind is 7, expected 0 (point) or 1 (directional)",
+        ),
         (
             288,
             f32::NEG_INFINITY.to_le_bytes().to_vec(),
