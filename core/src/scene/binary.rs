@@ -155,9 +155,9 @@ fn decode(bytes: &[u8]) -> Result<Scene, String> {
     };
     if head[..8] != SCENE_BINARY_MAGIC {
         return Err(format!(
-            "not a binary scene: bytes 0..8 are {:?}, expected {:?}",
-            String::from_utf8_lossy(&head[..8]),
-            String::from_utf8_lossy(&SCENE_BINARY_MAGIC)
+            "not a binary scene: bytes 0..8 are \"{}\", expected \"{}\"",
+            head[..8].escape_ascii(),
+            SCENE_BINARY_MAGIC.escape_ascii()
         ));
     }
     let version = u16::from_le_bytes([head[8], head[9]]);

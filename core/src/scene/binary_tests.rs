@@ -177,7 +177,7 @@ fn header_errors_name_the_object_and_the_byte() {
     assert_eq!(
         error(&bytes),
         format!(
-            "{name}: not a binary scene: bytes 0..8 are \"HORTBLK\\0\", expected \"HORTSCN\\0\""
+            "{name}: not a binary scene: bytes 0..8 are \"HORTBLK\\x00\", expected \"HORTSCN\\x00\""
         )
     );
     let mut bytes = small();
