@@ -9,6 +9,8 @@ mod invoker;
 mod lambda_invoker;
 mod storage;
 mod upload;
+#[cfg(test)]
+mod upload_tests;
 
 pub use accounting::{Accounting, FanOut, StageUsage};
 pub use faults::{FaultCounts, FaultSettings, FaultyInvoker};
