@@ -3,6 +3,7 @@
 //! ```text
 //! jobs/{job}/manifest.json                       the job request, created once
 //! jobs/{job}/scene/{path}                       the scene files, relative to the main file
+//! jobs/{job}/scene/scene.bin                     or the parsed scene, binary (scene_format binary)
 //! jobs/{job}/plan.json                           the job plan (splits, spans, tasks)
 //! jobs/{job}/splits/{split:05}.bin               one scene split with its BVH
 //! jobs/{job}/{stage}/{task:05}/part-{p:05}       one shuffle partition of one task's output
@@ -52,6 +53,15 @@ pub fn image_key(job: &JobId, ext: &str) -> String {
 /// by the client under their paths relative to the main file's folder.
 pub fn scene_prefix(job: &JobId) -> String {
     format!("jobs/{job}/scene/")
+}
+
+/// `jobs/{job}/scene/scene.bin`: the parsed scene in the binary scene format
+/// (`hort_core::scene::encode_scene`), stored instead of the scene files by a client that
+/// parsed the scene already (a job request with `scene_format` `binary`). Under
+/// [`scene_prefix`], so whatever deletes or lists the scene covers it; a job of the `files`
+/// format never reads it, so a user's file of that name cannot be mistaken for it.
+pub fn scene_binary_key(job: &JobId) -> String {
+    format!("jobs/{job}/scene/scene.bin")
 }
 
 /// `jobs/{job}/out/hits.bin`: the hit buffer of the command-line contract.
@@ -122,6 +132,7 @@ mod tests {
         assert_eq!(image_key(&j, ".exr"), "jobs/job-42/out/image.exr");
         assert_eq!(hits_key(&j), "jobs/job-42/out/hits.bin");
         assert_eq!(scene_prefix(&j), "jobs/job-42/scene/");
+        assert_eq!(scene_binary_key(&j), "jobs/job-42/scene/scene.bin");
         assert_eq!(
             items_key(&j, Stage::TraceMap),
             "jobs/job-42/items/trace-map.json"

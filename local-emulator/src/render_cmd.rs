@@ -4,7 +4,7 @@
 use crate::cli::RenderArgs;
 use crate::outputs::{check_distinct, check_image_path, check_output_path, write_output};
 use anyhow::{Context, Result, anyhow, bail};
-use hort::emulator::{EmulatorConfig, FaultSettings, JobOptions, LambdaTarget, run_job_with};
+use hort::emulator::{EmulatorConfig, FaultSettings, JobOptions, LambdaTarget, run_job_loaded};
 use hort::progress::{ProgressMode, ProgressObserver, print_summary};
 use hort_core::camera::Camera;
 use hort_core::cost::Arch;
@@ -97,7 +97,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     } else if args.in_process {
         render_pipeline(&scene, request, &args)?
     } else {
-        render_emulated(&args, request)?
+        render_emulated(&scene, &args, request)?
     };
     let outputs = Outputs {
         image: Some(out.display().to_string()),
@@ -259,7 +259,7 @@ fn render_pipeline(scene: &Scene, request: PlanRequest, args: &RenderArgs) -> Re
     })
 }
 
-fn render_emulated(args: &RenderArgs, request: PlanRequest) -> Result<Rendered> {
+fn render_emulated(scene: &Scene, args: &RenderArgs, request: PlanRequest) -> Result<Rendered> {
     let workers = args.workers.unwrap_or_else(available_cores);
     for (name, p) in [
         ("--fail-rate", args.fail_rate),
@@ -318,7 +318,8 @@ fn render_emulated(args: &RenderArgs, request: PlanRequest) -> Result<Rendered> 
         keep_intermediates: args.keep_intermediates,
         resume: args.resume,
     };
-    let run = run_job_with(&config, options, &args.scene, request, &progress)?;
+    // The scene loaded above goes up parsed: no function parses it again.
+    let run = run_job_loaded(&config, options, &args.scene, scene, request, &progress)?;
     let retries = run.failed_attempts();
     if let Some(f) = &run.faults {
         eprintln!(

@@ -13,6 +13,7 @@
 //! | `split` | an edit of the plan's split object of a one-triangle scene | the decoder's error |
 //! | `block` | an edit of a valid `Hit` shuffle block | the decoder's error |
 //! | `job` | an edit of a planned one-triangle job's object, then `run STAGE TASK` | the task's error |
+//! | `scene-bin` | an edit of the binary scene a client stored for a one-triangle job | the Plan function's error |
 //! | `asl` | a state machine definition | the loader's error |
 //!
 //! Edits: `delete`, `truncate N` (keep N bytes), `flip N` (invert byte N), `append N` (N zero
@@ -21,8 +22,9 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use hort::emulator::binary_scene;
 use hort_core::ids::{JobId, SplitId};
-use hort_core::keys::split_key;
+use hort_core::keys::{manifest_key, scene_binary_key, split_key};
 use hort_core::pipeline::{
     PlanRequest, SplitMode, SurfaceHit, decode_split, decode_surface_hits, encode_surface_hits,
     plan_into_store, run_task,
@@ -32,6 +34,7 @@ use hort_core::shading::SurfacePoint;
 use hort_core::shuffle::RecordKind;
 use hort_core::stage::Stage;
 use hort_core::store::{BlobStore, MemoryStore};
+use hort_functions::handlers::{JobRequest, PlanEvent, SceneFormat, handle_plan};
 
 const TRIANGLE: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
 const MANIFEST_OBJ: &str = "mtllib m.mtl\nusemtl red\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
@@ -287,6 +290,7 @@ fn actual(row: &Row) -> Vec<String> {
             .unwrap_err();
             vec![format!("{}: {err}", err.error_type())]
         }
+        "scene-bin" => vec![binary_scene_error(&dir, &text)],
         "asl" => {
             let options = asl_interpreter::OrchestratorOptions::default();
             match asl_interpreter::Orchestrator::new(&text, options) {
@@ -296,6 +300,44 @@ fn actual(row: &Row) -> Vec<String> {
         }
         other => panic!("line {}: unknown kind {other:?}", row.line),
     }
+}
+
+/// The Plan function's error for a one-triangle job stored as the emulator stores it (the
+/// binary scene, `scene_format` `binary`), after `op` edited its `scene.bin`.
+fn binary_scene_error(dir: &Path, op: &str) -> String {
+    std::fs::write(dir.join("scene.obj"), TRIANGLE).unwrap();
+    let scene = load_scene(&dir.join("scene.obj")).unwrap();
+    let store = MemoryStore::new();
+    let job = JobId::new("bad-input").unwrap();
+    let request = JobRequest {
+        scene: "scene.obj".into(),
+        render: PlanRequest {
+            width: 8,
+            height: 6,
+            spp: 1,
+            splits: Some(1),
+            spans: Some(1),
+            mode: SplitMode::Spatial,
+            execution: None,
+            memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
+        },
+        max_concurrency: 1,
+        task_timeout_seconds: None,
+        scene_format: SceneFormat::Binary,
+    };
+    let json = serde_json::to_vec(&request).unwrap();
+    store.put(&manifest_key(&job), &json).unwrap();
+    if let Some(bytes) = edit(binary_scene(&scene, "scene.obj"), op) {
+        store.put(&scene_binary_key(&job), &bytes).unwrap();
+    }
+    let event = PlanEvent {
+        job,
+        bucket: "b".into(),
+        attempt: 0,
+    };
+    handle_plan(&store, "b", &event, dir)
+        .expect_err("an edit that breaks the scene")
+        .to_string()
 }
 
 fn hit() -> SurfaceHit {

@@ -4,6 +4,7 @@
 //! Triangle order, which the hit buffer exposes, is: meshes in manifest order, then faces in
 //! file order, polygons fan-triangulated `(0, i, i + 1)` in place.
 
+mod binary;
 mod framing;
 mod manifest;
 mod mesh;
@@ -11,6 +12,10 @@ mod mtl;
 mod obj;
 mod world;
 
+pub use binary::{
+    SCENE_BINARY_HEADER_LEN, SCENE_BINARY_MAGIC, SCENE_BINARY_VERSION, SceneBinaryError,
+    decode_scene, encode_scene,
+};
 pub use framing::{default_camera, default_light, framed_camera, scene_bounds};
 pub use manifest::{MANIFEST_SCHEMA, Manifest, parse_manifest};
 pub use mesh::{Material, Mesh, NO_NORMAL};
@@ -204,6 +209,8 @@ pub fn check_image_size(width: u32, height: u32, spp: u32) -> Result<(), SceneEr
     Ok(())
 }
 
+#[cfg(test)]
+mod binary_tests;
 #[cfg(test)]
 mod tests;
 #[cfg(test)]

@@ -144,6 +144,8 @@ impl AwsBackend {
             render: spec.request,
             max_concurrency: self.limits.max_concurrency,
             task_timeout_seconds: None,
+            // The API only validated the files: the Plan function parses them, once.
+            scene_format: crate::handlers::SceneFormat::Files,
         };
         let json = serde_json::to_vec(&request)
             .map_err(|e| ApiError::internal(format!("cannot encode the job request: {e}")))?;

@@ -21,6 +21,31 @@ pub struct JobRequest {
     pub max_concurrency: u32,
     /// Per-task timeout override in seconds; by default derived from each task's work.
     pub task_timeout_seconds: Option<u32>,
+    /// What the client stored under `jobs/{job}/scene/`: the scene files (`files`, the
+    /// default, which is also what a request without this field means, and which is then not
+    /// written) or the parsed scene at `jobs/{job}/scene/scene.bin` (`binary`).
+    #[serde(default, skip_serializing_if = "SceneFormat::is_files")]
+    pub scene_format: SceneFormat,
+}
+
+/// How a job's scene is stored (the job request's `scene_format`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SceneFormat {
+    /// The original files (OBJ, MTL, manifest) under `jobs/{job}/scene/`, parsed by the Plan
+    /// function: what the HTTP API stores, having only validated them.
+    #[default]
+    Files,
+    /// One object, `jobs/{job}/scene/scene.bin`, holding the scene the client parsed already
+    /// (`hort_core::scene::encode_scene`): decoded, never parsed again.
+    Binary,
+}
+
+impl SceneFormat {
+    /// True for [`SceneFormat::Files`] (the default, left out of the JSON).
+    pub fn is_files(&self) -> bool {
+        *self == SceneFormat::Files
+    }
 }
 
 /// Input of the Plan function.

@@ -16,7 +16,7 @@ mod plan;
 mod worker;
 
 pub use dispatch::{Function, FunctionEnv, Invoked, TaskDone, dispatch};
-pub use events::{JobRequest, PlanEvent, PlanOutput, TaskItem, WorkerEvent};
+pub use events::{JobRequest, PlanEvent, PlanOutput, SceneFormat, TaskItem, WorkerEvent};
 pub use plan::{handle_plan, scene_prefix};
 pub use worker::handle_worker;
 

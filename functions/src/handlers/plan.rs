@@ -2,21 +2,21 @@
 //! object at a time), write the plan and one items file per Map state of the plan's mode
 //! (fused: `render`; staged: `cast_map` to `trace_reduce`).
 
-use super::events::{JobRequest, PlanEvent, PlanOutput, TaskItem};
+use super::events::{JobRequest, PlanEvent, PlanOutput, SceneFormat, TaskItem};
 use super::{HandlerError, check_bucket};
 use hort_core::ids::{JobId, TaskId};
-use hort_core::keys::{items_key, manifest_key};
+use hort_core::keys::{items_key, manifest_key, scene_binary_key};
 use hort_core::pipeline::plan_into_store;
-use hort_core::scene::{Scene, load_scene};
+use hort_core::scene::{Scene, decode_scene, load_scene};
 use hort_core::store::BlobStore;
 use std::path::{Component, Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 pub use hort_core::keys::scene_prefix;
 
-/// Plans job `event.job`: reads `jobs/{job}/manifest.json` and the files under
-/// `jobs/{job}/scene/` (copied into `work_dir`, like a function's `/tmp`), writes the split
-/// objects, `plan.json` and the items files, and returns the items files' keys.
+/// Plans job `event.job`: reads `jobs/{job}/manifest.json` and the scene (see
+/// [`load_job_scene`]), writes the split objects, `plan.json` and the items files, and returns
+/// the items files' keys.
 pub fn handle_plan(
     store: &dyn BlobStore,
     bucket: &str,
@@ -56,8 +56,11 @@ pub fn handle_plan(
     })
 }
 
-/// Reads the job request and loads the job's scene from a scratch copy under `work_dir` (in a
-/// folder named after `label`, unique per call, removed afterwards).
+/// Reads the job request and loads the job's scene as its `scene_format` says: the binary
+/// scene `jobs/{job}/scene/scene.bin`, decoded (never parsed; a missing or invalid one is
+/// `Hort.BadInput`, naming the key), or the files under `jobs/{job}/scene/`, parsed from a
+/// scratch copy under `work_dir` (in a folder named after `label`, unique per call, removed
+/// afterwards).
 pub(super) fn load_job_scene(
     store: &dyn BlobStore,
     job: &JobId,
@@ -65,6 +68,21 @@ pub(super) fn load_job_scene(
     label: &str,
 ) -> Result<(JobRequest, Scene), HandlerError> {
     let request = read_request(store, job)?;
+    if request.scene_format == SceneFormat::Binary {
+        let key = scene_binary_key(job);
+        let bytes = store.get(&key).map_err(|e| {
+            if e.is_not_found() {
+                HandlerError::bad_input(format!(
+                    "scene {key} does not exist (the job request's scene_format is binary)"
+                ))
+            } else {
+                e.into()
+            }
+        })?;
+        let scene =
+            decode_scene(&key, &bytes).map_err(|e| HandlerError::bad_input(e.to_string()))?;
+        return Ok((request, scene));
+    }
     // Unique per invocation: a duplicated delivery of the same attempt must not share it.
     static INVOCATION: AtomicU64 = AtomicU64::new(0);
     let scene_dir = work_dir.join(format!(

@@ -3,7 +3,7 @@
 use super::*;
 use hort_core::ids::TaskId;
 use hort_core::ids::{JobId, Stage};
-use hort_core::keys::{hits_key, items_key, manifest_key, scene_prefix};
+use hort_core::keys::{hits_key, items_key, manifest_key, scene_binary_key, scene_prefix};
 use hort_core::pipeline::{PlanRequest, SplitCache, SplitMode};
 use hort_core::store::{BlobStore, MemoryStore};
 
@@ -22,6 +22,7 @@ fn request(scene: &str) -> JobRequest {
         },
         max_concurrency: 4,
         task_timeout_seconds: None,
+        scene_format: SceneFormat::Files,
     }
 }
 
@@ -105,6 +106,239 @@ fn plan_then_every_worker_task_produces_the_outputs() {
     };
     handle_worker(&store, "b", &cache, &combine, &std::env::temp_dir()).unwrap();
     assert_eq!(store.get(&hits_key(&job)).unwrap().len(), 32 * 24 * 8);
+}
+
+/// Runs the Plan function, then every task of every later stage, over `store`.
+fn run_job(store: &MemoryStore, job: &str) {
+    let tmp = std::env::temp_dir();
+    let out = handle_plan(store, "b", &plan_event(job), &tmp).unwrap();
+    let cache = SplitCache::new(0);
+    for stage in Stage::ALL.into_iter().skip(1) {
+        let items: Vec<TaskItem> = match out.items_key(stage) {
+            Some(key) => serde_json::from_slice(&store.get(key).unwrap()).unwrap(),
+            None => vec![TaskItem {
+                task: TaskId(0),
+                timeout_seconds: None,
+            }],
+        };
+        for item in items {
+            let event = WorkerEvent {
+                job: JobId::new(job).unwrap(),
+                bucket: "b".into(),
+                stage,
+                item,
+                attempt: 0,
+            };
+            handle_worker(store, "b", &cache, &event, &tmp).unwrap();
+        }
+    }
+}
+
+/// A store holding only the bundled Cornell room's binary scene and a job request saying so:
+/// no OBJ, MTL or manifest at all, so nothing can parse them.
+fn submitted_binary(job: &str) -> MemoryStore {
+    let store = MemoryStore::new();
+    let id = JobId::new(job).unwrap();
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenes/cornell/cornell.json"
+    );
+    let scene = hort_core::scene::load_scene(std::path::Path::new(path)).unwrap();
+    let bytes = hort_core::scene::encode_scene(&scene);
+    store.put(&scene_binary_key(&id), &bytes).unwrap();
+    let request = JobRequest {
+        scene_format: SceneFormat::Binary,
+        ..request("cornell.json")
+    };
+    store
+        .put(&manifest_key(&id), &serde_json::to_vec(&request).unwrap())
+        .unwrap();
+    store
+}
+
+/// Every object of `job` in `store` under `jobs/{job}/{under}`, by key relative to the job.
+fn objects(store: &MemoryStore, job: &str, under: &str) -> Vec<(String, Vec<u8>)> {
+    let prefix = format!("jobs/{job}/");
+    store
+        .list(&format!("{prefix}{under}"))
+        .unwrap()
+        .into_iter()
+        .map(|k| (k[prefix.len()..].to_owned(), store.get(&k).unwrap()))
+        .collect()
+}
+
+#[test]
+fn a_binary_scene_job_renders_the_same_bytes_as_the_files_without_parsing() {
+    let files = submitted("jf");
+    run_job(&files, "jf");
+    let binary = submitted_binary("jb");
+    run_job(&binary, "jb");
+    // The Plan function and the Workers had only scene.bin: nothing was parsed.
+    assert_eq!(
+        binary.list("jobs/jb/scene/").unwrap(),
+        ["jobs/jb/scene/scene.bin"]
+    );
+    for under in [
+        "plan.json",
+        "splits/",
+        "items/",
+        "cast-map/",
+        "trace-reduce/",
+        "out/",
+    ] {
+        let (f, b) = (objects(&files, "jf", under), objects(&binary, "jb", under));
+        assert!(!f.is_empty(), "{under}");
+        // Items files name their job: compare them with the id replaced (they are JSON).
+        let b: Vec<_> = if under == "items/" {
+            b.into_iter()
+                .map(|(k, v)| {
+                    (
+                        k,
+                        String::from_utf8(v)
+                            .unwrap()
+                            .replace("jb", "jf")
+                            .into_bytes(),
+                    )
+                })
+                .collect()
+        } else {
+            b
+        };
+        assert!(f == b, "{under} differs");
+    }
+    // Lineage from the binary scene: a lost plan is rebuilt (the plan step again), and so are
+    // corrupt split objects (one at a time), with the same bytes.
+    let tmp = std::env::temp_dir();
+    let cast = |task: u32| WorkerEvent {
+        job: JobId::new("jb").unwrap(),
+        bucket: "b".into(),
+        stage: Stage::CastMap,
+        item: TaskItem {
+            task: TaskId(task),
+            timeout_seconds: None,
+        },
+        attempt: 0,
+    };
+    let plan = binary.get("jobs/jb/plan.json").unwrap();
+    let splits = objects(&binary, "jb", "splits/");
+    assert_eq!(splits.len(), 2);
+    binary.delete("jobs/jb/plan.json").unwrap();
+    let done = handle_worker(&binary, "b", &SplitCache::new(0), &cast(0), &tmp).unwrap();
+    assert_eq!(done.recomputed, 1);
+    assert_eq!(binary.get("jobs/jb/plan.json").unwrap(), plan);
+    for (key, _) in &splits {
+        binary.put(&format!("jobs/jb/{key}"), b"junk").unwrap();
+    }
+    let cast_tasks = serde_json::from_slice::<serde_json::Value>(&plan).unwrap()["cast_tasks"]
+        .as_array()
+        .unwrap()
+        .len() as u32;
+    let recomputed: u64 = (0..cast_tasks)
+        .map(|t| {
+            handle_worker(&binary, "b", &SplitCache::new(0), &cast(t), &tmp)
+                .unwrap()
+                .recomputed
+        })
+        .sum();
+    assert_eq!(recomputed, 2);
+    assert_eq!(objects(&binary, "jb", "splits/"), splits);
+}
+
+#[test]
+fn a_missing_corrupt_or_newer_binary_scene_is_bad_input_naming_the_key() {
+    let tmp = std::env::temp_dir();
+    let plan = |store: &MemoryStore| handle_plan(store, "b", &plan_event("jb"), &tmp).unwrap_err();
+    let store = submitted_binary("jb");
+    let good = store.get("jobs/jb/scene/scene.bin").unwrap();
+    let body = good.len() - 24;
+
+    store.delete("jobs/jb/scene/scene.bin").unwrap();
+    assert_eq!(
+        plan(&store),
+        HandlerError::bad_input(
+            "scene jobs/jb/scene/scene.bin does not exist (the job request's scene_format is \
+             binary)"
+        )
+    );
+    store
+        .put("jobs/jb/scene/scene.bin", &good[..good.len() - 100])
+        .unwrap();
+    assert_eq!(
+        plan(&store),
+        HandlerError::bad_input(format!(
+            "jobs/jb/scene/scene.bin: body length at byte 12 declares {body} bytes, but {} \
+             follow the header",
+            body - 100
+        ))
+    );
+    let mut newer = good.clone();
+    newer[8] = 2;
+    store.put("jobs/jb/scene/scene.bin", &newer).unwrap();
+    assert_eq!(
+        plan(&store),
+        HandlerError::bad_input(
+            "jobs/jb/scene/scene.bin: format version 2 at byte 8 is not supported: this build \
+             reads version 1 only"
+        )
+    );
+    let mut flipped = good.clone();
+    flipped[1000] ^= 4;
+    store.put("jobs/jb/scene/scene.bin", &flipped).unwrap();
+    let e = plan(&store);
+    assert_eq!(e.error_type, ErrorType::BadInput);
+    assert!(
+        e.cause
+            .starts_with("jobs/jb/scene/scene.bin: checksum at byte 20 is 0x")
+            && e.cause.ends_with(": the object is corrupt"),
+        "{}",
+        e.cause
+    );
+    // A Worker rebuilding from it fails the same way.
+    store.put("jobs/jb/scene/scene.bin", &newer).unwrap();
+    let worker = WorkerEvent {
+        job: JobId::new("jb").unwrap(),
+        bucket: "b".into(),
+        stage: Stage::CastMap,
+        item: TaskItem {
+            task: TaskId(0),
+            timeout_seconds: None,
+        },
+        attempt: 0,
+    };
+    let e = handle_worker(&store, "b", &SplitCache::new(0), &worker, &tmp).unwrap_err();
+    assert_eq!(
+        e,
+        HandlerError::bad_input(
+            "jobs/jb/scene/scene.bin: format version 2 at byte 8 is not supported: this build \
+             reads version 1 only"
+        )
+    );
+}
+
+#[test]
+fn the_job_request_reads_old_json_and_writes_files_format_as_before() {
+    let old = r#"{"scene": "a.obj", "render": {"width": 8, "height": 8, "spp": 1, "splits": null,
+        "spans": null, "split_mode": "spatial"}, "max_concurrency": 1, "task_timeout_seconds": null}"#;
+    let request: JobRequest = serde_json::from_str(old).unwrap();
+    assert_eq!(request.scene_format, SceneFormat::Files);
+    let json = serde_json::to_value(&request).unwrap();
+    assert!(json.get("scene_format").is_none(), "{json}");
+    let binary = JobRequest {
+        scene_format: SceneFormat::Binary,
+        ..request
+    };
+    let json = serde_json::to_value(&binary).unwrap();
+    assert_eq!(json["scene_format"], "binary");
+    assert_eq!(serde_json::from_value::<JobRequest>(json).unwrap(), binary);
+    let e = serde_json::from_str::<JobRequest>(
+        &old.replace("}, \"max", "}, \"scene_format\": \"obj\", \"max"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.starts_with("unknown variant `obj`, expected `files` or `binary`"),
+        "{e}"
+    );
 }
 
 #[test]

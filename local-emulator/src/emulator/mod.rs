@@ -9,6 +9,8 @@ mod invoker;
 mod lambda_invoker;
 mod storage;
 mod upload;
+#[cfg(test)]
+mod upload_tests;
 
 pub use accounting::{Accounting, FanOut, StageUsage};
 pub use faults::{FaultCounts, FaultSettings, FaultyInvoker};
@@ -19,8 +21,8 @@ pub use storage::{
     remove_temp_folders,
 };
 pub use upload::{
-    Deleted, JobSummary, SkipFinishedTasks, Submitted, delete_intermediates, delete_job,
-    is_kept_after_success, list_jobs, scene_files, submit_job, submit_or_resume,
+    Deleted, JobSummary, SkipFinishedTasks, Submitted, binary_scene, delete_intermediates,
+    delete_job, is_kept_after_success, list_jobs, scene_files, submit_job, submit_or_resume,
 };
 
 use crate::state_machine::{StoreItems, hort_orchestrator};
@@ -33,8 +35,9 @@ use hort_core::image::Image;
 use hort_core::keys::{image_key, plan_key};
 use hort_core::pipeline::{JobOutputs, JobPlan, PlanRequest, read_outputs};
 use hort_core::report::StageReport;
+use hort_core::scene::{Scene, load_scene};
 use hort_core::store::{BlobStore, PatientStore};
-use hort_functions::handlers::JobRequest;
+use hort_functions::handlers::{JobRequest, SceneFormat};
 use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -155,11 +158,26 @@ pub fn run_job(
     run_job_with(config, JobOptions::default(), scene, settings, observer)
 }
 
-/// [`run_job`] with `options`: resume a stopped job, keep the intermediates.
+/// [`run_job`] with `options`: resume a stopped job, keep the intermediates. Loads the scene
+/// (its warnings are not shown), then runs [`run_job_loaded`].
 pub fn run_job_with(
     config: &EmulatorConfig,
     options: JobOptions,
     scene: &Path,
+    settings: PlanRequest,
+    observer: &dyn Observer,
+) -> Result<EmulatorRun> {
+    let loaded = load_scene(scene)?;
+    run_job_loaded(config, options, scene, &loaded, settings, observer)
+}
+
+/// [`run_job_with`] for a scene the caller loaded already from `scene`: it is stored parsed
+/// (the binary scene, see [`binary_scene`]), so no function parses it again.
+pub fn run_job_loaded(
+    config: &EmulatorConfig,
+    options: JobOptions,
+    scene: &Path,
+    loaded: &Scene,
     settings: PlanRequest,
     observer: &dyn Observer,
 ) -> Result<EmulatorRun> {
@@ -175,6 +193,7 @@ pub fn run_job_with(
         render: settings,
         max_concurrency: config.workers as u32,
         task_timeout_seconds: config.task_timeout_seconds,
+        scene_format: SceneFormat::Binary,
     };
     let store = storage.blob_store();
     // The client's own requests (upload, items, outputs) have no state machine to retry them:
@@ -188,6 +207,7 @@ pub fn run_job_with(
         &client,
         &job,
         scene,
+        loaded,
         &request,
         options.resume,
         &config.storage.flags(),

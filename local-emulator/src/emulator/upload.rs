@@ -1,7 +1,14 @@
-//! A job's objects from the client's side: submitting a job (the scene files and the job
-//! request go to storage, as a client of the cloud deployment would upload them before starting
-//! an execution), resuming a stopped one, listing the jobs of a bucket, and deleting a job's
+//! A job's objects from the client's side: submitting a job (the scene and the job request go
+//! to storage, as a client of the cloud deployment would upload them before starting an
+//! execution), resuming a stopped one, listing the jobs of a bucket, and deleting a job's
 //! objects or only its intermediates.
+//!
+//! The scene goes up parsed: the client has loaded it already (to check it, frame it and size
+//! the job), so it stores the binary scene `jobs/{job}/scene/scene.bin` ([`binary_scene`]) and
+//! a job request with `scene_format` `binary`, and no function parses the files again (the Plan
+//! function decodes it; so does a Worker rebuilding a lost split or plan). The original files
+//! are not uploaded: nothing reads them, and the binary scene is what lineage rebuilds from.
+//! A stopped job started with the files (`scene_format` `files`) is resumed with the files.
 //!
 //! What stays after a successful job (unless `--keep-intermediates`): `manifest.json` (the job
 //! request: the job's identity, so the id stays taken and `hort jobs list` shows the job),
@@ -18,12 +25,14 @@
 use anyhow::{Context, Result, bail};
 use asl_interpreter::{TaskFailure, TaskInvoker};
 use hort_core::ids::{JobId, PartitionId, Stage, TaskId};
-use hort_core::keys::{hits_key, image_key, manifest_key, partition_key, plan_key, scene_prefix};
+use hort_core::keys::{
+    hits_key, image_key, manifest_key, partition_key, plan_key, scene_binary_key, scene_prefix,
+};
 use hort_core::pipeline::{JobPlan, TaskMetrics};
-use hort_core::scene::parse_manifest;
+use hort_core::scene::{Scene, encode_scene, parse_manifest};
 use hort_core::store::{BlobStore, PutOutcome, StoreError};
 use hort_functions::S3Store;
-use hort_functions::handlers::{JobRequest, WorkerEvent};
+use hort_functions::handlers::{JobRequest, SceneFormat, WorkerEvent};
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::{Component, Path, PathBuf};
@@ -83,15 +92,30 @@ pub fn scene_files(main: &Path) -> Result<Vec<PathBuf>> {
     Ok(files)
 }
 
-/// Uploads the scene and creates the job request (once: a second submission of the same job
-/// id is an error, as the request is the job's identity).
+/// The binary scene the client stores for `scene`, loaded from a main file named `main_name`:
+/// [`encode_scene`] of the scene with `source` set to `main_name` (the name the job request
+/// gives it) and without its warnings (the client showed them). So its bytes depend on the
+/// scene files' contents and the main file's name only, not on the folder the client ran in,
+/// and a resumed job can compare them.
+pub fn binary_scene(scene: &Scene, main_name: &str) -> Vec<u8> {
+    encode_scene(&Scene {
+        source: PathBuf::from(main_name),
+        warnings: Vec::new(),
+        ..scene.clone()
+    })
+}
+
+/// Uploads the scene (`scene`, loaded from `main`, in `request.scene_format`) and creates the
+/// job request (once: a second submission of the same job id is an error, as the request is
+/// the job's identity).
 pub fn submit_job(
     store: &dyn BlobStore,
     job: &JobId,
     main: &Path,
+    scene: &Scene,
     request: &JobRequest,
 ) -> Result<()> {
-    submit_or_resume(store, job, main, request, false, "").map(drop)
+    submit_or_resume(store, job, main, scene, request, false, "").map(drop)
 }
 
 /// How [`submit_or_resume`] went.
@@ -103,22 +127,61 @@ pub enum Submitted {
     Resumed,
 }
 
-/// Submits a new job, or with `resume` checks that the stopped job `job` has the same request
-/// and scene files and continues it. A job id that exists is an error without `resume` (the
-/// message suggests `--resume`, `hort jobs clean` with `flags`, the storage flags as
-/// [`super::StorageTarget::flags`] gives them, or another id); so is resuming a job that does
-/// not exist, that finished, or whose request or scene differ.
+/// One object of a job's scene: its key, its bytes, and the file it stands for (in messages).
+struct SceneObject {
+    key: String,
+    bytes: Vec<u8>,
+    file: PathBuf,
+}
+
+/// The objects that store `scene` (loaded from `main`) in `format`: the binary scene, or the
+/// scene's files ([`scene_files`]) under `jobs/{job}/scene/`.
+fn scene_objects(
+    job: &JobId,
+    main: &Path,
+    scene: &Scene,
+    request: &JobRequest,
+    format: SceneFormat,
+) -> Result<Vec<SceneObject>> {
+    if format == SceneFormat::Binary {
+        return Ok(vec![SceneObject {
+            key: scene_binary_key(job),
+            bytes: binary_scene(scene, &request.scene),
+            file: main.to_path_buf(),
+        }]);
+    }
+    let base = main.parent().unwrap_or(Path::new("."));
+    let prefix = scene_prefix(job);
+    scene_files(main)?
+        .into_iter()
+        .map(|rel| {
+            let file = base.join(&rel);
+            let bytes =
+                std::fs::read(&file).with_context(|| format!("cannot read {}", file.display()))?;
+            Ok(SceneObject {
+                key: scene_key(&prefix, &rel),
+                bytes,
+                file,
+            })
+        })
+        .collect()
+}
+
+/// Submits a new job (storing `scene`, loaded from `main`, as `request.scene_format` says), or
+/// with `resume` checks that the stopped job `job` has the same request and scene (stored in
+/// the format it was started with) and continues it. A job id that exists is an error without
+/// `resume` (the message suggests `--resume`, `hort jobs clean` with `flags`, the storage flags
+/// as [`super::StorageTarget::flags`] gives them, or another id); so is resuming a job that
+/// does not exist, that finished, or whose request or scene differ.
 pub fn submit_or_resume(
     store: &dyn BlobStore,
     job: &JobId,
     main: &Path,
+    scene: &Scene,
     request: &JobRequest,
     resume: bool,
     flags: &str,
 ) -> Result<Submitted> {
-    let base = main.parent().unwrap_or(Path::new("."));
-    let prefix = scene_prefix(job);
-    let files = scene_files(main)?;
     let stored = match store.get(&manifest_key(job)) {
         Ok(bytes) => Some(bytes),
         Err(StoreError::NotFound { .. }) => None,
@@ -129,10 +192,8 @@ pub fn submit_or_resume(
         if resume {
             bail!("job \"{job}\" does not exist in this bucket: there is nothing to resume");
         }
-        for rel in &files {
-            let bytes = std::fs::read(base.join(rel))
-                .with_context(|| format!("cannot read {}", base.join(rel).display()))?;
-            store.put(&scene_key(&prefix, rel), &bytes)?;
+        for object in scene_objects(job, main, scene, request, request.scene_format)? {
+            store.put(&object.key, &object.bytes)?;
         }
         let json = serde_json::to_vec_pretty(request).context("job request")?;
         return match store.put_if_absent(&manifest_key(job), &json)? {
@@ -179,19 +240,17 @@ pub fn submit_or_resume(
                 .unwrap_or_default(),
         );
     }
-    for rel in &files {
-        let bytes = std::fs::read(base.join(rel))
-            .with_context(|| format!("cannot read {}", base.join(rel).display()))?;
-        let key = scene_key(&prefix, rel);
-        match store.get(&key) {
-            Ok(old) if old == bytes => {}
+    // The scene as the job stored it: the functions read it in the stored request's format.
+    for object in scene_objects(job, main, scene, &stored, stored.scene_format)? {
+        match store.get(&object.key) {
+            Ok(old) if old == object.bytes => {}
             Ok(_) => bail!(
                 "cannot resume job \"{job}\": {} changed since the job started; run {clean} to \
                  delete it, or choose another --job id",
-                base.join(rel).display()
+                object.file.display()
             ),
             // Deleted meanwhile: the plan step needs it again.
-            Err(StoreError::NotFound { .. }) => store.put(&key, &bytes)?,
+            Err(StoreError::NotFound { .. }) => store.put(&object.key, &object.bytes)?,
             Err(e) => return Err(e.into()),
         }
     }

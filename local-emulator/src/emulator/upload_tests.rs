@@ -1,0 +1,162 @@
+//! Submitting and resuming jobs over an in-memory store: what the client stores, and when a
+//! resume is refused.
+
+use super::upload::{Submitted, binary_scene, submit_job, submit_or_resume};
+use hort_core::ids::JobId;
+use hort_core::pipeline::{PlanRequest, SplitMode};
+use hort_core::scene::{Scene, decode_scene, load_scene};
+use hort_core::store::{BlobStore, MemoryStore};
+use hort_functions::handlers::{JobRequest, SceneFormat};
+use std::path::{Path, PathBuf};
+
+/// A fresh copy of the bundled Cornell room in a folder of its own; returns its main file.
+fn cornell_copy(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("hort-upload-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let from = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell");
+    for file in ["cornell.json", "cornell.obj", "cornell.mtl"] {
+        std::fs::copy(from.join(file), dir.join(file)).unwrap();
+    }
+    dir.join("cornell.json")
+}
+
+fn request(format: SceneFormat) -> JobRequest {
+    JobRequest {
+        scene: "cornell.json".into(),
+        render: PlanRequest {
+            width: 16,
+            height: 12,
+            spp: 1,
+            splits: None,
+            spans: None,
+            mode: SplitMode::Spatial,
+            execution: None,
+            memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
+        },
+        max_concurrency: 2,
+        task_timeout_seconds: None,
+        scene_format: format,
+    }
+}
+
+fn job() -> JobId {
+    JobId::new("j").unwrap()
+}
+
+fn load(main: &Path) -> Scene {
+    load_scene(main).unwrap()
+}
+
+#[test]
+fn a_binary_job_stores_only_the_parsed_scene_whatever_folder_it_came_from() {
+    let (a, b) = (cornell_copy("a"), cornell_copy("b"));
+    let (sa, sb) = (load(&a), load(&b));
+    assert_ne!(sa.source, sb.source);
+    let store = MemoryStore::new();
+    submit_job(&store, &job(), &a, &sa, &request(SceneFormat::Binary)).unwrap();
+    assert_eq!(
+        store.list("jobs/j/").unwrap(),
+        ["jobs/j/manifest.json", "jobs/j/scene/scene.bin"]
+    );
+    let stored = store.get("jobs/j/scene/scene.bin").unwrap();
+    assert_eq!(stored, binary_scene(&sb, "cornell.json"));
+    let decoded = decode_scene("scene.bin", &stored).unwrap();
+    assert_eq!(decoded.source, PathBuf::from("cornell.json"));
+    assert!(decoded.warnings.is_empty());
+    assert_eq!(decoded.mesh.triangles, sa.mesh.triangles);
+    // The same scene from another folder resumes the job.
+    assert_eq!(
+        submit_or_resume(
+            &store,
+            &job(),
+            &b,
+            &sb,
+            &request(SceneFormat::Binary),
+            true,
+            ""
+        )
+        .unwrap(),
+        Submitted::Resumed
+    );
+    // A resumed job whose scene.bin was deleted gets it back.
+    store.delete("jobs/j/scene/scene.bin").unwrap();
+    submit_or_resume(
+        &store,
+        &job(),
+        &b,
+        &sb,
+        &request(SceneFormat::Binary),
+        true,
+        "",
+    )
+    .unwrap();
+    assert_eq!(store.get("jobs/j/scene/scene.bin").unwrap(), stored);
+    for main in [a, b] {
+        let _ = std::fs::remove_dir_all(main.parent().unwrap());
+    }
+}
+
+#[test]
+fn a_changed_scene_does_not_resume_and_a_files_job_resumes_with_its_files() {
+    let main = cornell_copy("c");
+    let store = MemoryStore::new();
+    submit_job(
+        &store,
+        &job(),
+        &main,
+        &load(&main),
+        &request(SceneFormat::Binary),
+    )
+    .unwrap();
+    let mtl = main.with_file_name("cornell.mtl");
+    let text = std::fs::read_to_string(&mtl).unwrap();
+    std::fs::write(&mtl, text.replacen("Kd ", "Kd 0.5 0.5 0.5\n#", 1)).unwrap();
+    let changed = load(&main);
+    let e = submit_or_resume(
+        &store,
+        &job(),
+        &main,
+        &changed,
+        &request(SceneFormat::Binary),
+        true,
+        "",
+    )
+    .unwrap_err()
+    .to_string();
+    assert_eq!(
+        e,
+        format!(
+            "cannot resume job \"j\": {} changed since the job started; run `hort jobs clean \
+             --job j` to delete it, or choose another --job id",
+            main.display()
+        )
+    );
+
+    let _ = std::fs::remove_dir_all(main.parent().unwrap());
+
+    // A job started with the files (an older client) is resumed with the files.
+    let main = cornell_copy("d");
+    let store = MemoryStore::new();
+    let scene = load(&main);
+    submit_job(&store, &job(), &main, &scene, &request(SceneFormat::Files)).unwrap();
+    let keys = [
+        "jobs/j/manifest.json",
+        "jobs/j/scene/cornell.json",
+        "jobs/j/scene/cornell.mtl",
+        "jobs/j/scene/cornell.obj",
+    ];
+    assert_eq!(store.list("jobs/j/").unwrap(), keys);
+    let resumed = submit_or_resume(
+        &store,
+        &job(),
+        &main,
+        &scene,
+        &request(SceneFormat::Binary),
+        true,
+        "",
+    );
+    assert_eq!(resumed.unwrap(), Submitted::Resumed);
+    assert_eq!(store.list("jobs/j/").unwrap(), keys);
+    let _ = std::fs::remove_dir_all(main.parent().unwrap());
+}
