@@ -2,11 +2,13 @@
 //! function handlers) against the monolithic renderer on the same machine and threads, with
 //! the in-process pipeline in between to show where the time goes: in-process minus monolithic
 //! is the pipeline's own work (encoding, compression, split loads, extra traversal); emulator
-//! minus in-process is storage round trips over S3 and orchestration. Then the paper's fault
-//! experiment: one of 16 function slots dies mid-run.
+//! minus in-process is storage round trips over S3 and orchestration. First the emulator's
+//! fixed cost per stage and per task (`overhead.rs`); last the paper's fault experiment: one
+//! of 16 function slots dies mid-run.
 
 use super::BenchCommon;
-use super::scenes::generated;
+use super::overhead::overhead_table;
+use super::scenes::{bundled, generated};
 use super::table::{Table, f3};
 use anyhow::Result;
 use asl_interpreter::NoObserver;
@@ -33,6 +35,10 @@ pub struct EmulatorBenchArgs {
     /// Skip the 16-slot fault experiment.
     #[arg(long)]
     pub skip_faults: bool,
+    /// Measure only the fixed overhead per stage and per task (two tiny jobs on the bundled
+    /// Cornell box), not the end-to-end comparison.
+    #[arg(long)]
+    pub overhead_only: bool,
 }
 
 fn emulator_config(workers: usize, faults: FaultSettings) -> EmulatorConfig {
@@ -52,6 +58,21 @@ fn emulator_config(workers: usize, faults: FaultSettings) -> EmulatorConfig {
 }
 
 pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
+    let overhead = overhead_table(
+        &emulator_config(1, FaultSettings::default()),
+        &bundled("cornell/cornell.json"),
+    )?;
+    let print = |t: &Table| -> Result<()> {
+        t.print();
+        if let Some(csv) = &args.common.csv {
+            t.append_csv(csv)?;
+        }
+        Ok(())
+    };
+    print(&overhead)?;
+    if args.overhead_only {
+        return Ok(());
+    }
     let threads = args.common.threads.unwrap_or_else(available_cores);
     let path = generated(&args.common.scene_dir, args.triangles, 1)?;
     let scene = load_scene(&path)?;
@@ -147,10 +168,7 @@ pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
         tables.push(fault_table(args, &path, &mono.image.pixels)?);
     }
     for t in &tables {
-        t.print();
-        if let Some(csv) = &args.common.csv {
-            t.append_csv(csv)?;
-        }
+        print(t)?;
     }
     Ok(())
 }
