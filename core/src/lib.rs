@@ -18,6 +18,7 @@ pub mod shading;
 pub mod triangle;
 
 // Outputs.
+pub mod breakdown;
 pub mod cost;
 pub mod hits;
 pub mod image;

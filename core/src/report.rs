@@ -3,6 +3,7 @@
 //! `replication` and `cost_usd`. Fields that do not apply to a mode are null or empty
 //! (`stages`, `replication` and `cost_usd` in monolithic mode; `cost_usd` in process).
 
+pub use crate::breakdown::StageBreakdown;
 use serde::{Deserialize, Serialize};
 
 /// A render report. Field names are part of the contract; more fields may be added.
@@ -126,6 +127,10 @@ pub struct StageReport {
     /// Bytes written to storage by every attempt.
     #[serde(default)]
     pub attempts_bytes_written: u64,
+    /// Where the stage's time went (seconds; see [`StageBreakdown`]). Measurements: reports
+    /// of the same job differ here as in `seconds`. All zero in reports from before it.
+    #[serde(default)]
+    pub breakdown: StageBreakdown,
 }
 
 impl Report {
@@ -168,6 +173,15 @@ mod tests {
                 bytes_written_raw: 900,
                 attempts_bytes_read: 1100,
                 attempts_bytes_written: 350,
+                breakdown: StageBreakdown {
+                    task: 2.5,
+                    compute: 1.25,
+                    encode: 0.5,
+                    decode: 0.25,
+                    storage: 0.375,
+                    invocation: 0.125,
+                    orchestration: 0.0625,
+                },
             }],
             replication: Some(1.25),
             cost_usd: None,
@@ -216,7 +230,16 @@ mod tests {
       "bytes_written": 300,
       "bytes_written_raw": 900,
       "attempts_bytes_read": 1100,
-      "attempts_bytes_written": 350
+      "attempts_bytes_written": 350,
+      "breakdown": {
+        "task": 2.5,
+        "compute": 1.25,
+        "encode": 0.5,
+        "decode": 0.25,
+        "storage": 0.375,
+        "invocation": 0.125,
+        "orchestration": 0.0625
+      }
     }
   ],
   "replication": 1.25,
@@ -264,5 +287,10 @@ mod tests {
             ("monolithic", Some(0.75), None)
         );
         assert!(r.stages.is_empty());
+        // A stage from before the time breakdown: all of it 0.
+        let stage = r#"{"name": "cast-map", "tasks": 2, "attempts": 2, "seconds": 0.5,
+            "bytes_read": 1, "bytes_written": 2, "bytes_written_raw": 3}"#;
+        let s: StageReport = serde_json::from_str(stage).unwrap();
+        assert_eq!(s.breakdown, StageBreakdown::default());
     }
 }

@@ -30,7 +30,7 @@ use indicatif::{MultiProgress, ProgressDrawTarget};
 use track::{Inner, Stage};
 
 use asl_interpreter::{Event, Observer};
-pub use summary::print_summary;
+pub use summary::{print_breakdown, print_summary};
 
 /// How progress is shown.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

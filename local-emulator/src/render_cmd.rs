@@ -5,7 +5,7 @@ use crate::cli::RenderArgs;
 use crate::outputs::{check_distinct, check_image_path, check_output_path, write_output};
 use anyhow::{Context, Result, anyhow, bail};
 use hort::emulator::{EmulatorConfig, FaultSettings, JobOptions, LambdaTarget, run_job_loaded};
-use hort::progress::{ProgressMode, ProgressObserver, print_summary};
+use hort::progress::{ProgressMode, ProgressObserver, print_breakdown, print_summary};
 use hort_core::camera::Camera;
 use hort_core::cost::Arch;
 use hort_core::hits::{Hit, encode_hits};
@@ -169,6 +169,7 @@ fn print_run_summary(report: &Report, render_seconds: f64, out: &Path) -> Result
     if !report.stages.is_empty() {
         let mut table = Vec::new();
         print_summary(&report.stages, &mut table).context("summary")?;
+        print_breakdown(&report.stages, &mut table).context("summary")?;
         eprint!("{}", String::from_utf8_lossy(&table));
     }
     let (width, height, spp) = (report.width, report.height, report.spp);

@@ -7,6 +7,7 @@ use super::plan::{JobPlan, PlanRequest};
 use super::plan_step::plan_into_store;
 use super::runner::{TaskMetrics, run_task_cached};
 use super::split_cache::SplitCache;
+use crate::breakdown::{StageBreakdown, uncovered};
 use crate::hits::Hit;
 use crate::ids::{JobId, Stage};
 use crate::image::Image;
@@ -14,6 +15,7 @@ use crate::report::StageReport;
 use crate::scene::Scene;
 use crate::store::BlobStore;
 use crate::worker_pool::run_indexed;
+use std::sync::Mutex;
 use std::time::Instant;
 
 /// How to run a job in process.
@@ -71,6 +73,7 @@ pub fn run_pipeline(
         bytes_written_raw: planned.bytes_written,
         attempts_bytes_read: 0,
         attempts_bytes_written: planned.bytes_written,
+        breakdown: StageBreakdown::default(),
     }];
     let mut metrics = vec![TaskMetrics::default()];
     let render_start = Instant::now();
@@ -81,17 +84,22 @@ pub fn run_pipeline(
     for &stage in plan.mode.task_stages() {
         let stage_start = Instant::now();
         let tasks = plan.task_count(stage);
-        let m = run_stage(store, job, &plan, stage, tasks, &caches)?;
+        let (m, busy) = run_stage(store, job, &plan, stage, tasks, &caches)?;
+        let stage_end = Instant::now();
         stages.push(StageReport {
             name: stage.to_string(),
             tasks: tasks as u64,
             attempts: tasks as u64,
-            seconds: stage_start.elapsed().as_secs_f64(),
+            seconds: (stage_end - stage_start).as_secs_f64(),
             bytes_read: m.bytes_read,
             bytes_written: m.bytes_written,
             bytes_written_raw: m.bytes_written_raw,
             attempts_bytes_read: m.bytes_read,
             attempts_bytes_written: m.bytes_written,
+            breakdown: StageBreakdown {
+                orchestration: uncovered(stage_start, stage_end, &busy).as_secs_f64(),
+                ..StageBreakdown::from_tasks(&m)
+            },
         });
         metrics.push(m);
     }
@@ -113,7 +121,8 @@ pub fn run_pipeline(
 }
 
 /// Runs tasks `0..tasks` of `stage` on one thread per cache; the first error stops the stage.
-/// The summed metrics do not depend on which worker ran which task (integer sums).
+/// Returns the summed metrics, which do not depend on which worker ran which task (integer
+/// sums, durations aside), and the wall-clock interval of each task.
 fn run_stage(
     store: &dyn BlobStore,
     job: &JobId,
@@ -121,13 +130,21 @@ fn run_stage(
     stage: Stage,
     tasks: usize,
     caches: &[SplitCache],
-) -> Result<TaskMetrics, PipelineError> {
+) -> Result<(TaskMetrics, Vec<(Instant, Instant)>), PipelineError> {
     let mut total = TaskMetrics::default();
+    let busy = Mutex::new(Vec::with_capacity(tasks));
     run_indexed(
         caches,
         tasks,
-        |cache, task| run_task_cached(store, job, plan, stage, task as u32, cache),
+        |cache, task| {
+            let started = Instant::now();
+            let result = run_task_cached(store, job, plan, stage, task as u32, cache);
+            busy.lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .push((started, Instant::now()));
+            result
+        },
         |_, metrics| total += metrics,
     )?;
-    Ok(total)
+    Ok((total, busy.into_inner().unwrap_or_else(|e| e.into_inner())))
 }

@@ -54,7 +54,7 @@ pub use records::{
     encode_pixels, encode_queries, encode_surface_hits,
 };
 pub use runner::{
-    RebuildSplit, TaskMetrics, producer_of, run_task, run_task_cached, run_task_with,
+    RebuildSplit, TaskMetrics, micros, producer_of, run_task, run_task_cached, run_task_with, timed,
 };
 pub use split::{SplitMode, assign_splits, rebuild_split, split_scene};
 pub use split_cache::SplitCache;

@@ -7,6 +7,10 @@
 //! [`RebuildSplit`] (which needs the scene, so only callers that can load it pass one), a
 //! missing or corrupt split object is rebuilt, checked against the plan's size and rewritten;
 //! without one it is an error.
+//!
+//! Durations: a task also measures where its own time went ([`TaskMetrics::task_us`] and the
+//! four parts `compute_us`, `encode_us`, `decode_us`, `storage_us`). They are measurements,
+//! different on every run; nothing stored or returned besides the metrics depends on them.
 
 use super::PipelineError;
 use super::plan::JobPlan;
@@ -24,6 +28,7 @@ use crate::keys::{hits_key, image_key, parse_partition_key, partition_key, split
 use crate::shuffle::RecordKind;
 use crate::store::BlobStore;
 use std::sync::Arc;
+use std::time::Instant;
 
 /// What one task did, for the stage metrics of the report.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -47,6 +52,41 @@ pub struct TaskMetrics {
     /// Split objects taken from the worker's [`SplitCache`] instead of storage.
     #[serde(default)]
     pub split_cache_hits: u64,
+    /// Microseconds of the task's own run, from the start of its work to its end (for the
+    /// Worker function: from reading `plan.json` to the last output written). The four parts
+    /// below are measured inside it and never overlap, so their sum is at most this; the rest
+    /// is bookkeeping (allocation, cache locks, key formatting).
+    #[serde(default)]
+    pub task_us: u64,
+    /// Microseconds in the stage functions (ray casting, reduction, routing, shading, image
+    /// assembly) and in rebuilding lost split objects from the scene.
+    #[serde(default)]
+    pub compute_us: u64,
+    /// Microseconds encoding outputs: records into shuffle blocks with their compression, and
+    /// the final PNG, PFM and hit buffer.
+    #[serde(default)]
+    pub encode_us: u64,
+    /// Microseconds decoding inputs: shuffle blocks (decompression and records), split
+    /// objects and the plan's JSON.
+    #[serde(default)]
+    pub decode_us: u64,
+    /// Microseconds inside storage calls ([`BlobStore::get`] and [`BlobStore::put`]): the
+    /// wait for the object store, its client's retries included.
+    #[serde(default)]
+    pub storage_us: u64,
+}
+
+/// Whole microseconds of `d`, saturating.
+pub fn micros(d: std::time::Duration) -> u64 {
+    u64::try_from(d.as_micros()).unwrap_or(u64::MAX)
+}
+
+/// Runs `f` and adds its wall time, in microseconds, to `slot`.
+pub fn timed<T>(slot: &mut u64, f: impl FnOnce() -> T) -> T {
+    let started = Instant::now();
+    let out = f();
+    *slot += micros(started.elapsed());
+    out
 }
 
 impl std::ops::AddAssign for TaskMetrics {
@@ -60,6 +100,11 @@ impl std::ops::AddAssign for TaskMetrics {
         self.shadow_rays += o.shadow_rays;
         self.skipped_tasks += o.skipped_tasks;
         self.split_cache_hits += o.split_cache_hits;
+        self.task_us += o.task_us;
+        self.compute_us += o.compute_us;
+        self.encode_us += o.encode_us;
+        self.decode_us += o.decode_us;
+        self.storage_us += o.storage_us;
     }
 }
 
@@ -114,7 +159,9 @@ pub fn run_task_with(
         metrics: TaskMetrics::default(),
         depth: 0,
     };
+    let started = Instant::now();
     ctx.run(stage, task)?;
+    ctx.metrics.task_us = micros(started.elapsed());
     Ok(ctx.metrics)
 }
 
@@ -160,7 +207,9 @@ impl Task<'_> {
                     .ok_or_else(|| missing("cast tasks"))?;
                 let span = plan.spans[t.span as usize];
                 let split = self.read_split(t.split)?;
-                let hits = stages::cast_map(plan, &span, &split)?;
+                let hits = timed(&mut self.metrics.compute_us, || {
+                    stages::cast_map(plan, &span, &split)
+                })?;
                 self.write_hits(stage, task, t.span, RecordKind::CastCandidate, &hits)
             }
             Stage::CastReduce => {
@@ -175,7 +224,7 @@ impl Task<'_> {
                         decode_surface_hits(k, b, RecordKind::CastCandidate)
                     })?);
                 }
-                let hits = stages::cast_reduce(inputs);
+                let hits = timed(&mut self.metrics.compute_us, || stages::cast_reduce(inputs));
                 debug_assert!(
                     hits.iter()
                         .all(|h| u64::from(h.pixel) >= span.start && u64::from(h.pixel) < span.end)
@@ -187,8 +236,9 @@ impl Task<'_> {
                     .get(task as usize)
                     .ok_or_else(|| missing("spans"))?;
                 let hits = self.read_span_hits(task)?;
-                for (split, queries) in stages::expand(plan, &hits).iter().enumerate() {
-                    let raw = encode_queries(queries);
+                let routed = timed(&mut self.metrics.compute_us, || stages::expand(plan, &hits));
+                for (split, queries) in routed.iter().enumerate() {
+                    let raw = timed(&mut self.metrics.encode_us, || encode_queries(queries));
                     self.write(&self.key(stage, task, split as u32), raw, queries.len())?;
                 }
                 Ok(())
@@ -205,14 +255,17 @@ impl Task<'_> {
                     Vec::new()
                 } else {
                     let split = self.read_split(t.split)?;
-                    stages::trace_map(plan, &split, &queries).map_err(|light| {
+                    timed(&mut self.metrics.compute_us, || {
+                        stages::trace_map(plan, &split, &queries)
+                    })
+                    .map_err(|light| {
                         PipelineError::Corrupt(format!(
                             "shuffle block {key}: a query names light {light}, the plan has {}",
                             plan.lights.len()
                         ))
                     })?
                 };
-                let bytes = encode_occluded(&occluded);
+                let bytes = timed(&mut self.metrics.encode_us, || encode_occluded(&occluded));
                 self.write(&self.key(stage, task, t.span), bytes, occluded.len())
             }
             Stage::TraceReduce => {
@@ -227,9 +280,12 @@ impl Task<'_> {
                     occluded.push(self.read(&key, decode_occluded)?);
                 }
                 self.metrics.shadow_rays += hits.len() as u64 * plan.lights.len() as u64;
-                let block = stages::trace_reduce(plan, &span, &hits, occluded);
+                let block = timed(&mut self.metrics.compute_us, || {
+                    stages::trace_reduce(plan, &span, &hits, occluded)
+                });
                 let n = block.colours.len();
-                self.write(&self.key(stage, task, 0), encode_pixels(&block), n)
+                let bytes = timed(&mut self.metrics.encode_us, || encode_pixels(&block));
+                self.write(&self.key(stage, task, 0), bytes, n)
             }
             Stage::Combine => {
                 let mut blocks = Vec::with_capacity(plan.spans.len());
@@ -249,11 +305,16 @@ impl Task<'_> {
                     }
                     blocks.push(block);
                 }
-                let (image, hits) = stages::combine(plan, &blocks);
-                let png = encode_png(&image).map_err(|e| PipelineError::BadInput(e.to_string()))?;
+                let (image, hits) = timed(&mut self.metrics.compute_us, || {
+                    stages::combine(plan, &blocks)
+                });
+                let (png, pfm, hit_bytes) = timed(&mut self.metrics.encode_us, || {
+                    (encode_png(&image), encode_pfm(&image), encode_hits(&hits))
+                });
+                let png = png.map_err(|e| PipelineError::BadInput(e.to_string()))?;
                 self.write_plain(&image_key(self.job, "png"), png)?;
-                self.write_plain(&image_key(self.job, "pfm"), encode_pfm(&image))?;
-                self.write_plain(&hits_key(self.job), encode_hits(&hits))?;
+                self.write_plain(&image_key(self.job, "pfm"), pfm)?;
+                self.write_plain(&hits_key(self.job), hit_bytes)?;
                 self.metrics.records += hits.len() as u64;
                 Ok(())
             }
@@ -273,14 +334,13 @@ impl Task<'_> {
             self.metrics.split_cache_hits += 1;
             return Ok(object);
         }
-        let first = self
-            .store
-            .get(&key)
+        let store = self.store;
+        let first = timed(&mut self.metrics.storage_us, || store.get(&key))
             .map_err(PipelineError::from)
             .and_then(|bytes| {
                 self.metrics.bytes_read += bytes.len() as u64;
                 self.metrics.split_bytes_read += bytes.len() as u64;
-                decode_split(&key, &bytes)
+                timed(&mut self.metrics.decode_us, || decode_split(&key, &bytes))
             });
         let lost = match &first {
             Err(PipelineError::Store(e)) => e.is_not_found(),
@@ -304,7 +364,7 @@ impl Task<'_> {
         split: u32,
         rebuild: RebuildSplit<'_>,
     ) -> Result<SplitObject, PipelineError> {
-        let bytes = rebuild(split)?;
+        let bytes = timed(&mut self.metrics.compute_us, || rebuild(split))?;
         let planned = self.plan.splits.get(split as usize).map(|s| s.bytes);
         if planned != Some(bytes.len() as u64) {
             return Err(PipelineError::Corrupt(format!(
@@ -314,9 +374,10 @@ impl Task<'_> {
             )));
         }
         self.metrics.bytes_written += bytes.len() as u64;
-        self.store.put(key, &bytes)?;
+        let store = self.store;
+        timed(&mut self.metrics.storage_us, || store.put(key, &bytes))?;
         self.metrics.recomputed += 1;
-        decode_split(key, &bytes)
+        timed(&mut self.metrics.decode_us, || decode_split(key, &bytes))
     }
 
     fn read_span_hits(&mut self, span: u32) -> Result<Vec<super::SurfaceHit>, PipelineError> {
@@ -331,13 +392,12 @@ impl Task<'_> {
         key: &str,
         decode: impl Fn(&str, &[u8]) -> Result<T, PipelineError>,
     ) -> Result<T, PipelineError> {
-        let first = self
-            .store
-            .get(key)
+        let store = self.store;
+        let first = timed(&mut self.metrics.storage_us, || store.get(key))
             .map_err(PipelineError::from)
             .and_then(|bytes| {
                 self.metrics.bytes_read += bytes.len() as u64;
-                decode(key, &bytes)
+                timed(&mut self.metrics.decode_us, || decode(key, &bytes))
             });
         let lost = match &first {
             Err(PipelineError::Store(e)) => e.is_not_found(),
@@ -353,9 +413,9 @@ impl Task<'_> {
         self.depth -= 1;
         result?;
         self.metrics.recomputed += 1;
-        let bytes = self.store.get(key)?;
+        let bytes = timed(&mut self.metrics.storage_us, || store.get(key))?;
         self.metrics.bytes_read += bytes.len() as u64;
-        decode(key, &bytes)
+        timed(&mut self.metrics.decode_us, || decode(key, &bytes))
     }
 
     fn write_hits(
@@ -366,7 +426,9 @@ impl Task<'_> {
         kind: RecordKind,
         hits: &[super::SurfaceHit],
     ) -> Result<(), PipelineError> {
-        let bytes = encode_surface_hits(kind, hits);
+        let bytes = timed(&mut self.metrics.encode_us, || {
+            encode_surface_hits(kind, hits)
+        });
         self.write(&self.key(stage, task, partition), bytes, hits.len())
     }
 
@@ -385,7 +447,8 @@ impl Task<'_> {
 
     fn put_output(&mut self, key: &str, bytes: Vec<u8>) -> Result<(), PipelineError> {
         self.metrics.bytes_written += bytes.len() as u64;
-        self.store.put(key, &bytes)?;
+        let store = self.store;
+        timed(&mut self.metrics.storage_us, || store.put(key, &bytes))?;
         Ok(())
     }
 }

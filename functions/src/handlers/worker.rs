@@ -6,10 +6,12 @@ use super::{HandlerError, check_bucket};
 use hort_core::ErrorType;
 use hort_core::keys::plan_key;
 use hort_core::pipeline::{
-    JobPlan, PipelineError, SplitCache, TaskMetrics, plan_into_store, rebuild_split, run_task_with,
+    JobPlan, PipelineError, SplitCache, TaskMetrics, micros, plan_into_store, rebuild_split,
+    run_task_with, timed,
 };
 use hort_core::store::BlobStore;
 use std::path::Path;
+use std::time::Instant;
 
 /// Runs `event.stage` task `event.item.task` of `event.job`; `cache` is the worker's decoded
 /// splits (a warm container's memory). Returns what the task did. The outputs are the same bytes
@@ -24,6 +26,7 @@ pub fn handle_worker(
     event: &WorkerEvent,
     work_dir: &Path,
 ) -> Result<TaskMetrics, HandlerError> {
+    let started = Instant::now();
     check_bucket(&event.bucket, bucket)?;
     let key = plan_key(&event.job);
     let load = |what: &str| {
@@ -36,10 +39,10 @@ pub fn handle_worker(
             }
         })
     };
-    let stored = store
-        .get(&key)
+    let (mut storage_us, mut decode_us) = (0, 0);
+    let stored = timed(&mut storage_us, || store.get(&key))
         .map_err(PipelineError::from)
-        .and_then(|bytes| JobPlan::from_json(&key, &bytes));
+        .and_then(|bytes| timed(&mut decode_us, || JobPlan::from_json(&key, &bytes)));
     let (plan, replanned) = match stored {
         Ok(plan) => (plan, false),
         Err(PipelineError::Store(e)) if !e.is_not_found() => return Err(e.into()),
@@ -66,5 +69,8 @@ pub fn handle_worker(
         Some(&rebuild),
     )?;
     metrics.recomputed += u64::from(replanned);
+    metrics.storage_us += storage_us;
+    metrics.decode_us += decode_us;
+    metrics.task_us = micros(started.elapsed());
     Ok(metrics)
 }

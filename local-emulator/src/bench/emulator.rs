@@ -2,18 +2,20 @@
 //! function handlers) against the monolithic renderer on the same machine and threads, with
 //! the in-process pipeline in between to show where the time goes: in-process minus monolithic
 //! is the pipeline's own work (encoding, compression, split loads, extra traversal); emulator
-//! minus in-process is storage round trips over S3 and orchestration. Then the paper's fault
-//! experiment: one of 16 function slots dies mid-run.
+//! minus in-process is storage round trips over S3 and orchestration. First the emulator's
+//! fixed cost per stage and per task (`overhead.rs`); last the paper's fault experiment: one
+//! of 16 function slots dies mid-run.
 
 use super::BenchCommon;
-use super::scenes::generated;
+use super::overhead::overhead_table;
+use super::scenes::{bundled, generated};
 use super::table::{Table, f3};
 use anyhow::Result;
 use asl_interpreter::NoObserver;
 use hort::emulator::{EmulatorConfig, FaultSettings, StorageTarget, run_job};
 use hort_core::cost::Arch;
 use hort_core::ids::JobId;
-use hort_core::pipeline::{PipelineOptions, PlanRequest, SplitMode, run_pipeline};
+use hort_core::pipeline::{ExecutionMode, PipelineOptions, PlanRequest, SplitMode, run_pipeline};
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
 use hort_core::scene::load_scene;
 use hort_core::store::MemoryStore;
@@ -33,6 +35,10 @@ pub struct EmulatorBenchArgs {
     /// Skip the 16-slot fault experiment.
     #[arg(long)]
     pub skip_faults: bool,
+    /// Measure only the fixed overhead per stage and per task (two tiny jobs on the bundled
+    /// Cornell box), not the end-to-end comparison.
+    #[arg(long)]
+    pub overhead_only: bool,
 }
 
 fn emulator_config(workers: usize, faults: FaultSettings) -> EmulatorConfig {
@@ -52,6 +58,21 @@ fn emulator_config(workers: usize, faults: FaultSettings) -> EmulatorConfig {
 }
 
 pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
+    let overhead = overhead_table(
+        &emulator_config(1, FaultSettings::default()),
+        &bundled("cornell/cornell.json"),
+    )?;
+    let print = |t: &Table| -> Result<()> {
+        t.print();
+        if let Some(csv) = &args.common.csv {
+            t.append_csv(csv)?;
+        }
+        Ok(())
+    };
+    print(&overhead)?;
+    if args.overhead_only {
+        return Ok(());
+    }
     let threads = args.common.threads.unwrap_or_else(available_cores);
     let path = generated(&args.common.scene_dir, args.triangles, 1)?;
     let scene = load_scene(&path)?;
@@ -68,6 +89,7 @@ pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
             "ratio",
             "S3 requests",
             "MB written",
+            "B/pixel/stage",
             "cost USD",
             "identical",
         ],
@@ -91,8 +113,15 @@ pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
         "-".into(),
         "-".into(),
         "-".into(),
+        "-".into(),
     ]);
-    for (name, k) in [("MR1 k=1 s=16", 1u32), ("MR2 k=8 s=16 spatial", 8)] {
+    // Fused is what the plan chooses for a scene that fits one function; staged k=1 is the
+    // paper's MR1 (the shuffle with one split), staged k=8 its MR2.
+    for (name, k, execution) in [
+        ("fused k=1 s=16", 1u32, ExecutionMode::Fused),
+        ("staged k=1 s=16", 1, ExecutionMode::Staged),
+        ("staged k=8 s=16 spatial", 8, ExecutionMode::Staged),
+    ] {
         let request = PlanRequest {
             width: args.common.width,
             height: args.common.height,
@@ -100,7 +129,7 @@ pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
             splits: Some(k),
             spans: Some(16),
             mode: SplitMode::Spatial,
-            execution: None,
+            execution: Some(execution),
             memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
         };
         let options = PipelineOptions {
@@ -115,6 +144,7 @@ pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
             format!("in-process {name}"),
             f3(in_process),
             f3(in_process / mono_seconds),
+            "-".into(),
             "-".into(),
             "-".into(),
             "-".into(),
@@ -140,6 +170,7 @@ pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
             f3(seconds / mono_seconds),
             requests.to_string(),
             format!("{:.1}", written as f64 / 1e6),
+            format!("{:.1}", shuffle_bytes_per_pixel_stage(&run)),
             format!("{:.5}", run.cost.total),
             yes(run.image.pixels == mono.image.pixels && run.hits == mono.hits),
         ]);
@@ -149,12 +180,22 @@ pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
         tables.push(fault_table(args, &path, &mono.image.pixels)?);
     }
     for t in &tables {
-        t.print();
-        if let Some(csv) = &args.common.csv {
-            t.append_csv(csv)?;
-        }
+        print(t)?;
     }
     Ok(())
+}
+
+/// Compressed bytes the task stages between plan and combine wrote, per pixel and per stage
+/// (0 for a fused job's single stage beyond its pixel blocks' share).
+fn shuffle_bytes_per_pixel_stage(run: &hort::emulator::EmulatorRun) -> f64 {
+    let pixels = u64::from(run.plan.width) * u64::from(run.plan.height);
+    let middle: Vec<_> = run
+        .stages
+        .iter()
+        .filter(|s| s.name != "plan" && s.name != "combine")
+        .collect();
+    let bytes: u64 = middle.iter().map(|s| s.bytes_written).sum();
+    bytes as f64 / pixels.max(1) as f64 / middle.len().max(1) as f64
 }
 
 fn yes(b: bool) -> String {

@@ -6,6 +6,7 @@ mod faults;
 mod kernel;
 #[cfg(feature = "obvhs-bench")]
 mod obvhs_kernel;
+mod overhead;
 mod pipeline;
 mod scenes;
 mod table;

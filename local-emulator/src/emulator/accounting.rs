@@ -16,6 +16,8 @@ pub struct StageUsage {
     pub state: String,
     /// Wall-clock seconds from entering the state to leaving it.
     pub seconds: f64,
+    /// When the state was entered and left (`None` until it was left).
+    pub window: Option<(Instant, Instant)>,
     /// Function invocations started for the state (first attempts and retries).
     pub attempts: u64,
     /// Attempts that failed (errors and timeouts), whether retried or not.
@@ -58,7 +60,9 @@ impl Accounting {
 
     fn close(&self, s: &mut State) {
         if let (Some((t0, stats0)), Some(row)) = (s.started.take(), s.rows.last_mut()) {
-            row.seconds = t0.elapsed().as_secs_f64();
+            let now = Instant::now();
+            row.seconds = (now - t0).as_secs_f64();
+            row.window = Some((t0, now));
             row.traffic = self.store.stats().since(&stats0);
         }
     }

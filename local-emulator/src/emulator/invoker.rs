@@ -3,8 +3,9 @@
 //! a ledger of what the invocations did (for the report and the cost estimate).
 
 use asl_interpreter::{TaskFailure, TaskInvoker};
+use hort_core::breakdown::StageBreakdown;
 use hort_core::ids::{Stage, TaskId};
-use hort_core::pipeline::{SplitCache, TaskMetrics};
+use hort_core::pipeline::{SplitCache, TaskMetrics, micros};
 use hort_core::store::BlobStore;
 use hort_functions::handlers::{Function, FunctionEnv, Invoked, TaskDone, dispatch};
 use serde_json::Value;
@@ -22,15 +23,43 @@ pub struct Ledger {
     pub tasks: BTreeMap<(Stage, TaskId), TaskMetrics>,
     /// Duration of every invocation (successful or not), milliseconds.
     pub invocation_ms: Vec<f64>,
+    /// Wall-clock interval of every invocation (successful or not), as its invoker saw it.
+    pub busy: Vec<(Instant, Instant)>,
+    /// Microseconds the invoker measured around the attempt whose metrics are in `tasks`.
+    pub wall_us: BTreeMap<(Stage, TaskId), u64>,
 }
 
 impl Ledger {
-    /// Records one invocation of `ms` milliseconds and, for a successful Worker attempt, its
-    /// task's metrics (replacing an earlier successful attempt's: both wrote the same bytes).
-    pub fn record(&mut self, ms: f64, done: Option<TaskDone>) {
-        self.invocation_ms.push(ms);
+    /// Records one invocation that ran from `started` to `ended` and, for a successful Worker
+    /// attempt, its task's metrics (replacing an earlier successful attempt's: both wrote the
+    /// same bytes).
+    pub fn record(&mut self, started: Instant, ended: Instant, done: Option<TaskDone>) {
+        let took = ended.saturating_duration_since(started);
+        self.invocation_ms.push(took.as_secs_f64() * 1e3);
+        self.busy.push((started, ended));
         if let Some(done) = done {
             self.tasks.insert((done.stage, done.task), done.metrics);
+            self.wall_us.insert((done.stage, done.task), micros(took));
+        }
+    }
+
+    /// The task-measured parts of `stage`'s time and its invocation overhead: the invoker's
+    /// wall time of each task's recorded attempt minus the task's own time (0 where the task
+    /// measured more, as a function on another clock might). `orchestration` is left at 0:
+    /// it needs the stage's wall-clock window (see `uncovered`).
+    pub fn stage_breakdown(&self, stage: Stage) -> StageBreakdown {
+        let range = (stage, TaskId(0))..=(stage, TaskId(u32::MAX));
+        let overhead_us: u64 = self
+            .wall_us
+            .range(range.clone())
+            .map(|(id, wall)| {
+                let own = self.tasks.get(id).map_or(0, |m| m.task_us);
+                wall.saturating_sub(own)
+            })
+            .sum();
+        StageBreakdown {
+            invocation: overhead_us as f64 / 1e6,
+            ..StageBreakdown::from_tasks(&self.stage(stage))
         }
     }
 
@@ -122,7 +151,7 @@ impl InProcessInvoker {
         *self.in_flight.lock().unwrap_or_else(|e| e.into_inner()) += 1;
         let started = Instant::now();
         let result = self.dispatch(function, input, store);
-        let ms = started.elapsed().as_secs_f64() * 1e3;
+        let ended = Instant::now();
         {
             let mut running = self.in_flight.lock().unwrap_or_else(|e| e.into_inner());
             *running -= 1;
@@ -137,7 +166,7 @@ impl InProcessInvoker {
         self.ledger
             .lock()
             .unwrap_or_else(|e| e.into_inner())
-            .record(ms, done);
+            .record(started, ended, done);
         result
     }
 

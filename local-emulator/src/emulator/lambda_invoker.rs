@@ -101,7 +101,7 @@ impl TaskInvoker for LambdaInvoker {
             .runtime
             .block_on(self.functions.invoke(name, &input))
             .map_err(|e| TaskFailure::new(e.error, e.cause));
-        let ms = started.elapsed().as_secs_f64() * 1e3;
+        let ended = Instant::now();
         let done = match (&result, task) {
             (Ok(output), Some(event)) => {
                 let metrics: TaskMetrics = serde_json::from_value(output.clone()).map_err(|e| {
@@ -121,7 +121,7 @@ impl TaskInvoker for LambdaInvoker {
         self.ledger
             .lock()
             .unwrap_or_else(|e| e.into_inner())
-            .record(ms, done);
+            .record(started, ended, done);
         result
     }
 }

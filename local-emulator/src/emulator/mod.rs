@@ -28,6 +28,7 @@ pub use upload::{
 use crate::state_machine::{StoreItems, hort_orchestrator};
 use anyhow::{Context, Result, anyhow};
 use asl_interpreter::{Observer, OrchestratorOptions, TaskInvoker};
+use hort_core::breakdown::{StageBreakdown, uncovered};
 use hort_core::cost::{Arch, CostBreakdown, CostInputs, estimate, standard_transitions_for};
 use hort_core::hits::Hit;
 use hort_core::ids::{JobId, Stage};
@@ -373,6 +374,13 @@ fn stage_reports(plan: &JobPlan, usage: &[StageUsage], ledger: &Ledger) -> Vec<S
         .map(|u| {
             let stage = Stage::of_state(&u.state);
             let tasks = stage.map_or(1, |stage| plan.task_count(stage) as u64);
+            let mut breakdown = match stage {
+                Some(stage) if stage != Stage::Plan => ledger.stage_breakdown(stage),
+                _ => StageBreakdown::default(),
+            };
+            if let Some((start, end)) = u.window {
+                breakdown.orchestration = uncovered(start, end, &ledger.busy).as_secs_f64();
+            }
             // The Plan function reports no task metrics: its traffic is what it needed.
             let (read, written, raw) = match stage {
                 Some(stage) if stage != Stage::Plan => {
@@ -395,6 +403,7 @@ fn stage_reports(plan: &JobPlan, usage: &[StageUsage], ledger: &Ledger) -> Vec<S
                 bytes_written_raw: raw,
                 attempts_bytes_read: u.traffic.bytes_read,
                 attempts_bytes_written: u.traffic.bytes_written,
+                breakdown,
             }
         })
         .collect()

@@ -2,7 +2,9 @@
 //! bucket (an S3-compatible endpoint or AWS S3 itself), always reached through the real S3
 //! protocol with `S3Store`.
 //!
-//! Every run also gets a temporary folder, `{temp}/hort-s3-{pid}-{n}/`: the embedded server's
+//! Every run also gets a temporary folder, `{temp}/hort-s3-{pid}-{n}/` (`{temp}`: `$TMPDIR` when
+//! set, else `/dev/shm` where it is a writable directory, else the system's temporary folder;
+//! see [`temp_roots`]): the embedded server's
 //! objects when no data folder is given (`data/`) and the Plan function's scratch copy of the
 //! scene (`work/`). It is removed when the [`Storage`] is dropped, again by
 //! [`remove_temp_folders`] (which the command calls just before it exits, however it exits,
@@ -363,6 +365,22 @@ fn remove_folder(dir: &Path) {
     }
 }
 
+/// Where temporary folders go, in order of preference: `$TMPDIR` when it is set (the user's
+/// choice), else `/dev/shm` (memory: the embedded server writes and renames a file or two for
+/// every request, and on a disk file system that metadata work was a sixth of a near-empty
+/// task's time, measured with `hort bench emulator`), then the system's temporary folder.
+fn temp_roots() -> Vec<PathBuf> {
+    let mut roots = Vec::new();
+    if std::env::var_os("TMPDIR").is_none_or(|v| v.is_empty()) {
+        let shm = Path::new("/dev/shm");
+        if shm.is_dir() {
+            roots.push(shm.to_path_buf());
+        }
+    }
+    roots.push(std::env::temp_dir());
+    roots
+}
+
 /// One run's temporary folder `{temp}/hort-s3-{pid}-{n}`, locked while it lives, removed on
 /// drop.
 struct TempFolder {
@@ -375,13 +393,23 @@ impl TempFolder {
     fn create() -> Result<TempFolder> {
         // Unique per run: several runs may share a process (benches, tests).
         static RUN: AtomicU64 = AtomicU64::new(0);
-        let path = std::env::temp_dir().join(format!(
+        let name = format!(
             "{TEMP_PREFIX}{}-{}",
             std::process::id(),
             RUN.fetch_add(1, Ordering::Relaxed)
-        ));
-        std::fs::create_dir_all(&path)
-            .map_err(|e| anyhow!("cannot create temporary folder {}: {e}", path.display()))?;
+        );
+        // The first root that takes the folder; the last one's error otherwise.
+        let mut made = Err(anyhow!("no temporary folder to create {name} in"));
+        for root in temp_roots() {
+            let path = root.join(&name);
+            made = std::fs::create_dir_all(&path)
+                .map(|()| path.clone())
+                .map_err(|e| anyhow!("cannot create temporary folder {}: {e}", path.display()));
+            if made.is_ok() {
+                break;
+            }
+        }
+        let path = made?;
         TEMP_FOLDERS
             .lock()
             .unwrap_or_else(|e| e.into_inner())
@@ -431,10 +459,11 @@ fn owner_alive(dir: &Path, pid: u32) -> bool {
 /// Removes the temporary folders of other processes that are gone (killed before they could
 /// clean up). Errors are ignored: this is housekeeping.
 pub fn remove_stale_temp_folders() {
-    let Ok(entries) = std::fs::read_dir(std::env::temp_dir()) else {
-        return;
-    };
     let me = std::process::id();
+    let entries = temp_roots()
+        .into_iter()
+        .filter_map(|root| std::fs::read_dir(root).ok())
+        .flatten();
     for entry in entries.flatten() {
         let name = entry.file_name();
         let Some(pid) = name.to_str().and_then(temp_folder_pid) else {

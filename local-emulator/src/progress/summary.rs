@@ -1,8 +1,9 @@
-//! The summary table printed after a pipelined render.
+//! The summary tables printed after a pipelined render: traffic per stage
+//! ([`print_summary`]) and where each stage's time went ([`print_breakdown`]).
 
 use std::io::{self, Write};
 
-use hort_core::report::StageReport;
+use hort_core::report::{StageBreakdown, StageReport};
 
 const HEADERS: [&str; 7] = [
     "stage",
@@ -31,12 +32,76 @@ pub fn print_summary(stages: &[StageReport], out: &mut dyn Write) -> io::Result<
         bytes_written_raw: stages.iter().map(|s| s.bytes_written_raw).sum(),
         attempts_bytes_read: stages.iter().map(|s| s.attempts_bytes_read).sum(),
         attempts_bytes_written: stages.iter().map(|s| s.attempts_bytes_written).sum(),
+        breakdown: StageBreakdown::default(),
     };
-    let header: Vec<String> = HEADERS.iter().map(|h| (*h).to_owned()).collect();
     let rows: Vec<Vec<String>> = stages.iter().map(row).collect();
-    let total = row(&total);
-    let mut widths: Vec<usize> = HEADERS.iter().map(|h| h.len()).collect();
-    for r in rows.iter().chain([&total]) {
+    print_table(&HEADERS, &rows, &row(&total), out)
+}
+
+const BREAKDOWN_HEADERS: [&str; 9] = [
+    "stage",
+    "task s",
+    "compute",
+    "encode",
+    "decode",
+    "storage",
+    "other",
+    "invocation",
+    "orchestration",
+];
+
+/// Writes where each stage's time went (seconds, docs/ARCHITECTURE.md section 14): the tasks'
+/// own time and its parts (compute, encode, decode, storage, and `other`, the rest of the
+/// tasks' time: bookkeeping), all summed over the stage's tasks, then the invocation overhead
+/// (summed over tasks) and the orchestration time (wall-clock, no task running), with a total
+/// row of the column sums.
+pub fn print_breakdown(stages: &[StageReport], out: &mut dyn Write) -> io::Result<()> {
+    let cells = |name: &str, b: &StageBreakdown| {
+        let other = (b.task - b.compute - b.encode - b.decode - b.storage).max(0.0);
+        let mut r = vec![name.to_owned()];
+        for v in [
+            b.task,
+            b.compute,
+            b.encode,
+            b.decode,
+            b.storage,
+            other,
+            b.invocation,
+            b.orchestration,
+        ] {
+            r.push(format!("{v:.2}"));
+        }
+        r
+    };
+    // Not `sum()`: an empty f64 sum is -0.0, which prints as `-0.00`.
+    let sum = |f: fn(&StageBreakdown) -> f64| stages.iter().fold(0.0, |t, s| t + f(&s.breakdown));
+    let total = StageBreakdown {
+        task: sum(|b| b.task),
+        compute: sum(|b| b.compute),
+        encode: sum(|b| b.encode),
+        decode: sum(|b| b.decode),
+        storage: sum(|b| b.storage),
+        invocation: sum(|b| b.invocation),
+        orchestration: sum(|b| b.orchestration),
+    };
+    let rows: Vec<Vec<String>> = stages
+        .iter()
+        .map(|s| cells(&s.name, &s.breakdown))
+        .collect();
+    print_table(&BREAKDOWN_HEADERS, &rows, &cells("total", &total), out)
+}
+
+/// Writes `headers`, `rows`, a rule and `total`, aligned: the first column to the left, the
+/// others to the right.
+fn print_table(
+    headers: &[&str],
+    rows: &[Vec<String>],
+    total: &[String],
+    out: &mut dyn Write,
+) -> io::Result<()> {
+    let header: Vec<String> = headers.iter().map(|h| (*h).to_owned()).collect();
+    let mut widths: Vec<usize> = headers.iter().map(|h| h.len()).collect();
+    for r in rows.iter().map(Vec::as_slice).chain([total]) {
         for (w, cell) in widths.iter_mut().zip(r) {
             *w = (*w).max(cell.chars().count());
         }
@@ -53,12 +118,12 @@ pub fn print_summary(stages: &[StageReport], out: &mut dyn Write) -> io::Result<
         writeln!(out, "{}", text.trim_end())
     };
     line(out, &header)?;
-    for r in &rows {
+    for r in rows {
         line(out, r)?;
     }
     let rule: usize = widths.iter().sum::<usize>() + 2 * (widths.len() - 1);
     writeln!(out, "{}", "-".repeat(rule))?;
-    line(out, &total)
+    line(out, total)
 }
 
 fn row(s: &StageReport) -> Vec<String> {

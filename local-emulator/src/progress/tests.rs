@@ -455,3 +455,44 @@ fn detect_and_stage_names() {
     }
     assert_eq!(track::stage_name("SomeNewMap"), "SomeNewMap");
 }
+
+#[test]
+fn breakdown_table_has_each_part_other_and_a_total() {
+    use hort_core::report::StageBreakdown;
+    let stage = |name: &str, breakdown| StageReport {
+        name: String::from(name),
+        breakdown,
+        ..StageReport::default()
+    };
+    let stages = [
+        stage(
+            "plan",
+            StageBreakdown {
+                orchestration: 0.25,
+                ..StageBreakdown::default()
+            },
+        ),
+        stage(
+            "cast-map",
+            StageBreakdown {
+                task: 4.0,
+                compute: 2.5,
+                encode: 0.5,
+                decode: 0.25,
+                storage: 0.5,
+                invocation: 0.125,
+                orchestration: 0.375,
+            },
+        ),
+    ];
+    let mut out = Vec::new();
+    print_breakdown(&stages, &mut out).unwrap();
+    let expected = "\
+stage     task s  compute  encode  decode  storage  other  invocation  orchestration
+plan        0.00     0.00    0.00    0.00     0.00   0.00        0.00           0.25
+cast-map    4.00     2.50    0.50    0.25     0.50   0.25        0.12           0.38
+------------------------------------------------------------------------------------
+total       4.00     2.50    0.50    0.25     0.50   0.25        0.12           0.62
+";
+    assert_eq!(String::from_utf8(out).unwrap(), expected);
+}
