@@ -203,6 +203,9 @@ const STAGES: [(&str, &str); 5] = [
     ("trace_reduce", "trace-reduce"),
 ];
 
+/// The one Map stage of a fused job.
+const FUSED_STAGE: (&str, &str) = ("render", "render");
+
 fn items_key(stage: &str) -> String {
     format!("jobs/j1/items/{stage}.json")
 }
@@ -210,7 +213,7 @@ fn items_key(stage: &str) -> String {
 /// A store holding `count` items per stage, each `{"task": i, "timeout_seconds": timeout}`.
 fn store_with_items(count: usize, timeout: u64) -> MemoryItems {
     let store = MemoryItems::new();
-    for (_, stage) in STAGES {
+    for (_, stage) in STAGES.iter().chain([&FUSED_STAGE]) {
         let items: Vec<Value> = (0..count)
             .map(|i| json!({"task": i, "timeout_seconds": timeout}))
             .collect();
@@ -239,6 +242,8 @@ type Behaviour = dyn Fn(&Fake, &str, &Value, u32) -> Result<Value, TaskFailure> 
 /// concurrency on its board. Its clock is the one its executions run on.
 struct Fake {
     max_concurrency: u64,
+    /// Plan answers mode `fused` (items for `render` only) instead of `staged`.
+    fused: AtomicBool,
     behaviour: Box<Behaviour>,
     board: Board,
     clock: Arc<ManualClock>,
@@ -273,6 +278,7 @@ impl Fake {
     ) -> Arc<Fake> {
         Arc::new(Fake {
             max_concurrency,
+            fused: AtomicBool::new(false),
             behaviour: Box::new(behaviour),
             board: Board::default(),
             clock: Arc::new(ManualClock::new()),
@@ -343,11 +349,14 @@ impl TaskInvoker for Fake {
         match resource {
             "PlanFunctionArn" => {
                 assert_eq!(input, json!({"job": "j1", "bucket": "b1", "attempt": 0}));
-                let items: serde_json::Map<String, Value> = STAGES
+                let fused = self.fused.load(Ordering::Relaxed);
+                let stages: &[(&str, &str)] = if fused { &[FUSED_STAGE] } else { &STAGES };
+                let items: serde_json::Map<String, Value> = stages
                     .iter()
                     .map(|(field, stage)| (field.to_string(), json!(items_key(stage))))
                     .collect();
-                Ok(json!({"items": items, "max_concurrency": self.max_concurrency}))
+                let mode = if fused { "fused" } else { "staged" };
+                Ok(json!({"mode": mode, "items": items, "max_concurrency": self.max_concurrency}))
             }
             "WorkerFunctionArn" => {
                 let task = input["item"]["task"].as_u64().unwrap_or(0);
@@ -400,6 +409,23 @@ fn the_hort_definition_loads_and_names_its_functions() {
     let functions: Vec<String> = o.functions().into_iter().collect();
     assert_eq!(functions, ["PlanFunctionArn", "WorkerFunctionArn"]);
     assert_eq!(o.machine().start_at, "Plan");
+}
+
+#[test]
+fn a_fused_plan_runs_render_then_combine_and_nothing_staged() {
+    let fake = Fake::ok();
+    fake.fused.store(true, Ordering::Relaxed);
+    let store = store_with_items(3, 60);
+    let (out, _) = run_with(&fake, &store, options(2));
+    let out = out.unwrap();
+    assert_eq!(out["plan"]["mode"], "fused");
+    let calls = fake.worker_calls();
+    let mut stages: Vec<(&str, u64)> = calls.iter().map(|(s, t, _)| (s.as_str(), *t)).collect();
+    stages[..3].sort_unstable();
+    assert_eq!(
+        stages,
+        [("render", 0), ("render", 1), ("render", 2), ("combine", 0)]
+    );
 }
 
 #[test]
@@ -460,6 +486,7 @@ fn all_stages_run_in_order_with_every_item_once() {
         entered,
         [
             "Plan",
+            "ChooseMode",
             "CastMap",
             "CastMapCheck",
             "CastReduce",
