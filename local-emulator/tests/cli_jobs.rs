@@ -174,7 +174,8 @@ fn interrupted_render_leaves_nothing(signal: &str) {
         let line = seen
             .recv_timeout(deadline.saturating_duration_since(Instant::now()))
             .expect("the render shows progress");
-        if line.contains("cast-map: started") {
+        // The first task stage (this job runs fused: render) has begun.
+        if line.contains("render: started") {
             break;
         }
     }
