@@ -1,0 +1,84 @@
+//! The plan's choice of fused or staged on a real scene: a budget that holds the scene runs
+//! fused with one split; a tiny budget runs staged with the fewest splits whose tasks fit; both
+//! give the monolithic image and hit buffer bit for bit.
+
+use hort_core::ids::JobId;
+use hort_core::pipeline::{
+    ExecutionMode, PipelineOptions, PlanRequest, SplitMode, run_pipeline, task_bytes,
+};
+use hort_core::render::{RenderSettings, build_scene_bvh, render};
+use hort_core::scene::load_scene;
+use hort_core::store::MemoryStore;
+use hort_tests::{hit_bits, pixel_bits};
+
+/// 120,000 generated triangles: over what one 128 MB task holds (about 104,000 with this
+/// image's small spans), far under what a 2048 MB one does.
+const TRIANGLES: u64 = 120_000;
+
+#[test]
+fn a_tiny_budget_runs_staged_with_the_fewest_splits_and_a_large_one_fused() {
+    let dir = std::env::temp_dir().join(format!("hort-mode-choice-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("g.obj");
+    let mut file = std::fs::File::create(&path).unwrap();
+    hort_core::generate::generate_scene(TRIANGLES, 3, &mut file).unwrap();
+    drop(file);
+    let scene = load_scene(&path).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    let (width, height) = (64, 48);
+    let mono = render(
+        &scene,
+        &build_scene_bvh(&scene.mesh),
+        RenderSettings {
+            width,
+            height,
+            spp: 1,
+            threads: 2,
+        },
+    )
+    .unwrap();
+    for (memory_mb, mode, splits) in [
+        (2048, ExecutionMode::Fused, 1),
+        (128, ExecutionMode::Staged, 2),
+    ] {
+        let request = PlanRequest {
+            width,
+            height,
+            spp: 1,
+            splits: None,
+            spans: Some(4),
+            mode: SplitMode::Spatial,
+            execution: None,
+            memory_mb,
+        };
+        let options = PipelineOptions {
+            job: JobId::new("choice").unwrap(),
+            workers: 2,
+            split_cache_bytes: 0,
+        };
+        let run = run_pipeline(&MemoryStore::new(), &scene, request, &options).unwrap();
+        let what = format!("{memory_mb} MB: {}", run.plan.mode_reason);
+        assert_eq!((run.plan.mode, run.plan.k()), (mode, splits), "{what}");
+        assert_eq!(run.plan.memory_mb, memory_mb);
+        // The fewest: one split fewer would not fit.
+        let span_samples = u64::from(width * height).div_ceil(4);
+        let budget = u64::from(memory_mb) << 20;
+        let held = |k: u64| TRIANGLES.div_ceil(k);
+        assert!(
+            task_bytes(held(u64::from(splits)), span_samples) <= budget,
+            "{what}"
+        );
+        if splits > 1 {
+            assert!(
+                task_bytes(held(u64::from(splits) - 1), span_samples) > budget,
+                "{what}"
+            );
+        }
+        assert_eq!(
+            pixel_bits(&run.image.pixels),
+            pixel_bits(&mono.image.pixels),
+            "{what}"
+        );
+        assert_eq!(hit_bits(&run.hits), hit_bits(&mono.hits), "{what}");
+    }
+}
