@@ -9,8 +9,8 @@ use anyhow::{Result, ensure};
 use hort_core::ids::{JobId, SplitId, Stage};
 use hort_core::keys::split_key;
 use hort_core::pipeline::{
-    PipelineOptions, PipelineRun, PlanRequest, SplitMode, plan_job, resolve_counts, run_pipeline,
-    run_task, split_scene,
+    ExecutionMode, PipelineOptions, PipelineRun, PlanRequest, SplitMode, plan_job, resolve_counts,
+    run_pipeline, run_task, split_scene,
 };
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
 use hort_core::scene::{Scene, load_scene};
@@ -59,7 +59,15 @@ pub fn run_pipeline_bench(args: &PipelineBenchArgs, meter: &dyn MemoryMeter) -> 
     Ok(())
 }
 
-fn request(args: &PipelineBenchArgs, k: u32, s: u32, mode: SplitMode) -> PlanRequest {
+/// The bench's job: `k` splits and `s` spans, fused with one split and staged with more unless
+/// `execution` forces a mode.
+fn request(
+    args: &PipelineBenchArgs,
+    k: u32,
+    s: u32,
+    mode: SplitMode,
+    execution: Option<ExecutionMode>,
+) -> PlanRequest {
     PlanRequest {
         width: args.common.width,
         height: args.common.height,
@@ -67,7 +75,7 @@ fn request(args: &PipelineBenchArgs, k: u32, s: u32, mode: SplitMode) -> PlanReq
         splits: Some(k),
         spans: Some(s),
         mode,
-        execution: None,
+        execution,
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
     }
 }
@@ -143,23 +151,37 @@ fn time_table(scene: &Scene, args: &PipelineBenchArgs, threads: usize) -> Result
         "-".into(),
     ]);
     let pixels = f64::from(args.common.width) * f64::from(args.common.height);
-    for (name, k, s, mode) in [
-        ("MR1 k=1 s=16", 1, 16, SplitMode::Spatial),
-        ("MR2 k=8 s=16 spatial", 8, 16, SplitMode::Spatial),
-        ("MR2 k=8 s=16 naive", 8, 16, SplitMode::Naive),
+    // Fused is what a scene that fits one function runs; staged k=1 is the paper's MR1, k=8 MR2.
+    for (name, k, s, mode, execution) in [
+        ("fused k=1 s=16", 1, 16, SplitMode::Spatial, None),
+        (
+            "MR1 staged k=1 s=16",
+            1,
+            16,
+            SplitMode::Spatial,
+            Some(ExecutionMode::Staged),
+        ),
+        ("MR2 k=8 s=16 spatial", 8, 16, SplitMode::Spatial, None),
+        ("MR2 k=8 s=16 naive", 8, 16, SplitMode::Naive, None),
     ] {
-        let (run, seconds) = run(scene, request(args, k, s, mode), threads)?;
+        let (run, seconds) = run(scene, request(args, k, s, mode, execution), threads)?;
         let identical = run.image.pixels == mono.image.pixels && run.hits == mono.hits;
         ensure!(
             identical,
             "{name}: the pipeline image differs from the monolithic one"
         );
-        let cast_samples: u64 = run
-            .plan
-            .cast_tasks
-            .iter()
-            .map(|t| run.plan.spans[t.span as usize].end - run.plan.spans[t.span as usize].start)
-            .sum();
+        // A fused task casts its span against every split.
+        let cast_samples: u64 = if run.plan.mode == ExecutionMode::Fused {
+            pixels as u64 * u64::from(run.plan.k())
+        } else {
+            run.plan
+                .cast_tasks
+                .iter()
+                .map(|t| {
+                    run.plan.spans[t.span as usize].end - run.plan.spans[t.span as usize].start
+                })
+                .sum()
+        };
         let stage_metrics = |stage: Stage| {
             run.stages
                 .iter()
@@ -212,9 +234,12 @@ fn skip_table(
         let k = 8.min(scene.mesh.triangle_count() as u32);
         let mut naive_bytes = 0u64;
         for mode in [SplitMode::Naive, SplitMode::Spatial] {
-            let (run, _) = run(scene, request(args, k, 16, mode), threads)?;
+            let (run, _) = run(scene, request(args, k, 16, mode, None), threads)?;
             let pairs = f64::from(k) * 16.0;
-            let trace = run.metrics[1 + Stage::TASKS
+            // Metrics are per stage of the plan's mode, plan first.
+            let trace = run.metrics[run
+                .plan
+                .stages()
                 .iter()
                 .position(|s| *s == Stage::TraceMap)
                 .unwrap_or(0)];
@@ -274,7 +299,7 @@ fn memory_table(
     // Splitter: the parsed scene plus one split's buffers at a time.
     let store = MemoryStore::new();
     let job = JobId::new("memory")?;
-    let req = request(args, 16, 16, SplitMode::Spatial);
+    let req = request(args, 16, 16, SplitMode::Spatial, None);
     let (shape, s) = resolve_counts(&req, scene.mesh.triangle_count() as u64)?;
     let k = shape.splits;
     meter.reset_peak();
