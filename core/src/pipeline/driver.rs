@@ -4,17 +4,19 @@
 use super::PipelineError;
 use super::outputs::read_outputs;
 use super::plan::{JobPlan, PlanRequest};
-use super::plan_step::plan_into_store;
+use super::plan_step::plan_into_store_keeping;
 use super::runner::{TaskMetrics, run_task_cached};
 use super::split_cache::SplitCache;
 use crate::breakdown::{StageBreakdown, uncovered};
 use crate::hits::Hit;
-use crate::ids::{JobId, Stage};
+use crate::ids::{JobId, SplitId, Stage};
 use crate::image::Image;
+use crate::keys::split_key;
 use crate::report::StageReport;
 use crate::scene::Scene;
 use crate::store::BlobStore;
 use crate::worker_pool::run_indexed;
+use std::sync::Arc;
 use std::sync::Mutex;
 use std::time::Instant;
 
@@ -61,7 +63,14 @@ pub fn run_pipeline(
 ) -> Result<PipelineRun, PipelineError> {
     let job = &options.job;
     let started = Instant::now();
-    let planned = plan_into_store(store, job, scene, &request)?;
+    // In one process the split objects the plan step builds are the ones the tasks would
+    // decode from storage (the encoding is lossless): keep them for the workers' caches.
+    let mut built = Vec::new();
+    let planned = plan_into_store_keeping(store, job, scene, &request, |split, object| {
+        if options.split_cache_bytes > 0 {
+            built.push((split, Arc::new(object)));
+        }
+    })?;
     let plan = planned.plan;
     let mut stages = vec![StageReport {
         name: Stage::Plan.to_string(),
@@ -81,6 +90,12 @@ pub fn run_pipeline(
     let caches: Vec<SplitCache> = (0..options.workers.max(1))
         .map(|_| SplitCache::new(options.split_cache_bytes))
         .collect();
+    for (split, object) in built {
+        let key = split_key(job, SplitId(split));
+        for cache in &caches {
+            cache.insert(&key, Arc::clone(&object));
+        }
+    }
     for &stage in plan.mode.task_stages() {
         let stage_start = Instant::now();
         let tasks = plan.task_count(stage);

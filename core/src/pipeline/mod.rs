@@ -46,7 +46,7 @@ pub use plan::{
     CastTask, JobPlan, MAX_SPANS, MAX_SPLITS, PLAN_FORMAT_VERSION, PlanRequest, Span, SplitInfo,
     TraceTask, plan_job, resolve_counts,
 };
-pub use plan_step::{PlannedJob, plan_into_store};
+pub use plan_step::{PlannedJob, plan_into_store, plan_into_store_keeping};
 pub use records::{Occluded, PixelBlock, ShadowQuery, SurfaceHit};
 /// The shuffle record decoders and encoders, public for the fuzz targets in `fuzz/`.
 pub use records::{
@@ -56,7 +56,7 @@ pub use records::{
 pub use runner::{
     RebuildSplit, TaskMetrics, micros, producer_of, run_task, run_task_cached, run_task_with, timed,
 };
-pub use split::{SplitMode, assign_splits, rebuild_split, split_scene};
+pub use split::{SplitMode, assign_splits, rebuild_split, split_scene, split_scene_objects};
 pub use split_cache::SplitCache;
 pub use split_object::TriangleShading;
 pub use split_object::{SPLIT_FORMAT_VERSION, SplitObject, decode_split, encode_split};

@@ -3,7 +3,8 @@
 
 use super::PipelineError;
 use super::plan::{JobPlan, PlanRequest, plan_job, resolve_counts};
-use super::split::split_scene;
+use super::split::split_scene_objects;
+use super::split_object::SplitObject;
 use crate::ids::{JobId, SplitId};
 use crate::keys::{plan_key, split_key};
 use crate::scene::Scene;
@@ -27,12 +28,29 @@ pub fn plan_into_store(
     scene: &Scene,
     request: &PlanRequest,
 ) -> Result<PlannedJob, PipelineError> {
+    plan_into_store_keeping(store, job, scene, request, |_, _| {})
+}
+
+/// [`plan_into_store`] that also hands `keep` each split object as it is stored (id, object:
+/// what decoding the stored bytes gives back), for an in-process caller that can keep it instead
+/// of decoding it again.
+pub fn plan_into_store_keeping(
+    store: &dyn BlobStore,
+    job: &JobId,
+    scene: &Scene,
+    request: &PlanRequest,
+    mut keep: impl FnMut(u32, SplitObject),
+) -> Result<PlannedJob, PipelineError> {
     let (shape, s) = resolve_counts(request, scene.mesh.triangle_count() as u64)?;
-    let infos = split_scene(
+    let infos = split_scene_objects(
         &scene.mesh,
         shape.splits as usize,
         request.mode,
-        |split, bytes| store.put(&split_key(job, SplitId(split)), &bytes),
+        |split, object, bytes| {
+            store.put(&split_key(job, SplitId(split)), &bytes)?;
+            keep(split, object);
+            Ok::<(), crate::store::StoreError>(())
+        },
     )?;
     let plan = plan_job(scene, request, infos, &shape, s)?;
     let plan_json = serde_json::to_vec_pretty(&plan)

@@ -195,10 +195,13 @@ impl Task<'_> {
                     .map(|split| self.read_split(split))
                     .collect::<Result<Vec<_>, _>>()?;
                 let splits: Vec<&SplitObject> = splits.iter().map(Arc::as_ref).collect();
-                let (block, shadow_rays) = stages::render_span(plan, &span, &splits)?;
+                let (block, shadow_rays) = timed(&mut self.metrics.compute_us, || {
+                    stages::render_span(plan, &span, &splits)
+                })?;
                 self.metrics.shadow_rays += shadow_rays;
                 let n = block.colours.len();
-                self.write(&self.key(stage, task, 0), encode_pixels(&block), n)
+                let bytes = timed(&mut self.metrics.encode_us, || encode_pixels(&block));
+                self.write(&self.key(stage, task, 0), bytes, n)
             }
             Stage::CastMap => {
                 let t = *plan

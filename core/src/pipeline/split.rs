@@ -100,11 +100,23 @@ pub fn split_scene<E>(
     mode: SplitMode,
     mut emit: impl FnMut(u32, Vec<u8>) -> Result<(), E>,
 ) -> Result<Vec<super::SplitInfo>, E> {
+    split_scene_objects(mesh, k, mode, |split, _, bytes| emit(split, bytes))
+}
+
+/// [`split_scene`] that also hands `emit` each split object as built, before it is dropped:
+/// exactly what [`super::decode_split`] gives back from its bytes (the encoding is lossless),
+/// for a caller that keeps it instead of decoding it again.
+pub fn split_scene_objects<E>(
+    mesh: &Mesh,
+    k: usize,
+    mode: SplitMode,
+    mut emit: impl FnMut(u32, SplitObject, Vec<u8>) -> Result<(), E>,
+) -> Result<Vec<super::SplitInfo>, E> {
     let mut infos = Vec::with_capacity(k);
     for (split, ids) in assign_splits(mesh, k, mode).into_iter().enumerate() {
-        let (info, bytes) = build_split(mesh, split as u32, ids);
+        let (info, object, bytes) = build_split_object(mesh, split as u32, ids);
         infos.push(info);
-        emit(split as u32, bytes)?;
+        emit(split as u32, object, bytes)?;
     }
     Ok(infos)
 }
@@ -121,6 +133,16 @@ pub fn rebuild_split(mesh: &Mesh, k: usize, mode: SplitMode, split: u32) -> Opti
 
 /// Builds split `split` of the triangles `ids`: its summary and its encoded object.
 fn build_split(mesh: &Mesh, split: u32, ids: Vec<u32>) -> (super::SplitInfo, Vec<u8>) {
+    let (info, _, bytes) = build_split_object(mesh, split, ids);
+    (info, bytes)
+}
+
+/// Builds split `split` of the triangles `ids`: its summary, the object and its encoding.
+fn build_split_object(
+    mesh: &Mesh,
+    split: u32,
+    ids: Vec<u32>,
+) -> (super::SplitInfo, SplitObject, Vec<u8>) {
     let triangles = ids.iter().map(|&i| mesh.corners(i as usize)).collect();
     let bvh = Bvh::build(triangles, ids);
     let shading = bvh
@@ -146,7 +168,7 @@ fn build_split(mesh: &Mesh, split: u32, ids: Vec<u32>) -> (super::SplitInfo, Vec
         hi: bounds.hi.to_array(),
         bytes: bytes.len() as u64,
     };
-    (info, bytes)
+    (info, object, bytes)
 }
 
 #[cfg(test)]
