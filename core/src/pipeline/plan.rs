@@ -288,12 +288,12 @@ pub fn resolve_counts(
     let pixels = u64::from(request.width) * u64::from(request.height);
     let max_k = triangles.min(u64::from(MAX_SPLITS)) as u32;
     let max_s = pixels.min(u64::from(MAX_SPANS)) as u32;
-    if let Some(k) = request.splits {
-        if k == 0 || k > max_k {
-            return Err(PipelineError::BadInput(format!(
-                "--splits {k} is out of range: the scene has {triangles} triangles, so use 1 to {max_k}"
-            )));
-        }
+    if let Some(k) = request.splits
+        && (k == 0 || k > max_k)
+    {
+        return Err(PipelineError::BadInput(format!(
+            "--splits {k} is out of range: the scene has {triangles} triangles, so use 1 to {max_k}"
+        )));
     }
     let s = match request.spans {
         Some(s) if s == 0 || s > max_s => {
