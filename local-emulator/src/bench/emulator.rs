@@ -12,15 +12,12 @@ use super::scenes::{bundled, generated};
 use super::table::{Table, f3};
 use anyhow::Result;
 use asl_interpreter::NoObserver;
-use hort::emulator::{EmulatorConfig, FaultSettings, StorageTarget, run_job};
-use hort_core::cost::Arch;
+use hort::emulator::{EmulatorConfig, FaultSettings, run_job};
 use hort_core::ids::JobId;
 use hort_core::pipeline::{ExecutionMode, PipelineOptions, PlanRequest, SplitMode, run_pipeline};
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
 use hort_core::scene::load_scene;
 use hort_core::store::MemoryStore;
-use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 /// Options of `hort bench emulator`.
@@ -43,17 +40,8 @@ pub struct EmulatorBenchArgs {
 
 fn emulator_config(workers: usize, faults: FaultSettings) -> EmulatorConfig {
     EmulatorConfig {
-        storage: StorageTarget::Embedded { data_dir: None },
-        job: None,
-        workers,
         faults,
-        time_scale: 1.0,
-        task_timeout_seconds: None,
-        split_cache_bytes: 1 << 30,
-        memory_mb: 2048,
-        arch: Arch::Arm64,
-        cancel: Arc::new(AtomicBool::new(false)),
-        lambda: None,
+        ..EmulatorConfig::embedded(workers)
     }
 }
 

@@ -13,12 +13,10 @@ use super::scenes::generated;
 use super::table::{Table, f3};
 use anyhow::{Result, bail};
 use asl_interpreter::{Event, Observer};
-use hort::emulator::{EmulatorConfig, EmulatorRun, FaultSettings, StorageTarget, run_job};
-use hort_core::cost::Arch;
+use hort::emulator::{EmulatorConfig, EmulatorRun, FaultSettings, run_job};
 use hort_core::pipeline::{PlanRequest, SplitMode};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 /// Options of `hort bench faults`.
@@ -136,17 +134,8 @@ fn parse_seed_range(text: &str) -> Result<(u64, u64), String> {
 
 fn config(slots: usize, faults: FaultSettings) -> EmulatorConfig {
     EmulatorConfig {
-        storage: StorageTarget::Embedded { data_dir: None },
-        job: None,
-        workers: slots,
         faults,
-        time_scale: 1.0,
-        task_timeout_seconds: None,
-        split_cache_bytes: 1 << 30,
-        memory_mb: 2048,
-        arch: Arch::Arm64,
-        cancel: Arc::new(AtomicBool::new(false)),
-        lambda: None,
+        ..EmulatorConfig::embedded(slots)
     }
 }
 

@@ -79,6 +79,26 @@ pub struct EmulatorConfig {
     pub lambda: Option<LambdaTarget>,
 }
 
+impl EmulatorConfig {
+    /// A fresh embedded S3 server in a temporary folder, `workers` function slots, no faults,
+    /// real time, derived timeouts, 1 GiB of split cache, 2048 MB arm64 functions.
+    pub fn embedded(workers: usize) -> EmulatorConfig {
+        EmulatorConfig {
+            storage: StorageTarget::Embedded { data_dir: None },
+            job: None,
+            workers,
+            faults: FaultSettings::default(),
+            time_scale: 1.0,
+            task_timeout_seconds: None,
+            split_cache_bytes: 1 << 30,
+            memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
+            arch: Arch::Arm64,
+            cancel: Arc::new(AtomicBool::new(false)),
+            lambda: None,
+        }
+    }
+}
+
 /// A finished job as the emulator saw it.
 pub struct EmulatorRun {
     /// The job's id.
@@ -93,7 +113,7 @@ pub struct EmulatorRun {
     pub png: Vec<u8>,
     /// The hit buffer the Combine function stored.
     pub hits: Vec<Hit>,
-    /// `plan`, then the five task stages, then `combine`.
+    /// `plan`, then the task stages of the plan's mode, `combine` last.
     pub stages: Vec<StageReport>,
     /// What each top-level state used (time, attempts, storage traffic), in order entered.
     pub usage: Vec<StageUsage>,

@@ -5,16 +5,13 @@ use super::metrics::errors;
 use super::{Point, Series};
 use anyhow::{Context, Result, anyhow, bail};
 use asl_interpreter::NoObserver;
-use hort::emulator::{EmulatorConfig, FaultSettings, StorageTarget, run_job};
+use hort::emulator::{EmulatorConfig, run_job};
 use hort_core::bvh::Bvh;
-use hort_core::cost::Arch;
 use hort_core::image::{Image, decode_pfm};
 use hort_core::pipeline::{PlanRequest, SplitMode};
 use hort_core::render::{RenderSettings, build_scene_bvh, render};
 use hort_core::scene::{Scene, load_scene};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 /// A loaded scene, its BVH and its reference image.
@@ -114,19 +111,7 @@ pub fn distributed(
     spp: &[u32],
     workers: usize,
 ) -> Result<Vec<Point>> {
-    let config = EmulatorConfig {
-        storage: StorageTarget::Embedded { data_dir: None },
-        job: None,
-        workers,
-        faults: FaultSettings::default(),
-        time_scale: 1.0,
-        task_timeout_seconds: None,
-        split_cache_bytes: 1 << 30,
-        memory_mb: 2048,
-        arch: Arch::Arm64,
-        cancel: Arc::new(AtomicBool::new(false)),
-        lambda: None,
-    };
+    let config = EmulatorConfig::embedded(workers);
     let mut points = Vec::new();
     for s in series {
         for &n in spp {
