@@ -137,6 +137,18 @@ pub fn encode_scene(scene: &Scene) -> Vec<u8> {
     out
 }
 
+/// The binary scene a client stores for `scene`, loaded from a main file named `main_name`:
+/// [`encode_scene`] of the scene with `source` set to `main_name` (the name the job request
+/// gives it) and without its warnings (the client showed them). So its bytes depend on the
+/// scene files' contents and the main file's name only, not on the folder it was loaded from.
+pub fn encode_scene_named(scene: &Scene, main_name: &str) -> Vec<u8> {
+    encode_scene(&Scene {
+        source: PathBuf::from(main_name),
+        warnings: Vec::new(),
+        ..scene.clone()
+    })
+}
+
 /// Decodes a binary scene read from `name` (an object key or file path, for messages). See the
 /// module documentation for what is checked.
 pub fn decode_scene(name: &str, bytes: &[u8]) -> Result<Scene, SceneBinaryError> {

@@ -14,7 +14,7 @@ mod world;
 
 pub use binary::{
     SCENE_BINARY_HEADER_LEN, SCENE_BINARY_MAGIC, SCENE_BINARY_VERSION, SceneBinaryError,
-    decode_scene, encode_scene,
+    decode_scene, encode_scene, encode_scene_named,
 };
 pub use framing::{default_camera, default_light, framed_camera, scene_bounds};
 pub use manifest::{MANIFEST_SCHEMA, Manifest, parse_manifest};

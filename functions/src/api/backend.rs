@@ -108,6 +108,10 @@ pub struct JobSpec {
     pub main: String,
     /// Every file of the scene, relative to the scene's folder.
     pub files: BTreeMap<String, Vec<u8>>,
+    /// The scene the request was checked with, in the binary scene format
+    /// ([`hort_core::scene::encode_scene_named`]): a backend that stores it instead of the files
+    /// spares the Plan function a second parse.
+    pub scene_bin: Vec<u8>,
     /// Image size, samples, splits, spans (resolved and checked) and split mode.
     pub request: PlanRequest,
     /// The prediction the request was checked against.

@@ -544,6 +544,7 @@ fn post_renders(
             },
         );
     }
+    let scene_bin = hort_core::scene::encode_scene_named(&loaded.scene, &loaded.files.main);
     let LoadedScene {
         files, warnings, ..
     } = loaded;
@@ -551,6 +552,7 @@ fn post_renders(
         scene_name: files.name,
         main: files.main,
         files: files.files,
+        scene_bin,
         request: plan_request,
         prediction: prediction.clone(),
         max_cost_usd: request.max_cost_usd,

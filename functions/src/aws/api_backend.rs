@@ -18,7 +18,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 use hort_core::cost::Arch;
 use hort_core::ids::{JobId, Stage};
 use hort_core::image::{decode_pfm, encode_exr};
-use hort_core::keys::{image_key, manifest_key, parse_partition_key, scene_prefix};
+use hort_core::keys::{image_key, manifest_key, parse_partition_key, scene_binary_key};
 use hort_core::store::{BlobStore, PutOutcome, StoreError};
 use serde::{Deserialize, Serialize};
 use tokio::runtime::Handle;
@@ -131,21 +131,18 @@ impl AwsBackend {
             .map_err(|e| ApiError::internal(format!("the record {key} is malformed: {e}")))
     }
 
-    /// Stores the scene and the job request of `spec` as job `job`.
+    /// Stores the scene (the binary scene the API parsed and checked, so the Plan function
+    /// decodes it and never parses the files again) and the job request of `spec` as job `job`.
     fn store_job(&self, job: &JobId, spec: &JobSpec) -> Result<(), ApiError> {
-        let prefix = scene_prefix(job);
-        for (name, bytes) in &spec.files {
-            self.store
-                .put(&format!("{prefix}{name}"), bytes)
-                .map_err(|e| Self::storage_error("cannot store the scene", e))?;
-        }
+        self.store
+            .put(&scene_binary_key(job), &spec.scene_bin)
+            .map_err(|e| Self::storage_error("cannot store the scene", e))?;
         let request = JobRequest {
             scene: spec.main.clone(),
             render: spec.request,
             max_concurrency: self.limits.max_concurrency,
             task_timeout_seconds: None,
-            // The API only validated the files: the Plan function parses them, once.
-            scene_format: crate::handlers::SceneFormat::Files,
+            scene_format: crate::handlers::SceneFormat::Binary,
         };
         let json = serde_json::to_vec(&request)
             .map_err(|e| ApiError::internal(format!("cannot encode the job request: {e}")))?;

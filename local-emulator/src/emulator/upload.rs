@@ -29,7 +29,7 @@ use hort_core::keys::{
     hits_key, image_key, manifest_key, partition_key, plan_key, scene_binary_key, scene_prefix,
 };
 use hort_core::pipeline::{JobPlan, TaskMetrics};
-use hort_core::scene::{Scene, encode_scene, parse_manifest};
+use hort_core::scene::{Scene, encode_scene_named, parse_manifest};
 use hort_core::store::{BlobStore, PutOutcome, StoreError};
 use hort_functions::S3Store;
 use hort_functions::handlers::{JobRequest, SceneFormat, WorkerEvent};
@@ -93,16 +93,12 @@ pub fn scene_files(main: &Path) -> Result<Vec<PathBuf>> {
 }
 
 /// The binary scene the client stores for `scene`, loaded from a main file named `main_name`:
-/// [`encode_scene`] of the scene with `source` set to `main_name` (the name the job request
+/// [`encode_scene_named`] of the scene with `source` set to `main_name` (the name the job request
 /// gives it) and without its warnings (the client showed them). So its bytes depend on the
 /// scene files' contents and the main file's name only, not on the folder the client ran in,
 /// and a resumed job can compare them.
 pub fn binary_scene(scene: &Scene, main_name: &str) -> Vec<u8> {
-    encode_scene(&Scene {
-        source: PathBuf::from(main_name),
-        warnings: Vec::new(),
-        ..scene.clone()
-    })
+    encode_scene_named(scene, main_name)
 }
 
 /// Uploads the scene (`scene`, loaded from `main`, in `request.scene_format`) and creates the
