@@ -508,7 +508,16 @@ fn the_deployment_api_backend_queues_starts_reports_and_cancels_jobs() {
     assert_eq!(manifest.scene, "a.obj");
     assert_eq!(manifest.max_concurrency, 50);
     assert_eq!((manifest.render.width, manifest.render.height), (32, 24));
-    assert!(store.get(&format!("jobs/{job}/scene/a.obj")).is_ok());
+    // The scene the API parsed, stored once as scene.bin: the Plan function decodes it and
+    // never parses the OBJ again (so the OBJ itself is not stored).
+    assert_eq!(
+        manifest.scene_format,
+        hort_functions::handlers::SceneFormat::Binary
+    );
+    let key = format!("jobs/{job}/scene/scene.bin");
+    let scene = hort_core::scene::decode_scene(&key, &store.get(&key).unwrap()).unwrap();
+    assert_eq!(scene.mesh.triangle_count(), 1);
+    assert!(store.get(&format!("jobs/{job}/scene/a.obj")).is_err());
 
     let (status, queued) = call(&backend, "GET", &format!("/renders/{job}"), None, None);
     assert_eq!(
