@@ -247,6 +247,46 @@ pub fn decode_block(
     })
 }
 
+/// Relabels the block `bytes` read from `key`, which must be of kind `from`, as kind `to`: the
+/// same records, the same payload bytes, only the header's kind and block CRC rewritten.
+///
+/// Guarantees: for every `raw` and `count`, `relabel_block(k, &encode_block(from, count, raw),
+/// from, to)` is `Ok(encode_block(to, count, raw))` byte for byte, since the level is fixed and
+/// the payload is copied; a reader of the result sees exactly what a reader of the input sees.
+/// Costs one CRC pass over the bytes and one copy: the payload is not decompressed. It checks
+/// the header (magic, version, kind `from`, raw length) and the block CRC, which covers every
+/// stored byte, so storage damage is caught here, and fails with the same errors as
+/// [`decode_block`]; the raw CRC and the payload travel unchanged, to be checked when the
+/// result is decoded.
+pub fn relabel_block(
+    key: &str,
+    bytes: &[u8],
+    from: RecordKind,
+    to: RecordKind,
+) -> Result<Vec<u8>, BlockError> {
+    relabel(bytes, from, to).map_err(|problem| BlockError {
+        key: key.to_owned(),
+        problem,
+    })
+}
+
+fn relabel(bytes: &[u8], from: RecordKind, to: RecordKind) -> Result<Vec<u8>, BlockProblem> {
+    let (head, payload) = bytes
+        .split_first_chunk::<BLOCK_HEADER_LEN>()
+        .ok_or(BlockProblem::TooShort { len: bytes.len() })?;
+    parse_header(head, from)?;
+    let stored = u32_at(head, BLOCK_CRC_AT);
+    let computed = checksum(&head[..BLOCK_CRC_AT], payload);
+    if stored != computed {
+        return Err(BlockProblem::BlockChecksumMismatch { stored, computed });
+    }
+    let mut out = bytes.to_vec();
+    out[10..12].copy_from_slice(&to.code().to_le_bytes());
+    let block_crc = checksum(&out[..BLOCK_CRC_AT], payload);
+    out[BLOCK_CRC_AT..BLOCK_HEADER_LEN].copy_from_slice(&block_crc.to_le_bytes());
+    Ok(out)
+}
+
 fn decode(bytes: &[u8], expected: RecordKind) -> Result<Block, BlockProblem> {
     let (head, payload) = bytes
         .split_first_chunk::<BLOCK_HEADER_LEN>()
