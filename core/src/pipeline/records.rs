@@ -65,9 +65,10 @@ fn corrupt(key: &str, e: ColumnError) -> PipelineError {
     PipelineError::Corrupt(format!("shuffle block {key}: {e}"))
 }
 
+/// Writes vectors as three f32 delta columns (x, y, z): neighbouring records' vectors are close.
 fn put_vec3s(w: &mut ColumnWriter, values: impl Iterator<Item = Vec3> + Clone) {
     for axis in 0..3 {
-        w.put_f32(&values.clone().map(|v| v[axis]).collect::<Vec<_>>());
+        w.put_f32_delta(&values.clone().map(|v| v[axis]).collect::<Vec<_>>());
     }
 }
 
@@ -99,7 +100,7 @@ pub fn encode_surface_hits(kind: RecordKind, hits: &[SurfaceHit]) -> Vec<u8> {
     let mut w = ColumnWriter::new();
     w.put_u32_sorted_delta(&hits.iter().map(|h| h.pixel).collect::<Vec<_>>());
     w.put_u32(&hits.iter().map(|h| h.sample).collect::<Vec<_>>());
-    w.put_f32(&hits.iter().map(|h| h.t).collect::<Vec<_>>());
+    w.put_f32_delta(&hits.iter().map(|h| h.t).collect::<Vec<_>>());
     w.put_u32(&hits.iter().map(|h| h.triangle).collect::<Vec<_>>());
     let s = hits.iter().map(|h| h.surface);
     put_vec3s(&mut w, s.clone().map(|s| s.p));
@@ -361,5 +362,37 @@ mod tests {
             ts: vec![2.5, f32::INFINITY],
         };
         assert_eq!(decode_pixels("k", &encode_pixels(&pixels)).unwrap(), pixels);
+    }
+
+    /// Blocks written before the f32 delta columns (every float as plain byte planes, tag 3)
+    /// decode to the same queries as the current layout.
+    #[test]
+    fn plain_f32_columns_of_earlier_blocks_still_decode() {
+        let queries: Vec<ShadowQuery> = (0..20)
+            .map(|i| ShadowQuery {
+                pixel: i,
+                sample: 1,
+                light: i % 3,
+                origin: Vec3::new(i as f32, -0.0, f32::MIN_POSITIVE * i as f32),
+            })
+            .collect();
+        let mut w = ColumnWriter::new();
+        w.put_u32_sorted_delta(&queries.iter().map(|q| q.pixel).collect::<Vec<_>>());
+        w.put_u32(&queries.iter().map(|q| q.sample).collect::<Vec<_>>());
+        w.put_u32(&queries.iter().map(|q| q.light).collect::<Vec<_>>());
+        for axis in 0..3 {
+            w.put_f32(&queries.iter().map(|q| q.origin[axis]).collect::<Vec<_>>());
+        }
+        let old = encode_block(RecordKind::ShadowQuery, 20, w.as_bytes());
+        let current = encode_queries(&queries);
+        assert_ne!(old, current);
+        let decoded = decode_queries("k", &old).unwrap();
+        assert_eq!(decoded, decode_queries("k", &current).unwrap());
+        let bits = |q: &[ShadowQuery]| -> Vec<[u32; 3]> {
+            q.iter()
+                .map(|q| q.origin.to_array().map(f32::to_bits))
+                .collect()
+        };
+        assert_eq!(bits(&decoded), bits(&queries));
     }
 }

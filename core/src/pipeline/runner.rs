@@ -25,7 +25,7 @@ use crate::hits::encode_hits;
 use crate::ids::{JobId, PartitionId, SplitId, Stage, TaskId};
 use crate::image::{encode_pfm, encode_png};
 use crate::keys::{hits_key, image_key, parse_partition_key, partition_key, split_key};
-use crate::shuffle::RecordKind;
+use crate::shuffle::{RecordKind, relabel_block};
 use crate::store::BlobStore;
 use std::sync::Arc;
 use std::time::Instant;
@@ -220,6 +220,10 @@ impl Task<'_> {
                     .spans
                     .get(task as usize)
                     .ok_or_else(|| missing("spans"))?;
+                let inputs: Vec<_> = plan.cast_tasks_of(task).collect();
+                if let [only] = inputs[..] {
+                    return self.pass_through_hits(only.task, task);
+                }
                 let mut inputs = Vec::new();
                 for t in plan.cast_tasks_of(task) {
                     let key = self.key(Stage::CastMap, t.task, task);
@@ -421,6 +425,21 @@ impl Task<'_> {
         timed(&mut self.metrics.decode_us, || decode(key, &bytes))
     }
 
+    /// CastReduce of a span with one CastMap input (`cast_task`): those candidates are already
+    /// the nearest hit per sample, sorted, so decoding, reducing and encoding them would give
+    /// the same raw bytes. The block is relabelled instead ([`relabel_block`]): the stored Hit
+    /// block is byte for byte what the general path writes, at the cost of one CRC pass and a
+    /// copy (timed as decoding).
+    fn pass_through_hits(&mut self, cast_task: u32, span: u32) -> Result<(), PipelineError> {
+        let key = self.key(Stage::CastMap, cast_task, span);
+        let block = self.read(&key, |k, b| {
+            relabel_block(k, b, RecordKind::CastCandidate, RecordKind::Hit)
+                .map_err(|e| PipelineError::Corrupt(e.to_string()))
+        })?;
+        let records = record_count(&block);
+        self.write(&self.key(Stage::CastReduce, span, 0), block, records)
+    }
+
     fn write_hits(
         &mut self,
         stage: Stage,
@@ -454,6 +473,14 @@ impl Task<'_> {
         timed(&mut self.metrics.storage_us, || store.put(key, &bytes))?;
         Ok(())
     }
+}
+
+/// The record count recorded at bytes 12..20 of a block header already checked.
+fn record_count(block: &[u8]) -> usize {
+    block
+        .get(12..20)
+        .and_then(|b| b.try_into().ok())
+        .map_or(0, u64::from_le_bytes) as usize
 }
 
 /// The raw (uncompressed) length recorded at bytes 20..28 of a block header we just encoded.
@@ -602,5 +629,68 @@ mod tests {
             )
         );
         assert!(err.is_retryable());
+    }
+
+    #[test]
+    fn a_single_input_cast_reduce_stores_the_bytes_of_the_general_path() {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/teapot/teapot.json");
+        let scene = crate::scene::load_scene(std::path::Path::new(dir)).unwrap();
+        let (mut single, mut several) = (0, 0);
+        // k = 1: every span has one input; k = 4: the teapot's spans have several or none.
+        for k in [1, 4] {
+            let store = MemoryStore::new();
+            let job = JobId::new("single").unwrap();
+            let request = PlanRequest {
+                width: 32,
+                height: 24,
+                spp: 2,
+                splits: Some(k),
+                spans: Some(8),
+                mode: SplitMode::Spatial,
+                execution: Some(crate::pipeline::ExecutionMode::Staged),
+                memory_mb: crate::pipeline::DEFAULT_MEMORY_MB,
+            };
+            let plan = plan_into_store(&store, &job, &scene, &request)
+                .unwrap()
+                .plan;
+            for t in &plan.cast_tasks {
+                run_task(&store, &job, &plan, Stage::CastMap, t.task).unwrap();
+            }
+            for span in 0..plan.spans.len() as u32 {
+                let keys: Vec<_> = plan
+                    .cast_tasks_of(span)
+                    .map(|t| partition_key(&job, Stage::CastMap, TaskId(t.task), PartitionId(span)))
+                    .collect();
+                let candidates = keys
+                    .iter()
+                    .map(|k| {
+                        let bytes = store.get(k).unwrap();
+                        decode_surface_hits(k, &bytes, RecordKind::CastCandidate).unwrap()
+                    })
+                    .collect();
+                let hits = stages::cast_reduce(candidates);
+                let expected = encode_surface_hits(RecordKind::Hit, &hits);
+                let output = partition_key(&job, Stage::CastReduce, TaskId(span), PartitionId(0));
+                let m = run_task(&store, &job, &plan, Stage::CastReduce, span).unwrap();
+                assert_eq!(store.get(&output).unwrap(), expected, "k {k} span {span}");
+                assert_eq!(m.records, hits.len() as u64, "k {k} span {span}");
+                let [key] = &keys[..] else {
+                    several += usize::from(keys.len() > 1);
+                    continue;
+                };
+                single += usize::from(!hits.is_empty());
+                // A damaged input is recomputed from its producer; the output is the same.
+                let mut bad = store.get(key).unwrap();
+                let at = bad.len() - 1;
+                bad[at] ^= 0x10;
+                store.put(key, &bad).unwrap();
+                store.delete(&output).unwrap();
+                let m = run_task(&store, &job, &plan, Stage::CastReduce, span).unwrap();
+                assert_eq!(m.recomputed, 1, "k {k} span {span}");
+                assert_eq!(store.get(&output).unwrap(), expected, "k {k} span {span}");
+            }
+        }
+        assert!(single > 0, "no span had a single cast-map input with hits");
+        assert!(several > 0, "no span had several cast-map inputs");
     }
 }

@@ -10,9 +10,11 @@
 //! | 2 | [`ColumnWriter::put_u32`] | byte planes: every value's byte 0, then every byte 1, ... (little-endian) |
 //! | 3 | [`ColumnWriter::put_f32`] | byte planes of the IEEE-754 bits (exact, NaN payloads kept) |
 //! | 4 | [`ColumnWriter::put_bytes`] | the bytes |
+//! | 5 | [`ColumnWriter::put_f32_delta`] | byte planes of the zigzagged differences (mod 2^32) of successive IEEE-754 bit patterns, the first from 0 (exact) |
 //!
 //! Byte planes put the slowly varying high bytes (exponents, high id bits) next to each other,
-//! where zstd finds long runs. Reading never panics and never allocates more than the input
+//! where zstd finds long runs; bit differences of neighbouring samples' nearby floats (positions,
+//! normals, distances) also clear most of the middle bytes. Reading never panics and never allocates more than the input
 //! length allows; errors carry no key (the caller adds it).
 
 use super::varint::{self, VarintError};
@@ -62,6 +64,17 @@ const TAG_U32_SORTED_DELTA: u8 = 1;
 const TAG_U32: u8 = 2;
 const TAG_F32: u8 = 3;
 const TAG_BYTES: u8 = 4;
+const TAG_F32_DELTA: u8 = 5;
+
+/// Zigzag: small differences of either sign become small unsigned numbers.
+fn zigzag(delta: u32) -> u32 {
+    let d = delta as i32;
+    ((d << 1) ^ (d >> 31)) as u32
+}
+
+fn unzigzag(z: u32) -> u32 {
+    (z >> 1) ^ (z & 1).wrapping_neg()
+}
 
 /// Builds the raw bytes of a block one column at a time. Output is a pure function of the calls.
 #[derive(Debug, Clone, Default)]
@@ -100,6 +113,23 @@ impl ColumnWriter {
             values.iter().map(|v| v.to_bits().to_le_bytes()),
             values.len(),
         );
+    }
+
+    /// Appends a column of `f32`s (their exact bits) as the zigzagged differences of successive
+    /// bit patterns, split into byte planes: smaller than [`ColumnWriter::put_f32`] after zstd
+    /// when neighbouring values are close (measured in docs/ARCHITECTURE.md, section 8).
+    /// [`ColumnReader::read_f32`] reads either.
+    pub fn put_f32_delta(&mut self, values: &[f32]) {
+        self.header(TAG_F32_DELTA, values.len());
+        let mut previous = 0u32;
+        let deltas = values.iter().map(|v| {
+            let bits = v.to_bits();
+            let delta = zigzag(bits.wrapping_sub(previous));
+            previous = bits;
+            delta.to_le_bytes()
+        });
+        let deltas: Vec<[u8; 4]> = deltas.collect();
+        self.put_planes(deltas.iter().copied(), values.len());
     }
 
     /// Appends a column of bytes as they are (flags, small enums, nested encodings).
@@ -177,9 +207,23 @@ impl<'a> ColumnReader<'a> {
         Ok(self.read_u32_planes()?.u32s().collect())
     }
 
-    /// Reads a [`ColumnWriter::put_f32`] column, bit for bit.
+    /// Reads a [`ColumnWriter::put_f32`] or [`ColumnWriter::put_f32_delta`] column, bit for
+    /// bit. Any other tag is a [`ColumnError::WrongType`] naming tag 3.
     pub fn read_f32(&mut self) -> Result<Vec<f32>, ColumnError> {
-        Ok(self.read_f32_planes()?.f32s().collect())
+        if self.rest.first() != Some(&TAG_F32_DELTA) {
+            return Ok(self.read_f32_planes()?.f32s().collect());
+        }
+        let count = self.header(TAG_F32_DELTA, "f32 delta", 4)?;
+        let mut previous = 0u32;
+        let values = self
+            .planes(count)?
+            .u32s()
+            .map(|z| {
+                previous = previous.wrapping_add(unzigzag(z));
+                f32::from_bits(previous)
+            })
+            .collect();
+        Ok(values)
     }
 
     /// Reads a [`ColumnWriter::put_u32`] column in place: its byte planes, borrowed from the

@@ -10,5 +10,5 @@ pub(crate) mod varint;
 
 pub use block::{
     BLOCK_HEADER_LEN, BLOCK_MAGIC, BLOCK_VERSION, Block, BlockError, BlockProblem, MAX_RAW_LEN,
-    RecordKind, ZSTD_LEVEL, decode_block, encode_block,
+    RecordKind, ZSTD_LEVEL, decode_block, encode_block, relabel_block,
 };

@@ -229,3 +229,70 @@ fn frames_without_a_content_size_decode_and_are_length_checked() {
         );
     }
 }
+
+#[test]
+fn relabelling_equals_encoding_as_the_new_kind() {
+    for from in RecordKind::ALL {
+        for to in RecordKind::ALL {
+            for raw in [Vec::new(), vec![9], sample_raw(), vec![0u8; 1 << 20]] {
+                let bytes = encode_block(from, 41, &raw);
+                let relabelled = relabel_block("k", &bytes, from, to).unwrap();
+                assert_eq!(relabelled, encode_block(to, 41, &raw), "{from} -> {to}");
+                assert_eq!(decode_block("k", &relabelled, to).unwrap().raw, raw);
+            }
+        }
+    }
+}
+
+#[test]
+fn relabelling_refuses_every_bit_flip_and_truncation() {
+    let bytes = encode_block(RecordKind::CastCandidate, 64, &sample_raw());
+    for bit in 0..bytes.len() * 8 {
+        let mut damaged = bytes.clone();
+        damaged[bit / 8] ^= 1 << (bit % 8);
+        let result = relabel_block("k", &damaged, RecordKind::CastCandidate, RecordKind::Hit);
+        assert!(result.is_err(), "bit {bit} flipped was relabelled");
+    }
+    for len in 0..bytes.len() {
+        let result = relabel_block(
+            "k",
+            &bytes[..len],
+            RecordKind::CastCandidate,
+            RecordKind::Hit,
+        );
+        assert!(result.is_err(), "{len} bytes were relabelled");
+    }
+}
+
+#[test]
+fn relabelling_names_the_key_and_the_problem() {
+    let key = "jobs/j/cast-map/00001/part-00002";
+    let bytes = encode_block(RecordKind::Hit, 1, b"xyz");
+    let err = relabel_block(key, &bytes, RecordKind::CastCandidate, RecordKind::Hit).unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "shuffle block jobs/j/cast-map/00001/part-00002: unexpected record kind Hit (2), \
+         expected CastCandidate (1)"
+    );
+    let mut damaged = encode_block(RecordKind::CastCandidate, 1, b"xyz");
+    let last = damaged.len() - 1;
+    damaged[last] ^= 0x40;
+    let stored = u32::from_le_bytes(damaged[32..36].try_into().unwrap());
+    let computed = reseal(damaged.clone())[32..36].to_vec();
+    let computed = u32::from_le_bytes(computed.try_into().unwrap());
+    let err = relabel_block(key, &damaged, RecordKind::CastCandidate, RecordKind::Hit).unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        format!(
+            "shuffle block jobs/j/cast-map/00001/part-00002: block checksum mismatch (stored \
+             bytes damaged): header stores CRC-32 {stored:#010x}, bytes give {computed:#010x}"
+        )
+    );
+    let err =
+        relabel_block(key, &bytes[..5], RecordKind::CastCandidate, RecordKind::Hit).unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "shuffle block jobs/j/cast-map/00001/part-00002: truncated: 5 bytes, shorter than the \
+         36-byte header"
+    );
+}

@@ -16,10 +16,19 @@ impl Rng {
 }
 
 fn write_all(ids: &[u32], tris: &[u32], ts: &[f32], flags: &[u8]) -> Vec<u8> {
+    write_all_as(ids, tris, ts, flags, false)
+}
+
+/// Like `write_all`, with the f32 column as a delta column when `delta`.
+fn write_all_as(ids: &[u32], tris: &[u32], ts: &[f32], flags: &[u8], delta: bool) -> Vec<u8> {
     let mut writer = ColumnWriter::new();
     writer.put_u32_sorted_delta(ids);
     writer.put_u32(tris);
-    writer.put_f32(ts);
+    if delta {
+        writer.put_f32_delta(ts);
+    } else {
+        writer.put_f32(ts);
+    }
     writer.put_bytes(flags);
     writer.into_bytes()
 }
@@ -197,16 +206,18 @@ fn malformed_input_is_an_error() {
 }
 
 /// The four columns of [`write_all`] (floats as bits), read back and finished.
-type Columns = (Vec<u32>, Vec<u32>, Vec<u32>, Vec<u8>);
+/// The four columns, and whether the f32 column was a delta column.
+type Columns = (Vec<u32>, Vec<u32>, Vec<u32>, Vec<u8>, bool);
 
 fn read_all(bytes: &[u8]) -> Result<Columns, ColumnError> {
     let mut reader = ColumnReader::new(bytes);
     let ids = reader.read_u32_sorted_delta()?;
     let tris = reader.read_u32()?;
+    let delta = bytes.get(bytes.len() - reader.remaining()) == Some(&5);
     let ts = reader.read_f32()?.into_iter().map(f32::to_bits).collect();
     let flags = reader.read_bytes()?.to_vec();
     reader.finish()?;
-    Ok((ids, tris, ts, flags))
+    Ok((ids, tris, ts, flags, delta))
 }
 
 /// Damaged encodings and random bytes drawn mostly from the format's own vocabulary (tags,
@@ -290,13 +301,19 @@ fn garbage_is_a_consistent_error_or_a_valid_encoding() {
                 assert_eq!(columns_read, 4, "{bytes:x?}");
                 outcomes[3] += 1;
             }
-            Ok((ids, tris, ts, flags)) => {
+            Ok((ids, tris, ts, flags, delta)) => {
                 let ts: Vec<f32> = ts.iter().copied().map(f32::from_bits).collect();
-                let again = write_all(&ids, &tris, &ts, &flags);
+                let again = write_all_as(&ids, &tris, &ts, &flags, delta);
                 let back = read_all(&again).expect("a re-encoding reads back");
                 assert_eq!(
                     back,
-                    (ids, tris, ts.iter().map(|t| t.to_bits()).collect(), flags)
+                    (
+                        ids,
+                        tris,
+                        ts.iter().map(|t| t.to_bits()).collect(),
+                        flags,
+                        delta
+                    )
                 );
                 assert!(again.len() <= bytes.len(), "{bytes:x?}");
                 if again.len() == bytes.len() {
@@ -343,4 +360,68 @@ fn planes_read_in_place_give_the_values_and_their_groups() {
         reader.read_f32_planes(),
         Err(ColumnError::WrongType { column: 0, .. })
     ));
+}
+
+#[test]
+fn f32_delta_columns_round_trip_bit_for_bit() {
+    let special = [
+        0.5,
+        f32::INFINITY,
+        -0.0,
+        0.0,
+        f32::NEG_INFINITY,
+        f32::MIN_POSITIVE,
+        1e-40,
+        f32::from_bits(0x7fc0_1234),
+        f32::from_bits(0xffff_ffff),
+        f32::MAX,
+        -f32::MAX,
+    ];
+    let mut rng = Rng(7);
+    let random: Vec<f32> = (0..1000).map(|_| f32::from_bits(rng.u32())).collect();
+    for values in [&special[..], &random[..], &[]] {
+        let mut writer = ColumnWriter::new();
+        writer.put_f32_delta(values);
+        writer.put_f32(values);
+        let bytes = writer.into_bytes();
+        let mut reader = ColumnReader::new(&bytes);
+        for _ in 0..2 {
+            let read = reader.read_f32().unwrap();
+            assert_eq!(
+                read.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                values.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+            );
+        }
+        reader.finish().unwrap();
+    }
+}
+
+#[test]
+fn f32_delta_layout_is_zigzagged_bit_differences_in_planes() {
+    let mut writer = ColumnWriter::new();
+    // Bits 0x3f80_0000, then 0x3f80_0001 (+1 -> 2), then 0x3f80_0000 (-1 -> 1).
+    writer.put_f32_delta(&[1.0, f32::from_bits(0x3f80_0001), 1.0]);
+    let first = 0x3f80_0000u32 * 2;
+    let [b0, b1, b2, b3] = first.to_le_bytes();
+    assert_eq!(
+        writer.as_bytes(),
+        &[5, 3, b0, 2, 1, b1, 0, 0, b2, 0, 0, b3, 0, 0]
+    );
+}
+
+#[test]
+fn an_f32_delta_column_is_not_read_as_another_type() {
+    let mut writer = ColumnWriter::new();
+    writer.put_f32_delta(&[1.0]);
+    let bytes = writer.into_bytes();
+    let err = ColumnReader::new(&bytes).read_u32().unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "column 0: holds tag 5, expected u32 (tag 2)"
+    );
+    let err = ColumnReader::new(&bytes[..4]).read_f32().unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "column 0: truncated, needs 4 more bytes, 2 left"
+    );
 }
