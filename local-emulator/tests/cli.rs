@@ -278,7 +278,9 @@ fn pipeline_render_equals_monolithic_byte_for_byte() {
             r["stages"][per_span]["tasks"].as_u64().unwrap(),
             s.parse::<u64>().unwrap()
         );
-        assert!(r["replication"].as_f64().unwrap() > 0.0);
+        // In process the workers take the split objects the plan step built (their caches
+        // hold them all), so no task reads a split from storage.
+        assert_eq!(r["replication"].as_f64().unwrap(), 0.0);
         assert_eq!(r["rays"], mono.2["rays"]);
     }
     let o = hort(&[
