@@ -91,6 +91,16 @@ grep -q "plan: done" "$OUT/watch.log" \
     || { echo "render-through-lambdas: no plan invocation in the functions log" >&2; exit 1; }
 echo "render-through-lambdas: every stage ran in the worker and plan functions"
 
+# The same scene fused (one split: the plan chooses one Render task per span, no shuffle).
+"$hort" render "$SCENE" "${settings[@]}" --splits 1 --spans 4 --workers 2 \
+    --s3-endpoint "$HORT_TEST_S3_ENDPOINT" --bucket "$bucket" \
+    --access-key testing --secret-key testing \
+    --lambda-endpoint "http://127.0.0.1:$port" --out "$OUT/fused.pfm"
+cmp "$OUT/fused.pfm" "$OUT/monolithic.pfm"
+grep -q "worker: render task [0-9]* done" "$OUT/watch.log" \
+    || { echo "render-through-lambdas: no render task in the functions log" >&2; exit 1; }
+echo "render-through-lambdas: the fused job (render tasks in the worker function) equals --monolithic too"
+
 # A function error reaches the user with its type: these functions serve another bucket, so the
 # Plan function refuses the event (Hort.BadInput, never retried) and the job fails at once.
 "$venv/bin/python" -c "import boto3
