@@ -1,47 +1,26 @@
 //! `floor.csv`, the reference's own error that `eval/mitsuba_refs.py` estimates from the two
 //! halves of its samples: no measured RMSE can fall much below it.
 
+use super::csv_rows::rows;
+
 /// The exact header line the file must start with.
 pub const HEADER: &str = "scene,rmse,psnr";
 
 /// The (scene, RMSE) rows of the file's text; `path` only names the file in errors, which say
 /// `path:line: what`.
 pub fn parse(path: &str, text: &str) -> Result<Vec<(String, f64)>, String> {
-    let mut lines = text.lines().enumerate();
-    match lines.next() {
-        Some((_, h)) if h.trim_end() == HEADER => {}
-        Some((_, h)) => {
-            return Err(format!(
-                "{path}:1: expected the header `{HEADER}`, found `{h}`"
-            ));
-        }
-        None => {
-            return Err(format!(
-                "{path}: empty file, expected the header `{HEADER}`"
-            ));
-        }
-    }
-    let mut rows = Vec::new();
-    for (i, line) in lines {
-        let n = i + 1;
-        if line.trim().is_empty() {
-            continue;
-        }
-        let fields: Vec<&str> = line.trim_end().split(',').collect();
-        let [scene, rmse, _psnr] = fields[..] else {
-            return Err(format!(
-                "{path}:{n}: expected 3 fields, found {}",
-                fields.len()
-            ));
-        };
-        let rmse = rmse
-            .parse::<f64>()
-            .ok()
-            .filter(|v| *v > 0.0 && v.is_finite())
-            .ok_or_else(|| format!("{path}:{n}: rmse: not a positive number: `{rmse}`"))?;
-        rows.push((scene.to_owned(), rmse));
-    }
-    Ok(rows)
+    rows(path, text, HEADER, 3)?
+        .map(|row| {
+            let (n, fields) = row?;
+            let (scene, rmse) = (fields[0], fields[1]);
+            let rmse = rmse
+                .parse::<f64>()
+                .ok()
+                .filter(|v| *v > 0.0 && v.is_finite())
+                .ok_or_else(|| format!("{path}:{n}: rmse: not a positive number: `{rmse}`"))?;
+            Ok((scene.to_owned(), rmse))
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -3,6 +3,7 @@
 //! reference.
 
 use super::Point;
+use super::csv_rows::rows;
 
 /// The exact header line the file must start with.
 pub const HEADER: &str = "scene,sampler,spp,seconds,rmse,relmse,psnr";
@@ -10,33 +11,9 @@ pub const HEADER: &str = "scene,sampler,spp,seconds,rmse,relmse,psnr";
 /// Parses the file's text; `path` only names the file in errors, which say `path:line: what`.
 /// Each row becomes a [`Point`] of method `mitsuba {sampler}`.
 pub fn parse(path: &str, text: &str) -> Result<Vec<Point>, String> {
-    let mut lines = text.lines().enumerate();
-    match lines.next() {
-        Some((_, h)) if h.trim_end() == HEADER => {}
-        Some((_, h)) => {
-            return Err(format!(
-                "{path}:1: expected the header `{HEADER}`, found `{h}`"
-            ));
-        }
-        None => {
-            return Err(format!(
-                "{path}: empty file, expected the header `{HEADER}`"
-            ));
-        }
-    }
     let mut points = Vec::new();
-    for (i, line) in lines {
-        let n = i + 1;
-        if line.trim().is_empty() {
-            continue;
-        }
-        let fields: Vec<&str> = line.trim_end().split(',').collect();
-        if fields.len() != 7 {
-            return Err(format!(
-                "{path}:{n}: expected 7 fields, found {}",
-                fields.len()
-            ));
-        }
+    for row in rows(path, text, HEADER, 7)? {
+        let (n, fields) = row?;
         let number = |col: usize, name: &str| -> Result<f64, String> {
             fields[col]
                 .parse::<f64>()

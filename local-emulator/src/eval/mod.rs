@@ -6,6 +6,7 @@
 //! (`eval-distributed.png`), one series per `--distributed` entry.
 
 mod chart;
+mod csv_rows;
 mod floor_csv;
 mod metrics;
 mod mitsuba_csv;
