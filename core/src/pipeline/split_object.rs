@@ -38,6 +38,7 @@ use crate::shuffle::{RecordKind, decode_block, encode_block};
 use glam::Vec3;
 use std::collections::HashMap;
 use std::collections::hash_map::Entry;
+use std::hash::{BuildHasherDefault, Hasher};
 
 /// Version of the column layout above; bump on any change.
 pub const SPLIT_FORMAT_VERSION: u32 = 2;
@@ -136,8 +137,49 @@ pub fn encode_split(object: &SplitObject) -> Vec<u8> {
 #[derive(Default)]
 struct Distinct {
     values: Vec<f32>,
-    index: HashMap<[u32; 3], u32>,
+    index: HashMap<[u32; 3], u32, BuildHasherDefault<WordHasher>>,
     refs: Vec<u8>,
+}
+
+/// A multiply-xor hasher for the bit patterns `Distinct` maps (millions per split): several
+/// times faster than the standard library's SipHash, whose resistance to chosen keys buys
+/// nothing here. The hasher only affects speed, never the bytes: values are numbered in order
+/// of first use, whatever the map's layout.
+#[derive(Default)]
+struct WordHasher(u64);
+
+impl WordHasher {
+    const K: u64 = 0x9E37_79B9_7F4A_7C15;
+
+    #[inline]
+    fn add(&mut self, word: u64) {
+        self.0 = (self.0.rotate_left(23) ^ word).wrapping_mul(Self::K);
+    }
+}
+
+impl Hasher for WordHasher {
+    #[inline]
+    fn write(&mut self, bytes: &[u8]) {
+        let (words, rest) = bytes.as_chunks::<8>();
+        for w in words {
+            self.add(u64::from_le_bytes(*w));
+        }
+        let mut last = [0u8; 8];
+        last[..rest.len()].copy_from_slice(rest);
+        self.add(u64::from_le_bytes(last) ^ ((rest.len() as u64) << 56));
+    }
+
+    #[inline]
+    fn write_usize(&mut self, n: usize) {
+        self.add(n as u64);
+    }
+
+    #[inline]
+    fn finish(&self) -> u64 {
+        // Fold the high bits, which the multiplications mixed well, into the low ones.
+        let h = self.0 ^ (self.0 >> 29);
+        h.wrapping_mul(Self::K) ^ (h >> 32)
+    }
 }
 
 impl Distinct {
