@@ -473,3 +473,37 @@ fn a_missing_plan_is_rebuilt_and_a_missing_request_or_bad_scene_is_not_retried()
         e.cause
     );
 }
+
+/// A warm worker reads `plan.json` once per job: its later tasks run from the cached plan even
+/// when the stored one is gone (and do not rebuild it), while a cold worker rebuilds it.
+#[test]
+fn a_warm_worker_reads_the_plan_once_per_job() {
+    let store = submitted("jw");
+    let tmp = std::env::temp_dir();
+    handle_plan(&store, "b", &plan_event("jw"), &tmp).unwrap();
+    let cast = |task: u32| WorkerEvent {
+        job: JobId::new("jw").unwrap(),
+        bucket: "b".into(),
+        stage: Stage::CastMap,
+        item: TaskItem {
+            task: TaskId(task),
+            timeout_seconds: None,
+        },
+        attempt: 0,
+    };
+    let warm = SplitCache::new(1 << 24);
+    let first = handle_worker(&store, "b", &warm, &cast(0), &tmp).unwrap();
+    assert_eq!(first.recomputed, 0);
+    assert!(first.storage_us > 0 || first.bytes_read > 0);
+    let plan = store.get("jobs/jw/plan.json").unwrap();
+    store.delete("jobs/jw/plan.json").unwrap();
+    let second = handle_worker(&store, "b", &warm, &cast(1), &tmp).unwrap();
+    assert_eq!(second.recomputed, 0, "the cached plan served the task");
+    assert!(
+        store.get("jobs/jw/plan.json").is_err(),
+        "a warm worker does not rewrite the plan"
+    );
+    let cold = handle_worker(&store, "b", &SplitCache::new(0), &cast(1), &tmp).unwrap();
+    assert_eq!(cold.recomputed, 1, "a cold worker rebuilds the lost plan");
+    assert_eq!(store.get("jobs/jw/plan.json").unwrap(), plan);
+}

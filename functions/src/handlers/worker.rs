@@ -11,10 +11,11 @@ use hort_core::pipeline::{
 };
 use hort_core::store::BlobStore;
 use std::path::Path;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Runs `event.stage` task `event.item.task` of `event.job`; `cache` is the worker's decoded
-/// splits (a warm container's memory). Returns what the task did. The outputs are the same bytes
+/// splits and plans (a warm container's memory). Returns what the task did. The outputs are the same bytes
 /// on every attempt. A lost or corrupt input block is recomputed from its producer; a lost or
 /// corrupt split object, or a lost or unreadable `plan.json`, is rebuilt from the job's scene,
 /// copied into `work_dir` (the function's `/tmp`) for the purpose (the plan step again, for
@@ -40,18 +41,26 @@ pub fn handle_worker(
         })
     };
     let (mut storage_us, mut decode_us) = (0, 0);
-    let stored = timed(&mut storage_us, || store.get(&key))
-        .map_err(PipelineError::from)
-        .and_then(|bytes| timed(&mut decode_us, || JobPlan::from_json(&key, &bytes)));
-    let (plan, replanned) = match stored {
-        Ok(plan) => (plan, false),
-        Err(PipelineError::Store(e)) if !e.is_not_found() => return Err(e.into()),
-        Err(PipelineError::Store(_) | PipelineError::Corrupt(_)) => {
-            let (request, scene) = load("plan")?;
-            let plan = plan_into_store(store, &event.job, &scene, &request.render)?.plan;
-            (plan, true)
+    let (plan, replanned) = match cache.plan(&key) {
+        Some(plan) => (plan, false),
+        None => {
+            let stored = timed(&mut storage_us, || store.get(&key))
+                .map_err(PipelineError::from)
+                .and_then(|bytes| timed(&mut decode_us, || JobPlan::from_json(&key, &bytes)));
+            let (plan, replanned) = match stored {
+                Ok(plan) => (plan, false),
+                Err(PipelineError::Store(e)) if !e.is_not_found() => return Err(e.into()),
+                Err(PipelineError::Store(_) | PipelineError::Corrupt(_)) => {
+                    let (request, scene) = load("plan")?;
+                    let plan = plan_into_store(store, &event.job, &scene, &request.render)?.plan;
+                    (plan, true)
+                }
+                Err(e) => return Err(e.into()),
+            };
+            let plan = Arc::new(plan);
+            cache.insert_plan(&key, Arc::clone(&plan));
+            (plan, replanned)
         }
-        Err(e) => return Err(e.into()),
     };
     let rebuild = |split: u32| -> Result<Vec<u8>, PipelineError> {
         let (_, scene) = load(&format!("split-{split}"))?;
