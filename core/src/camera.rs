@@ -7,7 +7,7 @@
 //! both take their rays from it, so they trace the same rays bit for bit.
 
 use crate::error::SceneError;
-use crate::sampling::sample_offset;
+use crate::sampling::{PixelSamples, sample_offset};
 use crate::scene::CameraSpec;
 use crate::triangle::Ray;
 use glam::DVec3;
@@ -93,6 +93,20 @@ impl Camera {
         let y = (pixel / self.columns) as f64;
         self.ray(x + ox, y + oy)
     }
+
+    /// Appends the rays of samples `0..spp` of pixel `pixel` to `out`, in sample order: exactly
+    /// [`Camera::sample_ray`]`(pixel, sample, spp)` for each sample, with the per-pixel work
+    /// (the pixel's coordinates and sample pattern) done once.
+    #[inline]
+    pub fn pixel_rays(&self, pixel: u64, spp: u32, out: &mut Vec<Ray>) {
+        let samples = PixelSamples::new(pixel, spp);
+        let x = (pixel % self.columns) as f64;
+        let y = (pixel / self.columns) as f64;
+        out.extend((0..spp).map(|sample| {
+            let (ox, oy) = samples.offset(sample);
+            self.ray(x + ox, y + oy)
+        }));
+    }
 }
 
 #[cfg(test)]
@@ -138,6 +152,32 @@ mod tests {
                         expected.dir.to_array().map(f32::to_bits),
                         "pixel ({x}, {y}) sample {sample} of {spp}"
                     );
+                }
+            }
+        }
+    }
+
+    /// A pixel's batch of rays is its sample rays one by one, bit for bit, in sample order
+    /// (one sample, square and non-square strata, a sample count past the strata grid).
+    #[test]
+    fn pixel_rays_are_the_sample_rays_in_order() {
+        let spec = CameraSpec {
+            eye: DVec3::new(-0.5, 2.0, 7.0),
+            look_at: DVec3::new(0.25, 0.5, 0.0),
+            up: DVec3::Y,
+            vfov_degrees: 50.0,
+        };
+        let (width, height) = (9u32, 4u32);
+        let cam = Camera::new(&spec, width, height).unwrap();
+        let bits = |r: &Ray| (r.origin.to_array(), r.dir.to_array().map(f32::to_bits));
+        for spp in [1u32, 2, 7, 16, 64] {
+            for pixel in [0u64, 8, 9, 22, 35] {
+                let mut got = vec![cam.sample_ray(0, 0, 1)];
+                cam.pixel_rays(pixel, spp, &mut got);
+                assert_eq!(got.len(), 1 + spp as usize, "appends, spp {spp}");
+                for (sample, ray) in got[1..].iter().enumerate() {
+                    let expected = cam.sample_ray(pixel, sample as u32, spp);
+                    assert_eq!(bits(ray), bits(&expected), "pixel {pixel} sample {sample}");
                 }
             }
         }

@@ -168,13 +168,14 @@ fn shade_batch(
             let Some(sp) = sp else {
                 return scene.background;
             };
-            let mut contributions = Vec::new();
-            while let Some(((_, unoccluded), &b)) = next.next_if(|((s, _), _)| *s == sample) {
-                if !b {
-                    contributions.push(*unoccluded);
-                }
-            }
-            combine(sp.kd, contributions.into_iter(), scene.ambient)
+            // This sample's unblocked lights, in light order, straight from the test list (no
+            // per-sample allocation).
+            let contributions = std::iter::from_fn(|| {
+                next.next_if(|((s, _), _)| *s == sample)
+                    .map(|((_, unoccluded), &b)| (!b).then_some(*unoccluded))
+            })
+            .flatten();
+            combine(sp.kd, contributions, scene.ambient)
         })
         .collect()
 }
@@ -205,10 +206,9 @@ fn render_row(scene: &Scene, bvh: &Bvh, camera: &Camera, s: RenderSettings, y: u
     for batch_start in (0..s.width).step_by(pixels_per_batch as usize) {
         let batch_end = (batch_start + pixels_per_batch).min(s.width);
         rays.clear();
-        rays.extend((batch_start..batch_end).flat_map(|x| {
-            let pixel = first_pixel + u64::from(x);
-            (0..s.spp).map(move |sample| camera.sample_ray(pixel, sample, s.spp))
-        }));
+        for x in batch_start..batch_end {
+            camera.pixel_rays(first_pixel + u64::from(x), s.spp, &mut rays);
+        }
         hits.clear();
         hits.resize(rays.len(), None);
         bvh.closest_hits(&rays, &mut hits);

@@ -8,20 +8,66 @@
 
 /// The offset in [0, 1)^2 inside pixel `pixel` (row-major index) of sample `sample` of `spp`.
 pub fn sample_offset(pixel: u64, sample: u32, spp: u32) -> (f64, f64) {
-    if spp <= 1 {
-        return (0.5, 0.5);
+    PixelSamples::new(pixel, spp).offset(sample)
+}
+
+/// The sample positions of one pixel: [`sample_offset`] with the work that depends only on
+/// (pixel, spp) done once. Guarantee: `PixelSamples::new(pixel, spp).offset(sample)` is
+/// exactly `sample_offset(pixel, sample, spp)` (the same operations in the same order).
+#[derive(Clone, Copy, Debug)]
+pub struct PixelSamples {
+    /// Strata: `m` columns by `n` rows (`m = 0` marks the one-sample pixel centre).
+    m: u32,
+    n: u32,
+    seed_x: u32,
+    seed_y: u32,
+    jitter_x: u32,
+    jitter_y: u32,
+}
+
+impl PixelSamples {
+    /// The sample pattern of pixel `pixel` (row-major index) at `spp` samples.
+    #[inline]
+    pub fn new(pixel: u64, spp: u32) -> Self {
+        if spp <= 1 {
+            return PixelSamples {
+                m: 0,
+                n: 0,
+                seed_x: 0,
+                seed_y: 0,
+                jitter_x: 0,
+                jitter_y: 0,
+            };
+        }
+        let m = isqrt(spp).max(1);
+        let n = spp.div_ceil(m);
+        let pattern = hash64(pixel) as u32;
+        PixelSamples {
+            m,
+            n,
+            seed_x: pattern.wrapping_mul(0xa511_e9b3),
+            seed_y: pattern.wrapping_mul(0x63d8_3595),
+            jitter_x: pattern.wrapping_mul(0xa399_d265),
+            jitter_y: pattern.wrapping_mul(0x711a_d6a5),
+        }
     }
-    let m = isqrt(spp).max(1);
-    let n = spp.div_ceil(m);
-    let pattern = hash64(pixel) as u32;
-    let s = sample % (m * n);
-    let sx = permute(s % m, m, pattern.wrapping_mul(0xa511_e9b3));
-    let sy = permute(s / m, n, pattern.wrapping_mul(0x63d8_3595));
-    let jx = unit_float(hash32(s ^ pattern.wrapping_mul(0xa399_d265)));
-    let jy = unit_float(hash32(s ^ pattern.wrapping_mul(0x711a_d6a5)));
-    let x = (f64::from(s % m) + (f64::from(sy) + jx) / f64::from(n)) / f64::from(m);
-    let y = (f64::from(s / m) + (f64::from(sx) + jy) / f64::from(m)) / f64::from(n);
-    (x.min(ONE_MINUS_ULP), y.min(ONE_MINUS_ULP))
+
+    /// The offset in [0, 1)^2 of sample `sample`.
+    #[inline]
+    pub fn offset(&self, sample: u32) -> (f64, f64) {
+        let (m, n) = (self.m, self.n);
+        if m == 0 {
+            return (0.5, 0.5);
+        }
+        let s = sample % (m * n);
+        let sx = permute(s % m, m, self.seed_x);
+        let sy = permute(s / m, n, self.seed_y);
+        let jx = unit_float(hash32(s ^ self.jitter_x));
+        let jy = unit_float(hash32(s ^ self.jitter_y));
+        let x = (f64::from(s % m) + (f64::from(sy) + jx) / f64::from(n)) / f64::from(m);
+        let y = (f64::from(s / m) + (f64::from(sx) + jy) / f64::from(m)) / f64::from(n);
+        (x.min(ONE_MINUS_ULP), y.min(ONE_MINUS_ULP))
+    }
 }
 
 /// One pixel's running sum of sample radiances (linear RGB, f32). The guarantee: [`mean`]
