@@ -19,6 +19,10 @@ pub struct PixelSamples {
     /// Strata: `m` columns by `n` rows (`m = 0` marks the one-sample pixel centre).
     m: u32,
     n: u32,
+    /// `1 / m` and `1 / n` when they are powers of two (then `v / m == v * (1 / m)` exactly,
+    /// both being the correctly rounded `v · 2^-k`), else 0 (divide).
+    inv_m: f64,
+    inv_n: f64,
     seed_x: u32,
     seed_y: u32,
     jitter_x: u32,
@@ -33,6 +37,8 @@ impl PixelSamples {
             return PixelSamples {
                 m: 0,
                 n: 0,
+                inv_m: 0.0,
+                inv_n: 0.0,
                 seed_x: 0,
                 seed_y: 0,
                 jitter_x: 0,
@@ -42,9 +48,18 @@ impl PixelSamples {
         let m = isqrt(spp).max(1);
         let n = spp.div_ceil(m);
         let pattern = hash64(pixel) as u32;
+        let inverse = |d: u32| {
+            if d.is_power_of_two() {
+                1.0 / f64::from(d)
+            } else {
+                0.0
+            }
+        };
         PixelSamples {
             m,
             n,
+            inv_m: inverse(m),
+            inv_n: inverse(n),
             seed_x: pattern.wrapping_mul(0xa511_e9b3),
             seed_y: pattern.wrapping_mul(0x63d8_3595),
             jitter_x: pattern.wrapping_mul(0xa399_d265),
@@ -64,9 +79,23 @@ impl PixelSamples {
         let sy = permute(s / m, n, self.seed_y);
         let jx = unit_float(hash32(s ^ self.jitter_x));
         let jy = unit_float(hash32(s ^ self.jitter_y));
-        let x = (f64::from(s % m) + (f64::from(sy) + jx) / f64::from(n)) / f64::from(m);
-        let y = (f64::from(s / m) + (f64::from(sx) + jy) / f64::from(m)) / f64::from(n);
+        let (over_m, over_n) = (
+            |v: f64| divide(v, m, self.inv_m),
+            |v: f64| divide(v, n, self.inv_n),
+        );
+        let x = over_m(f64::from(s % m) + over_n(f64::from(sy) + jx));
+        let y = over_n(f64::from(s / m) + over_m(f64::from(sx) + jy));
         (x.min(ONE_MINUS_ULP), y.min(ONE_MINUS_ULP))
+    }
+}
+
+/// `v / d`, as `v * inv` when `inv` is the exact `1 / d` of a power of two (the same bits).
+#[inline(always)]
+fn divide(v: f64, d: u32, inv: f64) -> f64 {
+    if inv != 0.0 {
+        v * inv
+    } else {
+        v / f64::from(d)
     }
 }
 
@@ -181,6 +210,39 @@ mod tests {
         assert_eq!(mean[1].to_bits(), (((0.1f32 + 0.2) + 0.3) / 3.0).to_bits());
         assert_eq!(mean[2].to_bits(), 0.0f32.to_bits(), "0 + -0 is +0");
         assert_eq!(PixelSum::default().mean(4), [0.0; 3]);
+    }
+
+    /// The reference formula, dividing always: the offsets of `PixelSamples` (which multiply by
+    /// exact reciprocals for power-of-two strata) are its bits, for square and non-square,
+    /// power-of-two and other strata.
+    #[test]
+    fn offsets_are_the_dividing_formula_bit_for_bit() {
+        for spp in [2u32, 3, 4, 8, 12, 16, 32, 35, 64, 128, 256, 1000] {
+            let m = isqrt(spp).max(1);
+            let n = spp.div_ceil(m);
+            for pixel in [0u64, 1, 77, 12_345, u64::MAX] {
+                let pattern = hash64(pixel) as u32;
+                for sample in 0..spp {
+                    let s = sample % (m * n);
+                    let sx = permute(s % m, m, pattern.wrapping_mul(0xa511_e9b3));
+                    let sy = permute(s / m, n, pattern.wrapping_mul(0x63d8_3595));
+                    let jx = unit_float(hash32(s ^ pattern.wrapping_mul(0xa399_d265)));
+                    let jy = unit_float(hash32(s ^ pattern.wrapping_mul(0x711a_d6a5)));
+                    let x = (f64::from(s % m) + (f64::from(sy) + jx) / f64::from(n)) / f64::from(m);
+                    let y = (f64::from(s / m) + (f64::from(sx) + jy) / f64::from(m)) / f64::from(n);
+                    let expected = (
+                        x.min(ONE_MINUS_ULP).to_bits(),
+                        y.min(ONE_MINUS_ULP).to_bits(),
+                    );
+                    let (gx, gy) = sample_offset(pixel, sample, spp);
+                    assert_eq!(
+                        (gx.to_bits(), gy.to_bits()),
+                        expected,
+                        "spp {spp} pixel {pixel} sample {sample}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]

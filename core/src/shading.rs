@@ -101,7 +101,17 @@ pub fn shadow_test(sp: &SurfacePoint, light: &Light) -> Option<ShadowTest> {
                 return None;
             }
             let wi = (v / r2.sqrt()).as_vec3();
-            (wi, intensity.map(|i| (f64::from(i) / r2) as f32))
+            // Grey lights (equal channel bits) divide once: the same operation on the same
+            // operands, so the same bits.
+            let e0 = (f64::from(intensity[0]) / r2) as f32;
+            let e = |k: usize| {
+                if intensity[k].to_bits() == intensity[0].to_bits() {
+                    e0
+                } else {
+                    (f64::from(intensity[k]) / r2) as f32
+                }
+            };
+            (wi, [e0, e(1), e(2)])
         }
         Light::Directional {
             direction,
