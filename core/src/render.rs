@@ -73,6 +73,7 @@ pub fn build_scene_bvh(mesh: &Mesh) -> Bvh {
 }
 
 /// The vertex normals (if any) and diffuse reflectance of the scene's triangle `id`.
+#[inline]
 pub fn shading_of(mesh: &Mesh, id: u32) -> (Option<[Vec3; 3]>, [f32; 3]) {
     let id = id as usize;
     let normal_ids = mesh.triangle_normals[id];
@@ -83,6 +84,7 @@ pub fn shading_of(mesh: &Mesh, id: u32) -> (Option<[Vec3; 3]>, [f32; 3]) {
 }
 
 /// The shading data of a hit on the scene's triangle `hit.id`.
+#[inline]
 pub fn surface_of(mesh: &Mesh, hit: &ClosestHit, ray: &Ray) -> SurfacePoint {
     let (normals, kd) = shading_of(mesh, hit.id);
     surface_point(hit.corners, hit.b, ray.dir, normals, kd)

@@ -23,8 +23,12 @@ pub struct PixelSamples {
     /// both being the correctly rounded `v · 2^-k`), else 0 (divide).
     inv_m: f64,
     inv_n: f64,
-    seed_x: u32,
-    seed_y: u32,
+    /// `log2(m)` when `m` is a power of two (then `s % m` and `s / m` are a mask and a
+    /// shift), else `u32::MAX`.
+    m_log2: u32,
+    /// The column and row permutations (lengths `m` and `n`).
+    perm_x: Permutation,
+    perm_y: Permutation,
     jitter_x: u32,
     jitter_y: u32,
 }
@@ -39,8 +43,9 @@ impl PixelSamples {
                 n: 0,
                 inv_m: 0.0,
                 inv_n: 0.0,
-                seed_x: 0,
-                seed_y: 0,
+                m_log2: u32::MAX,
+                perm_x: Permutation::new(1, 0),
+                perm_y: Permutation::new(1, 0),
                 jitter_x: 0,
                 jitter_y: 0,
             };
@@ -60,31 +65,45 @@ impl PixelSamples {
             n,
             inv_m: inverse(m),
             inv_n: inverse(n),
-            seed_x: pattern.wrapping_mul(0xa511_e9b3),
-            seed_y: pattern.wrapping_mul(0x63d8_3595),
+            m_log2: if m.is_power_of_two() {
+                m.trailing_zeros()
+            } else {
+                u32::MAX
+            },
+            perm_x: Permutation::new(m, pattern.wrapping_mul(0xa511_e9b3)),
+            perm_y: Permutation::new(n, pattern.wrapping_mul(0x63d8_3595)),
             jitter_x: pattern.wrapping_mul(0xa399_d265),
             jitter_y: pattern.wrapping_mul(0x711a_d6a5),
         }
     }
 
     /// The offset in [0, 1)^2 of sample `sample`.
-    #[inline]
+    #[inline(always)]
     pub fn offset(&self, sample: u32) -> (f64, f64) {
         let (m, n) = (self.m, self.n);
         if m == 0 {
             return (0.5, 0.5);
         }
-        let s = sample % (m * n);
-        let sx = permute(s % m, m, self.seed_x);
-        let sy = permute(s / m, n, self.seed_y);
+        let s = if sample < m * n {
+            sample
+        } else {
+            sample % (m * n)
+        };
+        let (column, row) = if self.m_log2 != u32::MAX {
+            (s & (m - 1), s >> self.m_log2)
+        } else {
+            (s % m, s / m)
+        };
+        let sx = self.perm_x.apply(column);
+        let sy = self.perm_y.apply(row);
         let jx = unit_float(hash32(s ^ self.jitter_x));
         let jy = unit_float(hash32(s ^ self.jitter_y));
         let (over_m, over_n) = (
             |v: f64| divide(v, m, self.inv_m),
             |v: f64| divide(v, n, self.inv_n),
         );
-        let x = over_m(f64::from(s % m) + over_n(f64::from(sy) + jx));
-        let y = over_n(f64::from(s / m) + over_m(f64::from(sx) + jy));
+        let x = over_m(f64::from(column) + over_n(f64::from(sy) + jx));
+        let y = over_n(f64::from(row) + over_m(f64::from(sx) + jy));
         (x.min(ONE_MINUS_ULP), y.min(ONE_MINUS_ULP))
     }
 }
@@ -143,28 +162,64 @@ fn isqrt(v: u32) -> u32 {
 
 /// A hash-driven bijection of [0, len): a bijective mix on the next power of two, with
 /// cycle-walking until the value falls inside [0, len).
-fn permute(mut i: u32, len: u32, seed: u32) -> u32 {
-    if len <= 1 {
-        return 0;
+#[cfg(test)]
+fn permute(i: u32, len: u32, seed: u32) -> u32 {
+    Permutation::new(len, seed).apply(i)
+}
+
+/// [`permute`] for one (len, seed), with its constants (mask, shifts, seed parts) computed once.
+#[derive(Clone, Copy, Debug)]
+struct Permutation {
+    len: u32,
+    mask: u32,
+    /// `(bits / 2).max(1)` and `(bits / 3).max(1)`, `bits` the width of the mask.
+    half: u32,
+    third: u32,
+    seed: u32,
+}
+
+impl Permutation {
+    fn new(len: u32, seed: u32) -> Self {
+        let bits = 32 - len.saturating_sub(1).leading_zeros();
+        let mask = if bits == 32 {
+            u32::MAX
+        } else {
+            (1 << bits) - 1
+        };
+        Permutation {
+            len,
+            mask,
+            half: (bits / 2).max(1),
+            third: (bits / 3).max(1),
+            seed,
+        }
     }
-    let bits = 32 - (len - 1).leading_zeros();
-    let mask = if bits == 32 {
-        u32::MAX
-    } else {
-        (1 << bits) - 1
-    };
-    loop {
-        i ^= seed;
-        i = i.wrapping_mul(0xe170_893d) & mask;
-        i ^= i >> (bits / 2).max(1);
-        i = i.wrapping_add(seed >> 16) & mask;
-        i = i.wrapping_mul(0x0929_eb3f) & mask;
-        i ^= i >> (bits / 3).max(1);
-        i = (i.wrapping_mul(0x6935_fa69) ^ (seed >> 8)) & mask;
-        i = i.wrapping_mul(0x74dc_b303) & mask;
-        i ^= i >> (bits / 2).max(1);
-        if i < len {
-            return i;
+
+    #[inline(always)]
+    fn apply(&self, mut i: u32) -> u32 {
+        let Permutation {
+            len,
+            mask,
+            half,
+            third,
+            seed,
+        } = *self;
+        if len <= 1 {
+            return 0;
+        }
+        loop {
+            i ^= seed;
+            i = i.wrapping_mul(0xe170_893d) & mask;
+            i ^= i >> half;
+            i = i.wrapping_add(seed >> 16) & mask;
+            i = i.wrapping_mul(0x0929_eb3f) & mask;
+            i ^= i >> third;
+            i = (i.wrapping_mul(0x6935_fa69) ^ (seed >> 8)) & mask;
+            i = i.wrapping_mul(0x74dc_b303) & mask;
+            i ^= i >> half;
+            if i < len {
+                return i;
+            }
         }
     }
 }
@@ -212,7 +267,35 @@ mod tests {
         assert_eq!(PixelSum::default().mean(4), [0.0; 3]);
     }
 
-    /// The reference formula, dividing always: the offsets of `PixelSamples` (which multiply by
+    /// The permutation as first written (constants recomputed on every call): the reference
+    /// that `Permutation` must equal.
+    fn reference_permute(mut i: u32, len: u32, seed: u32) -> u32 {
+        if len <= 1 {
+            return 0;
+        }
+        let bits = 32 - (len - 1).leading_zeros();
+        let mask = if bits == 32 {
+            u32::MAX
+        } else {
+            (1 << bits) - 1
+        };
+        loop {
+            i ^= seed;
+            i = i.wrapping_mul(0xe170_893d) & mask;
+            i ^= i >> (bits / 2).max(1);
+            i = i.wrapping_add(seed >> 16) & mask;
+            i = i.wrapping_mul(0x0929_eb3f) & mask;
+            i ^= i >> (bits / 3).max(1);
+            i = (i.wrapping_mul(0x6935_fa69) ^ (seed >> 8)) & mask;
+            i = i.wrapping_mul(0x74dc_b303) & mask;
+            i ^= i >> (bits / 2).max(1);
+            if i < len {
+                return i;
+            }
+        }
+    }
+
+    /// The reference formula, dividing always, with the permutation as first written: the offsets of `PixelSamples` (which multiply by
     /// exact reciprocals for power-of-two strata) are its bits, for square and non-square,
     /// power-of-two and other strata.
     #[test]
@@ -224,8 +307,8 @@ mod tests {
                 let pattern = hash64(pixel) as u32;
                 for sample in 0..spp {
                     let s = sample % (m * n);
-                    let sx = permute(s % m, m, pattern.wrapping_mul(0xa511_e9b3));
-                    let sy = permute(s / m, n, pattern.wrapping_mul(0x63d8_3595));
+                    let sx = reference_permute(s % m, m, pattern.wrapping_mul(0xa511_e9b3));
+                    let sy = reference_permute(s / m, n, pattern.wrapping_mul(0x63d8_3595));
                     let jx = unit_float(hash32(s ^ pattern.wrapping_mul(0xa399_d265)));
                     let jy = unit_float(hash32(s ^ pattern.wrapping_mul(0x711a_d6a5)));
                     let x = (f64::from(s % m) + (f64::from(sy) + jx) / f64::from(n)) / f64::from(m);
@@ -248,6 +331,19 @@ mod tests {
     #[test]
     fn one_sample_is_the_pixel_centre() {
         assert_eq!(sample_offset(7, 0, 1), (0.5, 0.5));
+    }
+
+    #[test]
+    fn permutation_is_the_reference_permute() {
+        for len in [0u32, 1, 2, 3, 5, 8, 13, 64, 100, 1 << 20, u32::MAX] {
+            for seed in [0u32, 1, 0xdead_beef, u32::MAX] {
+                for i in [0u32, 1, 2, 7, len / 2, len.saturating_sub(1)] {
+                    if i < len.max(1) {
+                        assert_eq!(permute(i, len, seed), reference_permute(i, len, seed));
+                    }
+                }
+            }
+        }
     }
 
     #[test]
