@@ -73,6 +73,7 @@ pub fn build_scene_bvh(mesh: &Mesh) -> Bvh {
 }
 
 /// The vertex normals (if any) and diffuse reflectance of the scene's triangle `id`.
+#[inline]
 pub fn shading_of(mesh: &Mesh, id: u32) -> (Option<[Vec3; 3]>, [f32; 3]) {
     let id = id as usize;
     let normal_ids = mesh.triangle_normals[id];
@@ -83,6 +84,7 @@ pub fn shading_of(mesh: &Mesh, id: u32) -> (Option<[Vec3; 3]>, [f32; 3]) {
 }
 
 /// The shading data of a hit on the scene's triangle `hit.id`.
+#[inline]
 pub fn surface_of(mesh: &Mesh, hit: &ClosestHit, ray: &Ray) -> SurfacePoint {
     let (normals, kd) = shading_of(mesh, hit.id);
     surface_point(hit.corners, hit.b, ray.dir, normals, kd)
@@ -168,13 +170,14 @@ fn shade_batch(
             let Some(sp) = sp else {
                 return scene.background;
             };
-            let mut contributions = Vec::new();
-            while let Some(((_, unoccluded), &b)) = next.next_if(|((s, _), _)| *s == sample) {
-                if !b {
-                    contributions.push(*unoccluded);
-                }
-            }
-            combine(sp.kd, contributions.into_iter(), scene.ambient)
+            // This sample's unblocked lights, in light order, straight from the test list (no
+            // per-sample allocation).
+            let contributions = std::iter::from_fn(|| {
+                next.next_if(|((s, _), _)| *s == sample)
+                    .map(|((_, unoccluded), &b)| (!b).then_some(*unoccluded))
+            })
+            .flatten();
+            combine(sp.kd, contributions, scene.ambient)
         })
         .collect()
 }
@@ -205,10 +208,9 @@ fn render_row(scene: &Scene, bvh: &Bvh, camera: &Camera, s: RenderSettings, y: u
     for batch_start in (0..s.width).step_by(pixels_per_batch as usize) {
         let batch_end = (batch_start + pixels_per_batch).min(s.width);
         rays.clear();
-        rays.extend((batch_start..batch_end).flat_map(|x| {
-            let pixel = first_pixel + u64::from(x);
-            (0..s.spp).map(move |sample| camera.sample_ray(pixel, sample, s.spp))
-        }));
+        for x in batch_start..batch_end {
+            camera.pixel_rays(first_pixel + u64::from(x), s.spp, &mut rays);
+        }
         hits.clear();
         hits.resize(rays.len(), None);
         bvh.closest_hits(&rays, &mut hits);

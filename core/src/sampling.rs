@@ -8,20 +8,114 @@
 
 /// The offset in [0, 1)^2 inside pixel `pixel` (row-major index) of sample `sample` of `spp`.
 pub fn sample_offset(pixel: u64, sample: u32, spp: u32) -> (f64, f64) {
-    if spp <= 1 {
-        return (0.5, 0.5);
+    PixelSamples::new(pixel, spp).offset(sample)
+}
+
+/// The sample positions of one pixel: [`sample_offset`] with the work that depends only on
+/// (pixel, spp) done once. Guarantee: `PixelSamples::new(pixel, spp).offset(sample)` is
+/// exactly `sample_offset(pixel, sample, spp)` (the same operations in the same order).
+#[derive(Clone, Copy, Debug)]
+pub struct PixelSamples {
+    /// Strata: `m` columns by `n` rows (`m = 0` marks the one-sample pixel centre).
+    m: u32,
+    n: u32,
+    /// `1 / m` and `1 / n` when they are powers of two (then `v / m == v * (1 / m)` exactly,
+    /// both being the correctly rounded `v · 2^-k`), else 0 (divide).
+    inv_m: f64,
+    inv_n: f64,
+    /// `log2(m)` when `m` is a power of two (then `s % m` and `s / m` are a mask and a
+    /// shift), else `u32::MAX`.
+    m_log2: u32,
+    /// The column and row permutations (lengths `m` and `n`).
+    perm_x: Permutation,
+    perm_y: Permutation,
+    jitter_x: u32,
+    jitter_y: u32,
+}
+
+impl PixelSamples {
+    /// The sample pattern of pixel `pixel` (row-major index) at `spp` samples.
+    #[inline]
+    pub fn new(pixel: u64, spp: u32) -> Self {
+        if spp <= 1 {
+            return PixelSamples {
+                m: 0,
+                n: 0,
+                inv_m: 0.0,
+                inv_n: 0.0,
+                m_log2: u32::MAX,
+                perm_x: Permutation::new(1, 0),
+                perm_y: Permutation::new(1, 0),
+                jitter_x: 0,
+                jitter_y: 0,
+            };
+        }
+        let m = isqrt(spp).max(1);
+        let n = spp.div_ceil(m);
+        let pattern = hash64(pixel) as u32;
+        let inverse = |d: u32| {
+            if d.is_power_of_two() {
+                1.0 / f64::from(d)
+            } else {
+                0.0
+            }
+        };
+        PixelSamples {
+            m,
+            n,
+            inv_m: inverse(m),
+            inv_n: inverse(n),
+            m_log2: if m.is_power_of_two() {
+                m.trailing_zeros()
+            } else {
+                u32::MAX
+            },
+            perm_x: Permutation::new(m, pattern.wrapping_mul(0xa511_e9b3)),
+            perm_y: Permutation::new(n, pattern.wrapping_mul(0x63d8_3595)),
+            jitter_x: pattern.wrapping_mul(0xa399_d265),
+            jitter_y: pattern.wrapping_mul(0x711a_d6a5),
+        }
     }
-    let m = isqrt(spp).max(1);
-    let n = spp.div_ceil(m);
-    let pattern = hash64(pixel) as u32;
-    let s = sample % (m * n);
-    let sx = permute(s % m, m, pattern.wrapping_mul(0xa511_e9b3));
-    let sy = permute(s / m, n, pattern.wrapping_mul(0x63d8_3595));
-    let jx = unit_float(hash32(s ^ pattern.wrapping_mul(0xa399_d265)));
-    let jy = unit_float(hash32(s ^ pattern.wrapping_mul(0x711a_d6a5)));
-    let x = (f64::from(s % m) + (f64::from(sy) + jx) / f64::from(n)) / f64::from(m);
-    let y = (f64::from(s / m) + (f64::from(sx) + jy) / f64::from(m)) / f64::from(n);
-    (x.min(ONE_MINUS_ULP), y.min(ONE_MINUS_ULP))
+
+    /// The offset in [0, 1)^2 of sample `sample`.
+    #[inline(always)]
+    pub fn offset(&self, sample: u32) -> (f64, f64) {
+        let (m, n) = (self.m, self.n);
+        if m == 0 {
+            return (0.5, 0.5);
+        }
+        let s = if sample < m * n {
+            sample
+        } else {
+            sample % (m * n)
+        };
+        let (column, row) = if self.m_log2 != u32::MAX {
+            (s & (m - 1), s >> self.m_log2)
+        } else {
+            (s % m, s / m)
+        };
+        let sx = self.perm_x.apply(column);
+        let sy = self.perm_y.apply(row);
+        let jx = unit_float(hash32(s ^ self.jitter_x));
+        let jy = unit_float(hash32(s ^ self.jitter_y));
+        let (over_m, over_n) = (
+            |v: f64| divide(v, m, self.inv_m),
+            |v: f64| divide(v, n, self.inv_n),
+        );
+        let x = over_m(f64::from(column) + over_n(f64::from(sy) + jx));
+        let y = over_n(f64::from(row) + over_m(f64::from(sx) + jy));
+        (x.min(ONE_MINUS_ULP), y.min(ONE_MINUS_ULP))
+    }
+}
+
+/// `v / d`, as `v * inv` when `inv` is the exact `1 / d` of a power of two (the same bits).
+#[inline(always)]
+fn divide(v: f64, d: u32, inv: f64) -> f64 {
+    if inv != 0.0 {
+        v * inv
+    } else {
+        v / f64::from(d)
+    }
 }
 
 /// One pixel's running sum of sample radiances (linear RGB, f32). The guarantee: [`mean`]
@@ -68,28 +162,64 @@ fn isqrt(v: u32) -> u32 {
 
 /// A hash-driven bijection of [0, len): a bijective mix on the next power of two, with
 /// cycle-walking until the value falls inside [0, len).
-fn permute(mut i: u32, len: u32, seed: u32) -> u32 {
-    if len <= 1 {
-        return 0;
+#[cfg(test)]
+fn permute(i: u32, len: u32, seed: u32) -> u32 {
+    Permutation::new(len, seed).apply(i)
+}
+
+/// [`permute`] for one (len, seed), with its constants (mask, shifts, seed parts) computed once.
+#[derive(Clone, Copy, Debug)]
+struct Permutation {
+    len: u32,
+    mask: u32,
+    /// `(bits / 2).max(1)` and `(bits / 3).max(1)`, `bits` the width of the mask.
+    half: u32,
+    third: u32,
+    seed: u32,
+}
+
+impl Permutation {
+    fn new(len: u32, seed: u32) -> Self {
+        let bits = 32 - len.saturating_sub(1).leading_zeros();
+        let mask = if bits == 32 {
+            u32::MAX
+        } else {
+            (1 << bits) - 1
+        };
+        Permutation {
+            len,
+            mask,
+            half: (bits / 2).max(1),
+            third: (bits / 3).max(1),
+            seed,
+        }
     }
-    let bits = 32 - (len - 1).leading_zeros();
-    let mask = if bits == 32 {
-        u32::MAX
-    } else {
-        (1 << bits) - 1
-    };
-    loop {
-        i ^= seed;
-        i = i.wrapping_mul(0xe170_893d) & mask;
-        i ^= i >> (bits / 2).max(1);
-        i = i.wrapping_add(seed >> 16) & mask;
-        i = i.wrapping_mul(0x0929_eb3f) & mask;
-        i ^= i >> (bits / 3).max(1);
-        i = (i.wrapping_mul(0x6935_fa69) ^ (seed >> 8)) & mask;
-        i = i.wrapping_mul(0x74dc_b303) & mask;
-        i ^= i >> (bits / 2).max(1);
-        if i < len {
-            return i;
+
+    #[inline(always)]
+    fn apply(&self, mut i: u32) -> u32 {
+        let Permutation {
+            len,
+            mask,
+            half,
+            third,
+            seed,
+        } = *self;
+        if len <= 1 {
+            return 0;
+        }
+        loop {
+            i ^= seed;
+            i = i.wrapping_mul(0xe170_893d) & mask;
+            i ^= i >> half;
+            i = i.wrapping_add(seed >> 16) & mask;
+            i = i.wrapping_mul(0x0929_eb3f) & mask;
+            i ^= i >> third;
+            i = (i.wrapping_mul(0x6935_fa69) ^ (seed >> 8)) & mask;
+            i = i.wrapping_mul(0x74dc_b303) & mask;
+            i ^= i >> half;
+            if i < len {
+                return i;
+            }
         }
     }
 }
@@ -137,9 +267,83 @@ mod tests {
         assert_eq!(PixelSum::default().mean(4), [0.0; 3]);
     }
 
+    /// The permutation as first written (constants recomputed on every call): the reference
+    /// that `Permutation` must equal.
+    fn reference_permute(mut i: u32, len: u32, seed: u32) -> u32 {
+        if len <= 1 {
+            return 0;
+        }
+        let bits = 32 - (len - 1).leading_zeros();
+        let mask = if bits == 32 {
+            u32::MAX
+        } else {
+            (1 << bits) - 1
+        };
+        loop {
+            i ^= seed;
+            i = i.wrapping_mul(0xe170_893d) & mask;
+            i ^= i >> (bits / 2).max(1);
+            i = i.wrapping_add(seed >> 16) & mask;
+            i = i.wrapping_mul(0x0929_eb3f) & mask;
+            i ^= i >> (bits / 3).max(1);
+            i = (i.wrapping_mul(0x6935_fa69) ^ (seed >> 8)) & mask;
+            i = i.wrapping_mul(0x74dc_b303) & mask;
+            i ^= i >> (bits / 2).max(1);
+            if i < len {
+                return i;
+            }
+        }
+    }
+
+    /// The reference formula, dividing always, with the permutation as first written: the offsets of `PixelSamples` (which multiply by
+    /// exact reciprocals for power-of-two strata) are its bits, for square and non-square,
+    /// power-of-two and other strata.
+    #[test]
+    fn offsets_are_the_dividing_formula_bit_for_bit() {
+        for spp in [2u32, 3, 4, 8, 12, 16, 32, 35, 64, 128, 256, 1000] {
+            let m = isqrt(spp).max(1);
+            let n = spp.div_ceil(m);
+            for pixel in [0u64, 1, 77, 12_345, u64::MAX] {
+                let pattern = hash64(pixel) as u32;
+                for sample in 0..spp {
+                    let s = sample % (m * n);
+                    let sx = reference_permute(s % m, m, pattern.wrapping_mul(0xa511_e9b3));
+                    let sy = reference_permute(s / m, n, pattern.wrapping_mul(0x63d8_3595));
+                    let jx = unit_float(hash32(s ^ pattern.wrapping_mul(0xa399_d265)));
+                    let jy = unit_float(hash32(s ^ pattern.wrapping_mul(0x711a_d6a5)));
+                    let x = (f64::from(s % m) + (f64::from(sy) + jx) / f64::from(n)) / f64::from(m);
+                    let y = (f64::from(s / m) + (f64::from(sx) + jy) / f64::from(m)) / f64::from(n);
+                    let expected = (
+                        x.min(ONE_MINUS_ULP).to_bits(),
+                        y.min(ONE_MINUS_ULP).to_bits(),
+                    );
+                    let (gx, gy) = sample_offset(pixel, sample, spp);
+                    assert_eq!(
+                        (gx.to_bits(), gy.to_bits()),
+                        expected,
+                        "spp {spp} pixel {pixel} sample {sample}"
+                    );
+                }
+            }
+        }
+    }
+
     #[test]
     fn one_sample_is_the_pixel_centre() {
         assert_eq!(sample_offset(7, 0, 1), (0.5, 0.5));
+    }
+
+    #[test]
+    fn permutation_is_the_reference_permute() {
+        for len in [0u32, 1, 2, 3, 5, 8, 13, 64, 100, 1 << 20, u32::MAX] {
+            for seed in [0u32, 1, 0xdead_beef, u32::MAX] {
+                for i in [0u32, 1, 2, 7, len / 2, len.saturating_sub(1)] {
+                    if i < len.max(1) {
+                        assert_eq!(permute(i, len, seed), reference_permute(i, len, seed));
+                    }
+                }
+            }
+        }
     }
 
     #[test]

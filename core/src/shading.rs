@@ -51,6 +51,7 @@ pub struct ShadowTest {
 
 /// Builds the surface point of a hit on triangle `corners` at barycentrics `b`, seen along
 /// `ray_dir`; `normals` are the corners' vertex normals if the mesh has them.
+#[inline]
 pub fn surface_point(
     corners: [Vec3; 3],
     b: [f32; 3],
@@ -89,6 +90,7 @@ pub fn surface_point(
 
 /// The shadow test of `light` at `sp`, or `None` when the light cannot contribute (behind the
 /// surface as seen by the viewer, or at grazing angle), so no ray is needed.
+#[inline]
 pub fn shadow_test(sp: &SurfacePoint, light: &Light) -> Option<ShadowTest> {
     let (to_light, irradiance) = match *light {
         Light::Point {
@@ -101,7 +103,17 @@ pub fn shadow_test(sp: &SurfacePoint, light: &Light) -> Option<ShadowTest> {
                 return None;
             }
             let wi = (v / r2.sqrt()).as_vec3();
-            (wi, intensity.map(|i| (f64::from(i) / r2) as f32))
+            // Grey lights (equal channel bits) divide once: the same operation on the same
+            // operands, so the same bits.
+            let e0 = (f64::from(intensity[0]) / r2) as f32;
+            let e = |k: usize| {
+                if intensity[k].to_bits() == intensity[0].to_bits() {
+                    e0
+                } else {
+                    (f64::from(intensity[k]) / r2) as f32
+                }
+            };
+            (wi, [e0, e(1), e(2)])
         }
         Light::Directional {
             direction,
@@ -131,6 +143,7 @@ pub fn shadow_test(sp: &SurfacePoint, light: &Light) -> Option<ShadowTest> {
 /// at t = 1 and occluders count for t < 1 - [`SHADOW_EPSILON`]; toward a directional light, the
 /// ray is unbounded. A pure function of (light, origin), so stages that carry only the origin
 /// rebuild the identical ray.
+#[inline]
 pub fn shadow_ray(light: &Light, origin: Vec3) -> (Ray, f32) {
     match *light {
         Light::Point { position, .. } => {
@@ -146,6 +159,7 @@ pub fn shadow_ray(light: &Light, origin: Vec3) -> (Ray, f32) {
 
 /// The final radiance of a hit: the unblocked lights' contributions summed in light order,
 /// then `kd · ambient`. Every renderer path sums in this order, so results match bit for bit.
+#[inline]
 pub fn combine(
     kd: [f32; 3],
     contributions: impl Iterator<Item = [f32; 3]>,
@@ -166,6 +180,7 @@ pub fn combine(
 
 /// Moves `p` off the surface by its error bound along `n`, to the side of `w`, and rounds away
 /// (pbrt-v4 `OffsetRayOrigin`).
+#[inline]
 fn offset_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
     let d = n.abs().dot(p_error);
     let mut offset = d * n;

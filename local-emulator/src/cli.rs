@@ -54,6 +54,9 @@ pub enum BenchCommand {
     Faults(crate::bench::FaultsBenchArgs),
     /// Single-thread BVH kernel against native Embree on identical rays: Mrays/s, build, load.
     Kernel(crate::bench::KernelBenchArgs),
+    /// Single-thread samples/s of the monolithic renderer against Mitsuba's multijitter timings
+    /// (eval/references), same scenes, size and spp.
+    Samples(crate::bench::SamplesBenchArgs),
 }
 
 #[derive(Subcommand)]

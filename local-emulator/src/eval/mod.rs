@@ -9,7 +9,7 @@ mod chart;
 mod csv_rows;
 mod floor_csv;
 mod metrics;
-mod mitsuba_csv;
+pub(crate) mod mitsuba_csv;
 mod output;
 mod pareto;
 mod sweep;
