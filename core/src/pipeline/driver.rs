@@ -82,7 +82,7 @@ pub fn run_pipeline(
         bytes_written_raw: planned.bytes_written,
         attempts_bytes_read: 0,
         attempts_bytes_written: planned.bytes_written,
-        breakdown: StageBreakdown::default(),
+        breakdown: StageBreakdown::from_tasks(&planned.metrics),
     }];
     let mut metrics = vec![TaskMetrics::default()];
     let render_start = Instant::now();

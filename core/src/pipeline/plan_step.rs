@@ -8,7 +8,8 @@ use super::split_object::SplitObject;
 use crate::ids::{JobId, SplitId};
 use crate::keys::{plan_key, split_key};
 use crate::scene::Scene;
-use crate::store::BlobStore;
+use crate::store::{BlobStore, TimedStore};
+use std::time::Instant;
 
 /// A job planned into its store.
 #[derive(Clone, Debug)]
@@ -17,6 +18,11 @@ pub struct PlannedJob {
     pub plan: JobPlan,
     /// Bytes stored by the step: every split object plus the plan.
     pub bytes_written: u64,
+    /// Where the step's time went: `task_us` in all, `encode_us` encoding split objects,
+    /// `storage_us` storing them and the plan, `compute_us` the rest (assigning triangles to
+    /// splits, building their BVHs, planning the tasks). Byte counts are left at 0: the caller's
+    /// storage accounting has them.
+    pub metrics: super::TaskMetrics,
 }
 
 /// Splits `scene` as `request` asks (counts checked by [`resolve_counts`]), stores each split
@@ -41,12 +47,16 @@ pub fn plan_into_store_keeping(
     request: &PlanRequest,
     mut keep: impl FnMut(u32, SplitObject),
 ) -> Result<PlannedJob, PipelineError> {
+    let started = Instant::now();
+    let store = TimedStore::new(store);
+    let mut encode_us = 0;
     let (shape, s) = resolve_counts(request, scene.mesh.triangle_count() as u64)?;
     let infos = split_scene_objects(
         &scene.mesh,
         shape.splits as usize,
         request.mode,
-        |split, object, bytes| {
+        |split, object, bytes, encoded_in| {
+            encode_us += encoded_in;
             store.put(&split_key(job, SplitId(split)), &bytes)?;
             keep(split, object);
             Ok::<(), crate::store::StoreError>(())
@@ -56,8 +66,18 @@ pub fn plan_into_store_keeping(
     let plan_json = serde_json::to_vec_pretty(&plan)
         .map_err(|e| PipelineError::BadInput(format!("cannot encode the plan: {e}")))?;
     store.put(&plan_key(job), &plan_json)?;
+    let task_us = super::micros(started.elapsed());
+    let storage_us = store.waited_us();
+    let metrics = super::TaskMetrics {
+        task_us,
+        compute_us: task_us.saturating_sub(encode_us + storage_us),
+        encode_us,
+        storage_us,
+        ..Default::default()
+    };
     Ok(PlannedJob {
         bytes_written: plan.scene_bytes() + plan_json.len() as u64,
         plan,
+        metrics,
     })
 }

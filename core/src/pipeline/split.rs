@@ -100,23 +100,25 @@ pub fn split_scene<E>(
     mode: SplitMode,
     mut emit: impl FnMut(u32, Vec<u8>) -> Result<(), E>,
 ) -> Result<Vec<super::SplitInfo>, E> {
-    split_scene_objects(mesh, k, mode, |split, _, bytes| emit(split, bytes))
+    split_scene_objects(mesh, k, mode, |split, _, bytes, _| emit(split, bytes))
 }
 
 /// [`split_scene`] that also hands `emit` each split object as built, before it is dropped:
 /// exactly what [`super::decode_split`] gives back from its bytes (the encoding is lossless),
-/// for a caller that keeps it instead of decoding it again.
+/// for a caller that keeps it instead of decoding it again, and the microseconds its encoding
+/// took (for the plan step's time breakdown).
 pub fn split_scene_objects<E>(
     mesh: &Mesh,
     k: usize,
     mode: SplitMode,
-    mut emit: impl FnMut(u32, SplitObject, Vec<u8>) -> Result<(), E>,
+    mut emit: impl FnMut(u32, SplitObject, Vec<u8>, u64) -> Result<(), E>,
 ) -> Result<Vec<super::SplitInfo>, E> {
     let mut infos = Vec::with_capacity(k);
     for (split, ids) in assign_splits(mesh, k, mode).into_iter().enumerate() {
-        let (info, object, bytes) = build_split_object(mesh, split as u32, ids);
+        let mut encode_us = 0;
+        let (info, object, bytes) = build_split_object(mesh, split as u32, ids, &mut encode_us);
         infos.push(info);
-        emit(split as u32, object, bytes)?;
+        emit(split as u32, object, bytes, encode_us)?;
     }
     Ok(infos)
 }
@@ -133,15 +135,17 @@ pub fn rebuild_split(mesh: &Mesh, k: usize, mode: SplitMode, split: u32) -> Opti
 
 /// Builds split `split` of the triangles `ids`: its summary and its encoded object.
 fn build_split(mesh: &Mesh, split: u32, ids: Vec<u32>) -> (super::SplitInfo, Vec<u8>) {
-    let (info, _, bytes) = build_split_object(mesh, split, ids);
+    let (info, _, bytes) = build_split_object(mesh, split, ids, &mut 0);
     (info, bytes)
 }
 
-/// Builds split `split` of the triangles `ids`: its summary, the object and its encoding.
+/// Builds split `split` of the triangles `ids`: its summary, the object and its encoding, whose
+/// microseconds are added to `encode_us`.
 fn build_split_object(
     mesh: &Mesh,
     split: u32,
     ids: Vec<u32>,
+    encode_us: &mut u64,
 ) -> (super::SplitInfo, SplitObject, Vec<u8>) {
     let triangles = ids.iter().map(|&i| mesh.corners(i as usize)).collect();
     let bvh = Bvh::build(triangles, ids);
@@ -160,7 +164,7 @@ fn build_split_object(
     };
     let bounds = object.bvh.bounds();
     let triangles = object.bvh.triangle_count() as u64;
-    let bytes = encode_split(&object);
+    let bytes = super::timed(encode_us, || encode_split(&object));
     let info = super::SplitInfo {
         id: split,
         triangles,

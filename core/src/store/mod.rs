@@ -8,6 +8,7 @@
 mod counting;
 mod memory;
 mod patient;
+mod timed;
 
 pub mod conformance;
 
@@ -17,6 +18,7 @@ use std::sync::Arc;
 pub use counting::CountingStore;
 pub use memory::MemoryStore;
 pub use patient::PatientStore;
+pub use timed::TimedStore;
 
 /// Why a storage request failed. Every message names the key or the operation.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]

@@ -10,12 +10,12 @@ use hort_core::stage::{PLAN_FUNCTION, WORKER_FUNCTION};
 use serde_json::Value;
 
 use super::events::{PlanEvent, WorkerEvent};
-use super::{BlobStore, HandlerError, handle_plan, handle_worker};
+use super::{BlobStore, HandlerError, handle_plan_measured, handle_worker};
 
 /// The functions of a deployment.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Function {
-    /// Splits and plans a job ([`handle_plan`]).
+    /// Splits and plans a job ([`handle_plan`](super::handle_plan)).
     Plan,
     /// Runs one task of any stage after the plan ([`handle_worker`]).
     Worker,
@@ -49,7 +49,8 @@ pub struct FunctionEnv<'a> {
 pub struct Invoked {
     /// The function's JSON answer (the `Payload` the state machine sees).
     pub output: Value,
-    /// For a Worker invocation, which task ran and what it did.
+    /// Which task ran and what it did: a Worker's task, or the Plan function as task 0 of stage
+    /// `plan` (its time breakdown only; see [`handle_plan_measured`]).
     pub task: Option<TaskDone>,
 }
 
@@ -79,10 +80,14 @@ pub fn dispatch(
         Function::Plan => {
             let event: PlanEvent =
                 serde_json::from_value(event).map_err(|e| malformed("Plan", e))?;
-            let out = handle_plan(env.store, env.bucket, &event, env.work_dir)?;
+            let (out, metrics) = handle_plan_measured(env.store, env.bucket, &event, env.work_dir)?;
             Ok(Invoked {
                 output: serde_json::to_value(out).map_err(encode)?,
-                task: None,
+                task: Some(TaskDone {
+                    stage: Stage::Plan,
+                    task: TaskId(0),
+                    metrics,
+                }),
             })
         }
         Function::Worker => {

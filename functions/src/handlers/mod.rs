@@ -17,7 +17,7 @@ mod worker;
 
 pub use dispatch::{Function, FunctionEnv, Invoked, TaskDone, dispatch};
 pub use events::{JobRequest, PlanEvent, PlanOutput, SceneFormat, TaskItem, WorkerEvent};
-pub use plan::{handle_plan, scene_prefix};
+pub use plan::{handle_plan, handle_plan_measured, scene_prefix};
 pub use worker::handle_worker;
 
 pub use hort_core::ErrorType;

@@ -6,11 +6,12 @@ use super::events::{JobRequest, PlanEvent, PlanOutput, SceneFormat, TaskItem};
 use super::{HandlerError, check_bucket};
 use hort_core::ids::{JobId, TaskId};
 use hort_core::keys::{items_key, manifest_key, scene_binary_key};
-use hort_core::pipeline::plan_into_store;
+use hort_core::pipeline::{TaskMetrics, micros, plan_into_store};
 use hort_core::scene::{Scene, decode_scene, load_scene};
-use hort_core::store::BlobStore;
+use hort_core::store::{BlobStore, TimedStore};
 use std::path::{Component, Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Instant;
 
 pub use hort_core::keys::scene_prefix;
 
@@ -23,11 +24,28 @@ pub fn handle_plan(
     event: &PlanEvent,
     work_dir: &Path,
 ) -> Result<PlanOutput, HandlerError> {
+    handle_plan_measured(store, bucket, event, work_dir).map(|(output, _)| output)
+}
+
+/// [`handle_plan`], and where its time went: `storage_us` waiting on the store, `decode_us`
+/// loading the scene (decoding `scene.bin` or parsing the files), `encode_us` encoding split
+/// objects, `compute_us` building the splits and planning, `task_us` all of it. Byte counts
+/// are 0 (the caller's storage accounting has them).
+pub fn handle_plan_measured(
+    store: &dyn BlobStore,
+    bucket: &str,
+    event: &PlanEvent,
+    work_dir: &Path,
+) -> Result<(PlanOutput, TaskMetrics), HandlerError> {
+    let started = Instant::now();
+    let store = TimedStore::new(store);
     let job = &event.job;
     check_bucket(&event.bucket, bucket)?;
     let (request, scene) =
-        load_job_scene(store, job, work_dir, &format!("plan-{}", event.attempt))?;
-    let plan = plan_into_store(store, job, &scene, &request.render)?.plan;
+        load_job_scene(&store, job, work_dir, &format!("plan-{}", event.attempt))?;
+    let decode_us = micros(started.elapsed()).saturating_sub(store.waited_us());
+    let planned = plan_into_store(&store, job, &scene, &request.render)?;
+    let plan = planned.plan;
     let mut items = std::collections::BTreeMap::new();
     for &stage in plan.stages() {
         let Some(field) = stage.items_field() else {
@@ -49,11 +67,18 @@ pub fn handle_plan(
         store.put(&key, &json)?;
         items.insert(field.to_owned(), key);
     }
-    Ok(PlanOutput {
+    let output = PlanOutput {
         mode: plan.mode,
         items,
         max_concurrency: request.max_concurrency,
-    })
+    };
+    let metrics = TaskMetrics {
+        task_us: micros(started.elapsed()),
+        storage_us: store.waited_us(),
+        decode_us,
+        ..planned.metrics
+    };
+    Ok((output, metrics))
 }
 
 /// Reads the job request and loads the job's scene as its `scene_format` says: the binary

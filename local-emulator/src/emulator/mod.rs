@@ -395,13 +395,13 @@ fn stage_reports(plan: &JobPlan, usage: &[StageUsage], ledger: &Ledger) -> Vec<S
             let stage = Stage::of_state(&u.state);
             let tasks = stage.map_or(1, |stage| plan.task_count(stage) as u64);
             let mut breakdown = match stage {
-                Some(stage) if stage != Stage::Plan => ledger.stage_breakdown(stage),
-                _ => StageBreakdown::default(),
+                Some(stage) => ledger.stage_breakdown(stage),
+                None => StageBreakdown::default(),
             };
             if let Some((start, end)) = u.window {
                 breakdown.orchestration = uncovered(start, end, &ledger.busy).as_secs_f64();
             }
-            // The Plan function reports no task metrics: its traffic is what it needed.
+            // The Plan function reports only its time breakdown: its traffic is what it needed.
             let (read, written, raw) = match stage {
                 Some(stage) if stage != Stage::Plan => {
                     let m = ledger.stage(stage);
