@@ -41,6 +41,13 @@ impl SplitCache {
         Some(object)
     }
 
+    /// Memory the cached splits hold now ([`SplitObject::memory_bytes`] summed): part of a
+    /// warm container's memory whatever task it runs.
+    pub fn resident_bytes(&self) -> u64 {
+        let entries = self.entries.lock().unwrap_or_else(|e| e.into_inner());
+        entries.iter().map(|e| e.bytes).sum()
+    }
+
     /// Keeps `object` (stored under `key`), evicting the least recently used.
     pub fn insert(&self, key: &str, object: Arc<SplitObject>) {
         let bytes = object.memory_bytes();
@@ -92,6 +99,7 @@ mod tests {
         let cache = SplitCache::new(size * 5 / 2);
         cache.insert("a", object(0, 10));
         cache.insert("b", object(1, 10));
+        assert_eq!(cache.resident_bytes(), 2 * size);
         assert!(cache.get("a").is_some());
         cache.insert("c", object(2, 10));
         assert!(cache.get("b").is_none(), "b was least recently used");
@@ -104,6 +112,7 @@ mod tests {
             0,
             "kept when a huge one is refused"
         );
+        assert_eq!(cache.resident_bytes(), 2 * size, "a and c");
         assert!(SplitCache::new(0).get("a").is_none());
     }
 }
