@@ -268,17 +268,12 @@ async fn invoke(container: Arc<Container>, event: Value) -> Result<Value, Diagno
     })
     .await;
     match joined {
-        Ok((Ok(Invoked { mut output, task }), peak)) => {
+        Ok((Ok(mut invoked), peak)) => {
             // Measured only where the binary installs `hort_task_memory::TaskAlloc` (the Worker).
-            let task = task.map(|mut done| {
-                if let Some(peak) = peak {
-                    done.metrics.peak_memory_bytes = peak;
-                    if let Some(answer) = output.as_object_mut() {
-                        answer.insert("peak_memory_bytes".into(), peak.into());
-                    }
-                }
-                done
-            });
+            if let Some(peak) = peak {
+                invoked.set_peak_memory(peak);
+            }
+            let Invoked { output, task } = invoked;
             match task {
                 Some(done) => println!(
                     "{name}: {} task {} done: {}",

@@ -218,12 +218,9 @@ impl InProcessInvoker {
             .unwrap_or_else(|e| e.into_inner())
             .push(cache);
         let mut invoked = result.map_err(|e| TaskFailure::new(e.error_type.as_str(), e.cause))?;
-        if let (Some(done), Some(measured)) = (&mut invoked.task, measured) {
+        if let (Some(done), Some(measured)) = (invoked.task, measured) {
             let peak = resident.saturating_add(measured);
-            done.metrics.peak_memory_bytes = peak;
-            if let Some(answer) = invoked.output.as_object_mut() {
-                answer.insert("peak_memory_bytes".into(), peak.into());
-            }
+            invoked.set_peak_memory(peak);
             let over = self
                 .budget
                 .and_then(|budget| budget.check(done.stage, done.task.0, attempt, peak));
