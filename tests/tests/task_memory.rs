@@ -5,6 +5,7 @@
 
 use asl_interpreter::{Event, NoObserver, Observer};
 use hort::emulator::{EmulatorConfig, run_job};
+use hort_core::ids::Stage;
 use hort_core::pipeline::{PlanRequest, SplitMode, decode_split, rebuild_split};
 use hort_core::scene::load_scene;
 use hort_task_memory::TaskAlloc;
@@ -162,4 +163,41 @@ fn a_task_over_the_functions_memory_fails_the_job_without_a_retry() {
     );
     // The plan and the one render attempt: Runtime.OutOfMemory is never retried.
     assert_eq!(*attempts.0.lock().unwrap(), ["Plan", "Render/RenderTask"]);
+}
+
+#[test]
+fn a_warm_workers_cached_splits_count_for_every_task_it_runs() {
+    // One function slot: one warm worker, whose cache keeps both splits once cast-map has
+    // decoded them (1 GiB of cache, capped at half of 2048 MB); every later task runs there.
+    let (k, mode) = (2, SplitMode::Naive);
+    let run = run_job(
+        &config(1, 2048, None),
+        &scene_path(SCENE),
+        request(k, 2, mode, 1),
+        &NoObserver,
+    )
+    .unwrap_or_else(|e| panic!("{e:#}"));
+    let mono = hort_tests::monolithic(SCENE, W, H, 1);
+    assert_eq!(
+        pixel_bits(&run.image.pixels),
+        pixel_bits(&mono.image.pixels)
+    );
+    let both: u64 = split_memory(k, mode).into_iter().sum();
+    let mut later = 0;
+    for ((stage, task), m) in &run.ledger.tasks {
+        if *stage != Stage::CastMap {
+            later += 1;
+            assert!(
+                m.peak_memory_bytes >= both,
+                "{stage} task {} peak {} below the cached splits' {both} bytes",
+                task.0,
+                m.peak_memory_bytes
+            );
+        }
+    }
+    assert_eq!(
+        later,
+        2 + 2 + 4 + 2 + 1,
+        "cast-reduce, expand, trace-map, trace-reduce, combine"
+    );
 }
