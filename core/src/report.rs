@@ -131,9 +131,10 @@ pub struct StageReport {
     /// of the same job differ here as in `seconds`. All zero in reports from before it.
     #[serde(default)]
     pub breakdown: StageBreakdown,
-    /// The largest `peak_memory_bytes` of the stage's tasks (one successful attempt per task):
-    /// the most memory one of its tasks held at once. 0 where tasks are not measured (the plan
-    /// stage, `--in-process`, reports from before it). A measurement, like `seconds`.
+    /// The largest `peak_memory_bytes` of the stage's tasks (one successful attempt per task;
+    /// for the plan stage, of its successful invocations): the most memory one of its tasks
+    /// held at once. 0 where nothing is measured (`--in-process`, `--lambda-endpoint`'s Plan
+    /// function, reports from before it). A measurement, like `seconds`.
     #[serde(default)]
     pub peak_memory_bytes: u64,
 }

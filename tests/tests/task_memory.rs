@@ -92,8 +92,15 @@ fn every_task_reports_its_peak_and_the_image_stays_the_same() {
                 m.peak_memory_bytes
             );
         }
-        // The plan stage reports no task metrics; the others the largest of their tasks'.
-        assert_eq!(peak(&run.stages, "plan"), 0);
+        // The plan builds every split object in memory, one after another.
+        let largest_split = split_memory(k, mode).into_iter().max().unwrap();
+        assert_eq!(peak(&run.stages, "plan"), run.ledger.plan_peak_memory_bytes);
+        assert!(
+            peak(&run.stages, "plan") >= largest_split,
+            "k = {k}: plan peak {} below its largest split's {largest_split} bytes",
+            peak(&run.stages, "plan")
+        );
+        // The task stages report the largest of their tasks' peaks.
         for s in run.stages.iter().filter(|s| s.name != "plan") {
             let largest = run
                 .ledger
@@ -106,7 +113,6 @@ fn every_task_reports_its_peak_and_the_image_stays_the_same() {
         }
         // A task that uses a split holds it decoded (naive mode: every pair is cast, so some
         // task uses the largest split; fused: the one split).
-        let largest_split = split_memory(k, mode).into_iter().max().unwrap();
         assert!(
             peak(&run.stages, map_stage) >= largest_split,
             "k = {k}: {map_stage} peak {} below its split's {largest_split} bytes",

@@ -29,6 +29,10 @@ pub struct Ledger {
     pub busy: Vec<(Instant, Instant)>,
     /// Microseconds the invoker measured around the attempt whose metrics are in `tasks`.
     pub wall_us: BTreeMap<(Stage, TaskId), u64>,
+    /// The most memory a successful Plan invocation held, bytes (0 where not measured). The
+    /// Plan function reports no task metrics, so it is kept here; it is not held to the
+    /// functions' memory budget (see docs/ARCHITECTURE.md, "Task memory").
+    pub plan_peak_memory_bytes: u64,
 }
 
 impl Ledger {
@@ -218,6 +222,11 @@ impl InProcessInvoker {
             .unwrap_or_else(|e| e.into_inner())
             .push(cache);
         let mut invoked = result.map_err(|e| TaskFailure::new(e.error_type.as_str(), e.cause))?;
+        if let (None, Some(measured)) = (invoked.task, measured) {
+            let mut ledger = self.ledger.lock().unwrap_or_else(|e| e.into_inner());
+            let peak = resident.saturating_add(measured);
+            ledger.plan_peak_memory_bytes = ledger.plan_peak_memory_bytes.max(peak);
+        }
         if let (Some(done), Some(measured)) = (invoked.task, measured) {
             let peak = resident.saturating_add(measured);
             invoked.set_peak_memory(peak);

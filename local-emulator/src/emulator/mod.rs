@@ -424,7 +424,7 @@ fn stage_reports(plan: &JobPlan, usage: &[StageUsage], ledger: &Ledger) -> Vec<S
                     u.traffic.bytes_read,
                     u.traffic.bytes_written,
                     u.traffic.bytes_written,
-                    0,
+                    ledger.plan_peak_memory_bytes,
                 ),
             };
             StageReport {
