@@ -48,6 +48,15 @@ impl SplitCache {
         entries.iter().map(|e| e.bytes).sum()
     }
 
+    /// Evicts the least recently used splits until the rest hold at most `bytes`: room for a
+    /// task that needs the remainder of its function's memory.
+    pub fn trim_to(&self, bytes: u64) {
+        let mut entries = self.entries.lock().unwrap_or_else(|e| e.into_inner());
+        while entries.iter().map(|e| e.bytes).sum::<u64>() > bytes {
+            entries.remove(0);
+        }
+    }
+
     /// Keeps `object` (stored under `key`), evicting the least recently used.
     pub fn insert(&self, key: &str, object: Arc<SplitObject>) {
         let bytes = object.memory_bytes();
@@ -113,6 +122,13 @@ mod tests {
             "kept when a huge one is refused"
         );
         assert_eq!(cache.resident_bytes(), 2 * size, "a and c");
+        cache.trim_to(2 * size);
+        assert_eq!(cache.resident_bytes(), 2 * size, "already within");
+        cache.trim_to(2 * size - 1);
+        assert!(cache.get("c").is_none(), "c was least recently used");
+        assert_eq!(cache.get("a").unwrap().split, 0);
+        cache.trim_to(0);
+        assert_eq!(cache.resident_bytes(), 0);
         assert!(SplitCache::new(0).get("a").is_none());
     }
 }
