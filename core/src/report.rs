@@ -131,6 +131,12 @@ pub struct StageReport {
     /// of the same job differ here as in `seconds`. All zero in reports from before it.
     #[serde(default)]
     pub breakdown: StageBreakdown,
+    /// The largest `peak_memory_bytes` of the stage's tasks (one successful attempt per task;
+    /// for the plan stage, of its successful invocations): the most memory one of its tasks
+    /// held at once. 0 where nothing is measured (`--in-process`, `--lambda-endpoint`'s Plan
+    /// function, reports from before it). A measurement, like `seconds`.
+    #[serde(default)]
+    pub peak_memory_bytes: u64,
 }
 
 impl Report {
@@ -182,6 +188,7 @@ mod tests {
                     invocation: 0.125,
                     orchestration: 0.0625,
                 },
+                peak_memory_bytes: 123_456_789,
             }],
             replication: Some(1.25),
             cost_usd: None,
@@ -239,7 +246,8 @@ mod tests {
         "storage": 0.375,
         "invocation": 0.125,
         "orchestration": 0.0625
-      }
+      },
+      "peak_memory_bytes": 123456789
     }
   ],
   "replication": 1.25,
@@ -292,5 +300,6 @@ mod tests {
             "bytes_read": 1, "bytes_written": 2, "bytes_written_raw": 3}"#;
         let s: StageReport = serde_json::from_str(stage).unwrap();
         assert_eq!(s.breakdown, StageBreakdown::default());
+        assert_eq!(s.peak_memory_bytes, 0, "before the memory measurement");
     }
 }

@@ -12,23 +12,24 @@ mod scene_cmd;
 mod serve;
 
 use clap::Parser;
-use peak_alloc::PeakAlloc;
+use hort_task_memory::{TaskAlloc, process_live_bytes, process_peak_bytes, reset_process_peak};
 
-/// Counts allocations so `hort bench` can report per-task memory high-water marks.
+/// Counts allocations: each in-process function invocation measures its memory high-water mark
+/// (and is held to the function's budget), and `hort bench` reports per-task memory.
 #[global_allocator]
-static ALLOCATOR: PeakAlloc = PeakAlloc;
+static ALLOCATOR: TaskAlloc = TaskAlloc;
 
 struct AllocationMeter;
 
 impl bench::MemoryMeter for AllocationMeter {
     fn current(&self) -> usize {
-        ALLOCATOR.current_usage()
+        process_live_bytes().map_or(0, |b| usize::try_from(b).unwrap_or(usize::MAX))
     }
     fn peak(&self) -> usize {
-        ALLOCATOR.peak_usage()
+        process_peak_bytes().map_or(0, |b| usize::try_from(b).unwrap_or(usize::MAX))
     }
     fn reset_peak(&self) {
-        ALLOCATOR.reset_peak_usage();
+        reset_process_peak();
     }
 }
 

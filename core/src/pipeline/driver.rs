@@ -83,6 +83,7 @@ pub fn run_pipeline(
         attempts_bytes_read: 0,
         attempts_bytes_written: planned.bytes_written,
         breakdown: StageBreakdown::from_tasks(&planned.metrics),
+        peak_memory_bytes: 0,
     }];
     let mut metrics = vec![TaskMetrics::default()];
     let render_start = Instant::now();
@@ -115,6 +116,7 @@ pub fn run_pipeline(
                 orchestration: uncovered(stage_start, stage_end, &busy).as_secs_f64(),
                 ..StageBreakdown::from_tasks(&m)
             },
+            peak_memory_bytes: m.peak_memory_bytes,
         });
         metrics.push(m);
     }

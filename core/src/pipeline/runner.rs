@@ -74,6 +74,13 @@ pub struct TaskMetrics {
     /// wait for the object store, its client's retries included.
     #[serde(default)]
     pub storage_us: u64,
+    /// The most memory the task held at once, bytes, as its function measured it (the
+    /// emulator's in-process invoker or the Worker binary, with the `hort-task-memory`
+    /// allocator; docs/ARCHITECTURE.md, "Task memory"); 0 where nothing measured it, as in
+    /// [`run_task`] itself. A measurement: it differs between runs of the same task. `+=` keeps
+    /// the larger of the two, so a sum of tasks' metrics carries their maximum.
+    #[serde(default)]
+    pub peak_memory_bytes: u64,
 }
 
 /// Whole microseconds of `d`, saturating.
@@ -105,6 +112,7 @@ impl std::ops::AddAssign for TaskMetrics {
         self.encode_us += o.encode_us;
         self.decode_us += o.decode_us;
         self.storage_us += o.storage_us;
+        self.peak_memory_bytes = self.peak_memory_bytes.max(o.peak_memory_bytes);
     }
 }
 
@@ -692,5 +700,19 @@ mod tests {
         }
         assert!(single > 0, "no span had a single cast-map input with hits");
         assert!(several > 0, "no span had several cast-map inputs");
+    }
+
+    #[test]
+    fn summed_metrics_keep_the_largest_peak_memory() {
+        let task = |peak, bytes_read| TaskMetrics {
+            peak_memory_bytes: peak,
+            bytes_read,
+            ..TaskMetrics::default()
+        };
+        let mut total = TaskMetrics::default();
+        for m in [task(300, 1), task(700, 2), task(500, 4)] {
+            total += m;
+        }
+        assert_eq!((total.peak_memory_bytes, total.bytes_read), (700, 7));
     }
 }

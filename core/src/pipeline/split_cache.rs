@@ -52,6 +52,22 @@ impl SplitCache {
         Some(object)
     }
 
+    /// Memory the cached splits hold now ([`SplitObject::memory_bytes`] summed): part of a
+    /// warm container's memory whatever task it runs.
+    pub fn resident_bytes(&self) -> u64 {
+        let entries = self.entries.lock().unwrap_or_else(|e| e.into_inner());
+        entries.iter().map(|e| e.bytes).sum()
+    }
+
+    /// Evicts the least recently used splits until the rest hold at most `bytes`: room for a
+    /// task that needs the remainder of its function's memory.
+    pub fn trim_to(&self, bytes: u64) {
+        let mut entries = self.entries.lock().unwrap_or_else(|e| e.into_inner());
+        while entries.iter().map(|e| e.bytes).sum::<u64>() > bytes {
+            entries.remove(0);
+        }
+    }
+
     /// Keeps `object` (stored under `key`), evicting the least recently used.
     pub fn insert(&self, key: &str, object: Arc<SplitObject>) {
         let bytes = object.memory_bytes();
@@ -128,6 +144,7 @@ mod tests {
         let cache = SplitCache::new(size * 5 / 2);
         cache.insert("a", object(0, 10));
         cache.insert("b", object(1, 10));
+        assert_eq!(cache.resident_bytes(), 2 * size);
         assert!(cache.get("a").is_some());
         cache.insert("c", object(2, 10));
         assert!(cache.get("b").is_none(), "b was least recently used");
@@ -140,6 +157,14 @@ mod tests {
             0,
             "kept when a huge one is refused"
         );
+        assert_eq!(cache.resident_bytes(), 2 * size, "a and c");
+        cache.trim_to(2 * size);
+        assert_eq!(cache.resident_bytes(), 2 * size, "already within");
+        cache.trim_to(2 * size - 1);
+        assert!(cache.get("c").is_none(), "c was least recently used");
+        assert_eq!(cache.get("a").unwrap().split, 0);
+        cache.trim_to(0);
+        assert_eq!(cache.resident_bytes(), 0);
         assert!(SplitCache::new(0).get("a").is_none());
     }
 }

@@ -260,11 +260,20 @@ async fn invoke(container: Arc<Container>, event: Value) -> Result<Value, Diagno
             work_dir: &container.work_dir,
             split_cache: &container.split_cache,
         };
-        dispatch(container.function, event, &env)
+        // One invocation at a time per container: the process's high-water mark during this
+        // one is the task's memory (with what the container keeps: its split cache, clients).
+        hort_task_memory::reset_process_peak();
+        let result = dispatch(container.function, event, &env);
+        (result, hort_task_memory::process_peak_bytes())
     })
     .await;
     match joined {
-        Ok(Ok(Invoked { output, task })) => {
+        Ok((Ok(mut invoked), peak)) => {
+            // Measured only where the binary installs `hort_task_memory::TaskAlloc` (the Worker).
+            if let Some(peak) = peak {
+                invoked.set_peak_memory(peak);
+            }
+            let Invoked { output, task } = invoked;
             match task {
                 Some(done) => println!(
                     "{name}: {} task {} done: {}",
@@ -276,7 +285,7 @@ async fn invoke(container: Arc<Container>, event: Value) -> Result<Value, Diagno
             }
             Ok(output)
         }
-        Ok(Err(e)) => {
+        Ok((Err(e), _)) => {
             eprintln!("{name}: {e}");
             Err(diagnostic(&e))
         }

@@ -54,6 +54,19 @@ pub struct Invoked {
     pub task: Option<TaskDone>,
 }
 
+impl Invoked {
+    /// Records the task's measured memory high-water mark, `bytes`, in its metrics and in the
+    /// JSON answer (`peak_memory_bytes`); nothing for an invocation that ran no task.
+    pub fn set_peak_memory(&mut self, bytes: u64) {
+        if let Some(done) = &mut self.task {
+            done.metrics.peak_memory_bytes = bytes;
+            if let Some(answer) = self.output.as_object_mut() {
+                answer.insert("peak_memory_bytes".into(), bytes.into());
+            }
+        }
+    }
+}
+
 /// A task a Worker invocation completed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct TaskDone {

@@ -507,3 +507,34 @@ fn a_warm_worker_reads_the_plan_once_per_job() {
     assert_eq!(cold.recomputed, 1, "a cold worker rebuilds the lost plan");
     assert_eq!(store.get("jobs/jw/plan.json").unwrap(), plan);
 }
+
+#[test]
+fn a_measured_peak_goes_into_the_metrics_and_the_answer_of_a_task_only() {
+    let metrics = hort_core::pipeline::TaskMetrics {
+        bytes_read: 5,
+        ..Default::default()
+    };
+    let mut invoked = Invoked {
+        output: serde_json::to_value(metrics).unwrap(),
+        task: Some(TaskDone {
+            stage: Stage::CastMap,
+            task: TaskId(3),
+            metrics,
+        }),
+    };
+    invoked.set_peak_memory(123_456);
+    let done = invoked.task.unwrap();
+    assert_eq!(done.metrics.peak_memory_bytes, 123_456);
+    assert_eq!(
+        serde_json::from_value::<hort_core::pipeline::TaskMetrics>(invoked.output).unwrap(),
+        done.metrics,
+        "the answer carries the same metrics"
+    );
+    let plan_answer = serde_json::json!({"plan": "p"});
+    let mut plan = Invoked {
+        output: plan_answer.clone(),
+        task: None,
+    };
+    plan.set_peak_memory(1);
+    assert_eq!(plan.output, plan_answer, "no task, nothing recorded");
+}

@@ -6,8 +6,8 @@ use super::{HandlerError, check_bucket};
 use hort_core::ErrorType;
 use hort_core::keys::plan_key;
 use hort_core::pipeline::{
-    JobPlan, PipelineError, SplitCache, TaskMetrics, micros, plan_into_store, rebuild_split,
-    run_task_with, timed,
+    ExecutionMode, JobPlan, PipelineError, SplitCache, TaskMetrics, micros, plan_into_store,
+    rebuild_split, run_task_with, task_bytes, timed,
 };
 use hort_core::store::BlobStore;
 use std::path::Path;
@@ -19,7 +19,9 @@ use std::time::Instant;
 /// on every attempt. A lost or corrupt input block is recomputed from its producer; a lost or
 /// corrupt split object, or a lost or unreadable `plan.json`, is rebuilt from the job's scene,
 /// copied into `work_dir` (the function's `/tmp`) for the purpose (the plan step again, for
-/// the plan: the same bytes, split objects included).
+/// the plan: the same bytes, split objects included). Before the task runs, `cache` is trimmed
+/// to what the job's memory leaves beside the plan's largest task as the memory model predicts
+/// it, so cache and task together stay within the function's memory.
 pub fn handle_worker(
     store: &dyn BlobStore,
     bucket: &str,
@@ -62,6 +64,9 @@ pub fn handle_worker(
             (plan, replanned)
         }
     };
+    // A warm container's cached splits share its memory with the task: keep only what leaves
+    // the plan's largest task its predicted need within the job's memory.
+    cache.trim_to((u64::from(plan.memory_mb) << 20).saturating_sub(largest_task_bytes(&plan)));
     let rebuild = |split: u32| -> Result<Vec<u8>, PipelineError> {
         let (_, scene) = load(&format!("split-{split}"))?;
         rebuild_split(&scene.mesh, plan.k() as usize, plan.split_mode, split).ok_or_else(|| {
@@ -82,4 +87,20 @@ pub fn handle_worker(
     metrics.decode_us += decode_us;
     metrics.task_us = micros(started.elapsed());
     Ok(metrics)
+}
+
+/// The plan's memory model ([`task_bytes`]) for its largest task: the most triangles a task
+/// holds (the whole scene fused, the largest split staged) and the largest span's samples.
+fn largest_task_bytes(plan: &JobPlan) -> u64 {
+    let triangles = match plan.mode {
+        ExecutionMode::Fused => plan.triangles,
+        ExecutionMode::Staged => plan.splits.iter().map(|s| s.triangles).max().unwrap_or(0),
+    };
+    let pixels = plan
+        .spans
+        .iter()
+        .map(|s| s.end - s.start)
+        .max()
+        .unwrap_or(0);
+    task_bytes(triangles, pixels.saturating_mul(u64::from(plan.spp)))
 }

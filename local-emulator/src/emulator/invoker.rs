@@ -1,7 +1,9 @@
 //! The functions, invoked in process: routes the state machine's function names to the
-//! handlers of `hort-functions`, gives each invocation a warm container's split cache, and keeps
-//! a ledger of what the invocations did (for the report and the cost estimate).
+//! handlers of `hort-functions`, gives each invocation a warm container's split cache, measures
+//! each Worker invocation's memory and holds it to the function's budget, and keeps a ledger of
+//! what the invocations did (for the report and the cost estimate).
 
+use super::memory::MemoryBudget;
 use asl_interpreter::{TaskFailure, TaskInvoker};
 use hort_core::breakdown::StageBreakdown;
 use hort_core::ids::{Stage, TaskId};
@@ -27,6 +29,10 @@ pub struct Ledger {
     pub busy: Vec<(Instant, Instant)>,
     /// Microseconds the invoker measured around the attempt whose metrics are in `tasks`.
     pub wall_us: BTreeMap<(Stage, TaskId), u64>,
+    /// The most memory a successful Plan invocation held, bytes (0 where not measured). The
+    /// Plan function reports no task metrics, so it is kept here; it is not held to the
+    /// functions' memory budget (see docs/ARCHITECTURE.md, "Task memory").
+    pub plan_peak_memory_bytes: u64,
 }
 
 impl Ledger {
@@ -91,6 +97,8 @@ pub struct InProcessInvoker {
     bucket: String,
     work_dir: PathBuf,
     cache_bytes: u64,
+    /// The memory each Worker invocation may use; `None`: measured, not enforced.
+    budget: Option<MemoryBudget>,
     /// Idle warm containers' caches; an invocation takes one (or a cold one) and gives it back.
     caches: Mutex<Vec<SplitCache>>,
     ledger: Mutex<Ledger>,
@@ -113,11 +121,21 @@ impl InProcessInvoker {
             bucket: bucket.to_string(),
             work_dir,
             cache_bytes,
+            budget: None,
             caches: Mutex::new(Vec::new()),
             ledger: Mutex::new(Ledger::default()),
             in_flight: Mutex::new(0),
             idle: std::sync::Condvar::new(),
         }
+    }
+
+    /// Holds every Worker invocation to `budget`: an attempt whose measured memory does not fit
+    /// fails with [`super::OUT_OF_MEMORY`] (see [`MemoryBudget::check`]). Only where the
+    /// process's global allocator is `hort_task_memory::TaskAlloc`: without it nothing is
+    /// measured and nothing is enforced.
+    pub fn with_memory_budget(mut self, budget: MemoryBudget) -> Self {
+        self.budget = Some(budget);
+        self
     }
 
     /// A copy of the ledger so far.
@@ -195,12 +213,34 @@ impl InProcessInvoker {
             work_dir: &self.work_dir,
             split_cache: &cache,
         };
-        let result = dispatch(function, input, &env);
+        let attempt = input.get("attempt").and_then(Value::as_u64).unwrap_or(0);
+        // The warm container's splits are its memory too, whichever task uses them.
+        let resident = cache.resident_bytes();
+        let (result, measured) = hort_task_memory::measure(|| dispatch(function, input, &env));
         self.caches
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .push(cache);
-        result.map_err(|e| TaskFailure::new(e.error_type.as_str(), e.cause))
+        let mut invoked = result.map_err(|e| TaskFailure::new(e.error_type.as_str(), e.cause))?;
+        // The Plan function (task 0 of stage `plan`, time breakdown only) is measured, not
+        // held to the budget; its answer is the plan output, which stays as it is.
+        let worker_task = invoked.task.filter(|done| done.stage != Stage::Plan);
+        if let (None, Some(measured)) = (worker_task, measured) {
+            let mut ledger = self.ledger.lock().unwrap_or_else(|e| e.into_inner());
+            let peak = resident.saturating_add(measured);
+            ledger.plan_peak_memory_bytes = ledger.plan_peak_memory_bytes.max(peak);
+        }
+        if let (Some(done), Some(measured)) = (worker_task, measured) {
+            let peak = resident.saturating_add(measured);
+            invoked.set_peak_memory(peak);
+            let over = self
+                .budget
+                .and_then(|budget| budget.check(done.stage, done.task.0, attempt, peak));
+            if let Some(failure) = over {
+                return Err(failure);
+            }
+        }
+        Ok(invoked)
     }
 }
 

@@ -7,6 +7,7 @@ mod accounting;
 mod faults;
 mod invoker;
 mod lambda_invoker;
+mod memory;
 mod storage;
 mod upload;
 #[cfg(test)]
@@ -16,6 +17,7 @@ pub use accounting::{Accounting, FanOut, StageUsage};
 pub use faults::{FaultCounts, FaultSettings, FaultyInvoker};
 pub use invoker::{InProcessInvoker, Ledger};
 pub use lambda_invoker::{LambdaInvoker, LambdaTarget};
+pub use memory::{MemoryBudget, OUT_OF_MEMORY};
 pub use storage::{
     EMBEDDED_BUCKET, S3_FAULTS_VAR, Storage, StorageTarget, exit_now, remove_stale_temp_folders,
     remove_temp_folders,
@@ -66,9 +68,12 @@ pub struct EmulatorConfig {
     pub time_scale: f64,
     /// Per-task timeout override, seconds (default: derived from each task's work).
     pub task_timeout_seconds: Option<u32>,
-    /// Memory of decoded splits all warm workers together may keep.
+    /// Memory of decoded splits all warm workers together may keep (each worker's share is at
+    /// most half of `memory_mb`, as in the Worker function).
     pub split_cache_bytes: u64,
-    /// Lambda memory and architecture the cost estimate assumes.
+    /// The functions' memory, MB of 2^20 bytes: the cost estimate assumes it, and every
+    /// in-process Worker invocation is held to it ([`MemoryBudget`]; the job's own
+    /// `memory_mb`, which shapes the plan, is the request's).
     pub memory_mb: u32,
     /// Lambda architecture the cost estimate assumes.
     pub arch: Arch,
@@ -245,13 +250,20 @@ pub fn run_job_loaded(
             }
             Functions::Lambda(Arc::new(LambdaInvoker::new(target.clone())?))
         }
-        None => Functions::InProcess(Arc::new(InProcessInvoker::new(
-            Arc::clone(&store),
-            &storage.bucket,
-            storage.work_dir(),
-            // The budget is for the whole emulator: each warm worker gets its share.
-            config.split_cache_bytes / config.workers.max(1) as u64,
-        ))),
+        None => Functions::InProcess(Arc::new(
+            InProcessInvoker::new(
+                Arc::clone(&store),
+                &storage.bucket,
+                storage.work_dir(),
+                // The budget is for the whole emulator: each warm worker gets its share, at most
+                // half its memory (as `HORT_SPLIT_CACHE_MB` is capped in the Worker function).
+                (config.split_cache_bytes / config.workers.max(1) as u64)
+                    .min(u64::from(config.memory_mb) << 19),
+            )
+            .with_memory_budget(MemoryBudget {
+                mb: config.memory_mb,
+            }),
+        )),
     };
     let (invoker, fault_counts): (Arc<dyn TaskInvoker>, _) = match &functions {
         Functions::InProcess(in_process) if config.faults.any() => {
@@ -402,15 +414,17 @@ fn stage_reports(plan: &JobPlan, usage: &[StageUsage], ledger: &Ledger) -> Vec<S
                 breakdown.orchestration = uncovered(start, end, &ledger.busy).as_secs_f64();
             }
             // The Plan function reports only its time breakdown: its traffic is what it needed.
-            let (read, written, raw) = match stage {
+            let (read, written, raw, peak) = match stage {
                 Some(stage) if stage != Stage::Plan => {
                     let m = ledger.stage(stage);
-                    (m.bytes_read, m.bytes_written, m.bytes_written_raw)
+                    let raw = m.bytes_written_raw;
+                    (m.bytes_read, m.bytes_written, raw, m.peak_memory_bytes)
                 }
                 _ => (
                     u.traffic.bytes_read,
                     u.traffic.bytes_written,
                     u.traffic.bytes_written,
+                    ledger.plan_peak_memory_bytes,
                 ),
             };
             StageReport {
@@ -424,6 +438,7 @@ fn stage_reports(plan: &JobPlan, usage: &[StageUsage], ledger: &Ledger) -> Vec<S
                 attempts_bytes_read: u.traffic.bytes_read,
                 attempts_bytes_written: u.traffic.bytes_written,
                 breakdown,
+                peak_memory_bytes: peak,
             }
         })
         .collect()

@@ -5,7 +5,7 @@ use std::io::{self, Write};
 
 use hort_core::report::{StageBreakdown, StageReport};
 
-const HEADERS: [&str; 7] = [
+const HEADERS: [&str; 8] = [
     "stage",
     "tasks",
     "attempts",
@@ -13,13 +13,16 @@ const HEADERS: [&str; 7] = [
     "MB read",
     "MB written",
     "compression",
+    "peak MB",
 ];
 
 /// Writes the per-stage table of a render, with a total row: tasks, attempts, seconds,
 /// megabytes (10^6 bytes) read and written (compressed), and the compression ratio
 /// (`bytes_written_raw / bytes_written`, `-` when nothing was written). The total's time is the
-/// sum of the stages' times (they run one after another) and its ratio that of the sums.
-/// Columns are aligned: the stage name to the left, numbers to the right.
+/// sum of the stages' times (they run one after another) and its ratio that of the sums. `peak
+/// MB` is the most memory one task of the stage held ([`StageReport::peak_memory_bytes`]) in
+/// MB of 2^20 bytes, as `--memory-mb` counts them (`-` where not measured); the total's is the
+/// largest. Columns are aligned: the stage name to the left, numbers to the right.
 pub fn print_summary(stages: &[StageReport], out: &mut dyn Write) -> io::Result<()> {
     let total = StageReport {
         name: "total".into(),
@@ -33,6 +36,11 @@ pub fn print_summary(stages: &[StageReport], out: &mut dyn Write) -> io::Result<
         attempts_bytes_read: stages.iter().map(|s| s.attempts_bytes_read).sum(),
         attempts_bytes_written: stages.iter().map(|s| s.attempts_bytes_written).sum(),
         breakdown: StageBreakdown::default(),
+        peak_memory_bytes: stages
+            .iter()
+            .map(|s| s.peak_memory_bytes)
+            .max()
+            .unwrap_or(0),
     };
     let rows: Vec<Vec<String>> = stages.iter().map(row).collect();
     print_table(&HEADERS, &rows, &row(&total), out)
@@ -144,5 +152,9 @@ fn row(s: &StageReport) -> Vec<String> {
         mb(s.bytes_read),
         mb(s.bytes_written),
         ratio,
+        match s.peak_memory_bytes {
+            0 => "-".to_owned(),
+            peak => format!("{:.1}", peak as f64 / f64::from(1 << 20)),
+        },
     ]
 }

@@ -399,7 +399,7 @@ fn bars_mode_draws_to_the_writer_and_quiet_writes_nothing() {
 
 #[test]
 fn summary_table_is_aligned_with_a_total() {
-    let stage = |name: &str, tasks, attempts, seconds, read, written, raw| StageReport {
+    let stage = |name: &str, tasks, attempts, seconds, read, written, raw, peak| StageReport {
         name: String::from(name),
         tasks,
         attempts,
@@ -407,22 +407,32 @@ fn summary_table_is_aligned_with_a_total() {
         bytes_read: read,
         bytes_written: written,
         bytes_written_raw: raw,
+        peak_memory_bytes: peak,
         ..StageReport::default()
     };
     let stages = [
-        stage("plan", 1, 1, 0.125, 2_500_000, 10_000, 10_000),
-        stage("cast-map", 70, 74, 1.9, 123_456_789, 4_000_000, 12_000_000),
-        stage("combine", 1, 1, 0.5, 0, 0, 0),
+        stage("plan", 1, 1, 0.125, 2_500_000, 10_000, 10_000, 0),
+        stage(
+            "cast-map",
+            70,
+            74,
+            1.9,
+            123_456_789,
+            4_000_000,
+            12_000_000,
+            150 << 20,
+        ),
+        stage("combine", 1, 1, 0.5, 0, 0, 0, 3 << 19),
     ];
     let mut out = Vec::new();
     print_summary(&stages, &mut out).unwrap();
     let expected = "\
-stage     tasks  attempts  time (s)  MB read  MB written  compression
-plan          1         1      0.12     2.50        0.01        1.00x
-cast-map     70        74      1.90   123.46        4.00        3.00x
-combine       1         1      0.50     0.00        0.00            -
----------------------------------------------------------------------
-total        72        76      2.52   125.96        4.01        3.00x
+stage     tasks  attempts  time (s)  MB read  MB written  compression  peak MB
+plan          1         1      0.12     2.50        0.01        1.00x        -
+cast-map     70        74      1.90   123.46        4.00        3.00x    150.0
+combine       1         1      0.50     0.00        0.00            -      1.5
+------------------------------------------------------------------------------
+total        72        76      2.52   125.96        4.01        3.00x    150.0
 ";
     assert_eq!(String::from_utf8(out).unwrap(), expected);
 
@@ -431,9 +441,9 @@ total        72        76      2.52   125.96        4.01        3.00x
     assert_eq!(
         String::from_utf8(out).unwrap(),
         "\
-stage  tasks  attempts  time (s)  MB read  MB written  compression
-------------------------------------------------------------------
-total      0         0      0.00     0.00        0.00            -
+stage  tasks  attempts  time (s)  MB read  MB written  compression  peak MB
+---------------------------------------------------------------------------
+total      0         0      0.00     0.00        0.00            -        -
 "
     );
 }
