@@ -229,6 +229,9 @@ impl InProcessInvoker {
             let mut ledger = self.ledger.lock().unwrap_or_else(|e| e.into_inner());
             let peak = resident.saturating_add(measured);
             ledger.plan_peak_memory_bytes = ledger.plan_peak_memory_bytes.max(peak);
+            if let Some(done) = &mut invoked.task {
+                done.metrics.peak_memory_bytes = peak;
+            }
         }
         if let (Some(done), Some(measured)) = (worker_task, measured) {
             let peak = resident.saturating_add(measured);
