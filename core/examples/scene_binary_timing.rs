@@ -8,19 +8,10 @@
 
 use hort_core::scene::{decode_scene, encode_scene, load_scene};
 use std::path::PathBuf;
-use std::time::Instant;
 
-fn best<T>(repeats: usize, mut f: impl FnMut() -> T) -> (f64, T) {
-    let mut best = f64::INFINITY;
-    let mut out = None;
-    for _ in 0..repeats {
-        let t = Instant::now();
-        let v = f();
-        best = best.min(t.elapsed().as_secs_f64());
-        out = Some(v);
-    }
-    (best, out.expect("at least one repeat"))
-}
+#[path = "support/best.rs"]
+mod support;
+use support::best;
 
 fn main() {
     let mut args = std::env::args().skip(1);

@@ -108,6 +108,20 @@ fn plan_then_every_worker_task_produces_the_outputs() {
     assert_eq!(store.get(&hits_key(&job)).unwrap().len(), 32 * 24 * 8);
 }
 
+/// The Worker event of cast-map task `task` of `job`, first attempt.
+fn cast_map_event(job: &str, task: u32) -> WorkerEvent {
+    WorkerEvent {
+        job: JobId::new(job).unwrap(),
+        bucket: "b".into(),
+        stage: Stage::CastMap,
+        item: TaskItem {
+            task: TaskId(task),
+            timeout_seconds: None,
+        },
+        attempt: 0,
+    }
+}
+
 /// Runs the Plan function, then every task of every later stage, over `store`.
 fn run_job(store: &MemoryStore, job: &str) {
     let tmp = std::env::temp_dir();
@@ -209,16 +223,7 @@ fn a_binary_scene_job_renders_the_same_bytes_as_the_files_without_parsing() {
     // Lineage from the binary scene: a lost plan is rebuilt (the plan step again), and so are
     // corrupt split objects (one at a time), with the same bytes.
     let tmp = std::env::temp_dir();
-    let cast = |task: u32| WorkerEvent {
-        job: JobId::new("jb").unwrap(),
-        bucket: "b".into(),
-        stage: Stage::CastMap,
-        item: TaskItem {
-            task: TaskId(task),
-            timeout_seconds: None,
-        },
-        attempt: 0,
-    };
+    let cast = |task: u32| cast_map_event("jb", task);
     let plan = binary.get("jobs/jb/plan.json").unwrap();
     let splits = objects(&binary, "jb", "splits/");
     assert_eq!(splits.len(), 2);
@@ -481,16 +486,7 @@ fn a_warm_worker_reads_the_plan_once_per_job() {
     let store = submitted("jw");
     let tmp = std::env::temp_dir();
     handle_plan(&store, "b", &plan_event("jw"), &tmp).unwrap();
-    let cast = |task: u32| WorkerEvent {
-        job: JobId::new("jw").unwrap(),
-        bucket: "b".into(),
-        stage: Stage::CastMap,
-        item: TaskItem {
-            task: TaskId(task),
-            timeout_seconds: None,
-        },
-        attempt: 0,
-    };
+    let cast = |task: u32| cast_map_event("jw", task);
     let warm = SplitCache::new(1 << 24);
     let first = handle_worker(&store, "b", &warm, &cast(0), &tmp).unwrap();
     assert_eq!(first.recomputed, 0);
