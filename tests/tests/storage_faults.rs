@@ -346,9 +346,12 @@ fn objects_lost_or_corrupted_before_every_stage_are_recomputed() {
         damaged: Mutex::new(Vec::new()),
     };
     // One function slot: the first cast-map task that needs a split rebuilds it, and no other
-    // task reads it from storage at the same time (which would rebuild it twice).
+    // task reads it from storage at the same time (which would rebuild it twice). Cold
+    // workers (no cache): every task reads the plan and its splits from storage, so the lost
+    // and the cut plan are found and rebuilt (a warm worker would go on with the plan it has).
     let config = EmulatorConfig {
         workers: 1,
+        split_cache_bytes: 0,
         ..config(&server, None)
     };
     let run = run_job(&config, &scene_path(SCENE), settings(), &observer)
