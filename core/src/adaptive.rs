@@ -1,0 +1,199 @@
+//! The adaptive sampler: a first pass of `base_spp` samples in every pixel, then a second pass
+//! up to `max_spp` samples only in the pixels whose first-pass error estimate is above a
+//! threshold, and only if any pixel needs it.
+//!
+//! Guarantees:
+//! - **Deterministic and local.** A pixel's decision ([`decide`]) depends only on its own
+//!   first-pass sample radiances and hits, so it does not depend on threads, spans or splits;
+//!   the monolithic renderer and the pipeline make the same decisions from the same samples.
+//! - **Nested stratification.** Sample positions ([`adaptive_offset`]) are the cells of a
+//!   `g x g` grid (`g = sqrt(max_spp)`), visited in a base-4 order whose every prefix of `4^j`
+//!   samples puts exactly one sample in each cell of the `2^j x 2^j` grid, Owen-scrambled per
+//!   pixel and jittered inside the cell. So the first pass (ranks `0..base_spp`) is stratified
+//!   like a uniform render of `base_spp` samples, and first and second pass together (ranks
+//!   `0..max_spp`) are stratified like one of `max_spp` samples: error falls as it should.
+//! - **The pixel** is the in-order f32 sum ([`crate::sampling::PixelSum`]) of its samples in
+//!   rank order divided by the number of samples it got (`base_spp` or `max_spp`); the hit
+//!   buffer keeps the hit of rank 0.
+
+use crate::sampling::{ONE_MINUS_ULP, hash32, hash64, unit_float};
+use serde::{Deserialize, Serialize};
+
+/// The adaptive sampler's settings; recorded in the plan and the report.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AdaptiveSettings {
+    /// Samples of the first pass in every pixel: a power of 4, at least 4.
+    pub base_spp: u32,
+    /// Samples of a pixel that needs more: a power of 4 above `base_spp`, at most 65536.
+    pub max_spp: u32,
+    /// A pixel gets the second pass when the standard error of its first-pass mean (the
+    /// largest over R, G, B, in linear radiance) is above this; finite and positive.
+    pub threshold: f64,
+}
+
+/// Largest `max_spp` (the image limit on spp).
+const MAX_SPP: u32 = 65_536;
+
+impl AdaptiveSettings {
+    /// Checks the settings; the error is one line naming the bad value.
+    pub fn check(&self) -> Result<(), String> {
+        let power_of_4 = |v: u32| v.is_power_of_two() && v.trailing_zeros() % 2 == 0;
+        if !power_of_4(self.base_spp) || self.base_spp < 4 || self.base_spp >= MAX_SPP {
+            return Err(format!(
+                "adaptive base spp {} must be a power of 4 from 4 to 16384 (4, 16, 64, 256, ...)",
+                self.base_spp
+            ));
+        }
+        if !power_of_4(self.max_spp) || self.max_spp <= self.base_spp || self.max_spp > MAX_SPP {
+            return Err(format!(
+                "adaptive max spp {} must be a power of 4 above the base spp {} and at most {MAX_SPP}",
+                self.max_spp, self.base_spp
+            ));
+        }
+        if !(self.threshold.is_finite() && self.threshold > 0.0) {
+            return Err(format!(
+                "adaptive threshold {} must be a finite number above 0",
+                self.threshold
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// What the first pass decided for one pixel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Decision {
+    /// Every first-pass sample missed: the pixel sees only background; no extra samples.
+    Background,
+    /// The error estimate is at or below the threshold; no extra samples.
+    Converged,
+    /// The error estimate is above the threshold: ranks `base_spp..max_spp` are traced.
+    Refine,
+}
+
+/// The decision for a pixel from its first-pass sample radiances `colours` (rank order) and
+/// whether any of them hit a surface. The estimate is, per channel, the unbiased sample
+/// variance over `colours.len()` samples divided by their count (the squared standard error of
+/// the mean), computed in f64 from the f32 radiances; the pixel is refined when the largest
+/// channel's is above `threshold^2`.
+pub fn decide(colours: &[[f32; 3]], any_hit: bool, threshold: f64) -> Decision {
+    if !any_hit {
+        return Decision::Background;
+    }
+    let n = colours.len() as f64;
+    if colours.len() < 2 {
+        return Decision::Converged;
+    }
+    let mut worst = 0.0f64;
+    for c in 0..3 {
+        let mean = colours.iter().map(|s| f64::from(s[c])).sum::<f64>() / n;
+        let squares: f64 = colours
+            .iter()
+            .map(|s| {
+                let d = f64::from(s[c]) - mean;
+                d * d
+            })
+            .sum();
+        worst = worst.max(squares / (n - 1.0) / n);
+    }
+    if worst > threshold * threshold {
+        Decision::Refine
+    } else {
+        Decision::Converged
+    }
+}
+
+/// Counts of what the adaptive sampler did, for the report.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct AdaptiveCounts {
+    /// Pixels that got the second pass (`max_spp` samples).
+    pub refined_pixels: u64,
+    /// Pixels whose first-pass samples all missed: no extra samples (a skip).
+    pub background_pixels: u64,
+    /// Pixels whose estimate was at or below the threshold.
+    pub converged_pixels: u64,
+    /// Camera samples traced in all: first and second pass.
+    pub samples: u64,
+}
+
+impl AdaptiveCounts {
+    /// Counts one pixel's decision, given the settings it was made under.
+    pub fn add(&mut self, decision: Decision, settings: &AdaptiveSettings) {
+        self.samples += u64::from(settings.base_spp);
+        match decision {
+            Decision::Background => self.background_pixels += 1,
+            Decision::Converged => self.converged_pixels += 1,
+            Decision::Refine => {
+                self.refined_pixels += 1;
+                self.samples += u64::from(settings.max_spp - settings.base_spp);
+            }
+        }
+    }
+}
+
+impl std::ops::AddAssign for AdaptiveCounts {
+    fn add_assign(&mut self, o: AdaptiveCounts) {
+        self.refined_pixels += o.refined_pixels;
+        self.background_pixels += o.background_pixels;
+        self.converged_pixels += o.converged_pixels;
+        self.samples += o.samples;
+    }
+}
+
+/// The offset in [0, 1)^2 inside pixel `pixel` (row-major index) of the sample of rank `rank`
+/// (`0..max_spp`) of the adaptive pattern for `max_spp` (a power of 4). Pure integer hashing
+/// and exact conversions, as [`crate::sampling::sample_offset`].
+pub fn adaptive_offset(pixel: u64, rank: u32, max_spp: u32) -> (f64, f64) {
+    let bits = max_spp.max(1).trailing_zeros() / 2;
+    let g = f64::from(1u32 << bits);
+    let rank = rank & (max_spp.max(1) - 1);
+    // Base 4 digits of the rank: even bits to x, odd bits to y, most significant digit last;
+    // reversing them makes each prefix of 4^j ranks one sample per cell of the 2^j grid.
+    let (rx, ry) = (compact_bits(rank), compact_bits(rank >> 1));
+    let seed = hash64(pixel);
+    let cx = owen(reverse(rx, bits), bits, seed as u32);
+    let cy = owen(reverse(ry, bits), bits, (seed >> 32) as u32);
+    let jitter = hash64(seed ^ (u64::from(rank) << 32 | 0x5bd1));
+    let jx = unit_float(jitter as u32);
+    let jy = unit_float((jitter >> 32) as u32);
+    let x = (f64::from(cx) + jx) / g;
+    let y = (f64::from(cy) + jy) / g;
+    (x.min(ONE_MINUS_ULP), y.min(ONE_MINUS_ULP))
+}
+
+/// The even bits of `v`, packed: bit 2i of `v` becomes bit i.
+fn compact_bits(v: u32) -> u32 {
+    let mut x = v & 0x5555_5555;
+    x = (x | (x >> 1)) & 0x3333_3333;
+    x = (x | (x >> 2)) & 0x0f0f_0f0f;
+    x = (x | (x >> 4)) & 0x00ff_00ff;
+    (x | (x >> 8)) & 0x0000_ffff
+}
+
+/// The low `bits` bits of `v` in reverse order.
+fn reverse(v: u32, bits: u32) -> u32 {
+    if bits == 0 {
+        0
+    } else {
+        v.reverse_bits() >> (32 - bits)
+    }
+}
+
+/// Owen scrambling of a `bits`-bit value: each bit, from the most significant, is flipped by a
+/// hash of the seed and the bits above it. A bijection that keeps every dyadic prefix class
+/// together, so stratification survives.
+fn owen(v: u32, bits: u32, seed: u32) -> u32 {
+    let mut out = v;
+    for level in 0..bits {
+        let bit = bits - 1 - level;
+        // The bits above `bit`, with a leading 1 so prefixes of different lengths differ.
+        let prefix = (v >> (bit + 1)) | (1 << level);
+        let flip = hash32(seed ^ hash32(prefix.wrapping_mul(0x9e37_79b9))) & 1;
+        out ^= flip << bit;
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests;
