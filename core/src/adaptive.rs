@@ -16,8 +16,14 @@
 //!   rank order divided by the number of samples it got (`base_spp` or `max_spp`); the hit
 //!   buffer keeps the hit of rank 0.
 
-use crate::sampling::{ONE_MINUS_ULP, hash32, hash64, unit_float};
+use crate::camera::Camera;
+use crate::error::SceneError;
+use crate::sampling::{ONE_MINUS_ULP, PixelSum, hash32, hash64, unit_float};
+use crate::triangle::Ray;
 use serde::{Deserialize, Serialize};
+
+mod render;
+pub use render::render_adaptive;
 
 /// The adaptive sampler's settings; recorded in the plan and the report.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -36,26 +42,33 @@ pub struct AdaptiveSettings {
 const MAX_SPP: u32 = 65_536;
 
 impl AdaptiveSettings {
-    /// Checks the settings; the error is one line naming the bad value.
-    pub fn check(&self) -> Result<(), String> {
+    /// Checks the settings; the error names the bad value and the limit it breaks, as
+    /// [`crate::scene::check_image_size`] does for the image size.
+    pub fn check(&self) -> Result<(), SceneError> {
         let power_of_4 = |v: u32| v.is_power_of_two() && v.trailing_zeros() % 2 == 0;
         if !power_of_4(self.base_spp) || self.base_spp < 4 || self.base_spp >= MAX_SPP {
-            return Err(format!(
-                "adaptive base spp {} must be a power of 4 from 4 to 16384 (4, 16, 64, 256, ...)",
-                self.base_spp
-            ));
+            return Err(SceneError::OutOfRange {
+                what: "adaptive base spp",
+                value: self.base_spp.to_string(),
+                limit: "must be a power of 4 from 4 to 16384 (4, 16, 64, 256, ...)".into(),
+            });
         }
         if !power_of_4(self.max_spp) || self.max_spp <= self.base_spp || self.max_spp > MAX_SPP {
-            return Err(format!(
-                "adaptive max spp {} must be a power of 4 above the base spp {} and at most {MAX_SPP}",
-                self.max_spp, self.base_spp
-            ));
+            return Err(SceneError::OutOfRange {
+                what: "adaptive max spp",
+                value: self.max_spp.to_string(),
+                limit: format!(
+                    "must be a power of 4 above the base spp {} and at most {MAX_SPP}",
+                    self.base_spp
+                ),
+            });
         }
         if !(self.threshold.is_finite() && self.threshold > 0.0) {
-            return Err(format!(
-                "adaptive threshold {} must be a finite number above 0",
-                self.threshold
-            ));
+            return Err(SceneError::OutOfRange {
+                what: "adaptive threshold",
+                value: self.threshold.to_string(),
+                limit: "must be a finite number above 0".into(),
+            });
         }
         Ok(())
     }
@@ -139,6 +152,28 @@ impl std::ops::AddAssign for AdaptiveCounts {
         self.converged_pixels += o.converged_pixels;
         self.samples += o.samples;
     }
+}
+
+/// The camera ray of the sample of rank `rank` of pixel `pixel` (row-major in an image
+/// `width` pixels wide) in the adaptive pattern for `max_spp`: the one ray path of the
+/// monolithic renderer and the pipeline.
+pub fn adaptive_ray(camera: &Camera, width: u32, pixel: u64, rank: u32, max_spp: u32) -> Ray {
+    let (ox, oy) = adaptive_offset(pixel, rank, max_spp);
+    // x < 2^32 and y < 2^32: both convert to f64 exactly.
+    let x = (pixel % u64::from(width)) as f64;
+    let y = (pixel / u64::from(width)) as f64;
+    camera.ray(x + ox, y + oy)
+}
+
+/// A pixel from its first-pass sample radiances and, when it was refined, its second-pass
+/// ones (both in rank order): their in-order f32 sum divided by their count, as
+/// [`PixelSum`] computes it.
+pub fn pixel_value(first: &[[f32; 3]], second: &[[f32; 3]]) -> [f32; 3] {
+    let mut sum = PixelSum::default();
+    for &c in first.iter().chain(second) {
+        sum.add(c);
+    }
+    sum.mean((first.len() + second.len()) as u32)
 }
 
 /// The offset in [0, 1)^2 inside pixel `pixel` (row-major index) of the sample of rank `rank`

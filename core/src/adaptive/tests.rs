@@ -10,30 +10,30 @@ fn settings(base_spp: u32, max_spp: u32, threshold: f64) -> AdaptiveSettings {
 
 #[test]
 fn settings_are_checked_with_one_line_messages() {
-    assert_eq!(settings(16, 256, 0.01).check(), Ok(()));
+    assert!(settings(16, 256, 0.01).check().is_ok());
     assert_eq!(
-        settings(12, 256, 0.01).check().unwrap_err(),
-        "adaptive base spp 12 must be a power of 4 from 4 to 16384 (4, 16, 64, 256, ...)"
+        settings(12, 256, 0.01).check().unwrap_err().to_string(),
+        "adaptive base spp = 12 is out of range: must be a power of 4 from 4 to 16384 (4, 16, 64, 256, ...)"
     );
     assert_eq!(
-        settings(1, 256, 0.01).check().unwrap_err(),
-        "adaptive base spp 1 must be a power of 4 from 4 to 16384 (4, 16, 64, 256, ...)"
+        settings(1, 256, 0.01).check().unwrap_err().to_string(),
+        "adaptive base spp = 1 is out of range: must be a power of 4 from 4 to 16384 (4, 16, 64, 256, ...)"
     );
     assert_eq!(
-        settings(16, 128, 0.01).check().unwrap_err(),
-        "adaptive max spp 128 must be a power of 4 above the base spp 16 and at most 65536"
+        settings(16, 128, 0.01).check().unwrap_err().to_string(),
+        "adaptive max spp = 128 is out of range: must be a power of 4 above the base spp 16 and at most 65536"
     );
     assert_eq!(
-        settings(16, 16, 0.01).check().unwrap_err(),
-        "adaptive max spp 16 must be a power of 4 above the base spp 16 and at most 65536"
+        settings(16, 16, 0.01).check().unwrap_err().to_string(),
+        "adaptive max spp = 16 is out of range: must be a power of 4 above the base spp 16 and at most 65536"
     );
     assert_eq!(
-        settings(16, 256, f64::NAN).check().unwrap_err(),
-        "adaptive threshold NaN must be a finite number above 0"
+        settings(16, 256, f64::NAN).check().unwrap_err().to_string(),
+        "adaptive threshold = NaN is out of range: must be a finite number above 0"
     );
     assert_eq!(
-        settings(16, 256, 0.0).check().unwrap_err(),
-        "adaptive threshold 0 must be a finite number above 0"
+        settings(16, 256, 0.0).check().unwrap_err().to_string(),
+        "adaptive threshold = 0 is out of range: must be a finite number above 0"
     );
 }
 
