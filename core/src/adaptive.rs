@@ -177,57 +177,53 @@ pub fn pixel_value(first: &[[f32; 3]], second: &[[f32; 3]]) -> [f32; 3] {
 }
 
 /// The offset in [0, 1)^2 inside pixel `pixel` (row-major index) of the sample of rank `rank`
-/// (`0..max_spp`) of the adaptive pattern for `max_spp` (a power of 4). Pure integer hashing
-/// and exact conversions, as [`crate::sampling::sample_offset`].
+/// (`0..max_spp`) of the adaptive pattern for `max_spp` (a power of 4): point `rank` of the
+/// two-dimensional Sobol sequence (van der Corput in x, the second Sobol dimension in y), Owen
+/// scrambled per pixel and per dimension (the hash-based nested scrambling of Laine and Karras,
+/// as Burley 2020 gives it). The first `2^m` points of that sequence are a (0, m, 2)-net, and
+/// scrambling keeps that: every prefix of `4^j` ranks has one sample in each cell of the
+/// `2^j x 2^j` grid and one in each of the `4^j` columns and rows. Pure integer hashing and
+/// exact conversions, as [`crate::sampling::sample_offset`].
 pub fn adaptive_offset(pixel: u64, rank: u32, max_spp: u32) -> (f64, f64) {
-    let bits = max_spp.max(1).trailing_zeros() / 2;
-    let g = f64::from(1u32 << bits);
     let rank = rank & (max_spp.max(1) - 1);
-    // Base 4 digits of the rank: even bits to x, odd bits to y, most significant digit last;
-    // reversing them makes each prefix of 4^j ranks one sample per cell of the 2^j grid.
-    let (rx, ry) = (compact_bits(rank), compact_bits(rank >> 1));
     let seed = hash64(pixel);
-    let cx = owen(reverse(rx, bits), bits, seed as u32);
-    let cy = owen(reverse(ry, bits), bits, (seed >> 32) as u32);
-    let jitter = hash64(seed ^ (u64::from(rank) << 32 | 0x5bd1));
-    let jx = unit_float(jitter as u32);
-    let jy = unit_float((jitter >> 32) as u32);
-    let x = (f64::from(cx) + jx) / g;
-    let y = (f64::from(cy) + jy) / g;
-    (x.min(ONE_MINUS_ULP), y.min(ONE_MINUS_ULP))
+    let x = nested_scramble(rank.reverse_bits(), seed as u32);
+    let y = nested_scramble(
+        sobol_second(rank),
+        hash32((seed >> 32) as u32 ^ 0x68bc_21eb),
+    );
+    (
+        unit_float(x).min(ONE_MINUS_ULP),
+        unit_float(y).min(ONE_MINUS_ULP),
+    )
 }
 
-/// The even bits of `v`, packed: bit 2i of `v` becomes bit i.
-fn compact_bits(v: u32) -> u32 {
-    let mut x = v & 0x5555_5555;
-    x = (x | (x >> 1)) & 0x3333_3333;
-    x = (x | (x >> 2)) & 0x0f0f_0f0f;
-    x = (x | (x >> 4)) & 0x00ff_00ff;
-    (x | (x >> 8)) & 0x0000_ffff
-}
-
-/// The low `bits` bits of `v` in reverse order.
-fn reverse(v: u32, bits: u32) -> u32 {
-    if bits == 0 {
-        0
-    } else {
-        v.reverse_bits() >> (32 - bits)
-    }
-}
-
-/// Owen scrambling of a `bits`-bit value: each bit, from the most significant, is flipped by a
-/// hash of the seed and the bits above it. A bijection that keeps every dyadic prefix class
-/// together, so stratification survives.
-fn owen(v: u32, bits: u32, seed: u32) -> u32 {
-    let mut out = v;
-    for level in 0..bits {
-        let bit = bits - 1 - level;
-        // The bits above `bit`, with a leading 1 so prefixes of different lengths differ.
-        let prefix = (v >> (bit + 1)) | (1 << level);
-        let flip = hash32(seed ^ hash32(prefix.wrapping_mul(0x9e37_79b9))) & 1;
-        out ^= flip << bit;
+/// Point `i` of the second dimension of the Sobol sequence, as a 32-bit binary fraction (its
+/// generator matrix is Pascal's triangle mod 2: direction `v_{k+1} = v_k ^ (v_k >> 1)`).
+fn sobol_second(mut i: u32) -> u32 {
+    let mut v = 1u32 << 31;
+    let mut out = 0;
+    while i != 0 {
+        if i & 1 != 0 {
+            out ^= v;
+        }
+        i >>= 1;
+        v ^= v >> 1;
     }
     out
+}
+
+/// Owen scrambling of a 32-bit binary fraction by hashing: every bit is flipped by a function
+/// of the seed and the bits above it only (Laine and Karras's permutation on the reversed
+/// bits), so every dyadic interval maps onto one of the same size and nets stay nets.
+fn nested_scramble(x: u32, seed: u32) -> u32 {
+    let mut v = x.reverse_bits();
+    v = v.wrapping_add(seed);
+    v ^= v.wrapping_mul(0x6c50_b47c);
+    v ^= v.wrapping_mul(0xb82f_1e52);
+    v ^= v.wrapping_mul(0xc7af_e638);
+    v ^= v.wrapping_mul(0x8d22_f6e6);
+    v.reverse_bits()
 }
 
 #[cfg(test)]

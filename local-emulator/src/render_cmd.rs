@@ -6,6 +6,7 @@ use crate::outputs::{check_distinct, check_image_path, check_output_path, write_
 use anyhow::{Context, Result, anyhow, bail};
 use hort::emulator::{EmulatorConfig, FaultSettings, JobOptions, LambdaTarget, run_job_loaded};
 use hort::progress::{ProgressMode, ProgressObserver, print_breakdown, print_summary};
+use hort_core::adaptive::{AdaptiveSettings, render_adaptive};
 use hort_core::camera::Camera;
 use hort_core::cost::Arch;
 use hort_core::hits::{Hit, encode_hits};
@@ -15,7 +16,7 @@ use hort_core::pipeline::{
     ExecutionMode, PipelineOptions, PlanRequest, resolve_counts, run_pipeline,
 };
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
-use hort_core::report::{Outputs, RayReport, Report, Seconds, StageReport};
+use hort_core::report::{AdaptiveReport, Outputs, RayReport, Report, Seconds, StageReport};
 use hort_core::scene::{DEFAULT_HEIGHT, DEFAULT_WIDTH, Scene, check_image_size, load_scene};
 use hort_core::store::MemoryStore;
 use std::path::{Path, PathBuf};
@@ -44,7 +45,12 @@ struct Rendered {
     workers: Option<usize>,
     /// The job id (pipeline modes).
     job: Option<String>,
+    /// The adaptive sampler's settings and counts, when it ran.
+    adaptive: Option<AdaptiveReport>,
 }
+
+/// The default of `--adaptive-threshold`.
+const DEFAULT_ADAPTIVE_THRESHOLD: f64 = 0.005;
 
 pub fn run(args: RenderArgs) -> Result<()> {
     let started = Instant::now();
@@ -76,6 +82,26 @@ pub fn run(args: RenderArgs) -> Result<()> {
     // A camera that cannot be built is the scene's fault: say so before any upload or render.
     Camera::new(&scene.camera_for(width, height), width, height)
         .map_err(|e| anyhow!("{}: {e}", args.scene.display()))?;
+    let adaptive = match args.adaptive {
+        Some(max_spp) => {
+            let settings = AdaptiveSettings {
+                base_spp: spp,
+                max_spp,
+                threshold: args
+                    .adaptive_threshold
+                    .unwrap_or(DEFAULT_ADAPTIVE_THRESHOLD),
+            };
+            settings
+                .check()
+                .context("--spp, --adaptive and --adaptive-threshold")?;
+            check_image_size(width, height, max_spp).context("--adaptive")?;
+            Some(settings)
+        }
+        None => None,
+    };
+    if adaptive.is_some() && !args.monolithic {
+        bail!("--adaptive runs only with --monolithic");
+    }
     let request = PlanRequest {
         width,
         height,
@@ -93,7 +119,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         warn_if_oversplit(triangles, shape.splits, s);
     }
     let rendered = if args.monolithic {
-        render_monolithic(&scene, width, height, spp, args.threads)?
+        render_monolithic(&scene, width, height, spp, args.threads, adaptive)?
     } else if args.in_process {
         render_pipeline(&scene, request, &args)?
     } else {
@@ -142,11 +168,33 @@ pub fn run(args: RenderArgs) -> Result<()> {
         workers: rendered.workers,
         job: rendered.job,
         outputs,
+        skips: skips(&scene, rendered.adaptive.as_ref()),
+        adaptive: rendered.adaptive,
     };
+    for skip in &report.skips {
+        eprintln!("skipped: {skip}");
+    }
     if let Some(target) = &report_target {
         write_output(target, (report.to_json() + "\n").as_bytes())?;
     }
     print_run_summary(&report, rendered.render_seconds, &out)
+}
+
+/// The work the run skipped because it cannot change the image, one sentence each.
+fn skips(scene: &Scene, adaptive: Option<&AdaptiveReport>) -> Vec<String> {
+    let mut out = Vec::new();
+    if scene.lights.is_empty() {
+        out.push("the scene has no lights: no shadow rays traced".to_owned());
+    }
+    if let Some(counts) = adaptive.and_then(|a| a.counts)
+        && counts.background_pixels > 0
+    {
+        out.push(format!(
+            "{} pixels saw only background in the first pass: no extra samples",
+            counts.background_pixels
+        ));
+    }
+    out
 }
 
 /// Splits far smaller than useful multiply tasks and overhead for nothing: say so.
@@ -195,6 +243,7 @@ fn render_monolithic(
     height: u32,
     spp: u32,
     threads: Option<usize>,
+    adaptive: Option<AdaptiveSettings>,
 ) -> Result<Rendered> {
     let threads = threads.unwrap_or_else(available_cores);
     let build_start = Instant::now();
@@ -206,7 +255,17 @@ fn render_monolithic(
         spp,
         threads,
     };
-    let output = render(scene, &bvh, settings)?;
+    let (output, adaptive) = match adaptive {
+        Some(a) => {
+            let (output, counts) = render_adaptive(scene, &bvh, settings, a)?;
+            let report = AdaptiveReport {
+                settings: a,
+                counts: Some(counts),
+            };
+            (output, Some(report))
+        }
+        None => (render(scene, &bvh, settings)?, None),
+    };
     Ok(Rendered {
         image: output.image,
         hits: output.hits,
@@ -226,6 +285,7 @@ fn render_monolithic(
         execution: None,
         workers: None,
         job: None,
+        adaptive,
     })
 }
 
@@ -257,6 +317,7 @@ fn render_pipeline(scene: &Scene, request: PlanRequest, args: &RenderArgs) -> Re
         execution: Some((run.plan.mode, run.plan.mode_reason.clone())),
         workers: Some(workers),
         job: Some(options.job.to_string()),
+        adaptive: None,
     })
 }
 
@@ -381,6 +442,7 @@ fn render_emulated(scene: &Scene, args: &RenderArgs, request: PlanRequest) -> Re
         job: Some(run.job.to_string()),
         stages: run.stages,
         cost_usd: Some(run.cost.total),
+        adaptive: None,
     })
 }
 

@@ -44,7 +44,8 @@ fn cell(p: (f64, f64), cells: u32) -> u32 {
 }
 
 /// Every prefix of 4^j ranks puts one sample in each cell of the 2^j x 2^j grid, for the
-/// whole pattern too: first pass and first plus second pass are both stratified.
+/// whole pattern too, and one in each of 4^j columns and rows: first pass and first plus
+/// second pass are both stratified in 2D and in each 1D projection.
 #[test]
 fn every_power_of_4_prefix_is_stratified() {
     for max_spp in [4u32, 16, 64, 256, 1024] {
@@ -69,6 +70,15 @@ fn every_power_of_4_prefix_is_stratified() {
                     (0..prefix).collect::<Vec<_>>(),
                     "max {max_spp}, pixel {pixel}, prefix {prefix}"
                 );
+                // And one sample in each of `prefix` columns and rows.
+                for axis in [0, 1] {
+                    let mut strata: Vec<u32> = pts[..prefix as usize]
+                        .iter()
+                        .map(|p| ([p.0, p.1][axis] * f64::from(prefix)) as u32)
+                        .collect();
+                    strata.sort_unstable();
+                    assert_eq!(strata, (0..prefix).collect::<Vec<_>>(), "axis {axis}");
+                }
                 prefix *= 4;
             }
         }
@@ -81,7 +91,12 @@ fn pixels_get_different_patterns() {
     let a: Vec<_> = (0..16).map(|r| adaptive_offset(5, r, 256)).collect();
     let b: Vec<_> = (0..16).map(|r| adaptive_offset(6, r, 256)).collect();
     assert_ne!(a, b);
-    assert_eq!(a, (0..16).map(|r| adaptive_offset(5, r, 256)).collect::<Vec<_>>());
+    assert_eq!(
+        a,
+        (0..16)
+            .map(|r| adaptive_offset(5, r, 256))
+            .collect::<Vec<_>>()
+    );
 }
 
 #[test]
