@@ -46,11 +46,7 @@ pub fn render_adaptive(
     let Ok(()) = run_indexed(
         std::iter::repeat_n((), threads),
         height as usize,
-        |(), y| {
-            Ok::<Row, Infallible>(render_row(
-                scene, bvh, &camera, width, adaptive, y as u32,
-            ))
-        },
+        |(), y| Ok::<Row, Infallible>(render_row(scene, bvh, &camera, width, adaptive, y as u32)),
         |y, row| {
             let range = y * width as usize..(y + 1) * width as usize;
             image.pixels[range.clone()].copy_from_slice(&row.colours);
@@ -151,7 +147,10 @@ fn render_row(
         rays,
         counts: AdaptiveCounts::default(),
     };
-    for ((first, hits), &decision) in colours1.chunks(base).zip(hits1.chunks(base)).zip(&decisions)
+    for ((first, hits), &decision) in colours1
+        .chunks(base)
+        .zip(hits1.chunks(base))
+        .zip(&decisions)
     {
         let second = match decision {
             Decision::Refine => refined.next().unwrap_or_default(),
