@@ -38,6 +38,9 @@ pub struct AdaptiveSettings {
     pub threshold: f64,
 }
 
+/// Settings are checked finite ([`AdaptiveSettings::check`]), so equality is an equivalence.
+impl Eq for AdaptiveSettings {}
+
 /// Largest `max_spp` (the image limit on spp).
 const MAX_SPP: u32 = 65_536;
 

@@ -6,7 +6,7 @@ use crate::outputs::{check_distinct, check_image_path, check_output_path, write_
 use anyhow::{Context, Result, anyhow, bail};
 use hort::emulator::{EmulatorConfig, FaultSettings, JobOptions, LambdaTarget, run_job_loaded};
 use hort::progress::{ProgressMode, ProgressObserver, print_breakdown, print_summary};
-use hort_core::adaptive::{AdaptiveSettings, render_adaptive};
+use hort_core::adaptive::{AdaptiveCounts, AdaptiveSettings, render_adaptive};
 use hort_core::camera::Camera;
 use hort_core::cost::Arch;
 use hort_core::hits::{Hit, encode_hits};
@@ -99,9 +99,6 @@ pub fn run(args: RenderArgs) -> Result<()> {
         }
         None => None,
     };
-    if adaptive.is_some() && !args.monolithic {
-        bail!("--adaptive runs only with --monolithic");
-    }
     let request = PlanRequest {
         width,
         height,
@@ -111,6 +108,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         mode: args.split_mode,
         execution: args.mode,
         memory_mb: args.memory_mb,
+        adaptive,
     };
     if !args.monolithic {
         // Refuse impossible partitionings here, with the scene at hand, before any upload.
@@ -178,6 +176,15 @@ pub fn run(args: RenderArgs) -> Result<()> {
         write_output(target, (report.to_json() + "\n").as_bytes())?;
     }
     print_run_summary(&report, rendered.render_seconds, &out)
+}
+
+/// The adaptive part of a pipeline run's report: the request's settings and the Render
+/// tasks' summed counts.
+fn adaptive_report(request: PlanRequest, counts: AdaptiveCounts) -> Option<AdaptiveReport> {
+    request.adaptive.map(|settings| AdaptiveReport {
+        settings,
+        counts: Some(counts),
+    })
 }
 
 /// The work the run skipped because it cannot change the image, one sentence each.
@@ -298,6 +305,14 @@ fn render_pipeline(scene: &Scene, request: PlanRequest, args: &RenderArgs) -> Re
     };
     let store = MemoryStore::new();
     let run = run_pipeline(&store, scene, request, &options)?;
+    let counts = run
+        .metrics
+        .iter()
+        .fold(AdaptiveCounts::default(), |mut sum, m| {
+            sum += m.adaptive;
+            sum
+        });
+    let adaptive = adaptive_report(request, counts);
     Ok(Rendered {
         image: run.image,
         hits: run.hits,
@@ -317,7 +332,7 @@ fn render_pipeline(scene: &Scene, request: PlanRequest, args: &RenderArgs) -> Re
         execution: Some((run.plan.mode, run.plan.mode_reason.clone())),
         workers: Some(workers),
         job: Some(options.job.to_string()),
-        adaptive: None,
+        adaptive,
     })
 }
 
@@ -423,11 +438,16 @@ fn render_emulated(scene: &Scene, args: &RenderArgs, request: PlanRequest) -> Re
         .filter(|s| s.name != "plan")
         .map(|s| s.seconds)
         .sum();
+    let counts = run.ledger.total().adaptive;
+    let adaptive = adaptive_report(request, counts);
     Ok(Rendered {
         image: run.image,
         hits: run.hits,
         rays: RayReport {
-            primary: u64::from(request.width) * u64::from(request.height) * u64::from(request.spp),
+            primary: adaptive.as_ref().map_or(
+                u64::from(request.width) * u64::from(request.height) * u64::from(request.spp),
+                |_| counts.samples,
+            ),
             shadow: run.ledger.total().shadow_rays,
         },
         build_seconds: run.stages.first().map_or(0.0, |s| s.seconds),
@@ -442,7 +462,7 @@ fn render_emulated(scene: &Scene, args: &RenderArgs, request: PlanRequest) -> Re
         job: Some(run.job.to_string()),
         stages: run.stages,
         cost_usd: Some(run.cost.total),
-        adaptive: None,
+        adaptive,
     })
 }
 

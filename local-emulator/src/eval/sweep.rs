@@ -172,6 +172,7 @@ pub fn distributed(
                 mode: SplitMode::Spatial,
                 execution: None,
                 memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
+                adaptive: None,
             };
             let start = Instant::now();
             let run = run_job(&config, &scene.path, request, &NoObserver)
