@@ -233,6 +233,14 @@ fn print_run_summary(report: &Report, render_seconds: f64, out: &Path) -> Result
         1 => "1 thread".to_owned(),
         n => format!("{n} threads"),
     };
+    let spp = match &report.adaptive {
+        Some(a) => {
+            let pixels = u64::from(width) * u64::from(height);
+            let mean = a.counts.map_or(0.0, |c| c.samples as f64 / pixels as f64);
+            format!("{spp}..{} (adaptive, mean {mean:.2})", a.settings.max_spp)
+        }
+        None => spp.to_string(),
+    };
     eprintln!(
         "rendered {width}x{height} at {spp} spp ({}), {} triangles: {:.3} s render ({mrays:.2} Mrays/s on {threads}), {:.3} s total -> {}",
         report.mode,
