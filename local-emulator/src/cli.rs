@@ -85,7 +85,7 @@ pub struct RenderArgs {
     #[arg(long, value_name = "MAX_SPP", allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=65536))]
     pub adaptive: Option<u32>,
     /// The adaptive sampler's threshold on a pixel's standard error (linear radiance, the
-    /// largest over R, G, B) after the first pass (default 0.005).
+    /// largest over R, G, B) after the first pass (default 0.002).
     #[arg(long, requires = "adaptive", allow_negative_numbers = true)]
     pub adaptive_threshold: Option<f64>,
     /// Render in one process with one BVH over the whole scene.

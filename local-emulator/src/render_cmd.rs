@@ -50,7 +50,7 @@ struct Rendered {
 }
 
 /// The default of `--adaptive-threshold`.
-const DEFAULT_ADAPTIVE_THRESHOLD: f64 = 0.005;
+const DEFAULT_ADAPTIVE_THRESHOLD: f64 = 0.002;
 
 pub fn run(args: RenderArgs) -> Result<()> {
     let started = Instant::now();

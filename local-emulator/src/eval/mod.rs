@@ -48,7 +48,7 @@ pub struct EvalArgs {
     #[arg(long, value_delimiter = ',', default_value = "16,64,256,1024")]
     pub adaptive_spp: Vec<u32>,
     /// The adaptive series' threshold on a pixel's standard error after the first pass.
-    #[arg(long, default_value_t = 0.005)]
+    #[arg(long, default_value_t = 0.002)]
     pub adaptive_threshold: f64,
     /// Timed runs per setting; the best counts.
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=100))]
