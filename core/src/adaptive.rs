@@ -48,7 +48,7 @@ impl AdaptiveSettings {
     /// Checks the settings; the error names the bad value and the limit it breaks, as
     /// [`crate::scene::check_image_size`] does for the image size.
     pub fn check(&self) -> Result<(), SceneError> {
-        let power_of_4 = |v: u32| v.is_power_of_two() && v.trailing_zeros() % 2 == 0;
+        let power_of_4 = |v: u32| v.is_power_of_two() && v.trailing_zeros().is_multiple_of(2);
         if !power_of_4(self.base_spp) || self.base_spp < 4 || self.base_spp >= MAX_SPP {
             return Err(SceneError::OutOfRange {
                 what: "adaptive base spp",

@@ -98,15 +98,15 @@ fn staged_adaptive_jobs_are_refused() {
         workers: 1,
         split_cache_bytes: 0,
     };
-    let e = run_pipeline(
+    let Err(e) = run_pipeline(
         &MemoryStore::new(),
         &scene,
         request(adaptive, 2, 2, None),
         &options,
-    )
-    .err()
-    .expect("staged adaptive must be refused")
-    .to_string();
+    ) else {
+        panic!("staged adaptive must be refused");
+    };
+    let e = e.to_string();
     assert_eq!(
         e,
         "--adaptive runs in fused mode only, and this job would run staged (--splits 2: \
@@ -114,10 +114,10 @@ fn staged_adaptive_jobs_are_refused() {
     );
     let mut bad = request(adaptive, 1, 1, None);
     bad.spp = 16;
-    let e = run_pipeline(&MemoryStore::new(), &scene, bad, &options)
-        .err()
-        .expect("a base spp other than spp must be refused")
-        .to_string();
+    let Err(e) = run_pipeline(&MemoryStore::new(), &scene, bad, &options) else {
+        panic!("a base spp other than spp must be refused");
+    };
+    let e = e.to_string();
     assert_eq!(
         e,
         "adaptive base spp 4 differs from spp 16: the first pass takes spp samples"

@@ -28,7 +28,11 @@ pub fn render_span_adaptive(
     let first: Vec<(u64, u32)> = (span.start..span.end)
         .flat_map(|p| (0..a.base_spp).map(move |r| (p, r)))
         .collect();
-    let (colours1, hits1, mut shadow_rays) = pass(plan, splits, &first, a.max_spp)?;
+    let Pass {
+        colours: colours1,
+        hits: hits1,
+        mut shadow_rays,
+    } = pass(plan, splits, &first, a.max_spp)?;
     let base = a.base_spp as usize;
     let decisions: Vec<Decision> = colours1
         .chunks(base)
@@ -46,12 +50,13 @@ pub fn render_span_adaptive(
         .filter(|(_, d)| **d == Decision::Refine)
         .flat_map(|(p, _)| (a.base_spp..a.max_spp).map(move |r| (p, r)))
         .collect();
-    let (colours2, _, rays2) = if second.is_empty() {
-        (Vec::new(), Vec::new(), 0)
+    let colours2 = if second.is_empty() {
+        Vec::new()
     } else {
-        pass(plan, splits, &second, a.max_spp)?
+        let round = pass(plan, splits, &second, a.max_spp)?;
+        shadow_rays += round.shadow_rays;
+        round.colours
     };
-    shadow_rays += rays2;
     let n = (span.end - span.start) as usize;
     let mut block = PixelBlock {
         start: span.start,
@@ -78,15 +83,24 @@ pub fn render_span_adaptive(
     Ok((block, shadow_rays, counts))
 }
 
+/// What one round of the stage functions gives, per sample in order.
+struct Pass {
+    /// Each sample's radiance.
+    colours: Vec<[f32; 3]>,
+    /// Each sample's hit; a miss is [`Hit::MISS`].
+    hits: Vec<Hit>,
+    /// Logical shadow rays: hit samples x lights.
+    shadow_rays: u64,
+}
+
 /// One round of the stage functions over `samples` ((pixel, rank) pairs sorted by pixel, then
-/// rank): each sample's radiance and hit (a miss is [`Hit::MISS`]), in order, and the logical
-/// shadow rays.
+/// rank).
 fn pass(
     plan: &JobPlan,
     splits: &[&SplitObject],
     samples: &[(u64, u32)],
     max_spp: u32,
-) -> Result<(Vec<[f32; 3]>, Vec<Hit>, u64), PipelineError> {
+) -> Result<Pass, PipelineError> {
     let camera = Camera::new(&plan.camera, plan.width, plan.height)?;
     let candidates: Vec<Vec<SurfaceHit>> = splits
         .iter()
@@ -122,8 +136,11 @@ fn pass(
             t: h.t,
         }));
     }
-    let shadow_rays = hits.len() as u64 * plan.lights.len() as u64;
-    Ok((colours, sample_hits, shadow_rays))
+    Ok(Pass {
+        colours,
+        hits: sample_hits,
+        shadow_rays: hits.len() as u64 * plan.lights.len() as u64,
+    })
 }
 
 /// CastMap over an explicit sample list with the adaptive pattern's rays: the split's nearest
