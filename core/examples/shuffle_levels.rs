@@ -51,6 +51,7 @@ fn main() {
         mode: SplitMode::Spatial,
         execution: Some(ExecutionMode::Staged),
         memory_mb: 10_240,
+        adaptive: None,
     };
     let options = PipelineOptions {
         job: JobId::new("levels").expect("a valid job id"),

@@ -85,6 +85,7 @@ fn main() {
         mode: SplitMode::Spatial,
         execution: Some(ExecutionMode::Staged),
         memory_mb: 10_240,
+        adaptive: None,
     };
     let options = PipelineOptions {
         job: JobId::new("columns").expect("a valid job id"),

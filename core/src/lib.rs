@@ -9,6 +9,7 @@ mod error_type;
 pub use error_type::ErrorType;
 
 // Scene input and the renderer.
+pub mod adaptive;
 pub mod bvh;
 pub mod camera;
 pub mod render;

@@ -137,7 +137,7 @@ pub fn render(
 /// `hits`: the background for a miss, else Lambert shading with the lights its shadow rays
 /// reach (summed in light order) plus ambient. The shadow rays of the whole batch are traced as
 /// packets (sample by sample, light by light: neighbours share a light).
-fn shade_batch(
+pub(crate) fn shade_batch(
     scene: &Scene,
     bvh: &Bvh,
     rays: &[Ray],
@@ -183,7 +183,7 @@ fn shade_batch(
 }
 
 /// Camera samples traced per `closest_hits` call (rounded to whole pixels).
-const BATCH_SAMPLES: usize = 1024;
+pub(crate) const BATCH_SAMPLES: usize = 1024;
 
 struct Row {
     colours: Vec<[f32; 3]>,

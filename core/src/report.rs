@@ -3,6 +3,7 @@
 //! `replication` and `cost_usd`. Fields that do not apply to a mode are null or empty
 //! (`stages`, `replication` and `cost_usd` in monolithic mode; `cost_usd` in process).
 
+pub use crate::adaptive::{AdaptiveCounts, AdaptiveSettings};
 pub use crate::breakdown::StageBreakdown;
 use serde::{Deserialize, Serialize};
 
@@ -63,6 +64,24 @@ pub struct Report {
     /// The files the run wrote.
     #[serde(default)]
     pub outputs: Outputs,
+    /// The adaptive sampler's settings and what it did; null when it did not run.
+    #[serde(default)]
+    pub adaptive: Option<AdaptiveReport>,
+    /// Work skipped because it cannot change the image, one sentence each (also printed on
+    /// standard error as `skipped: ...`).
+    #[serde(default)]
+    pub skips: Vec<String>,
+}
+
+/// The adaptive sampler in a report: its settings and, where the run counts them, its
+/// decisions (`spp` of the report is the base spp).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct AdaptiveReport {
+    /// Base spp, max spp and threshold.
+    pub settings: AdaptiveSettings,
+    /// Pixels refined, converged and background-only, and samples traced; null where the
+    /// run does not count them.
+    pub counts: Option<AdaptiveCounts>,
 }
 
 /// The files a render wrote; null where not asked for (`report` is `-` for standard output).
@@ -205,6 +224,20 @@ mod tests {
                 hits: None,
                 report: Some("-".into()),
             },
+            adaptive: Some(AdaptiveReport {
+                settings: AdaptiveSettings {
+                    base_spp: 4,
+                    max_spp: 64,
+                    threshold: 0.005,
+                },
+                counts: Some(AdaptiveCounts {
+                    refined_pixels: 10,
+                    background_pixels: 20,
+                    converged_pixels: 3042,
+                    samples: 12_888,
+                }),
+            }),
+            skips: vec!["no lights: no shadow rays".into()],
         }
     }
 
@@ -264,7 +297,23 @@ mod tests {
     "image": "x.png",
     "hits": null,
     "report": "-"
-  }
+  },
+  "adaptive": {
+    "settings": {
+      "base_spp": 4,
+      "max_spp": 64,
+      "threshold": 0.005
+    },
+    "counts": {
+      "refined_pixels": 10,
+      "background_pixels": 20,
+      "converged_pixels": 3042,
+      "samples": 12888
+    }
+  },
+  "skips": [
+    "no lights: no shadow rays"
+  ]
 }"#;
 
     #[test]
@@ -290,6 +339,7 @@ mod tests {
             (None, None, None, None)
         );
         assert_eq!(r.outputs, Outputs::default());
+        assert_eq!((r.adaptive, r.skips.len()), (None, 0));
         assert_eq!(
             (r.mode.as_str(), r.cost_usd, r.replication),
             ("monolithic", Some(0.75), None)

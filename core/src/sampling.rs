@@ -147,7 +147,7 @@ impl PixelSum {
     }
 }
 
-const ONE_MINUS_ULP: f64 = 1.0 - f64::EPSILON / 2.0;
+pub(crate) const ONE_MINUS_ULP: f64 = 1.0 - f64::EPSILON / 2.0;
 
 fn isqrt(v: u32) -> u32 {
     let mut r = (f64::from(v)).sqrt() as u32;
@@ -224,7 +224,7 @@ impl Permutation {
     }
 }
 
-fn hash32(mut x: u32) -> u32 {
+pub(crate) fn hash32(mut x: u32) -> u32 {
     x ^= x >> 16;
     x = x.wrapping_mul(0x7feb_352d);
     x ^= x >> 15;
@@ -232,7 +232,7 @@ fn hash32(mut x: u32) -> u32 {
     x ^ (x >> 16)
 }
 
-fn hash64(mut x: u64) -> u64 {
+pub(crate) fn hash64(mut x: u64) -> u64 {
     x = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
     x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
     x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
@@ -240,7 +240,7 @@ fn hash64(mut x: u64) -> u64 {
 }
 
 /// A float in [0, 1) with 24 random bits (exactly representable).
-fn unit_float(h: u32) -> f64 {
+pub(crate) fn unit_float(h: u32) -> f64 {
     f64::from(h >> 8) / f64::from(1u32 << 24)
 }
 

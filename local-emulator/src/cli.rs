@@ -82,6 +82,15 @@ pub struct RenderArgs {
     /// Samples per pixel, 1 to 65536 (default: manifest, else 1).
     #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=65536))]
     pub spp: Option<u32>,
+    /// Adaptive sampling up to MAX_SPP samples per pixel (a power of 4, above --spp): first
+    /// --spp samples (a power of 4, at least 4) in every pixel, then MAX_SPP in the pixels
+    /// whose standard error is above --adaptive-threshold. Monolithic or fused mode.
+    #[arg(long, value_name = "MAX_SPP", allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub adaptive: Option<u32>,
+    /// The adaptive sampler's threshold on a pixel's standard error (linear radiance, the
+    /// largest over R, G, B) after the first pass (default 0.002).
+    #[arg(long, requires = "adaptive", allow_negative_numbers = true)]
+    pub adaptive_threshold: Option<f64>,
     /// Render in one process with one BVH over the whole scene.
     #[arg(long, conflicts_with_all = [
         "in_process", "workers", "splits", "spans", "split_mode", "s3_endpoint", "bucket",

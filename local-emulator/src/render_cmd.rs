@@ -6,6 +6,7 @@ use crate::outputs::{check_distinct, check_image_path, check_output_path, write_
 use anyhow::{Context, Result, anyhow, bail};
 use hort::emulator::{EmulatorConfig, FaultSettings, JobOptions, LambdaTarget, run_job_loaded};
 use hort::progress::{ProgressMode, ProgressObserver, print_breakdown, print_summary};
+use hort_core::adaptive::{AdaptiveCounts, AdaptiveSettings, render_adaptive};
 use hort_core::camera::Camera;
 use hort_core::cost::Arch;
 use hort_core::hits::{Hit, encode_hits};
@@ -15,7 +16,7 @@ use hort_core::pipeline::{
     ExecutionMode, PipelineOptions, PlanRequest, resolve_counts, run_pipeline,
 };
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
-use hort_core::report::{Outputs, RayReport, Report, Seconds, StageReport};
+use hort_core::report::{AdaptiveReport, Outputs, RayReport, Report, Seconds, StageReport};
 use hort_core::scene::{DEFAULT_HEIGHT, DEFAULT_WIDTH, Scene, check_image_size, load_scene};
 use hort_core::store::MemoryStore;
 use std::path::{Path, PathBuf};
@@ -44,7 +45,12 @@ struct Rendered {
     workers: Option<usize>,
     /// The job id (pipeline modes).
     job: Option<String>,
+    /// The adaptive sampler's settings and counts, when it ran.
+    adaptive: Option<AdaptiveReport>,
 }
+
+/// The default of `--adaptive-threshold`.
+const DEFAULT_ADAPTIVE_THRESHOLD: f64 = 0.002;
 
 pub fn run(args: RenderArgs) -> Result<()> {
     let started = Instant::now();
@@ -76,6 +82,23 @@ pub fn run(args: RenderArgs) -> Result<()> {
     // A camera that cannot be built is the scene's fault: say so before any upload or render.
     Camera::new(&scene.camera_for(width, height), width, height)
         .map_err(|e| anyhow!("{}: {e}", args.scene.display()))?;
+    let adaptive = match args.adaptive {
+        Some(max_spp) => {
+            let settings = AdaptiveSettings {
+                base_spp: spp,
+                max_spp,
+                threshold: args
+                    .adaptive_threshold
+                    .unwrap_or(DEFAULT_ADAPTIVE_THRESHOLD),
+            };
+            settings
+                .check()
+                .context("--spp, --adaptive and --adaptive-threshold")?;
+            check_image_size(width, height, max_spp).context("--adaptive")?;
+            Some(settings)
+        }
+        None => None,
+    };
     let request = PlanRequest {
         width,
         height,
@@ -85,6 +108,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         mode: args.split_mode,
         execution: args.mode,
         memory_mb: args.memory_mb,
+        adaptive,
     };
     if !args.monolithic {
         // Refuse impossible partitionings here, with the scene at hand, before any upload.
@@ -93,7 +117,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         warn_if_oversplit(triangles, shape.splits, s);
     }
     let rendered = if args.monolithic {
-        render_monolithic(&scene, width, height, spp, args.threads)?
+        render_monolithic(&scene, width, height, spp, args.threads, adaptive)?
     } else if args.in_process {
         render_pipeline(&scene, request, &args)?
     } else {
@@ -142,11 +166,42 @@ pub fn run(args: RenderArgs) -> Result<()> {
         workers: rendered.workers,
         job: rendered.job,
         outputs,
+        skips: skips(&scene, rendered.adaptive.as_ref()),
+        adaptive: rendered.adaptive,
     };
+    for skip in &report.skips {
+        eprintln!("skipped: {skip}");
+    }
     if let Some(target) = &report_target {
         write_output(target, (report.to_json() + "\n").as_bytes())?;
     }
     print_run_summary(&report, rendered.render_seconds, &out)
+}
+
+/// The adaptive part of a pipeline run's report: the request's settings and the Render
+/// tasks' summed counts.
+fn adaptive_report(request: PlanRequest, counts: AdaptiveCounts) -> Option<AdaptiveReport> {
+    request.adaptive.map(|settings| AdaptiveReport {
+        settings,
+        counts: Some(counts),
+    })
+}
+
+/// The work the run skipped because it cannot change the image, one sentence each.
+fn skips(scene: &Scene, adaptive: Option<&AdaptiveReport>) -> Vec<String> {
+    let mut out = Vec::new();
+    if scene.lights.is_empty() {
+        out.push("the scene has no lights: no shadow rays traced".to_owned());
+    }
+    if let Some(counts) = adaptive.and_then(|a| a.counts)
+        && counts.background_pixels > 0
+    {
+        out.push(format!(
+            "{} pixels saw only background in the first pass: no extra samples",
+            counts.background_pixels
+        ));
+    }
+    out
 }
 
 /// Splits far smaller than useful multiply tasks and overhead for nothing: say so.
@@ -178,6 +233,14 @@ fn print_run_summary(report: &Report, render_seconds: f64, out: &Path) -> Result
         1 => "1 thread".to_owned(),
         n => format!("{n} threads"),
     };
+    let spp = match &report.adaptive {
+        Some(a) => {
+            let pixels = u64::from(width) * u64::from(height);
+            let mean = a.counts.map_or(0.0, |c| c.samples as f64 / pixels as f64);
+            format!("{spp}..{} (adaptive, mean {mean:.2})", a.settings.max_spp)
+        }
+        None => spp.to_string(),
+    };
     eprintln!(
         "rendered {width}x{height} at {spp} spp ({}), {} triangles: {:.3} s render ({mrays:.2} Mrays/s on {threads}), {:.3} s total -> {}",
         report.mode,
@@ -195,6 +258,7 @@ fn render_monolithic(
     height: u32,
     spp: u32,
     threads: Option<usize>,
+    adaptive: Option<AdaptiveSettings>,
 ) -> Result<Rendered> {
     let threads = threads.unwrap_or_else(available_cores);
     let build_start = Instant::now();
@@ -206,7 +270,17 @@ fn render_monolithic(
         spp,
         threads,
     };
-    let output = render(scene, &bvh, settings)?;
+    let (output, adaptive) = match adaptive {
+        Some(a) => {
+            let (output, counts) = render_adaptive(scene, &bvh, settings, a)?;
+            let report = AdaptiveReport {
+                settings: a,
+                counts: Some(counts),
+            };
+            (output, Some(report))
+        }
+        None => (render(scene, &bvh, settings)?, None),
+    };
     Ok(Rendered {
         image: output.image,
         hits: output.hits,
@@ -226,6 +300,7 @@ fn render_monolithic(
         execution: None,
         workers: None,
         job: None,
+        adaptive,
     })
 }
 
@@ -238,6 +313,14 @@ fn render_pipeline(scene: &Scene, request: PlanRequest, args: &RenderArgs) -> Re
     };
     let store = MemoryStore::new();
     let run = run_pipeline(&store, scene, request, &options)?;
+    let counts = run
+        .metrics
+        .iter()
+        .fold(AdaptiveCounts::default(), |mut sum, m| {
+            sum += m.adaptive;
+            sum
+        });
+    let adaptive = adaptive_report(request, counts);
     Ok(Rendered {
         image: run.image,
         hits: run.hits,
@@ -257,6 +340,7 @@ fn render_pipeline(scene: &Scene, request: PlanRequest, args: &RenderArgs) -> Re
         execution: Some((run.plan.mode, run.plan.mode_reason.clone())),
         workers: Some(workers),
         job: Some(options.job.to_string()),
+        adaptive,
     })
 }
 
@@ -362,11 +446,16 @@ fn render_emulated(scene: &Scene, args: &RenderArgs, request: PlanRequest) -> Re
         .filter(|s| s.name != "plan")
         .map(|s| s.seconds)
         .sum();
+    let counts = run.ledger.total().adaptive;
+    let adaptive = adaptive_report(request, counts);
     Ok(Rendered {
         image: run.image,
         hits: run.hits,
         rays: RayReport {
-            primary: u64::from(request.width) * u64::from(request.height) * u64::from(request.spp),
+            primary: adaptive.as_ref().map_or(
+                u64::from(request.width) * u64::from(request.height) * u64::from(request.spp),
+                |_| counts.samples,
+            ),
             shadow: run.ledger.total().shadow_rays,
         },
         build_seconds: run.stages.first().map_or(0.0, |s| s.seconds),
@@ -381,6 +470,7 @@ fn render_emulated(scene: &Scene, args: &RenderArgs, request: PlanRequest) -> Re
         job: Some(run.job.to_string()),
         stages: run.stages,
         cost_usd: Some(run.cost.total),
+        adaptive,
     })
 }
 

@@ -200,6 +200,7 @@ fn planned_job(dir: &Path) -> (MemoryStore, JobId, hort_core::pipeline::JobPlan)
         mode: SplitMode::Spatial,
         execution: Some(hort_core::pipeline::ExecutionMode::Staged),
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
+        adaptive: None,
     };
     let planned = plan_into_store(&store, &job, &scene, &request).unwrap();
     (store, job, planned.plan)
@@ -320,6 +321,7 @@ fn binary_scene_error(dir: &Path, op: &str) -> String {
             mode: SplitMode::Spatial,
             execution: None,
             memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
+            adaptive: None,
         },
         max_concurrency: 1,
         task_timeout_seconds: None,

@@ -58,6 +58,7 @@ fn settings(spp: u32, k: u32, s: u32, mode: SplitMode) -> PlanRequest {
         mode,
         execution: None,
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
+        adaptive: None,
     }
 }
 

@@ -50,6 +50,7 @@ fn a_tiny_budget_runs_staged_with_the_fewest_splits_and_a_large_one_fused() {
             mode: SplitMode::Spatial,
             execution: None,
             memory_mb,
+            adaptive: None,
         };
         let options = PipelineOptions {
             job: JobId::new("choice").unwrap(),

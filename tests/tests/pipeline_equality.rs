@@ -47,6 +47,7 @@ fn check_scene(rel: &str, spps: &[u32]) {
                         mode,
                         execution: forced,
                         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
+                        adaptive: None,
                     };
                     let options = PipelineOptions {
                         job: JobId::new("eq").unwrap(),
@@ -131,6 +132,7 @@ fn run_in_memory(rel: &str, spp: u32, k: u32, s: u32) -> (MemoryStore, PipelineR
         mode: SplitMode::Spatial,
         execution: None,
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
+        adaptive: None,
     };
     let job = JobId::new("memory").unwrap();
     let options = PipelineOptions {

@@ -62,6 +62,7 @@ fn settings() -> PlanRequest {
         mode: SplitMode::Spatial,
         execution: None,
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
+        adaptive: None,
     }
 }
 

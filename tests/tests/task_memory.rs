@@ -40,6 +40,7 @@ fn request(k: u32, spans: u32, mode: SplitMode, spp: u32) -> PlanRequest {
         mode,
         execution: None,
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
+        adaptive: None,
     }
 }
 

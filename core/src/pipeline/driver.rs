@@ -44,7 +44,7 @@ pub struct PipelineRun {
     pub stages: Vec<StageReport>,
     /// Summed task metrics per stage, same order as `stages`.
     pub metrics: Vec<TaskMetrics>,
-    /// Camera rays traced: width x height x spp.
+    /// Camera rays traced: width x height x spp, or the adaptive sampler's samples.
     pub primary_rays: u64,
     /// Logical shadow rays: one per hit sample and light.
     pub shadow_rays: u64,
@@ -125,7 +125,10 @@ pub fn run_pipeline(
     let split_bytes = plan.scene_bytes();
     let split_read: u64 = metrics.iter().map(|m| m.split_bytes_read).sum();
     Ok(PipelineRun {
-        primary_rays: u64::from(plan.width) * u64::from(plan.height) * u64::from(plan.spp),
+        primary_rays: match plan.adaptive {
+            Some(_) => metrics.iter().map(|m| m.adaptive.samples).sum(),
+            None => u64::from(plan.width) * u64::from(plan.height) * u64::from(plan.spp),
+        },
         shadow_rays: metrics.iter().map(|m| m.shadow_rays).sum(),
         replication: split_read as f64 / split_bytes.max(1) as f64,
         plan,

@@ -22,6 +22,7 @@
 //! renderer, so the image and hit buffer equal the monolithic render's bit for bit for every
 //! k, s, split mode, spp and worker count.
 
+mod adaptive_span;
 mod driver;
 mod frustum;
 mod mode;
@@ -35,6 +36,7 @@ mod split_cache;
 mod split_object;
 mod stages;
 
+pub use adaptive_span::render_span_adaptive;
 pub use driver::{PipelineOptions, PipelineRun, run_pipeline};
 pub use frustum::span_may_meet_box;
 pub use mode::{

@@ -5,6 +5,7 @@ use super::PipelineError;
 use super::frustum::span_may_meet_box;
 use super::mode::{DEFAULT_MEMORY_MB, ExecutionMode, JobShape, choose_shape};
 use super::split::SplitMode;
+use crate::adaptive::AdaptiveSettings;
 use crate::bvh::Aabb;
 use crate::camera::Camera;
 use crate::scene::{CameraSpec, Light, Scene, check_image_size};
@@ -61,6 +62,10 @@ pub struct PlanRequest {
     /// Memory of one function, MB (Lambda's setting): no task may need more.
     #[serde(default = "default_memory_mb")]
     pub memory_mb: u32,
+    /// The adaptive sampler (fused mode only), its `base_spp` equal to `spp`; `None`: every
+    /// pixel gets `spp` samples. Absent from the JSON when `None`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub adaptive: Option<AdaptiveSettings>,
 }
 
 fn default_memory_mb() -> u32 {
@@ -162,6 +167,10 @@ pub struct JobPlan {
     pub cast_tasks: Vec<CastTask>,
     /// Staged mode: every (span, split) pair, span-major. Empty in fused mode.
     pub trace_tasks: Vec<TraceTask>,
+    /// The adaptive sampler, when the job uses it (fused mode only; `spp` is its base spp).
+    /// Absent from the JSON when `None`, so uniform plans keep their bytes.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub adaptive: Option<AdaptiveSettings>,
 }
 
 impl JobPlan {
@@ -202,6 +211,11 @@ impl JobPlan {
         self.mode.stages()
     }
 
+    /// The most samples a pixel may get: `spp`, or the adaptive sampler's `max_spp`.
+    pub fn max_spp(&self) -> u32 {
+        self.adaptive.map_or(self.spp, |a| a.max_spp)
+    }
+
     /// The timeout of task `task` of `stage`, seconds: a few times its predicted time.
     ///
     /// The prediction is 0.5 s of start-up, plus R rays at 1,000,000 per second, plus (for
@@ -213,10 +227,11 @@ impl JobPlan {
     /// rounded up to whole seconds, at least 2 s and at most 40 s (integer arithmetic in
     /// microseconds). A task that does not exist gets the 2 s floor.
     pub fn task_timeout_seconds(&self, stage: Stage, task: u32) -> u32 {
+        let spp = self.max_spp();
         let span_samples = |span: u32| {
             self.spans
                 .get(span as usize)
-                .map_or(0, |s| (s.end - s.start) * u64::from(self.spp))
+                .map_or(0, |s| (s.end - s.start) * u64::from(spp))
         };
         let split_triangles =
             |split: u32| self.splits.get(split as usize).map_or(0, |s| s.triangles);
@@ -285,6 +300,21 @@ pub fn resolve_counts(
     triangles: u64,
 ) -> Result<(JobShape, u32), PipelineError> {
     check_image_size(request.width, request.height, request.spp)?;
+    // The most samples a pixel may get sizes the spans and tasks.
+    let spp = match request.adaptive {
+        Some(a) => {
+            a.check()?;
+            if a.base_spp != request.spp {
+                return Err(PipelineError::BadInput(format!(
+                    "adaptive base spp {} differs from spp {}: the first pass takes spp samples",
+                    a.base_spp, request.spp
+                )));
+            }
+            check_image_size(request.width, request.height, a.max_spp)?;
+            a.max_spp
+        }
+        None => request.spp,
+    };
     let pixels = u64::from(request.width) * u64::from(request.height);
     let max_k = triangles.min(u64::from(MAX_SPLITS)) as u32;
     let max_s = pixels.min(u64::from(MAX_SPANS)) as u32;
@@ -303,13 +333,13 @@ pub fn resolve_counts(
         }
         Some(s) => s,
         None => {
-            let samples = pixels * u64::from(request.spp);
+            let samples = pixels * u64::from(spp);
             samples
                 .div_ceil(AUTO_SAMPLES_PER_SPAN)
                 .clamp(1, u64::from(max_s).min(100)) as u32
         }
     };
-    let span_samples = pixels.div_ceil(u64::from(s)) * u64::from(request.spp);
+    let span_samples = pixels.div_ceil(u64::from(s)) * u64::from(spp);
     let shape = choose_shape(
         triangles,
         span_samples,
@@ -318,6 +348,13 @@ pub fn resolve_counts(
         request.execution,
         max_k.max(1),
     )?;
+    if request.adaptive.is_some() && shape.mode == ExecutionMode::Staged {
+        return Err(PipelineError::BadInput(format!(
+            "--adaptive runs in fused mode only, and this job would run staged ({}); \
+             use --splits 1 or --mode fused",
+            shape.reason
+        )));
+    }
     Ok((shape, s))
 }
 
@@ -383,6 +420,7 @@ pub fn plan_job(
         spans,
         cast_tasks,
         trace_tasks,
+        adaptive: request.adaptive,
     })
 }
 
@@ -400,6 +438,7 @@ mod tests {
             mode: SplitMode::Spatial,
             execution: None,
             memory_mb: DEFAULT_MEMORY_MB,
+            adaptive: None,
         }
     }
 

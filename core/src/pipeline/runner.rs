@@ -13,6 +13,7 @@
 //! different on every run; nothing stored or returned besides the metrics depends on them.
 
 use super::PipelineError;
+use super::adaptive_span::render_span_adaptive;
 use super::plan::JobPlan;
 use super::records::{
     decode_occluded, decode_pixels, decode_queries, decode_surface_hits, encode_occluded,
@@ -21,6 +22,7 @@ use super::records::{
 use super::split_cache::SplitCache;
 use super::split_object::{SplitObject, decode_split};
 use super::stages;
+use crate::adaptive::AdaptiveCounts;
 use crate::hits::encode_hits;
 use crate::ids::{JobId, PartitionId, SplitId, Stage, TaskId};
 use crate::image::{encode_pfm, encode_png};
@@ -81,6 +83,9 @@ pub struct TaskMetrics {
     /// the larger of the two, so a sum of tasks' metrics carries their maximum.
     #[serde(default)]
     pub peak_memory_bytes: u64,
+    /// The adaptive sampler's decisions and samples (Render tasks of adaptive jobs).
+    #[serde(default)]
+    pub adaptive: AdaptiveCounts,
 }
 
 /// Whole microseconds of `d`, saturating.
@@ -113,6 +118,7 @@ impl std::ops::AddAssign for TaskMetrics {
         self.decode_us += o.decode_us;
         self.storage_us += o.storage_us;
         self.peak_memory_bytes = self.peak_memory_bytes.max(o.peak_memory_bytes);
+        self.adaptive += o.adaptive;
     }
 }
 
@@ -203,10 +209,14 @@ impl Task<'_> {
                     .map(|split| self.read_split(split))
                     .collect::<Result<Vec<_>, _>>()?;
                 let splits: Vec<&SplitObject> = splits.iter().map(Arc::as_ref).collect();
-                let (block, shadow_rays) = timed(&mut self.metrics.compute_us, || {
-                    stages::render_span(plan, &span, &splits)
-                })?;
+                let (block, shadow_rays, adaptive) =
+                    timed(&mut self.metrics.compute_us, || match plan.adaptive {
+                        Some(a) => render_span_adaptive(plan, &span, &splits, a),
+                        None => stages::render_span(plan, &span, &splits)
+                            .map(|(block, rays)| (block, rays, AdaptiveCounts::default())),
+                    })?;
                 self.metrics.shadow_rays += shadow_rays;
+                self.metrics.adaptive += adaptive;
                 let n = block.colours.len();
                 let bytes = timed(&mut self.metrics.encode_us, || encode_pixels(&block));
                 self.write(&self.key(stage, task, 0), bytes, n)
@@ -523,6 +533,7 @@ mod tests {
             mode: SplitMode::Spatial,
             execution: None,
             memory_mb: crate::pipeline::DEFAULT_MEMORY_MB,
+            adaptive: None,
         };
         let plan = plan_into_store(&store, &job, &scene, &request)
             .unwrap()
@@ -561,6 +572,7 @@ mod tests {
             mode: SplitMode::Naive,
             execution: None,
             memory_mb: crate::pipeline::DEFAULT_MEMORY_MB,
+            adaptive: None,
         };
         let plan = plan_into_store(&store, &job, &scene, &request)
             .unwrap()
@@ -657,6 +669,7 @@ mod tests {
                 mode: SplitMode::Spatial,
                 execution: Some(crate::pipeline::ExecutionMode::Staged),
                 memory_mb: crate::pipeline::DEFAULT_MEMORY_MB,
+                adaptive: None,
             };
             let plan = plan_into_store(&store, &job, &scene, &request)
                 .unwrap()

@@ -60,7 +60,7 @@ pub fn cast_map(
 }
 
 /// Camera samples (CastMap) or shadow queries (TraceMap) traced per packet call.
-const BATCH: usize = 1024;
+pub(crate) const BATCH: usize = 1024;
 
 /// CastReduce: the nearest candidate per (pixel, sample): smaller t, then smaller triangle id.
 /// The result does not depend on the order or grouping of the inputs.
@@ -166,37 +166,48 @@ pub fn trace_reduce(
         let mut first = Hit::MISS;
         for sample in 0..plan.spp {
             let hit = next_hit.next_if(|h| h.pixel == pixel && h.sample == sample);
-            let colour = match hit {
-                None => plan.background,
-                Some(h) => {
-                    if sample == 0 {
-                        first = Hit {
-                            triangle: h.triangle,
-                            t: h.t,
-                        };
-                    }
-                    let contributions = plan.lights.iter().enumerate().filter_map(|(l, light)| {
-                        let test = shadow_test(&h.surface, light)?;
-                        let key = Occluded {
-                            pixel,
-                            sample,
-                            light: l as u32,
-                        };
-                        blocked
-                            .binary_search(&key)
-                            .is_err()
-                            .then_some(test.unoccluded)
-                    });
-                    combine_light(h.surface.kd, contributions, plan.ambient)
-                }
-            };
-            sum.add(colour);
+            if sample == 0
+                && let Some(h) = hit
+            {
+                first = Hit {
+                    triangle: h.triangle,
+                    t: h.t,
+                };
+            }
+            sum.add(sample_colour(plan, pixel, sample, hit, &blocked));
         }
         block.colours.push(sum.mean(plan.spp));
         block.triangles.push(first.triangle);
         block.ts.push(first.t);
     }
     block
+}
+
+/// The radiance of sample `sample` of `pixel` whose camera ray hit `hit` (the background when
+/// `None`): a light counts unless `blocked` (sorted) holds its (pixel, sample, light) key.
+pub fn sample_colour(
+    plan: &JobPlan,
+    pixel: u32,
+    sample: u32,
+    hit: Option<&SurfaceHit>,
+    blocked: &[Occluded],
+) -> [f32; 3] {
+    let Some(h) = hit else {
+        return plan.background;
+    };
+    let contributions = plan.lights.iter().enumerate().filter_map(|(l, light)| {
+        let test = shadow_test(&h.surface, light)?;
+        let key = Occluded {
+            pixel,
+            sample,
+            light: l as u32,
+        };
+        blocked
+            .binary_search(&key)
+            .is_err()
+            .then_some(test.unoccluded)
+    });
+    combine_light(h.surface.kd, contributions, plan.ambient)
 }
 
 /// Render (fused mode): the span's pixels from every split in memory, by running CastMap on

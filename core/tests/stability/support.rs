@@ -84,6 +84,7 @@ pub fn distributed(
         mode,
         execution: None,
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
+        adaptive: None,
     };
     let options = PipelineOptions {
         job: JobId::new("stability").unwrap(),

@@ -485,6 +485,7 @@ fn post_renders(
         memory_mb: request
             .memory_mb
             .unwrap_or(hort_core::pipeline::DEFAULT_MEMORY_MB),
+        adaptive: None,
     };
     if let Some(mb) = request.memory_mb
         && !(128..=10240).contains(&mb)

@@ -19,6 +19,7 @@ fn request(scene: &str) -> JobRequest {
             mode: SplitMode::Spatial,
             execution: None,
             memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
+            adaptive: None,
         },
         max_concurrency: 4,
         task_timeout_seconds: None,

@@ -122,6 +122,7 @@ pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
             mode: SplitMode::Spatial,
             execution: Some(execution),
             memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
+            adaptive: None,
         };
         let options = PipelineOptions {
             job: JobId::new("bench")?,
@@ -209,6 +210,7 @@ fn fault_table(
         mode: SplitMode::Spatial,
         execution: None,
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
+        adaptive: None,
     };
     let t = Instant::now();
     let clean = run_job(

@@ -168,6 +168,7 @@ fn timed(
         mode: SplitMode::Spatial,
         execution: None,
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
+        adaptive: None,
     };
     let reruns = Reruns::default();
     let t = Instant::now();

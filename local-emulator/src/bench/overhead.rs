@@ -62,6 +62,7 @@ pub fn overhead_table(config: &EmulatorConfig, scene: &Path) -> Result<Table> {
             mode: SplitMode::Spatial,
             execution: Some(hort_core::pipeline::ExecutionMode::Staged),
             memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
+            adaptive: None,
         };
         runs.push(run_job(&config, scene, request, &NoObserver)?);
     }

@@ -77,6 +77,7 @@ fn request(
         mode,
         execution,
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
+        adaptive: None,
     }
 }
 

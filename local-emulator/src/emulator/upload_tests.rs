@@ -33,6 +33,7 @@ fn request(format: SceneFormat) -> JobRequest {
             mode: SplitMode::Spatial,
             execution: None,
             memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
+            adaptive: None,
         },
         max_concurrency: 2,
         task_timeout_seconds: None,

@@ -43,6 +43,13 @@ pub struct EvalArgs {
         default_value = "1,2,4,8,16,32,64,128,256"
     )]
     pub spp: Vec<u32>,
+    /// Max samples per pixel of the adaptive series, comma-separated powers of 4 (16 to
+    /// 65536); each point's first pass takes max / 16 samples (at least 4) in every pixel.
+    #[arg(long, value_delimiter = ',', default_value = "16,64,256,1024")]
+    pub adaptive_spp: Vec<u32>,
+    /// The adaptive series' threshold on a pixel's standard error after the first pass.
+    #[arg(long, default_value_t = 0.002)]
+    pub adaptive_threshold: f64,
     /// Timed runs per setting; the best counts.
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=100))]
     pub runs: u32,
@@ -119,6 +126,21 @@ pub fn run(args: &EvalArgs) -> Result<()> {
             bail!("{what}: {bad} is not in 1..=65536");
         }
     }
+    let adaptive_levels: Vec<(u32, u32)> = args
+        .adaptive_spp
+        .iter()
+        .map(|&max| ((max / 16).max(4), max))
+        .collect();
+    for &(base_spp, max_spp) in &adaptive_levels {
+        let settings = hort_core::adaptive::AdaptiveSettings {
+            base_spp,
+            max_spp,
+            threshold: args.adaptive_threshold,
+        };
+        settings
+            .check()
+            .with_context(|| format!("--adaptive-spp {max_spp}, --adaptive-threshold"))?;
+    }
     let series = if args.distributed.is_empty() {
         vec![
             parse_series("fused:1:16").map_err(anyhow::Error::msg)?,
@@ -150,6 +172,12 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         let scene = sweep::SceneUnderTest::load(path, &args.references, args.width, args.height)?;
         names.push(scene.name.clone());
         single.extend(sweep::monolithic(&scene, &args.spp, args.runs)?);
+        single.extend(sweep::adaptive(
+            &scene,
+            &adaptive_levels,
+            args.adaptive_threshold,
+            args.runs,
+        )?);
         let theirs: Vec<Point> = mitsuba
             .iter()
             .filter(|p| p.scene == scene.name)

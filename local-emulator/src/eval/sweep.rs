@@ -6,6 +6,7 @@ use super::{Point, Series};
 use anyhow::{Context, Result, anyhow, bail};
 use asl_interpreter::NoObserver;
 use hort::emulator::{EmulatorConfig, run_job};
+use hort_core::adaptive::{AdaptiveSettings, render_adaptive};
 use hort_core::bvh::Bvh;
 use hort_core::image::{Image, decode_pfm};
 use hort_core::pipeline::{PlanRequest, SplitMode};
@@ -103,6 +104,53 @@ pub fn monolithic(scene: &SceneUnderTest, spp: &[u32], runs: u32) -> Result<Vec<
     Ok(points)
 }
 
+/// The adaptive sampler on one thread at each `(base, max)` sample count pair with `threshold`:
+/// the best render time of `runs` and the image's error, as [`monolithic`]. The point's `spp`
+/// is the max; the mean samples per pixel taken is printed.
+pub fn adaptive(
+    scene: &SceneUnderTest,
+    levels: &[(u32, u32)],
+    threshold: f64,
+    runs: u32,
+) -> Result<Vec<Point>> {
+    let mut points = Vec::new();
+    for &(base_spp, max_spp) in levels {
+        let settings = RenderSettings {
+            width: scene.width,
+            height: scene.height,
+            spp: base_spp,
+            threads: 1,
+        };
+        let adaptive = AdaptiveSettings {
+            base_spp,
+            max_spp,
+            threshold,
+        };
+        let mut best = f64::INFINITY;
+        let mut last = None;
+        for _ in 0..runs {
+            let (out, counts) = render_adaptive(&scene.scene, &scene.bvh, settings, adaptive)?;
+            best = best.min(out.render_seconds);
+            last = Some((out.image, counts));
+        }
+        let (image, counts) = last.context("no run")?;
+        let point = scene.point(ADAPTIVE_METHOD, max_spp, best, &image)?;
+        let pixels = u64::from(scene.width) * u64::from(scene.height);
+        eprintln!(
+            "{} {ADAPTIVE_METHOD} {base_spp}..{max_spp} spp (mean {:.1}, {} of {pixels} pixels refined): {best:.4} s, PSNR {:.2} dB",
+            scene.name,
+            counts.samples as f64 / pixels as f64,
+            counts.refined_pixels,
+            point.errors.psnr
+        );
+        points.push(point);
+    }
+    Ok(points)
+}
+
+/// The method name of the adaptive series in `eval.csv` and the charts.
+pub const ADAPTIVE_METHOD: &str = "ours adaptive";
+
 /// Each distributed series at each of `spp` through the emulator (embedded S3 server, state
 /// machine, function handlers) with `workers` slots: wall time of the whole job, one run.
 pub fn distributed(
@@ -124,6 +172,7 @@ pub fn distributed(
                 mode: SplitMode::Spatial,
                 execution: None,
                 memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
+                adaptive: None,
             };
             let start = Instant::now();
             let run = run_job(&config, &scene.path, request, &NoObserver)

@@ -688,6 +688,8 @@ fn store_report(shared: &Shared, r: &JobRecord, run: &EmulatorRun) -> Result<(),
             hits: None,
             report: Some(format!("/renders/{}/report", r.job)),
         },
+        adaptive: None,
+        skips: Vec::new(),
     };
     shared
         .store
