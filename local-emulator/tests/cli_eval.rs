@@ -39,6 +39,8 @@ fn writes_the_csv_and_both_charts() {
         &[
             "--spp",
             "1,4,64",
+            "--adaptive-spp",
+            "16,64",
             "--runs",
             "1",
             "--distributed",
@@ -63,6 +65,8 @@ fn writes_the_csv_and_both_charts() {
             ("single-core", "cornell", "ours", "1"),
             ("single-core", "cornell", "ours", "4"),
             ("single-core", "cornell", "ours", "64"),
+            ("single-core", "cornell", "ours adaptive", "16"),
+            ("single-core", "cornell", "ours adaptive", "64"),
             ("single-core", "cornell", "mitsuba independent", "1"),
             ("single-core", "cornell", "mitsuba independent", "4"),
             ("single-core", "cornell", "mitsuba multijitter", "1"),
@@ -73,7 +77,7 @@ fn writes_the_csv_and_both_charts() {
     let psnr = |i: usize| rows[i][7].parse::<f64>().unwrap();
     // Mitsuba's rows are copied from the fixture's CSV as they are.
     assert_eq!(
-        rows[6][4..8],
+        rows[8][4..8],
         ["0.002396", "3.273762e-2", "8.788367e-3", "29.6991"]
     );
     // Ours converges to Mitsuba's reference: the error falls with spp, and at 64 spp PSNR is
@@ -82,7 +86,7 @@ fn writes_the_csv_and_both_charts() {
     assert!(psnr(0) < psnr(1) && psnr(1) < psnr(2), "{csv}");
     assert!(psnr(2) > 40.0, "{csv}");
     // The distributed pipeline renders the same image as the monolithic renderer.
-    assert_eq!(rows[7][5..8], rows[1][5..8], "{csv}");
+    assert_eq!(rows[9][5..8], rows[1][5..8], "{csv}");
     // The most accurate single-core point is on the front; every row says 0 or 1.
     assert_eq!(rows[2][8], "1", "{csv}");
     assert!(rows.iter().all(|r| r[8] == "0" || r[8] == "1"));
