@@ -11,9 +11,7 @@ use crate::hits::Hit;
 use crate::image::Image;
 use crate::sampling::PixelSum;
 use crate::scene::{Mesh, NO_NORMAL, Scene, check_image_size};
-use crate::shading::{
-    SurfaceInputs4, SurfacePoint, combine, shadow_test, surface_point, surface_points4,
-};
+use crate::shading::{SurfacePoint, combine, shadow_test, surface_point};
 use crate::triangle::Ray;
 use crate::worker_pool::run_indexed;
 use glam::Vec3;
@@ -145,28 +143,11 @@ fn shade_batch(
     rays: &[Ray],
     hits: &[Option<ClosestHit>],
 ) -> Vec<[f32; 3]> {
-    let mut surfaces: Vec<Option<SurfacePoint>> = Vec::with_capacity(rays.len());
-    for (rays, hits) in rays.chunks(4).zip(hits.chunks(4)) {
-        // Four hits in a row (most of a batch inside an object) are built in SIMD lanes.
-        if let [Some(h0), Some(h1), Some(h2), Some(h3)] = hits {
-            let four = [h0, h1, h2, h3];
-            let shading = four.map(|h| shading_of(&scene.mesh, h.id));
-            let points = surface_points4(&SurfaceInputs4 {
-                corners: four.map(|h| h.corners),
-                b: four.map(|h| h.b),
-                ray_dir: std::array::from_fn(|i| rays[i].dir),
-                normals: shading.map(|s| s.0),
-                kd: shading.map(|s| s.1),
-            });
-            surfaces.extend(points.map(Some));
-        } else {
-            surfaces.extend(
-                rays.iter()
-                    .zip(hits)
-                    .map(|(ray, hit)| hit.as_ref().map(|h| surface_of(&scene.mesh, h, ray))),
-            );
-        }
-    }
+    let surfaces: Vec<Option<SurfacePoint>> = rays
+        .iter()
+        .zip(hits)
+        .map(|(ray, hit)| hit.as_ref().map(|h| surface_of(&scene.mesh, h, ray)))
+        .collect();
     // Per sample, its lights' tests in light order (the order `combine` sums them in).
     let mut segments = Vec::new();
     let mut tests = Vec::new();

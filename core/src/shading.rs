@@ -16,7 +16,6 @@
 use crate::scene::Light;
 use crate::triangle::{Ray, gamma};
 use glam::{DVec3, Vec3};
-use wide::f32x4;
 
 /// Fraction of a point light's distance not tested for occluders, at the light's end
 /// (pbrt-v4's ShadowEpsilon): nothing can sit exactly on a point light.
@@ -87,113 +86,6 @@ pub fn surface_point(
         n_shade,
         kd,
     }
-}
-
-/// Four hits' shading inputs, one lane per hit, for [`surface_points4`].
-#[derive(Clone, Copy, Debug)]
-pub struct SurfaceInputs4 {
-    /// Triangle corners per lane.
-    pub corners: [[Vec3; 3]; 4],
-    /// Barycentrics per lane.
-    pub b: [[f32; 3]; 4],
-    /// Direction of the ray that found the hit, per lane.
-    pub ray_dir: [Vec3; 4],
-    /// Vertex normals per lane, if the mesh has them.
-    pub normals: [Option<[Vec3; 3]>; 4],
-    /// Diffuse reflectance per lane.
-    pub kd: [[f32; 3]; 4],
-}
-
-/// Three coordinates of four points, one lane per point.
-type Lanes3 = [f32x4; 3];
-
-/// Lane `i` holds `v(i)[axis]` for each axis.
-#[inline(always)]
-fn lanes3(v: impl Fn(usize) -> Vec3) -> Lanes3 {
-    let [a, b, c, d] = [v(0), v(1), v(2), v(3)];
-    [
-        f32x4::from([a.x, b.x, c.x, d.x]),
-        f32x4::from([a.y, b.y, c.y, d.y]),
-        f32x4::from([a.z, b.z, c.z, d.z]),
-    ]
-}
-
-/// `Vec3::dot` per lane, in its order: `(x·x' + y·y') + z·z'`.
-#[inline(always)]
-fn dot4(a: &Lanes3, b: &Lanes3) -> f32x4 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-/// `b0·p0 + b1·p1 + b2·p2` per lane, as `surface_point` sums it.
-#[inline(always)]
-fn interpolate4(b: &[f32x4; 3], v: &[Lanes3; 3]) -> Lanes3 {
-    std::array::from_fn(|a| b[0] * v[0][a] + b[1] * v[1][a] + b[2] * v[2][a])
-}
-
-/// `Vec3::normalize_or_zero` per lane: `v · (1 / sqrt(v·v))` where that reciprocal is finite
-/// and positive, else +0 (SIMD division and square root are correctly rounded, as scalar ones).
-#[inline(always)]
-fn normalize_or_zero4(v: &Lanes3) -> Lanes3 {
-    let rcp = f32x4::ONE / dot4(v, v).sqrt();
-    let ok = rcp.simd_gt(f32x4::ZERO) & rcp.simd_lt(f32x4::splat(f32::INFINITY));
-    v.map(|c| ok.select(c * rcp, f32x4::ZERO))
-}
-
-/// Flips the sign bit of the lanes set in `mask` (an exact negation, as `-v`).
-#[inline(always)]
-fn negate_where(mask: f32x4, v: &Lanes3) -> Lanes3 {
-    let sign = mask & f32x4::splat(-0.0);
-    v.map(|c| c ^ sign)
-}
-
-/// Four [`surface_point`]s at once in SIMD lanes: lane `i` of the result is
-/// `surface_point(corners[i], b[i], ray_dir[i], normals[i], kd[i])` bit for bit (the same IEEE
-/// operations in the same order per lane, no FMA, selects instead of branches).
-#[inline]
-pub fn surface_points4(s: &SurfaceInputs4) -> [SurfacePoint; 4] {
-    let corner = |c: usize| lanes3(|i| s.corners[i][c]);
-    let p = [corner(0), corner(1), corner(2)];
-    let b: [f32x4; 3] = std::array::from_fn(|k| f32x4::from(s.b.map(|b| b[k])));
-    let pos = interpolate4(&b, &p);
-    let g7 = f32x4::splat(gamma(7.0));
-    let p_error: Lanes3 = std::array::from_fn(|a| {
-        g7 * ((b[0] * p[0][a]).abs() + (b[1] * p[1][a]).abs() + (b[2] * p[2][a]).abs())
-    });
-    let e1: Lanes3 = std::array::from_fn(|a| p[1][a] - p[0][a]);
-    let e2: Lanes3 = std::array::from_fn(|a| p[2][a] - p[0][a]);
-    let cross = [
-        e1[1] * e2[2] - e2[1] * e1[2],
-        e1[2] * e2[0] - e2[2] * e1[0],
-        e1[0] * e2[1] - e2[0] * e1[1],
-    ];
-    let n = normalize_or_zero4(&cross);
-    let dir = lanes3(|i| s.ray_dir[i]);
-    let n_geo = negate_where(dot4(&n, &dir).simd_gt(f32x4::ZERO), &n);
-    let n_shade = if s.normals.iter().any(Option::is_some) {
-        // Lanes without vertex normals interpolate zeros and take `n_geo` below.
-        let vn = |c: usize| lanes3(|i| s.normals[i].map_or(Vec3::ZERO, |n| n[c]));
-        let ns = normalize_or_zero4(&interpolate4(&b, &[vn(0), vn(1), vn(2)]));
-        // (Zero normals normalize to zero whatever the barycentrics: NaN and infinite
-        // lengths fail the reciprocal's test.)
-        let zero = f32x4::ZERO;
-        let is_zero = ns[0].simd_eq(zero) & ns[1].simd_eq(zero) & ns[2].simd_eq(zero);
-        let flipped = negate_where(dot4(&ns, &n_geo).simd_lt(zero), &ns);
-        std::array::from_fn(|a| is_zero.select(n_geo[a], flipped[a]))
-    } else {
-        n_geo
-    };
-    let out = |v: &Lanes3| {
-        let [x, y, z] = v.map(f32x4::to_array);
-        std::array::from_fn::<Vec3, 4, _>(|i| Vec3::new(x[i], y[i], z[i]))
-    };
-    let (pos, p_error, n_geo, n_shade) = (out(&pos), out(&p_error), out(&n_geo), out(&n_shade));
-    std::array::from_fn(|i| SurfacePoint {
-        p: pos[i],
-        p_error: p_error[i],
-        n_geo: n_geo[i],
-        n_shade: n_shade[i],
-        kd: s.kd[i],
-    })
 }
 
 /// The shadow test of `light` at `sp`, or `None` when the light cannot contribute (behind the
@@ -377,74 +269,5 @@ mod tests {
             );
             assert!(t.ray.origin.y - corners[0].y < 1e-5 * scale.max(1.0) * 10.0);
         }
-    }
-
-    /// Ordinary values mostly, sometimes exact zeros of both signs, repeats and extremes.
-    fn coord(rng: &mut crate::bvh::tests::Rng) -> f32 {
-        const SPECIAL: [f32; 8] = [0.0, -0.0, 1.0, -1.0, 1e-30, -1e-30, 1e30, f32::NAN];
-        match rng.next() % 10 {
-            0 => SPECIAL[(rng.next() % 8) as usize],
-            1 => (rng.next() % 3) as f32 - 1.0,
-            _ => rng.unit() * 4.0 - 2.0,
-        }
-    }
-
-    fn any_vec(rng: &mut crate::bvh::tests::Rng) -> Vec3 {
-        Vec3::new(coord(rng), coord(rng), coord(rng))
-    }
-
-    fn bits(sp: &SurfacePoint) -> [u32; 15] {
-        let v = [sp.p, sp.p_error, sp.n_geo, sp.n_shade].map(|v| v.to_array());
-        let mut out = [0; 15];
-        for (i, x) in v.iter().flatten().chain(&sp.kd).enumerate() {
-            out[i] = x.to_bits();
-        }
-        out
-    }
-
-    /// Every lane of `surface_points4` is `surface_point` bit for bit: 400k random lanes with
-    /// degenerate triangles (repeated corners), zero and NaN coordinates, rays along either
-    /// side, and lanes with, without and with zero vertex normals mixed in one call.
-    #[test]
-    fn four_lanes_are_the_scalar_surface_points() {
-        let mut rng = crate::bvh::tests::Rng(7);
-        let (mut flipped, mut shaded) = (0, 0);
-        for _ in 0..100_000 {
-            let lane = |rng: &mut crate::bvh::tests::Rng| {
-                let a = any_vec(rng);
-                let b = if rng.next() % 8 == 0 { a } else { any_vec(rng) };
-                let corners = [a, b, any_vec(rng)];
-                let (u, v) = (rng.unit(), rng.unit() * 0.5);
-                let bary = if rng.next() % 16 == 0 {
-                    [coord(rng), coord(rng), coord(rng)]
-                } else {
-                    [1.0 - u - v, u, v]
-                };
-                let normals = match rng.next() % 4 {
-                    0 => None,
-                    1 => Some([Vec3::ZERO; 3]),
-                    _ => Some([any_vec(rng), any_vec(rng), any_vec(rng)]),
-                };
-                let kd = [rng.unit(), rng.unit(), rng.unit()];
-                (corners, bary, any_vec(rng), normals, kd)
-            };
-            let lanes: [_; 4] = std::array::from_fn(|_| lane(&mut rng));
-            let four = surface_points4(&SurfaceInputs4 {
-                corners: lanes.map(|l| l.0),
-                b: lanes.map(|l| l.1),
-                ray_dir: lanes.map(|l| l.2),
-                normals: lanes.map(|l| l.3),
-                kd: lanes.map(|l| l.4),
-            });
-            for (i, (corners, b, dir, normals, kd)) in lanes.into_iter().enumerate() {
-                let one = surface_point(corners, b, dir, normals, kd);
-                assert_eq!(bits(&four[i]), bits(&one), "lane {i}: {:?}", lanes[i]);
-                let n = (corners[1] - corners[0]).cross(corners[2] - corners[0]);
-                flipped += usize::from(n.dot(dir) > 0.0 && one.n_geo != Vec3::ZERO);
-                shaded += usize::from(normals.is_some() && one.n_shade != one.n_geo);
-            }
-        }
-        assert!(flipped > 50_000, "flipped geometric normals: {flipped}");
-        assert!(shaded > 50_000, "interpolated shading normals: {shaded}");
     }
 }
