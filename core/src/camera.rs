@@ -107,14 +107,7 @@ impl Camera {
         out.reserve(spp as usize);
         let mut sample = 0;
         while sample + 4 <= spp {
-            // Spelled out: `array::from_fn`'s closure is not inlined, and a call per sample
-            // (reloading the pattern each time) was about 9% of a sample.
-            let offsets: [(f64, f64); 4] = [
-                samples.offset(sample),
-                samples.offset(sample + 1),
-                samples.offset(sample + 2),
-                samples.offset(sample + 3),
-            ];
+            let offsets = samples.offsets4(sample);
             let px = f64x4::from(offsets.map(|(ox, _)| x + ox));
             let py = f64x4::from(offsets.map(|(_, oy)| y + oy));
             out.extend(self.rays4(px, py));
