@@ -107,8 +107,7 @@ impl Camera {
         out.reserve(spp as usize);
         let mut sample = 0;
         while sample + 4 <= spp {
-            let offsets: [(f64, f64); 4] =
-                std::array::from_fn(|k| samples.offset(sample + k as u32));
+            let offsets = samples.offsets4(sample);
             let px = f64x4::from(offsets.map(|(ox, _)| x + ox));
             let py = f64x4::from(offsets.map(|(_, oy)| y + oy));
             out.extend(self.rays4(px, py));

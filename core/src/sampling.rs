@@ -6,6 +6,8 @@
 //! [`PixelSum`] turns a pixel's sample radiances into the pixel: the one pixel-mean path of the
 //! monolithic renderer and TraceReduce, so both write the same bits.
 
+use wide::{f64x4, u32x4};
+
 /// The offset in [0, 1)^2 inside pixel `pixel` (row-major index) of sample `sample` of `spp`.
 pub fn sample_offset(pixel: u64, sample: u32, spp: u32) -> (f64, f64) {
     PixelSamples::new(pixel, spp).offset(sample)
@@ -105,6 +107,44 @@ impl PixelSamples {
         let x = over_m(f64::from(column) + over_n(f64::from(sy) + jx));
         let y = over_n(f64::from(row) + over_m(f64::from(sx) + jy));
         (x.min(ONE_MINUS_ULP), y.min(ONE_MINUS_ULP))
+    }
+
+    /// The offsets of samples `first..first + 4` (wrapping): `[self.offset(first), ..,
+    /// self.offset(first + 3)]`. With power-of-two strata (64 spp: 8 x 8) and no wrap-around,
+    /// the four are computed in u32x4 and f64x4 lanes: the same wrapping integer operations
+    /// (the permutations never cycle-walk there: their length is their mask plus one) and the
+    /// same correctly rounded float operations per lane.
+    #[inline(always)]
+    pub fn offsets4(&self, first: u32) -> [(f64, f64); 4] {
+        let (m, n) = (self.m, self.n);
+        let powers_of_two = self.m_log2 != u32::MAX && self.inv_n != 0.0;
+        let no_wrap = first.checked_add(3).is_some_and(|last| last < m * n);
+        if !(powers_of_two && no_wrap) {
+            return [0, 1, 2, 3].map(|k| self.offset(first.wrapping_add(k)));
+        }
+        let s = u32x4::splat(first) + u32x4::from([0, 1, 2, 3]);
+        let column = s & u32x4::splat(m - 1);
+        let row = s >> self.m_log2;
+        let sx = self.perm_x.apply4(column);
+        let sy = self.perm_y.apply4(row);
+        let unit = |h: u32x4| {
+            let h = (h >> 8u32).to_array().map(f64::from);
+            f64x4::from(h) / f64x4::splat(f64::from(1u32 << 24))
+        };
+        let jx = unit(hash32x4(s ^ u32x4::splat(self.jitter_x)));
+        let jy = unit(hash32x4(s ^ u32x4::splat(self.jitter_y)));
+        let float = |v: u32x4| f64x4::from(v.to_array().map(f64::from));
+        let (inv_m, inv_n) = (f64x4::splat(self.inv_m), f64x4::splat(self.inv_n));
+        let x = (float(column) + (float(sy) + jx) * inv_n) * inv_m;
+        let y = (float(row) + (float(sx) + jy) * inv_m) * inv_n;
+        // `f64::min` of non-NaN values: the smaller (equal values have equal bits here, as
+        // neither side is a zero of the other sign).
+        let cap = f64x4::splat(ONE_MINUS_ULP);
+        let (x, y) = (
+            x.simd_lt(cap).select(x, cap).to_array(),
+            y.simd_lt(cap).select(y, cap).to_array(),
+        );
+        [0, 1, 2, 3].map(|k| (x[k], y[k]))
     }
 }
 
@@ -222,6 +262,39 @@ impl Permutation {
             }
         }
     }
+
+    /// [`Permutation::apply`] of four indices, one per lane, for a length that is a power of
+    /// two or 1 (its mask plus one, or mask 0): one round, never a cycle walk.
+    #[inline(always)]
+    fn apply4(&self, mut i: u32x4) -> u32x4 {
+        let Permutation {
+            mask,
+            half,
+            third,
+            seed,
+            ..
+        } = *self;
+        let (mask, splat) = (u32x4::splat(mask), u32x4::splat);
+        i ^= splat(seed);
+        i = (i * splat(0xe170_893d)) & mask;
+        i ^= i >> half;
+        i = (i + splat(seed >> 16)) & mask;
+        i = (i * splat(0x0929_eb3f)) & mask;
+        i ^= i >> third;
+        i = ((i * splat(0x6935_fa69)) ^ splat(seed >> 8)) & mask;
+        i = (i * splat(0x74dc_b303)) & mask;
+        i ^ (i >> half)
+    }
+}
+
+/// [`hash32`] of four values, one per lane (wrapping multiplies and shifts, as scalar).
+#[inline(always)]
+fn hash32x4(mut x: u32x4) -> u32x4 {
+    x ^= x >> 16u32;
+    x *= u32x4::splat(0x7feb_352d);
+    x ^= x >> 15u32;
+    x *= u32x4::splat(0x846c_a68b);
+    x ^ (x >> 16u32)
 }
 
 pub(crate) fn hash32(mut x: u32) -> u32 {
@@ -326,6 +399,36 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Four offsets at once are the four single offsets bit for bit: power-of-two strata (in
+    /// lanes), other strata and samples past `m * n` (the scalar path), and starts near the
+    /// end of the u32 range.
+    #[test]
+    fn four_offsets_are_the_single_offsets() {
+        let mut lanes = 0;
+        for spp in [2u32, 3, 4, 8, 12, 16, 32, 35, 64, 128, 256, 1000, 4096] {
+            for pixel in [0u64, 1, 77, 12_345, u64::MAX] {
+                let samples = PixelSamples::new(pixel, spp);
+                let starts = (0..spp + 8).chain([u32::MAX - 5, u32::MAX - 3, u32::MAX]);
+                for first in starts {
+                    let four = samples.offsets4(first);
+                    for (k, (x, y)) in four.into_iter().enumerate() {
+                        let (ex, ey) = samples.offset(first.wrapping_add(k as u32));
+                        assert_eq!(
+                            (x.to_bits(), y.to_bits()),
+                            (ex.to_bits(), ey.to_bits()),
+                            "spp {spp} pixel {pixel} sample {first} + {k}"
+                        );
+                    }
+                    lanes += usize::from(first.checked_add(4).is_some_and(|end| end <= spp));
+                }
+            }
+        }
+        assert!(
+            lanes > 20_000,
+            "the lane path should be exercised ({lanes})"
+        );
     }
 
     #[test]
