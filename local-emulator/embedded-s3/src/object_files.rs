@@ -347,8 +347,9 @@ impl S3 for ObjectFiles {
     }
 }
 
-/// Bodies up to this size are gathered in memory before `s3s-fs` writes them (see
-/// [`gather_body`]); larger ones stream as they come, so the server never holds a huge upload.
+/// Put bodies up to this size are gathered in memory before `s3s-fs` writes them (see
+/// [`gather_body`]), and get bodies up to it are read in one piece ([`whole_body`]); larger ones
+/// stream, so the server never holds a huge object at once.
 const GATHERED_BODY_MAX: i64 = 64 << 20;
 
 /// Gathers a put's body of known length up to [`GATHERED_BODY_MAX`] into one chunk, so that
@@ -377,7 +378,7 @@ async fn gather_body(input: &mut PutObjectInput) -> S3Result<()> {
 
 /// Replaces the body `s3s-fs` streams (4 KiB reads, each a hop through tokio's blocking pool:
 /// ~50 MB/s for a 20 MB split object on a busy machine) by one read of the same byte range of
-/// `path`, sent as one chunk. The headers (length, range, ETag, checksums) stay `s3s-fs`'s. If a
+/// `path`, sent as one chunk, for bodies up to [`GATHERED_BODY_MAX`]. The headers (length, range, ETag, checksums) stay `s3s-fs`'s. If a
 /// put replaced the file in between and its length no longer covers the range, the answer is a
 /// retryable `InternalError`; a replacement of the same length is served whole (outputs of a
 /// job's tasks are rewritten only with the same bytes).
@@ -386,6 +387,10 @@ async fn whole_body(output: &mut GetObjectOutput, path: PathBuf) -> S3Result<()>
         .content_length
         .and_then(|l| u64::try_from(l).ok())
         .ok_or_else(|| s3_error!(InternalError, "get without a content length"))?;
+    if length > GATHERED_BODY_MAX as u64 {
+        // Streamed as `s3s-fs` does: the server never holds a huge object at once.
+        return Ok(());
+    }
     let start = match output.content_range.as_deref() {
         None => 0,
         Some(range) => range_start(range)
