@@ -23,6 +23,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use aws_lambda_events::event::sqs::SqsEvent;
+use hort_core::ids::Stage;
 use hort_core::pipeline::SplitCache;
 use lambda_runtime::{Diagnostic, LambdaEvent, service_fn};
 use serde_json::Value;
@@ -275,13 +276,14 @@ async fn invoke(container: Arc<Container>, event: Value) -> Result<Value, Diagno
             }
             let Invoked { output, task } = invoked;
             match task {
-                Some(done) => println!(
+                // The Plan function's `TaskDone` (stage `plan`) carries only its time breakdown.
+                Some(done) if done.stage != Stage::Plan => println!(
                     "{name}: {} task {} done: {}",
                     done.stage,
                     done.task.0,
                     serde_json::to_string(&done.metrics).unwrap_or_default()
                 ),
-                None => println!("{name}: done: {output}"),
+                _ => println!("{name}: done: {output}"),
             }
             Ok(output)
         }

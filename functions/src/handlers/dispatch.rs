@@ -56,9 +56,10 @@ pub struct Invoked {
 
 impl Invoked {
     /// Records the task's measured memory high-water mark, `bytes`, in its metrics and in the
-    /// JSON answer (`peak_memory_bytes`); nothing for an invocation that ran no task.
+    /// JSON answer (`peak_memory_bytes`); nothing for an invocation that ran no Worker task (the
+    /// Plan function's answer is the plan output, read by the state machine, and stays as it is).
     pub fn set_peak_memory(&mut self, bytes: u64) {
-        if let Some(done) = &mut self.task {
+        if let Some(done) = self.task.as_mut().filter(|d| d.stage != Stage::Plan) {
             done.metrics.peak_memory_bytes = bytes;
             if let Some(answer) = self.output.as_object_mut() {
                 answer.insert("peak_memory_bytes".into(), bytes.into());

@@ -534,4 +534,18 @@ fn a_measured_peak_goes_into_the_metrics_and_the_answer_of_a_task_only() {
     };
     plan.set_peak_memory(1);
     assert_eq!(plan.output, plan_answer, "no task, nothing recorded");
+    let mut measured_plan = Invoked {
+        output: plan_answer.clone(),
+        task: Some(TaskDone {
+            stage: Stage::Plan,
+            task: TaskId(0),
+            metrics,
+        }),
+    };
+    measured_plan.set_peak_memory(1);
+    assert_eq!(
+        measured_plan.output, plan_answer,
+        "the Plan function's answer is the plan output, left as it is"
+    );
+    assert_eq!(measured_plan.task.unwrap().metrics, metrics);
 }
