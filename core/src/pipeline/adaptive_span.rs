@@ -9,13 +9,12 @@ use super::PipelineError;
 use super::plan::{JobPlan, Span};
 use super::records::{PixelBlock, SurfaceHit};
 use super::split_object::SplitObject;
-use super::stages::{BATCH, cast_reduce, expand, sample_colour, trace_map};
+use super::stages::{BATCH, cast_reduce, expand, push_surface_hits, sample_colour, trace_map};
 use crate::adaptive::{
     AdaptiveCounts, AdaptiveSettings, Decision, adaptive_ray, decide, pixel_value,
 };
 use crate::camera::Camera;
 use crate::hits::Hit;
-use crate::shading::surface_point;
 
 /// The span's pixels with the adaptive sampler `a`, the logical shadow rays (hit samples x
 /// lights, both passes) and the decision counts. `splits` are the plan's splits in id order.
@@ -159,22 +158,7 @@ fn cast_samples(
             .iter()
             .map(|&(pixel, rank)| adaptive_ray(camera, plan.width, pixel, rank, max_spp))
             .collect();
-        hits.clear();
-        hits.resize(rays.len(), None);
-        split.bvh.closest_hits(&rays, &mut hits);
-        for ((&(pixel, sample), ray), hit) in batch.iter().zip(&rays).zip(&hits) {
-            let Some(hit) = hit else {
-                continue;
-            };
-            let shading = split.shading[hit.index as usize];
-            out.push(SurfaceHit {
-                pixel: pixel as u32,
-                sample,
-                t: hit.t,
-                triangle: hit.id,
-                surface: surface_point(hit.corners, hit.b, ray.dir, shading.normals, shading.kd),
-            });
-        }
+        push_surface_hits(split, batch, &rays, &mut hits, &mut out);
     }
     out
 }

@@ -6,13 +6,14 @@ use super::plan::{JobPlan, Span};
 use super::records::{Occluded, PixelBlock, ShadowQuery, SurfaceHit};
 use super::split::SplitMode;
 use super::split_object::SplitObject;
-use crate::bvh::segment_may_hit;
+use crate::bvh::{ClosestHit, segment_may_hit};
 use crate::camera::Camera;
 use crate::error::SceneError;
 use crate::hits::Hit;
 use crate::image::Image;
 use crate::sampling::PixelSum;
 use crate::shading::{combine as combine_light, shadow_ray, shadow_test, surface_point};
+use crate::triangle::Ray;
 
 /// CastMap: every camera sample of `span` against one split; the split's nearest hit of each
 /// sample that hits it, sorted by (pixel, sample).
@@ -39,24 +40,37 @@ pub fn cast_map(
                 .iter()
                 .map(|&(pixel, sample)| camera.sample_ray(pixel, sample, plan.spp)),
         );
-        hits.clear();
-        hits.resize(rays.len(), None);
-        split.bvh.closest_hits(&rays, &mut hits);
-        for ((&(pixel, sample), ray), hit) in batch.iter().zip(&rays).zip(&hits) {
-            let Some(hit) = hit else {
-                continue;
-            };
-            let shading = split.shading[hit.index as usize];
-            out.push(SurfaceHit {
-                pixel: pixel as u32,
-                sample,
-                t: hit.t,
-                triangle: hit.id,
-                surface: surface_point(hit.corners, hit.b, ray.dir, shading.normals, shading.kd),
-            });
-        }
+        push_surface_hits(split, &batch, &rays, &mut hits, &mut out);
     }
     Ok(out)
+}
+
+/// Traces the camera rays `rays` of the samples `batch` ((pixel, sample), one per ray) against
+/// `split` as packets, and appends the split's nearest hit of each sample that hits it to `out`,
+/// in batch order. `hits` is scratch space.
+pub(super) fn push_surface_hits(
+    split: &SplitObject,
+    batch: &[(u64, u32)],
+    rays: &[Ray],
+    hits: &mut Vec<Option<ClosestHit>>,
+    out: &mut Vec<SurfaceHit>,
+) {
+    hits.clear();
+    hits.resize(rays.len(), None);
+    split.bvh.closest_hits(rays, hits);
+    for ((&(pixel, sample), ray), hit) in batch.iter().zip(rays).zip(hits.iter()) {
+        let Some(hit) = hit else {
+            continue;
+        };
+        let shading = split.shading[hit.index as usize];
+        out.push(SurfaceHit {
+            pixel: pixel as u32,
+            sample,
+            t: hit.t,
+            triangle: hit.id,
+            surface: surface_point(hit.corners, hit.b, ray.dir, shading.normals, shading.kd),
+        });
+    }
 }
 
 /// Camera samples (CastMap) or shadow queries (TraceMap) traced per packet call.
