@@ -17,6 +17,7 @@ pub mod sampling;
 pub mod scene;
 pub mod shading;
 pub mod triangle;
+pub mod unoccludable;
 
 // Outputs.
 pub mod breakdown;

@@ -13,6 +13,7 @@ use crate::sampling::PixelSum;
 use crate::scene::{Mesh, NO_NORMAL, Scene, check_image_size};
 use crate::shading::{SurfacePoint, combine, shadow_test, surface_point};
 use crate::triangle::Ray;
+use crate::unoccludable::unoccludable_lights;
 use crate::worker_pool::run_indexed;
 use glam::Vec3;
 use std::convert::Infallible;
@@ -109,6 +110,7 @@ pub fn render(
     } else {
         threads
     };
+    let unoccludable = unoccludable_lights(&scene.mesh, &scene.lights);
     let start = Instant::now();
     let mut image = Image::new(width, height);
     let mut hits = vec![Hit::MISS; width as usize * height as usize];
@@ -117,7 +119,16 @@ pub fn render(
     let Ok(()) = run_indexed(
         std::iter::repeat_n((), threads),
         height as usize,
-        |(), y| Ok::<Row, Infallible>(render_row(scene, bvh, &camera, settings, y as u32)),
+        |(), y| {
+            Ok::<Row, Infallible>(render_row(
+                scene,
+                bvh,
+                &unoccludable,
+                &camera,
+                settings,
+                y as u32,
+            ))
+        },
         |y, row| {
             let range = y * width as usize..(y + 1) * width as usize;
             image.pixels[range.clone()].copy_from_slice(&row.colours);
@@ -137,9 +148,14 @@ pub fn render(
 /// `hits`: the background for a miss, else Lambert shading with the lights its shadow rays
 /// reach (summed in light order) plus ambient. The shadow rays of the whole batch are traced as
 /// packets (sample by sample, light by light: neighbours share a light).
+///
+/// `unoccludable[l]` says light `l` can be occluded by no surface
+/// ([`crate::unoccludable::unoccludable_lights`]): its shadow rays are not traced and count as
+/// unblocked, which is what tracing them would give.
 pub(crate) fn shade_batch(
     scene: &Scene,
     bvh: &Bvh,
+    unoccludable: &[bool],
     rays: &[Ray],
     hits: &[Option<ClosestHit>],
 ) -> Vec<[f32; 3]> {
@@ -153,15 +169,23 @@ pub(crate) fn shade_batch(
     let mut tests = Vec::new();
     for (sample, sp) in surfaces.iter().enumerate() {
         let Some(sp) = sp else { continue };
-        for light in &scene.lights {
+        for (light, &free) in scene.lights.iter().zip(unoccludable) {
             if let Some(test) = shadow_test(sp, light) {
-                segments.push((test.ray, test.t_max));
-                tests.push((sample, test.unoccluded));
+                if !free {
+                    segments.push((test.ray, test.t_max));
+                }
+                tests.push((sample, test.unoccluded, free));
             }
         }
     }
-    let mut blocked = vec![false; segments.len()];
-    bvh.occluded_many(&segments, &mut blocked);
+    let mut traced = vec![false; segments.len()];
+    bvh.occluded_many(&segments, &mut traced);
+    // Each test's answer in test order: unblocked when not traced, else its segment's.
+    let mut traced = traced.into_iter();
+    let blocked: Vec<bool> = tests
+        .iter()
+        .map(|&(_, _, free)| !free && traced.next().unwrap_or(false))
+        .collect();
     let mut next = tests.iter().zip(&blocked).peekable();
     surfaces
         .iter()
@@ -173,8 +197,8 @@ pub(crate) fn shade_batch(
             // This sample's unblocked lights, in light order, straight from the test list (no
             // per-sample allocation).
             let contributions = std::iter::from_fn(|| {
-                next.next_if(|((s, _), _)| *s == sample)
-                    .map(|((_, unoccluded), &b)| (!b).then_some(*unoccluded))
+                next.next_if(|((s, _, _), _)| *s == sample)
+                    .map(|((_, unoccluded, _), &b)| (!b).then_some(*unoccluded))
             })
             .flatten();
             combine(sp.kd, contributions, scene.ambient)
@@ -191,7 +215,14 @@ struct Row {
     rays: RayCounts,
 }
 
-fn render_row(scene: &Scene, bvh: &Bvh, camera: &Camera, s: RenderSettings, y: u32) -> Row {
+fn render_row(
+    scene: &Scene,
+    bvh: &Bvh,
+    unoccludable: &[bool],
+    camera: &Camera,
+    s: RenderSettings,
+    y: u32,
+) -> Row {
     let mut row = Row {
         colours: Vec::with_capacity(s.width as usize),
         hits: Vec::with_capacity(s.width as usize),
@@ -214,7 +245,7 @@ fn render_row(scene: &Scene, bvh: &Bvh, camera: &Camera, s: RenderSettings, y: u
         hits.clear();
         hits.resize(rays.len(), None);
         bvh.closest_hits(&rays, &mut hits);
-        let colours = shade_batch(scene, bvh, &rays, &hits);
+        let colours = shade_batch(scene, bvh, unoccludable, &rays, &hits);
         for (colours, hits) in colours.chunks(samples).zip(hits.chunks(samples)) {
             let mut sum = PixelSum::default();
             for (colour, hit) in colours.iter().zip(hits) {

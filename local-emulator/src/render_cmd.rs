@@ -19,6 +19,7 @@ use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render
 use hort_core::report::{AdaptiveReport, Outputs, RayReport, Report, Seconds, StageReport};
 use hort_core::scene::{DEFAULT_HEIGHT, DEFAULT_WIDTH, Scene, check_image_size, load_scene};
 use hort_core::store::MemoryStore;
+use hort_core::unoccludable::unoccludable_lights;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -132,6 +133,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if let Some(target) = &hits_target {
         write_output(target, &encode_hits(&rendered.hits))?;
     }
+    let skipped = skips(
+        &scene,
+        rendered.execution.as_ref().map(|(mode, _)| *mode),
+        rendered.adaptive.as_ref(),
+    );
     let report = Report {
         mode: if args.monolithic {
             "monolithic"
@@ -166,7 +172,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         workers: rendered.workers,
         job: rendered.job,
         outputs,
-        skips: skips(&scene, rendered.adaptive.as_ref()),
+        skips: skipped,
         adaptive: rendered.adaptive,
     };
     for skip in &report.skips {
@@ -188,10 +194,31 @@ fn adaptive_report(request: PlanRequest, counts: AdaptiveCounts) -> Option<Adapt
 }
 
 /// The work the run skipped because it cannot change the image, one sentence each.
-fn skips(scene: &Scene, adaptive: Option<&AdaptiveReport>) -> Vec<String> {
+/// `mode` is the pipeline's execution mode (`None` for a monolithic render).
+fn skips(
+    scene: &Scene,
+    mode: Option<ExecutionMode>,
+    adaptive: Option<&AdaptiveReport>,
+) -> Vec<String> {
     let mut out = Vec::new();
+    let staged = mode == Some(ExecutionMode::Staged);
     if scene.lights.is_empty() {
-        out.push("the scene has no lights: no shadow rays traced".to_owned());
+        out.push(if staged {
+            "the scene has no lights: no shadow rays traced, no expand or trace-map stages"
+                .to_owned()
+        } else {
+            "the scene has no lights: no shadow rays traced".to_owned()
+        });
+    } else {
+        let free = unoccludable_lights(&scene.mesh, &scene.lights);
+        for (light, _) in free.iter().enumerate().filter(|(_, f)| **f) {
+            out.push(format!(
+                "no surface can occlude light {light}: its shadow rays are not traced"
+            ));
+        }
+        if staged && free.iter().all(|f| *f) {
+            out.push("no light can be occluded: no expand or trace-map stages".to_owned());
+        }
     }
     if let Some(counts) = adaptive.and_then(|a| a.counts)
         && counts.background_pixels > 0

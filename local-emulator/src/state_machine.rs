@@ -35,10 +35,12 @@ mod tests {
     /// the stage's rerun loop (`{Map}GiveUp`, `{Map}Rerun`), whose Map reruns the same stage
     /// with the same function.
     /// `ChooseMode`, the Choice after Plan, is followed to the branch of `mode` (its rule whose
-    /// `StringEquals` is the mode, else its `Default`).
+    /// `StringEquals` is the mode, else its `Default`); `ChooseShadows` to its `Default` when the
+    /// job has `shadows`, else to its one rule's target.
     fn stage_states(
         machine: &Value,
         mode: ExecutionMode,
+        shadows: bool,
     ) -> Vec<(String, Option<String>, String, Option<String>)> {
         let states = &machine["States"];
         let mut out = Vec::new();
@@ -79,6 +81,17 @@ mod tests {
                         .map_or(state["Default"].as_str(), |r| r["Next"].as_str());
                     continue;
                 }
+                Some("Choice") if name == "ChooseShadows" => {
+                    let rules = state["Choices"].as_array().unwrap();
+                    assert_eq!(rules[0]["Variable"], "$.plan.shadows");
+                    assert_eq!(rules[0]["BooleanEquals"], false);
+                    next = if shadows {
+                        state["Default"].as_str()
+                    } else {
+                        rules[0]["Next"].as_str()
+                    };
+                    continue;
+                }
                 Some("Choice") => {
                     let map = name
                         .strip_suffix("Check")
@@ -116,9 +129,12 @@ mod tests {
     #[test]
     fn the_definition_runs_the_stage_table_of_each_mode_in_order() {
         let machine: Value = serde_json::from_str(HORT_DEFINITION).unwrap();
-        for mode in [ExecutionMode::Fused, ExecutionMode::Staged] {
+        let cases = [ExecutionMode::Fused, ExecutionMode::Staged]
+            .into_iter()
+            .flat_map(|mode| [(mode, true), (mode, false)]);
+        for (mode, shadows) in cases {
             let expected: Vec<_> = mode
-                .stages()
+                .stages_with(shadows)
                 .iter()
                 .map(|s| {
                     (
@@ -129,7 +145,11 @@ mod tests {
                     )
                 })
                 .collect();
-            assert_eq!(stage_states(&machine, mode), expected, "{mode}");
+            assert_eq!(
+                stage_states(&machine, mode, shadows),
+                expected,
+                "{mode}, shadows {shadows}"
+            );
         }
         // Every stage of the table is on one of the two paths.
         let mut both: Vec<Stage> = ExecutionMode::Fused.stages().to_vec();

@@ -1,5 +1,7 @@
 //! `hort render --adaptive`: the same bytes monolithic, in process and through the emulator
-//! (fused), the settings and decisions in the report, each skip reported, and one-line errors.
+//! (fused), the settings and decisions in the report, each skip reported (no lights, lights no
+//! surface can occlude, background pixels; staged jobs without shadow rays run no expand or
+//! trace-map stage), and one-line errors.
 
 mod common;
 
@@ -173,4 +175,129 @@ fn bad_adaptive_settings_and_staged_jobs_get_one_error_line() {
         assert_eq!(o.status.code(), Some(1), "{extra:?}");
         assert_eq!(stderr(&o), message, "{extra:?}");
     }
+}
+
+/// Renders `dir/{scene}` at 32x24, 4 spp, with `extra` flags; returns the PFM bytes, the report
+/// and standard error.
+fn render_small(
+    dir: &std::path::Path,
+    scene: &str,
+    name: &str,
+    extra: &[&str],
+) -> (Vec<u8>, serde_json::Value, String) {
+    let (out, report) = (
+        dir.join(format!("{name}.pfm")),
+        dir.join(format!("{name}.json")),
+    );
+    let scene = dir.join(scene);
+    let mut args = vec![
+        "render",
+        scene.to_str().unwrap(),
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "--spp",
+        "4",
+        "--out",
+        out.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    let o = hort(&args);
+    assert!(o.status.success(), "{name}: {}", stderr(&o));
+    let report = serde_json::from_slice(&std::fs::read(report).unwrap()).unwrap();
+    (std::fs::read(out).unwrap(), report, stderr(&o))
+}
+
+fn stage_names(report: &serde_json::Value) -> Vec<&str> {
+    report["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["name"].as_str().unwrap())
+        .collect()
+}
+
+#[test]
+fn a_staged_job_without_lights_skips_expand_and_trace_map_and_keeps_the_image() {
+    let dir = scratch("staged-dark");
+    std::fs::write(
+        dir.join("quads.obj"),
+        "v -1 -1 0\nv 0 -1 0\nv 0 1 0\nv -1 1 0\nv 0 -1 -0.5\nv 1 -1 -0.5\nv 1 1 -0.5\n\
+         v 0 1 -0.5\nf 1 2 3\nf 1 3 4\nf 5 6 7\nf 5 7 8\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("dark.json"),
+        r#"{"meshes": ["quads.obj"], "lights": [], "ambient": 0.5,
+            "camera": {"eye": [0, 0, 3], "look_at": [0, 0, 0]}}"#,
+    )
+    .unwrap();
+    let (mono, _, _) = render_small(&dir, "dark.json", "mono", &["--monolithic"]);
+    let (staged, report, err) = render_small(
+        &dir,
+        "dark.json",
+        "staged",
+        &["--mode", "staged", "--splits", "2"],
+    );
+    assert_eq!(staged, mono);
+    let skip = "the scene has no lights: no shadow rays traced, no expand or trace-map stages";
+    assert!(err.contains(&format!("skipped: {skip}\n")), "{err}");
+    assert_eq!(report["skips"], serde_json::json!([skip]));
+    assert_eq!(
+        stage_names(&report),
+        ["plan", "cast-map", "cast-reduce", "trace-reduce", "combine"]
+    );
+    assert_eq!(report["rays"]["shadow"], 0);
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+/// Inside a closed box with the light inside, no surface can occlude the light: its shadow
+/// rays are skipped everywhere (a staged job runs no expand or trace-map stage), and every
+/// mode still gives the monolithic bytes.
+#[test]
+fn a_light_no_surface_can_occlude_traces_no_shadow_rays_in_any_mode() {
+    let dir = scratch("unoccludable");
+    std::fs::write(
+        dir.join("room.obj"),
+        "v -1 -1 -1\nv 1 -1 -1\nv 1 1 -1\nv -1 1 -1\nv -1 -1 1\nv 1 -1 1\nv 1 1 1\n\
+         v -1 1 1\nf 1 2 3\nf 1 3 4\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 4 3 7\n\
+         f 4 7 8\nf 1 4 8\nf 1 8 5\nf 2 3 7\nf 2 7 6\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("room.json"),
+        r#"{"meshes": ["room.obj"],
+            "camera": {"eye": [0.2, -0.3, 0.9], "look_at": [-0.4, 0.1, -1]},
+            "lights": [{"kind": "point", "position": [0.3, 0.6, 0.2], "intensity": 2.0}]}"#,
+    )
+    .unwrap();
+    let skip = "no surface can occlude light 0: its shadow rays are not traced";
+    let (mono, mono_report, err) = render_small(&dir, "room.json", "mono", &["--monolithic"]);
+    assert!(err.contains(&format!("skipped: {skip}\n")), "{err}");
+    assert_eq!(mono_report["skips"], serde_json::json!([skip]));
+    let (fused, fused_report, _) = render_small(&dir, "room.json", "fused", &["--mode", "fused"]);
+    assert_eq!(fused, mono, "fused");
+    assert_eq!(fused_report["skips"], serde_json::json!([skip]));
+    let (staged, report, _) = render_small(
+        &dir,
+        "room.json",
+        "staged",
+        &["--mode", "staged", "--splits", "2"],
+    );
+    assert_eq!(staged, mono, "staged");
+    assert_eq!(
+        report["skips"],
+        serde_json::json!([
+            skip,
+            "no light can be occluded: no expand or trace-map stages"
+        ])
+    );
+    assert_eq!(
+        stage_names(&report),
+        ["plan", "cast-map", "cast-reduce", "trace-reduce", "combine"]
+    );
+    std::fs::remove_dir_all(dir).unwrap();
 }

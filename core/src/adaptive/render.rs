@@ -10,6 +10,7 @@ use crate::hits::Hit;
 use crate::image::Image;
 use crate::render::{BATCH_SAMPLES, RayCounts, RenderOutput, RenderSettings, shade_batch};
 use crate::scene::{Scene, check_image_size};
+use crate::unoccludable::unoccludable_lights;
 use crate::worker_pool::run_indexed;
 use std::convert::Infallible;
 use std::time::Instant;
@@ -37,6 +38,7 @@ pub fn render_adaptive(
     } else {
         threads
     };
+    let unoccludable = unoccludable_lights(&scene.mesh, &scene.lights);
     let start = Instant::now();
     let mut image = Image::new(width, height);
     let mut hits = vec![Hit::MISS; width as usize * height as usize];
@@ -46,7 +48,10 @@ pub fn render_adaptive(
     let Ok(()) = run_indexed(
         std::iter::repeat_n((), threads),
         height as usize,
-        |(), y| Ok::<Row, Infallible>(render_row(scene, bvh, &camera, width, adaptive, y as u32)),
+        |(), y| {
+            let lights = (scene, bvh, unoccludable.as_slice());
+            Ok::<Row, Infallible>(render_row(lights, &camera, width, adaptive, y as u32))
+        },
         |y, row| {
             let range = y * width as usize..(y + 1) * width as usize;
             image.pixels[range.clone()].copy_from_slice(&row.colours);
@@ -74,8 +79,7 @@ struct Row {
 /// Traces and shades the given (pixel, rank) samples in batches of about `BATCH_SAMPLES`
 /// neighbouring camera rays; returns each sample's radiance and whether it hit, in order.
 fn trace_samples(
-    scene: &Scene,
-    bvh: &Bvh,
+    (scene, bvh, unoccludable): Shading<'_>,
     camera: &Camera,
     width: u32,
     max_spp: u32,
@@ -92,15 +96,17 @@ fn trace_samples(
         hits.clear();
         hits.resize(rays.len(), None);
         bvh.closest_hits(&rays, &mut hits);
-        colours.extend(shade_batch(scene, bvh, &rays, &hits));
+        colours.extend(shade_batch(scene, bvh, unoccludable, &rays, &hits));
         all_hits.extend_from_slice(&hits);
     }
     (colours, all_hits)
 }
 
+/// The scene, its BVH and its unoccludable lights: what shading a sample needs.
+type Shading<'a> = (&'a Scene, &'a Bvh, &'a [bool]);
+
 fn render_row(
-    scene: &Scene,
-    bvh: &Bvh,
+    shading: Shading<'_>,
     camera: &Camera,
     width: u32,
     a: AdaptiveSettings,
@@ -109,7 +115,7 @@ fn render_row(
     let first_pixel = u64::from(y) * u64::from(width);
     let pixels = first_pixel..first_pixel + u64::from(width);
     let base = a.base_spp as usize;
-    let lights = scene.lights.len() as u64;
+    let lights = shading.0.lights.len() as u64;
     let mut rays = RayCounts::default();
     let mut count = |hits: &[Option<ClosestHit>]| {
         for hit in hits {
@@ -124,7 +130,7 @@ fn render_row(
         .clone()
         .flat_map(|p| (0..a.base_spp).map(move |r| (p, r)))
         .collect();
-    let (colours1, hits1) = trace_samples(scene, bvh, camera, width, a.max_spp, &first);
+    let (colours1, hits1) = trace_samples(shading, camera, width, a.max_spp, &first);
     count(&hits1);
     let decisions: Vec<Decision> = colours1
         .chunks(base)
@@ -137,7 +143,7 @@ fn render_row(
         .filter(|(_, d)| **d == Decision::Refine)
         .flat_map(|(p, _)| (a.base_spp..a.max_spp).map(move |r| (p, r)))
         .collect();
-    let (colours2, hits2) = trace_samples(scene, bvh, camera, width, a.max_spp, &second);
+    let (colours2, hits2) = trace_samples(shading, camera, width, a.max_spp, &second);
     count(&hits2);
     let extra = (a.max_spp - a.base_spp) as usize;
     let mut refined = colours2.chunks(extra);

@@ -97,7 +97,7 @@ pub fn run_pipeline(
             cache.insert(&key, Arc::clone(&object));
         }
     }
-    for &stage in plan.mode.task_stages() {
+    for &stage in plan.task_stages() {
         let stage_start = Instant::now();
         let tasks = plan.task_count(stage);
         let (m, busy) = run_stage(store, job, &plan, stage, tasks, &caches)?;

@@ -51,6 +51,23 @@ impl ExecutionMode {
         &self.stages()[1..]
     }
 
+    /// The stages a job of this mode runs when it traces shadow rays (`shadows`: the scene has a
+    /// light some surface can occlude) or not: a staged job without them skips Expand and
+    /// TraceMap (TraceReduce shades from the hits alone). Fused jobs run the same stages either
+    /// way.
+    pub fn stages_with(self, shadows: bool) -> &'static [Stage] {
+        match (self, shadows) {
+            (ExecutionMode::Staged, false) => &[
+                Stage::Plan,
+                Stage::CastMap,
+                Stage::CastReduce,
+                Stage::TraceReduce,
+                Stage::Combine,
+            ],
+            _ => self.stages(),
+        }
+    }
+
     /// The stage whose outputs Combine assembles.
     pub fn pixel_stage(self) -> Stage {
         match self {
@@ -300,6 +317,24 @@ mod tests {
             [Stage::Render, Stage::Combine]
         );
         assert_eq!(ExecutionMode::Staged.stages().len(), 7);
+        assert_eq!(
+            ExecutionMode::Staged.stages_with(false),
+            [
+                Stage::Plan,
+                Stage::CastMap,
+                Stage::CastReduce,
+                Stage::TraceReduce,
+                Stage::Combine
+            ]
+        );
+        assert_eq!(
+            ExecutionMode::Staged.stages_with(true),
+            ExecutionMode::Staged.stages()
+        );
+        assert_eq!(
+            ExecutionMode::Fused.stages_with(false),
+            ExecutionMode::Fused.stages()
+        );
         assert_eq!("fused".parse(), Ok(ExecutionMode::Fused));
         assert_eq!(
             "both".parse::<ExecutionMode>(),

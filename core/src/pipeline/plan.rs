@@ -10,6 +10,7 @@ use crate::bvh::Aabb;
 use crate::camera::Camera;
 use crate::scene::{CameraSpec, Light, Scene, check_image_size};
 use crate::stage::Stage;
+use crate::unoccludable::unoccludable_lights;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -171,6 +172,12 @@ pub struct JobPlan {
     /// Absent from the JSON when `None`, so uniform plans keep their bytes.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub adaptive: Option<AdaptiveSettings>,
+    /// Indices (ascending) of the lights no surface can occlude
+    /// ([`crate::unoccludable::unoccludable_lights`]): Expand routes no shadow query for them,
+    /// so they count as unblocked everywhere, as in the monolithic renderer. Absent from the
+    /// JSON when empty, so other plans keep their bytes.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub unoccludable_lights: Vec<u32>,
 }
 
 impl JobPlan {
@@ -191,9 +198,9 @@ impl JobPlan {
 
     /// Number of tasks of `stage` in this plan: one for Plan and Combine; in fused mode one
     /// Render task per span; in staged mode one per CastMap/TraceMap pair and one per span for
-    /// the reduce stages and Expand. Stages of the other mode have none.
+    /// the reduce stages and Expand. Stages the job does not run ([`JobPlan::stages`]) have none.
     pub fn task_count(&self, stage: Stage) -> usize {
-        if !self.mode.stages().contains(&stage) {
+        if !self.stages().contains(&stage) {
             return 0;
         }
         match stage {
@@ -206,9 +213,25 @@ impl JobPlan {
         }
     }
 
-    /// The stages this job runs, in order.
+    /// The stages this job runs, in order: its mode's, without Expand and TraceMap when a
+    /// staged job has no lights ([`ExecutionMode::stages_with`]).
     pub fn stages(&self) -> &'static [Stage] {
-        self.mode.stages()
+        self.mode.stages_with(self.has_shadows())
+    }
+
+    /// The stages whose tasks the Worker function runs (all but [`Stage::Plan`]), in order.
+    pub fn task_stages(&self) -> &'static [Stage] {
+        &self.stages()[1..]
+    }
+
+    /// Whether the job traces shadow rays: the scene has a light some surface can occlude.
+    pub fn has_shadows(&self) -> bool {
+        self.lights.len() > self.unoccludable_lights.len()
+    }
+
+    /// Whether no surface can occlude light `light` (its shadow rays are not traced).
+    pub fn is_unoccludable(&self, light: u32) -> bool {
+        self.unoccludable_lights.binary_search(&light).is_ok()
     }
 
     /// The most samples a pixel may get: `spp`, or the adaptive sampler's `max_spp`.
@@ -278,6 +301,14 @@ impl JobPlan {
         if fused_with_pairs {
             return Err(PipelineError::Corrupt(format!(
                 "plan {key}: a fused plan lists staged tasks"
+            )));
+        }
+        let lights = plan.lights.len() as u32;
+        let ascending = plan.unoccludable_lights.windows(2).all(|w| w[0] < w[1]);
+        if !ascending || plan.unoccludable_lights.iter().any(|&l| l >= lights) {
+            return Err(PipelineError::Corrupt(format!(
+                "plan {key}: unoccludable_lights must be ascending indices below the light count \
+                 {lights}"
             )));
         }
         let task_ok = |span: u32, split: u32| span < s && split < k;
@@ -412,6 +443,12 @@ pub fn plan_job(
         spp: request.spp,
         camera: camera_spec,
         lights: scene.lights.clone(),
+        unoccludable_lights: unoccludable_lights(&scene.mesh, &scene.lights)
+            .into_iter()
+            .enumerate()
+            .filter(|(_, free)| *free)
+            .map(|(l, _)| l as u32)
+            .collect(),
         ambient: scene.ambient,
         background: scene.background,
         triangles: scene.mesh.triangle_count() as u64,
@@ -514,5 +551,21 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.starts_with("plan jobs/x/plan.json: "), "{e}");
+        // Cornell's light can be occluded; a plan naming a light it lacks is refused.
+        assert!(plan.unoccludable_lights.is_empty() && plan.has_shadows());
+        for bad in [vec![1], vec![0, 0]] {
+            let mut broken = plan.clone();
+            broken.unoccludable_lights = bad;
+            let json = serde_json::to_vec(&broken).unwrap();
+            assert_eq!(
+                JobPlan::from_json("p", &json).unwrap_err().to_string(),
+                "plan p: unoccludable_lights must be ascending indices below the light count 1"
+            );
+        }
+        let mut free = plan.clone();
+        free.unoccludable_lights = vec![0];
+        assert!(!free.has_shadows() && free.is_unoccludable(0));
+        assert_eq!(free.task_count(Stage::Expand), 0);
+        assert_eq!(free.task_count(Stage::TraceMap), 0);
     }
 }

@@ -300,7 +300,9 @@ impl Task<'_> {
                     .ok_or_else(|| missing("spans"))?;
                 let hits = self.read_span_hits(task)?;
                 let mut occluded = Vec::new();
-                for split in 0..plan.k() {
+                // Without shadow rays (no light a surface can occlude) there are no TraceMap tasks.
+                let shadow_splits = if plan.has_shadows() { plan.k() } else { 0 };
+                for split in 0..shadow_splits {
                     let key = self.key(Stage::TraceMap, plan.trace_task_id(task, split), task);
                     occluded.push(self.read(&key, decode_occluded)?);
                 }

@@ -90,7 +90,8 @@ pub fn cast_reduce(inputs: Vec<Vec<SurfaceHit>>) -> Vec<SurfaceHit> {
     all
 }
 
-/// Expand: for each hit and light whose light can reach it, the shadow segment, routed to every
+/// Expand: for each hit and light whose light can reach it (lights no surface can occlude
+/// aside: they need no test), the shadow segment, routed to every
 /// split (naive mode, as HORT) or only to splits whose box the segment can meet (spatial mode).
 /// Returns one sorted query list per split.
 pub fn expand(plan: &JobPlan, hits: &[SurfaceHit]) -> Vec<Vec<ShadowQuery>> {
@@ -98,6 +99,9 @@ pub fn expand(plan: &JobPlan, hits: &[SurfaceHit]) -> Vec<Vec<ShadowQuery>> {
     let mut out = vec![Vec::new(); boxes.len()];
     for hit in hits {
         for (light_index, light) in plan.lights.iter().enumerate() {
+            if plan.is_unoccludable(light_index as u32) {
+                continue;
+            }
             let Some(test) = shadow_test(&hit.surface, light) else {
                 continue;
             };

@@ -99,9 +99,19 @@ pub struct PlanOutput {
     pub items: BTreeMap<String, String>,
     /// Map iterations at once (0: no limit beyond the account's concurrency).
     pub max_concurrency: u32,
+    /// Whether the job traces shadow rays (its scene has a light some surface can occlude). A
+    /// staged job without them skips Expand and TraceMap (`ChooseShadows` in the state
+    /// machine).
+    pub shadows: bool,
 }
 
 impl PlanOutput {
+    /// The stages whose tasks the Worker function runs, in order, as the state machine walks
+    /// them for this output's mode and `shadows`.
+    pub fn task_stages(&self) -> &'static [Stage] {
+        &self.mode.stages_with(self.shadows)[1..]
+    }
+
     /// The items file key of `stage`, if it is a Map stage this output names.
     pub fn items_key(&self, stage: Stage) -> Option<&str> {
         self.items.get(stage.items_field()?).map(String::as_str)

@@ -71,6 +71,7 @@ pub fn handle_plan_measured(
         mode: plan.mode,
         items,
         max_concurrency: request.max_concurrency,
+        shadows: plan.has_shadows(),
     };
     let metrics = TaskMetrics {
         task_us: micros(started.elapsed()),

@@ -128,7 +128,7 @@ fn run_job(store: &MemoryStore, job: &str) {
     let tmp = std::env::temp_dir();
     let out = handle_plan(store, "b", &plan_event(job), &tmp).unwrap();
     let cache = SplitCache::new(0);
-    for &stage in out.mode.task_stages() {
+    for &stage in out.task_stages() {
         let items: Vec<TaskItem> = match out.items_key(stage) {
             Some(key) => serde_json::from_slice(&store.get(key).unwrap()).unwrap(),
             None => vec![TaskItem {

@@ -4,7 +4,7 @@
 //! Supported: state types Task (`arn:aws:states:::lambda:invoke` with `Parameters.FunctionName`
 //! and `Parameters.Payload`), Map (Distributed, items from an `ItemReader` of `s3:getObject`
 //! with JSON input, or from the state input through `ItemsPath`), Choice (rules of one
-//! `Variable` compared with `IsPresent`, `StringEquals` or a `Numeric…` operator against a literal, and
+//! `Variable` compared with `IsPresent`, `StringEquals`, `BooleanEquals` or a `Numeric…` operator against a literal, and
 //! `Default`), Pass, Succeed, Fail; fields InputPath, OutputPath, Parameters, ResultSelector,
 //! ResultPath, ItemSelector, TimeoutSeconds(Path), MaxConcurrency(Path), Retry, Catch,
 //! Next/End, Comment. Anything else (Wait, Parallel, HeartbeatSeconds, ResultWriter,
@@ -229,6 +229,8 @@ pub enum Comparison {
     Numeric(NumericOp, f64),
     /// `StringEquals`: the variable (which must be a string) equals the literal exactly.
     StringEquals(String),
+    /// `BooleanEquals`: the variable (which must be `true` or `false`) equals the literal.
+    BooleanEquals(bool),
 }
 
 /// A numeric comparison operator of a Choice rule.

@@ -353,6 +353,16 @@ impl Execution<'_> {
                     })?;
                     a == b
                 }
+                Comparison::BooleanEquals(b) => {
+                    let a = value.and_then(Value::as_bool).ok_or_else(|| {
+                        rt(format!(
+                            "Choices[{i}]: the Variable {:?} must select true or false, found {}",
+                            rule.variable.text,
+                            value.map_or("nothing".to_owned(), Value::to_string)
+                        ))
+                    })?;
+                    a == b
+                }
                 Comparison::Numeric(op, b) => {
                     let a = value.and_then(Value::as_f64).ok_or_else(|| {
                         rt(format!(

@@ -356,7 +356,9 @@ impl TaskInvoker for Fake {
                     .map(|(field, stage)| (field.to_string(), json!(items_key(stage))))
                     .collect();
                 let mode = if fused { "fused" } else { "staged" };
-                Ok(json!({"mode": mode, "items": items, "max_concurrency": self.max_concurrency}))
+                Ok(
+                    json!({"mode": mode, "items": items, "max_concurrency": self.max_concurrency, "shadows": true}),
+                )
             }
             "WorkerFunctionArn" => {
                 let task = input["item"]["task"].as_u64().unwrap_or(0);
@@ -491,6 +493,7 @@ fn all_stages_run_in_order_with_every_item_once() {
             "CastMapCheck",
             "CastReduce",
             "CastReduceCheck",
+            "ChooseShadows",
             "Expand",
             "ExpandCheck",
             "TraceMap",
@@ -1263,6 +1266,41 @@ fn string_equals_picks_the_branch_and_a_non_string_is_a_runtime_error() {
             .contains("the Variable \"$.mode\" must select a string, found 1"),
         "{}",
         f.cause
+    );
+}
+
+#[test]
+fn boolean_equals_picks_the_branch_and_a_non_boolean_is_a_runtime_error() {
+    let fake = Fake::ok();
+    let machine = json!({
+        "StartAt": "C",
+        "States": {
+            "C": {"Type": "Choice", "Choices": [
+                {"Variable": "$.shadows", "BooleanEquals": false, "Next": "Dark"}
+            ], "Default": "Lit"},
+            "Dark": {"Type": "Pass", "Result": "dark", "End": true},
+            "Lit": {"Type": "Pass", "Result": "lit", "End": true}
+        }
+    });
+    let o = fake.machine(&machine.to_string(), options(1));
+    let run = |input: Value| run_on(&o, &fake, input, &MemoryItems::new()).0;
+    assert_eq!(run(json!({"shadows": false})).unwrap(), json!("dark"));
+    assert_eq!(run(json!({"shadows": true})).unwrap(), json!("lit"));
+    let f = run(json!({"shadows": "false"})).unwrap_err();
+    assert_eq!(f.error, "States.Runtime");
+    assert!(
+        f.cause
+            .contains("the Variable \"$.shadows\" must select true or false, found \"false\""),
+        "{}",
+        f.cause
+    );
+    let bad = json!({"StartAt": "C", "States": {"C": {"Type": "Choice", "Choices": [
+        {"Variable": "$.shadows", "BooleanEquals": 0, "Next": "C"}]}}});
+    let err = Orchestrator::new(&bad.to_string(), options(1)).unwrap_err();
+    assert!(
+        err.to_string()
+            .contains("Choices[0]: BooleanEquals must be true or false"),
+        "{err}"
     );
 }
 

@@ -314,7 +314,7 @@ fn memory_table(
     drop(scene);
     // Map tasks, one at a time, each measured from its own start.
     let mut peaks: Vec<(Stage, usize)> = Vec::new();
-    for &stage in plan.mode.task_stages() {
+    for &stage in plan.task_stages() {
         for task in 0..plan.task_count(stage) {
             let before = meter.current();
             meter.reset_peak();

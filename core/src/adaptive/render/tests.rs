@@ -31,10 +31,14 @@ fn pixels_equal_their_samples_traced_alone() {
     let bvh = build_scene_bvh(&scene.mesh);
     let (out, counts) = render_adaptive(&scene, &bvh, settings(2), ADAPTIVE).unwrap();
     let camera = Camera::new(&scene.camera_for(32, 24), 32, 24).unwrap();
+    let unoccludable = unoccludable_lights(&scene.mesh, &scene.lights);
     let trace = |pixel: u64, rank: u32| {
         let ray = adaptive_ray(&camera, 32, pixel, rank, 64);
         let hit = bvh.closest_hit(&ray);
-        (shade_batch(&scene, &bvh, &[ray], &[hit])[0], hit)
+        (
+            shade_batch(&scene, &bvh, &unoccludable, &[ray], &[hit])[0],
+            hit,
+        )
     };
     let mut expected = AdaptiveCounts::default();
     let mut constant_pixels = 0;

@@ -349,7 +349,7 @@ pub(super) fn choice(raw: RawChoice) -> Result<State, String> {
         return Err("Choices is empty".into());
     }
     let supported = || {
-        let mut names = vec!["IsPresent", "StringEquals"];
+        let mut names = vec!["IsPresent", "StringEquals", "BooleanEquals"];
         names.extend(NUMERIC.iter().map(|(n, _)| *n));
         names.join(", ")
     };
@@ -395,6 +395,12 @@ pub(super) fn choice(raw: RawChoice) -> Result<State, String> {
                         .as_str()
                         .ok_or_else(|| at("StringEquals must be a string".into()))?
                         .to_owned(),
+                )
+            } else if op == "BooleanEquals" {
+                Comparison::BooleanEquals(
+                    value
+                        .as_bool()
+                        .ok_or_else(|| at("BooleanEquals must be true or false".into()))?,
                 )
             } else if let Some((_, numeric)) = NUMERIC.iter().find(|(n, _)| *n == op) {
                 Comparison::Numeric(
