@@ -38,6 +38,18 @@ pub struct StageBreakdown {
     pub orchestration: f64,
 }
 
+impl std::ops::AddAssign for StageBreakdown {
+    fn add_assign(&mut self, o: StageBreakdown) {
+        self.task += o.task;
+        self.compute += o.compute;
+        self.encode += o.encode;
+        self.decode += o.decode;
+        self.storage += o.storage;
+        self.invocation += o.invocation;
+        self.orchestration += o.orchestration;
+    }
+}
+
 impl StageBreakdown {
     /// The task-measured parts of `tasks` (the summed metrics of the stage's tasks), with
     /// `invocation` and `orchestration` left at 0.

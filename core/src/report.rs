@@ -158,6 +158,24 @@ pub struct StageReport {
     pub peak_memory_bytes: u64,
 }
 
+impl StageReport {
+    /// Adds `later`, a later run of the same stage (round 2 of a staged adaptive job), into
+    /// this row: counts, seconds, bytes and the time breakdown add up; the peak memory is the
+    /// larger of the two.
+    pub fn add(&mut self, later: &StageReport) {
+        self.tasks += later.tasks;
+        self.attempts += later.attempts;
+        self.seconds += later.seconds;
+        self.bytes_read += later.bytes_read;
+        self.bytes_written += later.bytes_written;
+        self.bytes_written_raw += later.bytes_written_raw;
+        self.attempts_bytes_read += later.attempts_bytes_read;
+        self.attempts_bytes_written += later.attempts_bytes_written;
+        self.breakdown += later.breakdown;
+        self.peak_memory_bytes = self.peak_memory_bytes.max(later.peak_memory_bytes);
+    }
+}
+
 impl Report {
     /// Pretty JSON text of the report.
     pub fn to_json(&self) -> String {

@@ -178,6 +178,17 @@ impl PixelSum {
         }
     }
 
+    /// A sum that continues from `sum`, the value [`PixelSum::sum`] gave (bit for bit the same
+    /// as having added those samples here).
+    pub fn from_sum(sum: [f32; 3]) -> Self {
+        PixelSum { sum }
+    }
+
+    /// The in-order sum of the samples added so far.
+    pub fn sum(&self) -> [f32; 3] {
+        self.sum
+    }
+
     /// The pixel: the sum divided by the pixel's sample count `spp` (not by the number of
     /// samples added; callers add exactly `spp`).
     #[inline]

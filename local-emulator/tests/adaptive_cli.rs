@@ -126,7 +126,7 @@ fn a_scene_without_lights_reports_the_skipped_shadow_rays() {
 }
 
 #[test]
-fn bad_adaptive_settings_and_staged_jobs_get_one_error_line() {
+fn bad_adaptive_settings_get_one_error_line() {
     let teapot = scene("teapot/teapot.json");
     let teapot = teapot.to_str().unwrap();
     let size = ["--width", "64", "--height", "48"];
@@ -153,19 +153,6 @@ fn bad_adaptive_settings_and_staged_jobs_get_one_error_line() {
             ][..],
             "error: --spp, --adaptive and --adaptive-threshold: adaptive threshold = -1 is out \
              of range: must be a finite number above 0\n",
-        ),
-        (
-            &[
-                "--in-process",
-                "--spp",
-                "4",
-                "--adaptive",
-                "16",
-                "--splits",
-                "2",
-            ][..],
-            "error: --adaptive runs in fused mode only, and this job would run staged \
-             (--splits 2: HORT's staged shuffle over 2 splits); use --splits 1 or --mode fused\n",
         ),
     ] {
         let mut args = vec!["render", teapot];

@@ -1,6 +1,7 @@
-//! The adaptive sampler through the pipeline: fused jobs equal the monolithic adaptive render
-//! bit for bit (image, hit buffer, rays, decisions) for every split, span and worker count;
-//! staged jobs are refused with one line.
+//! The adaptive sampler through the pipeline: fused jobs (both passes in each Render task) and
+//! staged jobs (a second round of the staged stages for the pixels that need it, only if any)
+//! equal the monolithic adaptive render bit for bit (image, hit buffer, rays, decisions) for
+//! every split, span and worker count.
 
 use hort_core::adaptive::{AdaptiveSettings, render_adaptive};
 use hort_core::ids::JobId;
@@ -33,7 +34,7 @@ fn request(
 }
 
 #[test]
-fn fused_adaptive_jobs_equal_the_monolithic_adaptive_render() {
+fn adaptive_jobs_equal_the_monolithic_adaptive_render() {
     for rel in ["teapot/teapot.json", "cornell/cornell.json"] {
         let scene = load_scene(&scene_path(rel)).expect("bundled scene");
         let bvh = build_scene_bvh(&scene.mesh);
@@ -53,8 +54,16 @@ fn fused_adaptive_jobs_equal_the_monolithic_adaptive_render() {
             counts.refined_pixels > 0 && counts.converged_pixels > 0,
             "{rel}: {counts:?}"
         );
-        for (k, s, workers) in [(1u32, 1u32, 1usize), (1, 7, 3), (3, 5, 2)] {
-            let what = format!("{rel} k={k} s={s} workers={workers}");
+        let cases = [
+            (ExecutionMode::Fused, 1u32, 1u32, 1usize),
+            (ExecutionMode::Fused, 1, 7, 3),
+            (ExecutionMode::Fused, 3, 5, 2),
+            (ExecutionMode::Staged, 1, 3, 2),
+            (ExecutionMode::Staged, 2, 1, 1),
+            (ExecutionMode::Staged, 3, 7, 3),
+        ];
+        for (mode, k, s, workers) in cases {
+            let what = format!("{rel} {mode} k={k} s={s} workers={workers}");
             let options = PipelineOptions {
                 job: JobId::new("adaptive").unwrap(),
                 workers,
@@ -63,11 +72,11 @@ fn fused_adaptive_jobs_equal_the_monolithic_adaptive_render() {
             let run = run_pipeline(
                 &MemoryStore::new(),
                 &scene,
-                request(adaptive, k, s, Some(ExecutionMode::Fused)),
+                request(adaptive, k, s, Some(mode)),
                 &options,
             )
             .unwrap_or_else(|e| panic!("{what}: {e}"));
-            assert_eq!(run.plan.mode, ExecutionMode::Fused, "{what}");
+            assert_eq!(run.plan.mode, mode, "{what}");
             assert_eq!(
                 pixel_bits(&run.image.pixels),
                 pixel_bits(&mono.image.pixels),
@@ -81,12 +90,87 @@ fn fused_adaptive_jobs_equal_the_monolithic_adaptive_render() {
                 summed += m.adaptive;
             }
             assert_eq!(summed, counts, "{what}");
+            if mode == ExecutionMode::Staged {
+                // Round 2 ran for the spans with refined pixels: the refine row, and more
+                // cast-map tasks than round 1's pairs.
+                let names: Vec<&str> = run.stages.iter().map(|s| s.name.as_str()).collect();
+                assert_eq!(
+                    names,
+                    [
+                        "plan",
+                        "cast-map",
+                        "cast-reduce",
+                        "expand",
+                        "trace-map",
+                        "trace-reduce",
+                        "refine",
+                        "combine"
+                    ],
+                    "{what}"
+                );
+                assert!(
+                    run.stages[1].tasks > run.plan.cast_tasks.len() as u64,
+                    "{what}"
+                );
+            }
         }
     }
 }
 
+/// A staged adaptive job whose first pass leaves nothing to refine (a threshold no pixel
+/// exceeds) runs no second round, and equals the monolithic render.
 #[test]
-fn staged_adaptive_jobs_are_refused() {
+fn a_staged_adaptive_job_with_nothing_to_refine_runs_one_round() {
+    let scene = load_scene(&scene_path("teapot/teapot.json")).expect("bundled scene");
+    let bvh = build_scene_bvh(&scene.mesh);
+    let adaptive = AdaptiveSettings {
+        base_spp: 4,
+        max_spp: 16,
+        threshold: 1e6,
+    };
+    let settings = RenderSettings {
+        width: W,
+        height: H,
+        spp: 4,
+        threads: 2,
+    };
+    let (mono, counts) = render_adaptive(&scene, &bvh, settings, adaptive).unwrap();
+    assert_eq!(counts.refined_pixels, 0);
+    let options = PipelineOptions {
+        job: JobId::new("adaptive").unwrap(),
+        workers: 2,
+        split_cache_bytes: 0,
+    };
+    let run = run_pipeline(
+        &MemoryStore::new(),
+        &scene,
+        request(adaptive, 2, 3, Some(ExecutionMode::Staged)),
+        &options,
+    )
+    .unwrap();
+    assert_eq!(
+        pixel_bits(&run.image.pixels),
+        pixel_bits(&mono.image.pixels)
+    );
+    let tasks: Vec<u64> = run.stages.iter().map(|s| s.tasks).collect();
+    let p = &run.plan;
+    assert_eq!(
+        tasks,
+        [
+            1,
+            p.cast_tasks.len() as u64,
+            3,
+            3,
+            p.trace_tasks.len() as u64,
+            3,
+            1,
+            1
+        ]
+    );
+}
+
+#[test]
+fn a_base_spp_other_than_spp_is_refused() {
     let scene = load_scene(&scene_path("cornell/cornell.json")).expect("bundled scene");
     let adaptive = AdaptiveSettings {
         base_spp: 4,
@@ -98,20 +182,6 @@ fn staged_adaptive_jobs_are_refused() {
         workers: 1,
         split_cache_bytes: 0,
     };
-    let Err(e) = run_pipeline(
-        &MemoryStore::new(),
-        &scene,
-        request(adaptive, 2, 2, None),
-        &options,
-    ) else {
-        panic!("staged adaptive must be refused");
-    };
-    let e = e.to_string();
-    assert_eq!(
-        e,
-        "--adaptive runs in fused mode only, and this job would run staged (--splits 2: \
-         HORT's staged shuffle over 2 splits); use --splits 1 or --mode fused"
-    );
     let mut bad = request(adaptive, 1, 1, None);
     bad.spp = 16;
     let Err(e) = run_pipeline(&MemoryStore::new(), &scene, bad, &options) else {

@@ -5,7 +5,7 @@ use super::PipelineError;
 use super::outputs::read_outputs;
 use super::plan::{JobPlan, PlanRequest};
 use super::plan_step::plan_into_store_keeping;
-use super::runner::{TaskMetrics, run_task_cached};
+use super::runner::{TaskMetrics, refined_spans, run_task_cached};
 use super::split_cache::SplitCache;
 use crate::breakdown::{StageBreakdown, uncovered};
 use crate::hits::Hit;
@@ -98,26 +98,50 @@ pub fn run_pipeline(
         }
     }
     for &stage in plan.task_stages() {
+        if stage == Stage::Combine && plan.has_second_round() {
+            // Round 2 of a staged adaptive job: only the spans with pixels to refine, only if
+            // any; each stage's tasks count in the stage's row.
+            let refine_start = Instant::now();
+            let (spans, m) = refined_spans(store, job, &plan, &caches[0])?;
+            stages.push(stage_report(
+                "refine",
+                1,
+                refine_start,
+                Instant::now(),
+                &m,
+                &[],
+            ));
+            metrics.push(m);
+            for (row, &round_stage) in plan.task_stages().iter().enumerate() {
+                let tasks = plan.round_two_tasks(round_stage, &spans);
+                if tasks.is_empty() {
+                    continue;
+                }
+                let stage_start = Instant::now();
+                let (m, busy) = run_stage(store, job, &plan, round_stage, &tasks, &caches)?;
+                let more = stage_report(
+                    round_stage.as_str(),
+                    tasks.len(),
+                    stage_start,
+                    Instant::now(),
+                    &m,
+                    &busy,
+                );
+                stages[row + 1].add(&more);
+                metrics[row + 1] += m;
+            }
+        }
         let stage_start = Instant::now();
-        let tasks = plan.task_count(stage);
-        let (m, busy) = run_stage(store, job, &plan, stage, tasks, &caches)?;
-        let stage_end = Instant::now();
-        stages.push(StageReport {
-            name: stage.to_string(),
-            tasks: tasks as u64,
-            attempts: tasks as u64,
-            seconds: (stage_end - stage_start).as_secs_f64(),
-            bytes_read: m.bytes_read,
-            bytes_written: m.bytes_written,
-            bytes_written_raw: m.bytes_written_raw,
-            attempts_bytes_read: m.bytes_read,
-            attempts_bytes_written: m.bytes_written,
-            breakdown: StageBreakdown {
-                orchestration: uncovered(stage_start, stage_end, &busy).as_secs_f64(),
-                ..StageBreakdown::from_tasks(&m)
-            },
-            peak_memory_bytes: m.peak_memory_bytes,
-        });
+        let tasks: Vec<u32> = (0..plan.task_count(stage) as u32).collect();
+        let (m, busy) = run_stage(store, job, &plan, stage, &tasks, &caches)?;
+        stages.push(stage_report(
+            stage.as_str(),
+            tasks.len(),
+            stage_start,
+            Instant::now(),
+            &m,
+            &busy,
+        ));
         metrics.push(m);
     }
     let render_seconds = render_start.elapsed().as_secs_f64();
@@ -140,7 +164,35 @@ pub fn run_pipeline(
     })
 }
 
-/// Runs tasks `0..tasks` of `stage` on one thread per cache; the first error stops the stage.
+/// The report row of a stage that ran `tasks` tasks from `start` to `end` with the summed
+/// metrics `m` and the tasks' wall-clock intervals `busy`.
+fn stage_report(
+    name: &str,
+    tasks: usize,
+    start: Instant,
+    end: Instant,
+    m: &TaskMetrics,
+    busy: &[(Instant, Instant)],
+) -> StageReport {
+    StageReport {
+        name: name.to_owned(),
+        tasks: tasks as u64,
+        attempts: tasks as u64,
+        seconds: (end - start).as_secs_f64(),
+        bytes_read: m.bytes_read,
+        bytes_written: m.bytes_written,
+        bytes_written_raw: m.bytes_written_raw,
+        attempts_bytes_read: m.bytes_read,
+        attempts_bytes_written: m.bytes_written,
+        breakdown: StageBreakdown {
+            orchestration: uncovered(start, end, busy).as_secs_f64(),
+            ..StageBreakdown::from_tasks(m)
+        },
+        peak_memory_bytes: m.peak_memory_bytes,
+    }
+}
+
+/// Runs the tasks `tasks` of `stage` on one thread per cache; the first error stops the stage.
 /// Returns the summed metrics, which do not depend on which worker ran which task (integer
 /// sums, durations aside), and the wall-clock interval of each task.
 fn run_stage(
@@ -148,17 +200,17 @@ fn run_stage(
     job: &JobId,
     plan: &JobPlan,
     stage: Stage,
-    tasks: usize,
+    tasks: &[u32],
     caches: &[SplitCache],
 ) -> Result<(TaskMetrics, Vec<(Instant, Instant)>), PipelineError> {
     let mut total = TaskMetrics::default();
-    let busy = Mutex::new(Vec::with_capacity(tasks));
+    let busy = Mutex::new(Vec::with_capacity(tasks.len()));
     run_indexed(
         caches,
-        tasks,
-        |cache, task| {
+        tasks.len(),
+        |cache, i| {
             let started = Instant::now();
-            let result = run_task_cached(store, job, plan, stage, task as u32, cache);
+            let result = run_task_cached(store, job, plan, stage, tasks[i], cache);
             busy.lock()
                 .unwrap_or_else(|e| e.into_inner())
                 .push((started, Instant::now()));

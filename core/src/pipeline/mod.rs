@@ -22,6 +22,7 @@
 //! renderer, so the image and hit buffer equal the monolithic render's bit for bit for every
 //! k, s, split mode, spp and worker count.
 
+mod adaptive_rounds;
 mod adaptive_span;
 mod driver;
 mod frustum;
@@ -30,6 +31,8 @@ mod outputs;
 mod plan;
 mod plan_step;
 mod records;
+mod refine_list;
+mod rounds;
 mod runner;
 mod split;
 mod split_cache;
@@ -55,8 +58,10 @@ pub use records::{
     decode_occluded, decode_pixels, decode_queries, decode_surface_hits, encode_occluded,
     encode_pixels, encode_queries, encode_surface_hits,
 };
+pub use refine_list::{RefineList, decode_refine_list, encode_refine_list};
 pub use runner::{
-    RebuildSplit, TaskMetrics, micros, producer_of, run_task, run_task_cached, run_task_with, timed,
+    RebuildSplit, TaskMetrics, micros, producer_of, refined_spans, run_task, run_task_cached,
+    run_task_with, timed,
 };
 pub use split::{SplitMode, assign_splits, rebuild_split, split_scene, split_scene_objects};
 pub use split_cache::SplitCache;

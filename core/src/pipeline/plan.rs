@@ -63,7 +63,7 @@ pub struct PlanRequest {
     /// Memory of one function, MB (Lambda's setting): no task may need more.
     #[serde(default = "default_memory_mb")]
     pub memory_mb: u32,
-    /// The adaptive sampler (fused mode only), its `base_spp` equal to `spp`; `None`: every
+    /// The adaptive sampler, its `base_spp` equal to `spp`; `None`: every
     /// pixel gets `spp` samples. Absent from the JSON when `None`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub adaptive: Option<AdaptiveSettings>,
@@ -168,7 +168,8 @@ pub struct JobPlan {
     pub cast_tasks: Vec<CastTask>,
     /// Staged mode: every (span, split) pair, span-major. Empty in fused mode.
     pub trace_tasks: Vec<TraceTask>,
-    /// The adaptive sampler, when the job uses it (fused mode only; `spp` is its base spp).
+    /// The adaptive sampler, when the job uses it (`spp` is its base spp): both passes in each
+    /// Render task (fused), or two rounds of the staged stages ([`JobPlan::round_of`]).
     /// Absent from the JSON when `None`, so uniform plans keep their bytes.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub adaptive: Option<AdaptiveSettings>,
@@ -379,13 +380,6 @@ pub fn resolve_counts(
         request.execution,
         max_k.max(1),
     )?;
-    if request.adaptive.is_some() && shape.mode == ExecutionMode::Staged {
-        return Err(PipelineError::BadInput(format!(
-            "--adaptive runs in fused mode only, and this job would run staged ({}); \
-             use --splits 1 or --mode fused",
-            shape.reason
-        )));
-    }
     Ok((shape, s))
 }
 

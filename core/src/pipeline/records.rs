@@ -61,19 +61,23 @@ pub struct PixelBlock {
     pub ts: Vec<f32>,
 }
 
-fn corrupt(key: &str, e: ColumnError) -> PipelineError {
+pub(super) fn corrupt(key: &str, e: ColumnError) -> PipelineError {
     PipelineError::Corrupt(format!("shuffle block {key}: {e}"))
 }
 
 /// Writes vectors as three f32 delta columns (x, y, z): neighbouring records' vectors are close.
-fn put_vec3s(w: &mut ColumnWriter, values: impl Iterator<Item = Vec3> + Clone) {
+pub(super) fn put_vec3s(w: &mut ColumnWriter, values: impl Iterator<Item = Vec3> + Clone) {
     for axis in 0..3 {
         w.put_f32_delta(&values.clone().map(|v| v[axis]).collect::<Vec<_>>());
     }
 }
 
 /// Reads three f32 columns of `n` values each as vectors.
-fn read_vec3s(r: &mut ColumnReader, n: usize, key: &str) -> Result<Vec<Vec3>, PipelineError> {
+pub(super) fn read_vec3s(
+    r: &mut ColumnReader,
+    n: usize,
+    key: &str,
+) -> Result<Vec<Vec3>, PipelineError> {
     let mut axes = Vec::with_capacity(3);
     for axis in ["x", "y", "z"] {
         let values = r.read_f32().map_err(|e| corrupt(key, e))?;
@@ -85,7 +89,12 @@ fn read_vec3s(r: &mut ColumnReader, n: usize, key: &str) -> Result<Vec<Vec3>, Pi
         .collect())
 }
 
-fn check_len(key: &str, what: &str, found: usize, expected: usize) -> Result<(), PipelineError> {
+pub(super) fn check_len(
+    key: &str,
+    what: &str,
+    found: usize,
+    expected: usize,
+) -> Result<(), PipelineError> {
     if found == expected {
         Ok(())
     } else {

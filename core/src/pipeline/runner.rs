@@ -13,16 +13,22 @@
 //! different on every run; nothing stored or returned besides the metrics depends on them.
 
 use super::PipelineError;
-use super::adaptive_span::render_span_adaptive;
-use super::plan::JobPlan;
-use super::records::{
-    decode_occluded, decode_pixels, decode_queries, decode_surface_hits, encode_occluded,
-    encode_pixels, encode_queries, encode_surface_hits,
+use super::adaptive_rounds::{
+    cast_samples, first_round_pixels, first_round_samples, sample_colours, second_round_pixels,
+    second_round_samples,
 };
+use super::adaptive_span::render_span_adaptive;
+use super::plan::{JobPlan, Span};
+use super::records::{
+    PixelBlock, decode_occluded, decode_pixels, decode_queries, decode_surface_hits,
+    encode_occluded, encode_pixels, encode_queries, encode_surface_hits,
+};
+use super::refine_list::{RefineList, decode_refine_list, encode_refine_list};
 use super::split_cache::SplitCache;
 use super::split_object::{SplitObject, decode_split};
 use super::stages;
 use crate::adaptive::AdaptiveCounts;
+use crate::camera::Camera;
 use crate::hits::encode_hits;
 use crate::ids::{JobId, PartitionId, SplitId, Stage, TaskId};
 use crate::image::{encode_pfm, encode_png};
@@ -122,6 +128,20 @@ impl std::ops::AddAssign for TaskMetrics {
     }
 }
 
+/// Checks that the pixel block stored at `key` covers exactly `span`.
+fn check_block(key: &str, block: &PixelBlock, span: &Span) -> Result<(), PipelineError> {
+    if block.start != span.start || block.colours.len() as u64 != span.end - span.start {
+        return Err(PipelineError::Corrupt(format!(
+            "shuffle block {key}: holds pixels {}..{}, the plan's span is {}..{}",
+            block.start,
+            block.start + block.colours.len() as u64,
+            span.start,
+            span.end
+        )));
+    }
+    Ok(())
+}
+
 /// Builds the encoded split object with the given id from the job's scene, exactly as the plan
 /// step stored it (see `rebuild_split`): the lineage of split objects.
 pub type RebuildSplit<'a> = &'a dyn Fn(u32) -> Result<Vec<u8>, PipelineError>;
@@ -179,6 +199,37 @@ pub fn run_task_with(
     Ok(ctx.metrics)
 }
 
+/// The spans whose pixels round 1 of a staged adaptive job left to refine (those with a
+/// non-empty refine list), ascending, and what reading the lists took. Empty for other jobs.
+/// A missing or corrupt list is recomputed from its TraceReduce task, as any input block.
+pub fn refined_spans(
+    store: &dyn BlobStore,
+    job: &JobId,
+    plan: &JobPlan,
+    cache: &SplitCache,
+) -> Result<(Vec<u32>, TaskMetrics), PipelineError> {
+    let mut ctx = Task {
+        store,
+        job,
+        plan,
+        cache,
+        rebuild: None,
+        metrics: TaskMetrics::default(),
+        depth: 0,
+    };
+    let started = Instant::now();
+    let mut spans = Vec::new();
+    if plan.has_second_round() {
+        for span in 0..plan.spans.len() as u32 {
+            if !ctx.read_refine_list(span)?.pixels.is_empty() {
+                spans.push(span);
+            }
+        }
+    }
+    ctx.metrics.task_us = micros(started.elapsed());
+    Ok((spans, ctx.metrics))
+}
+
 struct Task<'a> {
     store: &'a dyn BlobStore,
     job: &'a JobId,
@@ -222,34 +273,58 @@ impl Task<'_> {
                 self.write(&self.key(stage, task, 0), bytes, n)
             }
             Stage::CastMap => {
-                let t = *plan
-                    .cast_tasks
-                    .get(task as usize)
+                let (round, index) = plan
+                    .round_of(stage, task)
                     .ok_or_else(|| missing("cast tasks"))?;
+                let t = plan.cast_tasks[index as usize];
                 let span = plan.spans[t.span as usize];
-                let split = self.read_split(t.split)?;
-                let hits = timed(&mut self.metrics.compute_us, || {
-                    stages::cast_map(plan, &span, &split)
-                })?;
-                self.write_hits(stage, task, t.span, RecordKind::CastCandidate, &hits)
+                let reduce = plan.round_task(Stage::CastReduce, t.span, round);
+                let hits = match plan.adaptive {
+                    Some(a) => {
+                        let samples = match round {
+                            1 => first_round_samples(&span, &a),
+                            _ => second_round_samples(&self.read_refine_list(t.span)?, &a),
+                        };
+                        if samples.is_empty() {
+                            self.metrics.skipped_tasks += 1;
+                            Vec::new()
+                        } else {
+                            let split = self.read_split(t.split)?;
+                            let camera = Camera::new(&plan.camera, plan.width, plan.height)?;
+                            timed(&mut self.metrics.compute_us, || {
+                                cast_samples(plan, &camera, &split, &samples, a.max_spp)
+                            })
+                        }
+                    }
+                    None => {
+                        let split = self.read_split(t.split)?;
+                        timed(&mut self.metrics.compute_us, || {
+                            stages::cast_map(plan, &span, &split)
+                        })?
+                    }
+                };
+                self.write_hits(stage, task, reduce, RecordKind::CastCandidate, &hits)
             }
             Stage::CastReduce => {
-                let span = *plan
-                    .spans
-                    .get(task as usize)
-                    .ok_or_else(|| missing("spans"))?;
-                let inputs: Vec<_> = plan.cast_tasks_of(task).collect();
+                let (round, index) = plan.round_of(stage, task).ok_or_else(|| missing("spans"))?;
+                let span = plan.spans[index as usize];
+                let inputs: Vec<u32> = plan
+                    .cast_tasks_of(index)
+                    .map(|t| plan.round_task(Stage::CastMap, t.task, round))
+                    .collect();
                 if let [only] = inputs[..] {
-                    return self.pass_through_hits(only.task, task);
+                    return self.pass_through_hits(only, task);
                 }
-                let mut inputs = Vec::new();
-                for t in plan.cast_tasks_of(task) {
-                    let key = self.key(Stage::CastMap, t.task, task);
-                    inputs.push(self.read(&key, |k, b| {
+                let mut candidates = Vec::new();
+                for cast_task in inputs {
+                    let key = self.key(Stage::CastMap, cast_task, task);
+                    candidates.push(self.read(&key, |k, b| {
                         decode_surface_hits(k, b, RecordKind::CastCandidate)
                     })?);
                 }
-                let hits = timed(&mut self.metrics.compute_us, || stages::cast_reduce(inputs));
+                let hits = timed(&mut self.metrics.compute_us, || {
+                    stages::cast_reduce(candidates)
+                });
                 debug_assert!(
                     hits.iter()
                         .all(|h| u64::from(h.pixel) >= span.start && u64::from(h.pixel) < span.end)
@@ -257,9 +332,7 @@ impl Task<'_> {
                 self.write_hits(stage, task, 0, RecordKind::Hit, &hits)
             }
             Stage::Expand => {
-                plan.spans
-                    .get(task as usize)
-                    .ok_or_else(|| missing("spans"))?;
+                plan.round_of(stage, task).ok_or_else(|| missing("spans"))?;
                 let hits = self.read_span_hits(task)?;
                 let routed = timed(&mut self.metrics.compute_us, || stages::expand(plan, &hits));
                 for (split, queries) in routed.iter().enumerate() {
@@ -269,11 +342,12 @@ impl Task<'_> {
                 Ok(())
             }
             Stage::TraceMap => {
-                let t = *plan
-                    .trace_tasks
-                    .get(task as usize)
+                let (round, index) = plan
+                    .round_of(stage, task)
                     .ok_or_else(|| missing("trace tasks"))?;
-                let key = self.key(Stage::Expand, t.span, t.split);
+                let t = plan.trace_tasks[index as usize];
+                let expand = plan.round_task(Stage::Expand, t.span, round);
+                let key = self.key(Stage::Expand, expand, t.split);
                 let queries = self.read(&key, decode_queries)?;
                 let occluded = if queries.is_empty() {
                     self.metrics.skipped_tasks += 1;
@@ -291,45 +365,71 @@ impl Task<'_> {
                     })?
                 };
                 let bytes = timed(&mut self.metrics.encode_us, || encode_occluded(&occluded));
-                self.write(&self.key(stage, task, t.span), bytes, occluded.len())
+                let reduce = plan.round_task(Stage::TraceReduce, t.span, round);
+                self.write(&self.key(stage, task, reduce), bytes, occluded.len())
             }
             Stage::TraceReduce => {
-                let span = *plan
-                    .spans
-                    .get(task as usize)
-                    .ok_or_else(|| missing("spans"))?;
+                let (round, index) = plan.round_of(stage, task).ok_or_else(|| missing("spans"))?;
+                let span = plan.spans[index as usize];
                 let hits = self.read_span_hits(task)?;
                 let mut occluded = Vec::new();
                 // Without shadow rays (no light a surface can occlude) there are no TraceMap tasks.
                 let shadow_splits = if plan.has_shadows() { plan.k() } else { 0 };
                 for split in 0..shadow_splits {
-                    let key = self.key(Stage::TraceMap, plan.trace_task_id(task, split), task);
+                    let map =
+                        plan.round_task(Stage::TraceMap, plan.trace_task_id(index, split), round);
+                    let key = self.key(Stage::TraceMap, map, task);
                     occluded.push(self.read(&key, decode_occluded)?);
                 }
                 self.metrics.shadow_rays += hits.len() as u64 * plan.lights.len() as u64;
+                let Some(a) = plan.adaptive else {
+                    let block = timed(&mut self.metrics.compute_us, || {
+                        stages::trace_reduce(plan, &span, &hits, occluded)
+                    });
+                    return self.write_pixels(task, &block);
+                };
+                let mut blocked: Vec<_> = occluded.into_iter().flatten().collect();
+                blocked.sort_unstable();
+                blocked.dedup();
+                if round == 1 {
+                    let samples = first_round_samples(&span, &a);
+                    let (block, list, counts) = timed(&mut self.metrics.compute_us, || {
+                        let (colours, sample_hits) =
+                            sample_colours(plan, &samples, &hits, &blocked);
+                        first_round_pixels(&span, &a, &colours, &sample_hits)
+                    });
+                    self.metrics.adaptive += counts;
+                    let bytes = timed(&mut self.metrics.encode_us, || encode_refine_list(&list));
+                    self.write(&self.key(stage, task, 1), bytes, list.pixels.len())?;
+                    return self.write_pixels(task, &block);
+                }
+                let list = self.read_refine_list(index)?;
+                let first_key = self.key(stage, index, 0);
+                let first = self.read(&first_key, decode_pixels)?;
+                check_block(&first_key, &first, &span)?;
                 let block = timed(&mut self.metrics.compute_us, || {
-                    stages::trace_reduce(plan, &span, &hits, occluded)
+                    let samples = second_round_samples(&list, &a);
+                    let (colours, _) = sample_colours(plan, &samples, &hits, &blocked);
+                    second_round_pixels(first, &list, &a, &colours)
                 });
-                let n = block.colours.len();
-                let bytes = timed(&mut self.metrics.encode_us, || encode_pixels(&block));
-                self.write(&self.key(stage, task, 0), bytes, n)
+                self.write_pixels(task, &block)
             }
             Stage::Combine => {
                 let mut blocks = Vec::with_capacity(plan.spans.len());
                 for (i, span) in plan.spans.iter().enumerate() {
-                    let key = self.key(plan.mode.pixel_stage(), i as u32, 0);
-                    let block = self.read(&key, decode_pixels)?;
-                    if block.start != span.start
-                        || block.colours.len() as u64 != span.end - span.start
+                    let i = i as u32;
+                    // A span with pixels to refine has its final pixels from round 2.
+                    let round = if plan.has_second_round()
+                        && !self.read_refine_list(i)?.pixels.is_empty()
                     {
-                        return Err(PipelineError::Corrupt(format!(
-                            "shuffle block {key}: holds pixels {}..{}, the plan's span is {}..{}",
-                            block.start,
-                            block.start + block.colours.len() as u64,
-                            span.start,
-                            span.end
-                        )));
-                    }
+                        2
+                    } else {
+                        1
+                    };
+                    let stage = plan.mode.pixel_stage();
+                    let key = self.key(stage, plan.round_task(stage, i, round), 0);
+                    let block = self.read(&key, decode_pixels)?;
+                    check_block(&key, &block, span)?;
                     blocks.push(block);
                 }
                 let (image, hits) = timed(&mut self.metrics.compute_us, || {
@@ -405,6 +505,22 @@ impl Task<'_> {
         timed(&mut self.metrics.storage_us, || store.put(key, &bytes))?;
         self.metrics.recomputed += 1;
         timed(&mut self.metrics.decode_us, || decode_split(key, &bytes))
+    }
+
+    /// The refine list round 1 wrote for span `span` (TraceReduce's partition 1), checked
+    /// against the span.
+    fn read_refine_list(&mut self, span: u32) -> Result<RefineList, PipelineError> {
+        let key = self.key(Stage::TraceReduce, span, 1);
+        let list = self.read(&key, decode_refine_list)?;
+        let s = self.plan.spans[span as usize];
+        list.check(&key, s.start, s.end)?;
+        Ok(list)
+    }
+
+    fn write_pixels(&mut self, task: u32, block: &PixelBlock) -> Result<(), PipelineError> {
+        let n = block.colours.len();
+        let bytes = timed(&mut self.metrics.encode_us, || encode_pixels(block));
+        self.write(&self.key(Stage::TraceReduce, task, 0), bytes, n)
     }
 
     fn read_span_hits(&mut self, span: u32) -> Result<Vec<super::SurfaceHit>, PipelineError> {

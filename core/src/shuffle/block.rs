@@ -43,17 +43,21 @@ pub enum RecordKind {
     PixelColor = 5,
     /// A scene split: its triangles, shading data and prebuilt BVH.
     SplitObject = 6,
+    /// TraceReduce output of an adaptive job's first round: the pixels of a span that get a
+    /// second round, with their first-pass radiance sums.
+    RefineList = 7,
 }
 
 impl RecordKind {
     /// Every kind, in numeric order.
-    pub const ALL: [RecordKind; 6] = [
+    pub const ALL: [RecordKind; 7] = [
         RecordKind::CastCandidate,
         RecordKind::Hit,
         RecordKind::ShadowQuery,
         RecordKind::ShadowResult,
         RecordKind::PixelColor,
         RecordKind::SplitObject,
+        RecordKind::RefineList,
     ];
 
     /// The kind's number in the header.
