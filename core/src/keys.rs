@@ -74,6 +74,12 @@ pub fn items_key(job: &JobId, stage: Stage) -> String {
     format!("jobs/{job}/items/{stage}.json")
 }
 
+/// `jobs/{job}/items/{stage}-round-2.json`: the items of a stage's second round (a staged
+/// adaptive job's refined spans; see [`crate::pipeline::JobPlan::round_of`]).
+pub fn round_two_items_key(job: &JobId, stage: Stage) -> String {
+    format!("jobs/{job}/items/{stage}-round-2.json")
+}
+
 /// Parses a key made by [`partition_key`]; `None` for any other string.
 ///
 /// Guarantee: `parse_partition_key(k) == Some(x)` exactly when `partition_key(x) == k`, so a

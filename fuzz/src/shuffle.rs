@@ -6,8 +6,9 @@
 //! and zstd and reaches the column decoders).
 
 use hort_core::pipeline::{
-    decode_occluded, decode_pixels, decode_queries, decode_split, decode_surface_hits,
-    encode_occluded, encode_pixels, encode_queries, encode_split, encode_surface_hits,
+    decode_occluded, decode_pixels, decode_queries, decode_refine_list, decode_split,
+    decode_surface_hits, encode_occluded, encode_pixels, encode_queries, encode_refine_list,
+    encode_split, encode_surface_hits,
 };
 use hort_core::shuffle::{RecordKind, decode_block, encode_block};
 use hort_core::triangle::Ray;
@@ -123,6 +124,13 @@ pub fn shuffle_block(data: &[u8]) {
         }
         RecordKind::SplitObject => {
             check_error(what, decode_split(KEY, &bytes));
+        }
+        RecordKind::RefineList => {
+            if let Some(list) = check_error(what, decode_refine_list(KEY, &bytes)) {
+                let again = decode_refine_list(KEY, &encode_refine_list(&list))
+                    .expect("re-encoded refine list decodes");
+                assert_eq!(debug(&list), debug(&again));
+            }
         }
     }
 }

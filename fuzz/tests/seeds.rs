@@ -6,8 +6,9 @@
 use glam::Vec3;
 use hort_core::bvh::Bvh;
 use hort_core::pipeline::{
-    Occluded, PixelBlock, ShadowQuery, SplitObject, SurfaceHit, TriangleShading, encode_occluded,
-    encode_pixels, encode_queries, encode_split, encode_surface_hits,
+    Occluded, PixelBlock, RefineList, ShadowQuery, SplitObject, SurfaceHit, TriangleShading,
+    encode_occluded, encode_pixels, encode_queries, encode_refine_list, encode_split,
+    encode_surface_hits,
 };
 use hort_core::shading::SurfacePoint;
 use hort_core::shuffle::{RecordKind, decode_block};
@@ -134,5 +135,15 @@ fn write_seeds() {
         "pixels-3",
         RecordKind::PixelColor,
         &encode_pixels(&pixels),
+    );
+    let list = RefineList {
+        pixels: vec![12, 13, 40],
+        sums: vec![[0.4, 0.8, 1.2], [4.0, 0.0, 2.0], [0.25; 3]],
+    };
+    save(
+        "shuffle_block",
+        "refine-list-3",
+        RecordKind::RefineList,
+        &encode_refine_list(&list),
     );
 }

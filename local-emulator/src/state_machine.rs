@@ -81,6 +81,11 @@ mod tests {
                         .map_or(state["Default"].as_str(), |r| r["Next"].as_str());
                     continue;
                 }
+                Some("Choice") if name == "ChooseRefine" => {
+                    // Jobs without a second round (the adaptive path is checked on its own).
+                    next = state["Default"].as_str();
+                    continue;
+                }
                 Some("Choice") if name == "ChooseShadows" => {
                     let rules = state["Choices"].as_array().unwrap();
                     assert_eq!(rules[0]["Variable"], "$.plan.shadows");
@@ -124,6 +129,42 @@ mod tests {
             next = state["Next"].as_str();
         }
         out
+    }
+
+    /// After round 1 of a staged adaptive job, `Refine` calls the Plan function for round 2
+    /// (the Plan state's call and answer, plus `round: 2`, stored at `$.plan` again) and
+    /// `ChooseRound` runs the staged Maps again only when round 2 has CastMap items.
+    #[test]
+    fn a_second_round_reruns_the_staged_maps_only_when_planned() {
+        let machine: Value = serde_json::from_str(HORT_DEFINITION).unwrap();
+        let states = &machine["States"];
+        assert_eq!(
+            states["TraceReduceCheck"]["Choices"][0]["Next"],
+            "ChooseRefine"
+        );
+        let choose = &states["ChooseRefine"];
+        assert_eq!(choose["Choices"][0]["Variable"], "$.plan.refine_after");
+        assert_eq!(choose["Choices"][0]["BooleanEquals"], true);
+        assert_eq!(choose["Choices"][0]["Next"], "Refine");
+        assert_eq!(choose["Default"], "Combine");
+        let (plan, refine) = (&states["Plan"], &states["Refine"]);
+        let mut payload = plan["Parameters"]["Payload"].clone();
+        payload["round"] = 2.into();
+        assert_eq!(refine["Parameters"]["Payload"], payload);
+        for field in ["Resource", "ResultSelector", "ResultPath", "Retry"] {
+            assert_eq!(refine[field], plan[field], "{field}");
+        }
+        assert_eq!(
+            refine["Parameters"]["FunctionName"],
+            plan["Parameters"]["FunctionName"]
+        );
+        assert_eq!(refine["Next"], "ChooseRound");
+        assert_eq!(refine["Catch"][0]["Next"], "RefineFailed");
+        let round = &states["ChooseRound"];
+        assert_eq!(round["Choices"][0]["Variable"], "$.plan.items.cast_map");
+        assert_eq!(round["Choices"][0]["IsPresent"], true);
+        assert_eq!(round["Choices"][0]["Next"], "CastMap");
+        assert_eq!(round["Default"], "Combine");
     }
 
     #[test]

@@ -50,8 +50,40 @@ fn adaptive_renders_agree_across_modes_and_report_their_decisions() {
         &["--in-process", "--splits", "1", "--spans", "3"],
     );
     let (emu, emu_report) = render(&dir, "emu", &["--splits", "1", "--spans", "5"]);
+    let staged_flags = ["--mode", "staged", "--splits", "2", "--spans", "3"];
+    let (staged, staged_report) = render(&dir, "staged", &staged_flags);
+    let mut inproc_staged_flags = vec!["--in-process"];
+    inproc_staged_flags.extend_from_slice(&staged_flags);
+    let (inproc_staged, inproc_staged_report) = render(&dir, "inproc-staged", &inproc_staged_flags);
     assert_eq!(inproc, mono, "in process");
     assert_eq!(emu, mono, "emulator");
+    assert_eq!(staged, mono, "emulator, staged");
+    assert_eq!(inproc_staged, mono, "in process, staged");
+    // Staged: a second round ran (the refine row), its tasks counted in the stages' rows.
+    for report in [&staged_report, &inproc_staged_report] {
+        let stages: Vec<(&str, u64)> = report["stages"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|s| (s["name"].as_str().unwrap(), s["tasks"].as_u64().unwrap()))
+            .collect();
+        let names: Vec<&str> = stages.iter().map(|s| s.0).collect();
+        assert_eq!(
+            names,
+            [
+                "plan",
+                "cast-map",
+                "cast-reduce",
+                "expand",
+                "trace-map",
+                "trace-reduce",
+                "refine",
+                "combine"
+            ]
+        );
+        // 3 spans in round 1, and a second round for the spans with refined pixels.
+        assert!(stages[2].1 > 3 && stages[2].1 <= 6, "{stages:?}");
+    }
     let adaptive = &mono_report["adaptive"];
     assert_eq!(
         adaptive["settings"],
@@ -73,7 +105,12 @@ fn adaptive_renders_agree_across_modes_and_report_their_decisions() {
     );
     assert_eq!(mono_report["rays"]["primary"], counts["samples"]);
     assert_eq!(mono_report["spp"], 4);
-    for (what, report) in [("in process", &inproc_report), ("emulator", &emu_report)] {
+    for (what, report) in [
+        ("in process", &inproc_report),
+        ("emulator", &emu_report),
+        ("emulator, staged", &staged_report),
+        ("in process, staged", &inproc_staged_report),
+    ] {
         assert_eq!(&report["adaptive"], adaptive, "{what}");
         assert_eq!(report["rays"], mono_report["rays"], "{what}");
         assert_eq!(report["skips"], mono_report["skips"], "{what}");

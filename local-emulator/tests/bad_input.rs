@@ -336,6 +336,7 @@ fn binary_scene_error(dir: &Path, op: &str) -> String {
         job,
         bucket: "b".into(),
         attempt: 0,
+        round: 1,
     };
     handle_plan(&store, "b", &event, dir)
         .expect_err("an edit that breaks the scene")

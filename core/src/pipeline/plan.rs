@@ -249,8 +249,11 @@ impl JobPlan {
     /// split), samples x (1 + lights) / 4 for the reduce stages and
     /// Expand, and width x height / 4 for Plan and Combine. The timeout is 3 times that,
     /// rounded up to whole seconds, at least 2 s and at most 40 s (integer arithmetic in
-    /// microseconds). A task that does not exist gets the 2 s floor.
+    /// microseconds). A task that does not exist gets the 2 s floor; a round-2 task
+    /// ([`JobPlan::round_of`]) that of its round-1 task.
     pub fn task_timeout_seconds(&self, stage: Stage, task: u32) -> u32 {
+        // A round-2 task does the work of its round-1 task at most.
+        let task = self.round_of(stage, task).map_or(task, |(_, index)| index);
         let spp = self.max_spp();
         let span_samples = |span: u32| {
             self.spans

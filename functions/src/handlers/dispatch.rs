@@ -49,8 +49,9 @@ pub struct FunctionEnv<'a> {
 pub struct Invoked {
     /// The function's JSON answer (the `Payload` the state machine sees).
     pub output: Value,
-    /// Which task ran and what it did: a Worker's task, or the Plan function as task 0 of stage
-    /// `plan` (its time breakdown only; see [`handle_plan_measured`]).
+    /// Which task ran and what it did: a Worker's task, or the Plan function's first round as
+    /// task 0 of stage `plan` (its time breakdown only; see [`handle_plan_measured`]); `None`
+    /// for the Plan function's second round.
     pub task: Option<TaskDone>,
 }
 
@@ -97,7 +98,8 @@ pub fn dispatch(
             let (out, metrics) = handle_plan_measured(env.store, env.bucket, &event, env.work_dir)?;
             Ok(Invoked {
                 output: serde_json::to_value(out).map_err(encode)?,
-                task: Some(TaskDone {
+                // Round 2 (the `Refine` state) is no task of the plan stage.
+                task: (event.round == 1).then_some(TaskDone {
                     stage: Stage::Plan,
                     task: TaskId(0),
                     metrics,

@@ -59,6 +59,15 @@ pub struct PlanEvent {
     /// Retry count of this attempt (`$$.State.RetryCount`), 0 for the first.
     #[serde(default)]
     pub attempt: u32,
+    /// Which round to plan: 1 (the default) splits the scene and plans the job; 2 plans a
+    /// staged adaptive job's second round from its first round's refine lists (the state
+    /// machine's `Refine` state), without loading the scene.
+    #[serde(default = "first_round")]
+    pub round: u32,
+}
+
+fn first_round() -> u32 {
+    1
 }
 
 /// One Map item: a task of a stage and its timeout.
@@ -103,6 +112,9 @@ pub struct PlanOutput {
     /// staged job without them skips Expand and TraceMap (`ChooseShadows` in the state
     /// machine).
     pub shadows: bool,
+    /// Whether a second round may follow this one: true for round 1 of a staged adaptive job,
+    /// whose TraceReduce is followed by the `Refine` state (the Plan function with round 2).
+    pub refine_after: bool,
 }
 
 impl PlanOutput {

@@ -4,9 +4,12 @@
 
 use super::events::{JobRequest, PlanEvent, PlanOutput, SceneFormat, TaskItem};
 use super::{HandlerError, check_bucket};
+use hort_core::ids::Stage;
 use hort_core::ids::{JobId, TaskId};
-use hort_core::keys::{items_key, manifest_key, scene_binary_key};
-use hort_core::pipeline::{TaskMetrics, micros, plan_into_store};
+use hort_core::keys::{items_key, manifest_key, plan_key, round_two_items_key, scene_binary_key};
+use hort_core::pipeline::{
+    JobPlan, SplitCache, TaskMetrics, micros, plan_into_store, refined_spans,
+};
 use hort_core::scene::{Scene, decode_scene, load_scene};
 use hort_core::store::{BlobStore, TimedStore};
 use std::path::{Component, Path, PathBuf};
@@ -41,6 +44,15 @@ pub fn handle_plan_measured(
     let store = TimedStore::new(store);
     let job = &event.job;
     check_bucket(&event.bucket, bucket)?;
+    match event.round {
+        1 => {}
+        2 => return plan_round_two(&store, job, started),
+        other => {
+            return Err(HandlerError::bad_input(format!(
+                "plan event round {other}: a job has rounds 1 and 2"
+            )));
+        }
+    }
     let (request, scene) =
         load_job_scene(&store, job, work_dir, &format!("plan-{}", event.attempt))?;
     let decode_us = micros(started.elapsed()).saturating_sub(store.waited_us());
@@ -51,20 +63,9 @@ pub fn handle_plan_measured(
         let Some(field) = stage.items_field() else {
             continue;
         };
-        let tasks: Vec<TaskItem> = (0..plan.task_count(stage) as u32)
-            .map(|task| TaskItem {
-                task: TaskId(task),
-                timeout_seconds: Some(
-                    request
-                        .task_timeout_seconds
-                        .unwrap_or_else(|| plan.task_timeout_seconds(stage, task)),
-                ),
-            })
-            .collect();
+        let tasks: Vec<u32> = (0..plan.task_count(stage) as u32).collect();
         let key = items_key(job, stage);
-        let json = serde_json::to_vec(&tasks)
-            .map_err(|e| HandlerError::bad_input(format!("cannot encode items: {e}")))?;
-        store.put(&key, &json)?;
+        write_items(&store, &key, &plan, &request, stage, &tasks)?;
         items.insert(field.to_owned(), key);
     }
     let output = PlanOutput {
@@ -72,12 +73,84 @@ pub fn handle_plan_measured(
         items,
         max_concurrency: request.max_concurrency,
         shadows: plan.has_shadows(),
+        refine_after: plan.has_second_round(),
     };
     let metrics = TaskMetrics {
         task_us: micros(started.elapsed()),
         storage_us: store.waited_us(),
         decode_us,
         ..planned.metrics
+    };
+    Ok((output, metrics))
+}
+
+/// Writes the items file `key` of `stage`: one item per task of `tasks`, with its timeout
+/// (the request's override, else the plan's prediction).
+fn write_items(
+    store: &dyn BlobStore,
+    key: &str,
+    plan: &JobPlan,
+    request: &JobRequest,
+    stage: Stage,
+    tasks: &[u32],
+) -> Result<(), HandlerError> {
+    let items: Vec<TaskItem> = tasks
+        .iter()
+        .map(|&task| TaskItem {
+            task: TaskId(task),
+            timeout_seconds: Some(
+                request
+                    .task_timeout_seconds
+                    .unwrap_or_else(|| plan.task_timeout_seconds(stage, task)),
+            ),
+        })
+        .collect();
+    let json = serde_json::to_vec(&items)
+        .map_err(|e| HandlerError::bad_input(format!("cannot encode items: {e}")))?;
+    store.put(key, &json)?;
+    Ok(())
+}
+
+/// Round 2 of a staged adaptive job (the `Refine` state): reads `plan.json` and the refine
+/// lists round 1's TraceReduce tasks wrote (recomputing a lost one from its producer), and
+/// writes the round-2 items of every stage for the spans with pixels to refine only. The
+/// output names those items files; it names none when no pixel needs more samples, so the
+/// state machine goes straight to Combine. The scene is not loaded.
+fn plan_round_two(
+    store: &TimedStore<&dyn BlobStore>,
+    job: &JobId,
+    started: Instant,
+) -> Result<(PlanOutput, TaskMetrics), HandlerError> {
+    let request = read_request(store, job)?;
+    let key = plan_key(job);
+    let plan = JobPlan::from_json(&key, &store.get(&key)?)?;
+    if !plan.has_second_round() {
+        return Err(HandlerError::bad_input(format!(
+            "plan {key}: the job has no second round (it is not a staged adaptive job)"
+        )));
+    }
+    let (spans, metrics) = refined_spans(store, job, &plan, &SplitCache::new(0))?;
+    let mut items = std::collections::BTreeMap::new();
+    for &stage in plan.task_stages() {
+        let tasks = plan.round_two_tasks(stage, &spans);
+        let Some(field) = stage.items_field().filter(|_| !tasks.is_empty()) else {
+            continue;
+        };
+        let key = round_two_items_key(job, stage);
+        write_items(store, &key, &plan, &request, stage, &tasks)?;
+        items.insert(field.to_owned(), key);
+    }
+    let output = PlanOutput {
+        mode: plan.mode,
+        items,
+        max_concurrency: request.max_concurrency,
+        shadows: plan.has_shadows(),
+        refine_after: false,
+    };
+    let metrics = TaskMetrics {
+        task_us: micros(started.elapsed()),
+        storage_us: store.waited_us(),
+        ..metrics
     };
     Ok((output, metrics))
 }

@@ -48,7 +48,28 @@ fn plan_event(job: &str) -> PlanEvent {
         job: JobId::new(job).unwrap(),
         bucket: "b".into(),
         attempt: 0,
+        round: 1,
     }
+}
+
+#[test]
+fn a_second_round_is_planned_only_for_staged_adaptive_jobs_and_rounds_stop_at_two() {
+    let store = submitted("j1");
+    let tmp = std::env::temp_dir();
+    let out = handle_plan(&store, "b", &plan_event("j1"), &tmp).unwrap();
+    assert!(!out.refine_after && out.shadows);
+    let round = |n: u32| {
+        let event = PlanEvent {
+            round: n,
+            ..plan_event("j1")
+        };
+        handle_plan(&store, "b", &event, &tmp).unwrap_err().cause
+    };
+    assert_eq!(
+        round(2),
+        "plan jobs/j1/plan.json: the job has no second round (it is not a staged adaptive job)"
+    );
+    assert_eq!(round(3), "plan event round 3: a job has rounds 1 and 2");
 }
 
 #[test]

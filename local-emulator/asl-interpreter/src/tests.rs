@@ -357,7 +357,7 @@ impl TaskInvoker for Fake {
                     .collect();
                 let mode = if fused { "fused" } else { "staged" };
                 Ok(
-                    json!({"mode": mode, "items": items, "max_concurrency": self.max_concurrency, "shadows": true}),
+                    json!({"mode": mode, "items": items, "max_concurrency": self.max_concurrency, "shadows": true, "refine_after": false}),
                 )
             }
             "WorkerFunctionArn" => {
@@ -500,6 +500,7 @@ fn all_stages_run_in_order_with_every_item_once() {
             "TraceMapCheck",
             "TraceReduce",
             "TraceReduceCheck",
+            "ChooseRefine",
             "Combine",
             "Done"
         ],

@@ -33,7 +33,7 @@ use asl_interpreter::{Observer, OrchestratorOptions, TaskInvoker};
 use hort_core::breakdown::{StageBreakdown, uncovered};
 use hort_core::cost::{Arch, CostBreakdown, CostInputs, estimate, standard_transitions_for};
 use hort_core::hits::Hit;
-use hort_core::ids::{JobId, Stage};
+use hort_core::ids::{JobId, Stage, TaskId};
 use hort_core::image::Image;
 use hort_core::keys::{image_key, plan_key};
 use hort_core::pipeline::{JobOutputs, JobPlan, PlanRequest, read_outputs};
@@ -396,52 +396,82 @@ pub fn stage_name(state: &str) -> String {
                 })
             })
         })
-        .map_or_else(|| state.to_owned(), |s| s.to_string())
+        .map_or_else(
+            || match top {
+                // The Plan function's second round (staged adaptive jobs).
+                "Refine" => "refine".to_owned(),
+                _ => state.to_owned(),
+            },
+            |s| s.to_string(),
+        )
 }
 
+/// One report row per state that invoked functions, in order of first entry. A state entered
+/// again (the staged Maps in round 2 of an adaptive job) adds its attempts, time and traffic
+/// to its first row; the task metrics are the ledger's, which already holds every round.
 fn stage_reports(plan: &JobPlan, usage: &[StageUsage], ledger: &Ledger) -> Vec<StageReport> {
-    usage
-        .iter()
-        .filter(|u| u.attempts > 0 || u.items > 0)
-        .map(|u| {
-            let stage = Stage::of_state(&u.state);
-            let tasks = stage.map_or(1, |stage| plan.task_count(stage) as u64);
-            let mut breakdown = match stage {
-                Some(stage) => ledger.stage_breakdown(stage),
-                None => StageBreakdown::default(),
-            };
-            if let Some((start, end)) = u.window {
-                breakdown.orchestration = uncovered(start, end, &ledger.busy).as_secs_f64();
+    let mut rows: Vec<(&str, StageReport)> = Vec::new();
+    for u in usage.iter().filter(|u| u.attempts > 0 || u.items > 0) {
+        let row = stage_report(plan, u, ledger);
+        match rows.iter_mut().find(|(state, _)| *state == u.state) {
+            Some((_, first)) => {
+                first.attempts += row.attempts;
+                first.seconds += row.seconds;
+                first.attempts_bytes_read += row.attempts_bytes_read;
+                first.attempts_bytes_written += row.attempts_bytes_written;
+                first.breakdown.orchestration += row.breakdown.orchestration;
             }
-            // The Plan function reports only its time breakdown: its traffic is what it needed.
-            let (read, written, raw, peak) = match stage {
-                Some(stage) if stage != Stage::Plan => {
-                    let m = ledger.stage(stage);
-                    let raw = m.bytes_written_raw;
-                    (m.bytes_read, m.bytes_written, raw, m.peak_memory_bytes)
-                }
-                _ => (
-                    u.traffic.bytes_read,
-                    u.traffic.bytes_written,
-                    u.traffic.bytes_written,
-                    ledger.plan_peak_memory_bytes,
-                ),
-            };
-            StageReport {
-                name: stage_name(&u.state),
-                tasks,
-                attempts: u.attempts,
-                seconds: u.seconds,
-                bytes_read: read,
-                bytes_written: written,
-                bytes_written_raw: raw,
-                attempts_bytes_read: u.traffic.bytes_read,
-                attempts_bytes_written: u.traffic.bytes_written,
-                breakdown,
-                peak_memory_bytes: peak,
-            }
-        })
-        .collect()
+            None => rows.push((&u.state, row)),
+        }
+    }
+    rows.into_iter().map(|(_, row)| row).collect()
+}
+
+fn stage_report(plan: &JobPlan, u: &StageUsage, ledger: &Ledger) -> StageReport {
+    let stage = Stage::of_state(&u.state);
+    // Round 1's tasks, plus the round-2 tasks that ran (ids past round 1's).
+    let tasks = stage.map_or(1, |stage| {
+        let first = plan.task_count(stage) as u32;
+        let later = ledger
+            .tasks
+            .range((stage, TaskId(first))..=(stage, TaskId(u32::MAX)))
+            .count();
+        u64::from(first) + later as u64
+    });
+    let mut breakdown = match stage {
+        Some(stage) => ledger.stage_breakdown(stage),
+        None => StageBreakdown::default(),
+    };
+    if let Some((start, end)) = u.window {
+        breakdown.orchestration = uncovered(start, end, &ledger.busy).as_secs_f64();
+    }
+    // The Plan function reports only its time breakdown: its traffic is what it needed.
+    let (read, written, raw, peak) = match stage {
+        Some(stage) if stage != Stage::Plan => {
+            let m = ledger.stage(stage);
+            let raw = m.bytes_written_raw;
+            (m.bytes_read, m.bytes_written, raw, m.peak_memory_bytes)
+        }
+        _ => (
+            u.traffic.bytes_read,
+            u.traffic.bytes_written,
+            u.traffic.bytes_written,
+            ledger.plan_peak_memory_bytes,
+        ),
+    };
+    StageReport {
+        name: stage_name(&u.state),
+        tasks,
+        attempts: u.attempts,
+        seconds: u.seconds,
+        bytes_read: read,
+        bytes_written: written,
+        bytes_written_raw: raw,
+        attempts_bytes_read: u.traffic.bytes_read,
+        attempts_bytes_written: u.traffic.bytes_written,
+        breakdown,
+        peak_memory_bytes: peak,
+    }
 }
 
 fn estimate_cost(
