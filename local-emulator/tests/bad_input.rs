@@ -37,6 +37,10 @@ use hort_core::store::{BlobStore, MemoryStore};
 use hort_functions::handlers::{JobRequest, PlanEvent, SceneFormat, handle_plan};
 
 const TRIANGLE: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+/// The triangle and a second one behind it, so that the default light can be occluded and a
+/// staged job has trace-map tasks.
+const TWO_TRIANGLES: &str =
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 -1\nv 1 0 -1\nv 0 1 -1\nf 1 2 3\nf 4 5 6\n";
 const MANIFEST_OBJ: &str = "mtllib m.mtl\nusemtl red\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
 const MANIFEST_MTL: &str = "newmtl red\nKd 0.8 0.1 0.1\n";
 
@@ -186,8 +190,9 @@ fn edit(bytes: Vec<u8>, op: &str) -> Option<Vec<u8>> {
 }
 
 /// A one-triangle scene planned into a fresh store (1 split, 1 span, 8x6, 1 spp).
-fn planned_job(dir: &Path) -> (MemoryStore, JobId, hort_core::pipeline::JobPlan) {
-    std::fs::write(dir.join("scene.obj"), TRIANGLE).unwrap();
+/// A staged job of one split and one span over the scene `obj`, planned into a fresh store.
+fn planned_job(dir: &Path, obj: &str) -> (MemoryStore, JobId, hort_core::pipeline::JobPlan) {
+    std::fs::write(dir.join("scene.obj"), obj).unwrap();
     let scene = load_scene(&dir.join("scene.obj")).unwrap();
     let store = MemoryStore::new();
     let job = JobId::new("bad-input").unwrap();
@@ -247,7 +252,7 @@ fn actual(row: &Row) -> Vec<String> {
         }
         "http" => vec![http(&row.input)],
         "split" => {
-            let (store, job, _) = planned_job(&dir);
+            let (store, job, _) = planned_job(&dir, TRIANGLE);
             let key = split_key(&job, SplitId(0));
             let bytes = edit(store.get(&key).unwrap(), &text).expect("an edit that keeps bytes");
             vec![decode_split(&key, &bytes).unwrap_err().to_string()]
@@ -267,10 +272,17 @@ fn actual(row: &Row) -> Vec<String> {
             vec![result.unwrap_err().to_string()]
         }
         "job" => {
-            let (store, job, plan) = planned_job(&dir);
             let (object, run) = text
                 .split_once("; run ")
                 .expect("EDIT OBJECT; run STAGE TASK");
+            // A lone triangle cannot shadow itself, so its job has no trace-map tasks: those
+            // rows plan the triangle with a second one behind it.
+            let obj = if run.starts_with("trace-map") {
+                TWO_TRIANGLES
+            } else {
+                TRIANGLE
+            };
+            let (store, job, plan) = planned_job(&dir, obj);
             let (op, object) = object.rsplit_once(' ').expect("EDIT OBJECT");
             let key = match object {
                 "split" => split_key(&job, SplitId(0)),
