@@ -389,15 +389,21 @@ impl SkipFinishedTasks {
     /// skipped) and for tasks the plan does not have.
     fn outputs(&self, stage: Stage, task: u32) -> Option<Vec<String>> {
         let plan = self.plan()?;
+        // Round 2 of a staged adaptive job has its own task ids (`JobPlan::round_of`).
+        let (round, index) = plan.round_of(stage, task)?;
         let parts: Vec<u32> = match stage {
-            Stage::CastMap => vec![plan.cast_tasks.get(task as usize)?.span],
-            Stage::TraceMap => vec![plan.trace_tasks.get(task as usize)?.span],
-            Stage::CastReduce | Stage::TraceReduce | Stage::Render
-                if (task as usize) < plan.task_count(stage) =>
-            {
-                vec![0]
+            Stage::CastMap => {
+                let span = plan.cast_tasks.get(index as usize)?.span;
+                vec![plan.round_task(Stage::CastReduce, span, round)]
             }
-            Stage::Expand if (task as usize) < plan.spans.len() => (0..plan.k()).collect(),
+            Stage::TraceMap => {
+                let span = plan.trace_tasks.get(index as usize)?.span;
+                vec![plan.round_task(Stage::TraceReduce, span, round)]
+            }
+            // Round 1 of an adaptive job also writes the span's refine list.
+            Stage::TraceReduce if round == 1 && plan.has_second_round() => vec![0, 1],
+            Stage::CastReduce | Stage::TraceReduce | Stage::Render => vec![0],
+            Stage::Expand => (0..plan.k()).collect(),
             _ => return None,
         };
         Some(
