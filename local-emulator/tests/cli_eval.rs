@@ -47,6 +47,8 @@ fn writes_the_csv_and_both_charts() {
             "k2:2:3",
             "--distributed-spp",
             "4",
+            "--distributed-adaptive-spp",
+            "16",
         ],
     );
     assert!(o.status.success(), "{}", stderr(&o));
@@ -72,6 +74,7 @@ fn writes_the_csv_and_both_charts() {
             ("single-core", "cornell", "mitsuba multijitter", "1"),
             ("single-core", "cornell", "mitsuba multijitter", "4"),
             ("distributed", "cornell", "k2", "4"),
+            ("distributed", "cornell", "k2 adaptive", "16"),
         ]
     );
     let psnr = |i: usize| rows[i][7].parse::<f64>().unwrap();
@@ -87,6 +90,8 @@ fn writes_the_csv_and_both_charts() {
     assert!(psnr(2) > 40.0, "{csv}");
     // The distributed pipeline renders the same image as the monolithic renderer.
     assert_eq!(rows[9][5..8], rows[1][5..8], "{csv}");
+    // So does its adaptive run (staged, two rounds) as the monolithic adaptive sampler.
+    assert_eq!(rows[10][5..8], rows[3][5..8], "{csv}");
     // The most accurate single-core point is on the front; every row says 0 or 1.
     assert_eq!(rows[2][8], "1", "{csv}");
     assert!(rows.iter().all(|r| r[8] == "0" || r[8] == "1"));

@@ -60,6 +60,13 @@ pub struct EvalArgs {
     /// Samples per pixel of the distributed sweep, comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "1,4,16,64")]
     pub distributed_spp: Vec<u32>,
+    /// Max samples per pixel of each distributed series' adaptive runs (series `NAME
+    /// adaptive`), comma-separated powers of 4, as `--adaptive-spp`.
+    #[arg(long, value_delimiter = ',', default_value = "16,64,256")]
+    pub distributed_adaptive_spp: Vec<u32>,
+    /// No adaptive runs in the distributed sweep.
+    #[arg(long)]
+    pub skip_distributed_adaptive: bool,
     /// Function slots of the emulator (default: all cores).
     #[arg(long)]
     pub workers: Option<usize>,
@@ -126,20 +133,30 @@ pub fn run(args: &EvalArgs) -> Result<()> {
             bail!("{what}: {bad} is not in 1..=65536");
         }
     }
-    let adaptive_levels: Vec<(u32, u32)> = args
-        .adaptive_spp
-        .iter()
-        .map(|&max| ((max / 16).max(4), max))
-        .collect();
-    for &(base_spp, max_spp) in &adaptive_levels {
-        let settings = hort_core::adaptive::AdaptiveSettings {
-            base_spp,
-            max_spp,
-            threshold: args.adaptive_threshold,
-        };
-        settings
-            .check()
-            .with_context(|| format!("--adaptive-spp {max_spp}, --adaptive-threshold"))?;
+    let levels = |maxes: &[u32]| -> Vec<(u32, u32)> {
+        maxes.iter().map(|&max| ((max / 16).max(4), max)).collect()
+    };
+    let adaptive_levels = levels(&args.adaptive_spp);
+    let distributed_levels = if args.skip_distributed_adaptive {
+        Vec::new()
+    } else {
+        levels(&args.distributed_adaptive_spp)
+    };
+    let checks = [
+        ("--adaptive-spp", &adaptive_levels),
+        ("--distributed-adaptive-spp", &distributed_levels),
+    ];
+    for (flag, list) in checks {
+        for &(base_spp, max_spp) in list {
+            let settings = hort_core::adaptive::AdaptiveSettings {
+                base_spp,
+                max_spp,
+                threshold: args.adaptive_threshold,
+            };
+            settings
+                .check()
+                .with_context(|| format!("{flag} {max_spp}, --adaptive-threshold"))?;
+        }
     }
     let series = if args.distributed.is_empty() {
         vec![
@@ -192,6 +209,8 @@ pub fn run(args: &EvalArgs) -> Result<()> {
                 &scene,
                 &series,
                 &args.distributed_spp,
+                &distributed_levels,
+                args.adaptive_threshold,
                 args.workers
                     .unwrap_or_else(hort_core::render::available_cores),
             )?);

@@ -153,35 +153,54 @@ pub const ADAPTIVE_METHOD: &str = "ours adaptive";
 
 /// Each distributed series at each of `spp` through the emulator (embedded S3 server, state
 /// machine, function handlers) with `workers` slots: wall time of the whole job, one run.
+/// Each series of `series` through the emulator at every uniform spp of `spp`, then with the
+/// adaptive sampler at every (base, max) level of `adaptive` (series `{name} adaptive`, its
+/// `spp` the max), `threshold` on the standard error.
 pub fn distributed(
     scene: &SceneUnderTest,
     series: &[Series],
     spp: &[u32],
+    adaptive: &[(u32, u32)],
+    threshold: f64,
     workers: usize,
 ) -> Result<Vec<Point>> {
     let config = EmulatorConfig::embedded(workers);
     let mut points = Vec::new();
     for s in series {
-        for &n in spp {
+        let uniform = spp.iter().map(|&n| (s.name.clone(), n, n, None));
+        let refined = adaptive.iter().map(|&(base_spp, max_spp)| {
+            let settings = AdaptiveSettings {
+                base_spp,
+                max_spp,
+                threshold,
+            };
+            (
+                format!("{} adaptive", s.name),
+                base_spp,
+                max_spp,
+                Some(settings),
+            )
+        });
+        for (name, base, max, settings) in uniform.chain(refined) {
             let request = PlanRequest {
                 width: scene.width,
                 height: scene.height,
-                spp: n,
+                spp: base,
                 splits: Some(s.splits),
                 spans: Some(s.spans),
                 mode: SplitMode::Spatial,
                 execution: None,
                 memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
-                adaptive: None,
+                adaptive: settings,
             };
             let start = Instant::now();
             let run = run_job(&config, &scene.path, request, &NoObserver)
-                .with_context(|| format!("{} {} at {n} spp", scene.name, s.name))?;
+                .with_context(|| format!("{} {name} at {max} spp", scene.name))?;
             let seconds = start.elapsed().as_secs_f64();
-            let point = scene.point(&s.name, n, seconds, &run.image)?;
+            let point = scene.point(&name, max, seconds, &run.image)?;
             eprintln!(
-                "{} {} {n} spp: {seconds:.3} s, PSNR {:.2} dB",
-                scene.name, s.name, point.errors.psnr
+                "{} {name} {max} spp: {seconds:.3} s, PSNR {:.2} dB",
+                scene.name, point.errors.psnr
             );
             points.push(point);
         }
