@@ -95,12 +95,7 @@ pub fn first_round_pixels(
 ) -> (PixelBlock, RefineList, AdaptiveCounts) {
     let base = a.base_spp as usize;
     let n = (span.end - span.start) as usize;
-    let mut block = PixelBlock {
-        start: span.start,
-        colours: Vec::with_capacity(n),
-        triangles: Vec::with_capacity(n),
-        ts: Vec::with_capacity(n),
-    };
+    let mut block = PixelBlock::with_capacity(span.start, n);
     let mut list = RefineList::default();
     let mut counts = AdaptiveCounts::default();
     for ((pixel, first), hits) in (span.start..span.end)

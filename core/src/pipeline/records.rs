@@ -61,6 +61,18 @@ pub struct PixelBlock {
     pub ts: Vec<f32>,
 }
 
+impl PixelBlock {
+    /// An empty block for the `n` pixels from `start` on, with room for them.
+    pub fn with_capacity(start: u64, n: usize) -> PixelBlock {
+        PixelBlock {
+            start,
+            colours: Vec::with_capacity(n),
+            triangles: Vec::with_capacity(n),
+            ts: Vec::with_capacity(n),
+        }
+    }
+}
+
 pub(super) fn corrupt(key: &str, e: ColumnError) -> PipelineError {
     PipelineError::Corrupt(format!("shuffle block {key}: {e}"))
 }

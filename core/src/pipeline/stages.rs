@@ -171,12 +171,7 @@ pub fn trace_reduce(
     blocked.sort_unstable();
     blocked.dedup();
     let n = (span.end - span.start) as usize;
-    let mut block = PixelBlock {
-        start: span.start,
-        colours: Vec::with_capacity(n),
-        triangles: Vec::with_capacity(n),
-        ts: Vec::with_capacity(n),
-    };
+    let mut block = PixelBlock::with_capacity(span.start, n);
     let mut next_hit = hits.iter().peekable();
     for pixel in span.start..span.end {
         let pixel = pixel as u32;

@@ -58,23 +58,7 @@ pub fn handle_plan_measured(
     let decode_us = micros(started.elapsed()).saturating_sub(store.waited_us());
     let planned = plan_into_store(&store, job, &scene, &request.render)?;
     let plan = planned.plan;
-    let mut items = std::collections::BTreeMap::new();
-    for &stage in plan.stages() {
-        let Some(field) = stage.items_field() else {
-            continue;
-        };
-        let tasks: Vec<u32> = (0..plan.task_count(stage) as u32).collect();
-        let key = items_key(job, stage);
-        write_items(&store, &key, &plan, &request, stage, &tasks)?;
-        items.insert(field.to_owned(), key);
-    }
-    let output = PlanOutput {
-        mode: plan.mode,
-        items,
-        max_concurrency: request.max_concurrency,
-        shadows: plan.has_shadows(),
-        refine_after: plan.has_second_round(),
-    };
+    let output = write_round(&store, job, &plan, &request, None)?;
     let metrics = TaskMetrics {
         task_us: micros(started.elapsed()),
         storage_us: store.waited_us(),
@@ -82,6 +66,44 @@ pub fn handle_plan_measured(
         ..planned.metrics
     };
     Ok((output, metrics))
+}
+
+/// Writes the items files of a round and returns the Plan function's answer naming them:
+/// round 1 (`refined` is `None`): every Map stage the job runs, all its tasks; round 2 (the
+/// spans with pixels to refine): only the stages with round-2 tasks for those spans.
+fn write_round(
+    store: &dyn BlobStore,
+    job: &JobId,
+    plan: &JobPlan,
+    request: &JobRequest,
+    refined: Option<&[u32]>,
+) -> Result<PlanOutput, HandlerError> {
+    let mut items = std::collections::BTreeMap::new();
+    for &stage in plan.stages() {
+        let (tasks, key) = match refined {
+            None => (
+                (0..plan.task_count(stage) as u32).collect(),
+                items_key(job, stage),
+            ),
+            Some(spans) => (
+                plan.round_two_tasks(stage, spans),
+                round_two_items_key(job, stage),
+            ),
+        };
+        let wanted = refined.is_none() || !tasks.is_empty();
+        let Some(field) = stage.items_field().filter(|_| wanted) else {
+            continue;
+        };
+        write_items(store, &key, plan, request, stage, &tasks)?;
+        items.insert(field.to_owned(), key);
+    }
+    Ok(PlanOutput {
+        mode: plan.mode,
+        items,
+        max_concurrency: request.max_concurrency,
+        shadows: plan.has_shadows(),
+        refine_after: refined.is_none() && plan.has_second_round(),
+    })
 }
 
 /// Writes the items file `key` of `stage`: one item per task of `tasks`, with its timeout
@@ -130,23 +152,7 @@ fn plan_round_two(
         )));
     }
     let (spans, metrics) = refined_spans(store, job, &plan, &SplitCache::new(0))?;
-    let mut items = std::collections::BTreeMap::new();
-    for &stage in plan.task_stages() {
-        let tasks = plan.round_two_tasks(stage, &spans);
-        let Some(field) = stage.items_field().filter(|_| !tasks.is_empty()) else {
-            continue;
-        };
-        let key = round_two_items_key(job, stage);
-        write_items(store, &key, &plan, &request, stage, &tasks)?;
-        items.insert(field.to_owned(), key);
-    }
-    let output = PlanOutput {
-        mode: plan.mode,
-        items,
-        max_concurrency: request.max_concurrency,
-        shadows: plan.has_shadows(),
-        refine_after: false,
-    };
+    let output = write_round(store, job, &plan, &request, Some(&spans))?;
     let metrics = TaskMetrics {
         task_us: micros(started.elapsed()),
         storage_us: store.waited_us(),
