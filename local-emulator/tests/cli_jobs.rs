@@ -678,3 +678,64 @@ fn jobs_commands_need_a_place_and_a_choice() {
         format!("no jobs in --data-dir {}\n", data.display())
     );
 }
+
+/// A staged adaptive job stopped in its second round resumes with the same image: the
+/// round-1 tasks (and round 2's finished ones, under their own task ids) are skipped.
+#[test]
+fn a_staged_adaptive_job_resumes_in_its_second_round() {
+    let dir = scratch("resume-adaptive");
+    let bucket = Bucket::start(&dir.join("s3"), "jobs");
+    let (first, second) = (dir.join("first.pfm"), dir.join("second.pfm"));
+    let adaptive = [
+        "--spp",
+        "4",
+        "--adaptive",
+        "16",
+        "--adaptive-threshold",
+        "0.01",
+    ];
+    let run = |extra: &[&str]| {
+        let mut args = adaptive.to_vec();
+        args.extend_from_slice(&["--job", "a1"]);
+        args.extend_from_slice(extra);
+        render_to(&dir, &bucket, "teapot/teapot.json", &args)
+    };
+    let o = run(&["--keep-intermediates", "--out", first.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Stop it in round 2: no outputs, no round-2 trace-reduce blocks (task ids from 3 on, the
+    // round-1 count), and one round-2 cast-map block lost.
+    let store = bucket.store();
+    let round_two_reduce: Vec<String> = store
+        .list("jobs/a1/trace-reduce/")
+        .unwrap()
+        .into_iter()
+        .filter(|k| !k.contains("/00000/") && !k.contains("/00001/") && !k.contains("/00002/"))
+        .collect();
+    assert!(!round_two_reduce.is_empty(), "a second round ran");
+    for key in store
+        .list("jobs/a1/out/")
+        .unwrap()
+        .iter()
+        .chain(&round_two_reduce)
+    {
+        store.delete(key).unwrap();
+    }
+    let casts = store.list("jobs/a1/cast-map/").unwrap();
+    store.delete(casts.last().unwrap()).unwrap();
+    let o = run(&["--resume", "--out", second.to_str().unwrap()]);
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    let skipped: u64 = err
+        .lines()
+        .find_map(|l| l.strip_prefix("resumed job a1: "))
+        .and_then(|l| l.strip_suffix(" finished tasks skipped"))
+        .expect("a resume line")
+        .parse()
+        .unwrap();
+    // Round 1 alone: cast-reduce, expand and trace-reduce (3 each) and trace-map (6).
+    assert!(skipped >= 15, "{err}");
+    assert_eq!(
+        std::fs::read(&second).unwrap(),
+        std::fs::read(&first).unwrap()
+    );
+}
