@@ -130,20 +130,17 @@ fn leaf_triangles_pair_each_id_with_its_triangle() {
 }
 
 #[test]
-fn kd_indices_take_the_width_the_table_needs() {
-    assert_eq!(
-        [0, 1, 256, 257, 65_536, 65_537].map(index_width),
-        [1, 1, 1, 2, 2, 4]
-    );
+fn many_distinct_values_round_trip() {
+    // More kd values than one or two bytes can number.
     for (n, materials) in [(600, 300), (65_537, 65_537)] {
         let mut object = sample_object_of(n);
         for (i, s) in object.shading.iter_mut().enumerate() {
             s.kd = [(i % materials) as f32, 0.5, 0.25];
         }
         let bytes = encode_split(&object);
-        let raw = raw_of_bytes(&bytes);
-        let s = Sections::of(&raw);
-        assert_eq!(s.kd_indices.len(), n * index_width(materials as u32), "{n}");
+        let s = Sections::of(&raw_of_bytes(&bytes));
+        assert_eq!(s.words[7], materials as u32, "{n}");
+        assert_eq!(s.kd_values.len(), 12 * materials, "{n}");
         assert_eq!(decode_split("k", &bytes).unwrap(), object, "{n}");
     }
 }
@@ -185,6 +182,8 @@ struct Sections {
     words: Vec<u32>,
     nodes: std::ops::Range<usize>,
     lanes: std::ops::Range<usize>,
+    vertices: std::ops::Range<usize>,
+    corners: std::ops::Range<usize>,
     flags: std::ops::Range<usize>,
     kd_values: std::ops::Range<usize>,
     kd_indices: std::ops::Range<usize>,
@@ -196,11 +195,19 @@ impl Sections {
             .chunks(4)
             .map(|b| u32::from_le_bytes(b.try_into().unwrap()))
             .collect();
-        let lengths = section_lengths(words[2], words[3], words[4], words[5], words[6]);
+        let lengths = Counts {
+            n: words[2],
+            w: words[3],
+            p: words[4],
+            v: words[5],
+            c: words[6],
+            k: words[7],
+        }
+        .section_lengths();
         let mut at = HEADER_BYTES;
         let ranges: Vec<std::ops::Range<usize>> = lengths
             .iter()
-            .map(|&(len, _)| {
+            .map(|&len| {
                 at += len as usize;
                 at - len as usize..at
             })
@@ -210,9 +217,11 @@ impl Sections {
             words,
             nodes: ranges[0].clone(),
             lanes: ranges[1].clone(),
-            flags: ranges[4].clone(),
-            kd_values: ranges[6].clone(),
-            kd_indices: ranges[7].clone(),
+            vertices: ranges[2].clone(),
+            corners: ranges[3].clone(),
+            flags: ranges[5].clone(),
+            kd_values: ranges[7].clone(),
+            kd_indices: ranges[8].clone(),
         }
     }
 
@@ -269,18 +278,18 @@ fn versions_and_header_counts_are_checked() {
     );
     assert_eq!(
         decode_err(&good[..10]),
-        "10 raw bytes, shorter than the 52-byte header"
-    );
-    assert_eq!(
-        decode_err(&damaged(&good, |r| set_word(r, 20, 65))),
-        "header declares 65 triangles with normals of 64"
-    );
-    assert_eq!(
-        decode_err(&damaged(&good, |r| set_word(r, 24, 0))),
-        "header declares 0 kd values for 64 triangles"
+        "10 raw bytes, shorter than the 56-byte header"
     );
     assert_eq!(
         decode_err(&damaged(&good, |r| set_word(r, 24, 65))),
+        "header declares 65 triangles with normals of 64"
+    );
+    assert_eq!(
+        decode_err(&damaged(&good, |r| set_word(r, 28, 0))),
+        "header declares 0 kd values for 64 triangles"
+    );
+    assert_eq!(
+        decode_err(&damaged(&good, |r| set_word(r, 28, 65))),
         "header declares 65 kd values for 64 triangles"
     );
     let body = good.len() - HEADER_BYTES;
@@ -480,7 +489,7 @@ fn empty_slots_and_empty_objects_are_canonical() {
         "BVH node 0: slot 1: empty slot with child word 0x80000003, expected 0x80000000"
     );
     let empty = raw_of(&mesh_object(0));
-    assert_eq!(Sections::of(&empty).words[2..7], [0, 0, 0, 0, 0]);
+    assert_eq!(Sections::of(&empty).words[2..8], [0, 0, 0, 0, 0, 0]);
     assert_eq!(
         decode_err(&damaged(&empty, |r| {
             r.extend(empty_node());
@@ -494,7 +503,7 @@ fn empty_slots_and_empty_objects_are_canonical() {
 fn hostile_shading_is_an_error_naming_the_triangle() {
     let good = raw_of(&mesh_object(64));
     let s = Sections::of(&good);
-    let c = s.words[5];
+    let c = s.words[6];
     let flags = &good[s.flags.clone()];
     let set = s.flags.start + flags.iter().position(|&f| f == 1).unwrap();
     let clear = s.flags.start + flags.iter().position(|&f| f == 0).unwrap();
@@ -515,13 +524,13 @@ fn hostile_shading_is_an_error_naming_the_triangle() {
     );
     assert_eq!(
         decode_err(&damaged(&good, |r| r[s.kd_indices.start] = 1)),
-        "kd index of triangle 0 is 1, expected at most 0 (kd values in order of first use)"
+        "kd index 0 is 1, expected at most 0 (values in order of first use)"
     );
-    let k = s.words[6];
+    let k = s.words[7];
     assert_eq!(
-        decode_err(&damaged(&good, |r| r[s.kd_indices.end - 1] = k as u8)),
+        decode_err(&damaged(&good, |r| r[s.kd_indices.start + 63] = k as u8)),
         format!(
-            "kd index of triangle 63 is {k}, expected at most {} (kd values in order of first use)",
+            "kd index 63 is {k}, expected at most {} (values in order of first use)",
             k - 1
         )
     );
@@ -529,14 +538,14 @@ fn hostile_shading_is_an_error_naming_the_triangle() {
     assert_eq!(
         decode_err(&damaged(&good, |r| {
             r.splice(s.kd_values.end..s.kd_values.end, [0; 12]);
-            set_word(r, 24, k + 1);
+            set_word(r, 28, k + 1);
         })),
         format!("kd values: {k} of {} used", k + 1)
     );
 }
 
 #[test]
-fn random_damage_never_panics_and_what_decodes_re_encodes_to_the_same_bytes() {
+fn random_damage_never_panics_and_what_decodes_re_encodes_to_the_same_object() {
     let good = raw_of(&mesh_object(40));
     let mut rng = Rng(99);
     let (mut errors, mut decoded) = (0, 0);
@@ -557,7 +566,16 @@ fn random_damage_never_panics_and_what_decodes_re_encodes_to_the_same_bytes() {
         match decode_split("k", &encode_block(RecordKind::SplitObject, 0, &raw)) {
             Ok(object) => {
                 decoded += 1;
-                assert_eq!(raw_of(&object), raw);
+                // Re-encoding may merge table values the damage made equal; from then on the
+                // bytes are fixed and decode to the same object.
+                let again = raw_of(&object);
+                let object_again =
+                    decode_split("k", &encode_block(RecordKind::SplitObject, 0, &again)).unwrap();
+                assert_eq!(format!("{object:?}"), format!("{object_again:?}"));
+                assert_eq!(raw_of(&object_again), again);
+                if again.len() == raw.len() {
+                    assert_eq!(again, raw);
+                }
             }
             Err(e) => {
                 errors += 1;
@@ -569,5 +587,37 @@ fn random_damage_never_panics_and_what_decodes_re_encodes_to_the_same_bytes() {
     assert!(
         errors > 1000 && decoded > 300,
         "{errors} errors, {decoded} decoded"
+    );
+}
+
+#[test]
+fn vertex_indices_number_the_vertices_in_order_of_first_use() {
+    let good = raw_of(&mesh_object(64));
+    let s = Sections::of(&good);
+    let v = s.words[5];
+    // 64 triangles of a 17-wide grid share corners: fewer vertices than corners.
+    assert!(v < 3 * 64, "{v}");
+    assert_eq!(s.vertices.len(), 12 * v as usize);
+    assert_eq!(s.corners.len(), 12 * 64);
+    assert_eq!(
+        decode_err(&damaged(&good, |r| r[s.corners.start] = 1)),
+        "vertex index 0 is 1, expected at most 0 (values in order of first use)"
+    );
+    // The last index's low byte (the first plane's last byte).
+    let last = s.corners.start + 3 * 64 - 1;
+    assert_eq!(
+        decode_err(&damaged(&good, |r| r[last] = v as u8)),
+        format!(
+            "vertex index {} is {v}, expected at most {} (values in order of first use)",
+            3 * 64 - 1,
+            v - 1
+        )
+    );
+    assert_eq!(
+        decode_err(&damaged(&good, |r| {
+            r.splice(s.vertices.end..s.vertices.end, [0; 12]);
+            set_word(r, 20, v + 1);
+        })),
+        format!("vertex values: {v} of {} used", v + 1)
     );
 }

@@ -1,24 +1,14 @@
-//! The kd table of a split object: its distinct kd values in order of first use and one index
-//! per triangle, with the fixed index width the table's size calls for.
+//! Tables of distinct values (vertices, kd) of a split object, numbered in order of first use,
+//! with one index per use.
 
 use std::collections::HashMap;
 use std::collections::hash_map::Entry;
 use std::hash::{BuildHasherDefault, Hasher};
 
-/// Bytes per kd index for a table of `values` distinct kd: 1 up to 256 values, 2 up to 65,536,
-/// else 4.
-pub(super) fn index_width(values: u32) -> usize {
-    match values {
-        0..=256 => 1,
-        257..=65_536 => 2,
-        _ => 4,
-    }
-}
-
-/// Distinct kd values (as bit patterns, so signed zeros and NaN payloads stay apart) numbered in
+/// Distinct values (as bit patterns, so signed zeros and NaN payloads stay apart) numbered in
 /// order of first use, and the index of each use.
 #[derive(Default)]
-pub(super) struct KdTable {
+pub(super) struct Distinct {
     /// The distinct values, in order of first use.
     pub values: Vec<[f32; 3]>,
     index: HashMap<[u32; 3], u32, BuildHasherDefault<WordHasher>>,
@@ -26,15 +16,24 @@ pub(super) struct KdTable {
     pub uses: Vec<u32>,
 }
 
-impl KdTable {
-    /// Records one use of `kd`.
-    pub fn push(&mut self, kd: [f32; 3]) {
+impl Distinct {
+    /// An empty table expecting `uses` uses.
+    pub fn with_capacity(uses: usize) -> Self {
+        Distinct {
+            values: Vec::new(),
+            index: HashMap::default(),
+            uses: Vec::with_capacity(uses),
+        }
+    }
+
+    /// Records one use of `value`.
+    pub fn push(&mut self, value: [f32; 3]) {
         let next = self.values.len() as u32;
-        let i = match self.index.entry(kd.map(f32::to_bits)) {
+        let i = match self.index.entry(value.map(f32::to_bits)) {
             Entry::Occupied(e) => *e.get(),
             Entry::Vacant(e) => {
                 e.insert(next);
-                self.values.push(kd);
+                self.values.push(value);
                 next
             }
         };
@@ -42,7 +41,7 @@ impl KdTable {
     }
 }
 
-/// A multiply-xor hasher for the bit patterns the kd table maps (one per triangle): several
+/// A multiply-xor hasher for the bit patterns the tables map (millions per split): several
 /// times faster than the standard library's SipHash, whose resistance to chosen keys buys
 /// nothing here. The hasher only affects speed, never the bytes: values are numbered in order
 /// of first use, whatever the map's layout.
