@@ -1,8 +1,9 @@
 //! The traversal form as flat little-endian bytes and back, for split objects: the 4-wide nodes
-//! exactly as they are in memory, each `Triangle4`'s lane count, and the triangles' corners in
-//! leaf order. Writing is a linear pass over the arrays; reading is a linear copy into the final
-//! arrays plus one linear check of everything traversal relies on, so a corrupt or hostile split
-//! object gives an error, never a panic, an endless loop or an unbounded traversal.
+//! exactly as they are in memory and each `Triangle4`'s lane count; the triangles come in leaf
+//! order from the caller. Writing is a linear pass over the arrays; reading is a linear copy
+//! into the final arrays plus one linear check of everything traversal relies on, so a corrupt
+//! or hostile split object gives an error, never a panic, an endless loop or an unbounded
+//! traversal.
 
 use super::build::MAX_DEPTH;
 use super::node4::{LEAF, Node4, Triangle4};
@@ -14,8 +15,6 @@ use glam::Vec3;
 /// `0x8000_0000 | first triangle pack` for a leaf or an empty slot), `triangle4_count[slot]`
 /// (4 u32: a leaf's number of packs, 0 for an inner child or an empty slot).
 pub const NODE_BYTES: usize = 128;
-/// Bytes of one triangle's corners: 9 little-endian f32, corner 0 x, y, z, then corners 1 and 2.
-pub const CORNER_BYTES: usize = 36;
 
 /// The stored traversal form of a BVH (see the module docs and [`Bvh::from_parts`]).
 #[derive(Clone, Copy, Debug)]
@@ -26,8 +25,6 @@ pub struct BvhParts<'a> {
     pub nodes: &'a [u8],
     /// Each `Triangle4` pack's number of triangles (1 to 4), one byte per pack, in pack order.
     pub lanes: &'a [u8],
-    /// Every triangle's corners in leaf order, [`CORNER_BYTES`] each.
-    pub corners: &'a [u8],
 }
 
 /// Why stored BVH arrays cannot be used.
@@ -120,20 +117,6 @@ impl Bvh {
         out.extend(self.triangles.iter().map(|p| p.lanes as u8));
     }
 
-    /// Appends every triangle's corners in leaf order, [`CORNER_BYTES`] each.
-    pub fn put_corners(&self, out: &mut Vec<u8>) {
-        out.reserve(self.ids.len() * CORNER_BYTES);
-        for p in &self.triangles {
-            for lane in 0..p.lanes as usize {
-                for corner in &p.v {
-                    for axis in corner {
-                        out.extend_from_slice(&axis[lane].to_le_bytes());
-                    }
-                }
-            }
-        }
-    }
-
     /// The triangles in leaf order (gathered from the `Triangle4`s, their only copy).
     pub fn leaf_triangles(&self) -> Vec<[Vec3; 3]> {
         let mut triangles = Vec::with_capacity(self.ids.len());
@@ -143,26 +126,30 @@ impl Bvh {
         triangles
     }
 
-    /// Loads a BVH from the arrays [`Bvh::put_nodes`], [`Bvh::put_lanes`] and
-    /// [`Bvh::put_corners`] wrote, with the scene-wide `ids` in leaf order; the result equals the
-    /// BVH they were written from.
+    /// Loads a BVH from the arrays [`Bvh::put_nodes`] and [`Bvh::put_lanes`] wrote, with the
+    /// scene-wide `ids` in leaf order and `corners(t)` the corners of leaf-order triangle `t`
+    /// (called once for each `t < ids.len()`, in order, only after every check passed); the
+    /// result equals the BVH they were written from.
     ///
-    /// Accepts exactly what [`Bvh::build`] lays out: the array lengths fit (`corners` holds one
-    /// triangle per id), every pack holds 1 to 4 triangles and the packs hold `ids.len()`
-    /// together, and a depth-first walk from the root (slots in order) meets the inner children
-    /// in node order (child `k` is the `k`-th node reached, so each comes after its parent and
-    /// is reached once: no cycles, no sharing), no deeper than the traversal stack allows,
-    /// reaching every node, and meets the leaves' packs in pack order, each leaf inside the
-    /// array, covering every pack once. Empty slots are the empty leaf; inner children count no
-    /// packs. Boxes are taken as they are (a NaN, inverted or infinite box only culls more or
-    /// less; traversal stays exact and bounded). Cost: one linear pass over each array.
-    pub fn from_parts(parts: BvhParts<'_>, ids: Vec<u32>) -> Result<Bvh, BvhPartsError> {
+    /// Accepts exactly what [`Bvh::build`] lays out: the node bytes are whole nodes, every pack
+    /// holds 1 to 4 triangles and the packs hold `ids.len()` together, and a depth-first walk
+    /// from the root (slots in order) meets the inner children in node order (child `k` is the
+    /// `k`-th node reached, so each comes after its parent and is reached once: no cycles, no
+    /// sharing), no deeper than the traversal stack allows, reaching every node, and meets the
+    /// leaves' packs in pack order, each leaf inside the array, covering every pack once. Empty
+    /// slots are the empty leaf; inner children count no packs. Boxes are taken as they are (a
+    /// NaN, inverted or infinite box only culls more or less; traversal stays exact and
+    /// bounded). Cost: one linear pass over each array.
+    pub fn from_parts(
+        parts: BvhParts<'_>,
+        ids: Vec<u32>,
+        mut corners: impl FnMut(usize) -> [Vec3; 3],
+    ) -> Result<Bvh, BvhPartsError> {
         let n = ids.len();
         let BvhParts {
             bounds,
             nodes,
             lanes,
-            corners,
         } = parts;
         let (node_bytes, rest) = nodes.as_chunks::<NODE_BYTES>();
         if !rest.is_empty() {
@@ -170,13 +157,6 @@ impl Bvh {
                 what: "nodes",
                 found: nodes.len(),
                 expected: node_bytes.len() * NODE_BYTES,
-            });
-        }
-        if corners.len() as u64 != n as u64 * CORNER_BYTES as u64 {
-            return Err(BvhPartsError::Length {
-                what: "corners",
-                found: corners.len(),
-                expected: n * CORNER_BYTES,
             });
         }
         if n == 0 {
@@ -208,18 +188,16 @@ impl Bvh {
         }
         let wide: Vec<Node4> = node_bytes.iter().map(node_from_bytes).collect();
         check_nodes(&wide, lanes.len())?;
-        let (triangle_bytes, _) = corners.as_chunks::<CORNER_BYTES>();
         let mut triangles = Vec::with_capacity(lanes.len());
         let mut first = 0usize;
         for &l in lanes {
             let l = usize::from(l);
-            // `held == n` above, so every pack's triangles are in `triangle_bytes`.
             let mut v = [[[0.0f32; 4]; 3]; 3];
-            for (lane, t) in triangle_bytes[first..first + l].iter().enumerate() {
-                let (words, _) = t.as_chunks::<4>();
-                for (corner, c) in v.iter_mut().enumerate() {
-                    for (axis, a) in c.iter_mut().enumerate() {
-                        a[lane] = f32::from_le_bytes(words[3 * corner + axis]);
+            for lane in 0..l {
+                let t = corners(first + lane);
+                for (vc, p) in v.iter_mut().zip(t) {
+                    for (va, x) in vc.iter_mut().zip(p.to_array()) {
+                        va[lane] = x;
                     }
                 }
             }
