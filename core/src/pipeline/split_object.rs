@@ -27,15 +27,16 @@
 //! time, gathering each corner from the vertices, which are numbered in order of first use and
 //! so read almost in order) and linear checks; nothing is collapsed or searched. The corners
 //! refer to distinct vertices rather than being written out: written out they compress about
-//! as small (zstd finds the repeated vertices itself) but are three times the raw bytes, made
-//! of short matches that took zstd several times as long to undo as the vertices and indices.
+//! as small (zstd finds the repeated vertices itself) but are twice the raw bytes, made of
+//! short matches that took zstd several times as long to undo as the vertices and indices.
 //! Byte planes make the vertices, indices and ids a quarter to a half smaller stored and faster
 //! to decompress (high bytes repeat); the nodes gain little from them and are stored as they
 //! are. kd values repeat per material, so kd indices are a small table's; normals are stored
 //! written out, as few scenes have them.
 //!
 //! Decoding checks everything it relies on: the version (objects of version 2 and older name
-//! their version and are refused), the header's counts against each other and the exact raw
+//! their version and are refused; a task rebuilds such an object from the scene as it does a
+//! damaged one), the header's counts against each other and the exact raw
 //! length, the BVH as [`Bvh::from_parts`] does (children in depth-first order after their
 //! parent, depth, leaves inside the packs and covering them, pack sizes), vertex and kd
 //! indices numbering their tables in order of first use, normal flags 0 or 1 and as many set
