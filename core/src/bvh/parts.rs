@@ -30,15 +30,11 @@ pub struct BvhParts<'a> {
 /// Why stored BVH arrays cannot be used.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum BvhPartsError {
-    /// An array's length does not fit the others.
-    #[error("BVH {what}: {found} bytes, expected {expected}")]
-    Length {
-        /// Which array.
-        what: &'static str,
-        /// Its length.
+    /// The node bytes end inside a node.
+    #[error("BVH nodes: {found} bytes, not a whole number of {NODE_BYTES}-byte nodes")]
+    PartialNode {
+        /// The length of the node bytes.
         found: usize,
-        /// The length the other arrays call for.
-        expected: usize,
     },
     /// A node breaks the layout: children out of order or range, or a leaf out of place.
     #[error("BVH node {node}: {problem}")]
@@ -153,11 +149,7 @@ impl Bvh {
         } = parts;
         let (node_bytes, rest) = nodes.as_chunks::<NODE_BYTES>();
         if !rest.is_empty() {
-            return Err(BvhPartsError::Length {
-                what: "nodes",
-                found: nodes.len(),
-                expected: node_bytes.len() * NODE_BYTES,
-            });
+            return Err(BvhPartsError::PartialNode { found: nodes.len() });
         }
         if n == 0 {
             if !node_bytes.is_empty() || !lanes.is_empty() {

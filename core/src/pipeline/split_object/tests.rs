@@ -621,3 +621,17 @@ fn vertex_indices_number_the_vertices_in_order_of_first_use() {
         format!("vertex values: {v} of {} used", v + 1)
     );
 }
+
+#[test]
+fn from_parts_refuses_partial_nodes() {
+    let parts = BvhParts {
+        bounds: Aabb::EMPTY,
+        nodes: &[0; 100],
+        lanes: &[1],
+    };
+    let e = Bvh::from_parts(parts, vec![7], |_| [Vec3::ZERO; 3]).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "BVH nodes: 100 bytes, not a whole number of 128-byte nodes"
+    );
+}
