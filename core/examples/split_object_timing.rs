@@ -1,76 +1,106 @@
 //! Where a split object's load time goes (docs/ARCHITECTURE.md, "Split objects"):
-//! `cargo run --release -p hort-core --example split_object_timing -- SCENE [REPEATS]`.
+//! `cargo run --release -p hort-core --example split_object_timing -- SCENE [REPEATS]`, where
+//! SCENE is a scene file or `generated:N`, the scene `hort scene generate --triangles N --seed
+//! 1` writes (generated here into a temporary file, deleted after loading).
 //!
-//! Builds the scene as one split, then prints the best of REPEATS (default 5) wall times of
-//! encoding it, of undoing the block (checksums and zstd), and of the whole `decode_split`, with
-//! the sizes, so that a change of the split object's layout can be judged on any scene; and,
-//! for the layout that stores every corner instead of references, the corners' size at zstd
-//! level 1 and the time to decompress them.
+//! Builds the scene as one split, then times REPEATS (default 5) runs each of encoding it, of
+//! undoing the block (checksums and zstd), of the whole `decode_split`, and of a plain copy of
+//! as many bytes as the decoded object holds into a fresh buffer (the memory-speed baseline:
+//! the same allocation and page faults, no work), and prints the sizes and the minimum and
+//! median times, so that a change of the split object's layout can be judged on any scene.
 
+use hort_core::generate::generate_scene;
 use hort_core::pipeline::{SplitMode, decode_split, encode_split, split_scene};
 use hort_core::scene::load_scene;
 use hort_core::shuffle::{RecordKind, decode_block};
 use std::path::PathBuf;
+use std::time::Instant;
 
-#[path = "support/best.rs"]
-mod support;
-use support::best;
+/// Runs `f` `repeats` times: the sorted wall times in seconds and the last result.
+fn times<T>(repeats: usize, mut f: impl FnMut() -> T) -> (Vec<f64>, T) {
+    let mut seconds = Vec::with_capacity(repeats);
+    let mut out = None;
+    for _ in 0..repeats {
+        let t = Instant::now();
+        let v = std::hint::black_box(f());
+        seconds.push(t.elapsed().as_secs_f64());
+        out = Some(v);
+    }
+    seconds.sort_by(f64::total_cmp);
+    (seconds, out.expect("at least one repeat"))
+}
+
+/// "min / median ms" of sorted times.
+fn ms(t: &[f64]) -> String {
+    format!("{:7.1} / {:7.1} ms", t[0] * 1e3, t[t.len() / 2] * 1e3)
+}
 
 fn main() {
     let mut args = std::env::args().skip(1);
-    let Some(path) = args.next().map(PathBuf::from) else {
-        eprintln!("usage: split_object_timing SCENE [REPEATS]");
+    let Some(scene_arg) = args.next() else {
+        eprintln!("usage: split_object_timing SCENE|generated:N [REPEATS]");
         std::process::exit(2);
     };
     let repeats: usize = args.next().map_or(5, |r| r.parse().expect("REPEATS"));
-    let scene = load_scene(&path).expect("the scene loads");
+    let scene = if let Some(n) = scene_arg.strip_prefix("generated:") {
+        let n: u64 = n.parse().expect("generated:N takes a triangle count");
+        let path = std::env::temp_dir().join(format!(
+            "split-object-timing-{}-{n}.obj",
+            std::process::id()
+        ));
+        let mut file = std::io::BufWriter::new(std::fs::File::create(&path).expect("temp file"));
+        generate_scene(n, 1, &mut file).expect("the scene generates");
+        drop(file);
+        let scene = load_scene(&path).expect("the scene loads");
+        std::fs::remove_file(&path).expect("temp file removed");
+        scene
+    } else {
+        load_scene(&PathBuf::from(&scene_arg)).expect("the scene loads")
+    };
     let mut stored = Vec::new();
-    let (build, _) = best(1, || {
+    let (build, _) = times(1, || {
         split_scene(&scene.mesh, 1, SplitMode::Spatial, |_, bytes| {
             stored = bytes;
             Ok::<(), ()>(())
         })
     });
-    let (block, raw) = best(repeats, || {
+    drop(scene);
+    let (block, raw) = times(repeats, || {
         decode_block("split", &stored, RecordKind::SplitObject).expect("block decodes")
     });
-    let (decode, object) = best(repeats, || decode_split("split", &stored).expect("decodes"));
-    let (encode, again) = best(repeats, || encode_split(&object));
+    let raw_len = raw.raw.len();
+    drop(raw);
+    let (decode, object) = times(repeats, || decode_split("split", &stored).expect("decodes"));
+    let (encode, again) = times(repeats, || encode_split(&object));
     assert_eq!(again, stored, "encoding is deterministic");
+    drop(again);
+    let decoded = object.memory_bytes() as usize;
     let n = object.bvh.triangle_count();
+    drop(object);
+    // The baseline: as many bytes as the decoded object, copied into a fresh allocation.
+    let source = vec![0x5au8; decoded];
+    let (copy, _) = times(repeats, || source.to_vec());
+    let mb = |b: usize| b as f64 / 1e6;
+    let gbs = |t: &[f64]| decoded as f64 / t[0] / 1e9;
     println!(
-        "{}: {n} triangles; stored {} bytes, raw {} bytes, in memory {} bytes",
-        path.display(),
-        stored.len(),
-        raw.raw.len(),
-        object.memory_bytes()
+        "{scene_arg}: {n} triangles; stored {:.1} MB, raw {:.1} MB, decoded {:.1} MB",
+        mb(stored.len()),
+        mb(raw_len),
+        mb(decoded)
     );
-    println!("build + encode        {:8.1} ms", build * 1e3);
-    println!("encode_split          {:8.1} ms", encode * 1e3);
-    println!("block (crc + zstd)    {:8.1} ms", block * 1e3);
+    println!("times: min / median of {repeats}");
+    println!("build + encode        {}", ms(&build));
+    println!("encode_split          {}", ms(&encode));
+    println!("block (crc + zstd)    {}", ms(&block));
     println!(
-        "decode_split          {:8.1} ms  ({:.0} MB/s of memory)",
-        decode * 1e3,
-        object.memory_bytes() as f64 / decode / 1e6
+        "decode_split          {}  ({:.2} GB/s of decoded memory)",
+        ms(&decode),
+        gbs(&decode)
     );
-    // The alternative layout: every corner of every triangle written out (no references to
-    // distinct vertices), as a traversal form stored as it is would need, and what zstd level
-    // 1 makes of it and costs to undo. Nodes, ids and shading would come on top.
-    let (_, corners, _) = object.bvh.parts();
-    let flat: Vec<u8> = corners
-        .iter()
-        .flatten()
-        .flat_map(|v| v.to_array())
-        .flat_map(f32::to_le_bytes)
-        .collect();
-    let packed = zstd::bulk::compress(&flat, 1).expect("compresses");
-    let (inflate, _) = best(repeats, || {
-        zstd::bulk::decompress(&packed, flat.len()).expect("decompresses")
-    });
     println!(
-        "flat corners alone    {:8.1} ms to decompress ({} bytes raw, {} at zstd 1)",
-        inflate * 1e3,
-        flat.len(),
-        packed.len()
+        "memcpy, fresh buffer  {}  ({:.2} GB/s); decode takes {:.1}x a copy",
+        ms(&copy),
+        gbs(&copy),
+        decode[0] / copy[0]
     );
 }

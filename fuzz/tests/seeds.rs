@@ -61,6 +61,26 @@ fn split(n: usize, normals: bool) -> SplitObject {
     }
 }
 
+/// `n` triangles of a strip sharing corners (so vertex indices refer back), kd from 2 materials.
+fn strip(n: usize) -> SplitObject {
+    let vertex = |i: usize| Vec3::new((i / 2) as f32, (i % 2) as f32, 0.0);
+    let triangles: Vec<[Vec3; 3]> = (0..n)
+        .map(|i| [vertex(i), vertex(i + 1), vertex(i + 2)])
+        .collect();
+    let bvh = Bvh::build(triangles, (0..n as u32).collect());
+    let shading = (0..n)
+        .map(|i| TriangleShading {
+            normals: None,
+            kd: [0.5, 0.25 * (i % 2) as f32, 0.0],
+        })
+        .collect();
+    SplitObject {
+        split: 0,
+        bvh,
+        shading,
+    }
+}
+
 fn hits(n: u32) -> Vec<SurfaceHit> {
     (0..n)
         .map(|i| SurfaceHit {
@@ -86,6 +106,8 @@ fn write_seeds() {
         ("split-1", split(1, false)),
         ("split-5-normals", split(5, true)),
         ("split-40", split(40, true)),
+        ("split-0", split(0, false)),
+        ("strip-24", strip(24)),
     ] {
         let bytes = encode_split(&object);
         save("split_object", name, RecordKind::SplitObject, &bytes);

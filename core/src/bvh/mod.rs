@@ -1,6 +1,7 @@
-//! A bounding volume hierarchy over triangles: binned-SAH build of a binary tree (what split
-//! objects store), collapsed into 4-wide nodes whose leaves are `Triangle4`s (four triangles
-//! stored axis by axis) for traversal with 4-wide box and triangle tests. Layout, measurements
+//! A bounding volume hierarchy over triangles: binned-SAH build of a binary tree, collapsed into
+//! 4-wide nodes whose leaves are `Triangle4`s (four triangles stored axis by axis) for traversal
+//! with 4-wide box and triangle tests; the binary tree is dropped after collapsing. Split objects
+//! store the 4-wide form as it is (`parts.rs`). Layout, measurements
 //! against native Embree and where time goes: `README.md` in this folder.
 //!
 //! Vocabulary: a `Triangle4` is four triangles of one leaf tested at once (`node4.rs`,
@@ -27,7 +28,7 @@ mod segment_packet;
 mod simd4;
 mod traverse;
 
-pub use parts::BvhPartsError;
+pub use parts::{BvhParts, BvhPartsError, NODE_BYTES};
 pub use ray_packet::RAY_PACKET;
 pub use traverse::{ClosestHit, segment_may_hit};
 
@@ -88,10 +89,11 @@ pub struct Node {
 /// A built BVH owning its triangles in leaf order with their scene-wide ids.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Bvh {
-    nodes: Vec<Node>,
-    /// Scene-wide id of each triangle, in leaf order.
+    /// The root's box: every triangle lies in it ([`Aabb::EMPTY`] when there are none).
+    bounds: Aabb,
+    /// Scene-wide id of each triangle, in leaf order (the order of the `Triangle4`s' lanes).
     ids: Vec<u32>,
-    /// Traversal form derived from `nodes` and the leaf-order triangles (see [`node4`]). The
+    /// Traversal form collapsed from the binary tree (see [`node4`]). The
     /// `Triangle4`s hold the only copy of the triangles: leaf-order triangle `t` is lane
     /// `t - first` of the `Triangle4` whose lanes start at `first`.
     wide: Vec<node4::Node4>,
@@ -107,12 +109,14 @@ impl Bvh {
     }
 
     /// Assembles a BVH from valid binary nodes whose leaves cover the `ids.len()` triangles
-    /// exactly once, adding the traversal form; `corners(t)` is leaf-order triangle `t`.
+    /// exactly once: collapses them into the traversal form, whose pack order becomes the leaf
+    /// order (`ids` are reordered to match), and keeps only the root's box of them; `ids[t]`
+    /// and `corners(t)` are triangle `t` in the binary tree's leaf order.
     fn assemble(nodes: Vec<Node>, ids: Vec<u32>, corners: impl Fn(usize) -> [Vec3; 3]) -> Bvh {
-        let (wide, triangles) = node4::collapse(&nodes, ids.len(), corners);
+        let (wide, triangles, order) = node4::collapse(&nodes, ids.len(), corners);
         Bvh {
-            nodes,
-            ids,
+            bounds: nodes.first().map_or(Aabb::EMPTY, |n| n.bounds),
+            ids: order.iter().map(|&t| ids[t as usize]).collect(),
             wide,
             triangles,
         }
@@ -131,20 +135,24 @@ impl Bvh {
     /// Bytes this BVH holds in memory (its arrays; what a cache of decoded splits budgets).
     pub fn memory_bytes(&self) -> u64 {
         use std::mem::size_of;
-        (self.nodes.len() * size_of::<Node>()
-            + self.ids.len() * size_of::<u32>()
+        (self.ids.len() * size_of::<u32>()
             + self.wide.len() * size_of::<node4::Node4>()
             + self.triangles.len() * size_of::<node4::Triangle4>()) as u64
     }
 
-    /// Number of nodes.
-    pub fn node_count(&self) -> usize {
-        self.nodes.len()
+    /// Number of 4-wide nodes (0 when empty).
+    pub fn wide_node_count(&self) -> usize {
+        self.wide.len()
+    }
+
+    /// Number of `Triangle4` packs (each holds 1 to 4 triangles of one leaf).
+    pub fn pack_count(&self) -> usize {
+        self.triangles.len()
     }
 
     /// Bounds of everything in the BVH ([`Aabb::EMPTY`] when empty).
     pub fn bounds(&self) -> Aabb {
-        self.nodes.first().map_or(Aabb::EMPTY, |n| n.bounds)
+        self.bounds
     }
 }
 

@@ -2,9 +2,9 @@
 //! are tested together, and leaves as runs of [`Triangle4`]s (up to 4 triangles each, stored
 //! axis by axis).
 //!
-//! It is derived data: a pure function of the binary nodes and the leaf-order triangles, rebuilt
-//! by [`Bvh::build`](super::Bvh::build) and [`Bvh::from_parts`](super::Bvh::from_parts), never
-//! stored. Collapsing only regroups boxes the binary tree already has, so every box the traversal
+//! [`Bvh::build`](super::Bvh::build) derives it from the binary nodes and the leaf-order
+//! triangles (a pure function of them) and keeps only it; split objects store it as it is and
+//! [`Bvh::from_parts`](super::Bvh::from_parts) loads it back after checking it. Collapsing only regroups boxes the binary tree already has, so every box the traversal
 //! tests is a box of the binary tree. The `Triangle4`s are the only copy of the triangles a
 //! `Bvh` keeps: every leaf-order triangle is one lane of one `Triangle4`.
 
@@ -31,7 +31,8 @@ pub(super) struct Node4 {
 
 /// Up to four triangles of one leaf, laid out for the 4-wide triangle tests (not a ray packet):
 /// `v[corner][axis][lane]`. Lane `i < lanes` is the leaf-order triangle `first + i`; unused
-/// lanes are zero (degenerate) and masked out anyway.
+/// lanes are zero (degenerate) and masked out anyway. The packs are in leaf order: a pack's
+/// `first` is the number of triangles in the packs before it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(16))]
 pub(super) struct Triangle4 {
@@ -57,19 +58,25 @@ const UNUSED: Node4 = Node4 {
     triangle4_count: [0; 4],
 };
 
-/// Collapses binary `nodes` (root first, valid as checked by `from_parts` or made by `build`)
-/// over `n` leaf-order triangles, where `corners(t)` is triangle `t` (called once per triangle,
-/// only for `t < n`). Empty for an empty tree; otherwise node 0 is the root.
+/// Collapses valid binary `nodes` (root first, as `build` makes them) over `n` triangles in
+/// the binary tree's leaf order, where `corners(t)` is triangle `t` (called once per triangle,
+/// only for `t < n`). Empty for an empty tree; otherwise node 0 is the root, and the nodes are
+/// numbered depth first (slots in order), so every inner child comes after its parent.
+///
+/// The wide tree visits the binary leaves in another order (opening the widest child first
+/// reorders them), and its leaf order is the order of the packs, as they are made depth first:
+/// the third result lists, for each triangle in that order, its index in the binary leaf order.
 pub(super) fn collapse<F: Fn(usize) -> [Vec3; 3]>(
     nodes: &[Node],
     n: usize,
     corners: F,
-) -> (Vec<Node4>, Vec<Triangle4>) {
+) -> (Vec<Node4>, Vec<Triangle4>, Vec<u32>) {
     let mut out = Collapse {
         nodes,
         corners,
         wide: Vec::with_capacity(nodes.len() / 3 + 1),
         triangles: Vec::with_capacity(n / 2 + 1),
+        order: Vec::with_capacity(n),
     };
     if !nodes.is_empty() {
         out.wide.push(UNUSED);
@@ -82,7 +89,7 @@ pub(super) fn collapse<F: Fn(usize) -> [Vec3; 3]>(
     }
     out.wide.shrink_to_fit();
     out.triangles.shrink_to_fit();
-    (out.wide, out.triangles)
+    (out.wide, out.triangles, out.order)
 }
 
 struct Collapse<'a, F> {
@@ -90,6 +97,8 @@ struct Collapse<'a, F> {
     corners: F,
     wide: Vec<Node4>,
     triangles: Vec<Triangle4>,
+    /// The binary leaf-order index of each triangle put in a pack so far, in pack order.
+    order: Vec<u32>,
 }
 
 impl<F: Fn(usize) -> [Vec3; 3]> Collapse<'_, F> {
@@ -144,9 +153,10 @@ impl<F: Fn(usize) -> [Vec3; 3]> Collapse<'_, F> {
                     }
                     self.triangles.push(Triangle4 {
                         v,
-                        first: chunk as u32,
+                        first: self.order.len() as u32,
                         lanes: lanes as u32,
                     });
+                    self.order.extend(chunk as u32..(chunk + lanes) as u32);
                 }
                 self.wide[w].child[slot] = LEAF | first_triangle4 as u32;
                 self.wide[w].triangle4_count[slot] =

@@ -1,14 +1,41 @@
-//! Taking a built BVH apart into flat arrays and putting it back without rebuilding, for split
-//! objects. Reassembly validates everything traversal relies on, so a corrupt or hostile split
-//! object gives an error, never a panic or an endless loop.
+//! The traversal form as flat little-endian bytes and back, for split objects: the 4-wide nodes
+//! exactly as they are in memory and each `Triangle4`'s lane count; the triangles come in leaf
+//! order from the caller. Writing is a linear pass over the arrays; reading is a linear copy
+//! into the final arrays plus one linear check of everything traversal relies on, so a corrupt
+//! or hostile split object gives an error, never a panic, an endless loop or an unbounded
+//! traversal.
 
 use super::build::MAX_DEPTH;
-use super::{Bvh, Node};
+use super::node4::{LEAF, Node4, Triangle4};
+use super::{Aabb, Bvh};
 use glam::Vec3;
+
+/// Bytes of one 4-wide node: 32 little-endian words, `lo[axis][slot]` (12 f32),
+/// `hi[axis][slot]` (12 f32), `child[slot]` (4 u32: an inner child's node index, or
+/// `0x8000_0000 | first triangle pack` for a leaf or an empty slot), `triangle4_count[slot]`
+/// (4 u32: a leaf's number of packs, 0 for an inner child or an empty slot).
+pub const NODE_BYTES: usize = 128;
+
+/// The stored traversal form of a BVH (see the module docs and [`Bvh::from_parts`]).
+#[derive(Clone, Copy, Debug)]
+pub struct BvhParts<'a> {
+    /// The root's box ([`Bvh::bounds`]).
+    pub bounds: Aabb,
+    /// The 4-wide nodes, [`NODE_BYTES`] each, root first.
+    pub nodes: &'a [u8],
+    /// Each `Triangle4` pack's number of triangles (1 to 4), one byte per pack, in pack order.
+    pub lanes: &'a [u8],
+}
 
 /// Why stored BVH arrays cannot be used.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum BvhPartsError {
+    /// The node bytes end inside a node.
+    #[error("BVH nodes: {found} bytes, not a whole number of {NODE_BYTES}-byte nodes")]
+    PartialNode {
+        /// The length of the node bytes.
+        found: usize,
+    },
     /// A node breaks the layout: children out of order or range, or a leaf out of place.
     #[error("BVH node {node}: {problem}")]
     BadNode {
@@ -17,95 +44,250 @@ pub enum BvhPartsError {
         /// What is wrong with it.
         problem: String,
     },
+    /// A pack holds no triangle or more than four.
+    #[error("BVH triangle pack {pack}: holds {lanes} triangles, expected 1 to 4")]
+    BadPack {
+        /// Index of the pack.
+        pack: usize,
+        /// Its lane count.
+        lanes: u8,
+    },
+    /// The packs hold a different number of triangles than there are ids.
+    #[error("BVH triangle packs hold {held} triangles, expected {triangles}")]
+    PackTotal {
+        /// Triangles the packs hold.
+        held: usize,
+        /// Triangles the BVH holds (one per id).
+        triangles: usize,
+    },
     /// There are triangle ids but no nodes to reach them.
     #[error("BVH with triangles has no nodes")]
     NoNodes,
-    /// A path from the root is deeper than the traversal stack, or nodes are reached twice.
+    /// There are nodes or packs but no triangles.
+    #[error("BVH without triangles has {nodes} nodes and {packs} triangle packs")]
+    NotEmpty {
+        /// Nodes found.
+        nodes: usize,
+        /// Packs found.
+        packs: usize,
+    },
+    /// A path from the root is deeper than the traversal stack allows.
     #[error("BVH is deeper than {MAX_DEPTH} levels")]
     TooDeep,
-    /// The leaves are consistent but cover only some of the triangles.
-    #[error("BVH leaves cover {covered} of {triangles} triangles")]
+    /// The nodes are consistent but the root does not reach all of them.
+    #[error("BVH root reaches {reached} of {nodes} nodes")]
+    Unreached {
+        /// Nodes reached from the root.
+        reached: usize,
+        /// Nodes stored.
+        nodes: usize,
+    },
+    /// The leaves are consistent but cover only some of the packs.
+    #[error("BVH leaves cover {covered} of {packs} triangle packs")]
     Coverage {
-        /// Triangles the leaves cover, fewer than `triangles`.
+        /// Packs the leaves cover, fewer than `packs`.
         covered: usize,
-        /// Triangles the BVH holds (one per id).
-        triangles: usize,
+        /// Packs stored.
+        packs: usize,
     },
 }
 
 impl Bvh {
-    /// The nodes (root first), the triangles in leaf order and their scene-wide ids. The
-    /// triangles are gathered from the traversal form's `Triangle4`s (their only copy) into a new
-    /// vector.
-    pub fn parts(&self) -> (&[Node], Vec<[Vec3; 3]>, &[u32]) {
-        let mut triangles = vec![[Vec3::ZERO; 3]; self.ids.len()];
-        for p in &self.triangles {
-            let first = p.first as usize;
-            for (lane, t) in triangles[first..first + p.lanes as usize]
-                .iter_mut()
-                .enumerate()
-            {
-                *t = p.corners(lane);
+    /// Appends the 4-wide nodes, [`NODE_BYTES`] each (layout there), root first.
+    pub fn put_nodes(&self, out: &mut Vec<u8>) {
+        out.reserve(self.wide.len() * NODE_BYTES);
+        for n in &self.wide {
+            for row in n.lo.iter().chain(&n.hi) {
+                for x in row {
+                    out.extend_from_slice(&x.to_le_bytes());
+                }
+            }
+            for w in n.child.iter().chain(&n.triangle4_count) {
+                out.extend_from_slice(&w.to_le_bytes());
             }
         }
-        (&self.nodes, triangles, &self.ids)
     }
 
-    /// Reassembles a BVH from [`Bvh::parts`] output: `ids.len()` triangles, where `corners(t)`
-    /// is leaf-order triangle `t`. Checks that children come after their parent, the depth
-    /// stays within the traversal stack, and the leaves, visited depth first (left child
-    /// first), cover the triangles exactly once and in order, as [`Bvh::build`] lays them out.
-    /// Only after these checks pass, `corners` is called once for each `t < ids.len()`.
+    /// Appends each `Triangle4` pack's number of triangles (1 to 4), one byte per pack.
+    pub fn put_lanes(&self, out: &mut Vec<u8>) {
+        out.extend(self.triangles.iter().map(|p| p.lanes as u8));
+    }
+
+    /// The triangles in leaf order (gathered from the `Triangle4`s, their only copy).
+    pub fn leaf_triangles(&self) -> Vec<[Vec3; 3]> {
+        let mut triangles = Vec::with_capacity(self.ids.len());
+        for p in &self.triangles {
+            triangles.extend((0..p.lanes as usize).map(|lane| p.corners(lane)));
+        }
+        triangles
+    }
+
+    /// Loads a BVH from the arrays [`Bvh::put_nodes`] and [`Bvh::put_lanes`] wrote, with the
+    /// scene-wide `ids` in leaf order and `corners(t)` the corners of leaf-order triangle `t`
+    /// (called once for each `t < ids.len()`, in order, only after every check passed); the
+    /// result equals the BVH they were written from.
+    ///
+    /// Accepts exactly what [`Bvh::build`] lays out: the node bytes are whole nodes, every pack
+    /// holds 1 to 4 triangles and the packs hold `ids.len()` together, and a depth-first walk
+    /// from the root (slots in order) meets the inner children in node order (child `k` is the
+    /// `k`-th node reached, so each comes after its parent and is reached once: no cycles, no
+    /// sharing), no deeper than the traversal stack allows, reaching every node, and meets the
+    /// leaves' packs in pack order, each leaf inside the array, covering every pack once. Empty
+    /// slots are the empty leaf; inner children count no packs. Boxes are taken as they are (a
+    /// NaN, inverted or infinite box only culls more or less; traversal stays exact and
+    /// bounded). Cost: one linear pass over each array.
     pub fn from_parts(
-        nodes: Vec<Node>,
+        parts: BvhParts<'_>,
         ids: Vec<u32>,
-        corners: impl Fn(usize) -> [Vec3; 3],
+        mut corners: impl FnMut(usize) -> [Vec3; 3],
     ) -> Result<Bvh, BvhPartsError> {
-        let triangles = ids.len();
-        if nodes.is_empty() {
-            if triangles == 0 {
-                return Ok(Bvh::assemble(nodes, ids, corners));
+        let n = ids.len();
+        let BvhParts {
+            bounds,
+            nodes,
+            lanes,
+        } = parts;
+        let (node_bytes, rest) = nodes.as_chunks::<NODE_BYTES>();
+        if !rest.is_empty() {
+            return Err(BvhPartsError::PartialNode { found: nodes.len() });
+        }
+        if n == 0 {
+            if !node_bytes.is_empty() || !lanes.is_empty() {
+                return Err(BvhPartsError::NotEmpty {
+                    nodes: node_bytes.len(),
+                    packs: lanes.len(),
+                });
             }
+            return Ok(Bvh {
+                bounds,
+                ids,
+                wide: Vec::new(),
+                triangles: Vec::new(),
+            });
+        }
+        if node_bytes.is_empty() {
             return Err(BvhPartsError::NoNodes);
         }
-        let mut covered = 0usize;
-        let mut stack = vec![(0usize, 1usize)];
-        let mut visited = 0usize;
-        while let Some((index, depth)) = stack.pop() {
-            visited += 1;
-            if depth > MAX_DEPTH || visited > nodes.len() {
+        let mut held = 0usize;
+        for (pack, &l) in lanes.iter().enumerate() {
+            if !(1..=4).contains(&l) {
+                return Err(BvhPartsError::BadPack { pack, lanes: l });
+            }
+            held += usize::from(l);
+        }
+        if held != n {
+            return Err(BvhPartsError::PackTotal { held, triangles: n });
+        }
+        let wide: Vec<Node4> = node_bytes.iter().map(node_from_bytes).collect();
+        check_nodes(&wide, lanes.len())?;
+        let mut triangles = Vec::with_capacity(lanes.len());
+        let mut first = 0usize;
+        for &l in lanes {
+            let l = usize::from(l);
+            let mut v = [[[0.0f32; 4]; 3]; 3];
+            for lane in 0..l {
+                let t = corners(first + lane);
+                for (vc, p) in v.iter_mut().zip(t) {
+                    for (va, x) in vc.iter_mut().zip(p.to_array()) {
+                        va[lane] = x;
+                    }
+                }
+            }
+            triangles.push(Triangle4 {
+                v,
+                first: first as u32,
+                lanes: l as u32,
+            });
+            first += l;
+        }
+        Ok(Bvh {
+            bounds,
+            ids,
+            wide,
+            triangles,
+        })
+    }
+}
+
+/// One node from its [`NODE_BYTES`] bytes.
+#[inline]
+fn node_from_bytes(b: &[u8; NODE_BYTES]) -> Node4 {
+    let (w, _) = b.as_chunks::<4>();
+    let f = |k: usize| f32::from_le_bytes(w[k]);
+    let u = |k: usize| u32::from_le_bytes(w[k]);
+    Node4 {
+        lo: std::array::from_fn(|a| std::array::from_fn(|s| f(4 * a + s))),
+        hi: std::array::from_fn(|a| std::array::from_fn(|s| f(12 + 4 * a + s))),
+        child: std::array::from_fn(|s| u(24 + s)),
+        triangle4_count: std::array::from_fn(|s| u(28 + s)),
+    }
+}
+
+/// The structural checks of [`Bvh::from_parts`] on `wide` (not empty) over `packs` packs: a
+/// depth-first walk, which visits the nodes in index order when they are valid.
+fn check_nodes(wide: &[Node4], packs: usize) -> Result<(), BvhPartsError> {
+    // (node, next slot) per level of the walk; at most MAX_DEPTH levels.
+    let mut stack: Vec<(usize, usize)> = Vec::with_capacity(MAX_DEPTH);
+    stack.push((0, 0));
+    let (mut reached, mut covered) = (1usize, 0usize);
+    while let Some(top) = stack.last_mut() {
+        let (index, slot) = *top;
+        if slot == 4 {
+            stack.pop();
+            continue;
+        }
+        top.1 += 1;
+        let (child, count) = (wide[index].child[slot], wide[index].triangle4_count[slot]);
+        let bad = |problem: String| BvhPartsError::BadNode {
+            node: index,
+            problem: format!("slot {slot}: {problem}"),
+        };
+        if child & LEAF == 0 {
+            if child as usize != reached || reached >= wide.len() {
+                return Err(bad(format!(
+                    "child {child}, expected node {reached} of {} (depth-first order)",
+                    wide.len()
+                )));
+            }
+            if count != 0 {
+                return Err(bad(format!("inner child with {count} triangle packs")));
+            }
+            if stack.len() >= MAX_DEPTH {
                 return Err(BvhPartsError::TooDeep);
             }
-            let n = nodes[index];
-            let bad = |problem: String| BvhPartsError::BadNode {
-                node: index,
-                problem,
-            };
-            if n.count == 0 {
-                let left = n.first as usize;
-                if left <= index || left + 1 >= nodes.len() {
-                    return Err(bad(format!("children at {left} out of order or range")));
-                }
-                stack.push((left + 1, depth + 1));
-                stack.push((left, depth + 1));
-            } else {
-                if n.first as usize != covered {
-                    return Err(bad(format!(
-                        "leaf starts at triangle {}, expected {covered}",
-                        n.first
-                    )));
-                }
-                // `covered <= triangles` holds here, so neither side can overflow.
-                if n.count as usize > triangles - covered {
-                    let end = u64::from(n.first) + u64::from(n.count);
-                    return Err(bad(format!("leaf ends at {end} past {triangles}")));
-                }
-                covered += n.count as usize;
+            reached += 1;
+            stack.push((child as usize, 0));
+        } else if count == 0 {
+            if child != LEAF {
+                return Err(bad(format!(
+                    "empty slot with child word {child:#010x}, expected {LEAF:#010x}"
+                )));
             }
+        } else {
+            let first = (child & !LEAF) as usize;
+            if first != covered {
+                return Err(bad(format!(
+                    "leaf starts at triangle pack {first}, expected {covered}"
+                )));
+            }
+            // `covered <= packs` holds here, so neither side can overflow.
+            if count as usize > packs - covered {
+                let end = first as u64 + u64::from(count);
+                return Err(bad(format!(
+                    "leaf ends at triangle pack {end} past {packs}"
+                )));
+            }
+            covered += count as usize;
         }
-        if covered != triangles {
-            return Err(BvhPartsError::Coverage { covered, triangles });
-        }
-        Ok(Bvh::assemble(nodes, ids, corners))
     }
+    if reached != wide.len() {
+        return Err(BvhPartsError::Unreached {
+            reached,
+            nodes: wide.len(),
+        });
+    }
+    if covered != packs {
+        return Err(BvhPartsError::Coverage { covered, packs });
+    }
+    Ok(())
 }

@@ -1,47 +1,64 @@
 //! The split object: one scene split as one stored blob, loadable without building anything.
 //!
 //! It is a shuffle block of kind `SplitObject` (zstd, checksums; see [`crate::shuffle`]) whose
-//! raw bytes are these columns, in order (version [`SPLIT_FORMAT_VERSION`]):
+//! raw bytes are the BVH's traversal form as it is in memory, then the ids and the shading, in
+//! these sections (version [`SPLIT_FORMAT_VERSION`]; little-endian, floats as IEEE bits):
 //!
-//! | column | type | values |
+//! | section | bytes | values |
 //! |---|---|---|
-//! | header | u32 | format version, split id, triangle count n, node count m, triangles with normals, distinct vertices, distinct normals, distinct kd |
-//! | node boxes | f32 | 6 per node: lo.xyz, hi.xyz |
-//! | node first | u32 | m: first child, or first triangle of a leaf |
-//! | node count | u32 | m: 0 for an interior node, else the leaf's triangle count |
-//! | vertices | f32 | 3 per distinct corner position (x, y, z), in order of first use |
-//! | corners | bytes | 3 references to vertices per triangle, BVH leaf order |
-//! | ids | u32 | n: global triangle id (scene order), leaf order |
-//! | has normals | bytes | n: 1 if the triangle has vertex normals |
-//! | normal vectors | f32 | 3 per distinct vertex normal, in order of first use |
-//! | normals | bytes | 3 references to normal vectors per triangle with normals, leaf order |
-//! | kd values | f32 | 3 per distinct kd, in order of first use |
-//! | kd | bytes | 1 reference to kd values per triangle, leaf order |
+//! | header | 56 | u32: format version, split id, triangle count n, 4-wide node count w, triangle pack count p, distinct vertex count v, triangles with normals c, distinct kd count k; f32: root box lo.xyz, hi.xyz |
+//! | nodes | 128 w | the 4-wide nodes as in memory, root first ([`NODE_BYTES`]: 4 child boxes axis by axis, 4 child words, 4 pack counts) |
+//! | pack lanes | p | u8: triangles in each `Triangle4` pack (1 to 4), in pack order |
+//! | vertices | 12 v | planes of 3 f32 (x, y, z) per distinct corner position, in order of first use |
+//! | corners | 12 n | planes of 3 u32 per triangle: the indices of its corners' vertices, BVH leaf order |
+//! | ids | 4 n | planes of u32: global triangle id (scene order), leaf order |
+//! | normal flags | n | u8: 1 if the triangle has vertex normals, else 0 |
+//! | normals | 36 c | 9 f32 per triangle with normals (corner 0 xyz, 1, 2), leaf order |
+//! | kd values | 12 k | 3 f32 per distinct kd, in order of first use |
+//! | kd indices | 4 n | planes of u32: index of each triangle's kd value, leaf order |
 //!
-//! "Distinct" compares bit patterns, so every value (signed zeros, NaN payloads) round-trips
-//! exactly. A reference column holds one LEB128 varint `d` per use (`shuffle::varint`, at most
-//! 32 bits): with `c` distinct values used before, `d = 0` is the next new value (the value at
-//! index `c`), `1 <= d <= c` the value at index `c - d` (1 is the newest). Every distinct value
-//! is used.
+//! A section of "planes" holds its words' byte 0s, then their byte 1s, 2s and 3s (as the
+//! shuffle columns' byte planes). "Distinct" compares bit patterns, so every value (signed
+//! zeros, NaN payloads) round-trips exactly; "in order of first use" means each index is at
+//! most the number of values used before it, and every value is used.
 //!
-//! Triangles of a mesh share corners (about six triangles per vertex) and materials, so this is
-//! much smaller than nine floats of corners and three of kd per triangle (version 1), and
-//! loading mostly decompresses and copies bytes: on the generated 1M-triangle scene the
-//! corners take 9.4 MB (6.0 MB vertices, 3.3 MB references) instead of 36 MB, kd 1 MB instead of
-//! 12 MB, the whole object 35 MB raw (19 MB stored) instead of 73 MB (36 MB).
+//! Why this layout (measured, docs/ARCHITECTURE.md section 8): loading is decompression plus
+//! linear passes into the final arrays (the nodes byte for byte, the packs four triangles at a
+//! time, gathering each corner from the vertices, which are numbered in order of first use and
+//! so read almost in order) and linear checks; nothing is collapsed or searched. The corners
+//! refer to distinct vertices rather than being written out: written out they compress about
+//! as small (zstd finds the repeated vertices itself) but are twice the raw bytes, made of
+//! short matches that took zstd several times as long to undo as the vertices and indices.
+//! Byte planes make the vertices, indices and ids a quarter to a half smaller stored and faster
+//! to decompress (high bytes repeat); the nodes gain little from them and are stored as they
+//! are. kd values repeat per material, so kd indices are a small table's; normals are stored
+//! written out, as few scenes have them.
+//!
+//! Decoding checks everything it relies on: the version (objects of version 2 and older name
+//! their version and are refused; a task rebuilds such an object from the scene as it does a
+//! damaged one), the header's counts against each other and the exact raw
+//! length, the BVH as [`Bvh::from_parts`] does (children in depth-first order after their
+//! parent, depth, leaves inside the packs and covering them, pack sizes), vertex and kd
+//! indices numbering their tables in order of first use, normal flags 0 or 1 and as many set
+//! as declared. It does not check that table values are distinct (a duplicate only costs bytes;
+//! re-encoding merges it), so `encode_split` of a decoded object gives back the bytes it came
+//! from whenever they were written by `encode_split`, and otherwise bytes that decode to an
+//! equal object.
 
 use super::PipelineError;
-use crate::bvh::{Aabb, Bvh, Node};
-use crate::shuffle::columns::{ColumnReader, ColumnWriter};
-use crate::shuffle::varint;
+use crate::bvh::{Aabb, Bvh, BvhParts, NODE_BYTES};
+use crate::shuffle::columns::ColumnReader;
 use crate::shuffle::{RecordKind, decode_block, encode_block};
 use glam::Vec3;
-use std::collections::HashMap;
-use std::collections::hash_map::Entry;
-use std::hash::{BuildHasherDefault, Hasher};
 
-/// Version of the column layout above; bump on any change.
-pub const SPLIT_FORMAT_VERSION: u32 = 2;
+mod distinct;
+use distinct::Distinct;
+
+/// Version of the layout above; bump on any change.
+pub const SPLIT_FORMAT_VERSION: u32 = 3;
+
+/// Bytes of the header section: 8 u32 and 6 f32.
+const HEADER_BYTES: usize = 56;
 
 /// Per-triangle shading data carried by a split.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -71,319 +88,295 @@ impl SplitObject {
     }
 }
 
-/// Encodes a split object as a compressed block.
-pub fn encode_split(object: &SplitObject) -> Vec<u8> {
-    let (nodes, triangles, ids) = object.bvh.parts();
-    let mut vertices = Distinct::default();
-    for corner in triangles.iter().flatten() {
-        vertices.push(corner.to_array());
+/// The header's counts: triangles, 4-wide nodes, packs, distinct vertices, triangles with
+/// normals, distinct kd.
+#[derive(Clone, Copy)]
+struct Counts {
+    n: u32,
+    w: u32,
+    p: u32,
+    v: u32,
+    c: u32,
+    k: u32,
+}
+
+impl Counts {
+    /// The sections' lengths in bytes after the header, in order.
+    fn section_lengths(self) -> [u64; 9] {
+        let Counts { n, w, p, v, c, k } = self;
+        let [n, w, p, v, c, k] = [n, w, p, v, c, k].map(u64::from);
+        [
+            w * NODE_BYTES as u64,
+            p,
+            12 * v,
+            12 * n,
+            4 * n,
+            n,
+            36 * c,
+            12 * k,
+            4 * n,
+        ]
     }
-    let mut normals = Distinct::default();
-    let mut kd = Distinct::default();
-    for s in &object.shading {
-        for normal in s.normals.iter().flatten() {
-            normals.push(normal.to_array());
+}
+
+/// Appends `words` as byte planes: byte 0 of every word, then byte 1, 2 and 3.
+fn put_planes(out: &mut Vec<u8>, words: &[u32]) {
+    out.reserve(4 * words.len());
+    for plane in 0..4 {
+        out.extend(words.iter().map(|w| w.to_le_bytes()[plane]));
+    }
+}
+
+/// The words of a planes section (its length a multiple of 4), in order.
+fn planes(bytes: &[u8]) -> impl ExactSizeIterator<Item = u32> + Clone + '_ {
+    let len = bytes.len() / 4;
+    let (b0, rest) = bytes.split_at(len);
+    let (b1, rest) = rest.split_at(len);
+    let (b2, b3) = rest.split_at(len);
+    b0.iter()
+        .zip(b1)
+        .zip(b2)
+        .zip(&b3[..len])
+        .map(|(((&a, &b), &c), &d)| u32::from_le_bytes([a, b, c, d]))
+}
+
+/// Checks that `indices` number a table of `values` values in order of first use (each at most
+/// the number used before it, every value used); the error names `what` and the first bad
+/// index.
+fn check_first_use(
+    indices: impl Iterator<Item = u32>,
+    values: u32,
+    what: &str,
+) -> Result<(), String> {
+    let mut used = 0u32;
+    for (i, index) in indices.enumerate() {
+        if index > used || index >= values {
+            return Err(format!(
+                "{what} index {i} is {index}, expected at most {} (values in order of first use)",
+                used.min(values.saturating_sub(1))
+            ));
         }
+        used += u32::from(index == used);
+    }
+    if used != values {
+        return Err(format!("{what} values: {used} of {values} used"));
+    }
+    Ok(())
+}
+
+/// Encodes a split object as a compressed block (deterministic: the same object gives the same
+/// bytes). `object.shading` holds one entry per triangle.
+pub fn encode_split(object: &SplitObject) -> Vec<u8> {
+    let bvh = &object.bvh;
+    let n = bvh.triangle_count();
+    let mut vertices = Distinct::with_capacity(3 * n);
+    for t in bvh.leaf_triangles() {
+        for corner in t {
+            vertices.push(corner.to_array());
+        }
+    }
+    let mut kd = Distinct::with_capacity(n);
+    for s in &object.shading {
         kd.push(s.kd);
     }
-    let with_normals = object
-        .shading
+    let counts = Counts {
+        n: n as u32,
+        w: bvh.wide_node_count() as u32,
+        p: bvh.pack_count() as u32,
+        v: vertices.values.len() as u32,
+        c: object
+            .shading
+            .iter()
+            .filter(|s| s.normals.is_some())
+            .count() as u32,
+        k: kd.values.len() as u32,
+    };
+    let total: u64 = counts.section_lengths().iter().sum();
+    let mut raw = Vec::with_capacity(HEADER_BYTES + total as usize);
+    let Counts { n, w, p, v, c, k } = counts;
+    for word in [SPLIT_FORMAT_VERSION, object.split, n, w, p, v, c, k] {
+        raw.extend_from_slice(&word.to_le_bytes());
+    }
+    let Aabb { lo, hi } = bvh.bounds();
+    for x in lo.to_array().into_iter().chain(hi.to_array()) {
+        raw.extend_from_slice(&x.to_le_bytes());
+    }
+    bvh.put_nodes(&mut raw);
+    bvh.put_lanes(&mut raw);
+    let vertex_bits: Vec<u32> = vertices
+        .values
         .iter()
-        .filter(|s| s.normals.is_some())
-        .count();
-    let mut w = ColumnWriter::new();
-    w.put_u32(&[
-        SPLIT_FORMAT_VERSION,
-        object.split,
-        triangles.len() as u32,
-        nodes.len() as u32,
-        with_normals as u32,
-        vertices.count(),
-        normals.count(),
-        kd.count(),
-    ]);
-    let boxes: Vec<f32> = nodes
-        .iter()
-        .flat_map(|n| {
-            n.bounds
-                .lo
-                .to_array()
-                .into_iter()
-                .chain(n.bounds.hi.to_array())
-        })
+        .flatten()
+        .map(|x| x.to_bits())
         .collect();
-    w.put_f32(&boxes);
-    w.put_u32(&nodes.iter().map(|n| n.first).collect::<Vec<_>>());
-    w.put_u32(&nodes.iter().map(|n| n.count).collect::<Vec<_>>());
-    vertices.put(&mut w);
-    w.put_u32(ids);
-    let flags: Vec<u8> = object
-        .shading
-        .iter()
-        .map(|s| u8::from(s.normals.is_some()))
-        .collect();
-    w.put_bytes(&flags);
-    normals.put(&mut w);
-    kd.put(&mut w);
-    encode_block(
-        RecordKind::SplitObject,
-        triangles.len() as u64,
-        w.as_bytes(),
-    )
-}
-
-/// The distinct values of a column in order of first use and a reference to them per use (see
-/// the module docs).
-#[derive(Default)]
-struct Distinct {
-    values: Vec<f32>,
-    index: HashMap<[u32; 3], u32, BuildHasherDefault<WordHasher>>,
-    refs: Vec<u8>,
-}
-
-/// A multiply-xor hasher for the bit patterns `Distinct` maps (millions per split): several
-/// times faster than the standard library's SipHash, whose resistance to chosen keys buys
-/// nothing here. The hasher only affects speed, never the bytes: values are numbered in order
-/// of first use, whatever the map's layout.
-#[derive(Default)]
-struct WordHasher(u64);
-
-impl WordHasher {
-    const K: u64 = 0x9E37_79B9_7F4A_7C15;
-
-    #[inline]
-    fn add(&mut self, word: u64) {
-        self.0 = (self.0.rotate_left(23) ^ word).wrapping_mul(Self::K);
-    }
-}
-
-impl Hasher for WordHasher {
-    #[inline]
-    fn write(&mut self, bytes: &[u8]) {
-        let (words, rest) = bytes.as_chunks::<8>();
-        for w in words {
-            self.add(u64::from_le_bytes(*w));
-        }
-        let mut last = [0u8; 8];
-        last[..rest.len()].copy_from_slice(rest);
-        self.add(u64::from_le_bytes(last) ^ ((rest.len() as u64) << 56));
-    }
-
-    #[inline]
-    fn write_usize(&mut self, n: usize) {
-        self.add(n as u64);
-    }
-
-    #[inline]
-    fn finish(&self) -> u64 {
-        // Fold the high bits, which the multiplications mixed well, into the low ones.
-        let h = self.0 ^ (self.0 >> 29);
-        h.wrapping_mul(Self::K) ^ (h >> 32)
-    }
-}
-
-impl Distinct {
-    fn push(&mut self, value: [f32; 3]) {
-        let seen = self.index.len() as u32;
-        match self.index.entry(value.map(f32::to_bits)) {
-            Entry::Occupied(e) => varint::write(&mut self.refs, u64::from(seen - e.get())),
-            Entry::Vacant(e) => {
-                e.insert(seen);
-                self.values.extend(value);
-                self.refs.push(0);
-            }
+    put_planes(&mut raw, &vertex_bits);
+    put_planes(&mut raw, &vertices.uses);
+    put_planes(&mut raw, bvh.ids());
+    raw.extend(object.shading.iter().map(|s| u8::from(s.normals.is_some())));
+    for normals in object.shading.iter().filter_map(|s| s.normals.as_ref()) {
+        for x in normals.iter().flat_map(|v| v.to_array()) {
+            raw.extend_from_slice(&x.to_le_bytes());
         }
     }
-
-    fn count(&self) -> u32 {
-        self.index.len() as u32
+    for x in kd.values.iter().flatten() {
+        raw.extend_from_slice(&x.to_le_bytes());
     }
-
-    /// Writes the values column, then the references column.
-    fn put(&self, w: &mut ColumnWriter) {
-        w.put_f32(&self.values);
-        w.put_bytes(&self.refs);
-    }
+    put_planes(&mut raw, &kd.uses);
+    encode_block(RecordKind::SplitObject, u64::from(n), &raw)
 }
 
-/// Reads a references column (see the module docs) one use at a time.
-struct References<'a> {
-    bytes: &'a [u8],
-    seen: u32,
-    distinct: u32,
+/// The format version of a split object written before version 3, whose raw bytes are columns
+/// starting with a u32 column that holds the version; `None` for anything else (version 3 raw
+/// bytes start with the word 3, which is no u32 column's tag).
+fn older_version(raw: &[u8]) -> Option<u32> {
+    ColumnReader::new(raw).read_u32().ok()?.first().copied()
 }
 
-impl<'a> References<'a> {
-    fn new(bytes: &'a [u8], distinct: usize) -> Self {
-        References {
-            bytes,
-            seen: 0,
-            // `distinct` counts the values of a column, so it is below 2^32.
-            distinct: u32::try_from(distinct).unwrap_or(u32::MAX),
-        }
-    }
-
-    /// The index of the next use's value; `None` if the column ends, a varint is malformed or
-    /// the reference points outside the values.
-    #[inline]
-    fn next(&mut self) -> Option<u32> {
-        let d = varint::read_u32(&mut self.bytes).ok()?;
-        if d == 0 {
-            (self.seen < self.distinct).then(|| {
-                self.seen += 1;
-                self.seen - 1
-            })
-        } else {
-            self.seen.checked_sub(d)
-        }
-    }
-
-    /// True when every byte was read and every value was used.
-    fn is_done(&self) -> bool {
-        self.bytes.is_empty() && self.seen == self.distinct
-    }
-}
-
-/// Decodes and validates a split object read from `key`.
+/// Decodes and validates a split object read from `key`. Every error is one line naming `key`
+/// and what is wrong (see the module docs for what is checked).
 pub fn decode_split(key: &str, bytes: &[u8]) -> Result<SplitObject, PipelineError> {
     let block = decode_block(key, bytes, RecordKind::SplitObject)
         .map_err(|e| PipelineError::Corrupt(e.to_string()))?;
     let corrupt = |what: String| PipelineError::Corrupt(format!("split object {key}: {what}"));
-    let mut r = ColumnReader::new(&block.raw);
-    let col = |e: crate::shuffle::columns::ColumnError| corrupt(e.to_string());
-    let header = r.read_u32().map_err(col)?;
-    let version = header.first().copied().unwrap_or(0);
+    let raw = &block.raw[..];
+    if let Some(old) = older_version(raw) {
+        return Err(corrupt(format!(
+            "format version {old}, this build reads {SPLIT_FORMAT_VERSION}"
+        )));
+    }
+    let Some((head, body)) = raw.split_first_chunk::<HEADER_BYTES>() else {
+        return Err(corrupt(format!(
+            "{} raw bytes, shorter than the {HEADER_BYTES}-byte header",
+            raw.len()
+        )));
+    };
+    let (words, _) = head.as_chunks::<4>();
+    let word = |k: usize| u32::from_le_bytes(words[k]);
+    let version = word(0);
     if version != SPLIT_FORMAT_VERSION {
         return Err(corrupt(format!(
             "format version {version}, this build reads {SPLIT_FORMAT_VERSION}"
         )));
     }
-    let [_, split, n, m, with_normals, v, w, k] = header[..] else {
+    let [split, n, w, p, v, with_normals, k] = [1, 2, 3, 4, 5, 6, 7].map(word);
+    if with_normals > n {
         return Err(corrupt(format!(
-            "header has {} values, expected 8",
-            header.len()
+            "header declares {with_normals} triangles with normals of {n}"
         )));
+    }
+    if k > n || (k == 0 && n > 0) {
+        return Err(corrupt(format!(
+            "header declares {k} kd values for {n} triangles"
+        )));
+    }
+    let counts = Counts {
+        n,
+        w,
+        p,
+        v,
+        c: with_normals,
+        k,
     };
-    let boxes = r.read_f32_planes().map_err(col)?;
-    let firsts = r.read_u32_planes().map_err(col)?;
-    let counts = r.read_u32_planes().map_err(col)?;
-    let vertices = r.read_f32_planes().map_err(col)?;
-    let corner_refs = r.read_bytes().map_err(col)?;
-    let ids = r.read_u32_planes().map_err(col)?;
-    let flags = r.read_bytes().map_err(col)?;
-    let normal_values = r.read_f32_planes().map_err(col)?;
-    let normal_refs = r.read_bytes().map_err(col)?;
-    let kd_values = r.read_f32_planes().map_err(col)?;
-    let kd_refs = r.read_bytes().map_err(col)?;
-    r.finish().map_err(col)?;
-    let lengths = [
-        (boxes.len(), 6 * u64::from(m), "node boxes"),
-        (firsts.len(), u64::from(m), "node firsts"),
-        (counts.len(), u64::from(m), "node counts"),
-        (vertices.len(), 3 * u64::from(v), "vertices"),
-        (ids.len(), u64::from(n), "ids"),
-        (flags.len(), u64::from(n), "normal flags"),
-        (normal_values.len(), 3 * u64::from(w), "normal vectors"),
-        (kd_values.len(), 3 * u64::from(k), "kd values"),
-    ];
-    for (found, expected, what) in lengths {
-        if found as u64 != expected {
-            return Err(corrupt(format!(
-                "{what}: {found} values, expected {expected}"
-            )));
-        }
+    let lengths = counts.section_lengths();
+    let expected: u64 = lengths.iter().sum();
+    if body.len() as u64 != expected {
+        return Err(corrupt(format!(
+            "{} bytes after the header, whose counts call for {expected}",
+            body.len()
+        )));
     }
-    if flags.iter().filter(|&&f| f == 1).count() != with_normals as usize
-        || flags.iter().any(|&f| f > 1)
-    {
-        return Err(corrupt("normal flags disagree with the header".into()));
-    }
-    // Every use takes at least one byte of its references column.
-    let uses = [
-        (corner_refs.len(), 3 * u64::from(n), "corners"),
-        (normal_refs.len(), 3 * u64::from(with_normals), "normals"),
-        (kd_refs.len(), u64::from(n), "kd"),
-    ];
-    for (found, needed, what) in uses {
-        if (found as u64) < needed {
-            return Err(corrupt(format!(
-                "{what}: {found} bytes of references for {needed} uses"
-            )));
-        }
-    }
-    // From here on every count (n, m and the distinct counts) is bounded by the length of a
-    // column just read, so the allocations below are bounded by the input.
-    let n = ids.len();
-    let vec3 = |w: [u32; 3]| Vec3::from_array(w.map(f32::from_bits));
-    let nodes = boxes
-        .groups::<6>()
-        .zip(firsts.u32s())
-        .zip(counts.u32s())
-        .map(|((b, first), count)| Node {
-            bounds: Aabb {
-                lo: vec3([b[0], b[1], b[2]]),
-                hi: vec3([b[3], b[4], b[5]]),
-            },
-            first,
-            count,
-        })
-        .collect();
-    let vertices: Vec<Vec3> = vertices.groups::<3>().map(vec3).collect();
-    let bad_refs = |what: &str| corrupt(format!("{what}: malformed or out-of-range references"));
-    let mut refs = References::new(corner_refs, vertices.len());
-    let mut corners = Vec::with_capacity(n);
-    for _ in 0..n {
-        match (refs.next(), refs.next(), refs.next()) {
-            (Some(a), Some(b), Some(c)) => corners.push([a, b, c]),
-            _ => return Err(bad_refs("corners")),
-        }
-    }
-    if !refs.is_done() {
-        return Err(bad_refs("corners"));
-    }
-    // Every reference is below vertices.len() (checked while reading them), and from_parts
-    // asks only for triangles below n = corners.len().
-    let vertex = |i: u32| vertices.get(i as usize).copied().unwrap_or(Vec3::ZERO);
-    let bvh = Bvh::from_parts(nodes, ids.u32s().collect(), |t| {
-        corners.get(t).map_or([Vec3::ZERO; 3], |&[a, b, c]| {
-            [vertex(a), vertex(b), vertex(c)]
-        })
-    })
+    // The lengths sum to body.len(), so each fits in usize and the splits stay in range.
+    let mut rest = body;
+    let [
+        nodes,
+        lanes,
+        vertices,
+        corners,
+        ids,
+        flags,
+        normals,
+        kd_values,
+        kd_indices,
+    ] = lengths.map(|len| {
+        let (section, after) = rest.split_at(len as usize);
+        rest = after;
+        section
+    });
+    check_first_use(planes(corners), v, "vertex").map_err(corrupt)?;
+    check_first_use(planes(kd_indices), k, "kd").map_err(corrupt)?;
+    let f = |b: &[u8; 4]| f32::from_le_bytes(*b);
+    let vec3 = |b: &[[u8; 4]]| Vec3::new(f(&b[0]), f(&b[1]), f(&b[2]));
+    let bounds = Aabb {
+        lo: vec3(&words[8..11]),
+        hi: vec3(&words[11..14]),
+    };
+    let ids: Vec<u32> = planes(ids).collect();
+    let vertex_bits: Vec<u32> = planes(vertices).collect();
+    let (vertices, _) = vertex_bits.as_chunks::<3>();
+    let mut corners = planes(corners);
+    // Every index is below v = vertices.len() (checked above), and from_parts asks for each
+    // triangle once, in order: the fallbacks are never taken.
+    let mut vertex = || {
+        let i = corners.next().unwrap_or(0) as usize;
+        vertices
+            .get(i)
+            .map_or(Vec3::ZERO, |w| Vec3::from_array(w.map(f32::from_bits)))
+    };
+    let bvh = Bvh::from_parts(
+        BvhParts {
+            bounds,
+            nodes,
+            lanes,
+        },
+        ids,
+        |_| [vertex(), vertex(), vertex()],
+    )
     .map_err(|e| corrupt(e.to_string()))?;
-    drop(corners);
-    let normal_values: Vec<Vec3> = normal_values.groups::<3>().map(vec3).collect();
-    let normal = |i: u32| normal_values.get(i as usize).copied().unwrap_or(Vec3::ZERO);
+    let (normals, _) = normals.as_chunks::<36>();
+    let mut normals = normals.iter().map(|t| {
+        let (w, _) = t.as_chunks::<4>();
+        [vec3(&w[0..3]), vec3(&w[3..6]), vec3(&w[6..9])]
+    });
     let kd_values: Vec<[f32; 3]> = kd_values
-        .groups::<3>()
-        .map(|w| w.map(f32::from_bits))
+        .as_chunks::<12>()
+        .0
+        .iter()
+        .map(|b| {
+            let (w, _) = b.as_chunks::<4>();
+            [f(&w[0]), f(&w[1]), f(&w[2])]
+        })
         .collect();
-    let mut normal_refs = References::new(normal_refs, normal_values.len());
-    let mut kd_refs = References::new(kd_refs, kd_values.len());
-    let mut shading = Vec::with_capacity(n);
-    for &flag in flags {
-        let normals = if flag == 1 {
-            let mut three = || {
-                Some([
-                    normal_refs.next()?,
-                    normal_refs.next()?,
-                    normal_refs.next()?,
-                ])
-            };
-            Some(three().ok_or_else(|| bad_refs("normals"))?.map(normal))
-        } else {
-            None
+    let mut kd_indices = planes(kd_indices);
+    let mut shading = Vec::with_capacity(flags.len());
+    let mut normals_used = 0u32;
+    for (i, &flag) in flags.iter().enumerate() {
+        let normals = match flag {
+            0 => None,
+            1 => {
+                normals_used += 1;
+                Some(normals.next().ok_or_else(|| {
+                    corrupt(format!(
+                        "normal flags: more than the header's {with_normals} are set"
+                    ))
+                })?)
+            }
+            _ => {
+                return Err(corrupt(format!(
+                    "normal flag of triangle {i} is {flag}, expected 0 or 1"
+                )));
+            }
         };
-        let kd = kd_refs
-            .next()
-            .and_then(|i| kd_values.get(i as usize))
-            .ok_or_else(|| bad_refs("kd"))?;
-        shading.push(TriangleShading { normals, kd: *kd });
+        // Every kd index is below k = kd_values.len() (checked above).
+        let kd = kd_values
+            .get(kd_indices.next().unwrap_or(0) as usize)
+            .copied()
+            .unwrap_or_default();
+        shading.push(TriangleShading { normals, kd });
     }
-    if !normal_refs.is_done() {
-        return Err(bad_refs("normals"));
-    }
-    if !kd_refs.is_done() {
-        return Err(bad_refs("kd"));
+    if normals_used != with_normals {
+        return Err(corrupt(format!(
+            "normal flags: {normals_used} set, the header declares {with_normals}"
+        )));
     }
     Ok(SplitObject {
         split,

@@ -1,10 +1,10 @@
-//! LEB128 varints: the one implementation behind column headers, sorted-delta columns
-//! ([`super::columns`]) and split-object reference columns (`pipeline/split_object.rs`).
+//! LEB128 varints: the one implementation behind column headers and sorted-delta columns
+//! ([`super::columns`]).
 //!
 //! A value is written as 7-bit groups, least significant first, each byte's high bit set when
 //! another byte follows; the writer always emits the shortest form. Readers accept exactly the
-//! encodings of values of their width (at most 5 bytes for [`read_u32`], 10 for [`read_u64`],
-//! no bits beyond the width); longer-than-shortest forms within that length are accepted, as
+//! encodings of values of their width (at most 10 bytes for [`read_u64`], no bits beyond the
+//! width); longer-than-shortest forms within that length are accepted, as
 //! they always were. Reading never panics.
 
 /// Why a varint could not be read.
@@ -24,14 +24,6 @@ pub fn write(out: &mut Vec<u8>, mut value: u64) {
         value >>= 7;
     }
     out.push(value as u8);
-}
-
-/// Reads a varint of at most 32 bits (at most 5 bytes) from the front of `input`, advancing it
-/// past the bytes read. On error, `input` is left somewhere within the bad varint.
-#[inline]
-pub fn read_u32(input: &mut &[u8]) -> Result<u32, VarintError> {
-    // `read` with 32 bits never returns a value above u32::MAX.
-    read(input, 32).map(|v| v as u32)
 }
 
 /// Reads a varint of at most 64 bits (at most 10 bytes) from the front of `input`, advancing
@@ -75,6 +67,11 @@ fn read_long(input: &mut &[u8], bits: u32) -> Result<u64, VarintError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A varint of at most 32 bits: `read`'s width check at a width other than 64.
+    fn read_u32(input: &mut &[u8]) -> Result<u32, VarintError> {
+        read(input, 32).map(|v| v as u32)
+    }
 
     fn encoded(value: u64) -> Vec<u8> {
         let mut out = Vec::new();
