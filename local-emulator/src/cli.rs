@@ -20,6 +20,9 @@ pub struct Cli {
 pub enum Command {
     /// Render an OBJ file or a JSON scene manifest.
     Render(Box<RenderArgs>),
+    /// The plan `hort render` would run, and its time, requests and dollars projected on N
+    /// functions (AWS Lambda or the local emulator), before paying for anything.
+    Plan(Box<crate::plan_cmd::PlanArgs>),
     /// Scene tools.
     Scene {
         #[command(subcommand)]
