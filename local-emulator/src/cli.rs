@@ -60,6 +60,9 @@ pub enum BenchCommand {
     /// Single-thread samples/s of the monolithic renderer against Mitsuba's multijitter timings
     /// (eval/references), same scenes, size and spp.
     Samples(crate::bench::SamplesBenchArgs),
+    /// `hort plan --target emulator` against the emulator runs it predicts: predicted and
+    /// measured seconds and their ratio per scene, slot count and injected S3 latency.
+    Plan(crate::bench::PlanBenchArgs),
 }
 
 #[derive(Subcommand)]

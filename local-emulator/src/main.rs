@@ -60,6 +60,9 @@ fn main() -> std::process::ExitCode {
         cli::Command::Bench {
             command: cli::BenchCommand::Samples(args),
         } => bench::run_samples_bench(&args),
+        cli::Command::Bench {
+            command: cli::BenchCommand::Plan(args),
+        } => bench::run_plan_bench(&args),
     };
     // Last: tasks a cancelled run abandoned may have written into its temporary folder.
     hort::emulator::remove_temp_folders();

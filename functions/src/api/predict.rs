@@ -57,6 +57,16 @@ pub struct Rates {
     pub trace_reduce_us_per_query: f64,
     /// Combine: per pixel (PNG, PFM and hit buffer encoding, upload).
     pub combine_us_per_pixel: f64,
+    /// Render (fused): per camera sample of the span, against the whole scene, without a
+    /// shuffle (shading, hit buffer, the span's pixels encoded and uploaded).
+    pub render_us_per_sample: f64,
+    /// Render (fused): per (sample, light) of the span.
+    pub render_us_per_query: f64,
+    /// A function's first read of a split: fetch and decode, per triangle of the split (a warm
+    /// function keeps it).
+    pub split_load_us_per_triangle: f64,
+    /// The client's upload of the parsed scene, per triangle.
+    pub upload_us_per_triangle: f64,
 }
 
 /// The reference rates: `hort render` through the emulator (embedded S3 server, debug build of
@@ -67,13 +77,17 @@ pub const RATES: Rates = Rates {
     task_overhead_ms: 10.0,
     stage_overhead_ms: 20.0,
     plan_overhead_ms: 20.0,
-    plan_us_per_triangle: 5.0,
+    plan_us_per_triangle: 3.0,
     cast_us_per_sample: 2.0,
     cast_reduce_us_per_sample: 2.0,
     expand_us_per_query: 1.4,
     trace_us_per_query: 0.4,
     trace_reduce_us_per_query: 0.5,
     combine_us_per_pixel: 2.0,
+    render_us_per_sample: 0.3,
+    render_us_per_query: 0.3,
+    split_load_us_per_triangle: 0.4,
+    upload_us_per_triangle: 2.0,
 };
 
 /// What a backend runs jobs on.
@@ -203,14 +217,16 @@ pub fn predict(plan: &JobPlan, model: &PredictionModel) -> Prediction {
     let lights = plan.lights.len() as u64;
     let task_ms = |stage: Stage| task_milliseconds(plan, stage, r, speed);
     let mut stages = Vec::new();
-    let mut seconds = r.job_overhead_ms / 1000.0;
+    let mut seconds =
+        r.job_overhead_ms / 1000.0 + plan.triangles as f64 * r.upload_us_per_triangle / 1e6 / speed;
     let mut cost = CostBreakdown::default();
     let mut children = 0u64;
     for &stage in plan.stages() {
         let tasks = plan.task_count(stage) as u64;
         let one_ms = task_ms(stage);
         let waves = tasks.div_ceil(concurrency).max(1) as f64;
-        let stage_seconds = (r.stage_overhead_ms + waves * one_ms) / 1000.0;
+        let stage_seconds =
+            (r.stage_overhead_ms + waves * one_ms + split_load_ms(plan, stage, r, speed)) / 1000.0;
         seconds += stage_seconds;
         let is_map = stage.items_field().is_some();
         if is_map {
@@ -282,13 +298,10 @@ pub fn task_milliseconds(plan: &JobPlan, stage: Stage, r: &Rates, speed: f64) ->
             plan.triangles as f64,
             r.plan_us_per_triangle,
         ),
-        // The staged stages' work in one task, without their shuffle.
         Stage::Render => ms(
             r.task_overhead_ms,
             1.0,
-            span_samples * r.cast_us_per_sample
-                + queries * (r.expand_us_per_query + r.trace_us_per_query)
-                + (span_samples + queries) * r.trace_reduce_us_per_query,
+            span_samples * r.render_us_per_sample + queries * r.render_us_per_query,
         ),
         Stage::CastMap => ms(r.task_overhead_ms, span_samples, r.cast_us_per_sample),
         Stage::CastReduce => ms(
@@ -304,6 +317,19 @@ pub fn task_milliseconds(plan: &JobPlan, stage: Stage, r: &Rates, speed: f64) ->
             r.trace_reduce_us_per_query,
         ),
         Stage::Combine => ms(r.task_overhead_ms, pixels as f64, r.combine_us_per_pixel),
+    }
+}
+
+/// Milliseconds a function spends on its first read of the largest split `stage` reads (0 for
+/// the stages that read none): once per stage, in parallel over the functions.
+pub fn split_load_ms(plan: &JobPlan, stage: Stage, r: &Rates, speed: f64) -> f64 {
+    let speed = if speed > 0.0 { speed } else { 1.0 };
+    match stage {
+        Stage::Render | Stage::CastMap | Stage::TraceMap => {
+            let largest = plan.splits.iter().map(|s| s.triangles).max().unwrap_or(0);
+            largest as f64 * r.split_load_us_per_triangle / 1000.0 / speed
+        }
+        _ => 0.0,
     }
 }
 

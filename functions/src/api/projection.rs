@@ -20,7 +20,9 @@ use hort_core::ids::Stage;
 use hort_core::pipeline::JobPlan;
 use serde::Serialize;
 
-use super::predict::{CLIENT_PUTS, Rates, stage_bytes, stage_requests, task_milliseconds};
+use super::predict::{
+    CLIENT_PUTS, Rates, split_load_ms, stage_bytes, stage_requests, task_milliseconds,
+};
 
 /// The function counts of the sweep every projection reports.
 pub const SWEEP: [u32; 4] = [10, 100, 1_000, 10_000];
@@ -227,7 +229,17 @@ pub fn project(plan: &JobPlan, functions: u32, settings: &ProjectionSettings) ->
                     + work_ms;
                 let c = u64::from(concurrency).min(tasks.max(1));
                 let waves = (tasks as f64 * attempts / c as f64).ceil().max(1.0);
-                let mut wave_s = waves * task_ms / 1e3;
+                // Each function's first read of a split: fetch and decode, in parallel; a warm
+                // function keeps it, and reads at most one per task.
+                let largest_bytes = plan.splits.iter().map(|s| s.bytes).max().unwrap_or(0);
+                let decode_ms = split_load_ms(plan, stage, &settings.rates, speed);
+                let load_ms = if decode_ms > 0.0 {
+                    decode_ms * vcpu + largest_bytes as f64 / (f.s3_mb_per_s * 1e3)
+                } else {
+                    0.0
+                };
+                let loads = f64::from(plan.k()).min(waves);
+                let mut wave_s = (waves * task_ms + loads * load_ms) / 1e3;
                 if stage != Stage::Plan && first_worker_stage {
                     // New environments: init plus a first S3 connection, once; beyond 1,000
                     // at once Lambda adds 1,000 environments per 10 s.
@@ -274,7 +286,12 @@ pub fn project(plan: &JobPlan, functions: u32, settings: &ProjectionSettings) ->
                         task_ms.max(n * cpu_ms / c)
                     }
                 };
-                let s = (full * wave(w) + wave(rest)) / 1e3;
+                // Each slot's first read of each split it needs (a warm slot keeps them),
+                // the slots loading at once sharing the cores.
+                let loads = f64::from(plan.k()).min((runs / w).ceil());
+                let load_ms =
+                    loads * split_load_ms(plan, stage, &settings.rates, speed) * (w / c).max(1.0);
+                let s = (full * wave(w) + wave(rest) + load_ms) / 1e3;
                 let bound = if w > c && wave(w) > task_ms {
                     "cores"
                 } else {
@@ -321,7 +338,10 @@ pub fn project(plan: &JobPlan, functions: u32, settings: &ProjectionSettings) ->
                 + plan.scene_bytes() as f64 / (f.s3_mb_per_s * 1e6)
         }
         Target::Emulator { s3_latency_ms, .. } => {
-            (settings.rates.job_overhead_ms + (CLIENT_PUTS as f64 + 3.0) * s3_latency_ms) / 1e3
+            (settings.rates.job_overhead_ms
+                + plan.triangles as f64 * settings.rates.upload_us_per_triangle / 1e3 / speed
+                + (CLIENT_PUTS as f64 + 3.0) * s3_latency_ms)
+                / 1e3
         }
     };
     let transitions = standard_transitions_for(5, 2, children, 0);

@@ -153,8 +153,14 @@ pub fn run(args: &PlanArgs) -> Result<()> {
     Ok(())
 }
 
-/// The plan and its projections for `args` (what `hort plan` prints).
+/// The plan and its projections for `args` (what `hort plan` prints), calibrating first.
 pub fn plan(args: &PlanArgs) -> Result<PlanOutput> {
+    check_flags(args)?;
+    plan_with(args, calibrate()?)
+}
+
+/// Refuses flag values `hort plan` cannot use, naming the flag.
+fn check_flags(args: &PlanArgs) -> Result<()> {
     if !(0.0..1.0).contains(&args.fail_rate) {
         bail!(
             "--fail-rate {} is not a probability from 0 to below 1",
@@ -173,6 +179,12 @@ pub fn plan(args: &PlanArgs) -> Result<PlanOutput> {
              first-byte latency)"
         );
     }
+    Ok(())
+}
+
+/// [`plan`] with a calibration already made.
+pub fn plan_with(args: &PlanArgs, calibration: Calibration) -> Result<PlanOutput> {
+    check_flags(args)?;
     let scene = load_scene(&args.scene)?;
     let width = args.width.or(scene.image.width).unwrap_or(DEFAULT_WIDTH);
     let height = args.height.or(scene.image.height).unwrap_or(DEFAULT_HEIGHT);
@@ -195,7 +207,6 @@ pub fn plan(args: &PlanArgs) -> Result<PlanOutput> {
     let (shape, s) = resolve_counts(&request, triangles)?;
     let job: JobPlan = preview_plan(&scene, &request, &shape, s)
         .map_err(|e| anyhow!("{}: {}", args.scene.display(), e.message))?;
-    let calibration = calibrate()?;
     let arch = match args.arch {
         ArchArg::Arm64 => Arch::Arm64,
         ArchArg::X86_64 => Arch::X86_64,
