@@ -270,13 +270,25 @@ pub fn project(plan: &JobPlan, functions: u32, settings: &ProjectionSettings) ->
                 ..
             } => {
                 let cpu_ms = fixed_ms + work_ms;
-                let wait_ms = round_trips * s3_latency_ms;
+                let runs = (tasks as f64 * attempts).ceil().max(1.0);
+                let w = f64::from(concurrency).min(runs);
+                // A warm slot keeps the plan and the splits it read: only each slot's first
+                // task reads them.
+                let cached = if stage == Stage::Plan || stage == Stage::Combine {
+                    0.0
+                } else {
+                    let splits = match stage {
+                        Stage::Render => f64::from(plan.k()),
+                        Stage::CastMap | Stage::TraceMap => 1.0,
+                        _ => 0.0,
+                    };
+                    (1.0 + splits) * (1.0 - w / runs)
+                };
+                let wait_ms = (round_trips - cached).max(0.0) * s3_latency_ms;
                 let task_ms = cpu_ms + wait_ms;
                 let c = f64::from(cores.max(1));
                 // Slots beyond the cores overlap their waits with others' compute, but the
                 // compute of a wave of n tasks takes at least n / cores task computes.
-                let runs = (tasks as f64 * attempts).ceil().max(1.0);
-                let w = f64::from(concurrency).min(runs);
                 let full = (runs / w).floor();
                 let rest = runs - full * w;
                 let wave = |n: f64| {

@@ -1,6 +1,6 @@
 //! How fast this machine runs the renderer against the reference machine of `api::RATES`: a
 //! BVH build and a single-threaded render of a small generated scene, timed at start-up of
-//! `hort plan` (about a fifth of a second), nothing stored.
+//! `hort plan` (about a third of a second), nothing stored.
 
 use anyhow::{Context, Result};
 use hort_core::generate::generate_scene;
@@ -17,7 +17,7 @@ pub const CALIBRATION_TRIANGLES: u64 = 4096;
 /// Side of the calibration image, pixels (1 sample each).
 const SIDE: u32 = 128;
 /// Timed repetitions; the fastest counts (the least disturbed by other processes).
-const REPEATS: usize = 15;
+const REPEATS: usize = 40;
 /// Pause before each repetition, so that a busy scheduler hands the next one a fresh slice.
 const PAUSE: std::time::Duration = std::time::Duration::from_millis(3);
 /// BVH build of the calibration scene on the reference machine, ms (debug build of `hort`,
