@@ -57,11 +57,12 @@ pub struct Rates {
     pub trace_reduce_us_per_query: f64,
     /// Combine: per pixel (PNG, PFM and hit buffer encoding, upload).
     pub combine_us_per_pixel: f64,
-    /// Render (fused): per camera sample of the span, against the whole scene, without a
-    /// shuffle (shading, hit buffer, the span's pixels encoded and uploaded).
-    pub render_us_per_sample: f64,
-    /// Render (fused): per (sample, light) of the span.
-    pub render_us_per_query: f64,
+    /// Render (fused): per ray (camera sample or (sample, light) of the span) against the
+    /// whole scene, without a shuffle (shading, hit buffer, the span's pixels encoded and
+    /// uploaded): this plus [`Rates::render_us_per_ray_log2`] times log2 of the triangles.
+    pub render_us_per_ray: f64,
+    /// Render (fused): per ray, per doubling of the scene's triangles (BVH depth).
+    pub render_us_per_ray_log2: f64,
     /// A function's first read of a split: fetch and decode, per triangle of the split (a warm
     /// function keeps it).
     pub split_load_us_per_triangle: f64,
@@ -84,8 +85,8 @@ pub const RATES: Rates = Rates {
     trace_us_per_query: 0.4,
     trace_reduce_us_per_query: 0.5,
     combine_us_per_pixel: 1.5,
-    render_us_per_sample: 0.3,
-    render_us_per_query: 0.3,
+    render_us_per_ray: 0.057,
+    render_us_per_ray_log2: 0.013,
     split_load_us_per_triangle: 0.4,
     upload_us_per_triangle: 2.0,
 };
@@ -301,7 +302,9 @@ pub fn task_milliseconds(plan: &JobPlan, stage: Stage, r: &Rates, speed: f64) ->
         Stage::Render => ms(
             r.task_overhead_ms,
             1.0,
-            span_samples * r.render_us_per_sample + queries * r.render_us_per_query,
+            (span_samples + queries)
+                * (r.render_us_per_ray
+                    + r.render_us_per_ray_log2 * (plan.triangles.max(2) as f64).log2()),
         ),
         Stage::CastMap => ms(r.task_overhead_ms, span_samples, r.cast_us_per_sample),
         Stage::CastReduce => ms(

@@ -79,6 +79,12 @@ pub const LAMBDA_FACTS: LambdaFacts = LambdaFacts {
     retry_interval_s: 1.0,
 };
 
+/// Requests of one task the emulator's fixed task overhead (`Rates::task_overhead_ms`) covers.
+pub const EMULATOR_REQUESTS_IN_OVERHEAD: f64 = 3.0;
+/// The embedded S3 server's time per further request, ms (`hort bench emulator`'s fixed-cost
+/// table: about 0.004 s per request on the reference machine).
+pub const EMULATOR_REQUEST_MS: f64 = 4.0;
+
 /// Where the job would run.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 #[serde(rename_all = "snake_case", tag = "target")]
@@ -269,7 +275,10 @@ pub fn project(plan: &JobPlan, functions: u32, settings: &ProjectionSettings) ->
                 s3_latency_ms,
                 ..
             } => {
-                let cpu_ms = fixed_ms + work_ms;
+                // The fixed overhead covers a task's first few requests; the rest cost the
+                // embedded server's own time each.
+                let extra = (round_trips - EMULATOR_REQUESTS_IN_OVERHEAD).max(0.0);
+                let cpu_ms = fixed_ms + work_ms + extra * EMULATOR_REQUEST_MS;
                 let runs = (tasks as f64 * attempts).ceil().max(1.0);
                 let w = f64::from(concurrency).min(runs);
                 // A warm slot keeps the plan and the splits it read: only each slot's first
