@@ -13,8 +13,13 @@
 //! or pixel, measured on the local emulator of a 2-core x86-64 machine), divided by the
 //! backend's [`PredictionModel::speed`]. Spans differ by at most one pixel, so the tasks of a
 //! stage take the same time and a stage of T tasks on C slots takes ceil(T / C) task times,
-//! plus a fixed orchestration overhead per stage, and one per job (upload, start, outputs read
-//! back). Every sample is assumed to hit something, so shadow work is an upper bound.
+//! plus one first read of its largest split (stages that read splits), a fixed orchestration
+//! overhead per stage, and one per job (upload, start, outputs read back). Every sample is
+//! assumed to hit something, so shadow work is an upper bound. A fused Render ray costs more
+//! with the scene's size, by log2 of its triangles (the depth of its BVH).
+//!
+//! `hort plan` projects the same per-task model onto N functions on Lambda or the emulator
+//! (`super::projection`).
 //!
 //! # The cost
 //! The price model of `hort_core::cost` applied to the predicted invocations: one Lambda
@@ -385,8 +390,9 @@ pub fn stage_requests(plan: &JobPlan, stage: Stage) -> (u64, u64) {
 }
 
 /// Estimated bytes `stage` of `plan` writes over all its tasks: the split objects (plan), a
-/// record per camera sample (cast-map, cast-reduce, trace-reduce, and render in fused mode), a
-/// record per shadow query (expand, trace-map), the PNG, PFM and hit buffer (combine). The sum
+/// record per camera sample (cast-map, cast-reduce, trace-reduce), a record per shadow query
+/// (expand, trace-map), the pixels' sums and hits (render, fused), the PNG, PFM and hit buffer
+/// (combine). The sum
 /// over the stages of a staged plan is the byte count [`predict`] prices storage with.
 pub fn stage_bytes(plan: &JobPlan, stage: Stage) -> u64 {
     let pixels = u64::from(plan.width) * u64::from(plan.height);
@@ -394,9 +400,9 @@ pub fn stage_bytes(plan: &JobPlan, stage: Stage) -> u64 {
     let queries = samples * plan.lights.len() as f64;
     let bytes = match stage {
         Stage::Plan => plan.scene_bytes() as f64,
-        Stage::Render | Stage::CastMap | Stage::CastReduce | Stage::TraceReduce => {
-            samples * RECORD_BYTES
-        }
+        // Each pixel's radiance sums and hit (20 bytes before compression).
+        Stage::Render => pixels as f64 * 20.0,
+        Stage::CastMap | Stage::CastReduce | Stage::TraceReduce => samples * RECORD_BYTES,
         Stage::Expand | Stage::TraceMap => queries * RECORD_BYTES,
         Stage::Combine => pixels as f64 * 24.0,
     };
