@@ -8,7 +8,7 @@ use super::table::{Table, f3};
 use crate::plan_cmd::{ArchArg, PlanArgs, TargetArg, calibrate, plan_with};
 use anyhow::{Context, Result, bail};
 use hort::emulator::S3_FAULTS_VAR;
-use hort_core::pipeline::SplitMode;
+use hort_core::pipeline::{ExecutionMode, SplitMode};
 use std::path::PathBuf;
 use std::process::Command;
 
@@ -32,6 +32,12 @@ pub struct PlanBenchArgs {
     /// Samples per pixel (default: the scene's, else 1).
     #[arg(long)]
     pub spp: Option<u32>,
+    /// Force fused or staged execution (default: the plan chooses).
+    #[arg(long)]
+    pub mode: Option<ExecutionMode>,
+    /// Scene splits k (default: the plan chooses).
+    #[arg(long)]
+    pub splits: Option<u32>,
     /// Append the table to this CSV file.
     #[arg(long)]
     pub csv: Option<PathBuf>,
@@ -85,10 +91,10 @@ pub fn run_plan_bench(args: &PlanBenchArgs) -> Result<()> {
                         width: args.width,
                         height: args.height,
                         spp: args.spp,
-                        splits: None,
+                        splits: args.splits,
                         spans: None,
                         split_mode: SplitMode::Spatial,
-                        mode: None,
+                        mode: args.mode,
                     },
                     calibration,
                 )?;
@@ -148,6 +154,12 @@ fn measure(
         if let Some(v) = value {
             cmd.arg(flag).arg(v.to_string());
         }
+    }
+    if let Some(mode) = args.mode {
+        cmd.arg("--mode").arg(mode.to_string());
+    }
+    if let Some(k) = args.splits {
+        cmd.arg("--splits").arg(k.to_string());
     }
     if latency_ms > 0.0 {
         cmd.env(
