@@ -76,19 +76,21 @@ pub struct Rates {
 }
 
 /// The reference rates: `hort render` through the emulator (embedded S3 server, debug build of
-/// everything but `hort-core`) on a 2-core x86-64 machine: the bundled Cornell box and bunny
-/// from 64x48 to 1024x1024 at 16 spp. See the module documentation.
+/// everything but `hort-core`) on a 2-core x86-64 machine, refitted 2026-12-02 from the stage
+/// times of the bundled Cornell box (512x512, 16 spp), teapot and bunny and a generated
+/// 300,000-triangle scene (960x540, 1 spp), fused and staged with 2 splits (docs/ARCHITECTURE.md
+/// section 13, `hort plan`). See the module documentation.
 pub const RATES: Rates = Rates {
     job_overhead_ms: 200.0,
     task_overhead_ms: 10.0,
     stage_overhead_ms: 20.0,
     plan_overhead_ms: 20.0,
     plan_us_per_triangle: 2.5,
-    cast_us_per_sample: 2.0,
-    cast_reduce_us_per_sample: 2.0,
-    expand_us_per_query: 1.4,
-    trace_us_per_query: 0.4,
-    trace_reduce_us_per_query: 0.5,
+    cast_us_per_sample: 0.6,
+    cast_reduce_us_per_sample: 1.2,
+    expand_us_per_query: 1.0,
+    trace_us_per_query: 0.1,
+    trace_reduce_us_per_query: 0.3,
     combine_us_per_pixel: 1.5,
     render_us_per_ray: 0.057,
     render_us_per_ray_log2: 0.013,
