@@ -20,6 +20,9 @@ pub struct Cli {
 pub enum Command {
     /// Render an OBJ file or a JSON scene manifest.
     Render(Box<RenderArgs>),
+    /// The plan `hort render` would run, and its time, requests and dollars projected on N
+    /// functions (AWS Lambda or the local emulator), before paying for anything.
+    Plan(Box<crate::plan_cmd::PlanArgs>),
     /// Scene tools.
     Scene {
         #[command(subcommand)]
@@ -57,6 +60,9 @@ pub enum BenchCommand {
     /// Single-thread samples/s of the monolithic renderer against Mitsuba's multijitter timings
     /// (eval/references), same scenes, size and spp.
     Samples(crate::bench::SamplesBenchArgs),
+    /// `hort plan --target emulator` against the emulator runs it predicts: predicted and
+    /// measured seconds and their ratio per scene, slot count and injected S3 latency.
+    Plan(crate::bench::PlanBenchArgs),
 }
 
 #[derive(Subcommand)]

@@ -7,6 +7,7 @@ mod cli;
 mod eval;
 mod jobs_cmd;
 mod outputs;
+mod plan_cmd;
 mod render_cmd;
 mod scene_cmd;
 mod serve;
@@ -37,6 +38,7 @@ fn main() -> std::process::ExitCode {
     let cli = cli::Cli::parse();
     let result = match cli.command {
         cli::Command::Render(args) => render_cmd::run(*args),
+        cli::Command::Plan(args) => plan_cmd::run(&args),
         cli::Command::Jobs { command } => jobs_cmd::run(command),
         cli::Command::Eval(args) => eval::run(&args),
         cli::Command::Serve(args) => serve::run(args),
@@ -58,6 +60,9 @@ fn main() -> std::process::ExitCode {
         cli::Command::Bench {
             command: cli::BenchCommand::Samples(args),
         } => bench::run_samples_bench(&args),
+        cli::Command::Bench {
+            command: cli::BenchCommand::Plan(args),
+        } => bench::run_plan_bench(&args),
     };
     // Last: tasks a cancelled run abandoned may have written into its temporary folder.
     hort::emulator::remove_temp_folders();

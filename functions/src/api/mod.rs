@@ -30,6 +30,7 @@ mod error;
 #[cfg(test)]
 mod hostile_tests;
 mod predict;
+mod projection;
 mod request;
 mod scene;
 #[cfg(test)]
@@ -41,7 +42,12 @@ pub use backend::{
 pub use dashboard::{DASHBOARD_JOBS, escape_html, jobs_table, page};
 pub use error::ApiError;
 pub use predict::{
-    Prediction, PredictionModel, RATES, Rates, StagePrediction, predict, preview_plan, usd,
+    CLIENT_PUTS, Prediction, PredictionModel, RATES, Rates, StagePrediction, predict, preview_plan,
+    stage_bytes, stage_requests, task_milliseconds, usd,
+};
+pub use projection::{
+    LAMBDA_FACTS, LambdaFacts, Projection, ProjectionSettings, SWEEP, StageProjection, Target,
+    best_of, project,
 };
 pub use request::{MAX_JSON_DEPTH, RenderRequest, SceneSpec, parse_render_request};
 pub use scene::{LoadedScene, MAX_SCENE_FILES, SceneFiles, check_relative};

@@ -13,8 +13,13 @@
 //! or pixel, measured on the local emulator of a 2-core x86-64 machine), divided by the
 //! backend's [`PredictionModel::speed`]. Spans differ by at most one pixel, so the tasks of a
 //! stage take the same time and a stage of T tasks on C slots takes ceil(T / C) task times,
-//! plus a fixed orchestration overhead per stage, and one per job (upload, start, outputs read
-//! back). Every sample is assumed to hit something, so shadow work is an upper bound.
+//! plus one first read of its largest split (stages that read splits), a fixed orchestration
+//! overhead per stage, and one per job (upload, start, outputs read back). Every sample is
+//! assumed to hit something, so shadow work is an upper bound. A fused Render ray costs more
+//! with the scene's size, by log2 of its triangles (the depth of its BVH).
+//!
+//! `hort plan` projects the same per-task model onto N functions on Lambda or the emulator
+//! (`super::projection`).
 //!
 //! # The cost
 //! The price model of `hort_core::cost` applied to the predicted invocations: one Lambda
@@ -57,23 +62,40 @@ pub struct Rates {
     pub trace_reduce_us_per_query: f64,
     /// Combine: per pixel (PNG, PFM and hit buffer encoding, upload).
     pub combine_us_per_pixel: f64,
+    /// Render (fused): per ray (camera sample or (sample, light) of the span) against the
+    /// whole scene, without a shuffle (shading, hit buffer, the span's pixels encoded and
+    /// uploaded): this plus [`Rates::render_us_per_ray_log2`] times log2 of the triangles.
+    pub render_us_per_ray: f64,
+    /// Render (fused): per ray, per doubling of the scene's triangles (BVH depth).
+    pub render_us_per_ray_log2: f64,
+    /// A function's first read of a split: fetch and decode, per triangle of the split (a warm
+    /// function keeps it).
+    pub split_load_us_per_triangle: f64,
+    /// The client's upload of the parsed scene, per triangle.
+    pub upload_us_per_triangle: f64,
 }
 
 /// The reference rates: `hort render` through the emulator (embedded S3 server, debug build of
-/// everything but `hort-core`) on a 2-core x86-64 machine: the bundled Cornell box and bunny
-/// from 64x48 to 1024x1024 at 16 spp. See the module documentation.
+/// everything but `hort-core`) on a 2-core x86-64 machine, refitted 2026-12-02 from the stage
+/// times of the bundled Cornell box (512x512, 16 spp), teapot and bunny and a generated
+/// 300,000-triangle scene (960x540, 1 spp), fused and staged with 2 splits (docs/ARCHITECTURE.md
+/// section 13, `hort plan`). See the module documentation.
 pub const RATES: Rates = Rates {
     job_overhead_ms: 200.0,
     task_overhead_ms: 10.0,
     stage_overhead_ms: 20.0,
     plan_overhead_ms: 20.0,
-    plan_us_per_triangle: 5.0,
-    cast_us_per_sample: 2.0,
-    cast_reduce_us_per_sample: 2.0,
-    expand_us_per_query: 1.4,
-    trace_us_per_query: 0.4,
-    trace_reduce_us_per_query: 0.5,
-    combine_us_per_pixel: 2.0,
+    plan_us_per_triangle: 2.5,
+    cast_us_per_sample: 0.6,
+    cast_reduce_us_per_sample: 1.2,
+    expand_us_per_query: 1.0,
+    trace_us_per_query: 0.1,
+    trace_reduce_us_per_query: 0.3,
+    combine_us_per_pixel: 1.5,
+    render_us_per_ray: 0.057,
+    render_us_per_ray_log2: 0.013,
+    split_load_us_per_triangle: 0.4,
+    upload_us_per_triangle: 2.0,
 };
 
 /// What a backend runs jobs on.
@@ -201,48 +223,18 @@ pub fn predict(plan: &JobPlan, model: &PredictionModel) -> Prediction {
     let k = u64::from(plan.k());
     let pixels = u64::from(plan.width) * u64::from(plan.height);
     let lights = plan.lights.len() as u64;
-    // The largest span's samples: spans differ by at most one pixel.
-    let span_samples = pixels.div_ceil(s.max(1)) as f64 * f64::from(plan.spp);
-    let queries = span_samples * lights as f64;
-    let ms = |fixed: f64, units: f64, us: f64| fixed + units * us / 1000.0 / speed;
-    let task_ms = |stage: Stage| match stage {
-        Stage::Plan => ms(
-            r.plan_overhead_ms,
-            plan.triangles as f64,
-            r.plan_us_per_triangle,
-        ),
-        // The staged stages' work in one task, without their shuffle.
-        Stage::Render => ms(
-            r.task_overhead_ms,
-            1.0,
-            span_samples * r.cast_us_per_sample
-                + queries * (r.expand_us_per_query + r.trace_us_per_query)
-                + (span_samples + queries) * r.trace_reduce_us_per_query,
-        ),
-        Stage::CastMap => ms(r.task_overhead_ms, span_samples, r.cast_us_per_sample),
-        Stage::CastReduce => ms(
-            r.task_overhead_ms,
-            span_samples,
-            r.cast_reduce_us_per_sample,
-        ),
-        Stage::Expand => ms(r.task_overhead_ms, queries, r.expand_us_per_query),
-        Stage::TraceMap => ms(r.task_overhead_ms, queries, r.trace_us_per_query),
-        Stage::TraceReduce => ms(
-            r.task_overhead_ms,
-            span_samples + queries,
-            r.trace_reduce_us_per_query,
-        ),
-        Stage::Combine => ms(r.task_overhead_ms, pixels as f64, r.combine_us_per_pixel),
-    };
+    let task_ms = |stage: Stage| task_milliseconds(plan, stage, r, speed);
     let mut stages = Vec::new();
-    let mut seconds = r.job_overhead_ms / 1000.0;
+    let mut seconds =
+        r.job_overhead_ms / 1000.0 + plan.triangles as f64 * r.upload_us_per_triangle / 1e6 / speed;
     let mut cost = CostBreakdown::default();
     let mut children = 0u64;
     for &stage in plan.stages() {
         let tasks = plan.task_count(stage) as u64;
         let one_ms = task_ms(stage);
         let waves = tasks.div_ceil(concurrency).max(1) as f64;
-        let stage_seconds = (r.stage_overhead_ms + waves * one_ms) / 1000.0;
+        let stage_seconds =
+            (r.stage_overhead_ms + waves * one_ms + split_load_ms(plan, stage, r, speed)) / 1000.0;
         seconds += stage_seconds;
         let is_map = stage.items_field().is_some();
         if is_map {
@@ -297,39 +289,126 @@ pub fn predict(plan: &JobPlan, model: &PredictionModel) -> Prediction {
     }
 }
 
+/// Predicted milliseconds of one task of `stage` in `plan`: the stage's fixed overhead plus its
+/// work (the largest span's camera samples and shadow queries, or the plan's triangles, or the
+/// image's pixels) at `rates`, the work divided by `speed` (1: the reference machine).
+pub fn task_milliseconds(plan: &JobPlan, stage: Stage, r: &Rates, speed: f64) -> f64 {
+    let speed = if speed > 0.0 { speed } else { 1.0 };
+    let s = plan.spans.len() as u64;
+    let pixels = u64::from(plan.width) * u64::from(plan.height);
+    // The largest span's samples: spans differ by at most one pixel.
+    let span_samples = pixels.div_ceil(s.max(1)) as f64 * f64::from(plan.spp);
+    let queries = span_samples * plan.lights.len() as f64;
+    let ms = |fixed: f64, units: f64, us: f64| fixed + units * us / 1000.0 / speed;
+    match stage {
+        Stage::Plan => ms(
+            r.plan_overhead_ms,
+            plan.triangles as f64,
+            r.plan_us_per_triangle,
+        ),
+        Stage::Render => ms(
+            r.task_overhead_ms,
+            1.0,
+            (span_samples + queries)
+                * (r.render_us_per_ray
+                    + r.render_us_per_ray_log2 * (plan.triangles.max(2) as f64).log2()),
+        ),
+        Stage::CastMap => ms(r.task_overhead_ms, span_samples, r.cast_us_per_sample),
+        Stage::CastReduce => ms(
+            r.task_overhead_ms,
+            span_samples,
+            r.cast_reduce_us_per_sample,
+        ),
+        Stage::Expand => ms(r.task_overhead_ms, queries, r.expand_us_per_query),
+        Stage::TraceMap => ms(r.task_overhead_ms, queries, r.trace_us_per_query),
+        Stage::TraceReduce => ms(
+            r.task_overhead_ms,
+            span_samples + queries,
+            r.trace_reduce_us_per_query,
+        ),
+        Stage::Combine => ms(r.task_overhead_ms, pixels as f64, r.combine_us_per_pixel),
+    }
+}
+
+/// Milliseconds a function spends on its first read of the largest split `stage` reads (0 for
+/// the stages that read none): once per stage, in parallel over the functions.
+pub fn split_load_ms(plan: &JobPlan, stage: Stage, r: &Rates, speed: f64) -> f64 {
+    let speed = if speed > 0.0 { speed } else { 1.0 };
+    match stage {
+        Stage::Render | Stage::CastMap | Stage::TraceMap => {
+            let largest = plan.splits.iter().map(|s| s.triangles).max().unwrap_or(0);
+            largest as f64 * r.split_load_us_per_triangle / 1000.0 / speed
+        }
+        _ => 0.0,
+    }
+}
+
 /// S3 GET-like and PUT-like requests of a run without retries: the client's upload, the plan
 /// step, each task's inputs and outputs (and its read of the plan), the item files.
 fn s3_requests(plan: &JobPlan, s: u64, k: u64) -> (u64, u64) {
-    if plan.mode == hort_core::pipeline::ExecutionMode::Fused {
-        let tasks = s + 1;
-        let gets = 4 // the plan step: manifest, scene files (about three)
-            + s * k // Render: every split
-            + s // Combine: every span's pixels
-            + tasks // every worker task reads the plan
-            + 1; // the Map state's ItemReader
-        let puts = 5 // the client: scene files and the job request
-            + k + 1 + 1 + 1 // the plan step: splits, plan, the items file, a listing
-            + s // one partition per Render task
-            + 3; // Combine: PNG, PFM, hit buffer
-        return (gets, puts);
+    debug_assert_eq!((s, k), (plan.spans.len() as u64, u64::from(plan.k())));
+    // The client's upload: scene files and the job request.
+    let (mut gets, mut puts) = (0, CLIENT_PUTS);
+    for &stage in plan.mode.stages() {
+        let (g, p) = stage_requests(plan, stage);
+        gets += g;
+        puts += p;
     }
+    (gets, puts)
+}
+
+/// S3 PUT-like requests of the client before the job starts: scene files and the job request.
+pub const CLIENT_PUTS: u64 = 5;
+
+/// S3 GET-like and PUT-like requests of one stage of `plan` over all its tasks, by the dataflow
+/// table of docs/ARCHITECTURE.md: each task's inputs, its read of the plan, the Map state's item
+/// file, and its outputs. [`predict`]'s totals are [`CLIENT_PUTS`] plus the sum over the stages
+/// of the plan's execution mode.
+pub fn stage_requests(plan: &JobPlan, stage: Stage) -> (u64, u64) {
+    let s = plan.spans.len() as u64;
+    let k = u64::from(plan.k());
     let cast = plan.cast_tasks.len() as u64;
     let trace = plan.trace_tasks.len() as u64;
-    let tasks = cast + 3 * s + trace + 1;
-    let gets = 4 // the plan step: manifest, scene files (about three)
-        + cast // CastMap: its split
-        + cast // CastReduce: every CastMap partition of its span
-        + s // Expand: its span's hits
-        + 2 * trace // TraceMap: its queries and its split
-        + s * (1 + k) // TraceReduce: its hits and one partition per split
-        + s // Combine: every span's pixels
-        + tasks // every worker task reads the plan
-        + 5; // the Map states' ItemReader
-    let puts = 5 // the client: scene files and the job request
-        + k + 1 + 5 + 1 // the plan step: splits, plan, item files, a listing
-        + cast + s + s * k + trace + s // one partition per task, k per Expand
-        + 3; // Combine: PNG, PFM, hit buffer
-    (gets, puts)
+    let fused = plan.mode == hort_core::pipeline::ExecutionMode::Fused;
+    match stage {
+        // Reads the manifest and the scene files (about three); writes the splits, the plan,
+        // the item files and a listing.
+        Stage::Plan => (4, k + 3 + if fused { 0 } else { 4 }),
+        // Every split, the plan, the item file; one partition.
+        Stage::Render => (s * k + s + 1, s),
+        // Its split and the plan, the item file; one partition.
+        Stage::CastMap => (2 * cast + 1, cast),
+        // Every CastMap partition of its span, the plan, the item file; one partition.
+        Stage::CastReduce => (cast + s + 1, s),
+        // Its span's hits and the plan, the item file; one partition per split.
+        Stage::Expand => (2 * s + 1, s * k),
+        // Its queries, its split and the plan, the item file; one partition.
+        Stage::TraceMap => (3 * trace + 1, trace),
+        // Its hits, one partition per split, the plan, the item file; one partition.
+        Stage::TraceReduce => (s * (1 + k) + s + 1, s),
+        // Every span's pixels and the plan; PNG, PFM, hit buffer.
+        Stage::Combine => (s + 1, 3),
+    }
+}
+
+/// Estimated bytes `stage` of `plan` writes over all its tasks: the split objects (plan), a
+/// record per camera sample (cast-map, cast-reduce, trace-reduce), a record per shadow query
+/// (expand, trace-map), the pixels' sums and hits (render, fused), the PNG, PFM and hit buffer
+/// (combine). The sum
+/// over the stages of a staged plan is the byte count [`predict`] prices storage with.
+pub fn stage_bytes(plan: &JobPlan, stage: Stage) -> u64 {
+    let pixels = u64::from(plan.width) * u64::from(plan.height);
+    let samples = pixels as f64 * f64::from(plan.spp);
+    let queries = samples * plan.lights.len() as f64;
+    let bytes = match stage {
+        Stage::Plan => plan.scene_bytes() as f64,
+        // Each pixel's radiance sums and hit (20 bytes before compression).
+        Stage::Render => pixels as f64 * 20.0,
+        Stage::CastMap | Stage::CastReduce | Stage::TraceReduce => samples * RECORD_BYTES,
+        Stage::Expand | Stage::TraceMap => queries * RECORD_BYTES,
+        Stage::Combine => pixels as f64 * 24.0,
+    };
+    bytes as u64
 }
 
 fn add(total: &mut CostBreakdown, part: &CostBreakdown, times: f64) {

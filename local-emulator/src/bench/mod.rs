@@ -8,6 +8,7 @@ mod kernel;
 mod obvhs_kernel;
 mod overhead;
 mod pipeline;
+mod plan;
 mod samples;
 mod scenes;
 mod table;
@@ -16,6 +17,7 @@ pub use emulator::{EmulatorBenchArgs, run_emulator_bench};
 pub use faults::{FaultsBenchArgs, run_faults_bench};
 pub use kernel::{KernelBenchArgs, run_kernel_bench};
 pub use pipeline::{PipelineBenchArgs, run_pipeline_bench};
+pub use plan::{PlanBenchArgs, run_plan_bench};
 pub use samples::{SamplesBenchArgs, run_samples_bench};
 
 /// Process-wide allocation meter (the binary's global allocator), for per-task memory peaks.

@@ -1,0 +1,269 @@
+//! `hort plan`: the plan `hort render` would run for a scene, and a projection of its time,
+//! requests and dollars on N functions (AWS Lambda, or the local emulator on this machine),
+//! without building a BVH or paying for anything.
+
+mod calibrate;
+mod text;
+
+pub use calibrate::{Calibration, calibrate};
+
+use anyhow::{Result, anyhow, bail};
+use clap::{Args, ValueEnum};
+use hort_core::camera::Camera;
+use hort_core::cost::Arch;
+use hort_core::pipeline::{ExecutionMode, JobPlan, PlanRequest, SplitMode, resolve_counts};
+use hort_core::render::available_cores;
+use hort_core::scene::{DEFAULT_HEIGHT, DEFAULT_WIDTH, check_image_size, load_scene};
+use hort_functions::api::{
+    Projection, ProjectionSettings, RATES, SWEEP, Target, best_of, preview_plan, project,
+};
+use serde::Serialize;
+use std::path::PathBuf;
+
+/// The function slot counts an emulator projection sweeps (a machine has few cores).
+pub const EMULATOR_SWEEP: [u32; 5] = [1, 2, 4, 8, 16];
+
+/// The flags of `hort plan`: the render flags that shape a plan (same names and defaults as
+/// `hort render`), and where and on how many functions to project it.
+#[derive(Args, Clone)]
+pub struct PlanArgs {
+    /// The scene: an OBJ file, or a JSON manifest (.json) naming OBJ files.
+    pub scene: PathBuf,
+    /// Functions to project (default: the best of the sweep), 1 to 10000.
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=10_000))]
+    pub functions: Option<u32>,
+    /// Memory of one function, MB, 128 to 10240 (as `hort render --memory-mb`).
+    #[arg(long, default_value_t = 2048, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(128..=10240))]
+    pub memory_mb: u32,
+    /// Lambda architecture: its price per GB-second and its cold start.
+    #[arg(long, value_enum, default_value = "arm64")]
+    pub arch: ArchArg,
+    /// Project AWS Lambda and Step Functions, or the local emulator on this machine with N
+    /// function slots (`hort render --workers N`).
+    #[arg(long, value_enum, default_value = "aws")]
+    pub target: TargetArg,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// Probability that an attempt fails and is retried, 0 to below 1.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub fail_rate: f64,
+    /// With --target emulator: the delay the embedded S3 server adds to every request, ms (as
+    /// HORT_S3_FAULTS=latency=1,latency-ms=N does).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub s3_latency_ms: f64,
+    /// Image width in pixels (default: manifest, else 960).
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub width: Option<u32>,
+    /// Image height in pixels (default: manifest, else 540).
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub height: Option<u32>,
+    /// Samples per pixel (default: manifest, else 1).
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub spp: Option<u32>,
+    /// Scene splits k (default: as `hort render`).
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..))]
+    pub splits: Option<u32>,
+    /// Pixel spans s (default: as `hort render`).
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..))]
+    pub spans: Option<u32>,
+    /// How the scene is cut: spatial clusters (default) or naive index ranges.
+    #[arg(long, default_value = "spatial")]
+    pub split_mode: SplitMode,
+    /// Force fused or staged execution (default: the plan chooses).
+    #[arg(long)]
+    pub mode: Option<ExecutionMode>,
+}
+
+/// `--arch`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ArchArg {
+    /// Graviton.
+    Arm64,
+    /// Intel/AMD.
+    #[value(name = "x86_64")]
+    X86_64,
+}
+
+/// `--target`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum TargetArg {
+    /// AWS Lambda and Step Functions.
+    Aws,
+    /// The local emulator on this machine.
+    Emulator,
+}
+
+/// Everything `hort plan` prints, text or JSON.
+#[derive(Serialize)]
+pub struct PlanOutput {
+    /// The scene path as given.
+    pub scene: String,
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Triangles.
+    pub triangles: u64,
+    /// Lights.
+    pub lights: u64,
+    /// `fused` or `staged`.
+    pub mode: ExecutionMode,
+    /// Why the plan chose it.
+    pub mode_reason: String,
+    /// `spatial` or `naive`.
+    pub split_mode: SplitMode,
+    /// Scene splits k.
+    pub splits: u32,
+    /// Pixel spans s.
+    pub spans: u32,
+    /// Tasks over all stages.
+    pub tasks: u64,
+    /// The stages at the chosen function count.
+    pub stages: Vec<hort_functions::api::StageProjection>,
+    /// Where the projection runs.
+    pub target: Target,
+    /// This machine against the reference.
+    pub calibration: Calibration,
+    /// The speed the projection assumes for one function's core (the calibration's for the
+    /// emulator; 1, the reference machine, for Lambda).
+    pub speed: f64,
+    /// Failure rate assumed.
+    pub fail_rate: f64,
+    /// The function count projected in detail: --functions, else the best of the sweep.
+    pub functions: u32,
+    /// Whether `functions` is the sweep's best (no --functions given).
+    pub functions_is_best: bool,
+    /// The projection at `functions`.
+    pub chosen: Projection,
+    /// The sweep, fewest functions first.
+    pub projection: Vec<Projection>,
+}
+
+/// Runs `hort plan`.
+pub fn run(args: &PlanArgs) -> Result<()> {
+    let output = plan(args)?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&output)?);
+    } else {
+        print!("{}", text::render(&output));
+    }
+    Ok(())
+}
+
+/// The plan and its projections for `args` (what `hort plan` prints), calibrating first.
+pub fn plan(args: &PlanArgs) -> Result<PlanOutput> {
+    check_flags(args)?;
+    plan_with(args, calibrate()?)
+}
+
+/// Refuses flag values `hort plan` cannot use, naming the flag.
+fn check_flags(args: &PlanArgs) -> Result<()> {
+    if !(0.0..1.0).contains(&args.fail_rate) {
+        bail!(
+            "--fail-rate {} is not a probability from 0 to below 1",
+            args.fail_rate
+        );
+    }
+    if !(args.s3_latency_ms >= 0.0 && args.s3_latency_ms.is_finite()) {
+        bail!(
+            "--s3-latency-ms {} is not a number of milliseconds, 0 or more",
+            args.s3_latency_ms
+        );
+    }
+    if args.target == TargetArg::Aws && args.s3_latency_ms > 0.0 {
+        bail!(
+            "--s3-latency-ms applies to --target emulator only (AWS is projected at S3's own \
+             first-byte latency)"
+        );
+    }
+    Ok(())
+}
+
+/// [`plan`] with a calibration already made.
+pub fn plan_with(args: &PlanArgs, calibration: Calibration) -> Result<PlanOutput> {
+    check_flags(args)?;
+    let scene = load_scene(&args.scene)?;
+    let width = args.width.or(scene.image.width).unwrap_or(DEFAULT_WIDTH);
+    let height = args.height.or(scene.image.height).unwrap_or(DEFAULT_HEIGHT);
+    let spp = args.spp.or(scene.image.spp).unwrap_or(1);
+    check_image_size(width, height, spp)?;
+    Camera::new(&scene.camera_for(width, height), width, height)
+        .map_err(|e| anyhow!("{}: {e}", args.scene.display()))?;
+    let request = PlanRequest {
+        width,
+        height,
+        spp,
+        splits: args.splits,
+        spans: args.spans,
+        mode: args.split_mode,
+        execution: args.mode,
+        memory_mb: args.memory_mb,
+        adaptive: None,
+    };
+    let triangles = scene.mesh.triangle_count() as u64;
+    let (shape, s) = resolve_counts(&request, triangles)?;
+    let job: JobPlan = preview_plan(&scene, &request, &shape, s)
+        .map_err(|e| anyhow!("{}: {}", args.scene.display(), e.message))?;
+    let arch = match args.arch {
+        ArchArg::Arm64 => Arch::Arm64,
+        ArchArg::X86_64 => Arch::X86_64,
+    };
+    let (target, speed, sweep): (Target, f64, &[u32]) = match args.target {
+        TargetArg::Aws => (
+            Target::Aws {
+                memory_mb: args.memory_mb,
+                arch,
+            },
+            1.0,
+            &SWEEP,
+        ),
+        TargetArg::Emulator => (
+            Target::Emulator {
+                cores: available_cores() as u32,
+                s3_latency_ms: args.s3_latency_ms,
+                memory_mb: args.memory_mb,
+                arch,
+            },
+            calibration.speed,
+            &EMULATOR_SWEEP,
+        ),
+    };
+    let settings = ProjectionSettings {
+        target,
+        speed,
+        rates: RATES,
+        fail_rate: args.fail_rate,
+    };
+    let projection: Vec<Projection> = sweep.iter().map(|&n| project(&job, n, &settings)).collect();
+    let (functions, functions_is_best) = match args.functions {
+        Some(n) => (n, false),
+        None => (sweep[best_of(&projection).unwrap_or(0)], true),
+    };
+    let chosen = project(&job, functions, &settings);
+    Ok(PlanOutput {
+        scene: args.scene.display().to_string(),
+        width,
+        height,
+        spp,
+        triangles,
+        lights: job.lights.len() as u64,
+        mode: job.mode,
+        mode_reason: job.mode_reason.clone(),
+        split_mode: job.split_mode,
+        splits: job.k(),
+        spans: job.spans.len() as u32,
+        tasks: chosen.stages.iter().map(|s| s.tasks).sum(),
+        stages: chosen.stages.clone(),
+        target,
+        calibration,
+        speed,
+        fail_rate: args.fail_rate,
+        functions,
+        functions_is_best,
+        chosen,
+        projection,
+    })
+}
