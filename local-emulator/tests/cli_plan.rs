@@ -337,3 +337,36 @@ fn the_plan_is_the_one_render_runs() {
         let _ = std::fs::remove_dir_all(&dir);
     }
 }
+
+/// `--chart` plans every scene given (each printed as without it) and draws their projected
+/// time and dollars against the function count into one PNG; several scenes need it.
+#[test]
+fn a_chart_draws_every_scene_and_several_scenes_need_it() {
+    let dir = common::scratch("plan-chart");
+    let (cornell, teapot) = (scene("cornell/cornell.json"), scene("teapot/teapot.json"));
+    let (cornell, teapot) = (cornell.to_str().unwrap(), teapot.to_str().unwrap());
+    let png = dir.join("projection.png");
+    let size = ["--width", "64", "--height", "48"];
+    let mut args = vec!["plan", cornell, teapot, "--chart", png.to_str().unwrap()];
+    args.extend_from_slice(&size);
+    let o = hort(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(out.matches("\nsweep:\n").count(), 2, "{out}");
+    assert!(out.contains(&format!("plan: {cornell}, 64x48")), "{out}");
+    assert!(out.contains(&format!("plan: {teapot}, 64x48")), "{out}");
+    assert_eq!(stderr(&o), format!("wrote {}\n", png.display()));
+    let bytes = std::fs::read(&png).unwrap();
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+    // IHDR: two 620 x 460 panels.
+    assert_eq!(&bytes[16..24], &[0, 0, 4, 216, 0, 0, 1, 204]);
+    let mut args = vec!["plan", cornell, teapot];
+    args.extend_from_slice(&size);
+    let o = hort(&args);
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(
+        stderr(&o),
+        "error: several scenes are planned together only for a chart: add --chart FILE.png\n"
+    );
+    std::fs::remove_dir_all(dir).unwrap();
+}

@@ -81,6 +81,8 @@ pub fn run_plan_bench(args: &PlanBenchArgs) -> Result<()> {
                 let planned = plan_with(
                     &PlanArgs {
                         scene: scene.clone(),
+                        more_scenes: Vec::new(),
+                        chart: None,
                         functions: Some(workers),
                         memory_mb: 2048,
                         arch: ArchArg::Arm64,

@@ -11,11 +11,11 @@ use plotters::prelude::*;
 use std::sync::Once;
 
 /// DejaVu Sans Mono (Bitstream Vera licence, `font/LICENSE`).
-static FONT: &[u8] = include_bytes!("font/DejaVuSansMono.ttf");
-const FAMILY: &str = "sans-serif";
+pub(crate) static FONT: &[u8] = include_bytes!("font/DejaVuSansMono.ttf");
+pub(crate) const FAMILY: &str = "sans-serif";
 const PANEL: (u32, u32) = (560, 460);
 /// Series colours, by the method's place in the method list.
-const PALETTE: [RGBColor; 6] = [
+pub(crate) const PALETTE: [RGBColor; 6] = [
     RGBColor(31, 119, 180),
     RGBColor(255, 127, 14),
     RGBColor(44, 160, 44),
@@ -24,7 +24,7 @@ const PALETTE: [RGBColor; 6] = [
     RGBColor(140, 86, 75),
 ];
 
-fn register_font() -> Result<()> {
+pub(crate) fn register_font() -> Result<()> {
     static ONCE: Once = Once::new();
     let mut result = Ok(());
     ONCE.call_once(|| {
@@ -69,7 +69,7 @@ pub fn draw(
     encode_png(&buffer, w, h)
 }
 
-fn plot_err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
+pub(crate) fn plot_err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
     anyhow!("drawing the chart: {e:?}")
 }
 
@@ -187,7 +187,7 @@ fn draw_panel(
 
 /// A log axis label: the value when its leading digit is 1, 2 or 5, else nothing (so ticks
 /// within one decade do not collide), with as many decimals as its magnitude needs.
-fn tick(v: f64) -> String {
+pub(crate) fn tick(v: f64) -> String {
     if v.is_nan() || v <= 0.0 {
         return String::new();
     }
@@ -202,7 +202,7 @@ fn tick(v: f64) -> String {
 
 /// An 8-bit RGB PNG of `rgb` (row-major, top row first), deterministic (fixed filter and
 /// compressor).
-fn encode_png(rgb: &[u8], width: u32, height: u32) -> Result<Vec<u8>> {
+pub(crate) fn encode_png(rgb: &[u8], width: u32, height: u32) -> Result<Vec<u8>> {
     let mut out = Vec::new();
     let mut encoder = png::Encoder::new(&mut out, width, height);
     encoder.set_color(png::ColorType::Rgb);

@@ -5,7 +5,7 @@
 //! `eval.png`; then the same for the distributed renderer through the emulator
 //! (`eval-distributed.png`), one series per `--distributed` entry.
 
-mod chart;
+pub(crate) mod chart;
 mod csv_rows;
 mod floor_csv;
 mod metrics;

@@ -3,6 +3,7 @@
 //! without building a BVH or paying for anything.
 
 mod calibrate;
+mod chart;
 mod text;
 
 pub use calibrate::{Calibration, calibrate};
@@ -18,7 +19,7 @@ use hort_functions::api::{
     Projection, ProjectionSettings, RATES, SWEEP, Target, best_of, preview_plan, project,
 };
 use serde::Serialize;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// The function slot counts an emulator projection sweeps (a machine has few cores).
 pub const EMULATOR_SWEEP: [u32; 5] = [1, 2, 4, 8, 16];
@@ -29,6 +30,13 @@ pub const EMULATOR_SWEEP: [u32; 5] = [1, 2, 4, 8, 16];
 pub struct PlanArgs {
     /// The scene: an OBJ file, or a JSON manifest (.json) naming OBJ files.
     pub scene: PathBuf,
+    /// More scenes, charted beside the first (with --chart only; each is also planned and
+    /// printed).
+    pub more_scenes: Vec<PathBuf>,
+    /// Also draw each scene's projected wall time and dollars against the function count (1 to
+    /// 10,000 on AWS; the emulator's slot counts with --target emulator) into this PNG.
+    #[arg(long)]
+    pub chart: Option<PathBuf>,
     /// Functions to project (default: the best of the sweep), 1 to 10000.
     #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=10_000))]
     pub functions: Option<u32>,
@@ -144,13 +152,72 @@ pub struct PlanOutput {
 
 /// Runs `hort plan`.
 pub fn run(args: &PlanArgs) -> Result<()> {
-    let output = plan(args)?;
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&output)?);
+    if !args.more_scenes.is_empty() && args.chart.is_none() {
+        bail!("several scenes are planned together only for a chart: add --chart FILE.png");
+    }
+    let Some(chart_path) = &args.chart else {
+        return print_plan(&plan(args)?, args.json);
+    };
+    check_flags(args)?;
+    let calibration = calibrate()?;
+    let mut series = Vec::new();
+    for scene in std::iter::once(&args.scene).chain(&args.more_scenes) {
+        let prepared = prepare(args, scene, &calibration)?;
+        print_plan(
+            &plan_prepared(args, scene, &prepared, calibration)?,
+            args.json,
+        )?;
+        let sweep: &[u32] = match args.target {
+            TargetArg::Aws => &chart::CHART_SWEEP,
+            TargetArg::Emulator => &EMULATOR_SWEEP,
+        };
+        let name = scene.file_stem().map_or_else(
+            || scene.display().to_string(),
+            |n| n.to_string_lossy().into(),
+        );
+        series.push(chart::SceneSeries {
+            label: format!("{name} ({} triangles)", prepared.triangles),
+            points: sweep
+                .iter()
+                .map(|&n| project(&prepared.job, n, &prepared.settings))
+                .collect(),
+        });
+    }
+    let first = prepare(args, &args.scene, &calibration)?;
+    let subtitle = format!(
+        "{}x{}, {} spp, {}",
+        first.width,
+        first.height,
+        first.spp,
+        target_name(&first.settings.target)
+    );
+    let png = chart::draw(&subtitle, &series)?;
+    std::fs::write(chart_path, png)
+        .map_err(|e| anyhow!("cannot write --chart {}: {e}", chart_path.display()))?;
+    eprintln!("wrote {}", chart_path.display());
+    Ok(())
+}
+
+fn print_plan(output: &PlanOutput, json: bool) -> Result<()> {
+    if json {
+        println!("{}", serde_json::to_string_pretty(output)?);
     } else {
-        print!("{}", text::render(&output));
+        print!("{}", text::render(output));
     }
     Ok(())
+}
+
+/// A short name of where a projection runs, for chart titles.
+fn target_name(target: &Target) -> String {
+    match target {
+        Target::Aws { memory_mb, arch } => {
+            format!(
+                "Lambda {} {memory_mb} MB",
+                format!("{arch:?}").to_lowercase()
+            )
+        }
+        Target::Emulator { .. } => "the emulator on this machine".to_owned(),
+    }
 }
 
 /// The plan and its projections for `args` (what `hort plan` prints), calibrating first.
@@ -185,13 +252,30 @@ fn check_flags(args: &PlanArgs) -> Result<()> {
 /// [`plan`] with a calibration already made.
 pub fn plan_with(args: &PlanArgs, calibration: Calibration) -> Result<PlanOutput> {
     check_flags(args)?;
-    let scene = load_scene(&args.scene)?;
+    let prepared = prepare(args, &args.scene, &calibration)?;
+    plan_prepared(args, &args.scene, &prepared, calibration)
+}
+
+/// A scene's plan and what projecting it needs.
+struct Prepared {
+    job: JobPlan,
+    settings: ProjectionSettings,
+    sweep: &'static [u32],
+    width: u32,
+    height: u32,
+    spp: u32,
+    triangles: u64,
+}
+
+/// Loads `scene` and plans it under `args` (without building anything).
+fn prepare(args: &PlanArgs, scene_path: &Path, calibration: &Calibration) -> Result<Prepared> {
+    let scene = load_scene(scene_path)?;
     let width = args.width.or(scene.image.width).unwrap_or(DEFAULT_WIDTH);
     let height = args.height.or(scene.image.height).unwrap_or(DEFAULT_HEIGHT);
     let spp = args.spp.or(scene.image.spp).unwrap_or(1);
     check_image_size(width, height, spp)?;
     Camera::new(&scene.camera_for(width, height), width, height)
-        .map_err(|e| anyhow!("{}: {e}", args.scene.display()))?;
+        .map_err(|e| anyhow!("{}: {e}", scene_path.display()))?;
     let request = PlanRequest {
         width,
         height,
@@ -206,12 +290,12 @@ pub fn plan_with(args: &PlanArgs, calibration: Calibration) -> Result<PlanOutput
     let triangles = scene.mesh.triangle_count() as u64;
     let (shape, s) = resolve_counts(&request, triangles)?;
     let job: JobPlan = preview_plan(&scene, &request, &shape, s)
-        .map_err(|e| anyhow!("{}: {}", args.scene.display(), e.message))?;
+        .map_err(|e| anyhow!("{}: {}", scene_path.display(), e.message))?;
     let arch = match args.arch {
         ArchArg::Arm64 => Arch::Arm64,
         ArchArg::X86_64 => Arch::X86_64,
     };
-    let (target, speed, sweep): (Target, f64, &[u32]) = match args.target {
+    let (target, speed, sweep): (Target, f64, &'static [u32]) = match args.target {
         TargetArg::Aws => (
             Target::Aws {
                 memory_mb: args.memory_mb,
@@ -237,18 +321,45 @@ pub fn plan_with(args: &PlanArgs, calibration: Calibration) -> Result<PlanOutput
         rates: RATES,
         fail_rate: args.fail_rate,
     };
-    let projection: Vec<Projection> = sweep.iter().map(|&n| project(&job, n, &settings)).collect();
-    let (functions, functions_is_best) = match args.functions {
-        Some(n) => (n, false),
-        None => (sweep[best_of(&projection).unwrap_or(0)], true),
-    };
-    let chosen = project(&job, functions, &settings);
-    Ok(PlanOutput {
-        scene: args.scene.display().to_string(),
+    Ok(Prepared {
+        job,
+        settings,
+        sweep,
         width,
         height,
         spp,
         triangles,
+    })
+}
+
+/// What `hort plan` prints for a prepared scene.
+fn plan_prepared(
+    args: &PlanArgs,
+    scene: &Path,
+    prepared: &Prepared,
+    calibration: Calibration,
+) -> Result<PlanOutput> {
+    let Prepared {
+        job,
+        settings,
+        sweep,
+        width,
+        height,
+        spp,
+        triangles,
+    } = prepared;
+    let projection: Vec<Projection> = sweep.iter().map(|&n| project(job, n, settings)).collect();
+    let (functions, functions_is_best) = match args.functions {
+        Some(n) => (n, false),
+        None => (sweep[best_of(&projection).unwrap_or(0)], true),
+    };
+    let chosen = project(job, functions, settings);
+    Ok(PlanOutput {
+        scene: scene.display().to_string(),
+        width: *width,
+        height: *height,
+        spp: *spp,
+        triangles: *triangles,
         lights: job.lights.len() as u64,
         mode: job.mode,
         mode_reason: job.mode_reason.clone(),
@@ -257,9 +368,9 @@ pub fn plan_with(args: &PlanArgs, calibration: Calibration) -> Result<PlanOutput
         spans: job.spans.len() as u32,
         tasks: chosen.stages.iter().map(|s| s.tasks).sum(),
         stages: chosen.stages.clone(),
-        target,
+        target: settings.target,
         calibration,
-        speed,
+        speed: settings.speed,
         fail_rate: args.fail_rate,
         functions,
         functions_is_best,
