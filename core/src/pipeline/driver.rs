@@ -113,7 +113,8 @@ pub fn run_pipeline(
             ));
             metrics.push(m);
             for (row, &round_stage) in plan.task_stages().iter().enumerate() {
-                let tasks = plan.round_two_tasks(round_stage, &spans);
+                let tasks =
+                    plan.dispatch_order(round_stage, plan.round_two_tasks(round_stage, &spans));
                 if tasks.is_empty() {
                     continue;
                 }
@@ -132,7 +133,7 @@ pub fn run_pipeline(
             }
         }
         let stage_start = Instant::now();
-        let tasks: Vec<u32> = (0..plan.task_count(stage) as u32).collect();
+        let tasks = plan.dispatch_order(stage, (0..plan.task_count(stage) as u32).collect());
         let (m, busy) = run_stage(store, job, &plan, stage, &tasks, &caches)?;
         stages.push(stage_report(
             stage.as_str(),

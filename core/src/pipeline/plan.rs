@@ -559,6 +559,15 @@ mod tests {
                 "plan p: unoccludable_lights must be ascending indices below the light count 1"
             );
         }
+        // Map tasks are handed out grouped by split, then by id; other stages by id.
+        let order = plan.dispatch_order(Stage::TraceMap, (0..21).collect());
+        let splits: Vec<u32> = order
+            .iter()
+            .map(|&t| plan.split_of(Stage::TraceMap, t).unwrap())
+            .collect();
+        assert!(splits.windows(2).all(|w| w[0] <= w[1]), "{splits:?}");
+        assert_eq!(order[..7], [0, 3, 6, 9, 12, 15, 18]);
+        assert_eq!(plan.dispatch_order(Stage::Expand, vec![2, 0, 1]), [0, 1, 2]);
         let mut free = plan.clone();
         free.unoccludable_lights = vec![0];
         assert!(!free.has_shadows() && free.is_unoccludable(0));

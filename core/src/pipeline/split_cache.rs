@@ -62,9 +62,26 @@ impl SplitCache {
     /// Evicts the least recently used splits until the rest hold at most `bytes`: room for a
     /// task that needs the remainder of its function's memory.
     pub fn trim_to(&self, bytes: u64) {
+        self.trim_to_keeping(bytes, &|_| false);
+    }
+
+    /// [`SplitCache::trim_to`] for the splits `keep` does not name: the least recently used of
+    /// those go until they hold at most `bytes`; the ones `keep` names (those the next task
+    /// reads, already part of its own memory) stay.
+    pub fn trim_to_keeping(&self, bytes: u64, keep: &dyn Fn(&str) -> bool) {
         let mut entries = self.entries.lock().unwrap_or_else(|e| e.into_inner());
-        while entries.iter().map(|e| e.bytes).sum::<u64>() > bytes {
-            entries.remove(0);
+        let others = |entries: &Vec<Entry>| -> u64 {
+            entries
+                .iter()
+                .filter(|e| !keep(&e.key))
+                .map(|e| e.bytes)
+                .sum()
+        };
+        while others(&entries) > bytes {
+            let Some(oldest) = entries.iter().position(|e| !keep(&e.key)) else {
+                break;
+            };
+            entries.remove(oldest);
         }
     }
 
@@ -166,5 +183,23 @@ mod tests {
         cache.trim_to(0);
         assert_eq!(cache.resident_bytes(), 0);
         assert!(SplitCache::new(0).get("a").is_none());
+    }
+
+    /// The splits the next task reads stay whatever the limit; the others go, least recently
+    /// used first, until they fit it.
+    #[test]
+    fn trimming_keeps_the_splits_the_next_task_reads() {
+        let size = object(0, 10).memory_bytes();
+        let cache = SplitCache::new(size * 3);
+        for (key, split) in [("a", 0), ("b", 1), ("c", 2)] {
+            cache.insert(key, object(split, 10));
+        }
+        cache.trim_to_keeping(size, &|key| key == "a");
+        assert!(cache.get("a").is_some(), "kept: the next task reads it");
+        assert!(cache.get("b").is_none(), "the least recently used other one");
+        assert!(cache.get("c").is_some(), "the others fit the limit");
+        cache.trim_to_keeping(0, &|key| key == "c");
+        assert!(cache.get("a").is_none());
+        assert_eq!(cache.resident_bytes(), size, "only c");
     }
 }

@@ -94,6 +94,7 @@ fn write_round(
         let Some(field) = stage.items_field().filter(|_| wanted) else {
             continue;
         };
+        let tasks = plan.dispatch_order(stage, tasks);
         write_items(store, &key, plan, request, stage, &tasks)?;
         items.insert(field.to_owned(), key);
     }

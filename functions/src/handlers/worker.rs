@@ -4,7 +4,8 @@ use super::events::WorkerEvent;
 use super::plan::load_job_scene;
 use super::{HandlerError, check_bucket};
 use hort_core::ErrorType;
-use hort_core::keys::plan_key;
+use hort_core::ids::{JobId, SplitId, Stage};
+use hort_core::keys::{plan_key, split_key};
 use hort_core::pipeline::{
     ExecutionMode, JobPlan, PipelineError, SplitCache, TaskMetrics, micros, plan_into_store,
     rebuild_split, run_task_with, task_bytes, timed,
@@ -21,7 +22,9 @@ use std::time::Instant;
 /// copied into `work_dir` (the function's `/tmp`) for the purpose (the plan step again, for
 /// the plan: the same bytes, split objects included). Before the task runs, `cache` is trimmed
 /// to what the job's memory leaves beside the plan's largest task as the memory model predicts
-/// it, so cache and task together stay within the function's memory.
+/// it, so cache and task together stay within the function's memory; the splits the task
+/// itself reads stay (the model counts them in the task), so consecutive tasks of one split
+/// decode it once.
 pub fn handle_worker(
     store: &dyn BlobStore,
     bucket: &str,
@@ -66,7 +69,12 @@ pub fn handle_worker(
     };
     // A warm container's cached splits share its memory with the task: keep only what leaves
     // the plan's largest task its predicted need within the job's memory.
-    cache.trim_to((u64::from(plan.memory_mb) << 20).saturating_sub(largest_task_bytes(&plan)));
+    // The splits this task reads are part of its own predicted memory: they stay.
+    let reads = splits_read(&event.job, &plan, event.stage, event.item.task.0);
+    cache.trim_to_keeping(
+        (u64::from(plan.memory_mb) << 20).saturating_sub(largest_task_bytes(&plan)),
+        &|key| reads.iter().any(|k| k == key),
+    );
     let rebuild = |split: u32| -> Result<Vec<u8>, PipelineError> {
         let (_, scene) = load(&format!("split-{split}"))?;
         rebuild_split(&scene.mesh, plan.k() as usize, plan.split_mode, split).ok_or_else(|| {
@@ -87,6 +95,19 @@ pub fn handle_worker(
     metrics.decode_us += decode_us;
     metrics.task_us = micros(started.elapsed());
     Ok(metrics)
+}
+
+/// The keys of the split objects task `task` of `stage` of `job` reads: every split for Render,
+/// its own for the map stages, none for the others.
+fn splits_read(job: &JobId, plan: &JobPlan, stage: Stage, task: u32) -> Vec<String> {
+    let splits: Vec<u32> = match stage {
+        Stage::Render => (0..plan.k()).collect(),
+        _ => plan.split_of(stage, task).into_iter().collect(),
+    };
+    splits
+        .into_iter()
+        .map(|s| split_key(job, SplitId(s)))
+        .collect()
 }
 
 /// The plan's memory model ([`task_bytes`]) for its largest task: the most triangles a task
