@@ -196,7 +196,10 @@ mod tests {
         }
         cache.trim_to_keeping(size, &|key| key == "a");
         assert!(cache.get("a").is_some(), "kept: the next task reads it");
-        assert!(cache.get("b").is_none(), "the least recently used other one");
+        assert!(
+            cache.get("b").is_none(),
+            "the least recently used other one"
+        );
         assert!(cache.get("c").is_some(), "the others fit the limit");
         cache.trim_to_keeping(0, &|key| key == "c");
         assert!(cache.get("a").is_none());
