@@ -14,7 +14,7 @@ use super::adaptive_rounds::{
 use super::plan::{JobPlan, Span};
 use super::records::{PixelBlock, SurfaceHit};
 use super::split_object::SplitObject;
-use super::stages::{cast_reduce, expand, trace_map};
+use super::stages::{cast_reduce, expand, merge_occluded, trace_in_memory};
 use crate::adaptive::{AdaptiveCounts, AdaptiveSettings};
 use crate::camera::Camera;
 use crate::hits::Hit;
@@ -66,18 +66,7 @@ fn pass(
     } else {
         cast_reduce(candidates)
     };
-    let queries = expand(plan, &hits);
-    let mut blocked = Vec::new();
-    for (split, queries) in splits.iter().zip(&queries) {
-        blocked.extend(trace_map(plan, split, queries).map_err(|light| {
-            PipelineError::BadInput(format!(
-                "expand named light {light}, the plan has {}",
-                plan.lights.len()
-            ))
-        })?);
-    }
-    blocked.sort_unstable();
-    blocked.dedup();
+    let blocked = merge_occluded(trace_in_memory(plan, splits, &expand(plan, &hits))?);
     let (colours, sample_hits) = sample_colours(plan, samples, &hits, &blocked);
     Ok(Pass {
         colours,

@@ -388,9 +388,7 @@ impl Task<'_> {
                     });
                     return self.write_pixels(task, &block);
                 };
-                let mut blocked: Vec<_> = occluded.into_iter().flatten().collect();
-                blocked.sort_unstable();
-                blocked.dedup();
+                let blocked = stages::merge_occluded(occluded);
                 if round == 1 {
                     let samples = first_round_samples(&span, &a);
                     let (block, list, counts) = timed(&mut self.metrics.compute_us, || {

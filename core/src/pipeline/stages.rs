@@ -167,9 +167,7 @@ pub fn trace_reduce(
     hits: &[SurfaceHit],
     occluded: Vec<Vec<Occluded>>,
 ) -> PixelBlock {
-    let mut blocked: Vec<Occluded> = occluded.into_iter().flatten().collect();
-    blocked.sort_unstable();
-    blocked.dedup();
+    let blocked = merge_occluded(occluded);
     let n = (span.end - span.start) as usize;
     let mut block = PixelBlock::with_capacity(span.start, n);
     let mut next_hit = hits.iter().peekable();
@@ -194,6 +192,15 @@ pub fn trace_reduce(
         block.ts.push(first.t);
     }
     block
+}
+
+/// The occlusion keys of every split as one sorted list without repeats (a key blocked by
+/// several splits counts once), as [`sample_colour`] looks them up.
+pub(super) fn merge_occluded(occluded: Vec<Vec<Occluded>>) -> Vec<Occluded> {
+    let mut blocked: Vec<Occluded> = occluded.into_iter().flatten().collect();
+    blocked.sort_unstable();
+    blocked.dedup();
+    blocked
 }
 
 /// The radiance of sample `sample` of `pixel` whose camera ray hit `hit` (the background when
@@ -243,19 +250,30 @@ pub fn render_span(
     } else {
         cast_reduce(candidates)
     };
-    let queries = expand(plan, &hits);
-    let mut occluded = Vec::with_capacity(splits.len());
-    for (split, queries) in splits.iter().zip(&queries) {
-        let blocked = trace_map(plan, split, queries).map_err(|light| {
-            PipelineError::BadInput(format!(
-                "expand named light {light}, the plan has {}",
-                plan.lights.len()
-            ))
-        })?;
-        occluded.push(blocked);
-    }
+    let occluded = trace_in_memory(plan, splits, &expand(plan, &hits))?;
     let shadow_rays = hits.len() as u64 * plan.lights.len() as u64;
     Ok((trace_reduce(plan, span, &hits, occluded), shadow_rays))
+}
+
+/// TraceMap of every split on its queries (`queries[i]` for `splits[i]`), in memory: each
+/// split's occlusion keys. A query naming a light the plan lacks is an error.
+pub(super) fn trace_in_memory(
+    plan: &JobPlan,
+    splits: &[&SplitObject],
+    queries: &[Vec<ShadowQuery>],
+) -> Result<Vec<Vec<Occluded>>, PipelineError> {
+    splits
+        .iter()
+        .zip(queries)
+        .map(|(split, queries)| {
+            trace_map(plan, split, queries).map_err(|light| {
+                PipelineError::BadInput(format!(
+                    "expand named light {light}, the plan has {}",
+                    plan.lights.len()
+                ))
+            })
+        })
+        .collect()
 }
 
 /// Combine: the image and the hit buffer from every span's pixels (in any order).

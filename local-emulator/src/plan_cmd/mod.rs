@@ -161,8 +161,19 @@ pub fn run(args: &PlanArgs) -> Result<()> {
     check_flags(args)?;
     let calibration = calibrate()?;
     let mut series = Vec::new();
+    let mut subtitle = None;
     for scene in std::iter::once(&args.scene).chain(&args.more_scenes) {
         let prepared = prepare(args, scene, &calibration)?;
+        // Titled after the first scene's image settings.
+        subtitle.get_or_insert_with(|| {
+            format!(
+                "{}x{}, {} spp, {}",
+                prepared.width,
+                prepared.height,
+                prepared.spp,
+                target_name(&prepared.settings.target)
+            )
+        });
         print_plan(
             &plan_prepared(args, scene, &prepared, calibration)?,
             args.json,
@@ -183,15 +194,7 @@ pub fn run(args: &PlanArgs) -> Result<()> {
                 .collect(),
         });
     }
-    let first = prepare(args, &args.scene, &calibration)?;
-    let subtitle = format!(
-        "{}x{}, {} spp, {}",
-        first.width,
-        first.height,
-        first.spp,
-        target_name(&first.settings.target)
-    );
-    let png = chart::draw(&subtitle, &series)?;
+    let png = chart::draw(&subtitle.unwrap_or_default(), &series)?;
     std::fs::write(chart_path, png)
         .map_err(|e| anyhow!("cannot write --chart {}: {e}", chart_path.display()))?;
     eprintln!("wrote {}", chart_path.display());
