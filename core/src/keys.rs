@@ -8,6 +8,12 @@
 //! jobs/{job}/splits/{split:05}.bin               one scene split with its BVH
 //! jobs/{job}/{stage}/{task:05}/part-{p:05}       one shuffle partition of one task's output
 //! jobs/{job}/items/{stage}.json                 the task items of one Map state
+//! jobs/{job}/parts/table.json                    a scene split by tasks: its files and ranges
+//! jobs/{job}/parts/vertices-{range:05}          the vertices one range of the scene defines
+//! jobs/{job}/parts/records-{range:05}           one range's triangles, by spatial key
+//! jobs/{job}/parts/index-{range:05}.json        what the records object holds, and where
+//! jobs/{job}/parts/splits.json                   which records each split takes, the frame
+//! jobs/{job}/parts/split-{split:05}.json         the summary of a split a build task stored
 //! jobs/{job}/out/image.{ext}                     the final image (png, pfm)
 //! jobs/{job}/out/hits.bin                        the hit buffer
 //! ```
@@ -20,6 +26,39 @@
 //! same bytes to the same keys.
 
 use crate::ids::{JobId, PartitionId, SplitId, Stage, TaskId};
+
+/// `jobs/{job}/parts/table.json`: the scene's files and byte ranges, as the Plan function's
+/// scan found them (a scene split by partition and build tasks).
+pub fn parts_table_key(job: &JobId) -> String {
+    format!("jobs/{job}/parts/table.json")
+}
+
+/// `jobs/{job}/parts/vertices-{range:05}`: the vertex positions and normals range `range`
+/// of the scene defines.
+pub fn parts_vertices_key(job: &JobId, range: u32) -> String {
+    format!("jobs/{job}/parts/vertices-{range:05}")
+}
+
+/// `jobs/{job}/parts/records-{range:05}`: range `range`'s triangles, ordered by spatial key,
+/// in frames.
+pub fn parts_records_key(job: &JobId, range: u32) -> String {
+    format!("jobs/{job}/parts/records-{range:05}")
+}
+
+/// `jobs/{job}/parts/index-{range:05}.json`: the index of [`parts_records_key`].
+pub fn parts_index_key(job: &JobId, range: u32) -> String {
+    format!("jobs/{job}/parts/index-{range:05}.json")
+}
+
+/// `jobs/{job}/parts/splits.json`: which records each split takes, and the local frame.
+pub fn parts_splits_key(job: &JobId) -> String {
+    format!("jobs/{job}/parts/splits.json")
+}
+
+/// `jobs/{job}/parts/split-{split:05}.json`: the summary of a split a build task stored.
+pub fn parts_split_info_key(job: &JobId, split: u32) -> String {
+    format!("jobs/{job}/parts/split-{split:05}.json")
+}
 
 /// `jobs/{job}/manifest.json`: the job request, written once with a conditional put.
 pub fn manifest_key(job: &JobId) -> String {

@@ -5,6 +5,7 @@
 //! is the raw column payload, wrapped in a valid block first (so the fuzzer gets past the CRC
 //! and zstd and reaches the column decoders).
 
+use hort_core::pipeline::partition::{decode_frame, decode_page, encode_frames};
 use hort_core::pipeline::{
     decode_occluded, decode_pixels, decode_queries, decode_refine_list, decode_split,
     decode_surface_hits, encode_occluded, encode_pixels, encode_queries, encode_refine_list,
@@ -124,6 +125,22 @@ pub fn shuffle_block(data: &[u8]) {
         }
         RecordKind::SplitObject => {
             check_error(what, decode_split(KEY, &bytes));
+        }
+        RecordKind::VertexPage => {
+            check_error(what, decode_page(KEY, &bytes, 0));
+        }
+        RecordKind::PartRecords => {
+            if let Some(records) = check_error(what, decode_frame(KEY, &bytes)) {
+                let (again, offsets) = encode_frames(&records);
+                let back: Vec<_> = offsets
+                    .windows(2)
+                    .flat_map(|w| {
+                        decode_frame(KEY, &again[w[0] as usize..w[1] as usize])
+                            .expect("re-encoded records decode")
+                    })
+                    .collect();
+                assert_eq!(debug(&records), debug(&back));
+            }
         }
         RecordKind::RefineList => {
             if let Some(list) = check_error(what, decode_refine_list(KEY, &bytes)) {

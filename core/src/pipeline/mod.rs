@@ -28,6 +28,7 @@ mod driver;
 mod frustum;
 mod mode;
 mod outputs;
+pub mod partition;
 mod plan;
 mod plan_step;
 mod records;

@@ -396,6 +396,7 @@ pub fn plan_job(
     shape: &JobShape,
     s: u32,
 ) -> Result<JobPlan, PipelineError> {
+    let triangles: u64 = splits.iter().map(|split| split.triangles).sum();
     let camera_spec = scene.camera_for(request.width, request.height);
     let camera = Camera::new(&camera_spec, request.width, request.height)?;
     let pixels = u64::from(request.width) * u64::from(request.height);
@@ -440,15 +441,20 @@ pub fn plan_job(
         spp: request.spp,
         camera: camera_spec,
         lights: scene.lights.clone(),
-        unoccludable_lights: unoccludable_lights(&scene.mesh, &scene.lights)
-            .into_iter()
-            .enumerate()
-            .filter(|(_, free)| *free)
-            .map(|(l, _)| l as u32)
-            .collect(),
+        // A scene planned from its splits (its mesh left empty) has no geometry to test.
+        unoccludable_lights: if scene.mesh.triangle_count() as u64 == triangles {
+            unoccludable_lights(&scene.mesh, &scene.lights)
+                .into_iter()
+                .enumerate()
+                .filter(|(_, free)| *free)
+                .map(|(l, _)| l as u32)
+                .collect()
+        } else {
+            Vec::new()
+        },
         ambient: scene.ambient,
         background: scene.background,
-        triangles: scene.mesh.triangle_count() as u64,
+        triangles,
         split_mode: request.mode,
         splits,
         spans,

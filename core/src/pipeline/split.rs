@@ -81,7 +81,7 @@ fn morton_order(mesh: &Mesh) -> Vec<u32> {
 }
 
 /// Spreads the low 21 bits of `v` to every third bit.
-fn spread(v: u64) -> u64 {
+pub(super) fn spread(v: u64) -> u64 {
     let mut x = v & 0x1f_ffff;
     x = (x | (x << 32)) & 0x001f_0000_0000_ffff;
     x = (x | (x << 16)) & 0x001f_0000_ff00_00ff;
@@ -148,15 +148,31 @@ fn build_split_object(
     encode_us: &mut u64,
 ) -> (super::SplitInfo, SplitObject, Vec<u8>) {
     let triangles = ids.iter().map(|&i| mesh.corners(i as usize)).collect();
-    let bvh = Bvh::build(triangles, ids);
-    let shading = bvh
-        .ids()
-        .iter()
-        .map(|&id| {
+    assemble_split(
+        split,
+        triangles,
+        ids,
+        |id| {
             let (normals, kd) = shading_of(mesh, id);
             TriangleShading { normals, kd }
-        })
-        .collect();
+        },
+        encode_us,
+    )
+}
+
+/// Builds split `split` of the triangles `ids` with corners `triangles` (same order) and the
+/// shading `shading` gives each id: its summary, the object and its encoding, whose
+/// microseconds are added to `encode_us`. The one place split objects are made, whether the
+/// triangles come from a loaded scene or from partition tasks.
+pub(super) fn assemble_split(
+    split: u32,
+    triangles: Vec<[glam::Vec3; 3]>,
+    ids: Vec<u32>,
+    shading: impl Fn(u32) -> TriangleShading,
+    encode_us: &mut u64,
+) -> (super::SplitInfo, SplitObject, Vec<u8>) {
+    let bvh = Bvh::build(triangles, ids);
+    let shading = bvh.ids().iter().map(|&id| shading(id)).collect();
     let object = SplitObject {
         split,
         bvh,

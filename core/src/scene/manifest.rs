@@ -97,19 +97,7 @@ pub struct ManifestMaterial {
 
 /// Loads a manifest and the OBJ files it names.
 pub(super) fn load_manifest_scene(path: &Path) -> Result<Scene, SceneError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let manifest = parse_manifest(&text, path)?;
-    let bad = |field: &str, detail: String| SceneError::Manifest {
-        path: path.to_path_buf(),
-        field: field.to_string(),
-        detail,
-    };
-    if manifest.meshes.is_empty() {
-        return Err(bad("meshes", "lists no OBJ files".into()));
-    }
+    let manifest = read_manifest(path)?;
     let base = path.parent().unwrap_or(Path::new("."));
     let mut warnings = Vec::new();
     let mut world = WorldMesh::default();
@@ -120,6 +108,20 @@ pub(super) fn load_manifest_scene(path: &Path) -> Result<Scene, SceneError> {
     let (mut mesh, origin) = world.localise(path)?;
     apply_material_overrides(&mut mesh, &manifest, path)?;
     let (lo, hi) = scene_bounds(&mesh, path)?;
+    manifest_scene(path, &manifest, origin, (lo, hi), mesh, warnings)
+}
+
+/// The scene of `manifest` (read from `path`) around `mesh`, already in the local frame of
+/// `origin` with bounds `lo, hi`: camera, lights, colours and image settings from the manifest
+/// or the defaults, and the manifest's warnings added to `warnings`.
+pub(super) fn manifest_scene(
+    path: &Path,
+    manifest: &Manifest,
+    origin: DVec3,
+    (lo, hi): (DVec3, DVec3),
+    mesh: Mesh,
+    mut warnings: Vec<String>,
+) -> Result<Scene, SceneError> {
     let (camera, framed_bounds) = match &manifest.camera {
         Some(c) => (camera_from(c, origin, path)?, None),
         None => (default_camera(lo, hi), Some((lo, hi))),
@@ -134,8 +136,8 @@ pub(super) fn load_manifest_scene(path: &Path) -> Result<Scene, SceneError> {
     };
     let ambient = colour(manifest.ambient.map(Rgb::to_array), "ambient", path)?;
     let background = colour(manifest.background, "background", path)?;
-    let image = image_settings(&manifest, path)?;
-    warn_bright_overrides(&manifest, path, &mut warnings);
+    let image = image_settings(manifest, path)?;
+    warn_bright_overrides(manifest, path, &mut warnings);
     if let Some(w) = unlit_warning(&lights, ambient, path) {
         warnings.push(w);
     }
@@ -154,6 +156,23 @@ pub(super) fn load_manifest_scene(path: &Path) -> Result<Scene, SceneError> {
         image,
         warnings,
     })
+}
+
+/// Reads and parses the manifest at `path`; one that lists no meshes is an error.
+pub(super) fn read_manifest(path: &Path) -> Result<Manifest, SceneError> {
+    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let manifest = parse_manifest(&text, path)?;
+    if manifest.meshes.is_empty() {
+        return Err(SceneError::Manifest {
+            path: path.to_path_buf(),
+            field: "meshes".into(),
+            detail: "lists no OBJ files".into(),
+        });
+    }
+    Ok(manifest)
 }
 
 /// Parses manifest JSON; errors carry the JSON path of the offending field.
@@ -180,7 +199,7 @@ pub fn parse_manifest(text: &str, path: &Path) -> Result<Manifest, SceneError> {
     Ok(manifest)
 }
 
-fn apply_material_overrides(
+pub(super) fn apply_material_overrides(
     mesh: &mut Mesh,
     manifest: &Manifest,
     path: &Path,

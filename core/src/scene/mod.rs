@@ -10,6 +10,7 @@ mod manifest;
 mod mesh;
 mod mtl;
 mod obj;
+mod ranged;
 mod world;
 
 pub use binary::{
@@ -19,7 +20,8 @@ pub use binary::{
 pub use framing::{default_camera, default_light, framed_camera, scene_bounds};
 pub use manifest::{MANIFEST_SCHEMA, Manifest, parse_manifest};
 pub use mesh::{Material, Mesh, NO_NORMAL};
-pub use obj::parse_obj;
+pub use obj::{ObjRange, ObjScan, RangeFaces, parse_obj, parse_obj_range, scan_obj};
+pub use ranged::{override_materials, scene_mesh_files, scene_without_geometry};
 
 use crate::error::SceneError;
 use glam::DVec3;
@@ -153,19 +155,10 @@ pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
 fn load_obj_scene(path: &Path) -> Result<Scene, SceneError> {
     let mut warnings = Vec::new();
     let (mesh, origin) = obj::load_obj(path, &mut warnings)?.localise(path)?;
-    let (lo, hi) = scene_bounds(&mesh, path)?;
-    Ok(Scene {
-        source: path.to_path_buf(),
-        origin,
-        camera: default_camera(lo, hi),
-        framed_bounds: Some((lo, hi)),
-        lights: vec![default_light(lo, hi)],
-        mesh,
-        ambient: [0.0; 3],
-        background: [0.0; 3],
-        image: ImageSettings::default(),
-        warnings,
-    })
+    let bounds = scene_bounds(&mesh, path)?;
+    let mut scene = scene_without_geometry(path, origin, bounds, warnings)?;
+    scene.mesh = mesh;
+    Ok(scene)
 }
 
 /// Checks image dimensions and sample count against the documented limits.

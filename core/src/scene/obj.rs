@@ -24,6 +24,9 @@ use std::collections::{HashMap, HashSet};
 use std::io::BufRead;
 use std::path::{Path, PathBuf};
 
+mod stream;
+pub use stream::{ObjRange, ObjScan, RangeFaces, parse_obj_range, scan_obj};
+
 /// Grey of faces without a material (and of `usemtl` names no library defines).
 pub const DEFAULT_KD: [f32; 3] = [0.7, 0.7, 0.7];
 
@@ -198,6 +201,15 @@ struct ObjParser<'a> {
     normal_without_vn: Option<(u64, i64)>,
     /// The same for texture coordinates.
     texcoord_without_vt: Option<(u64, i64)>,
+    /// Positions and normals defined before the first one in `positions` and `mesh.normals`
+    /// (a file read in ranges: see `stream.rs`). 0 for a whole file.
+    position_base: usize,
+    normal_base: usize,
+    /// Reading one range of a file alone: the material each `usemtl` selects, in order, as the
+    /// scan of the whole file found (`mtllib` is then skipped: the scan read the libraries).
+    material_script: Option<std::collections::VecDeque<u32>>,
+    /// Scanning: the material each `usemtl` selected, in order (see `stream.rs`).
+    usemtl_log: Vec<u32>,
 }
 
 impl<'a> ObjParser<'a> {
@@ -223,7 +235,21 @@ impl<'a> ObjParser<'a> {
             unknown_unreported: None,
             normal_without_vn: None,
             texcoord_without_vt: None,
+            position_base: 0,
+            normal_base: 0,
+            material_script: None,
+            usemtl_log: Vec::new(),
         }
+    }
+
+    /// Positions defined so far (including those before a range).
+    fn position_count(&self) -> usize {
+        self.position_base + self.positions.len()
+    }
+
+    /// Normals defined so far (including those before a range).
+    fn normal_count(&self) -> usize {
+        self.normal_base + self.mesh.normals.len()
     }
 
     /// `file:line` of the current line, for warnings.
@@ -346,8 +372,9 @@ impl<'a> ObjParser<'a> {
             "f" | "fo" => self.face(text(self)?.split_ascii_whitespace())?,
             "usemtl" => {
                 let name = text(self)?.split_ascii_whitespace().next().unwrap_or("");
-                self.use_material(name);
+                self.use_material(name)?;
             }
+            "mtllib" if self.material_script.is_some() => {}
             "mtllib" => {
                 for file in text(self)?.split_ascii_whitespace() {
                     self.load_library(file)?;
@@ -434,7 +461,7 @@ impl<'a> ObjParser<'a> {
         let v = parts.next().unwrap_or("");
         let vt = parts.next().unwrap_or("");
         let vn = parts.next().unwrap_or("");
-        let position = self.index(v, self.positions.len(), "vertex")?;
+        let position = self.index(v, self.position_count(), "vertex")?;
         if !vt.is_empty() {
             if self.texcoords == 0 {
                 let raw = self.raw_index(vt, "texture coordinate")?;
@@ -448,7 +475,7 @@ impl<'a> ObjParser<'a> {
         }
         let normal = if vn.is_empty() {
             NO_NORMAL
-        } else if self.mesh.normals.is_empty() {
+        } else if self.normal_count() == 0 {
             let raw = self.raw_index(vn, "normal")?;
             if raw == 0 {
                 return Err(self.undefined_index(self.line, "normal", raw));
@@ -456,7 +483,7 @@ impl<'a> ObjParser<'a> {
             self.normal_without_vn.get_or_insert((self.line, raw));
             NO_NORMAL
         } else {
-            self.index(vn, self.mesh.normals.len(), "normal")?
+            self.index(vn, self.normal_count(), "normal")?
         };
         Ok((position, normal))
     }
@@ -482,7 +509,20 @@ impl<'a> ObjParser<'a> {
         Ok(resolved as u32)
     }
 
-    fn use_material(&mut self, name: &str) {
+    fn use_material(&mut self, name: &str) -> Result<(), SceneError> {
+        if self.material_script.is_some() {
+            let next = self.material_script.as_mut().and_then(|s| s.pop_front());
+            self.current_material = next.ok_or_else(|| {
+                self.syntax("more usemtl statements than the scan of the file found".into())
+            })?;
+            return Ok(());
+        }
+        self.select_material(name);
+        self.usemtl_log.push(self.current_material);
+        Ok(())
+    }
+
+    fn select_material(&mut self, name: &str) {
         match self.library.get_mut(name) {
             Some((kd, slot)) => {
                 let index = *slot.get_or_insert_with(|| {

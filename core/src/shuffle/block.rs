@@ -46,11 +46,15 @@ pub enum RecordKind {
     /// TraceReduce output of an adaptive job's first round: the pixels of a span that get a
     /// second round, with their first-pass radiance sums.
     RefineList = 7,
+    /// The vertex positions and normals one range of a scene's OBJ file defines.
+    VertexPage = 8,
+    /// One frame of a scene range's triangles, with positions, shading and scene-wide ids.
+    PartRecords = 9,
 }
 
 impl RecordKind {
     /// Every kind, in numeric order.
-    pub const ALL: [RecordKind; 7] = [
+    pub const ALL: [RecordKind; 9] = [
         RecordKind::CastCandidate,
         RecordKind::Hit,
         RecordKind::ShadowQuery,
@@ -58,6 +62,8 @@ impl RecordKind {
         RecordKind::PixelColor,
         RecordKind::SplitObject,
         RecordKind::RefineList,
+        RecordKind::VertexPage,
+        RecordKind::PartRecords,
     ];
 
     /// The kind's number in the header.

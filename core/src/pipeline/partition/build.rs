@@ -1,0 +1,172 @@
+//! Steps 4 and 5: a build task makes one split object from its runs of records; the plan is
+//! made from the split summaries and the scene without its geometry.
+
+use super::cut::CutSplits;
+use super::range_task::PartIndex;
+use super::record::{FRAME_RECORDS, PartRecord, decode_frame};
+use super::scan::PartsTable;
+use super::{PipelineError, read_json, write_json};
+use crate::error::SceneError;
+use crate::ids::{JobId, SplitId};
+use crate::keys::{
+    parts_index_key, parts_records_key, parts_split_info_key, parts_splits_key, parts_table_key,
+    plan_key, split_key,
+};
+use crate::pipeline::plan::{PlanRequest, plan_job, resolve_counts};
+use crate::pipeline::plan_step::PlannedJob;
+use crate::pipeline::split::assemble_split;
+use crate::pipeline::split_object::TriangleShading;
+use crate::pipeline::{SplitInfo, TaskMetrics};
+use crate::scene::scene_without_geometry;
+use crate::store::BlobStore;
+use glam::{DVec3, Vec3};
+use std::path::{Path, PathBuf};
+
+/// Runs the build task of split `split` of job `job` (whose cut is stored): reads its records,
+/// builds the split object, stores it at `splits/{split}` and its summary at
+/// `parts/split-{split}.json`. Returns the summary and the object's bytes (the lineage of a
+/// lost split object is this task).
+pub fn build_split_from_parts(
+    store: &dyn BlobStore,
+    job: &JobId,
+    split: u32,
+) -> Result<(SplitInfo, Vec<u8>), PipelineError> {
+    let table: PartsTable = read_json(store, &parts_table_key(job))?;
+    let cut: CutSplits = read_json(store, &parts_splits_key(job))?;
+    let runs = cut.splits.get(split as usize).ok_or_else(|| {
+        PipelineError::BadInput(format!(
+            "build task {split}: the scene has {} splits",
+            cut.splits.len()
+        ))
+    })?;
+    let origin = DVec3::from(cut.origin);
+    let mut records = Vec::new();
+    for run in runs {
+        let index: PartIndex = read_json(store, &parts_index_key(job, run.range))?;
+        read_run(store, job, run, &index, &mut records)?;
+    }
+    records.sort_unstable_by_key(|r| r.id);
+    let mut corners = Vec::with_capacity(records.len());
+    for record in &records {
+        let local = record.corners.map(|p| (p - origin).as_vec3());
+        if !local.iter().all(|p| p.is_finite()) {
+            let file = file_of(&table, record.id);
+            return Err(SceneError::TooLarge { path: file }.into());
+        }
+        corners.push(local);
+    }
+    let ids: Vec<u32> = records.iter().map(|r| r.id).collect();
+    let shading = |id: u32| {
+        let r = &records[ids.binary_search(&id).expect("a split's own id")];
+        TriangleShading {
+            normals: r.normals,
+            kd: r.kd,
+        }
+    };
+    let (info, _, bytes) = assemble_split(split, corners, ids.clone(), shading, &mut 0);
+    store.put(&split_key(job, SplitId(split)), &bytes)?;
+    write_json(store, &parts_split_info_key(job, split), &info)?;
+    Ok((info, bytes))
+}
+
+/// The file that holds triangle `id`, for messages.
+fn file_of(table: &PartsTable, id: u32) -> PathBuf {
+    let at = table
+        .ranges
+        .partition_point(|r| r.first_id + r.obj.triangle_count <= u64::from(id));
+    let file = table.ranges.get(at).map_or(0, |r| r.file as usize);
+    PathBuf::from(&table.files[file].path)
+}
+
+/// Appends the records of `run` to `out`, fetching the frames that hold them in one ranged GET.
+fn read_run(
+    store: &dyn BlobStore,
+    job: &JobId,
+    run: &super::RecordRun,
+    index: &PartIndex,
+    out: &mut Vec<PartRecord>,
+) -> Result<(), PipelineError> {
+    let key = parts_records_key(job, run.range);
+    let frames = FRAME_RECORDS as u64;
+    let (first, last) = (run.start / frames, (run.end - 1) / frames);
+    let offsets = &index.frames;
+    if run.end > index.records || last as usize + 1 >= offsets.len() {
+        return Err(PipelineError::Corrupt(format!(
+            "{key}: records {}..{} asked for, its index lists {} in {} frames",
+            run.start,
+            run.end,
+            index.records,
+            offsets.len().saturating_sub(1)
+        )));
+    }
+    let base = offsets[first as usize];
+    let bytes = store.get_range(&key, base..offsets[last as usize + 1])?;
+    for frame in first..=last {
+        let at = (offsets[frame as usize] - base) as usize
+            ..(offsets[frame as usize + 1] - base) as usize;
+        let records = decode_frame(&key, bytes.get(at).unwrap_or_default())?;
+        let from = run.start.saturating_sub(frame * frames) as usize;
+        let to = ((run.end - frame * frames) as usize).min(records.len());
+        out.extend_from_slice(records.get(from..to).ok_or_else(|| {
+            PipelineError::Corrupt(format!(
+                "{key}: frame {frame} holds {} records",
+                records.len()
+            ))
+        })?);
+    }
+    Ok(())
+}
+
+/// Step 5: plans job `job` from its built splits: the scene at `main` (the main file, OBJ or
+/// manifest, in a folder holding the manifest; its meshes are not read) without its geometry,
+/// framed by the splits' bounds, planned as [`crate::pipeline::plan_into_store`] plans a
+/// loaded scene; stores and returns the plan.
+pub fn plan_from_parts(
+    store: &dyn BlobStore,
+    job: &JobId,
+    main: &Path,
+    request: &PlanRequest,
+) -> Result<PlannedJob, PipelineError> {
+    let started = std::time::Instant::now();
+    let table: PartsTable = read_json(store, &parts_table_key(job))?;
+    let cut: CutSplits = read_json(store, &parts_splits_key(job))?;
+    let (shape, s) = resolve_counts(request, table.triangles)?;
+    if shape.splits as usize != cut.splits.len() {
+        return Err(PipelineError::Corrupt(format!(
+            "{}: {} splits, the request plans {}",
+            parts_splits_key(job),
+            cut.splits.len(),
+            shape.splits
+        )));
+    }
+    let infos: Vec<SplitInfo> = (0..cut.splits.len() as u32)
+        .map(|split| read_json(store, &parts_split_info_key(job, split)))
+        .collect::<Result<_, _>>()?;
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    for info in &infos {
+        lo = lo.min(Vec3::from(info.lo).as_dvec3());
+        hi = hi.max(Vec3::from(info.hi).as_dvec3());
+    }
+    if (hi - lo).length() <= 0.0 {
+        return Err(SceneError::NoExtent {
+            path: main.to_path_buf(),
+        }
+        .into());
+    }
+    let scene = scene_without_geometry(main, DVec3::from(cut.origin), (lo, hi), table.warnings)?;
+    let plan = plan_job(&scene, request, infos, &shape, s)?;
+    let plan_json = serde_json::to_vec_pretty(&plan)
+        .map_err(|e| PipelineError::BadInput(format!("cannot encode the plan: {e}")))?;
+    store.put(&plan_key(job), &plan_json)?;
+    let task_us = crate::pipeline::micros(started.elapsed());
+    Ok(PlannedJob {
+        bytes_written: plan_json.len() as u64,
+        plan,
+        metrics: TaskMetrics {
+            task_us,
+            compute_us: task_us,
+            ..Default::default()
+        },
+    })
+}
