@@ -32,7 +32,7 @@ pub enum IdError {
     },
     /// The string names no stage.
     #[error(
-        "unknown stage {found:?}: expected one of plan, render, cast-map, cast-reduce, expand, trace-map, trace-reduce, combine"
+        "unknown stage {found:?}: expected one of plan, partition, build, render, cast-map, cast-reduce, expand, trace-map, trace-reduce, combine"
     )]
     UnknownStage {
         /// The rejected stage name.

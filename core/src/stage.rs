@@ -4,6 +4,8 @@
 //! | stage | name | state | items field | function |
 //! |---|---|---|---|---|
 //! | [`Stage::Plan`] | `plan` | `Plan` | - | `PlanFunctionArn` |
+//! | [`Stage::Partition`] | `partition` | `Partition` | `partition` | `WorkerFunctionArn` |
+//! | [`Stage::Build`] | `build` | `Build` | `build` | `WorkerFunctionArn` |
 //! | [`Stage::Render`] | `render` | `Render` | `render` | `WorkerFunctionArn` |
 //! | [`Stage::CastMap`] | `cast-map` | `CastMap` | `cast_map` | `WorkerFunctionArn` |
 //! | [`Stage::CastReduce`] | `cast-reduce` | `CastReduce` | `cast_reduce` | `WorkerFunctionArn` |
@@ -12,6 +14,9 @@
 //! | [`Stage::TraceReduce`] | `trace-reduce` | `TraceReduce` | `trace_reduce` | `WorkerFunctionArn` |
 //! | [`Stage::Combine`] | `combine` | `Combine` | - | `WorkerFunctionArn` |
 //!
+//! A scene too large for one function is split by tasks first (Partition, then Build, with the
+//! Plan function's `Cut` and `PlanFromParts` steps between and after them; see
+//! [`crate::pipeline::partition`]); the plan itself does not list those stages.
 //! A job runs either the fused path (Plan, Render, Combine) or HORT's staged path (Plan,
 //! CastMap to TraceReduce, Combine); [`crate::pipeline::ExecutionMode::stages`] lists each.
 //! The task count and timeout of each stage for a given job are [`crate::pipeline::JobPlan`]'s
@@ -31,6 +36,11 @@ use crate::ids::{IdError, JobId};
 pub enum Stage {
     /// Cut the scene into split objects, each with its own BVH, and plan the job's tasks.
     Plan,
+    /// A scene split by tasks: one byte range of the scene's files parsed, its triangles
+    /// written by spatial bucket.
+    Partition,
+    /// A scene split by tasks: one split object built from the partitions' records.
+    Build,
     /// Fused mode only: one span's whole render (cast, shadow rays, shading) against every
     /// split it loads, with no shuffle in between.
     Render,
@@ -55,8 +65,10 @@ pub const WORKER_FUNCTION: &str = "WorkerFunctionArn";
 
 impl Stage {
     /// Every stage, in pipeline order.
-    pub const ALL: [Stage; 8] = [
+    pub const ALL: [Stage; 10] = [
         Stage::Plan,
+        Stage::Partition,
+        Stage::Build,
         Stage::Render,
         Stage::CastMap,
         Stage::CastReduce,
@@ -74,6 +86,8 @@ impl Stage {
     pub const fn as_str(self) -> &'static str {
         match self {
             Stage::Plan => "plan",
+            Stage::Partition => "partition",
+            Stage::Build => "build",
             Stage::Render => "render",
             Stage::CastMap => "cast-map",
             Stage::CastReduce => "cast-reduce",
@@ -88,6 +102,8 @@ impl Stage {
     pub const fn state_name(self) -> &'static str {
         match self {
             Stage::Plan => "Plan",
+            Stage::Partition => "Partition",
+            Stage::Build => "Build",
             Stage::Render => "Render",
             Stage::CastMap => "CastMap",
             Stage::CastReduce => "CastReduce",
@@ -103,6 +119,8 @@ impl Stage {
     /// stages run as one Task state (plan, combine).
     pub const fn items_field(self) -> Option<&'static str> {
         match self {
+            Stage::Partition => Some("partition"),
+            Stage::Build => Some("build"),
             Stage::Render => Some("render"),
             Stage::CastMap => Some("cast_map"),
             Stage::CastReduce => Some("cast_reduce"),
@@ -168,6 +186,13 @@ mod tests {
             rows,
             [
                 ("plan", "Plan", None, "PlanFunctionArn"),
+                (
+                    "partition",
+                    "Partition",
+                    Some("partition"),
+                    "WorkerFunctionArn"
+                ),
+                ("build", "Build", Some("build"), "WorkerFunctionArn"),
                 ("render", "Render", Some("render"), "WorkerFunctionArn"),
                 ("cast-map", "CastMap", Some("cast_map"), "WorkerFunctionArn"),
                 (
@@ -208,7 +233,7 @@ mod tests {
         }
         assert_eq!(
             "Split".parse::<Stage>().unwrap_err().to_string(),
-            "unknown stage \"Split\": expected one of plan, render, cast-map, cast-reduce, expand, \
+            "unknown stage \"Split\": expected one of plan, partition, build, render, cast-map, cast-reduce, expand, \
              trace-map, trace-reduce, combine"
         );
         assert!(serde_json::from_str::<Stage>("\"cast_map\"").is_err());

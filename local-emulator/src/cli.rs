@@ -102,7 +102,7 @@ pub struct RenderArgs {
         "in_process", "workers", "splits", "spans", "split_mode", "s3_endpoint", "bucket",
         "region", "access_key", "secret_key", "data_dir", "job", "resume", "keep_intermediates",
         "fail_rate", "duplicate_rate", "slow_rate", "kill_slot_after", "seed", "task_timeout",
-        "time_scale", "memory_mb", "lambda_endpoint", "mode",
+        "time_scale", "memory_mb", "lambda_endpoint", "mode", "scene_range_bytes",
     ])]
     pub monolithic: bool,
     /// Worker threads of a monolithic render (default: all cores).
@@ -133,7 +133,7 @@ pub struct RenderArgs {
     #[arg(long, conflicts_with_all = [
         "s3_endpoint", "bucket", "region", "access_key", "secret_key", "data_dir", "job", "resume",
         "keep_intermediates", "fail_rate", "duplicate_rate", "slow_rate", "kill_slot_after",
-        "seed", "task_timeout", "time_scale", "lambda_endpoint",
+        "seed", "task_timeout", "time_scale", "lambda_endpoint", "scene_range_bytes",
     ])]
     pub in_process: bool,
     /// Use this S3-compatible endpoint (MinIO, Garage, Ceph RGW, moto) instead of the
@@ -170,6 +170,12 @@ pub struct RenderArgs {
     /// plan.json and out/ stay in a bucket or --data-dir).
     #[arg(long)]
     pub keep_intermediates: bool,
+    /// Split the scene by tasks (partition tasks over byte ranges of its OBJ files, then one
+    /// build task per split) in ranges of this many bytes, whatever its size (default: only a
+    /// scene too large for one function to load within --memory-mb is, in ranges of a
+    /// sixteenth of it).
+    #[arg(long, value_name = "BYTES", value_parser = clap::value_parser!(u64).range(1..))]
+    pub scene_range_bytes: Option<u64>,
     /// Probability that an attempt fails (before running, or after writing part of its outputs).
     #[arg(long, default_value_t = 0.0)]
     pub fail_rate: f64,

@@ -429,6 +429,7 @@ fn render_emulated(scene: &Scene, args: &RenderArgs, request: PlanRequest) -> Re
     let options = JobOptions {
         keep_intermediates: args.keep_intermediates,
         resume: args.resume,
+        scene_range_bytes: args.scene_range_bytes,
     };
     // The scene loaded above goes up parsed: no function parses it again.
     let run = run_job_loaded(&config, options, &args.scene, scene, request, &progress)?;

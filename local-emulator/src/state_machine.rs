@@ -34,13 +34,16 @@ mod tests {
     /// `{Map}Check` Choice by its first rule (nothing lost); that Choice's other targets must be
     /// the stage's rerun loop (`{Map}GiveUp`, `{Map}Rerun`), whose Map reruns the same stage
     /// with the same function.
-    /// `ChooseMode`, the Choice after Plan, is followed to the branch of `mode` (its rule whose
+    /// `ChooseScene`, the Choice after Plan, is followed to Partition when the scene is split
+    /// `by_tasks`, else to its `Default`.
+    /// `ChooseMode`, the Choice before the render stages, is followed to the branch of `mode` (its rule whose
     /// `StringEquals` is the mode, else its `Default`); `ChooseShadows` to its `Default` when the
     /// job has `shadows`, else to its one rule's target.
     fn stage_states(
         machine: &Value,
         mode: ExecutionMode,
         shadows: bool,
+        by_tasks: bool,
     ) -> Vec<(String, Option<String>, String, Option<String>)> {
         let states = &machine["States"];
         let mut out = Vec::new();
@@ -79,6 +82,17 @@ mod tests {
                         .iter()
                         .find(|r| r["StringEquals"] == mode.as_str())
                         .map_or(state["Default"].as_str(), |r| r["Next"].as_str());
+                    continue;
+                }
+                Some("Choice") if name == "ChooseScene" => {
+                    let rules = state["Choices"].as_array().unwrap();
+                    assert_eq!(rules[0]["Variable"], "$.plan.items.partition");
+                    assert_eq!(rules[0]["IsPresent"], true);
+                    next = if by_tasks {
+                        rules[0]["Next"].as_str()
+                    } else {
+                        state["Default"].as_str()
+                    };
                     continue;
                 }
                 Some("Choice") if name == "ChooseRefine" => {
@@ -170,31 +184,68 @@ mod tests {
     #[test]
     fn the_definition_runs_the_stage_table_of_each_mode_in_order() {
         let machine: Value = serde_json::from_str(HORT_DEFINITION).unwrap();
+        let row = |s: &Stage| {
+            (
+                s.state_name().to_owned(),
+                (*s != Stage::Plan).then(|| s.as_str().to_owned()),
+                format!("${{{}}}", s.function()),
+                s.items_field().map(|f| format!("$.plan.items.{f}")),
+            )
+        };
+        let plan_step = |state: &str| {
+            let function = format!("${{{}}}", Stage::Plan.function());
+            (state.to_owned(), None, function, None)
+        };
         let cases = [ExecutionMode::Fused, ExecutionMode::Staged]
             .into_iter()
             .flat_map(|mode| [(mode, true), (mode, false)]);
         for (mode, shadows) in cases {
-            let expected: Vec<_> = mode
-                .stages_with(shadows)
-                .iter()
-                .map(|s| {
-                    (
-                        s.state_name().to_owned(),
-                        (*s != Stage::Plan).then(|| s.as_str().to_owned()),
-                        format!("${{{}}}", s.function()),
-                        s.items_field().map(|f| format!("$.plan.items.{f}")),
-                    )
-                })
-                .collect();
+            let expected: Vec<_> = mode.stages_with(shadows).iter().map(row).collect();
             assert_eq!(
-                stage_states(&machine, mode, shadows),
+                stage_states(&machine, mode, shadows, false),
                 expected,
                 "{mode}, shadows {shadows}"
             );
+            // A scene split by tasks: Partition, Cut, Build and PlanFromParts after Plan.
+            let mut by_tasks = vec![expected[0].clone(), row(&Stage::Partition)];
+            by_tasks.push(plan_step("Cut"));
+            by_tasks.push(row(&Stage::Build));
+            by_tasks.push(plan_step("PlanFromParts"));
+            by_tasks.extend_from_slice(&expected[1..]);
+            assert_eq!(
+                stage_states(&machine, mode, shadows, true),
+                by_tasks,
+                "{mode}, shadows {shadows}, split by tasks"
+            );
         }
-        // Every stage of the table is on one of the two paths.
-        let mut both: Vec<Stage> = ExecutionMode::Fused.stages().to_vec();
-        both.extend(ExecutionMode::Staged.stages());
-        assert!(Stage::ALL.iter().all(|s| both.contains(s)));
+        // Every stage of the table is on one of the paths.
+        let mut all: Vec<Stage> = ExecutionMode::Fused.stages().to_vec();
+        all.extend(ExecutionMode::Staged.stages());
+        all.extend([Stage::Partition, Stage::Build]);
+        assert!(Stage::ALL.iter().all(|s| all.contains(s)));
+    }
+
+    /// The Plan function's `cut` and `finish` steps are the Plan state's call plus `step`, with
+    /// its answer stored at `$.plan` again, and its failure state.
+    #[test]
+    fn the_plan_steps_of_a_scene_split_by_tasks_are_the_plan_state_with_a_step() {
+        let machine: Value = serde_json::from_str(HORT_DEFINITION).unwrap();
+        let states = &machine["States"];
+        let plan = &states["Plan"];
+        for (state, step, next) in [
+            ("Cut", "cut", "Build"),
+            ("PlanFromParts", "finish", "ChooseMode"),
+        ] {
+            let s = &states[state];
+            let mut payload = plan["Parameters"]["Payload"].clone();
+            payload["step"] = step.into();
+            assert_eq!(s["Parameters"]["Payload"], payload, "{state}");
+            for field in ["Resource", "ResultSelector", "ResultPath", "Retry", "Catch"] {
+                assert_eq!(s[field], plan[field], "{state} {field}");
+            }
+            assert_eq!(s["Next"], next, "{state}");
+        }
+        assert_eq!(plan["Next"], "ChooseScene");
+        assert_eq!(states["ChooseScene"]["Default"], "ChooseMode");
     }
 }

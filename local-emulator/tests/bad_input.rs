@@ -34,7 +34,7 @@ use hort_core::shading::SurfacePoint;
 use hort_core::shuffle::RecordKind;
 use hort_core::stage::Stage;
 use hort_core::store::{BlobStore, MemoryStore};
-use hort_functions::handlers::{JobRequest, PlanEvent, SceneFormat, handle_plan};
+use hort_functions::handlers::{JobRequest, PlanEvent, PlanStep, SceneFormat, handle_plan};
 
 const TRIANGLE: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
 /// The triangle and a second one behind it, so that the default light can be occluded and a
@@ -338,6 +338,7 @@ fn binary_scene_error(dir: &Path, op: &str) -> String {
         max_concurrency: 1,
         task_timeout_seconds: None,
         scene_format: SceneFormat::Binary,
+        scene_range_bytes: None,
     };
     let json = serde_json::to_vec(&request).unwrap();
     store.put(&manifest_key(&job), &json).unwrap();
@@ -349,6 +350,7 @@ fn binary_scene_error(dir: &Path, op: &str) -> String {
         bucket: "b".into(),
         attempt: 0,
         round: 1,
+        step: PlanStep::Start,
     };
     handle_plan(&store, "b", &event, dir)
         .expect_err("an edit that breaks the scene")

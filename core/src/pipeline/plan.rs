@@ -211,6 +211,8 @@ impl JobPlan {
                 self.spans.len()
             }
             Stage::Combine | Stage::Plan => 1,
+            // Run before the plan exists (a scene split by tasks): not the plan's tasks.
+            Stage::Partition | Stage::Build => 0,
         }
     }
 
@@ -276,6 +278,7 @@ impl JobPlan {
                 (span_samples(task) * (1 + lights) / 4, 0)
             }
             Stage::Combine | Stage::Plan => (u64::from(self.width) * u64::from(self.height) / 4, 0),
+            Stage::Partition | Stage::Build => (0, 0),
         };
         let micros = STARTUP_MICROS
             .saturating_add(rays.saturating_mul(1_000_000) / RAYS_PER_SECOND)

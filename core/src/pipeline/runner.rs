@@ -446,6 +446,10 @@ impl Task<'_> {
             Stage::Plan => Err(PipelineError::BadInput(
                 "the plan stage runs in the Plan function, not as a worker task".into(),
             )),
+            Stage::Partition | Stage::Build => Err(PipelineError::BadInput(format!(
+                "{stage} task {task}: not a task of the plan (a scene's partition and build \
+                 tasks run before the plan exists)"
+            ))),
         }
     }
 

@@ -301,7 +301,9 @@ pub fn task_milliseconds(plan: &JobPlan, stage: Stage, r: &Rates, speed: f64) ->
     let queries = span_samples * plan.lights.len() as f64;
     let ms = |fixed: f64, units: f64, us: f64| fixed + units * us / 1000.0 / speed;
     match stage {
-        Stage::Plan => ms(
+        // A scene split by tasks: the plan's per-triangle rate stands for the scan, partition
+        // and build tasks together (not modelled one by one).
+        Stage::Plan | Stage::Partition | Stage::Build => ms(
             r.plan_overhead_ms,
             plan.triangles as f64,
             r.plan_us_per_triangle,
@@ -374,6 +376,8 @@ pub fn stage_requests(plan: &JobPlan, stage: Stage) -> (u64, u64) {
         // Reads the manifest and the scene files (about three); writes the splits, the plan,
         // the item files and a listing.
         Stage::Plan => (4, k + 3 + if fused { 0 } else { 4 }),
+        // Not in a plan's stages (a scene split by tasks); counted with the plan.
+        Stage::Partition | Stage::Build => (0, 0),
         // Every split, the plan, the item file; one partition.
         Stage::Render => (s * k + s + 1, s),
         // Its split and the plan, the item file; one partition.
@@ -402,6 +406,7 @@ pub fn stage_bytes(plan: &JobPlan, stage: Stage) -> u64 {
     let queries = samples * plan.lights.len() as f64;
     let bytes = match stage {
         Stage::Plan => plan.scene_bytes() as f64,
+        Stage::Partition | Stage::Build => 0.0,
         // Each pixel's radiance sums and hit (20 bytes before compression).
         Stage::Render => pixels as f64 * 20.0,
         Stage::CastMap | Stage::CastReduce | Stage::TraceReduce => samples * RECORD_BYTES,

@@ -143,6 +143,7 @@ impl AwsBackend {
             max_concurrency: self.limits.max_concurrency,
             task_timeout_seconds: None,
             scene_format: crate::handlers::SceneFormat::Binary,
+            scene_range_bytes: None,
         };
         let json = serde_json::to_vec(&request)
             .map_err(|e| ApiError::internal(format!("cannot encode the job request: {e}")))?;

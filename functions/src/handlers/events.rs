@@ -26,6 +26,11 @@ pub struct JobRequest {
     /// written) or the parsed scene at `jobs/{job}/scene/scene.bin` (`binary`).
     #[serde(default, skip_serializing_if = "SceneFormat::is_files")]
     pub scene_format: SceneFormat,
+    /// Split the scene by tasks (`hort_core::pipeline::partition`) in byte ranges of this size,
+    /// whatever its size; by default a scene of the `files` format is split by tasks when a
+    /// whole-scene load would not fit the function's memory.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scene_range_bytes: Option<u64>,
 }
 
 /// How a job's scene is stored (the job request's `scene_format`).
@@ -64,6 +69,31 @@ pub struct PlanEvent {
     /// machine's `Refine` state), without loading the scene.
     #[serde(default = "first_round")]
     pub round: u32,
+    /// For a scene split by tasks, the Plan function's step: `start` (the default) scans the
+    /// scene (or, for a scene loaded whole, plans the job), `cut` cuts the partitioned scene
+    /// into splits after the Partition Map, `finish` plans the job after the Build Map.
+    #[serde(default, skip_serializing_if = "PlanStep::is_start")]
+    pub step: PlanStep,
+}
+
+/// The Plan function's step (see [`PlanEvent::step`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PlanStep {
+    /// Load or scan the scene; plan, or hand out the partition tasks.
+    #[default]
+    Start,
+    /// Cut the partitioned scene into splits; hand out the build tasks.
+    Cut,
+    /// Plan the job from the built splits.
+    Finish,
+}
+
+impl PlanStep {
+    /// True for [`PlanStep::Start`] (the default, left out of the JSON).
+    pub fn is_start(&self) -> bool {
+        *self == PlanStep::Start
+    }
 }
 
 fn first_round() -> u32 {

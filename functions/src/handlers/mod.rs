@@ -13,10 +13,11 @@
 mod dispatch;
 mod events;
 mod plan;
+mod plan_parts;
 mod worker;
 
 pub use dispatch::{Function, FunctionEnv, Invoked, TaskDone, dispatch};
-pub use events::{JobRequest, PlanEvent, PlanOutput, SceneFormat, TaskItem, WorkerEvent};
+pub use events::{JobRequest, PlanEvent, PlanOutput, PlanStep, SceneFormat, TaskItem, WorkerEvent};
 pub use plan::{handle_plan, handle_plan_measured, scene_prefix};
 pub use worker::handle_worker;
 

@@ -2,7 +2,7 @@
 //! object at a time), write the plan and one items file per Map state of the plan's mode
 //! (fused: `render`; staged: `cast_map` to `trace_reduce`).
 
-use super::events::{JobRequest, PlanEvent, PlanOutput, SceneFormat, TaskItem};
+use super::events::{JobRequest, PlanEvent, PlanOutput, PlanStep, SceneFormat, TaskItem};
 use super::{HandlerError, check_bucket};
 use hort_core::ids::Stage;
 use hort_core::ids::{JobId, TaskId};
@@ -11,7 +11,7 @@ use hort_core::pipeline::{
     JobPlan, SplitCache, TaskMetrics, micros, plan_into_store, refined_spans,
 };
 use hort_core::scene::{Scene, decode_scene, load_scene};
-use hort_core::store::{BlobStore, TimedStore};
+use hort_core::store::{BlobStore, StoreError, TimedStore};
 use std::path::{Component, Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
@@ -44,17 +44,38 @@ pub fn handle_plan_measured(
     let store = TimedStore::new(store);
     let job = &event.job;
     check_bucket(&event.bucket, bucket)?;
-    match event.round {
-        1 => {}
-        2 => return plan_round_two(&store, job, started),
-        other => {
+    match (event.round, event.step) {
+        (1, PlanStep::Start) => {}
+        (1, PlanStep::Cut) => return super::plan_parts::cut_step(&store, job, started),
+        (1, PlanStep::Finish) => {
+            return super::plan_parts::finish_step(&store, job, work_dir, started);
+        }
+        (2, PlanStep::Start) => return plan_round_two(&store, job, started),
+        (2, step) => {
+            return Err(HandlerError::bad_input(format!(
+                "plan event round 2 with step {step:?}: only round 1 has steps"
+            )));
+        }
+        (other, _) => {
             return Err(HandlerError::bad_input(format!(
                 "plan event round {other}: a job has rounds 1 and 2"
             )));
         }
     }
-    let (request, scene) =
-        load_job_scene(&store, job, work_dir, &format!("plan-{}", event.attempt))?;
+    let label = format!("plan-{}", event.attempt);
+    let (request, scene) = match super::plan_parts::load_or_scan(&store, job, work_dir, &label)? {
+        super::plan_parts::Loaded::Whole(request, scene) => (request, scene),
+        super::plan_parts::Loaded::Scanned(output) => {
+            let task_us = micros(started.elapsed());
+            let metrics = TaskMetrics {
+                task_us,
+                storage_us: store.waited_us(),
+                decode_us: task_us.saturating_sub(store.waited_us()),
+                ..Default::default()
+            };
+            return Ok((output, metrics));
+        }
+    };
     let decode_us = micros(started.elapsed()).saturating_sub(store.waited_us());
     let planned = plan_into_store(&store, job, &scene, &request.render)?;
     let plan = planned.plan;
@@ -71,7 +92,7 @@ pub fn handle_plan_measured(
 /// Writes the items files of a round and returns the Plan function's answer naming them:
 /// round 1 (`refined` is `None`): every Map stage the job runs, all its tasks; round 2 (the
 /// spans with pixels to refine): only the stages with round-2 tasks for those spans.
-fn write_round(
+pub(super) fn write_round(
     store: &dyn BlobStore,
     job: &JobId,
     plan: &JobPlan,
@@ -109,7 +130,7 @@ fn write_round(
 
 /// Writes the items file `key` of `stage`: one item per task of `tasks`, with its timeout
 /// (the request's override, else the plan's prediction).
-fn write_items(
+pub(super) fn write_items(
     store: &dyn BlobStore,
     key: &str,
     plan: &JobPlan,
@@ -189,21 +210,42 @@ pub(super) fn load_job_scene(
             decode_scene(&key, &bytes).map_err(|e| HandlerError::bad_input(e.to_string()))?;
         return Ok((request, scene));
     }
+    let loaded = with_scene_files(store, job, &request, work_dir, label, |_, main| {
+        load_scene(main).map_err(|e| HandlerError::bad_input(e.to_string()))
+    })?;
+    Ok((request, loaded))
+}
+
+/// Copies the job's scene files into a scratch folder under `work_dir` (named after `label`,
+/// unique per call) and runs `f` with the folder and the main file's path there; the folder is
+/// removed afterwards, whatever `f` returns.
+pub(super) fn with_scene_files<T>(
+    store: &dyn BlobStore,
+    job: &JobId,
+    request: &JobRequest,
+    work_dir: &Path,
+    label: &str,
+    f: impl FnOnce(&Path, &Path) -> Result<T, HandlerError>,
+) -> Result<T, HandlerError> {
+    let scene_dir = scratch_dir(work_dir, label, job);
+    let result =
+        download_scene(store, job, request, &scene_dir).and_then(|main| f(&scene_dir, &main));
+    let _ = std::fs::remove_dir_all(&scene_dir);
+    result
+}
+
+/// A folder under `work_dir` for one invocation's files, named after `label` and `job`.
+pub(super) fn scratch_dir(work_dir: &Path, label: &str, job: &JobId) -> PathBuf {
     // Unique per invocation: a duplicated delivery of the same attempt must not share it.
     static INVOCATION: AtomicU64 = AtomicU64::new(0);
-    let scene_dir = work_dir.join(format!(
+    work_dir.join(format!(
         "hort-{label}-{job}-{}-{}",
         std::process::id(),
         INVOCATION.fetch_add(1, Ordering::Relaxed)
-    ));
-    let scene_path = download_scene(store, job, &request, &scene_dir);
-    let loaded = scene_path
-        .and_then(|path| load_scene(&path).map_err(|e| HandlerError::bad_input(e.to_string())));
-    let _ = std::fs::remove_dir_all(&scene_dir);
-    Ok((request, loaded?))
+    ))
 }
 
-fn read_request(store: &dyn BlobStore, job: &JobId) -> Result<JobRequest, HandlerError> {
+pub(super) fn read_request(store: &dyn BlobStore, job: &JobId) -> Result<JobRequest, HandlerError> {
     let key = manifest_key(job);
     let bytes = store.get(&key).map_err(|e| {
         if e.is_not_found() {
@@ -235,7 +277,7 @@ fn download_scene(
         if let Some(parent) = path.parent() {
             std::fs::create_dir_all(parent).map_err(|e| io(parent, e))?;
         }
-        std::fs::write(&path, store.get(&key)?).map_err(|e| io(&path, e))?;
+        download_object(store, &key, &path)?;
     }
     let main = safe_relative(&request.scene).ok_or_else(|| {
         HandlerError::bad_input(format!(
@@ -244,6 +286,38 @@ fn download_scene(
         ))
     })?;
     Ok(dir.join(main))
+}
+
+/// Bytes a function holds at once while copying an object to a file.
+const DOWNLOAD_CHUNK_BYTES: u64 = 16 << 20;
+
+/// Copies object `key` into the file `path` in ranged reads of [`DOWNLOAD_CHUNK_BYTES`], so
+/// that a scene file larger than the function's memory can be copied.
+pub(super) fn download_object(
+    store: &dyn BlobStore,
+    key: &str,
+    path: &Path,
+) -> Result<(), HandlerError> {
+    use std::io::Write;
+    let io = |e: std::io::Error| {
+        HandlerError::retryable(format!("cannot write {}: {e}", path.display()))
+    };
+    let mut file = std::fs::File::create(path).map_err(io)?;
+    let mut offset = 0u64;
+    loop {
+        let chunk = match store.get_range(key, offset..offset + DOWNLOAD_CHUNK_BYTES) {
+            Ok(chunk) => chunk,
+            // Past the end (or an empty object): the copy is complete.
+            Err(StoreError::InvalidRange { .. }) => break,
+            Err(e) => return Err(e.into()),
+        };
+        file.write_all(&chunk).map_err(io)?;
+        offset += chunk.len() as u64;
+        if (chunk.len() as u64) < DOWNLOAD_CHUNK_BYTES {
+            break;
+        }
+    }
+    file.flush().map_err(io)
 }
 
 /// `rel` as a relative path without `..`, root or prefix components.

@@ -24,6 +24,7 @@ fn request(scene: &str) -> JobRequest {
         max_concurrency: 4,
         task_timeout_seconds: None,
         scene_format: SceneFormat::Files,
+        scene_range_bytes: None,
     }
 }
 
@@ -49,6 +50,7 @@ fn plan_event(job: &str) -> PlanEvent {
         bucket: "b".into(),
         attempt: 0,
         round: 1,
+        step: PlanStep::Start,
     }
 }
 
@@ -184,6 +186,7 @@ fn submitted_binary(job: &str) -> MemoryStore {
     store.put(&scene_binary_key(&id), &bytes).unwrap();
     let request = JobRequest {
         scene_format: SceneFormat::Binary,
+        scene_range_bytes: None,
         ..request("cornell.json")
     };
     store
@@ -352,6 +355,7 @@ fn the_job_request_reads_old_json_and_writes_files_format_as_before() {
     assert!(json.get("scene_format").is_none(), "{json}");
     let binary = JobRequest {
         scene_format: SceneFormat::Binary,
+        scene_range_bytes: None,
         ..request
     };
     let json = serde_json::to_value(&binary).unwrap();

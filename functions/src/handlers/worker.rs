@@ -1,11 +1,13 @@
 //! The Worker function: run one task of one stage (the plan names its inputs and outputs).
 
 use super::events::WorkerEvent;
-use super::plan::load_job_scene;
+use super::plan::{load_job_scene, read_request};
+use super::plan_parts::{plan_from_stored_parts, split_by_tasks};
 use super::{HandlerError, check_bucket};
 use hort_core::ErrorType;
 use hort_core::ids::{JobId, SplitId, Stage};
 use hort_core::keys::{plan_key, split_key};
+use hort_core::pipeline::partition::{build_split_from_parts, partition_range};
 use hort_core::pipeline::{
     ExecutionMode, JobPlan, PipelineError, SplitCache, TaskMetrics, micros, plan_into_store,
     rebuild_split, run_task_with, task_bytes, timed,
@@ -34,6 +36,18 @@ pub fn handle_worker(
 ) -> Result<TaskMetrics, HandlerError> {
     let started = Instant::now();
     check_bucket(&event.bucket, bucket)?;
+    let task = event.item.task.0;
+    match event.stage {
+        Stage::Partition => {
+            let index = partition_range(store, &event.job, task)?;
+            return Ok(parts_metrics(index.records, started));
+        }
+        Stage::Build => {
+            let (info, _) = build_split_from_parts(store, &event.job, task)?;
+            return Ok(parts_metrics(info.triangles, started));
+        }
+        _ => {}
+    }
     let key = plan_key(&event.job);
     let load = |what: &str| {
         let label = format!("{what}-{}-{}", event.stage, event.item.task.0);
@@ -55,6 +69,15 @@ pub fn handle_worker(
             let (plan, replanned) = match stored {
                 Ok(plan) => (plan, false),
                 Err(PipelineError::Store(e)) if !e.is_not_found() => return Err(e.into()),
+                Err(PipelineError::Store(_) | PipelineError::Corrupt(_))
+                    if split_by_tasks(store, &event.job)? =>
+                {
+                    let request = read_request(store, &event.job)?;
+                    (
+                        plan_from_stored_parts(store, &event.job, &request, work_dir)?,
+                        true,
+                    )
+                }
                 Err(PipelineError::Store(_) | PipelineError::Corrupt(_)) => {
                     let (request, scene) = load("plan")?;
                     let plan = plan_into_store(store, &event.job, &scene, &request.render)?.plan;
@@ -76,6 +99,10 @@ pub fn handle_worker(
         &|key| reads.iter().any(|k| k == key),
     );
     let rebuild = |split: u32| -> Result<Vec<u8>, PipelineError> {
+        if split_by_tasks(store, &event.job)? {
+            // Its producer: the build task of the split.
+            return Ok(build_split_from_parts(store, &event.job, split)?.1);
+        }
         let (_, scene) = load(&format!("split-{split}"))?;
         rebuild_split(&scene.mesh, plan.k() as usize, plan.split_mode, split).ok_or_else(|| {
             PipelineError::BadInput(format!("split {split} is not in the plan {key}"))
@@ -95,6 +122,18 @@ pub fn handle_worker(
     metrics.decode_us += decode_us;
     metrics.task_us = micros(started.elapsed());
     Ok(metrics)
+}
+
+/// What a partition or build task did: its triangles and time (its traffic is the caller's
+/// storage accounting's).
+fn parts_metrics(triangles: u64, started: Instant) -> TaskMetrics {
+    let task_us = micros(started.elapsed());
+    TaskMetrics {
+        records: triangles,
+        task_us,
+        compute_us: task_us,
+        ..Default::default()
+    }
 }
 
 /// The keys of the split objects task `task` of `stage` of `job` reads: every split for Render,

@@ -36,6 +36,7 @@ use hort_core::hits::Hit;
 use hort_core::ids::{JobId, Stage, TaskId};
 use hort_core::image::Image;
 use hort_core::keys::{image_key, plan_key};
+use hort_core::pipeline::partition::scene_range_bytes;
 use hort_core::pipeline::{JobOutputs, JobPlan, PlanRequest, read_outputs};
 use hort_core::report::StageReport;
 use hort_core::scene::{Scene, load_scene};
@@ -146,6 +147,10 @@ pub struct JobOptions {
     /// Continue a stopped job of the same id, request and scene, skipping the tasks whose
     /// outputs exist (see [`submit_or_resume`]).
     pub resume: bool,
+    /// Split the scene by tasks in byte ranges of this size (`--scene-range-bytes`); by
+    /// default only a scene too large for one function is (its files are then stored as they
+    /// are, not parsed).
+    pub scene_range_bytes: Option<u64>,
 }
 
 impl EmulatorRun {
@@ -219,7 +224,14 @@ pub fn run_job_loaded(
         render: settings,
         max_concurrency: config.workers as u32,
         task_timeout_seconds: config.task_timeout_seconds,
-        scene_format: SceneFormat::Binary,
+        // A scene split by tasks goes up as its files (the partition tasks read byte ranges
+        // of them); any other goes up parsed, so no function parses it again.
+        scene_format: if split_by_tasks(scene, &settings, options.scene_range_bytes)? {
+            SceneFormat::Files
+        } else {
+            SceneFormat::Binary
+        },
+        scene_range_bytes: options.scene_range_bytes,
     };
     let store = storage.blob_store();
     // The client's own requests (upload, items, outputs) have no state machine to retry them:
@@ -368,6 +380,23 @@ pub fn run_job_loaded(
     })
 }
 
+/// Whether the Plan function will split the scene at `main` by tasks: asked for, or its files
+/// too large for one function to load whole (see [`scene_range_bytes`]).
+fn split_by_tasks(main: &Path, settings: &PlanRequest, asked: Option<u64>) -> Result<bool> {
+    if asked.is_some() {
+        return Ok(true);
+    }
+    let base = main.parent().unwrap_or(Path::new("."));
+    let mut bytes = 0;
+    for file in scene_files(main)? {
+        let path = base.join(file);
+        bytes += std::fs::metadata(&path)
+            .with_context(|| format!("cannot read {}", path.display()))?
+            .len();
+    }
+    Ok(scene_range_bytes(bytes, settings.memory_mb).is_some())
+}
+
 /// Where the functions run.
 enum Functions {
     InProcess(Arc<InProcessInvoker>),
@@ -400,6 +429,9 @@ pub fn stage_name(state: &str) -> String {
             || match top {
                 // The Plan function's second round (staged adaptive jobs).
                 "Refine" => "refine".to_owned(),
+                // The Plan function's steps for a scene split by tasks.
+                "Cut" => "cut".to_owned(),
+                "PlanFromParts" => "plan-from-parts".to_owned(),
                 _ => state.to_owned(),
             },
             |s| s.to_string(),

@@ -38,6 +38,7 @@ fn request(format: SceneFormat) -> JobRequest {
         max_concurrency: 2,
         task_timeout_seconds: None,
         scene_format: format,
+        scene_range_bytes: None,
     }
 }
 

@@ -108,18 +108,18 @@ fn records_before(indexes: &[PartIndex], rank: u64) -> Vec<u64> {
 }
 
 /// Step 3 for job `job` planned by `request`: reads the table and every range's index, cuts
-/// the scene into the split count the request resolves to for its triangle count, stores and
-/// returns the cut.
+/// the scene into the split count the request resolves to for its triangle count, stores the
+/// cut and returns it with the shape the request resolves to.
 pub fn cut_scene(
     store: &dyn BlobStore,
     job: &JobId,
     request: &crate::pipeline::PlanRequest,
-) -> Result<CutSplits, PipelineError> {
+) -> Result<(CutSplits, crate::pipeline::JobShape), PipelineError> {
     use crate::keys::{parts_index_key, parts_table_key};
     let table: super::PartsTable = super::read_json(store, &parts_table_key(job))?;
     let (shape, _) = crate::pipeline::resolve_counts(request, table.triangles)?;
     let indexes: Vec<PartIndex> = (0..table.ranges.len() as u32)
         .map(|range| super::read_json(store, &parts_index_key(job, range)))
         .collect::<Result<_, _>>()?;
-    cut_splits(store, job, &indexes, shape.splits)
+    Ok((cut_splits(store, job, &indexes, shape.splits)?, shape))
 }

@@ -68,3 +68,17 @@ fn write_json<T: serde::Serialize>(
     store.put(key, &bytes)?;
     Ok(bytes.len() as u64)
 }
+
+/// Memory a whole-scene load takes per byte of OBJ text, at most (measured on generated scenes:
+/// docs/ARCHITECTURE.md, "Scenes split by tasks"); decides when a scene is split by tasks.
+pub const LOAD_BYTES_PER_SCENE_BYTE: u64 = 4;
+
+/// The byte range size to split a scene whose files hold `scene_bytes` bytes by tasks with,
+/// for functions of `memory_mb`: `Some` when loading it whole would take more than half the
+/// memory (a sixteenth of the memory per range, 1 to 256 MiB: a partition task holds its range's
+/// text, records of about five times its size, and vertices of other ranges), else `None`.
+pub fn scene_range_bytes(scene_bytes: u64, memory_mb: u32) -> Option<u64> {
+    let budget = u64::from(memory_mb) << 20;
+    (scene_bytes.saturating_mul(LOAD_BYTES_PER_SCENE_BYTE) > budget / 2)
+        .then(|| (budget / 16).clamp(1 << 20, 256 << 20))
+}

@@ -100,6 +100,8 @@ pub fn partition_range(
         };
         keyed.push((bucket_of(centroid, lo, extent), record));
     }
+    drop(faces);
+    drop(pages);
     // Stable: within a bucket, records keep ascending id order.
     keyed.sort_by_key(|(bucket, _)| *bucket);
     let mut buckets: Vec<(u32, u64)> = Vec::new();
@@ -109,11 +111,12 @@ pub fn partition_range(
             _ => buckets.push((*bucket, 1)),
         }
     }
-    let records: Vec<PartRecord> = keyed.into_iter().map(|(_, r)| r).collect();
-    let (bytes, frames) = encode_frames(&records);
+    let (bytes, frames) = encode_frames(keyed.iter().map(|(_, r)| r));
+    let records = keyed.len();
+    drop(keyed);
     store.put(&parts_records_key(job, range), &bytes)?;
     let index = PartIndex {
-        records: records.len() as u64,
+        records: records as u64,
         buckets,
         frames,
         used: used.map(|(l, h)| (l.to_array(), h.to_array())),

@@ -69,21 +69,26 @@ impl PartRecord {
 
 /// The frames of `records`, concatenated, and the byte offset where each frame starts followed
 /// by the total length.
-pub fn encode_frames(records: &[PartRecord]) -> (Vec<u8>, Vec<u64>) {
+pub fn encode_frames<'a>(records: impl IntoIterator<Item = &'a PartRecord>) -> (Vec<u8>, Vec<u64>) {
     let mut bytes = Vec::new();
     let mut offsets = vec![0];
     let mut raw = Vec::with_capacity(FRAME_RECORDS * RECORD_BYTES);
-    for frame in records.chunks(FRAME_RECORDS) {
-        raw.clear();
-        for record in frame {
-            record.encode_into(&mut raw);
-        }
-        bytes.extend_from_slice(&encode_block(
-            RecordKind::PartRecords,
-            frame.len() as u64,
-            &raw,
-        ));
+    let mut count = 0;
+    let mut flush = |raw: &mut Vec<u8>, count: &mut usize| {
+        bytes.extend_from_slice(&encode_block(RecordKind::PartRecords, *count as u64, raw));
         offsets.push(bytes.len() as u64);
+        raw.clear();
+        *count = 0;
+    };
+    for record in records {
+        record.encode_into(&mut raw);
+        count += 1;
+        if count == FRAME_RECORDS {
+            flush(&mut raw, &mut count);
+        }
+    }
+    if count > 0 {
+        flush(&mut raw, &mut count);
     }
     (bytes, offsets)
 }

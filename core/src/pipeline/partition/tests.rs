@@ -52,7 +52,7 @@ fn plan_by_parts(
     for range in 0..table.ranges.len() as u32 {
         partition_range(store, job, range).unwrap();
     }
-    let cut = cut_scene(store, job, request).unwrap();
+    let (cut, _) = cut_scene(store, job, request).unwrap();
     for split in 0..cut.splits.len() as u32 {
         build_split_from_parts(store, job, split).unwrap();
     }

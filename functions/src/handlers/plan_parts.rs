@@ -1,0 +1,212 @@
+//! The Plan function's steps for a scene split by tasks (`hort_core::pipeline::partition`):
+//! `start` scans the scene and hands out one Partition task per byte range, `cut` cuts the
+//! partitioned scene into splits and hands out one Build task per split, `finish` plans the
+//! job from the built splits. None of them holds more than one range's vertices.
+
+use super::HandlerError;
+use super::events::{JobRequest, PlanOutput, SceneFormat, TaskItem};
+use super::plan::{
+    download_object, load_job_scene, read_request, scratch_dir, with_scene_files, write_round,
+};
+use hort_core::ids::{JobId, Stage, TaskId};
+use hort_core::keys::{items_key, parts_table_key, scene_prefix};
+use hort_core::pipeline::partition::{cut_scene, plan_from_parts, scan_scene, scene_range_bytes};
+use hort_core::pipeline::{JobPlan, TaskMetrics, micros, resolve_counts};
+use hort_core::scene::{Scene, load_scene};
+use hort_core::store::{BlobStore, StoreError, TimedStore};
+use std::path::Path;
+use std::time::Instant;
+
+/// Timeout of a partition or build task: a fixed allowance plus a second per 4 MiB of its
+/// range or 50,000 triangles of its split, three times over (a few times the time it takes on
+/// a slow function).
+fn parts_timeout_seconds(units: u64) -> u32 {
+    (3 * (30 + units)).min(900) as u32
+}
+
+/// What the `start` step found.
+pub(super) enum Loaded {
+    /// A scene loaded whole, to be planned at once.
+    Whole(JobRequest, Scene),
+    /// A scene split by tasks: scanned, its Partition items written; the answer to return.
+    Scanned(PlanOutput),
+}
+
+/// The `start` step's scene: the binary scene decoded, or the scene files copied into a scratch
+/// folder under `work_dir` (named after `label`) and loaded whole, or, when the request asks for
+/// it or a whole load would not fit the function's memory, scanned (see [`scene_range_bytes`]).
+pub(super) fn load_or_scan(
+    store: &dyn BlobStore,
+    job: &JobId,
+    work_dir: &Path,
+    label: &str,
+) -> Result<Loaded, HandlerError> {
+    let request = read_request(store, job)?;
+    if request.scene_format == SceneFormat::Binary {
+        let (request, scene) = load_job_scene(store, job, work_dir, label)?;
+        return Ok(Loaded::Whole(request, scene));
+    }
+    with_scene_files(store, job, &request, work_dir, label, |dir, main| {
+        let bytes = folder_bytes(dir);
+        let range = request
+            .scene_range_bytes
+            .or_else(|| scene_range_bytes(bytes, request.render.memory_mb));
+        match range {
+            Some(range) => scan(store, job, &request, dir, main, range).map(Loaded::Scanned),
+            None => load_scene(main)
+                .map(|scene| Loaded::Whole(request.clone(), scene))
+                .map_err(|e| HandlerError::bad_input(e.to_string())),
+        }
+    })
+}
+
+/// Bytes of the files under `dir` (recursively).
+fn folder_bytes(dir: &Path) -> u64 {
+    std::fs::read_dir(dir)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .map(|entry| match entry.file_type() {
+            Ok(t) if t.is_dir() => folder_bytes(&entry.path()),
+            _ => entry.metadata().map_or(0, |m| m.len()),
+        })
+        .sum()
+}
+
+/// Scans the scene in ranges of `range` bytes and writes the Partition items.
+fn scan(
+    store: &dyn BlobStore,
+    job: &JobId,
+    request: &JobRequest,
+    dir: &Path,
+    main: &Path,
+    range: u64,
+) -> Result<PlanOutput, HandlerError> {
+    let table = scan_scene(store, job, dir, main, range)?;
+    let (shape, _) = resolve_counts(&request.render, table.triangles)?;
+    let timeout = parts_timeout_seconds(range >> 22);
+    let ranges = table.ranges.len() as u32;
+    parts_output(
+        store,
+        job,
+        request,
+        shape.mode,
+        Stage::Partition,
+        ranges,
+        timeout,
+    )
+}
+
+/// The `cut` step, after the Partition Map: cuts the scene into splits and writes the Build
+/// items.
+pub(super) fn cut_step(
+    store: &TimedStore<&dyn BlobStore>,
+    job: &JobId,
+    started: Instant,
+) -> Result<(PlanOutput, TaskMetrics), HandlerError> {
+    let request = read_request(store, job)?;
+    let (cut, shape) = cut_scene(store, job, &request.render)?;
+    let largest = cut
+        .splits
+        .iter()
+        .map(|runs| runs.iter().map(|r| r.end - r.start).sum::<u64>())
+        .max()
+        .unwrap_or(0);
+    let k = cut.splits.len() as u32;
+    let timeout = parts_timeout_seconds(largest / 50_000);
+    let output = parts_output(store, job, &request, shape.mode, Stage::Build, k, timeout)?;
+    Ok((output, step_metrics(store, started)))
+}
+
+/// The `finish` step, after the Build Map: plans the job from the built splits (reading the
+/// scene's manifest, if it has one, and no mesh) and writes the items of its Map stages.
+pub(super) fn finish_step(
+    store: &TimedStore<&dyn BlobStore>,
+    job: &JobId,
+    work_dir: &Path,
+    started: Instant,
+) -> Result<(PlanOutput, TaskMetrics), HandlerError> {
+    let request = read_request(store, job)?;
+    let plan = plan_from_stored_parts(store, job, &request, work_dir)?;
+    let output = write_round(store, job, &plan, &request, None)?;
+    Ok((output, step_metrics(store, started)))
+}
+
+/// Plans job `job` (`request`) from its built splits, reading the scene's manifest, if it has
+/// one, into a scratch folder under `work_dir`, and no mesh; stores and returns the plan.
+pub(super) fn plan_from_stored_parts(
+    store: &dyn BlobStore,
+    job: &JobId,
+    request: &JobRequest,
+    work_dir: &Path,
+) -> Result<JobPlan, HandlerError> {
+    let main = Path::new(&request.scene);
+    let is_manifest = main
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    if !is_manifest {
+        return Ok(plan_from_parts(store, job, main, &request.render)?.plan);
+    }
+    let dir = scratch_dir(work_dir, "finish", job);
+    let local = dir.join(main.file_name().unwrap_or_default());
+    let result = std::fs::create_dir_all(&dir)
+        .map_err(|e| HandlerError::retryable(format!("cannot create {}: {e}", dir.display())))
+        .and_then(|()| {
+            let key = format!("{}{}", scene_prefix(job), request.scene);
+            download_object(store, &key, &local)
+        })
+        .and_then(|()| Ok(plan_from_parts(store, job, &local, &request.render)?.plan));
+    let _ = std::fs::remove_dir_all(&dir);
+    result
+}
+
+/// Whether job `job`'s scene was split by tasks (its parts table exists).
+pub(super) fn split_by_tasks(store: &dyn BlobStore, job: &JobId) -> Result<bool, StoreError> {
+    match store.get_range(&parts_table_key(job), 0..1) {
+        Ok(_) => Ok(true),
+        Err(e) if e.is_not_found() => Ok(false),
+        Err(e) => Err(e),
+    }
+}
+
+/// Writes the items of `stage` (tasks `0..tasks`, each with `timeout` unless the request sets
+/// one) and the answer naming them.
+fn parts_output(
+    store: &dyn BlobStore,
+    job: &JobId,
+    request: &JobRequest,
+    mode: hort_core::pipeline::ExecutionMode,
+    stage: Stage,
+    tasks: u32,
+    timeout: u32,
+) -> Result<PlanOutput, HandlerError> {
+    let items: Vec<TaskItem> = (0..tasks)
+        .map(|task| TaskItem {
+            task: TaskId(task),
+            timeout_seconds: Some(request.task_timeout_seconds.unwrap_or(timeout)),
+        })
+        .collect();
+    let json = serde_json::to_vec(&items)
+        .map_err(|e| HandlerError::bad_input(format!("cannot encode items: {e}")))?;
+    let key = items_key(job, stage);
+    store.put(&key, &json)?;
+    let field = stage.items_field().expect("a Map stage");
+    Ok(PlanOutput {
+        mode,
+        items: [(field.to_owned(), key)].into_iter().collect(),
+        max_concurrency: request.max_concurrency,
+        shadows: false,
+        refine_after: false,
+    })
+}
+
+/// A step's time: all of it, and how much was spent waiting on storage.
+fn step_metrics(store: &TimedStore<&dyn BlobStore>, started: Instant) -> TaskMetrics {
+    let task_us = micros(started.elapsed());
+    TaskMetrics {
+        task_us,
+        storage_us: store.waited_us(),
+        compute_us: task_us.saturating_sub(store.waited_us()),
+        ..Default::default()
+    }
+}

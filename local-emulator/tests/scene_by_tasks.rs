@@ -1,0 +1,84 @@
+//! `hort render --scene-range-bytes`: a scene split by tasks (Plan's scan, Partition, Cut,
+//! Build, PlanFromParts) renders the monolithic image's bytes, fused and staged, under injected
+//! faults, and its report has a row for each of those steps.
+
+mod common;
+
+use common::{hort, scene, scratch, stderr};
+
+fn render(dir: &std::path::Path, name: &str, extra: &[&str]) -> (Vec<u8>, serde_json::Value) {
+    let scene = scene("bunny/bunny.json");
+    let (out, report) = (
+        dir.join(format!("{name}.pfm")),
+        dir.join(format!("{name}.json")),
+    );
+    let mut args = vec![
+        "render",
+        scene.to_str().unwrap(),
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--spp",
+        "2",
+        "--out",
+        out.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    let o = hort(&args);
+    assert!(o.status.success(), "{name}: {}", stderr(&o));
+    let report = serde_json::from_slice(&std::fs::read(report).unwrap()).unwrap();
+    (std::fs::read(out).unwrap(), report)
+}
+
+fn rows(report: &serde_json::Value) -> Vec<(String, u64)> {
+    report["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| {
+            let name = s["name"].as_str().unwrap().to_owned();
+            (name, s["tasks"].as_u64().unwrap())
+        })
+        .collect()
+}
+
+#[test]
+fn scenes_split_by_tasks_render_the_monolithic_image() {
+    let dir = scratch("scene-by-tasks");
+    let (mono, _) = render(&dir, "mono", &["--monolithic", "--threads", "2"]);
+    // bunny.obj (110,537 bytes) in 6 ranges of 20,000 bytes, ground.obj in 1.
+    let ranges = ["--scene-range-bytes", "20000"];
+    let staged = [&ranges[..], &["--splits", "3", "--spans", "4"]].concat();
+    let (image, report) = render(&dir, "staged", &staged);
+    assert_eq!(image, mono, "staged");
+    let stages = rows(&report);
+    let names: Vec<&str> = stages.iter().map(|s| s.0.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "plan",
+            "partition",
+            "cut",
+            "build",
+            "plan-from-parts",
+            "cast-map",
+            "cast-reduce",
+            "expand",
+            "trace-map",
+            "trace-reduce",
+            "combine"
+        ]
+    );
+    assert_eq!(stages[1].1, 7, "one partition task per range");
+    assert_eq!(stages[3].1, 3, "one build task per split");
+    let fused = [&ranges[..], &["--splits", "1", "--spans", "3"]].concat();
+    let (image, report) = render(&dir, "fused", &fused);
+    assert_eq!(image, mono, "fused");
+    assert_eq!(rows(&report)[5].0, "render");
+    let faulty = [&staged[..], &["--fail-rate", "0.2", "--seed", "7"]].concat();
+    let (image, _) = render(&dir, "faults", &faulty);
+    assert_eq!(image, mono, "staged, 20% of attempts failing");
+}
