@@ -535,7 +535,7 @@ mod tests {
         let json = serde_json::to_vec(&plan).unwrap();
         assert_eq!(JobPlan::from_json("p", &json).unwrap(), plan);
         let counts: Vec<usize> = Stage::ALL.iter().map(|&st| plan.task_count(st)).collect();
-        assert_eq!(counts, [1, 0, plan.cast_tasks.len(), 7, 7, 21, 7, 1]);
+        assert_eq!(counts, [1, 0, 0, 0, plan.cast_tasks.len(), 7, 7, 21, 7, 1]);
         // 64x48 over 7 spans: span 0 holds 438 pixels; cornell has one light.
         assert_eq!(plan.spans[0].end - plan.spans[0].start, 438);
         // 438 shadow rays and a few triangles: 3 x 0.5 s of start-up, rounded up to the floor.

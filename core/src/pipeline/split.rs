@@ -163,7 +163,8 @@ fn build_split_object(
 /// Builds split `split` of the triangles `ids` with corners `triangles` (same order) and the
 /// shading `shading` gives each id: its summary, the object and its encoding, whose
 /// microseconds are added to `encode_us`. The one place split objects are made, whether the
-/// triangles come from a loaded scene or from partition tasks.
+/// triangles come from a loaded scene or from partition tasks ([`build_split_bvh`], then
+/// [`encode_built_split`]).
 pub(super) fn assemble_split(
     split: u32,
     triangles: Vec<[glam::Vec3; 3]>,
@@ -171,18 +172,36 @@ pub(super) fn assemble_split(
     shading: impl Fn(u32) -> TriangleShading,
     encode_us: &mut u64,
 ) -> (super::SplitInfo, SplitObject, Vec<u8>) {
+    encode_built_split(build_split_bvh(split, triangles, ids, shading), encode_us)
+}
+
+/// The split object of split `split` (see [`assemble_split`]), not yet encoded: a caller can
+/// drop what `shading` borrows before encoding it.
+pub(super) fn build_split_bvh(
+    split: u32,
+    triangles: Vec<[glam::Vec3; 3]>,
+    ids: Vec<u32>,
+    shading: impl Fn(u32) -> TriangleShading,
+) -> SplitObject {
     let bvh = Bvh::build(triangles, ids);
     let shading = bvh.ids().iter().map(|&id| shading(id)).collect();
-    let object = SplitObject {
+    SplitObject {
         split,
         bvh,
         shading,
-    };
+    }
+}
+
+/// `object`'s summary, the object and its encoding (see [`assemble_split`]).
+pub(super) fn encode_built_split(
+    object: SplitObject,
+    encode_us: &mut u64,
+) -> (super::SplitInfo, SplitObject, Vec<u8>) {
     let bounds = object.bvh.bounds();
     let triangles = object.bvh.triangle_count() as u64;
     let bytes = super::timed(encode_us, || encode_split(&object));
     let info = super::SplitInfo {
-        id: split,
+        id: object.split,
         triangles,
         lo: bounds.lo.to_array(),
         hi: bounds.hi.to_array(),

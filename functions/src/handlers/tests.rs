@@ -574,3 +574,128 @@ fn a_measured_peak_goes_into_the_metrics_and_the_answer_of_a_task_only() {
     );
     assert_eq!(measured_plan.task.unwrap().metrics, metrics);
 }
+
+/// Runs every item of the items file `key` of `stage` through the Worker.
+fn run_items(store: &MemoryStore, job: &JobId, stage: Stage, key: &str, cache: &SplitCache) {
+    let items: Vec<TaskItem> = serde_json::from_slice(&store.get(key).unwrap()).unwrap();
+    for item in items {
+        let event = WorkerEvent {
+            job: job.clone(),
+            bucket: "b".into(),
+            stage,
+            item,
+            attempt: 0,
+        };
+        handle_worker(store, "b", cache, &event, &std::env::temp_dir()).unwrap();
+    }
+}
+
+/// A job runs its Map stages and Combine as the state machine would after a plan answered
+/// `out`; returns the hit buffer.
+fn run_job_from(store: &MemoryStore, job: &JobId, out: &PlanOutput) -> Vec<u8> {
+    let cache = SplitCache::new(0);
+    for &stage in out.task_stages() {
+        match out.items_key(stage) {
+            Some(key) => run_items(store, job, stage, key, &cache),
+            None => {
+                let combine = WorkerEvent {
+                    job: job.clone(),
+                    bucket: "b".into(),
+                    stage,
+                    item: TaskItem {
+                        task: TaskId(0),
+                        timeout_seconds: None,
+                    },
+                    attempt: 0,
+                };
+                handle_worker(store, "b", &cache, &combine, &std::env::temp_dir()).unwrap();
+            }
+        }
+    }
+    store.get(&hits_key(job)).unwrap()
+}
+
+#[test]
+fn a_scene_split_by_tasks_plans_in_steps_and_rebuilds_what_is_lost_from_its_parts() {
+    let whole = submitted("whole");
+    let job = JobId::new("whole").unwrap();
+    let tmp = std::env::temp_dir();
+    let out = handle_plan(&whole, "b", &plan_event("whole"), &tmp).unwrap();
+    let expected = run_job_from(&whole, &job, &out);
+
+    let store = submitted("parts");
+    let job = JobId::new("parts").unwrap();
+    let mut req = request("cornell.json");
+    req.scene_range_bytes = Some(400);
+    store
+        .put(&manifest_key(&job), &serde_json::to_vec(&req).unwrap())
+        .unwrap();
+    let step = |step: PlanStep| {
+        let event = PlanEvent {
+            step,
+            ..plan_event("parts")
+        };
+        handle_plan(&store, "b", &event, &tmp).unwrap()
+    };
+    let cache = SplitCache::new(0);
+    let scanned = step(PlanStep::Start);
+    assert_eq!(scanned.items.keys().collect::<Vec<_>>(), ["partition"]);
+    let key = scanned.items_key(Stage::Partition).unwrap();
+    run_items(&store, &job, Stage::Partition, key, &cache);
+    let cut = step(PlanStep::Cut);
+    assert_eq!(cut.items.keys().collect::<Vec<_>>(), ["build"]);
+    run_items(
+        &store,
+        &job,
+        Stage::Build,
+        cut.items_key(Stage::Build).unwrap(),
+        &cache,
+    );
+    let planned = step(PlanStep::Finish);
+    let renamed = serde_json::to_string(&planned)
+        .unwrap()
+        .replace("/parts/", "/whole/");
+    assert_eq!(
+        renamed,
+        serde_json::to_string(&out).unwrap(),
+        "the same answer as a whole-scene plan"
+    );
+    assert_eq!(run_job_from(&store, &job, &planned), expected);
+    // A lost plan and a lost split object are rebuilt from the parts, not the scene: the
+    // scene's mesh and material files are gone too (the manifest stays).
+    for key in store.list(&scene_prefix(&job)).unwrap() {
+        if !key.ends_with(".json") {
+            store.delete(&key).unwrap();
+        }
+    }
+    store.delete(&hort_core::keys::plan_key(&job)).unwrap();
+    store
+        .delete(&hort_core::keys::split_key(
+            &job,
+            hort_core::ids::SplitId(1),
+        ))
+        .unwrap();
+    let cast = handle_worker(&store, "b", &cache, &cast_map_event("parts", 1), &tmp).unwrap();
+    assert!(cast.recomputed >= 1, "{cast:?}");
+    assert_eq!(run_job_from(&store, &job, &planned), expected);
+    // Steps out of place are refused, naming what is missing.
+    let early = PlanEvent {
+        step: PlanStep::Cut,
+        ..plan_event("j1")
+    };
+    let submitted_only = submitted("j1");
+    let err = handle_plan(&submitted_only, "b", &early, &tmp).unwrap_err();
+    assert_eq!(err.error_type, ErrorType::BadInput, "{err}");
+    assert!(err.cause.contains("jobs/j1/parts/table.json"), "{err}");
+    let late = PlanEvent {
+        round: 2,
+        step: PlanStep::Finish,
+        ..plan_event("j1")
+    };
+    assert_eq!(
+        handle_plan(&submitted_only, "b", &late, &tmp)
+            .unwrap_err()
+            .cause,
+        "plan event round 2 with step Finish: only round 1 has steps"
+    );
+}

@@ -14,7 +14,7 @@ use crate::keys::{
 };
 use crate::pipeline::plan::{PlanRequest, plan_job, resolve_counts};
 use crate::pipeline::plan_step::PlannedJob;
-use crate::pipeline::split::assemble_split;
+use crate::pipeline::split::{build_split_bvh, encode_built_split};
 use crate::pipeline::split_object::TriangleShading;
 use crate::pipeline::{SplitInfo, TaskMetrics};
 use crate::scene::scene_without_geometry;
@@ -40,30 +40,34 @@ pub fn build_split_from_parts(
         ))
     })?;
     let origin = DVec3::from(cut.origin);
-    let mut records = Vec::new();
+    // Each triangle as the split needs it (id, corners in the local frame, shading): 96 bytes,
+    // converted frame by frame, so the records (128 bytes, f64 corners) never pile up.
+    let mut triangles: Vec<(u32, [Vec3; 3], TriangleShading)> = Vec::new();
     for run in runs {
         let index: PartIndex = read_json(store, &parts_index_key(job, run.range))?;
-        read_run(store, job, run, &index, &mut records)?;
+        read_run(store, job, run, &index, |record| {
+            let local = record.corners.map(|p| (p - origin).as_vec3());
+            if !local.iter().all(|p| p.is_finite()) {
+                let path = file_of(&table, record.id);
+                return Err(SceneError::TooLarge { path }.into());
+            }
+            let shading = TriangleShading {
+                normals: record.normals,
+                kd: record.kd,
+            };
+            triangles.push((record.id, local, shading));
+            Ok(())
+        })?;
     }
-    records.sort_unstable_by_key(|r| r.id);
-    let mut corners = Vec::with_capacity(records.len());
-    for record in &records {
-        let local = record.corners.map(|p| (p - origin).as_vec3());
-        if !local.iter().all(|p| p.is_finite()) {
-            let file = file_of(&table, record.id);
-            return Err(SceneError::TooLarge { path: file }.into());
-        }
-        corners.push(local);
-    }
-    let ids: Vec<u32> = records.iter().map(|r| r.id).collect();
-    let shading = |id: u32| {
-        let r = &records[ids.binary_search(&id).expect("a split's own id")];
-        TriangleShading {
-            normals: r.normals,
-            kd: r.kd,
-        }
-    };
-    let (info, _, bytes) = assemble_split(split, corners, ids.clone(), shading, &mut 0);
+    triangles.sort_unstable_by_key(|t| t.0);
+    let ids: Vec<u32> = triangles.iter().map(|t| t.0).collect();
+    let corners: Vec<[Vec3; 3]> = triangles.iter().map(|t| t.1).collect();
+    let object = build_split_bvh(split, corners, ids, |id| {
+        let at = triangles.binary_search_by_key(&id, |t| t.0);
+        triangles[at.expect("a split's own id")].2
+    });
+    drop(triangles);
+    let (info, _, bytes) = encode_built_split(object, &mut 0);
     store.put(&split_key(job, SplitId(split)), &bytes)?;
     write_json(store, &parts_split_info_key(job, split), &info)?;
     Ok((info, bytes))
@@ -78,13 +82,17 @@ fn file_of(table: &PartsTable, id: u32) -> PathBuf {
     PathBuf::from(&table.files[file].path)
 }
 
-/// Appends the records of `run` to `out`, fetching the frames that hold them in one ranged GET.
+/// Frames a build task fetches in one ranged GET (about 8 MiB of raw records).
+const FRAMES_PER_READ: u64 = 8;
+
+/// Hands each record of `run` to `each`, in the records object's order, fetching the frames
+/// that hold them a few at a time.
 fn read_run(
     store: &dyn BlobStore,
     job: &JobId,
     run: &super::RecordRun,
     index: &PartIndex,
-    out: &mut Vec<PartRecord>,
+    mut each: impl FnMut(&PartRecord) -> Result<(), PipelineError>,
 ) -> Result<(), PipelineError> {
     let key = parts_records_key(job, run.range);
     let frames = FRAME_RECORDS as u64;
@@ -99,20 +107,26 @@ fn read_run(
             offsets.len().saturating_sub(1)
         )));
     }
-    let base = offsets[first as usize];
-    let bytes = store.get_range(&key, base..offsets[last as usize + 1])?;
-    for frame in first..=last {
-        let at = (offsets[frame as usize] - base) as usize
-            ..(offsets[frame as usize + 1] - base) as usize;
-        let records = decode_frame(&key, bytes.get(at).unwrap_or_default())?;
-        let from = run.start.saturating_sub(frame * frames) as usize;
-        let to = ((run.end - frame * frames) as usize).min(records.len());
-        out.extend_from_slice(records.get(from..to).ok_or_else(|| {
-            PipelineError::Corrupt(format!(
-                "{key}: frame {frame} holds {} records",
-                records.len()
-            ))
-        })?);
+    let mut group = first;
+    while group <= last {
+        let end = (group + FRAMES_PER_READ).min(last + 1);
+        let base = offsets[group as usize];
+        let bytes = store.get_range(&key, base..offsets[end as usize])?;
+        for frame in group..end {
+            let at = (offsets[frame as usize] - base) as usize
+                ..(offsets[frame as usize + 1] - base) as usize;
+            let records = decode_frame(&key, bytes.get(at).unwrap_or_default())?;
+            let from = run.start.saturating_sub(frame * frames) as usize;
+            let to = ((run.end - frame * frames) as usize).min(records.len());
+            let wanted = records.get(from..to).ok_or_else(|| {
+                PipelineError::Corrupt(format!(
+                    "{key}: frame {frame} holds {} records",
+                    records.len()
+                ))
+            })?;
+            wanted.iter().try_for_each(&mut each)?;
+        }
+        group = end;
     }
     Ok(())
 }
