@@ -136,23 +136,8 @@ pub(super) fn parse_obj_world(
 ) -> Result<WorldMesh, SceneError> {
     let mut parser = ObjParser::new(path);
     let mut buf = Vec::with_capacity(256);
-    loop {
-        buf.clear();
-        let n = reader
-            .read_until(b'\n', &mut buf)
-            .map_err(|source| SceneError::Io {
-                path: path.to_path_buf(),
-                source,
-            })?;
-        if n == 0 {
-            break;
-        }
-        parser.line += 1;
-        let bytes = match buf.strip_prefix(b"\xEF\xBB\xBF") {
-            Some(rest) if parser.line == 1 => rest,
-            _ => &buf[..],
-        };
-        parser.statement(bytes)?;
+    while read_line(&mut reader, &mut buf, path)? > 0 {
+        parser.next_line(&buf)?;
     }
     parser.finish();
     warnings.append(&mut parser.warnings);
@@ -160,6 +145,22 @@ pub(super) fn parse_obj_world(
         mesh: parser.mesh,
         positions: parser.positions,
     })
+}
+
+/// Reads the next line of `reader` (its `\n` included) into `buf`, replacing what it held;
+/// returns its length, 0 at the end. `path` names the file in errors.
+fn read_line(
+    reader: &mut impl BufRead,
+    buf: &mut Vec<u8>,
+    path: &Path,
+) -> Result<usize, SceneError> {
+    buf.clear();
+    reader
+        .read_until(b'\n', buf)
+        .map_err(|source| SceneError::Io {
+            path: path.to_path_buf(),
+            source,
+        })
 }
 
 /// Whether an unknown keyword looks like a word of some OBJ extension (so it is skipped with a
@@ -250,6 +251,16 @@ impl<'a> ObjParser<'a> {
     /// Normals defined so far (including those before a range).
     fn normal_count(&self) -> usize {
         self.normal_base + self.mesh.normals.len()
+    }
+
+    /// Counts and reads the next line (a UTF-8 byte-order mark is dropped from line 1).
+    fn next_line(&mut self, line: &[u8]) -> Result<(), SceneError> {
+        self.line += 1;
+        let line = match line.strip_prefix(b"\xEF\xBB\xBF") {
+            Some(rest) if self.line == 1 => rest,
+            _ => line,
+        };
+        self.statement(line)
     }
 
     /// `file:line` of the current line, for warnings.

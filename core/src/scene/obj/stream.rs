@@ -13,11 +13,10 @@
 //! (vertex and normal indices count from the start of the file, so a face may name a vertex of
 //! an earlier range; the caller looks those up in what the scan handed out).
 
-use super::{ObjParser, SceneError};
+use super::{ObjParser, SceneError, read_line};
 use crate::scene::mesh::Material;
 use glam::{DVec3, Vec3};
 use serde::{Deserialize, Serialize};
-use std::io::BufRead;
 use std::path::Path;
 
 /// One byte range of an OBJ file (whole lines) and what its lines need from the lines before.
@@ -86,13 +85,7 @@ pub fn scan_obj<E: From<SceneError>>(
     let mut offset = 0u64;
     let mut buf = Vec::with_capacity(256);
     loop {
-        buf.clear();
-        let n = reader
-            .read_until(b'\n', &mut buf)
-            .map_err(|source| SceneError::Io {
-                path: path.to_path_buf(),
-                source,
-            })?;
+        let n = read_line(&mut reader, &mut buf, path)?;
         if n == 0 {
             break;
         }
@@ -100,12 +93,7 @@ pub fn scan_obj<E: From<SceneError>>(
             close_range(&mut parser, &mut scan, range, offset, &mut on_range)?;
             range = open_range(&parser, offset);
         }
-        parser.line += 1;
-        let bytes = match buf.strip_prefix(b"\xEF\xBB\xBF") {
-            Some(rest) if parser.line == 1 => rest,
-            _ => &buf[..],
-        };
-        parser.statement(bytes)?;
+        parser.next_line(&buf)?;
         offset += n as u64;
     }
     close_range(&mut parser, &mut scan, range, offset, &mut on_range)?;
@@ -199,12 +187,7 @@ pub fn parse_obj_range(
     parser.current_material = range.material;
     parser.material_script = Some(range.usemtl.iter().copied().collect());
     for line in bytes.split_inclusive(|&b| b == b'\n') {
-        parser.line += 1;
-        let line = match line.strip_prefix(b"\xEF\xBB\xBF") {
-            Some(rest) if parser.line == 1 => rest,
-            _ => line,
-        };
-        parser.statement(line)?;
+        parser.next_line(line)?;
     }
     let found = (
         parser.positions.len() as u64,
