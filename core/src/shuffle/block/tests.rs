@@ -204,7 +204,7 @@ fn record_kind_codes_are_fixed() {
         assert_eq!(RecordKind::from_code(kind.code()), Some(kind));
     }
     assert_eq!(RecordKind::from_code(0), None);
-    assert_eq!(RecordKind::from_code(8), None);
+    assert_eq!(RecordKind::from_code(10), None);
 }
 
 #[test]
