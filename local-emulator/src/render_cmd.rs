@@ -48,6 +48,9 @@ struct Rendered {
     job: Option<String>,
     /// The adaptive sampler's settings and counts, when it ran.
     adaptive: Option<AdaptiveReport>,
+    /// The lights whose shadow rays the render skipped (no surface can occlude them): the
+    /// plan's list in pipeline modes.
+    unoccludable_lights: Vec<u32>,
 }
 
 /// The default of `--adaptive-threshold`.
@@ -136,6 +139,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let skipped = skips(
         &scene,
         rendered.execution.as_ref().map(|(mode, _)| *mode),
+        &rendered.unoccludable_lights,
         rendered.adaptive.as_ref(),
     );
     let report = Report {
@@ -194,10 +198,12 @@ fn adaptive_report(request: PlanRequest, counts: AdaptiveCounts) -> Option<Adapt
 }
 
 /// The work the run skipped because it cannot change the image, one sentence each.
-/// `mode` is the pipeline's execution mode (`None` for a monolithic render).
+/// `mode` is the pipeline's execution mode (`None` for a monolithic render), `unoccludable` the
+/// lights whose shadow rays it skipped.
 fn skips(
     scene: &Scene,
     mode: Option<ExecutionMode>,
+    unoccludable: &[u32],
     adaptive: Option<&AdaptiveReport>,
 ) -> Vec<String> {
     let mut out = Vec::new();
@@ -210,13 +216,12 @@ fn skips(
             "the scene has no lights: no shadow rays traced".to_owned()
         });
     } else {
-        let free = unoccludable_lights(&scene.mesh, &scene.lights);
-        for (light, _) in free.iter().enumerate().filter(|(_, f)| **f) {
+        for light in unoccludable {
             out.push(format!(
                 "no surface can occlude light {light}: its shadow rays are not traced"
             ));
         }
-        if staged && free.iter().all(|f| *f) {
+        if staged && unoccludable.len() == scene.lights.len() {
             out.push("no light can be occluded: no expand or trace-map stages".to_owned());
         }
     }
@@ -328,6 +333,12 @@ fn render_monolithic(
         workers: None,
         job: None,
         adaptive,
+        unoccludable_lights: unoccludable_lights(&scene.mesh, &scene.lights)
+            .into_iter()
+            .enumerate()
+            .filter(|(_, free)| *free)
+            .map(|(light, _)| light as u32)
+            .collect(),
     })
 }
 
@@ -368,6 +379,7 @@ fn render_pipeline(scene: &Scene, request: PlanRequest, args: &RenderArgs) -> Re
         workers: Some(workers),
         job: Some(options.job.to_string()),
         adaptive,
+        unoccludable_lights: run.plan.unoccludable_lights.clone(),
     })
 }
 
@@ -496,6 +508,7 @@ fn render_emulated(scene: &Scene, args: &RenderArgs, request: PlanRequest) -> Re
         execution: Some((run.plan.mode, run.plan.mode_reason.clone())),
         workers: Some(workers),
         job: Some(run.job.to_string()),
+        unoccludable_lights: run.plan.unoccludable_lights.clone(),
         stages: run.stages,
         cost_usd: Some(run.cost.total),
         adaptive,
