@@ -40,9 +40,10 @@ pub fn build_split_from_parts(
         ))
     })?;
     let origin = DVec3::from(cut.origin);
-    // Each triangle as the split needs it (id, corners in the local frame, shading): 96 bytes,
-    // converted frame by frame, so the records (128 bytes, f64 corners) never pile up.
-    let mut triangles: Vec<(u32, [Vec3; 3], TriangleShading)> = Vec::new();
+    // Each triangle as the split needs it (id, corners in the local frame, shading), converted
+    // frame by frame so that the records (128 bytes, f64 corners) never pile up, in three
+    // columns that the BVH build and the shading take over without copies.
+    let (mut ids, mut corners, mut shading) = (Vec::new(), Vec::new(), Vec::new());
     for run in runs {
         let index: PartIndex = read_json(store, &parts_index_key(job, run.range))?;
         read_run(store, job, run, &index, |record| {
@@ -51,26 +52,59 @@ pub fn build_split_from_parts(
                 let path = file_of(&table, record.id);
                 return Err(SceneError::TooLarge { path }.into());
             }
-            let shading = TriangleShading {
+            ids.push(record.id);
+            corners.push(local);
+            shading.push(TriangleShading {
                 normals: record.normals,
                 kd: record.kd,
-            };
-            triangles.push((record.id, local, shading));
+            });
             Ok(())
         })?;
     }
-    triangles.sort_unstable_by_key(|t| t.0);
-    let ids: Vec<u32> = triangles.iter().map(|t| t.0).collect();
-    let corners: Vec<[Vec3; 3]> = triangles.iter().map(|t| t.1).collect();
+    // Scene order (runs arrive by range, each by bucket then id).
+    let order = sorted_order(&ids);
+    permute(&mut ids, &order);
+    permute(&mut corners, &order);
+    permute(&mut shading, &order);
+    drop(order);
+    let sorted_ids = ids.clone();
     let object = build_split_bvh(split, corners, ids, |id| {
-        let at = triangles.binary_search_by_key(&id, |t| t.0);
-        triangles[at.expect("a split's own id")].2
+        shading[sorted_ids.binary_search(&id).expect("a split's own id")]
     });
-    drop(triangles);
+    drop((shading, sorted_ids));
     let (info, _, bytes) = encode_built_split(object, &mut 0);
     store.put(&split_key(job, SplitId(split)), &bytes)?;
     write_json(store, &parts_split_info_key(job, split), &info)?;
     Ok((info, bytes))
+}
+
+/// The positions of `ids` in ascending order of id (`ids` are distinct).
+fn sorted_order(ids: &[u32]) -> Vec<u32> {
+    let mut order: Vec<u32> = (0..ids.len() as u32).collect();
+    order.sort_unstable_by_key(|&i| ids[i as usize]);
+    order
+}
+
+/// Reorders `items` in place so that `items[i]` becomes the old `items[order[i]]`, with no
+/// second copy of `items` (one bit per item marks what is placed).
+fn permute<T>(items: &mut [T], order: &[u32]) {
+    let mut placed = vec![0u64; items.len().div_ceil(64)];
+    for start in 0..items.len() {
+        if placed[start / 64] >> (start % 64) & 1 == 1 {
+            continue;
+        }
+        // Follow the cycle through `start`: each slot takes the item its order names.
+        let mut at = start;
+        loop {
+            placed[at / 64] |= 1 << (at % 64);
+            let from = order[at] as usize;
+            if from == start {
+                break;
+            }
+            items.swap(at, from);
+            at = from;
+        }
+    }
 }
 
 /// The file that holds triangle `id`, for messages.
