@@ -24,7 +24,7 @@
 //! number of values used before it, and every value is used.
 //!
 //! Why this layout (measured, docs/ARCHITECTURE.md section 8): loading is one pass over the
-//! raw bytes as zstd produces them, a few hundred KiB at a time into reused buffers that stay
+//! raw bytes as zstd produces them, 256 KiB at a time into one reused buffer that stays
 //! in the cache, each section converted straight into its final array (the nodes word for
 //! word, the packs filled triangle by triangle, gathering each corner from the vertices,
 //! which are numbered in order of first use and so read almost in order, the shading from kd

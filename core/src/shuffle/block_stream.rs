@@ -1,11 +1,8 @@
-//! A block's raw bytes as a stream: decompressed piece by piece into small reused buffers and
-//! checked as [`decode_block`] checks them, for readers that convert the raw bytes straight
-//! into their own arrays (split objects) instead of holding them all. For a large block (at
-//! least [`THREAD_MIN_RAW`] raw bytes, on a machine with more than one core) zstd and the raw
-//! CRC run on a second thread, a few buffers ahead of the reader.
+//! A block's raw bytes as a stream: decompressed piece by piece into one small reused buffer
+//! and checked as [`decode_block`] checks them, for readers that convert the raw bytes straight
+//! into their own arrays (split objects) instead of holding them all.
 
 use super::block::{BLOCK_HEADER_LEN, BlockError, BlockProblem, RecordKind, decode_block};
-use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use zstd::zstd_safe::{DCtx, InBuffer, OutBuffer};
 
 /// Raw bytes per buffer zstd fills (it stays in the L2 cache while its bytes are converted).
@@ -14,19 +11,13 @@ const CHUNK: usize = 256 << 10;
 /// The most [`RawStream::take`] hands out at once.
 pub const MAX_TAKE: usize = 128 << 10;
 
-/// Raw length from which zstd runs on its own thread.
-pub const THREAD_MIN_RAW: u64 = 4 << 20;
-
-/// Buffers in flight between the zstd thread and the reader, besides the reader's own.
-const SPARE_BUFFERS: usize = 3;
-
 /// Reads the raw bytes of the block `bytes` from `key` (of kind `kind`) with `read`, and
 /// returns what `read` returns if the block is sound.
 ///
 /// First checks the header (magic, version, `kind`, raw length), the block CRC and that the
 /// payload is one whole zstd frame, as [`decode_block`] does; then `read` takes raw bytes from
-/// the stream as zstd produces them (memory: a few 384 KiB buffers and zstd's context and
-/// window, whatever the raw length); then the rest of the frame is decompressed.
+/// the stream as zstd produces them (memory: one 384 KiB buffer and zstd's context and window,
+/// whatever the raw length); then the rest of the frame is decompressed.
 ///
 /// Guarantees: `Ok` only if the frame decompresses to exactly the declared raw length and the
 /// raw CRC matches every raw byte, that is exactly when [`decode_block`] gives `Ok`; every
@@ -39,96 +30,53 @@ pub fn read_block<R>(
     kind: RecordKind,
     read: impl FnOnce(&mut RawStream<'_>) -> R,
 ) -> Result<R, BlockError> {
-    let threaded = std::thread::available_parallelism().is_ok_and(|n| n.get() > 1);
-    read_block_with(key, bytes, kind, threaded, read)
-}
-
-/// [`read_block`], with zstd on its own thread for large blocks if `threaded`.
-pub(super) fn read_block_with<R>(
-    key: &str,
-    bytes: &[u8],
-    kind: RecordKind,
-    threaded: bool,
-    read: impl FnOnce(&mut RawStream<'_>) -> R,
-) -> Result<R, BlockError> {
     let error = |problem| BlockError {
         key: key.to_owned(),
         problem,
     };
     let (raw_len, raw_crc) = super::block::verify_stored(bytes, kind).map_err(error)?;
-    let mut decoder = Decoder {
-        payload: bytes.get(BLOCK_HEADER_LEN..).unwrap_or_default(),
-        read: 0,
-        dctx: DCtx::create(),
+    let mut stream = RawStream {
         raw_len,
-        produced: 0,
-        hasher: crc32fast::Hasher::new(),
-        ended: false,
-        failed: false,
+        decoder: Decoder {
+            payload: bytes.get(BLOCK_HEADER_LEN..).unwrap_or_default(),
+            read: 0,
+            dctx: DCtx::create(),
+            raw_len,
+            produced: 0,
+            hasher: crc32fast::Hasher::new(),
+            ended: false,
+            failed: false,
+        },
+        buf: vec![0u8; MAX_TAKE + CHUNK],
+        start: MAX_TAKE,
+        end: MAX_TAKE,
+        exhausted: false,
     };
-    let buffer = || vec![0u8; MAX_TAKE + CHUNK];
-    let sound = if threaded && raw_len >= THREAD_MIN_RAW {
-        std::thread::scope(|scope| {
-            let (full_tx, full) = sync_channel::<(Vec<u8>, usize)>(SPARE_BUFFERS + 1);
-            let (empty, empty_rx) = sync_channel::<Vec<u8>>(SPARE_BUFFERS + 1);
-            for _ in 0..SPARE_BUFFERS {
-                let _ = empty.send(buffer());
-            }
-            let zstd = scope.spawn(move || {
-                decoder.feed(&empty_rx, &full_tx);
-                decoder.sound(raw_crc)
-            });
-            let mut stream = RawStream::new(raw_len, buffer(), Source::Thread { full, empty });
-            let result = read(&mut stream);
-            // Dropping the stream closes the channels: the thread finishes the frame alone.
-            drop(stream);
-            (zstd.join().unwrap_or(false), result)
-        })
-    } else {
-        let mut stream = RawStream::new(raw_len, buffer(), Source::Inline(decoder));
-        let result = read(&mut stream);
-        let RawStream {
-            source, mut buf, ..
-        } = stream;
-        let sound = match source {
-            Source::Inline(mut decoder) => {
-                decoder.drain(&mut buf);
-                decoder.sound(raw_crc)
-            }
-            Source::Thread { .. } => false,
-        };
-        (sound, result)
-    };
-    match sound {
-        (true, result) => Ok(result),
-        // The one-shot decoder names the exact problem (the same zstd underneath).
-        (false, _) => Err(match decode_block(key, bytes, kind) {
-            Err(e) => e,
-            Ok(_) => error(BlockProblem::CorruptPayload {
-                detail: "streaming and one-shot decompression disagree".into(),
-            }),
-        }),
+    let result = read(&mut stream);
+    let RawStream {
+        mut decoder,
+        mut buf,
+        ..
+    } = stream;
+    decoder.drain(&mut buf);
+    if decoder.sound(raw_crc) {
+        return Ok(result);
     }
-}
-
-/// Where a stream's buffers come from.
-enum Source<'a> {
-    /// zstd runs on the reader's thread.
-    Inline(Decoder<'a>),
-    /// Filled buffers (bytes at `MAX_TAKE..MAX_TAKE + len`) from the zstd thread, and the way
-    /// back for empty ones.
-    Thread {
-        full: Receiver<(Vec<u8>, usize)>,
-        empty: SyncSender<Vec<u8>>,
-    },
+    // The one-shot decoder names the exact problem (the same zstd underneath).
+    Err(match decode_block(key, bytes, kind) {
+        Err(e) => e,
+        Ok(_) => error(BlockProblem::CorruptPayload {
+            detail: "streaming and one-shot decompression disagree".into(),
+        }),
+    })
 }
 
 /// The raw bytes of one block, in order (see [`read_block`]).
 pub struct RawStream<'a> {
     raw_len: u64,
-    source: Source<'a>,
-    /// `buf[start..end]` are decompressed bytes not yet taken; a buffer is filled from
-    /// `MAX_TAKE` on, the bytes left from the previous one copied just before.
+    decoder: Decoder<'a>,
+    /// `buf[start..end]` are decompressed bytes not yet taken; zstd fills the buffer from
+    /// `MAX_TAKE` on, the bytes left from the previous fill moved just before.
     buf: Vec<u8>,
     start: usize,
     end: usize,
@@ -136,18 +84,7 @@ pub struct RawStream<'a> {
     exhausted: bool,
 }
 
-impl<'a> RawStream<'a> {
-    fn new(raw_len: u64, buf: Vec<u8>, source: Source<'a>) -> Self {
-        RawStream {
-            raw_len,
-            source,
-            buf,
-            start: MAX_TAKE,
-            end: MAX_TAKE,
-            exhausted: false,
-        }
-    }
-
+impl RawStream<'_> {
     /// The raw length the (CRC-checked) header declares.
     pub fn raw_len(&self) -> u64 {
         self.raw_len
@@ -170,29 +107,14 @@ impl<'a> RawStream<'a> {
         self.buf.get(at..at + len)
     }
 
-    /// Moves the bytes left (fewer than `MAX_TAKE`) in front of the next buffer's.
+    /// Moves the bytes left (fewer than `MAX_TAKE`) before `MAX_TAKE` and decompresses the
+    /// next ones after them.
     fn refill(&mut self) {
         let left = self.end - self.start;
-        let filled = match &mut self.source {
-            Source::Inline(decoder) => {
-                self.buf.copy_within(self.start..self.end, MAX_TAKE - left);
-                decoder.fill(self.buf.get_mut(MAX_TAKE..).unwrap_or_default())
-            }
-            Source::Thread { full, empty } => match full.recv() {
-                Ok((mut next, filled)) => {
-                    if let (Some(to), Some(from)) = (
-                        next.get_mut(MAX_TAKE - left..MAX_TAKE),
-                        self.buf.get(self.start..self.end),
-                    ) {
-                        to.copy_from_slice(from);
-                    }
-                    std::mem::swap(&mut self.buf, &mut next);
-                    let _ = empty.send(next);
-                    filled
-                }
-                Err(_) => 0,
-            },
-        };
+        self.buf.copy_within(self.start..self.end, MAX_TAKE - left);
+        let filled = self
+            .decoder
+            .fill(self.buf.get_mut(MAX_TAKE..).unwrap_or_default());
         self.start = MAX_TAKE - left;
         self.end = MAX_TAKE + filled;
         self.exhausted = filled < CHUNK;
@@ -221,24 +143,6 @@ impl Decoder<'_> {
             at += self.step(out.get_mut(at..).unwrap_or_default());
         }
         at
-    }
-
-    /// Fills buffers from `empty` and sends them to `full` until the frame ends or fails (a
-    /// buffer not full is the last), then finishes the frame alone if the reader has gone.
-    fn feed(&mut self, empty: &Receiver<Vec<u8>>, full: &SyncSender<(Vec<u8>, usize)>) {
-        while let Ok(mut buf) = empty.recv() {
-            let filled = self.fill(buf.get_mut(MAX_TAKE..).unwrap_or_default());
-            if full.send((buf, filled)).is_err() {
-                let mut scratch = vec![0u8; CHUNK];
-                self.drain(&mut scratch);
-                return;
-            }
-            if filled < CHUNK {
-                return;
-            }
-        }
-        let mut scratch = vec![0u8; CHUNK];
-        self.drain(&mut scratch);
     }
 
     /// Decompresses (and checksums) the rest of the frame into `scratch`.

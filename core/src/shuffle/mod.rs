@@ -13,4 +13,4 @@ pub use block::{
     BLOCK_HEADER_LEN, BLOCK_MAGIC, BLOCK_VERSION, Block, BlockError, BlockProblem, MAX_RAW_LEN,
     RecordKind, ZSTD_LEVEL, decode_block, encode_block, relabel_block,
 };
-pub use block_stream::{MAX_TAKE, RawStream, THREAD_MIN_RAW, read_block};
+pub use block_stream::{MAX_TAKE, RawStream, read_block};

@@ -1,4 +1,4 @@
-//! `decode_split`: one pass over the raw bytes as zstd produces them into small reused buffers
+//! `decode_split`: one pass over the raw bytes as zstd produces them into a small reused buffer
 //! ([`read_block`]), each section converted straight into its final array and checked as it
 //! goes; nothing holds the raw bytes whole.
 

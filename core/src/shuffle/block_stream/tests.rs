@@ -1,4 +1,4 @@
-//! The stream gives exactly the raw bytes `decode_block` gives, in both modes, and exactly its
+//! The stream gives exactly the raw bytes `decode_block` gives, and exactly its
 //! errors, whatever the reader took.
 
 use super::*;
@@ -51,38 +51,26 @@ fn resealed(bytes: &[u8], at: usize, value: &[u8]) -> Vec<u8> {
 }
 
 #[test]
-fn gives_the_raw_bytes_in_both_modes() {
-    for len in [
-        0,
-        1,
-        1000,
-        CHUNK,
-        CHUNK + 1,
-        THREAD_MIN_RAW as usize + 12345,
-    ] {
+fn gives_the_raw_bytes() {
+    for len in [0, 1, 1000, CHUNK, CHUNK + 1, 3 * CHUNK + 12345] {
         let raw = raw_of(len);
         let bytes = encode_block(KIND, 1, &raw);
-        for threaded in [false, true] {
-            for sizes in [&[1usize, 7, 4096][..], &[MAX_TAKE], &[12, 36 * 1000]] {
-                let got = read_block_with("k", &bytes, KIND, threaded, |s| {
-                    assert_eq!(s.raw_len(), len as u64);
-                    read_all(s, sizes)
-                })
-                .unwrap();
-                assert!(
-                    got == raw,
-                    "len {len}, threaded {threaded}, sizes {sizes:?}"
-                );
-            }
+        for sizes in [&[1usize, 7, 4096][..], &[MAX_TAKE], &[12, 36 * 1000]] {
+            let got = read_block("k", &bytes, KIND, |s| {
+                assert_eq!(s.raw_len(), len as u64);
+                read_all(s, sizes)
+            })
+            .unwrap();
+            assert!(got == raw, "len {len}, sizes {sizes:?}");
         }
-        let taken = read_block_with("k", &bytes, KIND, false, |s| s.take(MAX_TAKE + 1).is_none());
+        let taken = read_block("k", &bytes, KIND, |s| s.take(MAX_TAKE + 1).is_none());
         assert_eq!(taken, Ok(true), "takes are at most MAX_TAKE");
     }
 }
 
 #[test]
 fn errors_are_decode_blocks_whatever_the_reader_took() {
-    let raw = raw_of(THREAD_MIN_RAW as usize + 777);
+    let raw = raw_of(3 * CHUNK + 777);
     let good = encode_block(KIND, 1, &raw);
     let raw_len = raw.len() as u64;
     let last = good.len() - 1;
@@ -102,21 +90,15 @@ fn errors_are_decode_blocks_whatever_the_reader_took() {
     ];
     for bytes in &cases {
         let expected = decode_block("k", bytes, KIND).unwrap_err();
-        for threaded in [false, true] {
-            for takes in [0usize, 3, usize::MAX] {
-                let got = read_block_with("k", bytes, KIND, threaded, |s| {
-                    for _ in 0..takes {
-                        if s.take(MAX_TAKE).is_none() {
-                            break;
-                        }
+        for takes in [0usize, 3, usize::MAX] {
+            let got = read_block("k", bytes, KIND, |s| {
+                for _ in 0..takes {
+                    if s.take(MAX_TAKE).is_none() {
+                        break;
                     }
-                });
-                assert_eq!(
-                    got,
-                    Err(expected.clone()),
-                    "threaded {threaded}, takes {takes}"
-                );
-            }
+                }
+            });
+            assert_eq!(got, Err(expected.clone()), "takes {takes}");
         }
     }
 }
