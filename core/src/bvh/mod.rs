@@ -28,7 +28,7 @@ mod segment_packet;
 mod simd4;
 mod traverse;
 
-pub use parts::{BvhParts, BvhPartsError, NODE_BYTES};
+pub use parts::{BvhParts, BvhPartsError, NODE_BYTES, PartsLoader};
 pub use ray_packet::RAY_PACKET;
 pub use traverse::{ClosestHit, segment_may_hit};
 

@@ -125,7 +125,8 @@ impl Bvh {
     /// Loads a BVH from the arrays [`Bvh::put_nodes`] and [`Bvh::put_lanes`] wrote, with the
     /// scene-wide `ids` in leaf order and `corners(t)` the corners of leaf-order triangle `t`
     /// (called once for each `t < ids.len()`, in order, only after every check passed); the
-    /// result equals the BVH they were written from.
+    /// result equals the BVH they were written from. [`PartsLoader`] does the same piece by
+    /// piece.
     ///
     /// Accepts exactly what [`Bvh::build`] lays out: the node bytes are whole nodes, every pack
     /// holds 1 to 4 triangles and the packs hold `ids.len()` together, and a depth-first walk
@@ -141,31 +142,78 @@ impl Bvh {
         ids: Vec<u32>,
         mut corners: impl FnMut(usize) -> [Vec3; 3],
     ) -> Result<Bvh, BvhPartsError> {
-        let n = ids.len();
         let BvhParts {
             bounds,
             nodes,
             lanes,
         } = parts;
-        let (node_bytes, rest) = nodes.as_chunks::<NODE_BYTES>();
-        if !rest.is_empty() {
-            return Err(BvhPartsError::PartialNode { found: nodes.len() });
+        let mut loader = PartsLoader::new(bounds, nodes.len() / NODE_BYTES);
+        loader.push_nodes(nodes)?;
+        loader.set_lanes(lanes.to_vec(), ids.len())?;
+        for t in 0..ids.len() {
+            loader.push_triangle(corners(t));
         }
-        if n == 0 {
-            if !node_bytes.is_empty() || !lanes.is_empty() {
+        Ok(loader.finish(ids))
+    }
+}
+
+/// [`Bvh::from_parts`] piece by piece, for a reader that gets the stored arrays from a stream:
+/// [`PartsLoader::new`], the node bytes in any number of whole-node pieces
+/// ([`PartsLoader::push_nodes`]), the lane counts ([`PartsLoader::set_lanes`], which makes
+/// every check `from_parts` makes, with the same errors), each triangle's corners in leaf
+/// order ([`PartsLoader::push_triangle`], once per triangle), then the ids
+/// ([`PartsLoader::finish`]). Called in that order with the same bytes, the result equals
+/// `from_parts`'s. Each array is written once, straight into its final place.
+pub struct PartsLoader {
+    bounds: Aabb,
+    wide: Vec<Node4>,
+    lanes: Vec<u8>,
+    triangles: Vec<Triangle4>,
+    /// The pack being filled, its next lane, and the triangles in the packs before it.
+    pack: Triangle4,
+    lane: usize,
+    first: usize,
+}
+
+impl PartsLoader {
+    /// A loader for a BVH with root box `bounds` and `nodes` 4-wide nodes (the capacity it
+    /// reserves).
+    pub fn new(bounds: Aabb, nodes: usize) -> Self {
+        PartsLoader {
+            bounds,
+            wide: Vec::with_capacity(nodes),
+            lanes: Vec::new(),
+            triangles: Vec::new(),
+            pack: EMPTY_PACK,
+            lane: 0,
+            first: 0,
+        }
+    }
+
+    /// Appends the nodes in `bytes`, [`NODE_BYTES`] each; an error if `bytes` ends inside a
+    /// node.
+    pub fn push_nodes(&mut self, bytes: &[u8]) -> Result<(), BvhPartsError> {
+        let (nodes, rest) = bytes.as_chunks::<NODE_BYTES>();
+        if !rest.is_empty() {
+            return Err(BvhPartsError::PartialNode { found: bytes.len() });
+        }
+        self.wide.extend(nodes.iter().map(node_from_bytes));
+        Ok(())
+    }
+
+    /// Takes each pack's lane count and checks the nodes pushed and the packs against a BVH of
+    /// `triangles` triangles, as [`Bvh::from_parts`] does.
+    pub fn set_lanes(&mut self, lanes: Vec<u8>, triangles: usize) -> Result<(), BvhPartsError> {
+        if triangles == 0 {
+            if !self.wide.is_empty() || !lanes.is_empty() {
                 return Err(BvhPartsError::NotEmpty {
-                    nodes: node_bytes.len(),
+                    nodes: self.wide.len(),
                     packs: lanes.len(),
                 });
             }
-            return Ok(Bvh {
-                bounds,
-                ids,
-                wide: Vec::new(),
-                triangles: Vec::new(),
-            });
+            return Ok(());
         }
-        if node_bytes.is_empty() {
+        if self.wide.is_empty() {
             return Err(BvhPartsError::NoNodes);
         }
         let mut held = 0usize;
@@ -175,39 +223,56 @@ impl Bvh {
             }
             held += usize::from(l);
         }
-        if held != n {
-            return Err(BvhPartsError::PackTotal { held, triangles: n });
+        if held != triangles {
+            return Err(BvhPartsError::PackTotal { held, triangles });
         }
-        let wide: Vec<Node4> = node_bytes.iter().map(node_from_bytes).collect();
-        check_nodes(&wide, lanes.len())?;
-        let mut triangles = Vec::with_capacity(lanes.len());
-        let mut first = 0usize;
-        for &l in lanes {
-            let l = usize::from(l);
-            let mut v = [[[0.0f32; 4]; 3]; 3];
-            for lane in 0..l {
-                let t = corners(first + lane);
-                for (vc, p) in v.iter_mut().zip(t) {
-                    for (va, x) in vc.iter_mut().zip(p.to_array()) {
-                        va[lane] = x;
-                    }
-                }
+        check_nodes(&self.wide, lanes.len())?;
+        self.triangles = Vec::with_capacity(lanes.len());
+        self.lanes = lanes;
+        Ok(())
+    }
+
+    /// Puts the next leaf-order triangle in its pack (after [`PartsLoader::set_lanes`]
+    /// succeeded; triangles beyond the packs are ignored).
+    #[inline]
+    pub fn push_triangle(&mut self, corners: [Vec3; 3]) {
+        let Some(&lanes) = self.lanes.get(self.triangles.len()) else {
+            return;
+        };
+        let lane = self.lane;
+        for (vc, p) in self.pack.v.iter_mut().zip(corners) {
+            for (va, x) in vc.iter_mut().zip(p.to_array()) {
+                va[lane] = x;
             }
-            triangles.push(Triangle4 {
-                v,
-                first: first as u32,
-                lanes: l as u32,
-            });
-            first += l;
         }
-        Ok(Bvh {
-            bounds,
+        self.lane += 1;
+        if self.lane == usize::from(lanes) {
+            self.pack.first = self.first as u32;
+            self.pack.lanes = u32::from(lanes);
+            self.triangles.push(self.pack);
+            self.first += self.lane;
+            self.pack = EMPTY_PACK;
+            self.lane = 0;
+        }
+    }
+
+    /// The BVH, with the scene-wide `ids` in leaf order (one per triangle pushed).
+    pub fn finish(self, ids: Vec<u32>) -> Bvh {
+        Bvh {
+            bounds: self.bounds,
             ids,
-            wide,
-            triangles,
-        })
+            wide: self.wide,
+            triangles: self.triangles,
+        }
     }
 }
+
+/// A pack before its lanes are filled: unused lanes stay zero.
+const EMPTY_PACK: Triangle4 = Triangle4 {
+    v: [[[0.0; 4]; 3]; 3],
+    first: 0,
+    lanes: 0,
+};
 
 /// One node from its [`NODE_BYTES`] bytes.
 #[inline]

@@ -307,6 +307,7 @@ fn decode(bytes: &[u8], expected: RecordKind) -> Result<Block, BlockProblem> {
     if stored != computed {
         return Err(BlockProblem::BlockChecksumMismatch { stored, computed });
     }
+    check_one_frame(payload)?;
     let raw = inflate(payload, raw_len)?;
     let stored = u32_at(head, RAW_CRC_AT);
     let computed = crc32fast::hash(&raw);
@@ -372,8 +373,27 @@ fn u64_at(head: &[u8; BLOCK_HEADER_LEN], at: usize) -> u64 {
     u64::from_le_bytes(word)
 }
 
-/// Decompresses a payload that must be exactly one zstd frame of exactly `raw_len` bytes.
-fn inflate(payload: &[u8], raw_len: u64) -> Result<Vec<u8>, BlockProblem> {
+/// The checks [`decode_block`] makes before decompressing (header, block CRC, one whole zstd
+/// frame), for [`super::block_stream`]: the declared raw length and the raw CRC.
+pub(super) fn verify_stored(
+    bytes: &[u8],
+    expected: RecordKind,
+) -> Result<(u64, u32), BlockProblem> {
+    let (head, payload) = bytes
+        .split_first_chunk::<BLOCK_HEADER_LEN>()
+        .ok_or(BlockProblem::TooShort { len: bytes.len() })?;
+    let (_, _, raw_len) = parse_header(head, expected)?;
+    let stored = u32_at(head, BLOCK_CRC_AT);
+    let computed = checksum(&head[..BLOCK_CRC_AT], payload);
+    if stored != computed {
+        return Err(BlockProblem::BlockChecksumMismatch { stored, computed });
+    }
+    check_one_frame(payload)?;
+    Ok((raw_len, u32_at(head, RAW_CRC_AT)))
+}
+
+/// Checks that the payload is exactly one whole zstd frame.
+fn check_one_frame(payload: &[u8]) -> Result<(), BlockProblem> {
     let corrupt = |detail: String| BlockProblem::CorruptPayload { detail };
     let frame_len = zstd::zstd_safe::find_frame_compressed_size(payload)
         .map_err(|code| corrupt(zstd::zstd_safe::get_error_name(code).to_owned()))?;
@@ -383,6 +403,12 @@ fn inflate(payload: &[u8], raw_len: u64) -> Result<Vec<u8>, BlockProblem> {
             payload.len().saturating_sub(frame_len)
         )));
     }
+    Ok(())
+}
+
+/// Decompresses a payload that is exactly one zstd frame (checked) to exactly `raw_len` bytes.
+fn inflate(payload: &[u8], raw_len: u64) -> Result<Vec<u8>, BlockProblem> {
+    let corrupt = |detail: String| BlockProblem::CorruptPayload { detail };
     // The block CRC has vouched for the declared length (and it is <= MAX_RAW_LEN): allocate it
     // once, plus one byte to tell a longer payload from a corrupt one. zstd decompresses the
     // whole frame straight into it (no window buffer, no copy) and never writes past it.

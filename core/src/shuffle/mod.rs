@@ -5,6 +5,7 @@
 //! stages; [`columns`] helps lay them out column-wise so they compress well.
 
 mod block;
+mod block_stream;
 pub mod columns;
 pub(crate) mod varint;
 
@@ -12,3 +13,4 @@ pub use block::{
     BLOCK_HEADER_LEN, BLOCK_MAGIC, BLOCK_VERSION, Block, BlockError, BlockProblem, MAX_RAW_LEN,
     RecordKind, ZSTD_LEVEL, decode_block, encode_block, relabel_block,
 };
+pub use block_stream::{MAX_TAKE, RawStream, read_block};

@@ -1,7 +1,9 @@
 //! Split objects round-trip every bit, and corrupt or hostile ones are errors, never panics.
 
 use super::*;
+use crate::bvh::BvhParts;
 use crate::shuffle::columns::ColumnWriter;
+use crate::shuffle::decode_block;
 
 fn sample_object() -> SplitObject {
     let triangles: Vec<[Vec3; 3]> = (0..40)
@@ -219,9 +221,9 @@ impl Sections {
             lanes: ranges[1].clone(),
             vertices: ranges[2].clone(),
             corners: ranges[3].clone(),
-            flags: ranges[5].clone(),
-            kd_values: ranges[7].clone(),
-            kd_indices: ranges[8].clone(),
+            kd_values: ranges[5].clone(),
+            kd_indices: ranges[6].clone(),
+            flags: ranges[7].clone(),
         }
     }
 
@@ -265,8 +267,8 @@ fn versions_and_header_counts_are_checked() {
     let s = Sections::of(&good);
     assert!(decode_split("k", &encode_block(RecordKind::SplitObject, 0, &good)).is_ok());
     assert_eq!(
-        decode_err(&damaged(&good, |r| set_word(r, 0, 4))),
-        "format version 4, this build reads 3"
+        decode_err(&damaged(&good, |r| set_word(r, 0, 3))),
+        "format version 3, this build reads 4"
     );
     // A version 2 object: columns, the first a u32 column holding the version.
     let mut w = ColumnWriter::new();
@@ -274,7 +276,7 @@ fn versions_and_header_counts_are_checked() {
     w.put_f32(&[0.0; 6]);
     assert_eq!(
         decode_err(w.as_bytes()),
-        "format version 2, this build reads 3"
+        "format version 2, this build reads 4"
     );
     assert_eq!(
         decode_err(&good[..10]),

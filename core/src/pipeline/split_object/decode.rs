@@ -1,0 +1,305 @@
+//! `decode_split`: one pass over the raw bytes as zstd produces them into a small reused buffer
+//! ([`read_block`]), each section converted straight into its final array and checked as it
+//! goes; nothing holds the raw bytes whole.
+
+use super::{
+    Counts, HEADER_BYTES, PLANE_GROUP, SPLIT_FORMAT_VERSION, SplitObject, TriangleShading,
+};
+use crate::bvh::{Aabb, NODE_BYTES, PartsLoader};
+use crate::pipeline::PipelineError;
+use crate::shuffle::columns::ColumnReader;
+use crate::shuffle::{MAX_TAKE, RawStream, RecordKind, read_block};
+use glam::Vec3;
+
+/// Decodes and validates a split object read from `key`. Every error is one line naming `key`
+/// and what is wrong (see the module docs for what is checked). A damaged block gives the
+/// block's error (as `decode_block` names it) before anything its raw bytes say, and nothing is
+/// returned before the raw CRC has vouched for every raw byte.
+pub fn decode_split(key: &str, bytes: &[u8]) -> Result<SplitObject, PipelineError> {
+    read_block(key, bytes, RecordKind::SplitObject, read_object)
+        .map_err(|e| PipelineError::Corrupt(e.to_string()))?
+        .map_err(|what| PipelineError::Corrupt(format!("split object {key}: {what}")))
+}
+
+/// What a reader says when the stream ends early; never shown, as `finish` then fails.
+const ENDED: &str = "raw bytes end early";
+
+/// The format version of a split object written before version 3, whose raw bytes are columns
+/// starting with a u32 column that holds the version; `None` for anything else (raw bytes of
+/// version 3 and later start with the version word, which is no u32 column's tag). `head` is
+/// the first [`HEADER_BYTES`] raw bytes, or all of them if fewer (enough for that column).
+fn older_version(head: &[u8]) -> Option<u32> {
+    ColumnReader::new(head).read_u32().ok()?.first().copied()
+}
+
+fn read_object(stream: &mut RawStream<'_>) -> Result<SplitObject, String> {
+    let raw_len = stream.raw_len();
+    let head = stream
+        .take(raw_len.min(HEADER_BYTES as u64) as usize)
+        .ok_or(ENDED)?;
+    if let Some(old) = older_version(head) {
+        return Err(format!(
+            "format version {old}, this build reads {SPLIT_FORMAT_VERSION}"
+        ));
+    }
+    let Some(&head) = head.first_chunk::<HEADER_BYTES>() else {
+        return Err(format!(
+            "{raw_len} raw bytes, shorter than the {HEADER_BYTES}-byte header"
+        ));
+    };
+    let (words, _) = head.as_chunks::<4>();
+    let word = |k: usize| u32::from_le_bytes(words[k]);
+    let version = word(0);
+    if version != SPLIT_FORMAT_VERSION {
+        return Err(format!(
+            "format version {version}, this build reads {SPLIT_FORMAT_VERSION}"
+        ));
+    }
+    let [split, n, w, p, v, c, k] = [1, 2, 3, 4, 5, 6, 7].map(word);
+    if c > n {
+        return Err(format!("header declares {c} triangles with normals of {n}"));
+    }
+    if k > n || (k == 0 && n > 0) {
+        return Err(format!("header declares {k} kd values for {n} triangles"));
+    }
+    let expected: u64 = Counts { n, w, p, v, c, k }.section_lengths().iter().sum();
+    let body = raw_len - HEADER_BYTES as u64;
+    if body != expected {
+        return Err(format!(
+            "{body} bytes after the header, whose counts call for {expected}"
+        ));
+    }
+    // The sections sum to the raw length (at most MAX_RAW_LEN), so every count below fits in
+    // usize and every array reserved is at most a few times the raw bytes that fill it.
+    let [n, w, p, v, c, k] = [n, w, p, v, c, k].map(|x| x as usize);
+    let f = |b: &[u8; 4]| f32::from_le_bytes(*b);
+    let vec3 = |b: &[[u8; 4]]| Vec3::new(f(&b[0]), f(&b[1]), f(&b[2]));
+    let bounds = Aabb {
+        lo: vec3(&words[8..11]),
+        hi: vec3(&words[11..14]),
+    };
+
+    let mut bvh = PartsLoader::new(bounds, w);
+    let mut nodes_error = None;
+    read_units(stream, w, NODE_BYTES, |nodes| {
+        // Whole nodes: push_nodes cannot fail here.
+        if let Err(e) = bvh.push_nodes(nodes) {
+            nodes_error.get_or_insert(e.to_string());
+        }
+    })?;
+    if let Some(e) = nodes_error {
+        return Err(e);
+    }
+    let mut lanes = Vec::with_capacity(p);
+    read_units(stream, p, 1, |b| lanes.extend_from_slice(b))?;
+    bvh.set_lanes(lanes, n).map_err(|e| e.to_string())?;
+
+    let mut vertex_bits: Vec<u32> = Vec::with_capacity(3 * v);
+    read_planes(stream, 3 * v, |words| {
+        vertex_bits.extend_from_slice(words);
+        Ok(())
+    })?;
+    let (vertices, _) = vertex_bits.as_chunks::<3>();
+    let corner = |i: u32| {
+        vertices
+            .get(i as usize)
+            .map_or(Vec3::ZERO, |w| Vec3::from_array(w.map(f32::from_bits)))
+    };
+    let mut corners = FirstUse::new(v, "vertex");
+    read_planes(stream, 3 * n, |words| {
+        let (triangles, _) = words.as_chunks::<3>();
+        for &[a, b, c] in triangles {
+            corners.check(a)?;
+            corners.check(b)?;
+            corners.check(c)?;
+            bvh.push_triangle([corner(a), corner(b), corner(c)]);
+        }
+        Ok(())
+    })?;
+    corners.finish()?;
+    drop(vertex_bits);
+
+    let mut ids = Vec::with_capacity(n);
+    read_planes(stream, n, |words| {
+        ids.extend_from_slice(words);
+        Ok(())
+    })?;
+
+    let mut kd_values: Vec<[f32; 3]> = Vec::with_capacity(k);
+    read_units(stream, k, 12, |b| {
+        let (values, _) = b.as_chunks::<12>();
+        kd_values.extend(values.iter().map(|b| {
+            let (w, _) = b.as_chunks::<4>();
+            [f(&w[0]), f(&w[1]), f(&w[2])]
+        }));
+    })?;
+    let mut shading = Vec::with_capacity(n);
+    let mut kd = FirstUse::new(k, "kd");
+    read_planes(stream, n, |indices| {
+        for &i in indices {
+            kd.check(i)?;
+            let kd = kd_values.get(i as usize).copied().unwrap_or_default();
+            shading.push(TriangleShading { normals: None, kd });
+        }
+        Ok(())
+    })?;
+    kd.finish()?;
+
+    read_normals(stream, &mut shading, c)?;
+    Ok(SplitObject {
+        split,
+        bvh: bvh.finish(ids),
+        shading,
+    })
+}
+
+/// Reads the normal flags (checked: 0 or 1, as many set as the header's `c`) and the normals,
+/// setting those of the flagged triangles in `shading`.
+fn read_normals(
+    stream: &mut RawStream<'_>,
+    shading: &mut [TriangleShading],
+    c: usize,
+) -> Result<(), String> {
+    let n = shading.len();
+    // The flagged triangles, kept only if there are normals to place.
+    let mut flagged: Vec<u32> = Vec::with_capacity(c);
+    let (mut set, mut at, mut bad) = (0usize, 0usize, None);
+    read_units(stream, n, 1, |flags| {
+        if flags.iter().all(|&f| f == 0) {
+            at += flags.len();
+            return;
+        }
+        for &flag in flags {
+            if bad.is_none() {
+                match flag {
+                    0 => {}
+                    1 if set < c => {
+                        set += 1;
+                        flagged.push(at as u32);
+                    }
+                    1 => bad = Some(format!("normal flags: more than the header's {c} are set")),
+                    _ => {
+                        bad = Some(format!(
+                            "normal flag of triangle {at} is {flag}, expected 0 or 1"
+                        ))
+                    }
+                }
+            }
+            at += 1;
+        }
+    })?;
+    if let Some(bad) = bad {
+        return Err(bad);
+    }
+    if set != c {
+        return Err(format!("normal flags: {set} set, the header declares {c}"));
+    }
+    let mut next = flagged.iter();
+    read_units(stream, c, 36, |normals| {
+        let (normals, _) = normals.as_chunks::<36>();
+        for (t, &i) in normals.iter().zip(next.by_ref()) {
+            let (w, _) = t.as_chunks::<4>();
+            let f = |b: &[u8; 4]| f32::from_le_bytes(*b);
+            let vec3 = |b: &[[u8; 4]]| Vec3::new(f(&b[0]), f(&b[1]), f(&b[2]));
+            if let Some(s) = shading.get_mut(i as usize) {
+                s.normals = Some([vec3(&w[0..3]), vec3(&w[3..6]), vec3(&w[6..9])]);
+            }
+        }
+    })
+}
+
+/// Hands `f` the next `count` units of `unit` bytes, as many whole units at a time as the
+/// stream gives at once.
+fn read_units(
+    stream: &mut RawStream<'_>,
+    count: usize,
+    unit: usize,
+    mut f: impl FnMut(&[u8]),
+) -> Result<(), String> {
+    let per_take = (MAX_TAKE / unit).max(1);
+    let mut left = count;
+    while left > 0 {
+        let units = left.min(per_take);
+        f(stream.take(units * unit).ok_or(ENDED)?);
+        left -= units;
+    }
+    Ok(())
+}
+
+/// Reads a planes section of `count` words, handing `f` each group's words in order (whole
+/// groups of [`PLANE_GROUP`], the last one shorter).
+fn read_planes(
+    stream: &mut RawStream<'_>,
+    count: usize,
+    mut f: impl FnMut(&[u32]) -> Result<(), String>,
+) -> Result<(), String> {
+    let mut words = Vec::with_capacity(count.min(PLANE_GROUP));
+    let mut left = count;
+    while left > 0 {
+        let len = left.min(PLANE_GROUP);
+        let bytes = stream.take(4 * len).ok_or(ENDED)?;
+        let (b0, rest) = bytes.split_at(len);
+        let (b1, rest) = rest.split_at(len);
+        let (b2, b3) = rest.split_at(len);
+        words.clear();
+        words.extend(
+            b0.iter()
+                .zip(b1)
+                .zip(b2)
+                .zip(b3)
+                .map(|(((&a, &b), &c), &d)| u32::from_le_bytes([a, b, c, d])),
+        );
+        f(&words)?;
+        left -= len;
+    }
+    Ok(())
+}
+
+/// Checks, index by index, that indices number a table of `values` values in order of first
+/// use (each at most the number used before it, every value used); errors name `what` and the
+/// first bad index.
+struct FirstUse {
+    values: usize,
+    what: &'static str,
+    used: usize,
+    seen: usize,
+}
+
+impl FirstUse {
+    fn new(values: usize, what: &'static str) -> Self {
+        FirstUse {
+            values,
+            what,
+            used: 0,
+            seen: 0,
+        }
+    }
+
+    /// Checks the next index: after `Ok`, `index` is below `values`.
+    #[inline]
+    fn check(&mut self, index: u32) -> Result<(), String> {
+        let index_usize = index as usize;
+        if index_usize > self.used || index_usize >= self.values {
+            return Err(format!(
+                "{} index {} is {index}, expected at most {} (values in order of first use)",
+                self.what,
+                self.seen,
+                self.used.min(self.values.saturating_sub(1))
+            ));
+        }
+        self.used += usize::from(index_usize == self.used);
+        self.seen += 1;
+        Ok(())
+    }
+
+    /// Checks that every value was used.
+    fn finish(&self) -> Result<(), String> {
+        if self.used != self.values {
+            return Err(format!(
+                "{} values: {} of {} used",
+                self.what, self.used, self.values
+            ));
+        }
+        Ok(())
+    }
+}
