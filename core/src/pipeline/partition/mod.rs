@@ -69,8 +69,10 @@ fn write_json<T: serde::Serialize>(
     Ok(bytes.len() as u64)
 }
 
-/// Memory a whole-scene load takes per byte of OBJ text, at most (measured on generated scenes:
-/// docs/ARCHITECTURE.md, "Scenes split by tasks"); decides when a scene is split by tasks.
+/// Memory a whole-scene plan step takes per byte of OBJ text (an estimate: the 20M-triangle
+/// generated scene, 849 MB of OBJ, peaked at 1,524 MB in the Plan function loaded from its
+/// binary form, and parsing from text adds the f64 positions; docs/ARCHITECTURE.md, "Scenes
+/// split by tasks"); decides when a scene is split by tasks.
 pub const LOAD_BYTES_PER_SCENE_BYTE: u64 = 4;
 
 /// The byte range size to split a scene whose files hold `scene_bytes` bytes by tasks with,
