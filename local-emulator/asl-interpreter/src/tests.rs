@@ -488,6 +488,7 @@ fn all_stages_run_in_order_with_every_item_once() {
         entered,
         [
             "Plan",
+            "ChooseScene",
             "ChooseMode",
             "CastMap",
             "CastMapCheck",

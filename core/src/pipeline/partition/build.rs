@@ -20,6 +20,7 @@ use crate::pipeline::{SplitInfo, TaskMetrics};
 use crate::scene::scene_without_geometry;
 use crate::store::BlobStore;
 use glam::{DVec3, Vec3};
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 /// Runs the build task of split `split` of job `job` (whose cut is stored): reads its records,
@@ -40,10 +41,14 @@ pub fn build_split_from_parts(
         ))
     })?;
     let origin = DVec3::from(cut.origin);
-    // Each triangle as the split needs it (id, corners in the local frame, shading), converted
-    // frame by frame so that the records (128 bytes, f64 corners) never pile up, in three
-    // columns that the BVH build and the shading take over without copies.
-    let (mut ids, mut corners, mut shading) = (Vec::new(), Vec::new(), Vec::new());
+    // Each triangle as the split needs it, converted frame by frame so that the records (128
+    // bytes, f64 corners) never pile up: id and corners in the local frame in columns the BVH
+    // build takes over without copies; kd as an index into the split's distinct values, and
+    // normals only for the triangles that have them (44 bytes a triangle without).
+    let (mut ids, mut corners, mut kd_index) = (Vec::new(), Vec::new(), Vec::new());
+    let mut kd_values: Vec<[f32; 3]> = Vec::new();
+    let mut kd_seen: HashMap<[u32; 3], u32> = HashMap::new();
+    let mut normals: Vec<(u32, [Vec3; 3])> = Vec::new();
     for run in runs {
         let index: PartIndex = read_json(store, &parts_index_key(job, run.range))?;
         read_run(store, job, run, &index, |record| {
@@ -54,10 +59,12 @@ pub fn build_split_from_parts(
             }
             ids.push(record.id);
             corners.push(local);
-            shading.push(TriangleShading {
-                normals: record.normals,
-                kd: record.kd,
+            let kd = *kd_seen.entry(record.kd.map(f32::to_bits)).or_insert_with(|| {
+                kd_values.push(record.kd);
+                (kd_values.len() - 1) as u32
             });
+            kd_index.push(kd);
+            normals.extend(record.normals.map(|n| (record.id, n)));
             Ok(())
         })?;
     }
@@ -65,13 +72,21 @@ pub fn build_split_from_parts(
     let order = sorted_order(&ids);
     permute(&mut ids, &order);
     permute(&mut corners, &order);
-    permute(&mut shading, &order);
+    permute(&mut kd_index, &order);
     drop(order);
+    normals.sort_unstable_by_key(|n| n.0);
     let sorted_ids = ids.clone();
     let object = build_split_bvh(split, corners, ids, |id| {
-        shading[sorted_ids.binary_search(&id).expect("a split's own id")]
+        let at = sorted_ids.binary_search(&id).expect("a split's own id");
+        TriangleShading {
+            normals: normals
+                .binary_search_by_key(&id, |n| n.0)
+                .ok()
+                .map(|i| normals[i].1),
+            kd: kd_values[kd_index[at] as usize],
+        }
     });
-    drop((shading, sorted_ids));
+    drop((kd_index, normals, sorted_ids));
     let (info, _, bytes) = encode_built_split(object, &mut 0);
     store.put(&split_key(job, SplitId(split)), &bytes)?;
     write_json(store, &parts_split_info_key(job, split), &info)?;
