@@ -59,10 +59,12 @@ pub fn build_split_from_parts(
             }
             ids.push(record.id);
             corners.push(local);
-            let kd = *kd_seen.entry(record.kd.map(f32::to_bits)).or_insert_with(|| {
-                kd_values.push(record.kd);
-                (kd_values.len() - 1) as u32
-            });
+            let kd = *kd_seen
+                .entry(record.kd.map(f32::to_bits))
+                .or_insert_with(|| {
+                    kd_values.push(record.kd);
+                    (kd_values.len() - 1) as u32
+                });
             kd_index.push(kd);
             normals.extend(record.normals.map(|n| (record.id, n)));
             Ok(())
