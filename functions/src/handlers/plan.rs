@@ -64,7 +64,7 @@ pub fn handle_plan_measured(
     }
     let label = format!("plan-{}", event.attempt);
     let (request, scene) = match super::plan_parts::load_or_scan(&store, job, work_dir, &label)? {
-        super::plan_parts::Loaded::Whole(request, scene) => (request, scene),
+        super::plan_parts::Loaded::Whole(loaded) => *loaded,
         super::plan_parts::Loaded::Scanned(output) => {
             let task_us = micros(started.elapsed());
             let metrics = TaskMetrics {

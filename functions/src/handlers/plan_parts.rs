@@ -27,7 +27,7 @@ fn parts_timeout_seconds(units: u64) -> u32 {
 /// What the `start` step found.
 pub(super) enum Loaded {
     /// A scene loaded whole, to be planned at once.
-    Whole(JobRequest, Scene),
+    Whole(Box<(JobRequest, Scene)>),
     /// A scene split by tasks: scanned, its Partition items written; the answer to return.
     Scanned(PlanOutput),
 }
@@ -44,7 +44,7 @@ pub(super) fn load_or_scan(
     let request = read_request(store, job)?;
     if request.scene_format == SceneFormat::Binary {
         let (request, scene) = load_job_scene(store, job, work_dir, label)?;
-        return Ok(Loaded::Whole(request, scene));
+        return Ok(Loaded::Whole(Box::new((request, scene))));
     }
     with_scene_files(store, job, &request, work_dir, label, |dir, main| {
         let bytes = folder_bytes(dir);
@@ -54,7 +54,7 @@ pub(super) fn load_or_scan(
         match range {
             Some(range) => scan(store, job, &request, dir, main, range).map(Loaded::Scanned),
             None => load_scene(main)
-                .map(|scene| Loaded::Whole(request.clone(), scene))
+                .map(|scene| Loaded::Whole(Box::new((request.clone(), scene))))
                 .map_err(|e| HandlerError::bad_input(e.to_string())),
         }
     })
