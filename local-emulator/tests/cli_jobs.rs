@@ -739,3 +739,53 @@ fn a_staged_adaptive_job_resumes_in_its_second_round() {
         std::fs::read(&first).unwrap()
     );
 }
+
+/// A job whose scene is split by tasks resumes too: finished partition and build tasks (their
+/// index or split summary stored) are skipped, a lost split is built again.
+#[test]
+fn a_job_split_by_tasks_resumes_skipping_finished_partition_and_build_tasks() {
+    let dir = scratch("resume-parts");
+    let bucket = Bucket::start(&dir.join("s3"), "jobs");
+    let (first, second) = (dir.join("first.pfm"), dir.join("second.pfm"));
+    let run = |extra: &[&str]| {
+        let mut args = vec!["--scene-range-bytes", "20000", "--job", "p1"];
+        args.extend_from_slice(extra);
+        render_to(&dir, &bucket, "bunny/bunny.json", &args)
+    };
+    let o = run(&["--keep-intermediates", "--out", first.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Stop it: no outputs, no cast-map blocks, split 1 and its summary lost.
+    let store = bucket.store();
+    for key in store.list("jobs/p1/").unwrap() {
+        let lost = key.contains("/out/")
+            || key.contains("/cast-map/")
+            || key == "jobs/p1/splits/00001.bin"
+            || key == "jobs/p1/parts/split-00001.json";
+        if lost {
+            store.delete(&key).unwrap();
+        }
+    }
+    let o = run(&[
+        "--resume",
+        "--keep-intermediates",
+        "--out",
+        second.to_str().unwrap(),
+    ]);
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    let skipped: u64 = err
+        .lines()
+        .find_map(|l| l.strip_prefix("resumed job p1: "))
+        .and_then(|l| l.strip_suffix(" finished tasks skipped"))
+        .expect("a resume line")
+        .parse()
+        .unwrap();
+    // 7 partition tasks and build 0 (split 1 is built again), then cast-reduce (3), expand
+    // (3), trace-map (6) and trace-reduce (3), whose outputs are there.
+    assert_eq!(skipped, 7 + 1 + 15, "{err}");
+    assert!(store.get("jobs/p1/parts/split-00001.json").is_ok());
+    assert_eq!(
+        std::fs::read(&second).unwrap(),
+        std::fs::read(&first).unwrap()
+    );
+}

@@ -26,7 +26,8 @@ use anyhow::{Context, Result, bail};
 use asl_interpreter::{TaskFailure, TaskInvoker};
 use hort_core::ids::{JobId, PartitionId, Stage, TaskId};
 use hort_core::keys::{
-    hits_key, image_key, manifest_key, partition_key, plan_key, scene_binary_key, scene_prefix,
+    hits_key, image_key, manifest_key, partition_key, parts_index_key, parts_split_info_key,
+    plan_key, scene_binary_key, scene_prefix,
 };
 use hort_core::pipeline::{JobPlan, TaskMetrics};
 use hort_core::scene::{Scene, encode_scene_named, parse_manifest};
@@ -414,8 +415,18 @@ impl SkipFinishedTasks {
         )
     }
 
-    /// True if every output partition of the task exists.
+    /// True if every output partition of the task exists; for the partition and build tasks of
+    /// a scene split by tasks, if the object each writes last exists (its index, its split's
+    /// summary).
     fn finished(&self, stage: Stage, task: u32) -> bool {
+        let last = match stage {
+            Stage::Partition => Some(parts_index_key(&self.job, task)),
+            Stage::Build => Some(parts_split_info_key(&self.job, task)),
+            _ => None,
+        };
+        if let Some(key) = last {
+            return self.store.get_range(&key, 0..1).is_ok();
+        }
         let Some(outputs) = self.outputs(stage, task) else {
             return false;
         };
