@@ -1,6 +1,7 @@
 //! The Plan task: read the job request and scene from storage, split the scene (one split
 //! object at a time), write the plan and one items file per Map state of the plan's mode
-//! (fused: `render`; staged: `cast_map` to `trace_reduce`).
+//! (fused: `render`; staged: `cast_map` to `trace_reduce`). A scene too large to load whole is
+//! scanned instead and split by tasks (`plan_parts.rs`: the `start`, `cut` and `finish` steps).
 
 use super::events::{JobRequest, PlanEvent, PlanOutput, PlanStep, SceneFormat, TaskItem};
 use super::{HandlerError, check_bucket};
@@ -130,7 +131,7 @@ pub(super) fn write_round(
 
 /// Writes the items file `key` of `stage`: one item per task of `tasks`, with its timeout
 /// (the request's override, else the plan's prediction).
-pub(super) fn write_items(
+fn write_items(
     store: &dyn BlobStore,
     key: &str,
     plan: &JobPlan,
