@@ -2,7 +2,7 @@
 //! made from the split summaries and the scene without its geometry.
 
 use super::cut::CutSplits;
-use super::range_task::PartIndex;
+use super::range_task::{PartIndex, partition_range};
 use super::record::{FRAME_RECORDS, PartRecord, decode_frame};
 use super::scan::PartsTable;
 use super::{PipelineError, read_json, write_json};
@@ -18,7 +18,7 @@ use crate::pipeline::split::{build_split_bvh, encode_built_split};
 use crate::pipeline::split_object::TriangleShading;
 use crate::pipeline::{SplitInfo, TaskMetrics};
 use crate::scene::scene_without_geometry;
-use crate::store::BlobStore;
+use crate::store::{BlobStore, StoreError};
 use glam::{DVec3, Vec3};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -41,35 +41,34 @@ pub fn build_split_from_parts(
         ))
     })?;
     let origin = DVec3::from(cut.origin);
-    // Each triangle as the split needs it, converted frame by frame so that the records (128
-    // bytes, f64 corners) never pile up: id and corners in the local frame in columns the BVH
-    // build takes over without copies; kd as an index into the split's distinct values, and
-    // normals only for the triangles that have them (44 bytes a triangle without).
-    let (mut ids, mut corners, mut kd_index) = (Vec::new(), Vec::new(), Vec::new());
-    let mut kd_values: Vec<[f32; 3]> = Vec::new();
-    let mut kd_seen: HashMap<[u32; 3], u32> = HashMap::new();
-    let mut normals: Vec<(u32, [Vec3; 3])> = Vec::new();
+    let mut columns = Columns::default();
     for run in runs {
-        let index: PartIndex = read_json(store, &parts_index_key(job, run.range))?;
-        read_run(store, job, run, &index, |record| {
-            let local = record.corners.map(|p| (p - origin).as_vec3());
-            if !local.iter().all(|p| p.is_finite()) {
-                let path = file_of(&table, record.id);
-                return Err(SceneError::TooLarge { path }.into());
+        let before = columns.lens();
+        let read = |columns: &mut Columns| {
+            let index: PartIndex = read_json(store, &parts_index_key(job, run.range))?;
+            read_run(store, job, run, &index, &mut |record| {
+                columns.push(record, origin, &table)
+            })
+        };
+        match read(&mut columns) {
+            // Lost or damaged: the range's partition task writes the same bytes again (its
+            // lineage), then the run is read afresh.
+            Err(PipelineError::Corrupt(_) | PipelineError::Store(StoreError::NotFound { .. })) => {
+                columns.truncate(before);
+                partition_range(store, job, run.range)?;
+                read(&mut columns)?;
             }
-            ids.push(record.id);
-            corners.push(local);
-            let kd = *kd_seen
-                .entry(record.kd.map(f32::to_bits))
-                .or_insert_with(|| {
-                    kd_values.push(record.kd);
-                    (kd_values.len() - 1) as u32
-                });
-            kd_index.push(kd);
-            normals.extend(record.normals.map(|n| (record.id, n)));
-            Ok(())
-        })?;
+            other => other?,
+        }
     }
+    let Columns {
+        mut ids,
+        mut corners,
+        mut kd_index,
+        kd_values,
+        mut normals,
+        ..
+    } = columns;
     // Scene order (runs arrive by range, each by bucket then id).
     let order = sorted_order(&ids);
     permute(&mut ids, &order);
@@ -93,6 +92,64 @@ pub fn build_split_from_parts(
     store.put(&split_key(job, SplitId(split)), &bytes)?;
     write_json(store, &parts_split_info_key(job, split), &info)?;
     Ok((info, bytes))
+}
+
+/// A split's triangles as a build task gathers them, converted record by record so that the
+/// records (128 bytes, f64 corners) never pile up: id and corners in the local frame in
+/// columns the BVH build takes over without copies; kd as an index into the split's distinct
+/// values, and normals only for the triangles that have them (44 bytes a triangle without).
+#[derive(Default)]
+struct Columns {
+    ids: Vec<u32>,
+    corners: Vec<[Vec3; 3]>,
+    kd_index: Vec<u32>,
+    kd_values: Vec<[f32; 3]>,
+    kd_seen: HashMap<[u32; 3], u32>,
+    normals: Vec<(u32, [Vec3; 3])>,
+}
+
+impl Columns {
+    /// Lengths to [`Columns::truncate`] back to.
+    fn lens(&self) -> (usize, usize) {
+        (self.ids.len(), self.normals.len())
+    }
+
+    /// Drops what was pushed since [`Columns::lens`] gave `lens` (the kd table may keep values
+    /// no triangle uses any more: it is only a lookup).
+    fn truncate(&mut self, (triangles, normals): (usize, usize)) {
+        self.ids.truncate(triangles);
+        self.corners.truncate(triangles);
+        self.kd_index.truncate(triangles);
+        self.normals.truncate(normals);
+    }
+
+    /// Adds `record` with its corners moved into the frame of `origin` (rounded once to f32,
+    /// as a whole-scene load does); an offset f32 cannot hold is the scene's error.
+    fn push(
+        &mut self,
+        record: &PartRecord,
+        origin: DVec3,
+        table: &PartsTable,
+    ) -> Result<(), PipelineError> {
+        let local = record.corners.map(|p| (p - origin).as_vec3());
+        if !local.iter().all(|p| p.is_finite()) {
+            let path = file_of(table, record.id);
+            return Err(SceneError::TooLarge { path }.into());
+        }
+        self.ids.push(record.id);
+        self.corners.push(local);
+        let values = &mut self.kd_values;
+        let kd = *self
+            .kd_seen
+            .entry(record.kd.map(f32::to_bits))
+            .or_insert_with(|| {
+                values.push(record.kd);
+                (values.len() - 1) as u32
+            });
+        self.kd_index.push(kd);
+        self.normals.extend(record.normals.map(|n| (record.id, n)));
+        Ok(())
+    }
 }
 
 /// The positions of `ids` in ascending order of id (`ids` are distinct).
@@ -143,7 +200,7 @@ fn read_run(
     job: &JobId,
     run: &super::RecordRun,
     index: &PartIndex,
-    mut each: impl FnMut(&PartRecord) -> Result<(), PipelineError>,
+    each: &mut dyn FnMut(&PartRecord) -> Result<(), PipelineError>,
 ) -> Result<(), PipelineError> {
     let key = parts_records_key(job, run.range);
     let frames = FRAME_RECORDS as u64;
@@ -175,7 +232,7 @@ fn read_run(
                     records.len()
                 ))
             })?;
-            wanted.iter().try_for_each(&mut each)?;
+            wanted.iter().try_for_each(&mut *each)?;
         }
         group = end;
     }

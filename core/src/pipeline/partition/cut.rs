@@ -40,6 +40,21 @@ pub fn cut_splits(
     indexes: &[PartIndex],
     k: u32,
 ) -> Result<CutSplits, PipelineError> {
+    for (range, index) in indexes.iter().enumerate() {
+        let counted: u64 = index.buckets.iter().map(|b| b.1).sum();
+        let ascending = index.buckets.windows(2).all(|w| w[0].0 < w[1].0);
+        if counted != index.records || !ascending {
+            return Err(PipelineError::Corrupt(format!(
+                "partition index of range {range}: {} records, its buckets hold {counted}{}",
+                index.records,
+                if ascending {
+                    ""
+                } else {
+                    " and are out of order"
+                }
+            )));
+        }
+    }
     let n: u64 = indexes.iter().map(|i| i.records).sum();
     if k == 0 || u64::from(k) > n {
         return Err(PipelineError::BadInput(format!(

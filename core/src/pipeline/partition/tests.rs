@@ -247,3 +247,48 @@ fn cuts_take_equal_runs_of_bucket_then_id_order() {
         "cannot cut 10 triangles into 11 splits"
     );
 }
+
+#[test]
+fn a_build_task_recomputes_lost_or_damaged_partitions_from_their_lineage() {
+    let dir = scratch("lineage");
+    let main = tricky_scene(&dir);
+    let req = request(2, Some(ExecutionMode::Staged));
+    let job = JobId::new("j").unwrap();
+    let clean = MemoryStore::new();
+    plan_by_parts(&clean, &job, &main, 200, &req);
+    let damaged = MemoryStore::new();
+    upload(&damaged, &job, &main);
+    let table = scan_scene(&damaged, &job, &dir, &main, 200).unwrap();
+    assert!(table.ranges.len() > 3, "{} ranges", table.ranges.len());
+    for range in 0..table.ranges.len() as u32 {
+        partition_range(&damaged, &job, range).unwrap();
+    }
+    cut_scene(&damaged, &job, &req).unwrap();
+    use crate::keys::{parts_index_key, parts_records_key};
+    let with_faces: Vec<u32> = (0..table.ranges.len() as u32)
+        .filter(|&r| table.ranges[r as usize].obj.triangle_count > 0)
+        .collect();
+    assert!(with_faces.len() >= 3, "{with_faces:?}");
+    damaged
+        .delete(&parts_records_key(&job, with_faces[0]))
+        .unwrap();
+    let mut bytes = damaged
+        .get(&parts_records_key(&job, with_faces[1]))
+        .unwrap();
+    let last = bytes.len() - 1;
+    bytes[last] ^= 0x55;
+    damaged
+        .put(&parts_records_key(&job, with_faces[1]), &bytes)
+        .unwrap();
+    damaged
+        .delete(&parts_index_key(&job, with_faces[2]))
+        .unwrap();
+    for split in 0..2 {
+        build_split_from_parts(&damaged, &job, split).unwrap();
+        let key = split_key(&job, SplitId(split));
+        assert!(
+            damaged.get(&key).unwrap() == clean.get(&key).unwrap(),
+            "split {split}"
+        );
+    }
+}
