@@ -4,7 +4,9 @@
 use crate::cli::RenderArgs;
 use crate::outputs::{check_distinct, check_image_path, check_output_path, write_output};
 use anyhow::{Context, Result, anyhow, bail};
-use hort::emulator::{EmulatorConfig, FaultSettings, JobOptions, LambdaTarget, run_job_loaded};
+use hort::emulator::{
+    EmulatorConfig, FaultSettings, JobOptions, LambdaTarget, run_job_loaded, splits_by_tasks,
+};
 use hort::progress::{ProgressMode, ProgressObserver, print_breakdown, print_summary};
 use hort_core::adaptive::{AdaptiveCounts, AdaptiveSettings, render_adaptive};
 use hort_core::camera::Camera;
@@ -17,7 +19,9 @@ use hort_core::pipeline::{
 };
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
 use hort_core::report::{AdaptiveReport, Outputs, RayReport, Report, Seconds, StageReport};
-use hort_core::scene::{DEFAULT_HEIGHT, DEFAULT_WIDTH, Scene, check_image_size, load_scene};
+use hort_core::scene::{
+    DEFAULT_HEIGHT, DEFAULT_WIDTH, Scene, check_image_size, load_scene, scene_image_settings,
+};
 use hort_core::store::MemoryStore;
 use hort_core::unoccludable::unoccludable_lights;
 use std::path::{Path, PathBuf};
@@ -51,6 +55,9 @@ struct Rendered {
     /// The lights whose shadow rays the render skipped (no surface can occlude them): the
     /// plan's list in pipeline modes.
     unoccludable_lights: Vec<u32>,
+    /// The scene's lights and triangles (the plan's, in pipeline modes).
+    lights: usize,
+    triangles: u64,
 }
 
 /// The default of `--adaptive-threshold`.
@@ -74,18 +81,33 @@ pub fn run(args: RenderArgs) -> Result<()> {
     paths.extend(args.report.as_deref().map(|p| ("--report", p)));
     check_distinct(&paths)?;
 
-    let scene = load_scene(&args.scene)?;
-    for w in &scene.warnings {
+    // A scene the emulator splits by tasks goes up as its files: this process does not load it
+    // (it may not fit here either); the Plan function checks it.
+    let by_tasks = !args.monolithic
+        && !args.in_process
+        && splits_by_tasks(&args.scene, args.memory_mb, args.scene_range_bytes)?;
+    let scene = if by_tasks {
+        None
+    } else {
+        Some(load_scene(&args.scene)?)
+    };
+    for w in scene.iter().flat_map(|s| &s.warnings) {
         eprintln!("warning: {w}");
     }
     let load_seconds = started.elapsed().as_secs_f64();
-    let width = args.width.or(scene.image.width).unwrap_or(DEFAULT_WIDTH);
-    let height = args.height.or(scene.image.height).unwrap_or(DEFAULT_HEIGHT);
-    let spp = args.spp.or(scene.image.spp).unwrap_or(1);
+    let image = match &scene {
+        Some(scene) => scene.image,
+        None => scene_image_settings(&args.scene)?,
+    };
+    let width = args.width.or(image.width).unwrap_or(DEFAULT_WIDTH);
+    let height = args.height.or(image.height).unwrap_or(DEFAULT_HEIGHT);
+    let spp = args.spp.or(image.spp).unwrap_or(1);
     check_image_size(width, height, spp)?;
     // A camera that cannot be built is the scene's fault: say so before any upload or render.
-    Camera::new(&scene.camera_for(width, height), width, height)
-        .map_err(|e| anyhow!("{}: {e}", args.scene.display()))?;
+    if let Some(scene) = &scene {
+        Camera::new(&scene.camera_for(width, height), width, height)
+            .map_err(|e| anyhow!("{}: {e}", args.scene.display()))?;
+    }
     let adaptive = match args.adaptive {
         Some(max_spp) => {
             let settings = AdaptiveSettings {
@@ -114,18 +136,18 @@ pub fn run(args: RenderArgs) -> Result<()> {
         memory_mb: args.memory_mb,
         adaptive,
     };
-    if !args.monolithic {
+    if let Some(scene) = scene.as_ref().filter(|_| !args.monolithic) {
         // Refuse impossible partitionings here, with the scene at hand, before any upload.
         let triangles = scene.mesh.triangle_count() as u64;
         let (shape, s) = resolve_counts(&request, triangles)?;
         warn_if_oversplit(triangles, shape.splits, s);
     }
-    let rendered = if args.monolithic {
-        render_monolithic(&scene, width, height, spp, args.threads, adaptive)?
-    } else if args.in_process {
-        render_pipeline(&scene, request, &args)?
-    } else {
-        render_emulated(&scene, &args, request)?
+    let rendered = match &scene {
+        Some(scene) if args.monolithic => {
+            render_monolithic(scene, width, height, spp, args.threads, adaptive)?
+        }
+        Some(scene) if args.in_process => render_pipeline(scene, request, &args)?,
+        _ => render_emulated(scene.as_ref(), &args, request)?,
     };
     let outputs = Outputs {
         image: Some(out.display().to_string()),
@@ -137,7 +159,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         write_output(target, &encode_hits(&rendered.hits))?;
     }
     let skipped = skips(
-        &scene,
+        rendered.lights,
         rendered.execution.as_ref().map(|(mode, _)| *mode),
         &rendered.unoccludable_lights,
         rendered.adaptive.as_ref(),
@@ -155,7 +177,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         width,
         height,
         spp,
-        triangles: scene.mesh.triangle_count() as u64,
+        triangles: rendered.triangles,
         threads: rendered.threads,
         rays: rendered.rays,
         seconds: Seconds {
@@ -197,18 +219,18 @@ fn adaptive_report(request: PlanRequest, counts: AdaptiveCounts) -> Option<Adapt
     })
 }
 
-/// The work the run skipped because it cannot change the image, one sentence each.
-/// `mode` is the pipeline's execution mode (`None` for a monolithic render), `unoccludable` the
-/// lights whose shadow rays it skipped.
+/// The work the run skipped because it cannot change the image, one sentence each, for a
+/// scene of `lights` lights. `mode` is the pipeline's execution mode (`None` for a monolithic
+/// render), `unoccludable` the lights whose shadow rays it skipped.
 fn skips(
-    scene: &Scene,
+    lights: usize,
     mode: Option<ExecutionMode>,
     unoccludable: &[u32],
     adaptive: Option<&AdaptiveReport>,
 ) -> Vec<String> {
     let mut out = Vec::new();
     let staged = mode == Some(ExecutionMode::Staged);
-    if scene.lights.is_empty() {
+    if lights == 0 {
         out.push(if staged {
             "the scene has no lights: no shadow rays traced, no expand or trace-map stages"
                 .to_owned()
@@ -221,7 +243,7 @@ fn skips(
                 "no surface can occlude light {light}: its shadow rays are not traced"
             ));
         }
-        if staged && unoccludable.len() == scene.lights.len() {
+        if staged && unoccludable.len() == lights {
             out.push("no light can be occluded: no expand or trace-map stages".to_owned());
         }
     }
@@ -339,6 +361,8 @@ fn render_monolithic(
             .filter(|(_, free)| *free)
             .map(|(light, _)| light as u32)
             .collect(),
+        lights: scene.lights.len(),
+        triangles: scene.mesh.triangle_count() as u64,
     })
 }
 
@@ -380,10 +404,16 @@ fn render_pipeline(scene: &Scene, request: PlanRequest, args: &RenderArgs) -> Re
         job: Some(options.job.to_string()),
         adaptive,
         unoccludable_lights: run.plan.unoccludable_lights.clone(),
+        lights: run.plan.lights.len(),
+        triangles: run.plan.triangles,
     })
 }
 
-fn render_emulated(scene: &Scene, args: &RenderArgs, request: PlanRequest) -> Result<Rendered> {
+fn render_emulated(
+    scene: Option<&Scene>,
+    args: &RenderArgs,
+    request: PlanRequest,
+) -> Result<Rendered> {
     let workers = args.workers.unwrap_or_else(available_cores);
     for (name, p) in [
         ("--fail-rate", args.fail_rate),
@@ -443,7 +473,8 @@ fn render_emulated(scene: &Scene, args: &RenderArgs, request: PlanRequest) -> Re
         resume: args.resume,
         scene_range_bytes: args.scene_range_bytes,
     };
-    // The scene loaded above goes up parsed: no function parses it again.
+    // The scene loaded above goes up parsed: no function parses it again (a scene split by
+    // tasks, not loaded, goes up as its files).
     let run = run_job_loaded(&config, options, &args.scene, scene, request, &progress)?;
     let retries = run.failed_attempts();
     if let Some(f) = &run.faults {
@@ -509,6 +540,8 @@ fn render_emulated(scene: &Scene, args: &RenderArgs, request: PlanRequest) -> Re
         workers: Some(workers),
         job: Some(run.job.to_string()),
         unoccludable_lights: run.plan.unoccludable_lights.clone(),
+        lights: run.plan.lights.len(),
+        triangles: run.plan.triangles,
         stages: run.stages,
         cost_usd: Some(run.cost.total),
         adaptive,

@@ -82,3 +82,37 @@ fn scenes_split_by_tasks_render_the_monolithic_image() {
     let (image, _) = render(&dir, "faults", &faulty);
     assert_eq!(image, mono, "staged, 20% of attempts failing");
 }
+
+/// The client does not load a scene it splits by tasks: a bad one is refused by the Plan
+/// function's scan, with the whole-scene loader's message (file and line).
+#[test]
+fn a_bad_scene_split_by_tasks_fails_in_the_plan_naming_file_and_line() {
+    let dir = scratch("scene-by-tasks-bad");
+    let obj = dir.join("bad.obj");
+    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 7\n").unwrap();
+    let whole = hort(&["render", obj.to_str().unwrap(), "--monolithic"]);
+    let expected = stderr(&whole);
+    let detail = expected
+        .strip_prefix("error: ")
+        .and_then(|e| e.split_once("bad.obj:5: "))
+        .map(|(_, detail)| detail.trim_end().to_owned())
+        .unwrap_or_else(|| panic!("a whole-scene error naming bad.obj:5: {expected}"));
+    let o = hort(&[
+        "render",
+        obj.to_str().unwrap(),
+        "--scene-range-bytes",
+        "16",
+        "--width",
+        "8",
+        "--height",
+        "8",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = stderr(&o);
+    let last = err.lines().last().unwrap_or_default();
+    assert!(
+        last.starts_with("error: job ") && last.contains(" failed in plan: Hort.BadInput: "),
+        "{err}"
+    );
+    assert!(last.ends_with(&format!("bad.obj:5: {detail}")), "{err}");
+}

@@ -366,7 +366,7 @@ fn colour(c: Option<[f32; 3]>, field: &str, path: &Path) -> Result<[f32; 3], Sce
     }
 }
 
-fn image_settings(m: &Manifest, path: &Path) -> Result<ImageSettings, SceneError> {
+pub(super) fn image_settings(m: &Manifest, path: &Path) -> Result<ImageSettings, SceneError> {
     let check = |v: Option<u32>, field: &str, max: u32| match v {
         Some(x) if x == 0 || x > max => Err(SceneError::Manifest {
             path: path.to_path_buf(),

@@ -21,7 +21,9 @@ pub use framing::{default_camera, default_light, framed_camera, scene_bounds};
 pub use manifest::{MANIFEST_SCHEMA, Manifest, parse_manifest};
 pub use mesh::{Material, Mesh, NO_NORMAL};
 pub use obj::{ObjRange, ObjScan, RangeFaces, parse_obj, parse_obj_range, scan_obj};
-pub use ranged::{override_materials, scene_mesh_files, scene_without_geometry};
+pub use ranged::{
+    override_materials, scene_image_settings, scene_mesh_files, scene_without_geometry,
+};
 
 use crate::error::SceneError;
 use glam::DVec3;

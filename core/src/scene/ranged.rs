@@ -3,7 +3,7 @@
 //! once the local frame and bounds are known, exactly as [`super::load_scene`] assembles it.
 
 use super::framing::{default_camera, default_light};
-use super::manifest::{apply_material_overrides, manifest_scene, read_manifest};
+use super::manifest::{apply_material_overrides, image_settings, manifest_scene, read_manifest};
 use super::mesh::{Material, Mesh};
 use super::{ImageSettings, Scene};
 use crate::error::SceneError;
@@ -45,6 +45,15 @@ pub fn override_materials(path: &Path, materials: &mut Vec<Material>) -> Result<
     apply_material_overrides(&mut mesh, &manifest, path)?;
     *materials = mesh.materials;
     Ok(())
+}
+
+/// The image settings the scene at `path` fixes (a manifest's; none for an OBJ file), read
+/// without its meshes.
+pub fn scene_image_settings(path: &Path) -> Result<ImageSettings, SceneError> {
+    if !is_manifest(path) {
+        return Ok(ImageSettings::default());
+    }
+    image_settings(&read_manifest(path)?, path)
 }
 
 /// The scene at `path` without its triangles (an empty mesh), for a local frame at `origin`

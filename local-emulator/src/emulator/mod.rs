@@ -199,16 +199,17 @@ pub fn run_job_with(
     observer: &dyn Observer,
 ) -> Result<EmulatorRun> {
     let loaded = load_scene(scene)?;
-    run_job_loaded(config, options, scene, &loaded, settings, observer)
+    run_job_loaded(config, options, scene, Some(&loaded), settings, observer)
 }
 
 /// [`run_job_with`] for a scene the caller loaded already from `scene`: it is stored parsed
-/// (the binary scene, see [`binary_scene`]), so no function parses it again.
+/// (the binary scene, see [`binary_scene`]), so no function parses it again. A scene split by
+/// tasks ([`splits_by_tasks`]) is stored as its files and need not be loaded (`None`).
 pub fn run_job_loaded(
     config: &EmulatorConfig,
     options: JobOptions,
     scene: &Path,
-    loaded: &Scene,
+    loaded: Option<&Scene>,
     settings: PlanRequest,
     observer: &dyn Observer,
 ) -> Result<EmulatorRun> {
@@ -226,7 +227,7 @@ pub fn run_job_loaded(
         task_timeout_seconds: config.task_timeout_seconds,
         // A scene split by tasks goes up as its files (the partition tasks read byte ranges
         // of them); any other goes up parsed, so no function parses it again.
-        scene_format: if split_by_tasks(scene, &settings, options.scene_range_bytes)? {
+        scene_format: if splits_by_tasks(scene, settings.memory_mb, options.scene_range_bytes)? {
             SceneFormat::Files
         } else {
             SceneFormat::Binary
@@ -380,9 +381,10 @@ pub fn run_job_loaded(
     })
 }
 
-/// Whether the Plan function will split the scene at `main` by tasks: asked for, or its files
-/// too large for one function to load whole (see [`scene_range_bytes`]).
-fn split_by_tasks(main: &Path, settings: &PlanRequest, asked: Option<u64>) -> Result<bool> {
+/// Whether the Plan function will split the scene at `main` by tasks for functions of
+/// `memory_mb`: asked for (`asked`, `--scene-range-bytes`), or its files too large for one
+/// function to load whole (see [`scene_range_bytes`]).
+pub fn splits_by_tasks(main: &Path, memory_mb: u32, asked: Option<u64>) -> Result<bool> {
     if asked.is_some() {
         return Ok(true);
     }
@@ -394,7 +396,7 @@ fn split_by_tasks(main: &Path, settings: &PlanRequest, asked: Option<u64>) -> Re
             .with_context(|| format!("cannot read {}", path.display()))?
             .len();
     }
-    Ok(scene_range_bytes(bytes, settings.memory_mb).is_some())
+    Ok(scene_range_bytes(bytes, memory_mb).is_some())
 }
 
 /// Where the functions run.

@@ -112,7 +112,7 @@ pub fn submit_job(
     scene: &Scene,
     request: &JobRequest,
 ) -> Result<()> {
-    submit_or_resume(store, job, main, scene, request, false, "").map(drop)
+    submit_or_resume(store, job, main, Some(scene), request, false, "").map(drop)
 }
 
 /// How [`submit_or_resume`] went.
@@ -136,11 +136,12 @@ struct SceneObject {
 fn scene_objects(
     job: &JobId,
     main: &Path,
-    scene: &Scene,
+    scene: Option<&Scene>,
     request: &JobRequest,
     format: SceneFormat,
 ) -> Result<Vec<SceneObject>> {
     if format == SceneFormat::Binary {
+        let scene = scene.context("a job of the binary scene format needs the loaded scene")?;
         return Ok(vec![SceneObject {
             key: scene_binary_key(job),
             bytes: binary_scene(scene, &request.scene),
@@ -164,7 +165,8 @@ fn scene_objects(
         .collect()
 }
 
-/// Submits a new job (storing `scene`, loaded from `main`, as `request.scene_format` says), or
+/// Submits a new job (storing `scene`, loaded from `main`, as `request.scene_format` says; the
+/// `files` format needs no loaded scene), or
 /// with `resume` checks that the stopped job `job` has the same request and scene (stored in
 /// the format it was started with) and continues it. A job id that exists is an error without
 /// `resume` (the message suggests `--resume`, `hort jobs clean` with `flags`, the storage flags
@@ -174,7 +176,7 @@ pub fn submit_or_resume(
     store: &dyn BlobStore,
     job: &JobId,
     main: &Path,
-    scene: &Scene,
+    scene: Option<&Scene>,
     request: &JobRequest,
     resume: bool,
     flags: &str,
