@@ -106,6 +106,16 @@ impl Bucket {
 }
 
 /// `hort render SCENE` at 32x24 (2 splits, 3 spans) against `bucket` with `extra` flags.
+/// The count of the `resumed job {job}: N finished tasks skipped` line of a resumed run.
+fn skipped_tasks(err: &str, job: &str) -> u64 {
+    err.lines()
+        .find_map(|l| l.strip_prefix(&format!("resumed job {job}: ")))
+        .and_then(|l| l.strip_suffix(" finished tasks skipped"))
+        .expect("a resume line")
+        .parse()
+        .unwrap()
+}
+
 fn render_to(tmp: &Path, bucket: &Bucket, scene_rel: &str, extra: &[&str]) -> Output {
     let scene_file = scene(scene_rel);
     let mut args: Vec<String> = [
@@ -487,13 +497,7 @@ fn a_stopped_job_is_refused_without_resume_and_finished_with_it() {
     );
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
-    let skipped: u64 = err
-        .lines()
-        .find_map(|l| l.strip_prefix("resumed job r1: "))
-        .and_then(|l| l.strip_suffix(" finished tasks skipped"))
-        .expect("a resume line")
-        .parse()
-        .unwrap();
+    let skipped = skipped_tasks(&err, "r1");
     // cast-map (all but one), cast-reduce (3), expand (3) and trace-map (6) were done.
     assert!(skipped >= 12, "{err}");
     assert_eq!(
@@ -725,13 +729,7 @@ fn a_staged_adaptive_job_resumes_in_its_second_round() {
     let o = run(&["--resume", "--out", second.to_str().unwrap()]);
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
-    let skipped: u64 = err
-        .lines()
-        .find_map(|l| l.strip_prefix("resumed job a1: "))
-        .and_then(|l| l.strip_suffix(" finished tasks skipped"))
-        .expect("a resume line")
-        .parse()
-        .unwrap();
+    let skipped = skipped_tasks(&err, "a1");
     // Round 1 alone: cast-reduce, expand and trace-reduce (3 each) and trace-map (6).
     assert!(skipped >= 15, "{err}");
     assert_eq!(
@@ -773,13 +771,7 @@ fn a_job_split_by_tasks_resumes_skipping_finished_partition_and_build_tasks() {
     ]);
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
-    let skipped: u64 = err
-        .lines()
-        .find_map(|l| l.strip_prefix("resumed job p1: "))
-        .and_then(|l| l.strip_suffix(" finished tasks skipped"))
-        .expect("a resume line")
-        .parse()
-        .unwrap();
+    let skipped = skipped_tasks(&err, "p1");
     // 7 partition tasks and build 0 (split 1 is built again), then cast-reduce (3), expand
     // (3), trace-map (6) and trace-reduce (3), whose outputs are there.
     assert_eq!(skipped, 7 + 1 + 15, "{err}");
