@@ -476,6 +476,9 @@ fn render_emulated(
     // The scene loaded above goes up parsed: no function parses it again (a scene split by
     // tasks, not loaded, goes up as its files).
     let run = run_job_loaded(&config, options, &args.scene, scene, request, &progress)?;
+    for w in &run.scan_warnings {
+        eprintln!("warning: {w}");
+    }
     let retries = run.failed_attempts();
     if let Some(f) = &run.faults {
         eprintln!(

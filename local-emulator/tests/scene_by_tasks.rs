@@ -114,5 +114,27 @@ fn a_bad_scene_split_by_tasks_fails_in_the_plan_naming_file_and_line() {
         last.starts_with("error: job ") && last.contains(" failed in plan: Hort.BadInput: "),
         "{err}"
     );
-    assert!(last.ends_with(&format!("bad.obj:5: {detail}")), "{err}");
+    let named = format!(" failed in plan: Hort.BadInput: Plan failed: bad.obj:5: {detail}");
+    assert!(last.ends_with(&named), "{err}");
+
+    // Its warnings reach the user too, naming the file as the user named it.
+    let obj = dir.join("warn.obj");
+    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl nothing\nf 1 2 3\n").unwrap();
+    let o = hort(&[
+        "render",
+        obj.to_str().unwrap(),
+        "--scene-range-bytes",
+        "16",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--out",
+        dir.join("warn.png").to_str().unwrap(),
+    ]);
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    let warning = "warning: warn.obj:4: material \"nothing\" is not defined by any mtllib; using \
+                   grey 0.7";
+    assert!(err.lines().any(|l| l == warning), "{err}");
 }

@@ -82,7 +82,15 @@ fn scan(
     main: &Path,
     range: u64,
 ) -> Result<PlanOutput, HandlerError> {
-    let table = scan_scene(store, job, dir, main, range)?;
+    // Files are named as the user named them, relative to the scene's folder.
+    let folder = format!("{}/", dir.display());
+    let table = scan_scene(store, job, dir, main, range).map_err(|e| {
+        let e = HandlerError::from(e);
+        HandlerError {
+            cause: e.cause.replace(&folder, ""),
+            ..e
+        }
+    })?;
     let (shape, _) = resolve_counts(&request.render, table.triangles)?;
     let timeout = parts_timeout_seconds(range >> 22);
     let ranges = table.ranges.len() as u32;

@@ -35,12 +35,12 @@ use hort_core::cost::{Arch, CostBreakdown, CostInputs, estimate, standard_transi
 use hort_core::hits::Hit;
 use hort_core::ids::{JobId, Stage, TaskId};
 use hort_core::image::Image;
-use hort_core::keys::{image_key, plan_key};
-use hort_core::pipeline::partition::scene_range_bytes;
+use hort_core::keys::{image_key, parts_table_key, plan_key};
+use hort_core::pipeline::partition::{PartsTable, scene_range_bytes};
 use hort_core::pipeline::{JobOutputs, JobPlan, PlanRequest, read_outputs};
 use hort_core::report::StageReport;
 use hort_core::scene::{Scene, load_scene};
-use hort_core::store::{BlobStore, PatientStore};
+use hort_core::store::{BlobStore, PatientStore, StoreError};
 use hort_functions::handlers::{JobRequest, SceneFormat};
 use std::path::Path;
 use std::sync::Arc;
@@ -136,6 +136,9 @@ pub struct EmulatorRun {
     /// The intermediate objects deleted after the job succeeded, or why that failed; `None`
     /// when they were kept (`JobOptions::keep_intermediates`, or a temporary embedded server).
     pub deleted_intermediates: Option<Result<Deleted, String>>,
+    /// What the Plan function's scan of a scene split by tasks warns of (the loader's warnings,
+    /// which the client, not loading such a scene, could not print); empty otherwise.
+    pub scan_warnings: Vec<String>,
 }
 
 /// What happens to a job's objects.
@@ -353,6 +356,14 @@ pub fn run_job_loaded(
         return Err(anyhow!("job {job} failed in {detail}"));
     }
 
+    // Read before the intermediates go.
+    let scan_warnings = match client.get(&parts_table_key(&job)) {
+        Ok(bytes) => serde_json::from_slice::<PartsTable>(&bytes)
+            .map(|table| table.warnings)
+            .with_context(|| format!("{}", parts_table_key(&job)))?,
+        Err(StoreError::NotFound { .. }) => Vec::new(),
+        Err(e) => return Err(e.into()),
+    };
     let plan_bytes = client.get(&plan_key(&job))?;
     let plan = JobPlan::from_json(&plan_key(&job), &plan_bytes)?;
     let JobOutputs { image, hits } = read_outputs(&client, &job, &plan)?;
@@ -378,6 +389,7 @@ pub fn run_job_loaded(
         seconds,
         skipped_tasks: skipper.map_or(0, |s| s.skipped.load(Ordering::Relaxed)),
         deleted_intermediates,
+        scan_warnings,
     })
 }
 

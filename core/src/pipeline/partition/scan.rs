@@ -134,6 +134,9 @@ pub fn scan_scene(
     // Two meshes may share a material library: say each thing once (as a whole-scene load).
     let mut seen = std::collections::HashSet::new();
     warnings.retain(|w| seen.insert(w.clone()));
+    // Files are named as the user named them, relative to the scene's folder.
+    let folder = format!("{}/", dir.display());
+    let warnings = warnings.iter().map(|w| w.replace(&folder, "")).collect();
     let (vertex_lo, vertex_hi) = bounds.unwrap_or_default();
     let table = PartsTable {
         files,
