@@ -360,7 +360,7 @@ pub fn run_job_loaded(
     let scan_warnings = match client.get(&parts_table_key(&job)) {
         Ok(bytes) => serde_json::from_slice::<PartsTable>(&bytes)
             .map(|table| table.warnings)
-            .with_context(|| format!("{}", parts_table_key(&job)))?,
+            .with_context(|| parts_table_key(&job))?,
         Err(StoreError::NotFound { .. }) => Vec::new(),
         Err(e) => return Err(e.into()),
     };
