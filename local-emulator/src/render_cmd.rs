@@ -85,7 +85,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     // (it may not fit here either); the Plan function checks it.
     let by_tasks = !args.monolithic
         && !args.in_process
-        && splits_by_tasks(&args.scene, args.memory_mb, args.scene_range_bytes)?;
+        && splits_by_tasks(&args.scene, args.memory_mb, args.scene_range_bytes);
     let scene = if by_tasks {
         None
     } else {

@@ -230,7 +230,7 @@ pub fn run_job_loaded(
         task_timeout_seconds: config.task_timeout_seconds,
         // A scene split by tasks goes up as its files (the partition tasks read byte ranges
         // of them); any other goes up parsed, so no function parses it again.
-        scene_format: if splits_by_tasks(scene, settings.memory_mb, options.scene_range_bytes)? {
+        scene_format: if splits_by_tasks(scene, settings.memory_mb, options.scene_range_bytes) {
             SceneFormat::Files
         } else {
             SceneFormat::Binary
@@ -396,19 +396,24 @@ pub fn run_job_loaded(
 /// Whether the Plan function will split the scene at `main` by tasks for functions of
 /// `memory_mb`: asked for (`asked`, `--scene-range-bytes`), or its files too large for one
 /// function to load whole (see [`scene_range_bytes`]).
-pub fn splits_by_tasks(main: &Path, memory_mb: u32, asked: Option<u64>) -> Result<bool> {
+pub fn splits_by_tasks(main: &Path, memory_mb: u32, asked: Option<u64>) -> bool {
     if asked.is_some() {
-        return Ok(true);
+        return true;
     }
+    // A scene whose files cannot be listed or read is loaded whole, whose loader then says
+    // what is wrong, in its usual order (a bad camera before a file outside the folder).
     let base = main.parent().unwrap_or(Path::new("."));
+    let Ok(files) = scene_files(main) else {
+        return false;
+    };
     let mut bytes = 0;
-    for file in scene_files(main)? {
-        let path = base.join(file);
-        bytes += std::fs::metadata(&path)
-            .with_context(|| format!("cannot read {}", path.display()))?
-            .len();
+    for file in files {
+        match std::fs::metadata(base.join(file)) {
+            Ok(meta) => bytes += meta.len(),
+            Err(_) => return false,
+        }
     }
-    Ok(scene_range_bytes(bytes, memory_mb).is_some())
+    scene_range_bytes(bytes, memory_mb).is_some()
 }
 
 /// Where the functions run.
