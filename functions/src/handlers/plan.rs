@@ -196,6 +196,18 @@ pub(super) fn load_job_scene(
     label: &str,
 ) -> Result<(JobRequest, Scene), HandlerError> {
     let request = read_request(store, job)?;
+    let scene = load_requested_scene(store, job, &request, work_dir, label)?;
+    Ok((request, scene))
+}
+
+/// [`load_job_scene`] for a job whose `request` was read already.
+pub(super) fn load_requested_scene(
+    store: &dyn BlobStore,
+    job: &JobId,
+    request: &JobRequest,
+    work_dir: &Path,
+    label: &str,
+) -> Result<Scene, HandlerError> {
     if request.scene_format == SceneFormat::Binary {
         let key = scene_binary_key(job);
         let bytes = store.get(&key).map_err(|e| {
@@ -207,14 +219,11 @@ pub(super) fn load_job_scene(
                 e.into()
             }
         })?;
-        let scene =
-            decode_scene(&key, &bytes).map_err(|e| HandlerError::bad_input(e.to_string()))?;
-        return Ok((request, scene));
+        return decode_scene(&key, &bytes).map_err(|e| HandlerError::bad_input(e.to_string()));
     }
-    let loaded = with_scene_files(store, job, &request, work_dir, label, |_, main| {
+    with_scene_files(store, job, request, work_dir, label, |_, main| {
         load_scene(main).map_err(|e| HandlerError::bad_input(e.to_string()))
-    })?;
-    Ok((request, loaded))
+    })
 }
 
 /// Copies the job's scene files into a scratch folder under `work_dir` (named after `label`,

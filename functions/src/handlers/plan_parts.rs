@@ -6,7 +6,7 @@
 use super::HandlerError;
 use super::events::{JobRequest, PlanOutput, SceneFormat, TaskItem};
 use super::plan::{
-    download_object, load_job_scene, read_request, scratch_dir, with_scene_files, write_round,
+    download_object, load_requested_scene, read_request, scratch_dir, with_scene_files, write_round,
 };
 use hort_core::ids::{JobId, Stage, TaskId};
 use hort_core::keys::{items_key, parts_table_key, scene_prefix};
@@ -43,7 +43,7 @@ pub(super) fn load_or_scan(
 ) -> Result<Loaded, HandlerError> {
     let request = read_request(store, job)?;
     if request.scene_format == SceneFormat::Binary {
-        let (request, scene) = load_job_scene(store, job, work_dir, label)?;
+        let scene = load_requested_scene(store, job, &request, work_dir, label)?;
         return Ok(Loaded::Whole(Box::new((request, scene))));
     }
     with_scene_files(store, job, &request, work_dir, label, |dir, main| {
