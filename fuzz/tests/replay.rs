@@ -5,13 +5,17 @@
 
 use std::path::{Path, PathBuf};
 
-fn inputs(target: &str) -> Vec<PathBuf> {
+/// The files of `folder/target/` in name order; none if the folder does not exist.
+fn files_in(folder: &str, target: &str) -> Vec<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("corpus")
+        .join(folder)
         .join(target);
+    if !dir.exists() {
+        return Vec::new();
+    }
     let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
         .unwrap_or_else(|e| panic!("cannot list {}: {e}", dir.display()))
-        .map(|entry| entry.expect("a corpus entry").path())
+        .map(|entry| entry.expect("a folder entry").path())
         .filter(|p| p.is_file())
         .collect();
     files.sort();
@@ -24,13 +28,13 @@ fn replay(target: &str) {
         .find(|(name, _)| *name == target)
         .map(|(_, run)| *run)
         .expect("a known target");
-    let files = inputs(target);
+    let corpus = files_in("corpus", target);
     assert!(
-        files.len() >= 5,
+        corpus.len() >= 5,
         "corpus/{target} holds {} inputs, expected a kept corpus",
-        files.len()
+        corpus.len()
     );
-    for file in files {
+    for file in corpus.into_iter().chain(files_in("regressions", target)) {
         let data = std::fs::read(&file).expect("a readable corpus file");
         if std::panic::catch_unwind(|| run(&data)).is_err() {
             panic!("target {target} panicked on {}", file.display());

@@ -34,7 +34,7 @@ pub enum DefinitionError {
     #[error("state machine definition is not valid JSON: {0}")]
     Json(String),
     /// A problem of the machine as a whole (or of a Map's ItemProcessor).
-    #[error("state machine definition{}: {message}", at_state(.within))]
+    #[error("state machine definition{}: {}", at_state(.within), printable(.message))]
     Machine {
         /// The Map state whose ItemProcessor is meant, if any.
         within: Option<String>,
@@ -42,13 +42,27 @@ pub enum DefinitionError {
         message: String,
     },
     /// A problem of one state.
-    #[error("state {state:?}: {message}")]
+    #[error("state {state:?}: {}", printable(.message))]
     State {
         /// The state's path.
         state: String,
         /// What is wrong, naming the field.
         message: String,
     },
+}
+
+/// `text` with control characters escaped (`\r`, `\u{1b}`): a message that quotes a field
+/// name or an operator holding them stays on one line.
+fn printable(text: &str) -> String {
+    text.chars()
+        .map(|c| {
+            if c.is_control() {
+                c.escape_default().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect()
 }
 
 fn at_state(within: &Option<String>) -> String {

@@ -20,8 +20,8 @@ const MAX_SECONDS: u64 = 99_999_999;
 /// Deserializes with the path of the offending field in the message.
 pub(super) fn typed<T: DeserializeOwned>(value: Value) -> Result<T, String> {
     serde_path_to_error::deserialize(value).map_err(|e| {
-        let path = printable(&e.path().to_string());
-        let inner = printable(&e.into_inner().to_string());
+        let path = e.path().to_string();
+        let inner = e.into_inner().to_string();
         let inner = if inner.starts_with("unknown field") {
             format!("{inner} (not supported by the emulator)")
         } else {
@@ -33,20 +33,6 @@ pub(super) fn typed<T: DeserializeOwned>(value: Value) -> Result<T, String> {
             format!("{path}: {inner}")
         }
     })
-}
-
-/// `text` with control characters escaped (`\r`, `\u{1b}`): a field name that holds them
-/// keeps the error on one line.
-fn printable(text: &str) -> String {
-    text.chars()
-        .map(|c| {
-            if c.is_control() {
-                c.escape_default().to_string()
-            } else {
-                c.to_string()
-            }
-        })
-        .collect()
 }
 
 pub(super) fn transition(next: Option<String>, end: Option<bool>) -> Result<Transition, String> {
