@@ -71,6 +71,22 @@ impl Camera {
         self.forward + sx * self.right + sy * self.up
     }
 
+    /// The point `p` in the camera's frame: its offset from the eye along (right, up, forward).
+    pub fn to_view(&self, p: DVec3) -> DVec3 {
+        let d = p - self.eye;
+        DVec3::new(d.dot(self.right), d.dot(self.up), d.dot(self.forward))
+    }
+
+    /// The image position (px, py), in pixel units, that a point `v` of the camera's frame
+    /// ([`Camera::to_view`]) in front of the eye (`v.z > 0`) projects to: the inverse of
+    /// [`Camera::direction`] (in exact arithmetic).
+    pub fn view_to_image(&self, v: DVec3) -> (f64, f64) {
+        let (sx, sy) = (v.x / v.z, v.y / v.z);
+        let px = (sx / (self.tan_half * self.width / self.height) + 1.0) * self.width / 2.0;
+        let py = (1.0 - sy / self.tan_half) * self.height / 2.0;
+        (px, py)
+    }
+
     /// The ray through image position (px, py) in pixel units (pixel x's centre is x + 0.5).
     #[inline]
     pub fn ray(&self, px: f64, py: f64) -> Ray {

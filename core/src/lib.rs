@@ -12,6 +12,7 @@ pub use error_type::ErrorType;
 pub mod adaptive;
 pub mod bvh;
 pub mod camera;
+pub mod coverage;
 pub mod render;
 pub mod sampling;
 pub mod scene;

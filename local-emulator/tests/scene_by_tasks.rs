@@ -1,6 +1,6 @@
 //! `hort render --scene-range-bytes`: a scene split by tasks (Plan's scan, Partition, Cut,
 //! Build, PlanFromParts) renders the monolithic image's bytes, fused and staged, under injected
-//! faults, and its report has a row for each of those steps.
+//! faults, and its report has a row for each of those steps, as `hort plan` counts them.
 
 mod common;
 
@@ -48,6 +48,7 @@ fn rows(report: &serde_json::Value) -> Vec<(String, u64)> {
 #[test]
 fn scenes_split_by_tasks_render_the_monolithic_image() {
     let dir = scratch("scene-by-tasks");
+    let scene_path = scene("bunny/bunny.json");
     let (mono, _) = render(&dir, "mono", &["--monolithic", "--threads", "2"]);
     // bunny.obj (110,537 bytes) in 6 ranges of 20,000 bytes, ground.obj in 1.
     let ranges = ["--scene-range-bytes", "20000"];
@@ -74,6 +75,24 @@ fn scenes_split_by_tasks_render_the_monolithic_image() {
     );
     assert_eq!(stages[1].1, 7, "one partition task per range");
     assert_eq!(stages[3].1, 3, "one build task per split");
+    // `hort plan` counts the same steps and tasks from its own scan, but for the CastMap pairs:
+    // before the partition it knows no split's bounds, so it leaves none out.
+    let mut plan_args = vec!["plan", scene_path.to_str().unwrap()];
+    plan_args.extend_from_slice(&["--width", "64", "--height", "48", "--spp", "2", "--json"]);
+    plan_args.extend_from_slice(&staged);
+    let o = hort(&plan_args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let planned: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let planned = rows(&planned);
+    for (row, (name, tasks)) in planned.iter().enumerate() {
+        assert_eq!(name, &stages[row].0);
+        if name == "cast-map" {
+            assert!(*tasks >= stages[row].1 && *tasks == 3 * 4, "{tasks}");
+        } else {
+            assert_eq!(*tasks, stages[row].1, "{name}");
+        }
+    }
+    assert_eq!(planned.len(), stages.len());
     let fused = [&ranges[..], &["--splits", "1", "--spans", "3"]].concat();
     let (image, report) = render(&dir, "fused", &fused);
     assert_eq!(image, mono, "fused");

@@ -179,6 +179,30 @@ pub struct JobPlan {
     /// JSON when empty, so other plans keep their bytes.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub unoccludable_lights: Vec<u32>,
+    /// A scene split by tasks (`super::partition`): what its scan found, so that the models
+    /// that predict a job count its Partition and Build tasks. Absent from the JSON for a scene
+    /// loaded whole, so other plans keep their bytes.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scene_parts: Option<ScenePartsShape>,
+    /// A plan previewed before its job runs (`hort plan`, the API's dry run): the estimated
+    /// fraction of camera samples that hit a surface ([`crate::coverage`]), which the models
+    /// scale the hit records and shadow rays by. `None` in a job's own plan (the models then
+    /// assume every sample hits); absent from the JSON when `None`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera_hit_estimate: Option<f64>,
+}
+
+/// What the scan of a scene split by tasks found, as the prediction models need it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ScenePartsShape {
+    /// The scene's byte ranges: one Partition task each.
+    pub ranges: u32,
+    /// Bytes of the scene's OBJ files.
+    pub scene_bytes: u64,
+    /// Vertex positions the files define.
+    pub vertices: u64,
+    /// Vertex normals the files define.
+    pub normals: u64,
 }
 
 impl JobPlan {
@@ -464,6 +488,8 @@ pub fn plan_job(
         cast_tasks,
         trace_tasks,
         adaptive: request.adaptive,
+        scene_parts: None,
+        camera_hit_estimate: None,
     })
 }
 

@@ -14,8 +14,11 @@
 //! backend's [`PredictionModel::speed`]. Spans differ by at most one pixel, so the tasks of a
 //! stage take the same time and a stage of T tasks on C slots takes ceil(T / C) task times,
 //! plus one first read of its largest split (stages that read splits), a fixed orchestration
-//! overhead per stage, and one per job (upload, start, outputs read back). Every sample is
-//! assumed to hit something, so shadow work is an upper bound. A fused Render ray costs more
+//! overhead per stage, and one per job (upload, start, outputs read back). Hit records and
+//! shadow rays are made for hits only: a previewed plan estimates the fraction of camera
+//! samples that hit ([`JobPlan::camera_hit_estimate`], a coarse rasterization); without it
+//! every sample is assumed to hit, an upper bound. A scene split by tasks adds its scan,
+//! Partition, cut, Build and plan-from-parts steps ([`job_steps`]). A fused Render ray costs more
 //! with the scene's size, by log2 of its triangles (the depth of its BVH).
 //!
 //! `hort plan` projects the same per-task model onto N functions on Lambda or the emulator
@@ -28,7 +31,9 @@
 //! the dataflow table of docs/ARCHITECTURE.md (its inputs read, its outputs written, the plan
 //! read once per task, the Map states' item files).
 
+use hort_core::camera::Camera;
 use hort_core::cost::{Arch, CostBreakdown, CostInputs, estimate, standard_transitions_for};
+use hort_core::coverage::camera_hit_fraction;
 use hort_core::ids::Stage;
 use hort_core::pipeline::{JobPlan, JobShape, PlanRequest, SplitInfo, assign_splits, plan_job};
 use hort_core::scene::Scene;
@@ -73,6 +78,19 @@ pub struct Rates {
     pub split_load_us_per_triangle: f64,
     /// The client's upload of the parsed scene, per triangle.
     pub upload_us_per_triangle: f64,
+    /// A scene split by tasks: the client's upload of its files, per byte.
+    pub file_upload_us_per_byte: f64,
+    /// A scene split by tasks: the Plan function's scan, per byte of the scene's files (read,
+    /// checked, vertex pages written).
+    pub scan_us_per_byte: f64,
+    /// Partition: per byte of its range (parse, look-ups, records sorted, encoded, written).
+    pub partition_us_per_byte: f64,
+    /// Cut and plan-from-parts (the Plan function): per object they read (a range's index, a
+    /// split's summary).
+    pub parts_us_per_object: f64,
+    /// Build: per triangle of its split (records read, BVH built, split object encoded and
+    /// written).
+    pub build_us_per_triangle: f64,
 }
 
 /// The reference rates: `hort render` through the emulator (embedded S3 server, debug build of
@@ -96,6 +114,11 @@ pub const RATES: Rates = Rates {
     render_us_per_ray_log2: 0.013,
     split_load_us_per_triangle: 0.4,
     upload_us_per_triangle: 2.0,
+    file_upload_us_per_byte: 0.004,
+    scan_us_per_byte: 0.010,
+    partition_us_per_byte: 0.034,
+    parts_us_per_object: 200.0,
+    build_us_per_triangle: 1.9,
 };
 
 /// What a backend runs jobs on.
@@ -172,14 +195,94 @@ pub struct Prediction {
     pub cost: CostBreakdown,
 }
 
+/// One step of a job as the models count it: a stage of its plan, or a step of the Plan
+/// function that splits a scene by tasks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum JobStep {
+    /// A stage. For a scene split by tasks, [`Stage::Plan`] is the scan, and
+    /// [`Stage::Partition`] and [`Stage::Build`] are its Maps.
+    Stage(Stage),
+    /// The cut of a scene split by tasks into splits, after the Partition Map.
+    Cut,
+    /// The plan made from the built splits, after the Build Map.
+    PlanFromParts,
+}
+
+impl JobStep {
+    /// The step's name, as the report's stage rows name it.
+    pub fn name(self) -> &'static str {
+        match self {
+            JobStep::Stage(stage) => stage.as_str(),
+            JobStep::Cut => "cut",
+            JobStep::PlanFromParts => "plan-from-parts",
+        }
+    }
+
+    /// Whether a Map state runs the step's tasks (one child execution each).
+    pub fn is_map(self) -> bool {
+        matches!(self, JobStep::Stage(stage) if stage.items_field().is_some())
+    }
+
+    /// Whether the Plan function runs the step (one task, no Map).
+    pub fn is_plan_function(self) -> bool {
+        matches!(
+            self,
+            JobStep::Stage(Stage::Plan) | JobStep::Cut | JobStep::PlanFromParts
+        )
+    }
+}
+
+/// The steps of `plan`'s job in order: its stages, with a scene split by tasks partitioned,
+/// cut, built and planned between the scan ([`Stage::Plan`]) and the first stage after it.
+pub fn job_steps(plan: &JobPlan) -> Vec<JobStep> {
+    let mut steps = vec![JobStep::Stage(Stage::Plan)];
+    if plan.scene_parts.is_some() {
+        steps.extend([
+            JobStep::Stage(Stage::Partition),
+            JobStep::Cut,
+            JobStep::Stage(Stage::Build),
+            JobStep::PlanFromParts,
+        ]);
+    }
+    steps.extend(
+        plan.task_stages()
+            .iter()
+            .map(|&stage| JobStep::Stage(stage)),
+    );
+    steps
+}
+
+/// Tasks of `step` in `plan`'s job: a Partition task per range, a Build task per split, one
+/// for each Plan function step, and the plan's task count for the other stages.
+pub fn step_tasks(plan: &JobPlan, step: JobStep) -> u64 {
+    match (step, plan.scene_parts) {
+        (JobStep::Stage(Stage::Partition), Some(parts)) => u64::from(parts.ranges),
+        (JobStep::Stage(Stage::Build), Some(_)) => u64::from(plan.k()),
+        (JobStep::Cut | JobStep::PlanFromParts, Some(_)) => 1,
+        (JobStep::Stage(stage), _) => plan.task_count(stage) as u64,
+        (JobStep::Cut | JobStep::PlanFromParts, None) => 0,
+    }
+}
+
+/// The client's time to upload the scene before the job starts, ms: its files for a scene split
+/// by tasks, else the parsed scene.
+pub fn upload_ms(plan: &JobPlan, r: &Rates, speed: f64) -> f64 {
+    let speed = if speed > 0.0 { speed } else { 1.0 };
+    match plan.scene_parts {
+        Some(parts) => parts.scene_bytes as f64 * r.file_upload_us_per_byte / 1e3 / speed,
+        None => plan.triangles as f64 * r.upload_us_per_triangle / 1e3 / speed,
+    }
+}
+
 /// Estimated stored bytes of a split object per triangle (triangles, shading, BVH).
-const SPLIT_BYTES_PER_TRIANGLE: u64 = 60;
+pub const SPLIT_BYTES_PER_TRIANGLE: u64 = 60;
 /// Estimated stored bytes of one shuffle record (compressed).
 const RECORD_BYTES: f64 = 8.0;
 
 /// The plan `hort render` would make for `scene` with `request`, shape and span count `s`
 /// already resolved: split triangle counts and bounds as the Plan function computes them, no
-/// BVH built.
+/// BVH built, and the fraction of camera samples estimated to hit
+/// ([`JobPlan::camera_hit_estimate`]).
 pub fn preview_plan(
     scene: &Scene,
     request: &PlanRequest,
@@ -211,7 +314,17 @@ pub fn preview_plan(
             }
         })
         .collect();
-    plan_job(scene, request, infos, shape, s).map_err(|e| ApiError::invalid_scene(e.to_string()))
+    let mut plan = plan_job(scene, request, infos, shape, s)
+        .map_err(|e| ApiError::invalid_scene(e.to_string()))?;
+    let camera = Camera::new(&plan.camera, plan.width, plan.height)
+        .map_err(|e| ApiError::invalid_scene(e.to_string()))?;
+    plan.camera_hit_estimate = Some(camera_hit_fraction(
+        &scene.mesh,
+        &camera,
+        plan.width,
+        plan.height,
+    ));
+    Ok(plan)
 }
 
 /// The predicted stages, time and cost of `plan` under `model` (see the module documentation).
@@ -223,20 +336,19 @@ pub fn predict(plan: &JobPlan, model: &PredictionModel) -> Prediction {
     let k = u64::from(plan.k());
     let pixels = u64::from(plan.width) * u64::from(plan.height);
     let lights = plan.lights.len() as u64;
-    let task_ms = |stage: Stage| task_milliseconds(plan, stage, r, speed);
+    let task_ms = |step: JobStep| task_milliseconds(plan, step, r, speed);
     let mut stages = Vec::new();
-    let mut seconds =
-        r.job_overhead_ms / 1000.0 + plan.triangles as f64 * r.upload_us_per_triangle / 1e6 / speed;
+    let mut seconds = (r.job_overhead_ms + upload_ms(plan, r, speed)) / 1000.0;
     let mut cost = CostBreakdown::default();
     let mut children = 0u64;
-    for &stage in plan.stages() {
-        let tasks = plan.task_count(stage) as u64;
-        let one_ms = task_ms(stage);
+    for step in job_steps(plan) {
+        let tasks = step_tasks(plan, step);
+        let one_ms = task_ms(step);
         let waves = tasks.div_ceil(concurrency).max(1) as f64;
         let stage_seconds =
-            (r.stage_overhead_ms + waves * one_ms + split_load_ms(plan, stage, r, speed)) / 1000.0;
+            (r.stage_overhead_ms + waves * one_ms + split_load_ms(plan, step, r, speed)) / 1000.0;
         seconds += stage_seconds;
-        let is_map = stage.items_field().is_some();
+        let is_map = step.is_map();
         if is_map {
             children += tasks;
         }
@@ -250,7 +362,7 @@ pub fn predict(plan: &JobPlan, model: &PredictionModel) -> Prediction {
         });
         add(&mut cost, &one, tasks as f64);
         stages.push(StagePrediction {
-            stage: stage.as_str().to_owned(),
+            stage: step.name().to_owned(),
             tasks,
             task_seconds: one_ms / 1000.0,
             seconds: stage_seconds,
@@ -258,7 +370,18 @@ pub fn predict(plan: &JobPlan, model: &PredictionModel) -> Prediction {
     }
     let (gets, puts) = s3_requests(plan, s, k);
     let samples = pixels as f64 * f64::from(plan.spp);
-    let bytes_written = plan.scene_bytes() as f64
+    let parts_bytes = match plan.scene_parts {
+        Some(_) => [
+            JobStep::Stage(Stage::Plan),
+            JobStep::Stage(Stage::Partition),
+        ]
+        .map(|step| stage_bytes(plan, step) as f64)
+        .iter()
+        .sum(),
+        None => 0.0,
+    };
+    let bytes_written = parts_bytes
+        + plan.scene_bytes() as f64
         + samples * (3.0 + 2.0 * lights as f64) * RECORD_BYTES
         + pixels as f64 * 24.0;
     let rest = estimate(&CostInputs {
@@ -267,7 +390,7 @@ pub fn predict(plan: &JobPlan, model: &PredictionModel) -> Prediction {
         s3_put_like: puts,
         s3_get_like: gets,
         s3_byte_seconds: bytes_written * seconds,
-        standard_transitions: standard_transitions_for(5, 2, children, 0),
+        standard_transitions: standard_transitions(plan, children),
         ..CostInputs::default()
     });
     add(&mut cost, &rest, 1.0);
@@ -289,55 +412,78 @@ pub fn predict(plan: &JobPlan, model: &PredictionModel) -> Prediction {
     }
 }
 
-/// Predicted milliseconds of one task of `stage` in `plan`: the stage's fixed overhead plus its
+/// Predicted milliseconds of one task of `step` in `plan`: the step's fixed overhead plus its
 /// work (the largest span's camera samples and shadow queries, or the plan's triangles, or the
-/// image's pixels) at `rates`, the work divided by `speed` (1: the reference machine).
-pub fn task_milliseconds(plan: &JobPlan, stage: Stage, r: &Rates, speed: f64) -> f64 {
+/// image's pixels; for a scene split by tasks, the scene's bytes, a range's bytes, a split's
+/// triangles or the objects the cut reads) at `rates`, the work divided by `speed` (1: the
+/// reference machine).
+pub fn task_milliseconds(plan: &JobPlan, step: JobStep, r: &Rates, speed: f64) -> f64 {
     let speed = if speed > 0.0 { speed } else { 1.0 };
     let s = plan.spans.len() as u64;
     let pixels = u64::from(plan.width) * u64::from(plan.height);
     // The largest span's samples: spans differ by at most one pixel.
     let span_samples = pixels.div_ceil(s.max(1)) as f64 * f64::from(plan.spp);
-    let queries = span_samples * plan.lights.len() as f64;
+    let hits = span_samples * hit_fraction(plan);
+    let queries = hits * traced_lights(plan);
     let ms = |fixed: f64, units: f64, us: f64| fixed + units * us / 1000.0 / speed;
-    match stage {
-        // A scene split by tasks: the plan's per-triangle rate stands for the scan, partition
-        // and build tasks together (not modelled one by one).
-        Stage::Plan | Stage::Partition | Stage::Build => ms(
+    let largest_split = plan.splits.iter().map(|s| s.triangles).max().unwrap_or(0) as f64;
+    let stage = match (step, plan.scene_parts) {
+        (JobStep::Stage(stage), _) => stage,
+        (JobStep::Cut, parts) => {
+            let ranges = parts.map_or(0, |p| p.ranges);
+            return ms(r.plan_overhead_ms, f64::from(ranges), r.parts_us_per_object);
+        }
+        (JobStep::PlanFromParts, _) => {
+            return ms(
+                r.plan_overhead_ms,
+                f64::from(plan.k()),
+                r.parts_us_per_object,
+            );
+        }
+    };
+    match (stage, plan.scene_parts) {
+        (Stage::Plan, Some(parts)) => ms(
+            r.plan_overhead_ms,
+            parts.scene_bytes as f64,
+            r.scan_us_per_byte,
+        ),
+        (Stage::Plan, None) => ms(
             r.plan_overhead_ms,
             plan.triangles as f64,
             r.plan_us_per_triangle,
         ),
-        Stage::Render => ms(
+        // The ranges are of one size but the last of each file.
+        (Stage::Partition, parts) => {
+            let range = parts.map_or(0.0, |p| p.scene_bytes as f64 / f64::from(p.ranges.max(1)));
+            ms(r.task_overhead_ms, range, r.partition_us_per_byte)
+        }
+        (Stage::Build, _) => ms(r.task_overhead_ms, largest_split, r.build_us_per_triangle),
+        (Stage::Render, _) => ms(
             r.task_overhead_ms,
             1.0,
             (span_samples + queries)
                 * (r.render_us_per_ray
                     + r.render_us_per_ray_log2 * (plan.triangles.max(2) as f64).log2()),
         ),
-        Stage::CastMap => ms(r.task_overhead_ms, span_samples, r.cast_us_per_sample),
-        Stage::CastReduce => ms(
-            r.task_overhead_ms,
-            span_samples,
-            r.cast_reduce_us_per_sample,
-        ),
-        Stage::Expand => ms(r.task_overhead_ms, queries, r.expand_us_per_query),
-        Stage::TraceMap => ms(r.task_overhead_ms, queries, r.trace_us_per_query),
-        Stage::TraceReduce => ms(
+        (Stage::CastMap, _) => ms(r.task_overhead_ms, span_samples, r.cast_us_per_sample),
+        (Stage::CastReduce, _) => ms(r.task_overhead_ms, hits, r.cast_reduce_us_per_sample),
+        (Stage::Expand, _) => ms(r.task_overhead_ms, queries, r.expand_us_per_query),
+        (Stage::TraceMap, _) => ms(r.task_overhead_ms, queries, r.trace_us_per_query),
+        (Stage::TraceReduce, _) => ms(
             r.task_overhead_ms,
             span_samples + queries,
             r.trace_reduce_us_per_query,
         ),
-        Stage::Combine => ms(r.task_overhead_ms, pixels as f64, r.combine_us_per_pixel),
+        (Stage::Combine, _) => ms(r.task_overhead_ms, pixels as f64, r.combine_us_per_pixel),
     }
 }
 
-/// Milliseconds a function spends on its first read of the largest split `stage` reads (0 for
-/// the stages that read none): once per stage, in parallel over the functions.
-pub fn split_load_ms(plan: &JobPlan, stage: Stage, r: &Rates, speed: f64) -> f64 {
+/// Milliseconds a function spends on its first read of the largest split `step` reads (0 for
+/// the steps that read none): once per stage, in parallel over the functions.
+pub fn split_load_ms(plan: &JobPlan, step: JobStep, r: &Rates, speed: f64) -> f64 {
     let speed = if speed > 0.0 { speed } else { 1.0 };
-    match stage {
-        Stage::Render | Stage::CastMap | Stage::TraceMap => {
+    match step {
+        JobStep::Stage(Stage::Render | Stage::CastMap | Stage::TraceMap) => {
             let largest = plan.splits.iter().map(|s| s.triangles).max().unwrap_or(0);
             largest as f64 * r.split_load_us_per_triangle / 1000.0 / speed
         }
@@ -351,33 +497,62 @@ fn s3_requests(plan: &JobPlan, s: u64, k: u64) -> (u64, u64) {
     debug_assert_eq!((s, k), (plan.spans.len() as u64, u64::from(plan.k())));
     // The client's upload: scene files and the job request.
     let (mut gets, mut puts) = (0, CLIENT_PUTS);
-    for &stage in plan.mode.stages() {
-        let (g, p) = stage_requests(plan, stage);
+    for step in job_steps(plan) {
+        let (g, p) = stage_requests(plan, step);
         gets += g;
         puts += p;
     }
     (gets, puts)
 }
 
+/// Step Functions Standard transitions of `plan`'s job without retries, its Map states'
+/// `children` child executions among them: the five Maps and two Plan and Combine tasks of
+/// every job, and for a scene split by tasks its two Maps (Partition, Build) and two Plan
+/// function steps (cut, plan-from-parts) (`infra/statemachine.asl.json`).
+pub fn standard_transitions(plan: &JobPlan, children: u64) -> u64 {
+    let (maps, tasks) = if plan.scene_parts.is_some() {
+        (7, 4)
+    } else {
+        (5, 2)
+    };
+    standard_transitions_for(maps, tasks, children, 0)
+}
+
 /// S3 PUT-like requests of the client before the job starts: scene files and the job request.
 pub const CLIENT_PUTS: u64 = 5;
 
-/// S3 GET-like and PUT-like requests of one stage of `plan` over all its tasks, by the dataflow
-/// table of docs/ARCHITECTURE.md: each task's inputs, its read of the plan, the Map state's item
-/// file, and its outputs. [`predict`]'s totals are [`CLIENT_PUTS`] plus the sum over the stages
-/// of the plan's execution mode.
-pub fn stage_requests(plan: &JobPlan, stage: Stage) -> (u64, u64) {
+/// S3 GET-like and PUT-like requests of one step of `plan` over all its tasks, by the
+/// dataflow table of docs/ARCHITECTURE.md: each task's inputs, its read of the plan, the Map
+/// state's item file, and its outputs. [`predict`]'s totals are [`CLIENT_PUTS`] plus the sum
+/// over the job's steps ([`job_steps`]).
+pub fn stage_requests(plan: &JobPlan, step: JobStep) -> (u64, u64) {
     let s = plan.spans.len() as u64;
     let k = u64::from(plan.k());
     let cast = plan.cast_tasks.len() as u64;
     let trace = plan.trace_tasks.len() as u64;
     let fused = plan.mode == hort_core::pipeline::ExecutionMode::Fused;
+    let ranges = plan.scene_parts.map_or(0, |p| u64::from(p.ranges));
+    let stage = match step {
+        // Every range's index and the table; the cut and the Build items.
+        JobStep::Cut => return (ranges + 1, 2),
+        // The table, the cut, every split's summary, the request and manifest; the plan and the
+        // item files of the stages after it.
+        JobStep::PlanFromParts => return (k + 4, 1 + if fused { 1 } else { 5 }),
+        JobStep::Stage(stage) => stage,
+    };
     match stage {
+        // A scene split by tasks: the request and the scene's files (about three); a vertex
+        // page per range, the table, the Partition items.
+        Stage::Plan if plan.scene_parts.is_some() => (4, ranges + 2),
         // Reads the manifest and the scene files (about three); writes the splits, the plan,
         // the item files and a listing.
         Stage::Plan => (4, k + 3 + if fused { 0 } else { 4 }),
-        // Not in a plan's stages (a scene split by tasks); counted with the plan.
-        Stage::Partition | Stage::Build => (0, 0),
+        // Its range's bytes, the table, the vertex pages of the ranges before it that its faces
+        // use (about one), the item file; its records and their index.
+        Stage::Partition => (3 * ranges + 1, 2 * ranges),
+        // Per range, its index and its run of records, the cut, the table, the item file; the
+        // split object and its summary.
+        Stage::Build => (k * (2 * ranges + 2) + 1, 2 * k),
         // Every split, the plan, the item file; one partition.
         Stage::Render => (s * k + s + 1, s),
         // Its split and the plan, the item file; one partition.
@@ -395,26 +570,48 @@ pub fn stage_requests(plan: &JobPlan, stage: Stage) -> (u64, u64) {
     }
 }
 
-/// Estimated bytes `stage` of `plan` writes over all its tasks: the split objects (plan), a
-/// record per camera sample (cast-map, cast-reduce, trace-reduce), a record per shadow query
-/// (expand, trace-map), the pixels' sums and hits (render, fused), the PNG, PFM and hit buffer
-/// (combine). The sum
-/// over the stages of a staged plan is the byte count [`predict`] prices storage with.
-pub fn stage_bytes(plan: &JobPlan, stage: Stage) -> u64 {
+/// Estimated bytes `step` of `plan` writes over all its tasks: the split objects (plan, or
+/// build for a scene split by tasks), a record per hit (cast-map, cast-reduce) or per camera
+/// sample (trace-reduce), a record per shadow query (expand, trace-map), the pixels' sums and hits
+/// (render, fused), the PNG, PFM and hit buffer (combine); for a scene split by tasks, the
+/// vertex pages (the scan) and a record per triangle (partition), before compression. The sum
+/// over the steps is the byte count [`predict`] prices storage with.
+pub fn stage_bytes(plan: &JobPlan, step: JobStep) -> u64 {
     let pixels = u64::from(plan.width) * u64::from(plan.height);
     let samples = pixels as f64 * f64::from(plan.spp);
-    let queries = samples * plan.lights.len() as f64;
-    let bytes = match stage {
-        Stage::Plan => plan.scene_bytes() as f64,
-        Stage::Partition | Stage::Build => 0.0,
+    let hits = samples * hit_fraction(plan);
+    let queries = hits * traced_lights(plan);
+    let JobStep::Stage(stage) = step else {
+        return 0;
+    };
+    let bytes = match (stage, plan.scene_parts) {
+        (Stage::Plan, Some(parts)) => (parts.vertices * 24 + parts.normals * 12) as f64,
+        (Stage::Plan, None) | (Stage::Build, _) => plan.scene_bytes() as f64,
+        (Stage::Partition, _) => (plan.triangles * PART_RECORD_BYTES) as f64,
         // Each pixel's radiance sums and hit (20 bytes before compression).
-        Stage::Render => pixels as f64 * 20.0,
-        Stage::CastMap | Stage::CastReduce | Stage::TraceReduce => samples * RECORD_BYTES,
-        Stage::Expand | Stage::TraceMap => queries * RECORD_BYTES,
-        Stage::Combine => pixels as f64 * 24.0,
+        (Stage::Render, _) => pixels as f64 * 20.0,
+        (Stage::CastMap | Stage::CastReduce, _) => hits * RECORD_BYTES,
+        (Stage::TraceReduce, _) => samples * RECORD_BYTES,
+        (Stage::Expand | Stage::TraceMap, _) => queries * RECORD_BYTES,
+        (Stage::Combine, _) => pixels as f64 * 24.0,
     };
     bytes as u64
 }
+
+/// The fraction of camera samples the models count as hits: the plan's estimate, else all.
+fn hit_fraction(plan: &JobPlan) -> f64 {
+    plan.camera_hit_estimate.unwrap_or(1.0).clamp(0.0, 1.0)
+}
+
+/// Lights whose shadow rays are traced: those some surface can occlude.
+fn traced_lights(plan: &JobPlan) -> f64 {
+    plan.lights
+        .len()
+        .saturating_sub(plan.unoccludable_lights.len()) as f64
+}
+
+/// Bytes of one partition record of a scene split by tasks, before compression.
+const PART_RECORD_BYTES: u64 = 128;
 
 fn add(total: &mut CostBreakdown, part: &CostBreakdown, times: f64) {
     total.lambda_compute += part.lambda_compute * times;
@@ -437,6 +634,134 @@ pub fn usd(x: f64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use hort_core::pipeline::{ScenePartsShape, SplitMode};
+
+    /// The bundled Cornell box previewed at 64x48, 2 spp, staged over 2 splits and 3 spans.
+    fn cornell_plan() -> JobPlan {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell/cornell.json");
+        let scene = hort_core::scene::load_scene(&path).expect("the bundled Cornell box");
+        let request = PlanRequest {
+            width: 64,
+            height: 48,
+            spp: 2,
+            splits: Some(2),
+            spans: Some(3),
+            mode: SplitMode::Spatial,
+            execution: None,
+            memory_mb: 2048,
+            adaptive: None,
+        };
+        let (shape, s) = hort_core::pipeline::resolve_counts(&request, 36).unwrap();
+        preview_plan(&scene, &request, &shape, s).unwrap()
+    }
+
+    #[test]
+    fn hit_records_and_shadow_rays_scale_with_the_estimated_hits() {
+        let mut plan = cornell_plan();
+        let estimate = plan
+            .camera_hit_estimate
+            .expect("a previewed plan estimates hits");
+        assert!(estimate > 0.5 && estimate <= 1.0, "{estimate}");
+        let work = |plan: &JobPlan, stage: Stage| {
+            let r = Rates {
+                task_overhead_ms: 0.0,
+                ..RATES
+            };
+            task_milliseconds(plan, JobStep::Stage(stage), &r, 1.0)
+        };
+        plan.camera_hit_estimate = Some(1.0);
+        let all = [
+            Stage::CastMap,
+            Stage::CastReduce,
+            Stage::Expand,
+            Stage::TraceMap,
+        ]
+        .map(|stage| work(&plan, stage));
+        plan.camera_hit_estimate = Some(0.25);
+        let quarter = [
+            Stage::CastMap,
+            Stage::CastReduce,
+            Stage::Expand,
+            Stage::TraceMap,
+        ]
+        .map(|stage| work(&plan, stage));
+        // Camera rays are cast whether they hit or not; records and shadow rays are per hit.
+        assert_eq!(quarter[0], all[0]);
+        for i in 1..4 {
+            assert!((quarter[i] - all[i] / 4.0).abs() < 1e-12, "{i}");
+        }
+        // A job's own plan has no estimate: every sample counts as a hit.
+        plan.camera_hit_estimate = None;
+        assert_eq!(work(&plan, Stage::Expand), all[2]);
+    }
+
+    #[test]
+    fn a_scene_split_by_tasks_adds_its_partition_and_build_steps() {
+        let mut plan = cornell_plan();
+        let names = |plan: &JobPlan| job_steps(plan).iter().map(|s| s.name()).collect::<Vec<_>>();
+        assert_eq!(
+            names(&plan),
+            [
+                "plan",
+                "cast-map",
+                "cast-reduce",
+                "expand",
+                "trace-map",
+                "trace-reduce",
+                "combine"
+            ]
+        );
+        plan.scene_parts = Some(ScenePartsShape {
+            ranges: 5,
+            scene_bytes: 50_000,
+            vertices: 1_000,
+            normals: 0,
+        });
+        let steps = job_steps(&plan);
+        assert_eq!(
+            steps.iter().map(|s| s.name()).collect::<Vec<_>>(),
+            [
+                "plan",
+                "partition",
+                "cut",
+                "build",
+                "plan-from-parts",
+                "cast-map",
+                "cast-reduce",
+                "expand",
+                "trace-map",
+                "trace-reduce",
+                "combine"
+            ]
+        );
+        let tasks: Vec<u64> = steps.iter().map(|&s| step_tasks(&plan, s)).collect();
+        assert_eq!(&tasks[..5], [1, 5, 1, 2, 1]);
+        // The scan reads the scene's bytes, each partition task a fifth of them.
+        let r = Rates {
+            plan_overhead_ms: 0.0,
+            task_overhead_ms: 0.0,
+            ..RATES
+        };
+        let ms = |step| task_milliseconds(&plan, step, &r, 1.0);
+        assert!(
+            (ms(JobStep::Stage(Stage::Plan)) - 50_000.0 * r.scan_us_per_byte / 1e3).abs() < 1e-9
+        );
+        assert!(
+            (ms(JobStep::Stage(Stage::Partition)) - 10_000.0 * r.partition_us_per_byte / 1e3).abs()
+                < 1e-9
+        );
+        assert!(
+            (ms(JobStep::Stage(Stage::Build)) - 18.0 * r.build_us_per_triangle / 1e3).abs() < 1e-9
+        );
+        assert_eq!(stage_bytes(&plan, JobStep::Stage(Stage::Plan)), 24_000);
+        assert_eq!(
+            stage_bytes(&plan, JobStep::Stage(Stage::Partition)),
+            36 * 128
+        );
+        // Four more top-level states than a scene loaded whole: two Maps, two Plan steps.
+        assert_eq!(standard_transitions(&plan, 0), 12);
+    }
 
     #[test]
     fn dollars_keep_three_significant_digits() {

@@ -15,13 +15,14 @@
 //!   requested and waited for), and a stage with a failure waits one more attempt plus the state
 //!   machine's 1 s retry interval with probability 1 - (1 - P)^T (the straggler tail).
 
-use hort_core::cost::{Arch, CostBreakdown, CostInputs, estimate, standard_transitions_for};
+use hort_core::cost::{Arch, CostBreakdown, CostInputs, estimate};
 use hort_core::ids::Stage;
 use hort_core::pipeline::JobPlan;
 use serde::Serialize;
 
 use super::predict::{
-    CLIENT_PUTS, Rates, split_load_ms, stage_bytes, stage_requests, task_milliseconds,
+    CLIENT_PUTS, JobStep, Rates, job_steps, split_load_ms, stage_bytes, stage_requests,
+    standard_transitions, step_tasks, task_milliseconds, upload_ms,
 };
 
 /// The function counts of the sweep every projection reports.
@@ -215,13 +216,13 @@ pub fn project(plan: &JobPlan, functions: u32, settings: &ProjectionSettings) ->
     let mut cost = CostBreakdown::default();
     let mut children = 0u64;
     let mut first_worker_stage = true;
-    for &stage in plan.stages() {
-        let tasks = plan.task_count(stage) as u64;
-        let (g, pu) = stage_requests(plan, stage);
-        let bytes = stage_bytes(plan, stage);
+    for step in job_steps(plan) {
+        let tasks = step_tasks(plan, step);
+        let (g, pu) = stage_requests(plan, step);
+        let bytes = stage_bytes(plan, step);
         let per_task = |n: u64| n as f64 / tasks.max(1) as f64;
-        let work_ms = task_milliseconds(plan, stage, &work_rates, speed) * vcpu;
-        let fixed_ms = if stage == Stage::Plan {
+        let work_ms = task_milliseconds(plan, step, &work_rates, speed) * vcpu;
+        let fixed_ms = if step.is_plan_function() {
             settings.rates.plan_overhead_ms
         } else {
             settings.rates.task_overhead_ms
@@ -238,7 +239,7 @@ pub fn project(plan: &JobPlan, functions: u32, settings: &ProjectionSettings) ->
                 // Each function's first read of a split: fetch and decode, in parallel; a warm
                 // function keeps it, and reads at most one per task.
                 let largest_bytes = plan.splits.iter().map(|s| s.bytes).max().unwrap_or(0);
-                let decode_ms = split_load_ms(plan, stage, &settings.rates, speed);
+                let decode_ms = split_load_ms(plan, step, &settings.rates, speed);
                 let load_ms = if decode_ms > 0.0 {
                     decode_ms * vcpu + largest_bytes as f64 / (f.s3_mb_per_s * 1e3)
                 } else {
@@ -246,7 +247,7 @@ pub fn project(plan: &JobPlan, functions: u32, settings: &ProjectionSettings) ->
                 };
                 let loads = f64::from(plan.k()).min(waves);
                 let mut wave_s = (waves * task_ms + loads * load_ms) / 1e3;
-                if stage != Stage::Plan && first_worker_stage {
+                if !step.is_plan_function() && first_worker_stage {
                     // New environments: init plus a first S3 connection, once; beyond 1,000
                     // at once Lambda adds 1,000 environments per 10 s.
                     let cold = match arch {
@@ -260,7 +261,7 @@ pub fn project(plan: &JobPlan, functions: u32, settings: &ProjectionSettings) ->
                 }
                 let s3_s = (g as f64 * attempts / f.s3_gets_per_s)
                     .max(pu as f64 * attempts / f.s3_puts_per_s);
-                let starts_s = if stage.items_field().is_some() {
+                let starts_s = if step.is_map() {
                     tasks as f64 * attempts / f.map_starts_per_s
                 } else {
                     0.0
@@ -282,16 +283,24 @@ pub fn project(plan: &JobPlan, functions: u32, settings: &ProjectionSettings) ->
                 let runs = (tasks as f64 * attempts).ceil().max(1.0);
                 let w = f64::from(concurrency).min(runs);
                 // A warm slot keeps the plan and the splits it read: only each slot's first
-                // task reads them.
-                let cached = if stage == Stage::Plan || stage == Stage::Combine {
-                    0.0
-                } else {
-                    let splits = match stage {
-                        Stage::Render => f64::from(plan.k()),
-                        Stage::CastMap | Stage::TraceMap => 1.0,
-                        _ => 0.0,
-                    };
-                    (1.0 + splits) * (1.0 - w / runs)
+                // task reads them (the steps that split a scene by tasks read no plan).
+                let cached = match step {
+                    JobStep::Stage(
+                        Stage::Render
+                        | Stage::CastMap
+                        | Stage::CastReduce
+                        | Stage::Expand
+                        | Stage::TraceMap
+                        | Stage::TraceReduce,
+                    ) => {
+                        let splits = match step {
+                            JobStep::Stage(Stage::Render) => f64::from(plan.k()),
+                            JobStep::Stage(Stage::CastMap | Stage::TraceMap) => 1.0,
+                            _ => 0.0,
+                        };
+                        (1.0 + splits) * (1.0 - w / runs)
+                    }
+                    _ => 0.0,
                 };
                 let wait_ms = (round_trips - cached).max(0.0) * s3_latency_ms;
                 let task_ms = cpu_ms + wait_ms;
@@ -311,7 +320,7 @@ pub fn project(plan: &JobPlan, functions: u32, settings: &ProjectionSettings) ->
                 // the slots loading at once sharing the cores.
                 let loads = f64::from(plan.k()).min((runs / w).ceil());
                 let load_ms =
-                    loads * split_load_ms(plan, stage, &settings.rates, speed) * (w / c).max(1.0);
+                    loads * split_load_ms(plan, step, &settings.rates, speed) * (w / c).max(1.0);
                 let s = (full * wave(w) + wave(rest) + load_ms) / 1e3;
                 let bound = if w > c && wave(w) > task_ms {
                     "cores"
@@ -324,7 +333,7 @@ pub fn project(plan: &JobPlan, functions: u32, settings: &ProjectionSettings) ->
         let tail_s = (1.0 - (1.0 - p).powf(tasks as f64)) * (task_ms / 1e3 + f.retry_interval_s);
         let stage_s = settings.rates.stage_overhead_ms / 1e3 + seconds_of_stage + tail_s;
         seconds += stage_s;
-        let is_map = stage.items_field().is_some();
+        let is_map = step.is_map();
         if is_map {
             children += tasks;
         }
@@ -341,7 +350,7 @@ pub fn project(plan: &JobPlan, functions: u32, settings: &ProjectionSettings) ->
         });
         add(&mut cost, &one, runs);
         stages.push(StageProjection {
-            name: stage.as_str().to_owned(),
+            name: step.name().to_owned(),
             tasks,
             bytes,
             task_seconds: task_ms / 1e3,
@@ -354,18 +363,22 @@ pub fn project(plan: &JobPlan, functions: u32, settings: &ProjectionSettings) ->
     let bytes: u64 = stages.iter().map(|s| s.bytes).sum();
     seconds += match settings.target {
         Target::Aws { .. } => {
-            // Upload the scene, start the execution, read the outputs back.
+            // Upload the scene (its files, for a scene split by tasks), start the execution,
+            // read the outputs back.
+            let uploaded = plan
+                .scene_parts
+                .map_or(plan.scene_bytes(), |parts| parts.scene_bytes);
             (CLIENT_PUTS as f64 + 3.0) * f.s3_first_byte_ms / 1e3
-                + plan.scene_bytes() as f64 / (f.s3_mb_per_s * 1e6)
+                + uploaded as f64 / (f.s3_mb_per_s * 1e6)
         }
         Target::Emulator { s3_latency_ms, .. } => {
             (settings.rates.job_overhead_ms
-                + plan.triangles as f64 * settings.rates.upload_us_per_triangle / 1e3 / speed
+                + upload_ms(plan, &settings.rates, speed)
                 + (CLIENT_PUTS as f64 + 3.0) * s3_latency_ms)
                 / 1e3
         }
     };
-    let transitions = standard_transitions_for(5, 2, children, 0);
+    let transitions = standard_transitions(plan, children);
     let rest = estimate(&CostInputs {
         arch,
         memory_mb,

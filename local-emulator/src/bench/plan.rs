@@ -38,6 +38,10 @@ pub struct PlanBenchArgs {
     /// Scene splits k (default: the plan chooses).
     #[arg(long)]
     pub splits: Option<u32>,
+    /// Split the scenes by tasks in ranges of this many bytes (as `hort render
+    /// --scene-range-bytes`).
+    #[arg(long, value_name = "BYTES")]
+    pub scene_range_bytes: Option<u64>,
     /// Append the table to this CSV file.
     #[arg(long)]
     pub csv: Option<PathBuf>,
@@ -97,6 +101,7 @@ pub fn run_plan_bench(args: &PlanBenchArgs) -> Result<()> {
                         spans: None,
                         split_mode: SplitMode::Spatial,
                         mode: args.mode,
+                        scene_range_bytes: args.scene_range_bytes,
                     },
                     calibration,
                 )?;
@@ -162,6 +167,9 @@ fn measure(
     }
     if let Some(k) = args.splits {
         cmd.arg("--splits").arg(k.to_string());
+    }
+    if let Some(bytes) = args.scene_range_bytes {
+        cmd.arg("--scene-range-bytes").arg(bytes.to_string());
     }
     if latency_ms > 0.0 {
         cmd.env(

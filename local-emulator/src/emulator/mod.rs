@@ -397,23 +397,25 @@ pub fn run_job_loaded(
 /// `memory_mb`: asked for (`asked`, `--scene-range-bytes`), or its files too large for one
 /// function to load whole (see [`scene_range_bytes`]).
 pub fn splits_by_tasks(main: &Path, memory_mb: u32, asked: Option<u64>) -> bool {
+    scene_range_for(main, memory_mb, asked).is_some()
+}
+
+/// The byte range size the Plan function will split the scene at `main` by tasks with, for
+/// functions of `memory_mb`: `asked` (`--scene-range-bytes`), else [`scene_range_bytes`] of its
+/// files' size; `None` when it loads the scene whole.
+pub fn scene_range_for(main: &Path, memory_mb: u32, asked: Option<u64>) -> Option<u64> {
     if asked.is_some() {
-        return true;
+        return asked;
     }
     // A scene whose files cannot be listed or read is loaded whole, whose loader then says
     // what is wrong, in its usual order (a bad camera before a file outside the folder).
     let base = main.parent().unwrap_or(Path::new("."));
-    let Ok(files) = scene_files(main) else {
-        return false;
-    };
+    let files = scene_files(main).ok()?;
     let mut bytes = 0;
     for file in files {
-        match std::fs::metadata(base.join(file)) {
-            Ok(meta) => bytes += meta.len(),
-            Err(_) => return false,
-        }
+        bytes += std::fs::metadata(base.join(file)).ok()?.len();
     }
-    scene_range_bytes(bytes, memory_mb).is_some()
+    scene_range_bytes(bytes, memory_mb)
 }
 
 /// Where the functions run.

@@ -10,13 +10,19 @@ pub use calibrate::{Calibration, calibrate};
 
 use anyhow::{Result, anyhow, bail};
 use clap::{Args, ValueEnum};
+use hort::emulator::scene_range_for;
 use hort_core::camera::Camera;
 use hort_core::cost::Arch;
+use hort_core::pipeline::partition::{preview_plan_from_table, scan_table};
 use hort_core::pipeline::{ExecutionMode, JobPlan, PlanRequest, SplitMode, resolve_counts};
 use hort_core::render::available_cores;
-use hort_core::scene::{DEFAULT_HEIGHT, DEFAULT_WIDTH, check_image_size, load_scene};
+use hort_core::scene::{
+    DEFAULT_HEIGHT, DEFAULT_WIDTH, ImageSettings, check_image_size, load_scene,
+    scene_image_settings,
+};
 use hort_functions::api::{
-    Projection, ProjectionSettings, RATES, SWEEP, Target, best_of, preview_plan, project,
+    Projection, ProjectionSettings, RATES, SPLIT_BYTES_PER_TRIANGLE, SWEEP, Target, best_of,
+    preview_plan, project,
 };
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -81,6 +87,11 @@ pub struct PlanArgs {
     /// Force fused or staged execution (default: the plan chooses).
     #[arg(long)]
     pub mode: Option<ExecutionMode>,
+    /// Plan the scene split by tasks in ranges of this many bytes (as `hort render
+    /// --scene-range-bytes`; default: only a scene too large for one function to load within
+    /// --memory-mb is).
+    #[arg(long, value_name = "BYTES", value_parser = clap::value_parser!(u64).range(1..))]
+    pub scene_range_bytes: Option<u64>,
 }
 
 /// `--arch`.
@@ -259,6 +270,51 @@ pub fn plan_with(args: &PlanArgs, calibration: Calibration) -> Result<PlanOutput
     plan_prepared(args, &args.scene, &prepared, calibration)
 }
 
+/// The request `hort render` would send for a scene whose manifest fixes `image`.
+fn plan_request(args: &PlanArgs, image: &ImageSettings) -> Result<PlanRequest> {
+    let width = args.width.or(image.width).unwrap_or(DEFAULT_WIDTH);
+    let height = args.height.or(image.height).unwrap_or(DEFAULT_HEIGHT);
+    let spp = args.spp.or(image.spp).unwrap_or(1);
+    check_image_size(width, height, spp)?;
+    Ok(PlanRequest {
+        width,
+        height,
+        spp,
+        splits: args.splits,
+        spans: args.spans,
+        mode: args.split_mode,
+        execution: args.mode,
+        memory_mb: args.memory_mb,
+        adaptive: None,
+    })
+}
+
+/// The plan of a scene loaded whole, with its camera samples' hit fraction estimated.
+fn preview_loaded(args: &PlanArgs, scene_path: &Path) -> Result<JobPlan> {
+    let scene = load_scene(scene_path)?;
+    let request = plan_request(args, &scene.image)?;
+    let (width, height) = (request.width, request.height);
+    Camera::new(&scene.camera_for(width, height), width, height)
+        .map_err(|e| anyhow!("{}: {e}", scene_path.display()))?;
+    let (shape, s) = resolve_counts(&request, scene.mesh.triangle_count() as u64)?;
+    preview_plan(&scene, &request, &shape, s)
+        .map_err(|e| anyhow!("{}: {}", scene_path.display(), e.message))
+}
+
+/// The plan of a scene split by tasks in ranges of `range` bytes, from its scan (the vertex
+/// pages dropped as each range closes): the Partition and Build tasks counted, every sample
+/// assumed to hit (no mesh is held to estimate it).
+fn preview_scanned(args: &PlanArgs, scene_path: &Path, range: u64) -> Result<JobPlan> {
+    let request = plan_request(args, &scene_image_settings(scene_path)?)?;
+    let dir = scene_path.parent().unwrap_or(Path::new(""));
+    let table = scan_table(dir, scene_path, range, |_, _, _| Ok(()))?;
+    let plan = preview_plan_from_table(scene_path, &table, &request, SPLIT_BYTES_PER_TRIANGLE)?;
+    let (width, height) = (plan.width, plan.height);
+    Camera::new(&plan.camera, width, height)
+        .map_err(|e| anyhow!("{}: {e}", scene_path.display()))?;
+    Ok(plan)
+}
+
 /// A scene's plan and what projecting it needs.
 struct Prepared {
     job: JobPlan,
@@ -270,30 +326,15 @@ struct Prepared {
     triangles: u64,
 }
 
-/// Loads `scene` and plans it under `args` (without building anything).
+/// Plans `scene` under `args` without building anything: loaded whole, or, for a scene the
+/// Plan function would split by tasks, scanned range by range as it would scan it (so that no
+/// more than a range's vertices are held).
 fn prepare(args: &PlanArgs, scene_path: &Path, calibration: &Calibration) -> Result<Prepared> {
-    let scene = load_scene(scene_path)?;
-    let width = args.width.or(scene.image.width).unwrap_or(DEFAULT_WIDTH);
-    let height = args.height.or(scene.image.height).unwrap_or(DEFAULT_HEIGHT);
-    let spp = args.spp.or(scene.image.spp).unwrap_or(1);
-    check_image_size(width, height, spp)?;
-    Camera::new(&scene.camera_for(width, height), width, height)
-        .map_err(|e| anyhow!("{}: {e}", scene_path.display()))?;
-    let request = PlanRequest {
-        width,
-        height,
-        spp,
-        splits: args.splits,
-        spans: args.spans,
-        mode: args.split_mode,
-        execution: args.mode,
-        memory_mb: args.memory_mb,
-        adaptive: None,
+    let job = match scene_range_for(scene_path, args.memory_mb, args.scene_range_bytes) {
+        Some(range) => preview_scanned(args, scene_path, range)?,
+        None => preview_loaded(args, scene_path)?,
     };
-    let triangles = scene.mesh.triangle_count() as u64;
-    let (shape, s) = resolve_counts(&request, triangles)?;
-    let job: JobPlan = preview_plan(&scene, &request, &shape, s)
-        .map_err(|e| anyhow!("{}: {}", scene_path.display(), e.message))?;
+    let (width, height, spp, triangles) = (job.width, job.height, job.spp, job.triangles);
     let arch = match args.arch {
         ArchArg::Arm64 => Arch::Arm64,
         ArchArg::X86_64 => Arch::X86_64,

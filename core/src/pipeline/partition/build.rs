@@ -12,7 +12,7 @@ use crate::keys::{
     parts_index_key, parts_records_key, parts_split_info_key, parts_splits_key, parts_table_key,
     plan_key, split_key,
 };
-use crate::pipeline::plan::{PlanRequest, plan_job, resolve_counts};
+use crate::pipeline::plan::{JobPlan, PlanRequest, plan_job, resolve_counts};
 use crate::pipeline::plan_step::PlannedJob;
 use crate::pipeline::split::{build_split_bvh, encode_built_split};
 use crate::pipeline::split_object::TriangleShading;
@@ -252,7 +252,7 @@ pub fn plan_from_parts(
     let started = std::time::Instant::now();
     let table: PartsTable = read_json(store, &parts_table_key(job))?;
     let cut: CutSplits = read_json(store, &parts_splits_key(job))?;
-    let (shape, s) = resolve_counts(request, table.triangles)?;
+    let (shape, _) = resolve_counts(request, table.triangles)?;
     if shape.splits as usize != cut.splits.len() {
         return Err(PipelineError::Corrupt(format!(
             "{}: {} splits, the request plans {}",
@@ -264,20 +264,7 @@ pub fn plan_from_parts(
     let infos: Vec<SplitInfo> = (0..cut.splits.len() as u32)
         .map(|split| read_json(store, &parts_split_info_key(job, split)))
         .collect::<Result<_, _>>()?;
-    let mut lo = DVec3::splat(f64::INFINITY);
-    let mut hi = DVec3::splat(f64::NEG_INFINITY);
-    for info in &infos {
-        lo = lo.min(Vec3::from(info.lo).as_dvec3());
-        hi = hi.max(Vec3::from(info.hi).as_dvec3());
-    }
-    if (hi - lo).length() <= 0.0 {
-        return Err(SceneError::NoExtent {
-            path: main.to_path_buf(),
-        }
-        .into());
-    }
-    let scene = scene_without_geometry(main, DVec3::from(cut.origin), (lo, hi), table.warnings)?;
-    let plan = plan_job(&scene, request, infos, &shape, s)?;
+    let plan = plan_for_splits(main, &table, cut.origin, infos, request)?;
     let plan_json = serde_json::to_vec_pretty(&plan)
         .map_err(|e| PipelineError::BadInput(format!("cannot encode the plan: {e}")))?;
     store.put(&plan_key(job), &plan_json)?;
@@ -291,4 +278,65 @@ pub fn plan_from_parts(
             ..Default::default()
         },
     })
+}
+
+/// The plan of a scene split by tasks whose scan found `table`, its local frame's origin at
+/// `origin` (world coordinates), built into the splits `infos` (local frame): the scene at `main`
+/// without its geometry, framed by the splits' bounds, planned as a loaded scene is.
+fn plan_for_splits(
+    main: &Path,
+    table: &PartsTable,
+    origin: [f64; 3],
+    infos: Vec<SplitInfo>,
+    request: &PlanRequest,
+) -> Result<JobPlan, PipelineError> {
+    let (shape, s) = resolve_counts(request, table.triangles)?;
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    for info in &infos {
+        lo = lo.min(Vec3::from(info.lo).as_dvec3());
+        hi = hi.max(Vec3::from(info.hi).as_dvec3());
+    }
+    if (hi - lo).length() <= 0.0 {
+        return Err(SceneError::NoExtent {
+            path: main.to_path_buf(),
+        }
+        .into());
+    }
+    let scene =
+        scene_without_geometry(main, DVec3::from(origin), (lo, hi), table.warnings.clone())?;
+    let mut plan = plan_job(&scene, request, infos, &shape, s)?;
+    plan.scene_parts = Some(table.shape());
+    Ok(plan)
+}
+
+/// The plan [`plan_from_parts`] would make for the scene at `main` whose scan found `table`,
+/// before any partition or build task ran (`hort plan`): the same split and span counts and
+/// triangles per split, each split's bounds taken as the box of every vertex (so no CastMap
+/// pair is left out: an upper bound on the tasks) and its bytes as `bytes_per_triangle` times
+/// its triangles.
+pub fn preview_plan_from_table(
+    main: &Path,
+    table: &PartsTable,
+    request: &PlanRequest,
+    bytes_per_triangle: u64,
+) -> Result<JobPlan, PipelineError> {
+    let (shape, _) = resolve_counts(request, table.triangles)?;
+    let (lo, hi) = (DVec3::from(table.vertex_lo), DVec3::from(table.vertex_hi));
+    let origin = (lo + hi) / 2.0;
+    let n = table.triangles;
+    let k = u64::from(shape.splits);
+    let infos = (0..k)
+        .map(|i| {
+            let triangles = (i + 1) * n / k - i * n / k;
+            SplitInfo {
+                id: i as u32,
+                triangles,
+                lo: (lo - origin).as_vec3().to_array(),
+                hi: (hi - origin).as_vec3().to_array(),
+                bytes: triangles * bytes_per_triangle,
+            }
+        })
+        .collect();
+    plan_for_splits(main, table, origin.to_array(), infos, request)
 }

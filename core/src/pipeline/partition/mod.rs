@@ -38,12 +38,12 @@ mod scan;
 #[cfg(test)]
 mod tests;
 
-pub use build::{build_split_from_parts, plan_from_parts};
+pub use build::{build_split_from_parts, plan_from_parts, preview_plan_from_table};
 pub use cut::{CutSplits, RecordRun, cut_scene, cut_splits};
 pub use page::{VertexPage, decode_page};
 pub use range_task::{BUCKET_BITS, PartIndex, partition_range};
 pub use record::{PartRecord, decode_frame, encode_frames};
-pub use scan::{PartFile, PartRange, PartsTable, scan_scene};
+pub use scan::{PartFile, PartRange, PartsTable, scan_scene, scan_table};
 
 use super::PipelineError;
 use crate::store::BlobStore;

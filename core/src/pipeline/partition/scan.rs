@@ -4,8 +4,10 @@ use super::page::encode_page;
 use super::{PipelineError, write_json};
 use crate::ids::JobId;
 use crate::keys::{parts_table_key, parts_vertices_key};
+use crate::pipeline::ScenePartsShape;
 use crate::scene::{ObjRange, override_materials, scan_obj, scene_mesh_files};
 use crate::store::BlobStore;
+use glam::{DVec3, Vec3};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -50,6 +52,17 @@ pub struct PartsTable {
 }
 
 impl PartsTable {
+    /// What the models that count the partition and build tasks need of the scan.
+    pub fn shape(&self) -> ScenePartsShape {
+        let sum = |f: fn(&PartRange) -> u64| self.ranges.iter().map(f).sum();
+        ScenePartsShape {
+            ranges: self.ranges.len() as u32,
+            scene_bytes: sum(|r| r.obj.end - r.obj.start),
+            vertices: sum(|r| r.obj.vertex_count),
+            normals: sum(|r| r.obj.normal_count),
+        }
+    }
+
     /// The ranges of `file`, as indices into `ranges` (consecutive).
     pub(super) fn ranges_of(&self, file: u32) -> std::ops::Range<usize> {
         let start = self.ranges.partition_point(|r| r.file < file);
@@ -68,6 +81,23 @@ pub fn scan_scene(
     dir: &Path,
     main: &Path,
     range_bytes: u64,
+) -> Result<PartsTable, PipelineError> {
+    let table = scan_table(dir, main, range_bytes, |range, positions, normals| {
+        let key = parts_vertices_key(job, range);
+        store.put(&key, &encode_page(positions, normals))?;
+        Ok(())
+    })?;
+    write_json(store, &parts_table_key(job), &table)?;
+    Ok(table)
+}
+
+/// The scan of [`scan_scene`] without storing anything: `on_page` gets each range's index and
+/// the vertex positions and normals it defines as the range closes (and may drop them).
+pub fn scan_table(
+    dir: &Path,
+    main: &Path,
+    range_bytes: u64,
+    mut on_page: impl FnMut(u32, &[DVec3], &[Vec3]) -> Result<(), PipelineError>,
 ) -> Result<PartsTable, PipelineError> {
     let mut warnings = Vec::new();
     let mut files = Vec::new();
@@ -94,8 +124,7 @@ pub fn scan_scene(
             range_bytes,
             &mut warnings,
             |range, positions, normals| {
-                let key = parts_vertices_key(job, ranges.len() as u32);
-                store.put(&key, &encode_page(positions, normals))?;
+                on_page(ranges.len() as u32, positions, normals)?;
                 ranges.push(PartRange {
                     file,
                     first_id: triangles,
@@ -138,14 +167,12 @@ pub fn scan_scene(
     let folder = format!("{}/", dir.display());
     let warnings = warnings.iter().map(|w| w.replace(&folder, "")).collect();
     let (vertex_lo, vertex_hi) = bounds.unwrap_or_default();
-    let table = PartsTable {
+    Ok(PartsTable {
         files,
         ranges,
         vertex_lo,
         vertex_hi,
         triangles,
         warnings,
-    };
-    write_json(store, &parts_table_key(job), &table)?;
-    Ok(table)
+    })
 }
