@@ -57,17 +57,17 @@ pub struct Rates {
     pub plan_us_per_triangle: f64,
     /// CastMap: per camera sample of the span, against one split.
     pub cast_us_per_sample: f64,
-    /// CastReduce: per camera sample of the span.
+    /// CastReduce: per camera sample of the span that hits (a hit record).
     pub cast_reduce_us_per_sample: f64,
-    /// Expand: per (sample, light) of the span.
+    /// Expand: per (hit, traced light) of the span.
     pub expand_us_per_query: f64,
-    /// TraceMap: per shadow ray (sample and light) of the span, against one split.
+    /// TraceMap: per shadow ray (hit and traced light) of the span, against one split.
     pub trace_us_per_query: f64,
-    /// TraceReduce: per (sample, light) of the span.
+    /// TraceReduce: per camera sample and per (hit, traced light) of the span.
     pub trace_reduce_us_per_query: f64,
     /// Combine: per pixel (PNG, PFM and hit buffer encoding, upload).
     pub combine_us_per_pixel: f64,
-    /// Render (fused): per ray (camera sample or (sample, light) of the span) against the
+    /// Render (fused): per ray (camera sample or (hit, traced light) of the span) against the
     /// whole scene, without a shuffle (shading, hit buffer, the span's pixels encoded and
     /// uploaded): this plus [`Rates::render_us_per_ray_log2`] times log2 of the triangles.
     pub render_us_per_ray: f64,
@@ -608,6 +608,18 @@ fn traced_lights(plan: &JobPlan) -> f64 {
     plan.lights
         .len()
         .saturating_sub(plan.unoccludable_lights.len()) as f64
+}
+
+/// Bytes the tasks of `step` read besides the plan and the split objects (which the models
+/// count as split loads): for a scene split by tasks, the scene's files (the scan), each
+/// range (partition) and each split's records (build); none for the other steps, whose inputs
+/// are the compressed shuffle blocks the step before wrote.
+pub fn stage_bytes_read(plan: &JobPlan, step: JobStep) -> u64 {
+    match (step, plan.scene_parts) {
+        (JobStep::Stage(Stage::Plan | Stage::Partition), Some(parts)) => parts.scene_bytes,
+        (JobStep::Stage(Stage::Build), Some(_)) => plan.triangles * PART_RECORD_BYTES,
+        _ => 0,
+    }
 }
 
 /// Bytes of one partition record of a scene split by tasks, before compression.

@@ -21,8 +21,8 @@ use hort_core::pipeline::JobPlan;
 use serde::Serialize;
 
 use super::predict::{
-    CLIENT_PUTS, JobStep, Rates, job_steps, split_load_ms, stage_bytes, stage_requests,
-    standard_transitions, step_tasks, task_milliseconds, upload_ms,
+    CLIENT_PUTS, JobStep, Rates, job_steps, split_load_ms, stage_bytes, stage_bytes_read,
+    stage_requests, standard_transitions, step_tasks, task_milliseconds, upload_ms,
 };
 
 /// The function counts of the sweep every projection reports.
@@ -85,6 +85,11 @@ pub const EMULATOR_REQUESTS_IN_OVERHEAD: f64 = 3.0;
 /// The embedded S3 server's time per further request, ms (`hort bench emulator`'s fixed-cost
 /// table: about 0.004 s per request on the reference machine).
 pub const EMULATOR_REQUEST_MS: f64 = 4.0;
+/// The embedded S3 server's time per byte of the job's outputs (Combine's PNG, PFM and hit
+/// buffer, stored uncompressed), us at speed 1, beyond Combine's per-pixel rate: fitted
+/// 2026-12-02 to the Combine stage of the Cornell box at 960x540 (0.035 us per byte at speed
+/// 0.83). The shuffle blocks of the other stages are compressed and small beside their work.
+pub const EMULATOR_OUTPUT_BYTE_US: f64 = 0.03;
 
 /// Where the job would run.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -230,9 +235,10 @@ pub fn project(plan: &JobPlan, functions: u32, settings: &ProjectionSettings) ->
         let round_trips = per_task(g) + per_task(pu);
         let (task_ms, seconds_of_stage, bound) = match settings.target {
             Target::Aws { .. } => {
+                let moved = bytes + stage_bytes_read(plan, step);
                 let task_ms = f.invoke_ms
                     + round_trips * f.s3_first_byte_ms
-                    + per_task(bytes) / (f.s3_mb_per_s * 1e3)
+                    + per_task(moved) / (f.s3_mb_per_s * 1e3)
                     + work_ms;
                 let c = u64::from(concurrency).min(tasks.max(1));
                 let waves = (tasks as f64 * attempts / c as f64).ceil().max(1.0);
@@ -279,7 +285,12 @@ pub fn project(plan: &JobPlan, functions: u32, settings: &ProjectionSettings) ->
                 // The fixed overhead covers a task's first few requests; the rest cost the
                 // embedded server's own time each.
                 let extra = (round_trips - EMULATOR_REQUESTS_IN_OVERHEAD).max(0.0);
-                let cpu_ms = fixed_ms + work_ms + extra * EMULATOR_REQUEST_MS;
+                let bytes_ms = if step == JobStep::Stage(Stage::Combine) {
+                    per_task(bytes) * EMULATOR_OUTPUT_BYTE_US / 1e3 / speed
+                } else {
+                    0.0
+                };
+                let cpu_ms = fixed_ms + work_ms + extra * EMULATOR_REQUEST_MS + bytes_ms;
                 let runs = (tasks as f64 * attempts).ceil().max(1.0);
                 let w = f64::from(concurrency).min(runs);
                 // A warm slot keeps the plan and the splits it read: only each slot's first
