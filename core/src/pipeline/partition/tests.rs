@@ -1,6 +1,6 @@
 use super::*;
 use crate::ids::{JobId, SplitId};
-use crate::keys::{scene_prefix, split_key};
+use crate::keys::{parts_table_key, scene_prefix, split_key};
 use crate::pipeline::{
     ExecutionMode, JobPlan, PlanRequest, SplitMode, plan_into_store, read_outputs, run_task,
 };
@@ -152,9 +152,20 @@ fn one_split_built_by_tasks_is_byte_for_byte_the_in_memory_split() {
             let scene = load_scene(&main).unwrap();
             let req = request(1, Some(ExecutionMode::Fused));
             let expected = plan_into_store(&whole, &job, &scene, &req).unwrap().plan;
-            let plan = plan_by_parts(&parts, &job, &main, range_bytes, &req);
+            let mut plan = plan_by_parts(&parts, &job, &main, range_bytes, &req);
             let key = split_key(&job, SplitId(0));
             let what = format!("{} in ranges of {range_bytes} bytes", main.display());
+            // The plan also records the scan's shape, for the prediction models: the files'
+            // bytes, in ranges of at most range_bytes (a line longer than a range is its own).
+            let shape = plan.scene_parts.take().expect("a plan made from parts");
+            let files: u64 = crate::scene::scene_mesh_files(&main)
+                .unwrap()
+                .iter()
+                .map(|f| std::fs::metadata(f).unwrap().len())
+                .sum();
+            assert_eq!(shape.scene_bytes, files, "{what}");
+            let table: PartsTable = read_json(&parts, &parts_table_key(&job)).unwrap();
+            assert_eq!(shape.ranges as usize, table.ranges.len(), "{what}");
             assert!(
                 whole.get(&key).unwrap() == parts.get(&key).unwrap(),
                 "{what}"
