@@ -682,22 +682,16 @@ mod tests {
             };
             task_milliseconds(plan, JobStep::Stage(stage), &r, 1.0)
         };
+        let stages = [
+            Stage::CastMap,
+            Stage::CastReduce,
+            Stage::Expand,
+            Stage::TraceMap,
+        ];
         plan.camera_hit_estimate = Some(1.0);
-        let all = [
-            Stage::CastMap,
-            Stage::CastReduce,
-            Stage::Expand,
-            Stage::TraceMap,
-        ]
-        .map(|stage| work(&plan, stage));
+        let all = stages.map(|stage| work(&plan, stage));
         plan.camera_hit_estimate = Some(0.25);
-        let quarter = [
-            Stage::CastMap,
-            Stage::CastReduce,
-            Stage::Expand,
-            Stage::TraceMap,
-        ]
-        .map(|stage| work(&plan, stage));
+        let quarter = stages.map(|stage| work(&plan, stage));
         // Camera rays are cast whether they hit or not; records and shadow rays are per hit.
         assert_eq!(quarter[0], all[0]);
         for i in 1..4 {
