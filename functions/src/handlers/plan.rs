@@ -5,7 +5,6 @@
 
 use super::events::{JobRequest, PlanEvent, PlanOutput, PlanStep, SceneFormat, TaskItem};
 use super::{HandlerError, check_bucket};
-use hort_core::ids::Stage;
 use hort_core::ids::{JobId, TaskId};
 use hort_core::keys::{items_key, manifest_key, plan_key, round_two_items_key, scene_binary_key};
 use hort_core::pipeline::{
@@ -117,7 +116,9 @@ pub(super) fn write_round(
             continue;
         };
         let tasks = plan.dispatch_order(stage, tasks);
-        write_items(store, &key, plan, request, stage, &tasks)?;
+        write_items(store, &key, request, tasks, |task| {
+            plan.task_timeout_seconds(stage, task)
+        })?;
         items.insert(field.to_owned(), key);
     }
     Ok(PlanOutput {
@@ -129,24 +130,23 @@ pub(super) fn write_round(
     })
 }
 
-/// Writes the items file `key` of `stage`: one item per task of `tasks`, with its timeout
-/// (the request's override, else the plan's prediction).
-fn write_items(
+/// Writes the items file `key` of a Map state: one item per task of `tasks`, in that order,
+/// with its timeout (the request's override, else `timeout` of the task).
+pub(super) fn write_items(
     store: &dyn BlobStore,
     key: &str,
-    plan: &JobPlan,
     request: &JobRequest,
-    stage: Stage,
-    tasks: &[u32],
+    tasks: impl IntoIterator<Item = u32>,
+    timeout: impl Fn(u32) -> u32,
 ) -> Result<(), HandlerError> {
     let items: Vec<TaskItem> = tasks
-        .iter()
-        .map(|&task| TaskItem {
+        .into_iter()
+        .map(|task| TaskItem {
             task: TaskId(task),
             timeout_seconds: Some(
                 request
                     .task_timeout_seconds
-                    .unwrap_or_else(|| plan.task_timeout_seconds(stage, task)),
+                    .unwrap_or_else(|| timeout(task)),
             ),
         })
         .collect();

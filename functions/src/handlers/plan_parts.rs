@@ -4,11 +4,12 @@
 //! job from the built splits. None of them holds more than one range's vertices.
 
 use super::HandlerError;
-use super::events::{JobRequest, PlanOutput, SceneFormat, TaskItem};
+use super::events::{JobRequest, PlanOutput, SceneFormat};
 use super::plan::{
-    download_object, load_requested_scene, read_request, scratch_dir, with_scene_files, write_round,
+    download_object, load_requested_scene, read_request, scratch_dir, with_scene_files,
+    write_items, write_round,
 };
-use hort_core::ids::{JobId, Stage, TaskId};
+use hort_core::ids::{JobId, Stage};
 use hort_core::keys::{items_key, parts_table_key, scene_prefix};
 use hort_core::pipeline::partition::{cut_scene, plan_from_parts, scan_scene, scene_range_bytes};
 use hort_core::pipeline::{JobPlan, TaskMetrics, micros, resolve_counts};
@@ -188,16 +189,8 @@ fn parts_output(
     tasks: u32,
     timeout: u32,
 ) -> Result<PlanOutput, HandlerError> {
-    let items: Vec<TaskItem> = (0..tasks)
-        .map(|task| TaskItem {
-            task: TaskId(task),
-            timeout_seconds: Some(request.task_timeout_seconds.unwrap_or(timeout)),
-        })
-        .collect();
-    let json = serde_json::to_vec(&items)
-        .map_err(|e| HandlerError::bad_input(format!("cannot encode items: {e}")))?;
     let key = items_key(job, stage);
-    store.put(&key, &json)?;
+    write_items(store, &key, request, 0..tasks, |_| timeout)?;
     let field = stage.items_field().expect("a Map stage");
     Ok(PlanOutput {
         mode,
