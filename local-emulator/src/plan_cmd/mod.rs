@@ -307,6 +307,12 @@ fn preview_loaded(args: &PlanArgs, scene_path: &Path) -> Result<JobPlan> {
 fn preview_scanned(args: &PlanArgs, scene_path: &Path, range: u64) -> Result<JobPlan> {
     let request = plan_request(args, &scene_image_settings(scene_path)?)?;
     let dir = scene_path.parent().unwrap_or(Path::new(""));
+    // A scene split by tasks is large: say what the wait is for.
+    eprintln!(
+        "scanning {} in ranges of {} bytes, as the Plan function will (it is split by tasks)",
+        scene_path.display(),
+        range
+    );
     let table = scan_table(dir, scene_path, range, |_, _, _| Ok(()))?;
     let plan = preview_plan_from_table(scene_path, &table, &request, SPLIT_BYTES_PER_TRIANGLE)?;
     let (width, height) = (plan.width, plan.height);

@@ -58,13 +58,13 @@ pub fn render(o: &PlanOutput) -> String {
     );
     let _ = writeln!(
         t,
-        "{:<13} {:>7} {:>10} {:>8} {:>8} {:>9} {:>9}  bound",
+        "{:<15} {:>7} {:>10} {:>8} {:>8} {:>9} {:>9}  bound",
         "stage", "tasks", "bytes", "task s", "stage s", "S3 GET", "S3 PUT"
     );
     for s in &o.stages {
         let _ = writeln!(
             t,
-            "{:<13} {:>7} {:>10} {:>8.3} {:>8.3} {:>9} {:>9}  {}",
+            "{:<15} {:>7} {:>10} {:>8.3} {:>8.3} {:>9} {:>9}  {}",
             s.name,
             s.tasks,
             bytes(s.bytes),
