@@ -334,7 +334,6 @@ pub fn predict(plan: &JobPlan, model: &PredictionModel) -> Prediction {
     let concurrency = u64::from(model.concurrency.max(1));
     let s = plan.spans.len() as u64;
     let k = u64::from(plan.k());
-    let pixels = u64::from(plan.width) * u64::from(plan.height);
     let lights = plan.lights.len() as u64;
     let task_ms = |step: JobStep| task_milliseconds(plan, step, r, speed);
     let mut stages = Vec::new();
@@ -369,21 +368,11 @@ pub fn predict(plan: &JobPlan, model: &PredictionModel) -> Prediction {
         });
     }
     let (gets, puts) = s3_requests(plan, s, k);
-    let samples = pixels as f64 * f64::from(plan.spp);
-    let parts_bytes = match plan.scene_parts {
-        Some(_) => [
-            JobStep::Stage(Stage::Plan),
-            JobStep::Stage(Stage::Partition),
-        ]
+    // What the job stores, priced for its whole duration: the bytes of every step.
+    let bytes_written: f64 = job_steps(plan)
+        .into_iter()
         .map(|step| stage_bytes(plan, step) as f64)
-        .iter()
-        .sum(),
-        None => 0.0,
-    };
-    let bytes_written = parts_bytes
-        + plan.scene_bytes() as f64
-        + samples * (3.0 + 2.0 * lights as f64) * RECORD_BYTES
-        + pixels as f64 * 24.0;
+        .sum();
     let rest = estimate(&CostInputs {
         arch: model.arch,
         memory_mb: model.memory_mb,
