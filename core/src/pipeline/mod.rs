@@ -66,8 +66,8 @@ pub use runner::{
 };
 pub use split::{SplitMode, assign_splits, rebuild_split, split_scene, split_scene_objects};
 pub use split_cache::SplitCache;
-pub use split_object::TriangleShading;
 pub use split_object::{SPLIT_FORMAT_VERSION, SplitObject, decode_split, encode_split};
+pub use split_object::{ShadingTable, TriangleShading};
 pub use stages::{cast_map, cast_reduce, combine, expand, render_span, trace_map, trace_reduce};
 
 use crate::ErrorType;

@@ -147,7 +147,9 @@ mod tests {
                     kd: [0.5; 3],
                 };
                 n
-            ],
+            ]
+            .into_iter()
+            .collect(),
         })
     }
 

@@ -57,27 +57,19 @@
 
 use crate::bvh::{Aabb, Bvh, NODE_BYTES};
 use crate::shuffle::{RecordKind, encode_block};
-use glam::Vec3;
 
 mod decode;
 mod distinct;
+mod shading;
 pub use decode::decode_split;
 use distinct::Distinct;
+pub use shading::{ShadingTable, TriangleShading};
 
 /// Version of the layout above; bump on any change.
 pub const SPLIT_FORMAT_VERSION: u32 = 4;
 
 /// Bytes of the header section: 8 u32 and 6 f32.
 const HEADER_BYTES: usize = 56;
-
-/// Per-triangle shading data carried by a split.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct TriangleShading {
-    /// The corners' vertex normals, in corner order; `None` shades with the geometric normal.
-    pub normals: Option<[Vec3; 3]>,
-    /// Diffuse reflectance per RGB channel, from the triangle's material.
-    pub kd: [f32; 3],
-}
 
 /// A decoded split: its BVH (triangles in leaf order) and the shading data in the same order.
 #[derive(Clone, Debug, PartialEq)]
@@ -86,15 +78,14 @@ pub struct SplitObject {
     pub split: u32,
     /// BVH over the split's triangles, carrying their scene-wide ids.
     pub bvh: Bvh,
-    /// `shading[i]` belongs to the BVH's i-th triangle in leaf order.
-    pub shading: Vec<TriangleShading>,
+    /// `shading.get(i)` belongs to the BVH's i-th triangle in leaf order.
+    pub shading: ShadingTable,
 }
 
 impl SplitObject {
     /// Bytes the decoded object holds in memory.
     pub fn memory_bytes(&self) -> u64 {
-        self.bvh.memory_bytes()
-            + (self.shading.len() * std::mem::size_of::<TriangleShading>()) as u64
+        self.bvh.memory_bytes() + self.shading.memory_bytes()
     }
 }
 
@@ -156,7 +147,7 @@ pub fn encode_split(object: &SplitObject) -> Vec<u8> {
         }
     }
     let mut kd = Distinct::with_capacity(n);
-    for s in &object.shading {
+    for s in object.shading.iter() {
         kd.push(s.kd);
     }
     let counts = Counts {
@@ -197,7 +188,7 @@ pub fn encode_split(object: &SplitObject) -> Vec<u8> {
     }
     put_planes(&mut raw, &kd.uses);
     raw.extend(object.shading.iter().map(|s| u8::from(s.normals.is_some())));
-    for normals in object.shading.iter().filter_map(|s| s.normals.as_ref()) {
+    for normals in object.shading.iter().filter_map(|s| s.normals) {
         for x in normals.iter().flat_map(|v| v.to_array()) {
             raw.extend_from_slice(&x.to_le_bytes());
         }

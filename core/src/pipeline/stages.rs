@@ -62,7 +62,10 @@ pub(super) fn push_surface_hits(
         let Some(hit) = hit else {
             continue;
         };
-        let shading = split.shading[hit.index as usize];
+        let shading = split
+            .shading
+            .get(hit.index as usize)
+            .expect("a split's shading covers its BVH's triangles (decode_split checks it)");
         out.push(SurfaceHit {
             pixel: pixel as u32,
             sample,

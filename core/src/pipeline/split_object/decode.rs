@@ -2,9 +2,7 @@
 //! ([`read_block`]), each section converted straight into its final array and checked as it
 //! goes; nothing holds the raw bytes whole.
 
-use super::{
-    Counts, HEADER_BYTES, PLANE_GROUP, SPLIT_FORMAT_VERSION, SplitObject, TriangleShading,
-};
+use super::{Counts, HEADER_BYTES, PLANE_GROUP, SPLIT_FORMAT_VERSION, ShadingTable, SplitObject};
 use crate::bvh::{Aabb, NODE_BYTES, PartsLoader};
 use crate::pipeline::PipelineError;
 use crate::shuffle::columns::ColumnReader;
@@ -133,49 +131,50 @@ fn read_object(stream: &mut RawStream<'_>) -> Result<SplitObject, String> {
             [f(&w[0]), f(&w[1]), f(&w[2])]
         }));
     })?;
-    let mut shading = Vec::with_capacity(n);
+    let mut kd_index: Vec<u32> = Vec::with_capacity(n);
     let mut kd = FirstUse::new(k, "kd");
     read_planes(stream, n, |indices| {
         for &i in indices {
             kd.check(i)?;
-            let kd = kd_values.get(i as usize).copied().unwrap_or_default();
-            shading.push(TriangleShading { normals: None, kd });
         }
+        kd_index.extend_from_slice(indices);
         Ok(())
     })?;
     kd.finish()?;
 
-    read_normals(stream, &mut shading, c)?;
+    let (normal_slots, normals) = read_normals(stream, n, c)?;
     Ok(SplitObject {
         split,
         bvh: bvh.finish(ids),
-        shading,
+        shading: ShadingTable::from_parts(kd_values, kd_index, normal_slots, normals),
     })
 }
 
-/// Reads the normal flags (checked: 0 or 1, as many set as the header's `c`) and the normals,
-/// setting those of the flagged triangles in `shading`.
+/// Reads the normal flags of `n` triangles (checked: 0 or 1, as many set as the header's `c`)
+/// and the normals: each triangle's slot in the normals (none if `c` is 0, else one per
+/// triangle, [`ShadingTable::NO_NORMALS`] where the flag is 0) and the normals.
 fn read_normals(
     stream: &mut RawStream<'_>,
-    shading: &mut [TriangleShading],
+    n: usize,
     c: usize,
-) -> Result<(), String> {
-    let n = shading.len();
-    // The flagged triangles, kept only if there are normals to place.
-    let mut flagged: Vec<u32> = Vec::with_capacity(c);
+) -> Result<(Vec<u32>, Vec<[Vec3; 3]>), String> {
+    let mut slots: Vec<u32> = Vec::with_capacity(if c > 0 { n } else { 0 });
     let (mut set, mut at, mut bad) = (0usize, 0usize, None);
     read_units(stream, n, 1, |flags| {
         if flags.iter().all(|&f| f == 0) {
             at += flags.len();
+            if c > 0 {
+                slots.resize(at, ShadingTable::NO_NORMALS);
+            }
             return;
         }
         for &flag in flags {
             if bad.is_none() {
                 match flag {
-                    0 => {}
+                    0 => slots.push(ShadingTable::NO_NORMALS),
                     1 if set < c => {
+                        slots.push(set as u32);
                         set += 1;
-                        flagged.push(at as u32);
                     }
                     1 => bad = Some(format!("normal flags: more than the header's {c} are set")),
                     _ => {
@@ -194,18 +193,17 @@ fn read_normals(
     if set != c {
         return Err(format!("normal flags: {set} set, the header declares {c}"));
     }
-    let mut next = flagged.iter();
-    read_units(stream, c, 36, |normals| {
-        let (normals, _) = normals.as_chunks::<36>();
-        for (t, &i) in normals.iter().zip(next.by_ref()) {
+    let mut normals = Vec::with_capacity(c);
+    read_units(stream, c, 36, |bytes| {
+        let (triangles, _) = bytes.as_chunks::<36>();
+        normals.extend(triangles.iter().map(|t| {
             let (w, _) = t.as_chunks::<4>();
             let f = |b: &[u8; 4]| f32::from_le_bytes(*b);
             let vec3 = |b: &[[u8; 4]]| Vec3::new(f(&b[0]), f(&b[1]), f(&b[2]));
-            if let Some(s) = shading.get_mut(i as usize) {
-                s.normals = Some([vec3(&w[0..3]), vec3(&w[3..6]), vec3(&w[6..9])]);
-            }
-        }
-    })
+            [vec3(&w[0..3]), vec3(&w[3..6]), vec3(&w[6..9])]
+        }));
+    })?;
+    Ok((slots, normals))
 }
 
 /// Hands `f` the next `count` units of `unit` bytes, as many whole units at a time as the
