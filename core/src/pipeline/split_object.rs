@@ -27,13 +27,12 @@
 //! raw bytes as zstd produces them, 256 KiB at a time into one reused buffer that stays
 //! in the cache, each section converted straight into its final array (the nodes word for
 //! word, the packs filled triangle by triangle, gathering each corner from the vertices,
-//! which are numbered in order of first use and so read almost in order, the shading from kd
-//! indices and then the flagged triangles' normals) and checked as it passes; nothing is
+//! which are numbered in order of first use and so read almost in order, the shading kept as
+//! it is stored, a kd table with one index per triangle and the flagged triangles' normals, in
+//! a [`ShadingTable`]) and checked as it passes; nothing is
 //! collapsed or searched, and no buffer holds the raw bytes whole (version 3 decompressed them
 //! into one fresh 47 MB buffer for a million triangles, a quarter of the pages a load touched).
-//! Planes come in groups so that a group (48 KiB) is unshuffled as it arrives; the kd
-//! sections come before the flags and normals so that the shading is written once when no
-//! triangle has normals. The corners refer to distinct vertices rather than being written out:
+//! Planes come in groups so that a group (48 KiB) is unshuffled as it arrives. The corners refer to distinct vertices rather than being written out:
 //! written out they compress about as small (zstd finds the repeated vertices itself) but are
 //! twice the raw bytes, made of short matches that took zstd several times as long to undo as
 //! the vertices and indices. Byte planes make the vertices, indices and ids a quarter to a
