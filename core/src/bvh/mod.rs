@@ -24,6 +24,7 @@ mod build;
 mod node4;
 mod parts;
 mod ray_packet;
+mod refit;
 mod segment_packet;
 mod simd4;
 mod traverse;
@@ -110,10 +111,13 @@ impl Bvh {
 
     /// Assembles a BVH from valid binary nodes whose leaves cover the `ids.len()` triangles
     /// exactly once: collapses them into the traversal form, whose pack order becomes the leaf
-    /// order (`ids` are reordered to match), and keeps only the root's box of them; `ids[t]`
-    /// and `corners(t)` are triangle `t` in the binary tree's leaf order.
+    /// order (`ids` are reordered to match), sets its boxes from the packs as a loaded BVH's
+    /// are set ([`refit`]), and keeps only the root's box of the binary ones; `ids[t]` and
+    /// `corners(t)` are triangle `t` in the binary tree's leaf order.
     fn assemble(nodes: Vec<Node>, ids: Vec<u32>, corners: impl Fn(usize) -> [Vec3; 3]) -> Bvh {
-        let (wide, triangles, order) = node4::collapse(&nodes, ids.len(), corners);
+        let (mut wide, triangles, order) = node4::collapse(&nodes, ids.len(), corners);
+        let pack_boxes: Vec<Aabb> = triangles.iter().map(refit::pack_box).collect();
+        refit::refit(&mut wide, &pack_boxes);
         Bvh {
             bounds: nodes.first().map_or(Aabb::EMPTY, |n| n.bounds),
             ids: order.iter().map(|&t| ids[t as usize]).collect(),

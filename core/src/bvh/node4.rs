@@ -3,9 +3,11 @@
 //! axis by axis).
 //!
 //! [`Bvh::build`](super::Bvh::build) derives it from the binary nodes and the leaf-order
-//! triangles (a pure function of them) and keeps only it; split objects store it as it is and
-//! [`Bvh::from_parts`](super::Bvh::from_parts) loads it back after checking it. Collapsing only regroups boxes the binary tree already has, so every box the traversal
-//! tests is a box of the binary tree. The `Triangle4`s are the only copy of the triangles a
+//! triangles (a pure function of them) and keeps only it; split objects store its structure
+//! and [`Bvh::from_parts`](super::Bvh::from_parts) loads it back after checking it. Both set
+//! the boxes from the packs (`refit.rs`), which gives the values of the binary tree's boxes
+//! the wide nodes regroup, so every box the traversal tests is (in value) a box of the binary
+//! tree. The `Triangle4`s are the only copy of the triangles a
 //! `Bvh` keeps: every leaf-order triangle is one lane of one `Triangle4`.
 
 use super::{Aabb, Node};
@@ -51,7 +53,8 @@ impl Triangle4 {
     }
 }
 
-const UNUSED: Node4 = Node4 {
+/// A node with four empty slots.
+pub(super) const UNUSED: Node4 = Node4 {
     lo: [[f32::INFINITY; 4]; 3],
     hi: [[f32::INFINITY; 4]; 3],
     child: [LEAF; 4],

@@ -1,20 +1,22 @@
-//! The traversal form as flat little-endian bytes and back, for split objects: the 4-wide nodes
-//! exactly as they are in memory and each `Triangle4`'s lane count; the triangles come in leaf
-//! order from the caller. Writing is a linear pass over the arrays; reading is a linear copy
-//! into the final arrays plus one linear check of everything traversal relies on, so a corrupt
-//! or hostile split object gives an error, never a panic, an endless loop or an unbounded
-//! traversal.
+//! The traversal form as flat little-endian bytes and back, for split objects: the 4-wide nodes'
+//! structure (child words and pack counts; the boxes are derived from the triangles, see
+//! `refit.rs`) and each `Triangle4`'s lane count; the triangles come in leaf order from the
+//! caller. Writing is a linear pass over the arrays; reading is a linear copy into the final
+//! arrays, one linear check of everything traversal relies on, and one pass setting the boxes,
+//! so a corrupt or hostile split object gives an error, never a panic, an endless loop or an
+//! unbounded traversal.
 
 use super::build::MAX_DEPTH;
-use super::node4::{LEAF, Node4, Triangle4};
+use super::node4::{LEAF, Node4, Triangle4, UNUSED};
+use super::refit::{grow, refit};
 use super::{Aabb, Bvh};
 use glam::Vec3;
 
-/// Bytes of one 4-wide node: 32 little-endian words, `lo[axis][slot]` (12 f32),
-/// `hi[axis][slot]` (12 f32), `child[slot]` (4 u32: an inner child's node index, or
-/// `0x8000_0000 | first triangle pack` for a leaf or an empty slot), `triangle4_count[slot]`
-/// (4 u32: a leaf's number of packs, 0 for an inner child or an empty slot).
-pub const NODE_BYTES: usize = 128;
+/// Bytes of one stored 4-wide node: 8 little-endian u32, `child[slot]` (an inner child's node
+/// index, or `0x8000_0000 | first triangle pack` for a leaf or an empty slot), then
+/// `triangle4_count[slot]` (a leaf's number of packs, 0 for an inner child or an empty slot).
+/// The child boxes are not stored: loading derives them from the triangles, as building does.
+pub const NODE_BYTES: usize = 32;
 
 /// The stored traversal form of a BVH (see the module docs and [`Bvh::from_parts`]).
 #[derive(Clone, Copy, Debug)]
@@ -93,15 +95,10 @@ pub enum BvhPartsError {
 }
 
 impl Bvh {
-    /// Appends the 4-wide nodes, [`NODE_BYTES`] each (layout there), root first.
+    /// Appends the 4-wide nodes' structure, [`NODE_BYTES`] each (layout there), root first.
     pub fn put_nodes(&self, out: &mut Vec<u8>) {
         out.reserve(self.wide.len() * NODE_BYTES);
         for n in &self.wide {
-            for row in n.lo.iter().chain(&n.hi) {
-                for x in row {
-                    out.extend_from_slice(&x.to_le_bytes());
-                }
-            }
             for w in n.child.iter().chain(&n.triangle4_count) {
                 out.extend_from_slice(&w.to_le_bytes());
             }
@@ -134,9 +131,10 @@ impl Bvh {
     /// `k`-th node reached, so each comes after its parent and is reached once: no cycles, no
     /// sharing), no deeper than the traversal stack allows, reaching every node, and meets the
     /// leaves' packs in pack order, each leaf inside the array, covering every pack once. Empty
-    /// slots are the empty leaf; inner children count no packs. Boxes are taken as they are (a
-    /// NaN, inverted or infinite box only culls more or less; traversal stays exact and
-    /// bounded). Cost: one linear pass over each array.
+    /// slots are the empty leaf; inner children count no packs. The boxes are derived from the
+    /// triangles exactly as [`Bvh::build`] derives them (`refit.rs`), so they are the stored
+    /// BVH's to the bit (corners a hostile object makes NaN or infinite only cull more or less;
+    /// traversal stays exact and bounded). Cost: one linear pass over each array.
     pub fn from_parts(
         parts: BvhParts<'_>,
         ids: Vec<u32>,
@@ -162,15 +160,20 @@ impl Bvh {
 /// ([`PartsLoader::push_nodes`]), the lane counts ([`PartsLoader::set_lanes`], which makes
 /// every check `from_parts` makes, with the same errors), each triangle's corners in leaf
 /// order ([`PartsLoader::push_triangle`], once per triangle), then the ids
-/// ([`PartsLoader::finish`]). Called in that order with the same bytes, the result equals
-/// `from_parts`'s. Each array is written once, straight into its final place.
+/// ([`PartsLoader::finish`], which sets the boxes). Called in that order with the same bytes,
+/// the result equals `from_parts`'s. Each array is written once, straight into its final
+/// place, and the boxes once more at the end.
 pub struct PartsLoader {
     bounds: Aabb,
     wide: Vec<Node4>,
     lanes: Vec<u8>,
     triangles: Vec<Triangle4>,
-    /// The pack being filled, its next lane, and the triangles in the packs before it.
+    /// Each full pack's box, grown triangle by triangle as the pack is filled.
+    pack_boxes: Vec<Aabb>,
+    /// The pack being filled, its box so far, its next lane, and the triangles in the packs
+    /// before it.
     pack: Triangle4,
+    pack_box: Aabb,
     lane: usize,
     first: usize,
 }
@@ -184,7 +187,9 @@ impl PartsLoader {
             wide: Vec::with_capacity(nodes),
             lanes: Vec::new(),
             triangles: Vec::new(),
+            pack_boxes: Vec::new(),
             pack: EMPTY_PACK,
+            pack_box: Aabb::EMPTY,
             lane: 0,
             first: 0,
         }
@@ -228,6 +233,7 @@ impl PartsLoader {
         }
         check_nodes(&self.wide, lanes.len())?;
         self.triangles = Vec::with_capacity(lanes.len());
+        self.pack_boxes = Vec::with_capacity(lanes.len());
         self.lanes = lanes;
         Ok(())
     }
@@ -240,6 +246,7 @@ impl PartsLoader {
             return;
         };
         let lane = self.lane;
+        self.pack_box = grow(self.pack_box, &corners);
         for (vc, p) in self.pack.v.iter_mut().zip(corners) {
             for (va, x) in vc.iter_mut().zip(p.to_array()) {
                 va[lane] = x;
@@ -250,14 +257,18 @@ impl PartsLoader {
             self.pack.first = self.first as u32;
             self.pack.lanes = u32::from(lanes);
             self.triangles.push(self.pack);
+            self.pack_boxes.push(self.pack_box);
             self.first += self.lane;
             self.pack = EMPTY_PACK;
+            self.pack_box = Aabb::EMPTY;
             self.lane = 0;
         }
     }
 
-    /// The BVH, with the scene-wide `ids` in leaf order (one per triangle pushed).
-    pub fn finish(self, ids: Vec<u32>) -> Bvh {
+    /// The BVH, with the scene-wide `ids` in leaf order (one per triangle pushed), its boxes
+    /// set from the packs (after [`PartsLoader::set_lanes`] succeeded).
+    pub fn finish(mut self, ids: Vec<u32>) -> Bvh {
+        refit(&mut self.wide, &self.pack_boxes);
         Bvh {
             bounds: self.bounds,
             ids,
@@ -274,17 +285,16 @@ const EMPTY_PACK: Triangle4 = Triangle4 {
     lanes: 0,
 };
 
-/// One node from its [`NODE_BYTES`] bytes.
+/// One node from its [`NODE_BYTES`] bytes, its boxes those of an unused node until
+/// [`refit`] sets them.
 #[inline]
 fn node_from_bytes(b: &[u8; NODE_BYTES]) -> Node4 {
     let (w, _) = b.as_chunks::<4>();
-    let f = |k: usize| f32::from_le_bytes(w[k]);
     let u = |k: usize| u32::from_le_bytes(w[k]);
     Node4 {
-        lo: std::array::from_fn(|a| std::array::from_fn(|s| f(4 * a + s))),
-        hi: std::array::from_fn(|a| std::array::from_fn(|s| f(12 + 4 * a + s))),
-        child: std::array::from_fn(|s| u(24 + s)),
-        triangle4_count: std::array::from_fn(|s| u(28 + s)),
+        child: std::array::from_fn(u),
+        triangle4_count: std::array::from_fn(|s| u(4 + s)),
+        ..UNUSED
     }
 }
 

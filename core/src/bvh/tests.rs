@@ -360,3 +360,58 @@ fn empty_bvh_hits_nothing() {
     bvh.closest_hits(&[ray], &mut out);
     assert_eq!(out, [None]);
 }
+
+/// The smallest box of the triangles in the subtree under `node`'s `slot`, by plain float
+/// comparisons (`None` for an empty slot).
+fn subtree_box(bvh: &Bvh, node: usize, slot: usize) -> Option<([f32; 3], [f32; 3])> {
+    let n = &bvh.wide[node];
+    let (child, count) = (n.child[slot], n.triangle4_count[slot] as usize);
+    let mut corners = Vec::new();
+    if child & node4::LEAF != 0 {
+        let first = (child & !node4::LEAF) as usize;
+        for p in &bvh.triangles[first..first + count] {
+            corners.extend((0..p.lanes as usize).flat_map(|l| p.corners(l)));
+        }
+    } else {
+        let below: Vec<_> = (0..4)
+            .filter_map(|s| subtree_box(bvh, child as usize, s))
+            .collect();
+        for (lo, hi) in below {
+            corners.extend([Vec3::from_array(lo), Vec3::from_array(hi)]);
+        }
+    }
+    let first = corners.first()?;
+    let (mut lo, mut hi) = (first.to_array(), first.to_array());
+    for c in &corners {
+        for a in 0..3 {
+            lo[a] = if c[a] < lo[a] { c[a] } else { lo[a] };
+            hi[a] = if c[a] > hi[a] { c[a] } else { hi[a] };
+        }
+    }
+    Some((lo, hi))
+}
+
+#[test]
+fn every_child_box_is_the_smallest_box_of_its_triangles() {
+    let mut rng = Rng(21);
+    let tris: Vec<[Vec3; 3]> = (0..3000)
+        .map(|_| {
+            let c = rng.vec(-20.0, 20.0);
+            [c, c + rng.vec(-1.0, 1.0), c + rng.vec(-1.0, 1.0)]
+        })
+        .collect();
+    let bvh = bvh_of(&tris);
+    assert!(bvh.wide.len() > 100);
+    for (index, node) in bvh.wide.iter().enumerate() {
+        for slot in 0..4 {
+            let got = (
+                [0, 1, 2].map(|a| node.lo[a][slot]),
+                [0, 1, 2].map(|a| node.hi[a][slot]),
+            );
+            match subtree_box(&bvh, index, slot) {
+                Some(expected) => assert_eq!(got, expected, "node {index} slot {slot}"),
+                None => assert_eq!(got, ([f32::INFINITY; 3], [f32::INFINITY; 3])),
+            }
+        }
+    }
+}

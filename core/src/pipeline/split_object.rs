@@ -1,13 +1,13 @@
 //! The split object: one scene split as one stored blob, loadable without building anything.
 //!
 //! It is a shuffle block of kind `SplitObject` (zstd, checksums; see [`crate::shuffle`]) whose
-//! raw bytes are the BVH's traversal form as it is in memory, then the ids and the shading, in
+//! raw bytes are the BVH's traversal form (its boxes left out), then the ids and the shading, in
 //! these sections (version [`SPLIT_FORMAT_VERSION`]; little-endian, floats as IEEE bits):
 //!
 //! | section | bytes | values |
 //! |---|---|---|
 //! | header | 56 | u32: format version, split id, triangle count n, 4-wide node count w, triangle pack count p, distinct vertex count v, triangles with normals c, distinct kd count k; f32: root box lo.xyz, hi.xyz |
-//! | nodes | 128 w | the 4-wide nodes as in memory, root first ([`NODE_BYTES`]: 4 child boxes axis by axis, 4 child words, 4 pack counts) |
+//! | nodes | 32 w | the 4-wide nodes' structure, root first ([`NODE_BYTES`]: 4 child words, 4 pack counts); their boxes are derived from the triangles on loading, as the builder derives them |
 //! | pack lanes | p | u8: triangles in each `Triangle4` pack (1 to 4), in pack order |
 //! | vertices | 12 v | planes of 3 f32 (x, y, z) per distinct corner position, in order of first use |
 //! | corners | 12 n | planes of 3 u32 per triangle: the indices of its corners' vertices, BVH leaf order |
@@ -24,25 +24,27 @@
 //! number of values used before it, and every value is used.
 //!
 //! Why this layout (measured, docs/ARCHITECTURE.md section 8): loading is one pass over the
-//! raw bytes as zstd produces them, 256 KiB at a time into one reused buffer that stays
-//! in the cache, each section converted straight into its final array (the nodes word for
-//! word, the packs filled triangle by triangle, gathering each corner from the vertices,
-//! which are numbered in order of first use and so read almost in order, the shading kept as
-//! it is stored, a kd table with one index per triangle and the flagged triangles' normals, in
-//! a [`ShadingTable`]) and checked as it passes; nothing is
-//! collapsed or searched, and no buffer holds the raw bytes whole (version 3 decompressed them
-//! into one fresh 47 MB buffer for a million triangles, a quarter of the pages a load touched).
-//! Planes come in groups so that a group (48 KiB) is unshuffled as it arrives. The corners refer to distinct vertices rather than being written out:
-//! written out they compress about as small (zstd finds the repeated vertices itself) but are
-//! twice the raw bytes, made of short matches that took zstd several times as long to undo as
-//! the vertices and indices. Byte planes make the vertices, indices and ids a quarter to a
-//! half smaller stored and faster to decompress (high bytes repeat); the nodes gain little
-//! from them in size or in zstd time and are stored as they are. kd values repeat per
-//! material, so kd indices are a small table's; normals are stored written out, as few scenes
-//! have them.
+//! raw bytes as zstd produces them, 256 KiB at a time into one reused buffer that stays in the
+//! cache, each section converted straight into its final array (the nodes' structure word for
+//! word, the packs filled triangle by triangle, gathering each corner from the vertices, which
+//! are numbered in order of first use and so read almost in order, the shading kept as it is
+//! stored, a kd table with one index per triangle and the flagged triangles' normals, in a
+//! [`ShadingTable`]) and checked as it passes, then one pass over the nodes setting their
+//! boxes from the packs' boxes (grown as the packs are filled); nothing is collapsed or
+//! searched, and no buffer holds the raw bytes whole. The node boxes are not stored (version 5)
+//! because they are derived exactly, in less time than zstd took to undo them: they were three
+//! quarters of the node bytes, 15 of the 47 raw MB and about half the stored bytes of a
+//! million-triangle split, mostly incompressible float bits. Planes come in groups so that a
+//! group (48 KiB) is unshuffled as it arrives. The corners refer to distinct vertices rather
+//! than being written out: written out they compress about as small (zstd finds the repeated
+//! vertices itself) but are twice the raw bytes, made of short matches that took zstd several
+//! times as long to undo as the vertices and indices. Byte planes make the vertices, indices
+//! and ids a quarter to a half smaller stored and faster to decompress (high bytes repeat).
+//! kd values repeat per material, so kd indices are a small table's; normals are stored
+//! written out, as few scenes have them.
 //!
-//! Decoding checks everything it relies on: the version (objects of version 3 and older name
-//! their version and are refused; a task rebuilds such an object from the scene as it does a
+//! Decoding checks everything it relies on: the version (objects of other versions name their
+//! version and are refused; a task rebuilds such an object from the scene as it does a
 //! damaged one), the header's counts against each other and the exact raw length, the BVH as
 //! [`Bvh::from_parts`] does (children in depth-first order after their parent, depth, leaves
 //! inside the packs and covering them, pack sizes), vertex and kd indices numbering their
@@ -65,7 +67,7 @@ use distinct::Distinct;
 pub use shading::{ShadingTable, TriangleShading};
 
 /// Version of the layout above; bump on any change.
-pub const SPLIT_FORMAT_VERSION: u32 = 4;
+pub const SPLIT_FORMAT_VERSION: u32 = 5;
 
 /// Bytes of the header section: 8 u32 and 6 f32.
 const HEADER_BYTES: usize = 56;

@@ -1,0 +1,74 @@
+//! The 4-wide nodes' child boxes, derived from the triangles: a leaf's box is the smallest box
+//! holding its packs' triangles, an inner child's the smallest holding its node's children.
+//!
+//! Both [`Bvh::build`](super::Bvh::build) and the loader of stored BVHs
+//! ([`PartsLoader`](super::PartsLoader)) set every box this way, with the same operations in the
+//! same order over the same corner bits, so a loaded BVH has exactly the boxes of the one that
+//! was stored, and split objects need not store them (they were three quarters of the node
+//! bytes). The values are those of the binary tree's boxes the wide nodes regroup (min and max
+//! are exact); only which zero a box bound holds where -0 and +0 tie could differ from them,
+//! which no culling decision can see.
+
+use super::Aabb;
+use super::node4::{LEAF, Node4, Triangle4};
+
+/// `bounds` grown by the triangle with `corners`: the step every pack box is folded with, from
+/// [`Aabb::EMPTY`], lane by lane.
+#[inline(always)]
+pub(super) fn grow(bounds: Aabb, corners: &[glam::Vec3; 3]) -> Aabb {
+    bounds.union(Aabb::of_triangle(corners))
+}
+
+/// The smallest box holding pack `pack`'s triangles (its `lanes` lanes, in lane order).
+pub(super) fn pack_box(pack: &Triangle4) -> Aabb {
+    (0..pack.lanes as usize).fold(Aabb::EMPTY, |b, lane| grow(b, &pack.corners(lane)))
+}
+
+/// Sets every child box of `wide` from `pack_boxes` (one per pack, [`pack_box`]'s): a leaf
+/// slot gets the union of its packs' boxes, an inner slot the union of its node's non-empty
+/// slots, an empty slot the box no ray enters (lo = hi = +inf). `wide` must be laid out as
+/// [`Bvh::from_parts`](super::Bvh::from_parts) checks (children after their parent, leaves
+/// inside `pack_boxes`): nodes are set from the last to the first, so every child is set
+/// before its parent reads it. Cost: one pass over the nodes and one over the pack boxes.
+pub(super) fn refit(wide: &mut [Node4], pack_boxes: &[Aabb]) {
+    for index in (0..wide.len()).rev() {
+        let node = wide[index];
+        let mut lo = [[f32::INFINITY; 4]; 3];
+        let mut hi = [[f32::INFINITY; 4]; 3];
+        for slot in 0..4 {
+            let (child, count) = (node.child[slot], node.triangle4_count[slot] as usize);
+            let bounds = if child & LEAF != 0 {
+                if count == 0 {
+                    continue;
+                }
+                let first = (child & !LEAF) as usize;
+                pack_boxes
+                    .get(first..first + count)
+                    .unwrap_or_default()
+                    .iter()
+                    .fold(Aabb::EMPTY, |b, &p| b.union(p))
+            } else {
+                wide.get(child as usize)
+                    .map_or(Aabb::EMPTY, |c| union_of_slots(c))
+            };
+            for axis in 0..3 {
+                lo[axis][slot] = bounds.lo[axis];
+                hi[axis][slot] = bounds.hi[axis];
+            }
+        }
+        wide[index].lo = lo;
+        wide[index].hi = hi;
+    }
+}
+
+/// The union of `node`'s non-empty slots' boxes, in slot order.
+fn union_of_slots(node: &Node4) -> Aabb {
+    (0..4)
+        .filter(|&s| !(node.child[s] == LEAF && node.triangle4_count[s] == 0))
+        .fold(Aabb::EMPTY, |b, s| {
+            b.union(Aabb {
+                lo: glam::Vec3::new(node.lo[0][s], node.lo[1][s], node.lo[2][s]),
+                hi: glam::Vec3::new(node.hi[0][s], node.hi[1][s], node.hi[2][s]),
+            })
+        })
+}
