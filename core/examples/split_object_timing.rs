@@ -91,10 +91,14 @@ fn main() {
     let mb = |b: usize| b as f64 / 1e6;
     let gbs = |t: &[f64]| decoded as f64 / t[0] / 1e9;
     println!(
-        "{scene_arg}: {n} triangles; stored {:.1} MB, raw {:.1} MB, decoded {:.1} MB",
+        "{scene_arg}: {n} triangles; stored {:.1} MB, raw {:.1} MB, decoded {:.1} MB; per \
+         triangle {:.1} stored, {:.1} raw, {:.1} decoded bytes",
         mb(stored.len()),
         mb(raw_len),
-        mb(decoded)
+        mb(decoded),
+        stored.len() as f64 / n.max(1) as f64,
+        raw_len as f64 / n.max(1) as f64,
+        decoded as f64 / n.max(1) as f64,
     );
     println!("times: min / median of {repeats}");
     println!("build + encode        {}", ms(&build));

@@ -43,8 +43,8 @@ pub use dashboard::{DASHBOARD_JOBS, escape_html, jobs_table, page};
 pub use error::ApiError;
 pub use predict::{
     CLIENT_PUTS, JobStep, Prediction, PredictionModel, RATES, Rates, SPLIT_BYTES_PER_TRIANGLE,
-    StagePrediction, job_steps, predict, preview_plan, stage_bytes, stage_bytes_read,
-    stage_requests, step_tasks, task_milliseconds, usd,
+    SPLIT_NORMAL_BYTES_PER_TRIANGLE, StagePrediction, job_steps, predict, preview_plan,
+    stage_bytes, stage_bytes_read, stage_requests, step_tasks, task_milliseconds, usd,
 };
 pub use projection::{
     LAMBDA_FACTS, LambdaFacts, Projection, ProjectionSettings, SWEEP, StageProjection, Target,

@@ -21,8 +21,8 @@ use hort_core::scene::{
     scene_image_settings,
 };
 use hort_functions::api::{
-    Projection, ProjectionSettings, RATES, SPLIT_BYTES_PER_TRIANGLE, SWEEP, Target, best_of,
-    preview_plan, project,
+    Projection, ProjectionSettings, RATES, SPLIT_BYTES_PER_TRIANGLE,
+    SPLIT_NORMAL_BYTES_PER_TRIANGLE, SWEEP, Target, best_of, preview_plan, project,
 };
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -314,7 +314,18 @@ fn preview_scanned(args: &PlanArgs, scene_path: &Path, range: u64) -> Result<Job
         range
     );
     let table = scan_table(dir, scene_path, range, |_, _, _| Ok(()))?;
-    let plan = preview_plan_from_table(scene_path, &table, &request, SPLIT_BYTES_PER_TRIANGLE)?;
+    // Every triangle may have normals when the files define some (the scan does not say which).
+    let normal_bytes = if table.shape().normals > 0 {
+        SPLIT_NORMAL_BYTES_PER_TRIANGLE
+    } else {
+        0
+    };
+    let plan = preview_plan_from_table(
+        scene_path,
+        &table,
+        &request,
+        SPLIT_BYTES_PER_TRIANGLE + normal_bytes,
+    )?;
     let (width, height) = (plan.width, plan.height);
     Camera::new(&plan.camera, width, height)
         .map_err(|e| anyhow!("{}: {e}", scene_path.display()))?;
