@@ -48,8 +48,7 @@ pub(super) fn refit(wide: &mut [Node4], pack_boxes: &[Aabb]) {
                     .iter()
                     .fold(Aabb::EMPTY, |b, &p| b.union(p))
             } else {
-                wide.get(child as usize)
-                    .map_or(Aabb::EMPTY, |c| union_of_slots(c))
+                wide.get(child as usize).map_or(Aabb::EMPTY, union_of_slots)
             };
             for axis in 0..3 {
                 lo[axis][slot] = bounds.lo[axis];
