@@ -45,8 +45,8 @@ fn check_error<T, E: std::fmt::Display>(what: &str, result: Result<T, E>) -> Opt
     }
 }
 
-/// Split object target: decode; what decodes must re-encode to an equal object, hold one
-/// shading entry per triangle, and answer ray queries.
+/// Split object target: decode; what decodes must re-encode to an equal object (to the bit),
+/// hold one shading entry per triangle, and answer ray queries.
 pub fn split_object(data: &[u8]) {
     let Some(bytes) = stored(RecordKind::SplitObject, data) else {
         return;
@@ -56,7 +56,13 @@ pub fn split_object(data: &[u8]) {
     };
     assert_eq!(object.shading.len(), object.bvh.triangle_count());
     let again = decode_split(KEY, &encode_split(&object)).expect("a re-encoded split decodes");
-    assert_eq!(format!("{object:?}"), format!("{again:?}"));
+    // Debug shows signed zeros and NaNs; the shading as each triangle gets it (re-encoding
+    // merges a reflectance a hostile object stored twice).
+    let shown = |o: &hort_core::pipeline::SplitObject| {
+        let shading: Vec<_> = o.shading.iter().collect();
+        format!("{} {:?} {shading:?}", o.split, o.bvh)
+    };
+    assert_eq!(shown(&object), shown(&again));
     let bounds = object.bvh.bounds();
     let centre = (bounds.lo + bounds.hi) * 0.5;
     for dir in [
