@@ -1,7 +1,8 @@
 //! A bounding volume hierarchy over triangles: binned-SAH build of a binary tree, collapsed into
 //! 4-wide nodes whose leaves are `Triangle4`s (four triangles stored axis by axis) for traversal
 //! with 4-wide box and triangle tests; the binary tree is dropped after collapsing. Split objects
-//! store the 4-wide form as it is (`parts.rs`). Layout, measurements
+//! store the 4-wide form without its boxes (`parts.rs`), which both building and loading derive
+//! from the triangles (`refit.rs`). Layout, measurements
 //! against native Embree and where time goes: `README.md` in this folder.
 //!
 //! Vocabulary: a `Triangle4` is four triangles of one leaf tested at once (`node4.rs`,
