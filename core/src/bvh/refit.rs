@@ -37,10 +37,9 @@ pub(super) fn refit(wide: &mut [Node4], pack_boxes: &[Aabb]) {
         let mut hi = [[f32::INFINITY; 4]; 3];
         for slot in 0..4 {
             let (child, count) = (node.child[slot], node.triangle4_count[slot] as usize);
-            let bounds = if child & LEAF != 0 {
-                if count == 0 {
-                    continue;
-                }
+            let bounds = if is_empty(child, count) {
+                continue;
+            } else if child & LEAF != 0 {
                 let first = (child & !LEAF) as usize;
                 pack_boxes
                     .get(first..first + count)
@@ -60,10 +59,15 @@ pub(super) fn refit(wide: &mut [Node4], pack_boxes: &[Aabb]) {
     }
 }
 
+/// Whether a slot with child word `child` and `count` packs is empty (a leaf of no packs).
+fn is_empty(child: u32, count: usize) -> bool {
+    child & LEAF != 0 && count == 0
+}
+
 /// The union of `node`'s non-empty slots' boxes, in slot order.
 fn union_of_slots(node: &Node4) -> Aabb {
     (0..4)
-        .filter(|&s| !(node.child[s] == LEAF && node.triangle4_count[s] == 0))
+        .filter(|&s| !is_empty(node.child[s], node.triangle4_count[s] as usize))
         .fold(Aabb::EMPTY, |b, s| {
             b.union(Aabb {
                 lo: glam::Vec3::new(node.lo[0][s], node.lo[1][s], node.lo[2][s]),
