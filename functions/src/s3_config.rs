@@ -188,6 +188,30 @@ impl S3Config {
     }
 }
 
+/// Whether PUT bodies sent to `endpoint` must be covered by the SigV4 signature: only over
+/// plain `http://` to another machine, where nothing else protects them. `endpoint` is an
+/// endpoint URL, or a label such as `AWS S3 (REGION)` for AWS S3 itself. Over `https://` (AWS
+/// S3 always) TLS protects the body (and the SDK adds its CRC32 checksum there), and to a
+/// loopback server nothing is in between; bodies then go as `UNSIGNED-PAYLOAD`, which spares a
+/// SHA-256 pass over every byte on each side. Shuffle blocks and split objects carry their own
+/// CRC either way.
+pub(crate) fn signs_payloads(endpoint: &str) -> bool {
+    let Some(rest) = endpoint.strip_prefix("http://") else {
+        return false;
+    };
+    let authority = rest.split('/').next().unwrap_or_default();
+    let host = match authority.strip_prefix('[') {
+        // [IPv6]:port
+        Some(v6) => v6.split(']').next().unwrap_or_default(),
+        None => authority.split(':').next().unwrap_or_default(),
+    };
+    let loopback = host.eq_ignore_ascii_case("localhost")
+        || host
+            .parse::<std::net::IpAddr>()
+            .is_ok_and(|ip| ip.is_loopback());
+    !loopback
+}
+
 /// `endpoint` without trailing slashes, if it is an `http://` or `https://` URL with a host.
 fn checked_endpoint(endpoint: &str) -> Result<String, StoreError> {
     let trimmed = endpoint.trim_end_matches('/');
@@ -228,6 +252,28 @@ mod tests {
         for bad in ["127.0.0.1:9000", "http://", "ftp://x", "http://h/path"] {
             let err = checked_endpoint(bad).unwrap_err();
             assert!(err.to_string().contains("invalid S3 endpoint"), "{err}");
+        }
+    }
+
+    #[test]
+    fn payloads_are_signed_only_over_plain_http_to_another_machine() {
+        for signed in [
+            "http://minio.lan:9000",
+            "http://10.0.0.5",
+            "http://[fe80::1]:9000",
+        ] {
+            assert!(signs_payloads(signed), "{signed}");
+        }
+        for unsigned in [
+            "https://minio.lan:9000",
+            "AWS S3 (eu-west-1)",
+            "http://127.0.0.1:9000",
+            "http://127.8.9.10",
+            "http://localhost:4566",
+            "http://LOCALHOST",
+            "http://[::1]:9000",
+        ] {
+            assert!(!signs_payloads(unsigned), "{unsigned}");
         }
     }
 }

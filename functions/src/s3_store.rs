@@ -16,7 +16,7 @@ use aws_sdk_s3::types::{BucketLocationConstraint, CreateBucketConfiguration};
 use hort_core::store::{BlobStore, PutOutcome, StoreError};
 use tokio::runtime::{Handle, Runtime, RuntimeFlavor};
 
-use crate::s3_config::S3Config;
+use crate::s3_config::{S3Config, signs_payloads};
 use crate::s3_errors::{self, Request, Target};
 
 /// How often `put_if_absent` retries AWS S3's 409 `ConditionalRequestConflict` (another
@@ -60,7 +60,8 @@ pub struct ListedObject {
 ///
 /// Guarantees the [`BlobStore`] contract (it passes `hort_core::store::conformance`) on AWS S3
 /// and on servers that implement `If-None-Match: *` on PUT atomically; errors are classified
-/// in one place (module `s3_errors`). Objects are sent with one PUT each (S3 caps those at 5 GiB)
+/// in one place (module `s3_errors`). Objects are sent with one PUT each (S3 caps those at 5 GiB;
+/// the body is signed only where [`signs_payloads`] says it must be)
 /// and read whole into memory. Each request is retried by the SDK (standard mode,
 /// [`S3Config::max_attempts`] attempts) on connection failures, timeouts, 5xx and throttling
 /// before an error is returned. A GET whose body breaks off (reset, or fewer bytes than its
@@ -77,6 +78,8 @@ pub struct S3Store {
     runtime: Option<Runtime>,
     /// Times a GET is sent when its body breaks off ([`S3Config::max_attempts`]).
     body_attempts: u32,
+    /// Whether PUT bodies are covered by the signature ([`signs_payloads`] of the endpoint).
+    signs_payloads: bool,
 }
 
 impl S3Store {
@@ -120,8 +123,10 @@ impl S3Store {
     }
 
     /// A store over an SDK client built elsewhere (for example with [`S3Config::sdk_client`], once
-    /// per Lambda environment, in `main`). `endpoint` only names the server in error messages; `handle` must belong to a
-    /// multi-threaded runtime that outlives the store.
+    /// per Lambda environment, in `main`). `endpoint` names the server in error messages and
+    /// decides whether PUT bodies are signed ([`signs_payloads`]: the client's endpoint URL, or
+    /// any other label for AWS S3 itself); `handle` must belong to a multi-threaded runtime that
+    /// outlives the store.
     pub fn from_client(
         client: Client,
         bucket: impl Into<String>,
@@ -129,11 +134,13 @@ impl S3Store {
         handle: Handle,
     ) -> Self {
         let region = client.config().region().map(ToString::to_string);
+        let endpoint = endpoint.into();
         Self {
+            signs_payloads: signs_payloads(&endpoint),
             client,
             target: Target {
                 bucket: bucket.into(),
-                endpoint: endpoint.into(),
+                endpoint,
                 connect_timeout: crate::s3_config::DEFAULT_CONNECT_TIMEOUT,
                 attempt_timeout: crate::s3_config::DEFAULT_ATTEMPT_TIMEOUT,
             },
@@ -467,16 +474,19 @@ impl S3Store {
         let mut attempt = 0;
         loop {
             attempt += 1;
-            let answer = self
+            let put = self
                 .client
                 .put_object()
                 .bucket(&self.target.bucket)
                 .key(key)
                 .if_none_match("*")
                 .content_length(len_i64(bytes))
-                .body(ByteStream::from(bytes.to_vec()))
-                .send()
-                .await;
+                .body(ByteStream::from(bytes.to_vec()));
+            let answer = if self.signs_payloads {
+                put.send().await
+            } else {
+                put.customize().disable_payload_signing().send().await
+            };
             match answer {
                 Ok(_) => return Ok(PutOutcome::Created),
                 Err(err) if s3_errors::is_precondition_failed(&err) => {
@@ -580,14 +590,19 @@ impl BlobStore for S3Store {
             object_read: false,
         };
         self.handle.block_on(async {
-            self.client
+            let put = self
+                .client
                 .put_object()
                 .bucket(&self.target.bucket)
                 .key(key)
                 .content_length(len_i64(bytes))
-                .body(ByteStream::from(bytes.to_vec()))
-                .send()
-                .await
+                .body(ByteStream::from(bytes.to_vec()));
+            let answer = if self.signs_payloads {
+                put.send().await
+            } else {
+                put.customize().disable_payload_signing().send().await
+            };
+            answer
                 .map(drop)
                 .map_err(|e| s3_errors::store_error(e, request, &self.target))
         })

@@ -69,6 +69,10 @@ pub fn scene_files(main: &Path) -> Result<Vec<PathBuf>> {
             .with_context(|| format!("cannot read {}", base.join(&obj).display()))?;
         let obj_dir = obj.parent().map(Path::to_path_buf).unwrap_or_default();
         for line in text.split(|&b| b == b'\n') {
+            // Only `mtllib` lines matter: the rest are skipped without decoding them.
+            if !line.trim_ascii_start().starts_with(b"mtllib") {
+                continue;
+            }
             let line = String::from_utf8_lossy(line);
             let mut words = line.split_ascii_whitespace();
             if words.next() == Some("mtllib") {

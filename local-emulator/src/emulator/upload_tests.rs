@@ -1,7 +1,7 @@
 //! Submitting and resuming jobs over an in-memory store: what the client stores, and when a
 //! resume is refused.
 
-use super::upload::{Submitted, binary_scene, submit_job, submit_or_resume};
+use super::upload::{Submitted, binary_scene, scene_files, submit_job, submit_or_resume};
 use hort_core::ids::JobId;
 use hort_core::pipeline::{PlanRequest, SplitMode};
 use hort_core::scene::{Scene, decode_scene, load_scene};
@@ -161,4 +161,27 @@ fn a_changed_scene_does_not_resume_and_a_files_job_resumes_with_its_files() {
     assert_eq!(resumed.unwrap(), Submitted::Resumed);
     assert_eq!(store.list("jobs/j/").unwrap(), keys);
     let _ = std::fs::remove_dir_all(main.parent().unwrap());
+}
+
+#[test]
+fn scene_files_are_the_obj_and_the_libraries_its_mtllib_lines_name() {
+    let dir = std::env::temp_dir().join(format!("hort-upload-{}-libs", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    for lib in ["a.mtl", "b.mtl", "c.mtl", "d.mtl", "e.mtl"] {
+        std::fs::write(dir.join(lib), "newmtl m\nKd 1 1 1\n").unwrap();
+    }
+    // Indented and tab-separated `mtllib` lines count, with every library they name; a word
+    // that only starts with "mtllib", a comment, and a library that is not there do not; a
+    // line of invalid UTF-8 is skipped, not an error.
+    let obj = b"v 0 0 0\n \tmtllib a.mtl\tb.mtl\nmtllibx c.mtl\n# mtllib d.mtl\n\
+        \xff\xfe mtllib\nmtllib missing.mtl\nmtllib e.mtl\r\nf 1 1 1\n";
+    std::fs::write(dir.join("m.obj"), obj).unwrap();
+    let files = scene_files(&dir.join("m.obj")).unwrap();
+    assert_eq!(
+        files,
+        ["m.obj", "a.mtl", "b.mtl", "e.mtl"].map(PathBuf::from),
+        "{files:?}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
 }
