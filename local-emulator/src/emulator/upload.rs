@@ -65,23 +65,14 @@ pub fn scene_files(main: &Path) -> Result<Vec<PathBuf>> {
         if !files.contains(&obj) {
             files.push(obj.clone());
         }
-        let text = std::fs::read(base.join(&obj))
-            .with_context(|| format!("cannot read {}", base.join(&obj).display()))?;
         let obj_dir = obj.parent().map(Path::to_path_buf).unwrap_or_default();
-        for line in text.split(|&b| b == b'\n') {
-            // Only `mtllib` lines matter: the rest are skipped without decoding them.
-            if !line.trim_ascii_start().starts_with(b"mtllib") {
-                continue;
-            }
-            let line = String::from_utf8_lossy(line);
-            let mut words = line.split_ascii_whitespace();
-            if words.next() == Some("mtllib") {
-                for lib in words {
-                    let rel = obj_dir.join(lib);
-                    if base.join(&rel).is_file() && !files.contains(&rel) {
-                        files.push(rel);
-                    }
-                }
+        let path = base.join(&obj);
+        for lib in
+            material_libraries(&path).with_context(|| format!("cannot read {}", path.display()))?
+        {
+            let rel = obj_dir.join(lib);
+            if base.join(&rel).is_file() && !files.contains(&rel) {
+                files.push(rel);
             }
         }
     }
@@ -95,6 +86,60 @@ pub fn scene_files(main: &Path) -> Result<Vec<PathBuf>> {
         }
     }
     Ok(files)
+}
+
+/// The names on the `mtllib` lines of the OBJ file at `path`, in order. The file is read in
+/// chunks and searched for the word (an OBJ can be gigabytes, and its size is what this is
+/// asked for): only lines whose first word is `mtllib` are decoded, as UTF-8 with invalid
+/// bytes replaced, and split on ASCII whitespace as the OBJ parser splits them.
+fn material_libraries(path: &Path) -> std::io::Result<Vec<String>> {
+    const CHUNK: usize = 1 << 20;
+    let mut file = std::fs::File::open(path)?;
+    let finder = memchr::memmem::Finder::new(b"mtllib");
+    let mut names = Vec::new();
+    let mut take_line = |line: &[u8]| {
+        let line = String::from_utf8_lossy(line);
+        let mut words = line.split_ascii_whitespace();
+        if words.next() == Some("mtllib") {
+            names.extend(words.map(str::to_owned));
+        }
+    };
+    // `buf[..held]` starts at a line's start; lines are searched once they end (or at EOF).
+    let mut buf = vec![0u8; CHUNK];
+    let mut held = 0;
+    loop {
+        if held == buf.len() {
+            buf.resize(2 * buf.len(), 0); // one line longer than the buffer
+        }
+        let read = std::io::Read::read(&mut file, &mut buf[held..])?;
+        let end = held + read;
+        let whole = if read == 0 {
+            end
+        } else {
+            match memchr::memrchr(b'\n', &buf[held..end]) {
+                Some(last) => held + last + 1,
+                None => {
+                    held = end;
+                    continue;
+                }
+            }
+        };
+        let lines = &buf[..whole];
+        let mut searched = 0;
+        while let Some(at) = finder.find(&lines[searched..]).map(|i| searched + i) {
+            let start = memchr::memrchr(b'\n', &lines[..at]).map_or(0, |i| i + 1);
+            let stop = memchr::memchr(b'\n', &lines[at..]).map_or(lines.len(), |i| at + i);
+            if lines[start..at].iter().all(u8::is_ascii_whitespace) {
+                take_line(&lines[start..stop]);
+            }
+            searched = stop;
+        }
+        if read == 0 {
+            return Ok(names);
+        }
+        buf.copy_within(whole..end, 0);
+        held = end - whole;
+    }
 }
 
 /// The binary scene the client stores for `scene`, loaded from a main file named `main_name`:

@@ -173,14 +173,24 @@ fn scene_files_are_the_obj_and_the_libraries_its_mtllib_lines_name() {
     }
     // Indented and tab-separated `mtllib` lines count, with every library they name; a word
     // that only starts with "mtllib", a comment, and a library that is not there do not; a
-    // line of invalid UTF-8 is skipped, not an error.
-    let obj = b"v 0 0 0\n \tmtllib a.mtl\tb.mtl\nmtllibx c.mtl\n# mtllib d.mtl\n\
-        \xff\xfe mtllib\nmtllib missing.mtl\nmtllib e.mtl\r\nf 1 1 1\n";
+    // line of invalid UTF-8 is skipped, not an error. A library is listed once.
+    let mut obj = b"v 0 0 0\n \tmtllib a.mtl\tb.mtl\nmtllibx c.mtl\n# mtllib d.mtl\n\
+        \xff\xfe mtllib\nmtllib missing.mtl\n"
+        .to_vec();
+    // The file is read a megabyte at a time: one `mtllib` line straddles the first boundary,
+    // a line of three megabytes follows, and the last line has no newline.
+    while obj.len() < (1 << 20) - 4 {
+        obj.extend_from_slice(b"v 0 0 0\n");
+    }
+    obj.truncate((1 << 20) - 4);
+    obj.extend_from_slice(b"\nmtllib e.mtl\r\nf 1 1 1\n# ");
+    obj.extend(std::iter::repeat_n(b'x', 3 << 20));
+    obj.extend_from_slice(b" mtllib d.mtl\nmtllib c.mtl");
     std::fs::write(dir.join("m.obj"), obj).unwrap();
     let files = scene_files(&dir.join("m.obj")).unwrap();
     assert_eq!(
         files,
-        ["m.obj", "a.mtl", "b.mtl", "e.mtl"].map(PathBuf::from),
+        ["m.obj", "a.mtl", "b.mtl", "e.mtl", "c.mtl"].map(PathBuf::from),
         "{files:?}"
     );
     std::fs::remove_dir_all(&dir).unwrap();
