@@ -58,44 +58,54 @@ pub struct SceneBinaryError {
 
 /// Encodes `scene` in the binary scene format (see the module documentation).
 pub fn encode_scene(scene: &Scene) -> Vec<u8> {
+    encode_as(scene, &scene.source.to_string_lossy(), &scene.warnings)
+}
+
+/// [`encode_scene`] of `scene` with `source` and `warnings` in place of its own, written
+/// straight into the output after room for the header (no copy of the scene or of the body).
+fn encode_as(scene: &Scene, source: &str, warnings: &[String]) -> Vec<u8> {
     let mesh = &scene.mesh;
-    let mut body = Vec::with_capacity(
-        256 + mesh.triangles.len() * 28 + (mesh.positions.len() + mesh.normals.len()) * 12,
+    let mut out = Vec::with_capacity(
+        SCENE_BINARY_HEADER_LEN
+            + 256
+            + mesh.triangles.len() * 28
+            + (mesh.positions.len() + mesh.normals.len()) * 12,
     );
-    put_dvec3(&mut body, scene.origin);
-    put_str(&mut body, &scene.source.to_string_lossy());
-    put_u64(&mut body, mesh.triangles.len() as u64);
+    out.resize(SCENE_BINARY_HEADER_LEN, 0);
+    put_dvec3(&mut out, scene.origin);
+    put_str(&mut out, source);
+    put_u64(&mut out, mesh.triangles.len() as u64);
     for t in mesh.triangles.iter().chain(&mesh.triangle_normals) {
-        t.iter().for_each(|&i| put_u32(&mut body, i));
+        t.iter().for_each(|&i| put_u32(&mut out, i));
     }
     mesh.triangle_materials
         .iter()
-        .for_each(|&m| put_u32(&mut body, m));
+        .for_each(|&m| put_u32(&mut out, m));
     for vectors in [&mesh.positions, &mesh.normals] {
-        put_u64(&mut body, vectors.len() as u64);
+        put_u64(&mut out, vectors.len() as u64);
         for v in vectors.iter() {
-            v.to_array().iter().for_each(|&c| put_f32(&mut body, c));
+            v.to_array().iter().for_each(|&c| put_f32(&mut out, c));
         }
     }
-    put_u32(&mut body, mesh.materials.len() as u32);
+    put_u32(&mut out, mesh.materials.len() as u32);
     for m in &mesh.materials {
-        put_str(&mut body, &m.name);
-        put_rgb(&mut body, m.kd);
+        put_str(&mut out, &m.name);
+        put_rgb(&mut out, m.kd);
     }
     let camera = &scene.camera;
     [camera.eye, camera.look_at, camera.up]
         .into_iter()
-        .for_each(|v| put_dvec3(&mut body, v));
-    body.extend_from_slice(&camera.vfov_degrees.to_le_bytes());
+        .for_each(|v| put_dvec3(&mut out, v));
+    out.extend_from_slice(&camera.vfov_degrees.to_le_bytes());
     match scene.framed_bounds {
-        None => body.push(0),
+        None => out.push(0),
         Some((lo, hi)) => {
-            body.push(1);
-            put_dvec3(&mut body, lo);
-            put_dvec3(&mut body, hi);
+            out.push(1);
+            put_dvec3(&mut out, lo);
+            put_dvec3(&mut out, hi);
         }
     }
-    put_u32(&mut body, scene.lights.len() as u32);
+    put_u32(&mut out, scene.lights.len() as u32);
     for light in &scene.lights {
         let (kind, v, rgb) = match *light {
             Light::Point {
@@ -107,33 +117,33 @@ pub fn encode_scene(scene: &Scene) -> Vec<u8> {
                 irradiance,
             } => (1, direction, irradiance),
         };
-        body.push(kind);
-        put_dvec3(&mut body, v);
-        put_rgb(&mut body, rgb);
+        out.push(kind);
+        put_dvec3(&mut out, v);
+        put_rgb(&mut out, rgb);
     }
-    put_rgb(&mut body, scene.ambient);
-    put_rgb(&mut body, scene.background);
+    put_rgb(&mut out, scene.ambient);
+    put_rgb(&mut out, scene.background);
     let image = scene.image;
     for setting in [image.width, image.height, image.spp] {
         match setting {
-            None => body.push(0),
+            None => out.push(0),
             Some(v) => {
-                body.push(1);
-                put_u32(&mut body, v);
+                out.push(1);
+                put_u32(&mut out, v);
             }
         }
     }
-    put_u32(&mut body, scene.warnings.len() as u32);
-    scene.warnings.iter().for_each(|w| put_str(&mut body, w));
+    put_u32(&mut out, warnings.len() as u32);
+    warnings.iter().for_each(|w| put_str(&mut out, w));
 
-    let mut out = Vec::with_capacity(SCENE_BINARY_HEADER_LEN + body.len());
-    out.extend_from_slice(&SCENE_BINARY_MAGIC);
-    out.extend_from_slice(&SCENE_BINARY_VERSION.to_le_bytes());
-    out.extend_from_slice(&0u16.to_le_bytes());
-    out.extend_from_slice(&(body.len() as u64).to_le_bytes());
-    let crc = checksum(&out, &body);
-    out.extend_from_slice(&crc.to_le_bytes());
-    out.extend_from_slice(&body);
+    let body_len = (out.len() - SCENE_BINARY_HEADER_LEN) as u64;
+    out[..8].copy_from_slice(&SCENE_BINARY_MAGIC);
+    out[8..10].copy_from_slice(&SCENE_BINARY_VERSION.to_le_bytes());
+    out[10..12].copy_from_slice(&0u16.to_le_bytes());
+    out[12..20].copy_from_slice(&body_len.to_le_bytes());
+    let (head, body) = out.split_at(SCENE_BINARY_HEADER_LEN);
+    let crc = checksum(&head[..CRC_AT], body);
+    out[CRC_AT..SCENE_BINARY_HEADER_LEN].copy_from_slice(&crc.to_le_bytes());
     out
 }
 
@@ -142,11 +152,7 @@ pub fn encode_scene(scene: &Scene) -> Vec<u8> {
 /// gives it) and without its warnings (the client showed them). So its bytes depend on the
 /// scene files' contents and the main file's name only, not on the folder it was loaded from.
 pub fn encode_scene_named(scene: &Scene, main_name: &str) -> Vec<u8> {
-    encode_scene(&Scene {
-        source: PathBuf::from(main_name),
-        warnings: Vec::new(),
-        ..scene.clone()
-    })
+    encode_as(scene, main_name, &[])
 }
 
 /// Decodes a binary scene read from `name` (an object key or file path, for messages). See the

@@ -329,3 +329,17 @@ fn body_errors_name_the_field_and_its_byte() {
         format!("{name}: byte 327: warnings count needs 4 bytes, but only 3 are left")
     );
 }
+
+#[test]
+fn a_named_encoding_is_the_encoding_of_the_scene_renamed_without_warnings() {
+    let scene = tiny();
+    assert!(!scene.warnings.is_empty(), "the test needs warnings to drop");
+    let renamed = Scene {
+        source: PathBuf::from("main.json"),
+        warnings: Vec::new(),
+        ..scene.clone()
+    };
+    let named = encode_scene_named(&scene, "main.json");
+    assert_eq!(named, encode_scene(&renamed));
+    assert_same(&decode_scene("named", &named).unwrap(), &renamed);
+}
