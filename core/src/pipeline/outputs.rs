@@ -18,18 +18,34 @@ pub struct JobOutputs {
     pub hits: Vec<Hit>,
 }
 
-/// Reads and decodes the image and hit buffer of `job`; a missing object is a storage error, a
-/// malformed one a [`PipelineError::Corrupt`] naming its key.
+/// Reads and decodes the image and hit buffer of `job`, the two at once; a missing object is a
+/// storage error, a malformed one a [`PipelineError::Corrupt`] naming its key (the image's
+/// error first when both fail).
 pub fn read_outputs(
     store: &dyn BlobStore,
     job: &JobId,
     plan: &JobPlan,
 ) -> Result<JobOutputs, PipelineError> {
-    let pfm_key = image_key(job, "pfm");
-    let image = decode_pfm(&store.get(&pfm_key)?)
-        .map_err(|e| PipelineError::Corrupt(format!("{pfm_key}: {e}")))?;
-    let hits_key = hits_key(job);
-    let hits = decode_hits(&store.get(&hits_key)?, plan.width, plan.height)
-        .map_err(|e| PipelineError::Corrupt(format!("{hits_key}: {e}")))?;
-    Ok(JobOutputs { image, hits })
+    let read_image = || {
+        let pfm_key = image_key(job, "pfm");
+        decode_pfm(&store.get(&pfm_key)?)
+            .map_err(|e| PipelineError::Corrupt(format!("{pfm_key}: {e}")))
+    };
+    let read_hits = || {
+        let hits_key = hits_key(job);
+        decode_hits(&store.get(&hits_key)?, plan.width, plan.height)
+            .map_err(|e| PipelineError::Corrupt(format!("{hits_key}: {e}")))
+    };
+    let (image, hits) = std::thread::scope(|scope| {
+        let hits = scope.spawn(read_hits);
+        let image = read_image();
+        let hits = hits
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        (image, hits)
+    });
+    Ok(JobOutputs {
+        image: image?,
+        hits: hits?,
+    })
 }

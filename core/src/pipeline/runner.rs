@@ -433,13 +433,21 @@ impl Task<'_> {
                 let (image, hits) = timed(&mut self.metrics.compute_us, || {
                     stages::combine(plan, &blocks)
                 });
+                // The PNG (the slowest to encode) is encoded beside the other two, and the
+                // three are stored at once: a Combine task is the only one running then.
                 let (png, pfm, hit_bytes) = timed(&mut self.metrics.encode_us, || {
-                    (encode_png(&image), encode_pfm(&image), encode_hits(&hits))
+                    std::thread::scope(|scope| {
+                        let png = scope.spawn(|| encode_png(&image));
+                        let others = (encode_pfm(&image), encode_hits(&hits));
+                        (joined(png), others.0, others.1)
+                    })
                 });
                 let png = png.map_err(|e| PipelineError::BadInput(e.to_string()))?;
-                self.write_plain(&image_key(self.job, "png"), png)?;
-                self.write_plain(&image_key(self.job, "pfm"), pfm)?;
-                self.write_plain(&hits_key(self.job), hit_bytes)?;
+                self.write_plain_at_once([
+                    (image_key(self.job, "png"), png),
+                    (image_key(self.job, "pfm"), pfm),
+                    (hits_key(self.job), hit_bytes),
+                ])?;
                 self.metrics.records += hits.len() as u64;
                 Ok(())
             }
@@ -599,10 +607,30 @@ impl Task<'_> {
         self.put_output(key, block)
     }
 
-    /// Writes a final output (not a block): its raw size is its size.
-    fn write_plain(&mut self, key: &str, bytes: Vec<u8>) -> Result<(), PipelineError> {
-        self.metrics.bytes_written_raw += bytes.len() as u64;
-        self.put_output(key, bytes)
+    /// Writes final outputs (not blocks: their raw size is their size), each on a thread of its own, and waits for all of them: the first
+    /// error in `outputs` order, if any (the others may be stored; a retry rewrites the same
+    /// bytes). Storage time is the wall time of the whole.
+    fn write_plain_at_once<const N: usize>(
+        &mut self,
+        outputs: [(String, Vec<u8>); N],
+    ) -> Result<(), PipelineError> {
+        for (_, bytes) in &outputs {
+            self.metrics.bytes_written_raw += bytes.len() as u64;
+            self.metrics.bytes_written += bytes.len() as u64;
+        }
+        let store = self.store;
+        let results = timed(&mut self.metrics.storage_us, || {
+            std::thread::scope(|scope| {
+                let puts = outputs
+                    .each_ref()
+                    .map(|(key, bytes)| scope.spawn(move || store.put(key, bytes)));
+                puts.map(joined)
+            })
+        });
+        for result in results {
+            result?;
+        }
+        Ok(())
     }
 
     fn put_output(&mut self, key: &str, bytes: Vec<u8>) -> Result<(), PipelineError> {
@@ -611,6 +639,13 @@ impl Task<'_> {
         timed(&mut self.metrics.storage_us, || store.put(key, &bytes))?;
         Ok(())
     }
+}
+
+/// What a scoped thread returned; its panic, if it panicked, goes on in this thread.
+fn joined<T>(handle: std::thread::ScopedJoinHandle<'_, T>) -> T {
+    handle
+        .join()
+        .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
 }
 
 /// The record count recorded at bytes 12..20 of a block header already checked.
