@@ -333,7 +333,10 @@ fn body_errors_name_the_field_and_its_byte() {
 #[test]
 fn a_named_encoding_is_the_encoding_of_the_scene_renamed_without_warnings() {
     let scene = tiny();
-    assert!(!scene.warnings.is_empty(), "the test needs warnings to drop");
+    assert!(
+        !scene.warnings.is_empty(),
+        "the test needs warnings to drop"
+    );
     let renamed = Scene {
         source: PathBuf::from("main.json"),
         warnings: Vec::new(),
