@@ -2,7 +2,9 @@
 //! buffer and report.
 
 use crate::cli::RenderArgs;
-use crate::outputs::{check_distinct, check_image_path, check_output_path, write_output};
+use crate::outputs::{
+    OutputTarget, check_distinct, check_image_path, check_output_path, write_output,
+};
 use anyhow::{Context, Result, anyhow, bail};
 use hort::emulator::{
     EmulatorConfig, FaultSettings, JobOptions, LambdaTarget, run_job_loaded, splits_by_tasks,
@@ -32,6 +34,8 @@ use std::time::Instant;
 /// What either renderer hands back for writing.
 struct Rendered {
     image: Image,
+    /// The PNG the Combine task stored (emulator runs): `encode_png` of `image`, byte for byte.
+    png: Option<Vec<u8>>,
     hits: Vec<Hit>,
     rays: RayReport,
     build_seconds: f64,
@@ -154,7 +158,14 @@ pub fn run(args: RenderArgs) -> Result<()> {
         hits: args.hits.as_ref().map(|p| p.display().to_string()),
         report: args.report.as_ref().map(|p| p.display().to_string()),
     };
-    write_image(&out, &rendered.image)?;
+    let png_out = out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    match rendered.png.as_deref() {
+        // The job stored this very encoding of the image: no need to encode it again.
+        Some(png) if png_out => write_output(&OutputTarget::File(out.clone()), png)?,
+        _ => write_image(&out, &rendered.image)?,
+    }
     if let Some(target) = &hits_target {
         write_output(target, &encode_hits(&rendered.hits))?;
     }
@@ -337,6 +348,7 @@ fn render_monolithic(
     };
     Ok(Rendered {
         image: output.image,
+        png: None,
         hits: output.hits,
         rays: RayReport {
             primary: output.rays.primary,
@@ -385,6 +397,7 @@ fn render_pipeline(scene: &Scene, request: PlanRequest, args: &RenderArgs) -> Re
     let adaptive = adaptive_report(request, counts);
     Ok(Rendered {
         image: run.image,
+        png: None,
         hits: run.hits,
         rays: RayReport {
             primary: run.primary_rays,
@@ -524,6 +537,7 @@ fn render_emulated(
     let adaptive = adaptive_report(request, counts);
     Ok(Rendered {
         image: run.image,
+        png: Some(run.png),
         hits: run.hits,
         rays: RayReport {
             primary: adaptive.as_ref().map_or(

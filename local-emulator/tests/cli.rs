@@ -341,6 +341,30 @@ fn emulator_render_equals_monolithic_and_reports_cost() {
         stderr.contains("stage") && stderr.contains("compression"),
         "summary table: {stderr}"
     );
+    // A PNG is written as the job's Combine task stored it: the bytes a monolithic render
+    // encodes.
+    let cornell = scene("cornell/cornell.json");
+    let png = |name: &str, mode: &[&str]| {
+        let path = dir.join(name);
+        let mut args = vec![
+            "render",
+            cornell.to_str().unwrap(),
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--out",
+            path.to_str().unwrap(),
+        ];
+        args.extend_from_slice(mode);
+        let o = hort(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        std::fs::read(path).unwrap()
+    };
+    assert_eq!(
+        png("emulator.png", &["--splits", "1"]),
+        png("monolithic.png", &["--monolithic"])
+    );
     // --data-dir keeps the objects for inspection, and a job id is used once.
     assert!(std::fs::read_dir(&data).unwrap().count() > 0);
     let again = hort(&[

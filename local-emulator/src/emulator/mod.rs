@@ -366,8 +366,17 @@ pub fn run_job_loaded(
     };
     let plan_bytes = client.get(&plan_key(&job))?;
     let plan = JobPlan::from_json(&plan_key(&job), &plan_bytes)?;
-    let JobOutputs { image, hits } = read_outputs(&client, &job, &plan)?;
-    let png = client.get(&image_key(&job, "png"))?;
+    // The PNG comes beside the image and the hit buffer.
+    let (outputs, png) = std::thread::scope(|scope| {
+        let png = scope.spawn(|| client.get(&image_key(&job, "png")));
+        let outputs = read_outputs(&client, &job, &plan);
+        let png = png
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        (outputs, png)
+    });
+    let JobOutputs { image, hits } = outputs?;
+    let png = png?;
     let deleted_intermediates = (config.storage.is_persistent() && !options.keep_intermediates)
         .then(|| delete_intermediates(storage.s3(), &job).map_err(|e| format!("{e:#}")));
     let ledger = functions.ledger();
