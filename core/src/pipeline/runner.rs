@@ -34,7 +34,7 @@ use crate::ids::{JobId, PartitionId, SplitId, Stage, TaskId};
 use crate::image::{encode_pfm, encode_png};
 use crate::keys::{hits_key, image_key, parse_partition_key, partition_key, split_key};
 use crate::shuffle::{RecordKind, relabel_block};
-use crate::store::BlobStore;
+use crate::store::{BlobStore, StoreError};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -315,13 +315,13 @@ impl Task<'_> {
                 if let [only] = inputs[..] {
                     return self.pass_through_hits(only, task);
                 }
-                let mut candidates = Vec::new();
-                for cast_task in inputs {
-                    let key = self.key(Stage::CastMap, cast_task, task);
-                    candidates.push(self.read(&key, |k, b| {
-                        decode_surface_hits(k, b, RecordKind::CastCandidate)
-                    })?);
-                }
+                let keys: Vec<String> = inputs
+                    .iter()
+                    .map(|&cast_task| self.key(Stage::CastMap, cast_task, task))
+                    .collect();
+                let candidates = self.read_all(&keys, |k, b| {
+                    decode_surface_hits(k, b, RecordKind::CastCandidate)
+                })?;
                 let hits = timed(&mut self.metrics.compute_us, || {
                     stages::cast_reduce(candidates)
                 });
@@ -335,11 +335,15 @@ impl Task<'_> {
                 plan.round_of(stage, task).ok_or_else(|| missing("spans"))?;
                 let hits = self.read_span_hits(task)?;
                 let routed = timed(&mut self.metrics.compute_us, || stages::expand(plan, &hits));
-                for (split, queries) in routed.iter().enumerate() {
-                    let raw = timed(&mut self.metrics.encode_us, || encode_queries(queries));
-                    self.write(&self.key(stage, task, split as u32), raw, queries.len())?;
-                }
-                Ok(())
+                let blocks = routed
+                    .iter()
+                    .enumerate()
+                    .map(|(split, queries)| {
+                        let block = timed(&mut self.metrics.encode_us, || encode_queries(queries));
+                        (self.key(stage, task, split as u32), block, queries.len())
+                    })
+                    .collect();
+                self.write_all(blocks)
             }
             Stage::TraceMap => {
                 let (round, index) = plan
@@ -372,15 +376,19 @@ impl Task<'_> {
                 let (round, index) = plan.round_of(stage, task).ok_or_else(|| missing("spans"))?;
                 let span = plan.spans[index as usize];
                 let hits = self.read_span_hits(task)?;
-                let mut occluded = Vec::new();
                 // Without shadow rays (no light a surface can occlude) there are no TraceMap tasks.
                 let shadow_splits = if plan.has_shadows() { plan.k() } else { 0 };
-                for split in 0..shadow_splits {
-                    let map =
-                        plan.round_task(Stage::TraceMap, plan.trace_task_id(index, split), round);
-                    let key = self.key(Stage::TraceMap, map, task);
-                    occluded.push(self.read(&key, decode_occluded)?);
-                }
+                let keys: Vec<String> = (0..shadow_splits)
+                    .map(|split| {
+                        let map = plan.trace_task_id(index, split);
+                        self.key(
+                            Stage::TraceMap,
+                            plan.round_task(Stage::TraceMap, map, round),
+                            task,
+                        )
+                    })
+                    .collect();
+                let occluded = self.read_all(&keys, decode_occluded)?;
                 self.metrics.shadow_rays += hits.len() as u64 * plan.lights.len() as u64;
                 let Some(a) = plan.adaptive else {
                     let block = timed(&mut self.metrics.compute_us, || {
@@ -413,9 +421,8 @@ impl Task<'_> {
                 self.write_pixels(task, &block)
             }
             Stage::Combine => {
-                let mut blocks = Vec::with_capacity(plan.spans.len());
-                for (i, span) in plan.spans.iter().enumerate() {
-                    let i = i as u32;
+                let mut keys = Vec::with_capacity(plan.spans.len());
+                for i in 0..plan.spans.len() as u32 {
                     // A span with pixels to refine has its final pixels from round 2.
                     let round = if plan.has_second_round()
                         && !self.read_refine_list(i)?.pixels.is_empty()
@@ -425,10 +432,11 @@ impl Task<'_> {
                         1
                     };
                     let stage = plan.mode.pixel_stage();
-                    let key = self.key(stage, plan.round_task(stage, i, round), 0);
-                    let block = self.read(&key, decode_pixels)?;
-                    check_block(&key, &block, span)?;
-                    blocks.push(block);
+                    keys.push(self.key(stage, plan.round_task(stage, i, round), 0));
+                }
+                let blocks = self.read_all(&keys, decode_pixels)?;
+                for ((key, block), span) in keys.iter().zip(&blocks).zip(&plan.spans) {
+                    check_block(key, block, span)?;
                 }
                 let (image, hits) = timed(&mut self.metrics.compute_us, || {
                     stages::combine(plan, &blocks)
@@ -443,7 +451,7 @@ impl Task<'_> {
                     })
                 });
                 let png = png.map_err(|e| PipelineError::BadInput(e.to_string()))?;
-                self.write_plain_at_once([
+                self.write_plain_all(&[
                     (image_key(self.job, "png"), png),
                     (image_key(self.job, "pfm"), pfm),
                     (hits_key(self.job), hit_bytes),
@@ -546,12 +554,40 @@ impl Task<'_> {
         decode: impl Fn(&str, &[u8]) -> Result<T, PipelineError>,
     ) -> Result<T, PipelineError> {
         let store = self.store;
-        let first = timed(&mut self.metrics.storage_us, || store.get(key))
-            .map_err(PipelineError::from)
-            .and_then(|bytes| {
-                self.metrics.bytes_read += bytes.len() as u64;
-                timed(&mut self.metrics.decode_us, || decode(key, &bytes))
-            });
+        let fetched = timed(&mut self.metrics.storage_us, || store.get(key));
+        self.decode_or_recompute(key, fetched, decode)
+    }
+
+    /// [`Task::read`] of every key of `keys`, decoded in order, with up to [`PARALLEL_REQUESTS`]
+    /// fetched at once first (their requests' latencies overlap instead of adding up; storage
+    /// time is the wall time of the fetches). A block lost or corrupt is recomputed from its
+    /// producer as `read` does.
+    fn read_all<T>(
+        &mut self,
+        keys: &[String],
+        decode: impl Fn(&str, &[u8]) -> Result<T, PipelineError>,
+    ) -> Result<Vec<T>, PipelineError> {
+        let store = self.store;
+        let fetched = timed(&mut self.metrics.storage_us, || fetch_all(store, keys));
+        keys.iter()
+            .zip(fetched)
+            .map(|(key, bytes)| self.decode_or_recompute(key, bytes, &decode))
+            .collect()
+    }
+
+    /// Decodes the bytes fetched for `key`; if they are missing or corrupt, reruns the task
+    /// that produced them (lineage) and reads them again.
+    fn decode_or_recompute<T>(
+        &mut self,
+        key: &str,
+        fetched: Result<Vec<u8>, StoreError>,
+        decode: impl Fn(&str, &[u8]) -> Result<T, PipelineError>,
+    ) -> Result<T, PipelineError> {
+        let store = self.store;
+        let first = fetched.map_err(PipelineError::from).and_then(|bytes| {
+            self.metrics.bytes_read += bytes.len() as u64;
+            timed(&mut self.metrics.decode_us, || decode(key, &bytes))
+        });
         let lost = match &first {
             Err(PipelineError::Store(e)) => e.is_not_found(),
             Err(PipelineError::Corrupt(_)) => true,
@@ -607,29 +643,36 @@ impl Task<'_> {
         self.put_output(key, block)
     }
 
-    /// Writes final outputs (not blocks: their raw size is their size), each on a thread of its own, and waits for all of them: the first
-    /// error in `outputs` order, if any (the others may be stored; a retry rewrites the same
-    /// bytes). Storage time is the wall time of the whole.
-    fn write_plain_at_once<const N: usize>(
-        &mut self,
-        outputs: [(String, Vec<u8>); N],
-    ) -> Result<(), PipelineError> {
-        for (_, bytes) in &outputs {
+    /// Writes blocks `(key, block, records)`, up to [`PARALLEL_REQUESTS`] at once (see
+    /// [`put_all`]).
+    fn write_all(&mut self, blocks: Vec<(String, Vec<u8>, usize)>) -> Result<(), PipelineError> {
+        let objects = blocks
+            .into_iter()
+            .map(|(key, block, records)| {
+                self.metrics.bytes_written_raw += raw_length(&block);
+                self.metrics.records += records as u64;
+                (key, block)
+            })
+            .collect::<Vec<_>>();
+        self.put_objects(&objects)
+    }
+
+    /// Writes final outputs (not blocks: their raw size is their size) at once (see
+    /// [`put_all`]).
+    fn write_plain_all(&mut self, outputs: &[(String, Vec<u8>)]) -> Result<(), PipelineError> {
+        for (_, bytes) in outputs {
             self.metrics.bytes_written_raw += bytes.len() as u64;
+        }
+        self.put_objects(outputs)
+    }
+
+    /// [`put_all`], counting the bytes written and the wall time as storage time.
+    fn put_objects(&mut self, objects: &[(String, Vec<u8>)]) -> Result<(), PipelineError> {
+        for (_, bytes) in objects {
             self.metrics.bytes_written += bytes.len() as u64;
         }
         let store = self.store;
-        let results = timed(&mut self.metrics.storage_us, || {
-            std::thread::scope(|scope| {
-                let puts = outputs
-                    .each_ref()
-                    .map(|(key, bytes)| scope.spawn(move || store.put(key, bytes)));
-                puts.map(joined)
-            })
-        });
-        for result in results {
-            result?;
-        }
+        timed(&mut self.metrics.storage_us, || put_all(store, objects))?;
         Ok(())
     }
 
@@ -639,6 +682,44 @@ impl Task<'_> {
         timed(&mut self.metrics.storage_us, || store.put(key, &bytes))?;
         Ok(())
     }
+}
+
+/// How many requests a task has in flight when it reads or writes several objects (its inputs
+/// from the stage before, its partitions for the next): on S3 each request waits tens of
+/// milliseconds for its first byte, and waiting for several at once costs no more than for one.
+const PARALLEL_REQUESTS: usize = 8;
+
+/// `request` of every item of `items`, in order, up to [`PARALLEL_REQUESTS`] at a time, each
+/// wave on threads of its own (one item runs on the calling thread).
+fn in_waves<I: Sync, T: Send>(items: &[I], request: impl Fn(&I) -> T + Sync) -> Vec<T> {
+    if items.len() < 2 {
+        return items.iter().map(request).collect();
+    }
+    let request = &request;
+    std::thread::scope(|scope| {
+        let mut done = Vec::with_capacity(items.len());
+        for wave in items.chunks(PARALLEL_REQUESTS) {
+            let running: Vec<_> = wave
+                .iter()
+                .map(|item| scope.spawn(move || request(item)))
+                .collect();
+            done.extend(running.into_iter().map(joined));
+        }
+        done
+    })
+}
+
+/// Every object of `keys`, in order, fetched [`in_waves`].
+fn fetch_all(store: &dyn BlobStore, keys: &[String]) -> Vec<Result<Vec<u8>, StoreError>> {
+    in_waves(keys, |key| store.get(key))
+}
+
+/// Stores every `(key, bytes)` of `objects` [`in_waves`]; the first error in `objects` order,
+/// if any (others may be stored: a retry rewrites the same bytes).
+fn put_all(store: &dyn BlobStore, objects: &[(String, Vec<u8>)]) -> Result<(), StoreError> {
+    in_waves(objects, |(key, bytes)| store.put(key, bytes))
+        .into_iter()
+        .collect()
 }
 
 /// What a scoped thread returned; its panic, if it panicked, goes on in this thread.
