@@ -687,7 +687,7 @@ impl Task<'_> {
 /// How many requests a task has in flight when it reads or writes several objects (its inputs
 /// from the stage before, its partitions for the next): on S3 each request waits tens of
 /// milliseconds for its first byte, and waiting for several at once costs no more than for one.
-const PARALLEL_REQUESTS: usize = 8;
+pub const PARALLEL_REQUESTS: usize = 8;
 
 /// `request` of every item of `items`, in order, up to [`PARALLEL_REQUESTS`] at a time, each
 /// wave on threads of its own (one item runs on the calling thread).

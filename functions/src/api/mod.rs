@@ -44,7 +44,7 @@ pub use error::ApiError;
 pub use predict::{
     CLIENT_PUTS, JobStep, Prediction, PredictionModel, RATES, Rates, SPLIT_BYTES_PER_TRIANGLE,
     SPLIT_NORMAL_BYTES_PER_TRIANGLE, StagePrediction, job_steps, predict, preview_plan,
-    stage_bytes, stage_bytes_read, stage_requests, step_tasks, task_milliseconds, usd,
+    stage_bytes, stage_bytes_read, stage_requests, step_tasks, task_milliseconds, task_waits, usd,
 };
 pub use projection::{
     LAMBDA_FACTS, LambdaFacts, Projection, ProjectionSettings, SWEEP, StageProjection, Target,

@@ -35,7 +35,9 @@ use hort_core::camera::Camera;
 use hort_core::cost::{Arch, CostBreakdown, CostInputs, estimate, standard_transitions_for};
 use hort_core::coverage::camera_hit_fraction;
 use hort_core::ids::Stage;
-use hort_core::pipeline::{JobPlan, JobShape, PlanRequest, SplitInfo, assign_splits, plan_job};
+use hort_core::pipeline::{
+    JobPlan, JobShape, PARALLEL_REQUESTS, PlanRequest, SplitInfo, assign_splits, plan_job,
+};
 use hort_core::scene::{NO_NORMAL, Scene};
 use serde::Serialize;
 
@@ -567,6 +569,31 @@ pub fn stage_requests(plan: &JobPlan, step: JobStep) -> (u64, u64) {
     }
 }
 
+/// Requests one task of `step` waits for one after another, on average: its share of
+/// [`stage_requests`], except that the several inputs a task reads (cast-reduce, trace-reduce,
+/// combine) and the several partitions it writes (expand) count once per wave of
+/// [`PARALLEL_REQUESTS`] it has in flight at once (docs/ARCHITECTURE.md, section 3).
+pub fn task_waits(plan: &JobPlan, step: JobStep) -> f64 {
+    let tasks = step_tasks(plan, step).max(1) as f64;
+    let (gets, puts) = stage_requests(plan, step);
+    let requests = (gets + puts) as f64 / tasks;
+    let s = plan.spans.len().max(1) as f64;
+    let k = f64::from(plan.k());
+    let waves = |n: f64| (n / PARALLEL_REQUESTS as f64).ceil();
+    // Per task: the requests made several at a time, and as how many waits they count.
+    let several = match step {
+        JobStep::Stage(Stage::CastReduce) => plan.cast_tasks.len() as f64 / s,
+        JobStep::Stage(Stage::TraceReduce) if plan.has_shadows() => k,
+        JobStep::Stage(Stage::Expand) => k,
+        JobStep::Stage(Stage::Combine) => s,
+        _ => 0.0,
+    };
+    if several <= 1.0 {
+        return requests;
+    }
+    requests - several + waves(several)
+}
+
 /// Estimated bytes `step` of `plan` writes over all its tasks: the split objects (plan, or
 /// build for a scene split by tasks), a record per hit (cast-map, cast-reduce) or per camera
 /// sample (trace-reduce), a record per shadow query (expand, trace-map), the pixels' sums and hits
@@ -663,6 +690,48 @@ mod tests {
         };
         let (shape, s) = hort_core::pipeline::resolve_counts(&request, 36).unwrap();
         preview_plan(&scene, &request, &shape, s).unwrap()
+    }
+
+    #[test]
+    fn several_inputs_or_outputs_of_a_task_are_waited_for_in_waves_of_eight() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell/cornell.json");
+        let scene = hort_core::scene::load_scene(&path).expect("the bundled Cornell box");
+        let request = PlanRequest {
+            width: 64,
+            height: 48,
+            spp: 1,
+            splits: Some(20),
+            spans: Some(10),
+            mode: SplitMode::Naive,
+            execution: None,
+            memory_mb: 2048,
+            adaptive: None,
+        };
+        let (shape, s) = hort_core::pipeline::resolve_counts(&request, 36).unwrap();
+        let plan = preview_plan(&scene, &request, &shape, s).unwrap();
+        assert!(plan.has_shadows());
+        let per_task = |stage: Stage| {
+            let (g, p) = stage_requests(&plan, JobStep::Stage(stage));
+            (g + p) as f64 / step_tasks(&plan, JobStep::Stage(stage)) as f64
+        };
+        let waits = |stage: Stage| task_waits(&plan, JobStep::Stage(stage));
+        // Naive splits: every span casts against all 20 splits. 20 inputs or outputs are
+        // three waves of at most eight; the spans' 10 pixel blocks two.
+        assert_eq!(
+            waits(Stage::CastReduce),
+            per_task(Stage::CastReduce) - 20.0 + 3.0
+        );
+        assert_eq!(
+            waits(Stage::TraceReduce),
+            per_task(Stage::TraceReduce) - 20.0 + 3.0
+        );
+        assert_eq!(waits(Stage::Expand), per_task(Stage::Expand) - 20.0 + 3.0);
+        assert_eq!(waits(Stage::Combine), per_task(Stage::Combine) - 10.0 + 2.0);
+        // One input each: every request is waited for.
+        for stage in [Stage::Plan, Stage::CastMap, Stage::TraceMap] {
+            assert_eq!(waits(stage), per_task(stage), "{stage}");
+        }
     }
 
     #[test]

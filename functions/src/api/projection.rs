@@ -22,7 +22,7 @@ use serde::Serialize;
 
 use super::predict::{
     CLIENT_PUTS, JobStep, Rates, job_steps, split_load_ms, stage_bytes, stage_bytes_read,
-    stage_requests, standard_transitions, step_tasks, task_milliseconds, upload_ms,
+    stage_requests, standard_transitions, step_tasks, task_milliseconds, task_waits, upload_ms,
 };
 
 /// The function counts of the sweep every projection reports.
@@ -233,11 +233,13 @@ pub fn project(plan: &JobPlan, functions: u32, settings: &ProjectionSettings) ->
             settings.rates.task_overhead_ms
         };
         let round_trips = per_task(g) + per_task(pu);
+        // Requests a task waits for one after another (several inputs are fetched at once).
+        let waits = task_waits(plan, step);
         let (task_ms, seconds_of_stage, bound) = match settings.target {
             Target::Aws { .. } => {
                 let moved = bytes + stage_bytes_read(plan, step);
                 let task_ms = f.invoke_ms
-                    + round_trips * f.s3_first_byte_ms
+                    + waits * f.s3_first_byte_ms
                     + per_task(moved) / (f.s3_mb_per_s * 1e3)
                     + work_ms;
                 let c = u64::from(concurrency).min(tasks.max(1));
@@ -313,7 +315,7 @@ pub fn project(plan: &JobPlan, functions: u32, settings: &ProjectionSettings) ->
                     }
                     _ => 0.0,
                 };
-                let wait_ms = (round_trips - cached).max(0.0) * s3_latency_ms;
+                let wait_ms = (waits - cached).max(0.0) * s3_latency_ms;
                 let task_ms = cpu_ms + wait_ms;
                 let c = f64::from(cores.max(1));
                 // Slots beyond the cores overlap their waits with others' compute, but the
