@@ -97,25 +97,25 @@ pub struct Rates {
 
 /// The reference rates: `hort render` through the emulator (embedded S3 server, debug build of
 /// everything but `hort-core`) on a 2-core x86-64 machine, refitted 2026-12-02 from the stage
-/// times of the bundled Cornell box (512x512, 16 spp), teapot and bunny and a generated
-/// 300,000-triangle scene (960x540, 1 spp), fused and staged with 2 splits (docs/ARCHITECTURE.md
-/// section 13, `hort plan`). See the module documentation.
+/// times of the bundled Cornell box and teapot and a generated 300,000-triangle scene (960x540,
+/// 1 spp, fused; the Cornell box at 16 spp staged with 2 splits), after storage stopped hashing
+/// every PUT body (docs/ARCHITECTURE.md section 13, `hort plan`). See the module documentation.
 pub const RATES: Rates = Rates {
-    job_overhead_ms: 200.0,
+    job_overhead_ms: 100.0,
     task_overhead_ms: 10.0,
     stage_overhead_ms: 20.0,
     plan_overhead_ms: 20.0,
-    plan_us_per_triangle: 2.5,
-    cast_us_per_sample: 0.6,
-    cast_reduce_us_per_sample: 1.2,
-    expand_us_per_query: 1.0,
-    trace_us_per_query: 0.1,
-    trace_reduce_us_per_query: 0.3,
-    combine_us_per_pixel: 1.5,
+    plan_us_per_triangle: 1.5,
+    cast_us_per_sample: 0.24,
+    cast_reduce_us_per_sample: 0.6,
+    expand_us_per_query: 0.42,
+    trace_us_per_query: 0.07,
+    trace_reduce_us_per_query: 0.09,
+    combine_us_per_pixel: 0.3,
     render_us_per_ray: 0.057,
     render_us_per_ray_log2: 0.013,
-    split_load_us_per_triangle: 0.4,
-    upload_us_per_triangle: 2.0,
+    split_load_us_per_triangle: 0.15,
+    upload_us_per_triangle: 0.9,
     file_upload_us_per_byte: 0.004,
     scan_us_per_byte: 0.010,
     partition_us_per_byte: 0.034,
@@ -674,6 +674,12 @@ mod tests {
 
     /// The bundled Cornell box previewed at 64x48, 2 spp, staged over 2 splits and 3 spans.
     fn cornell_plan() -> JobPlan {
+        cornell_plan_of(2, 3, SplitMode::Spatial)
+    }
+
+    /// The bundled Cornell box previewed at 64x48, 2 spp, over `splits` splits cut by `mode`
+    /// and `spans` spans.
+    fn cornell_plan_of(splits: u32, spans: u32, mode: SplitMode) -> JobPlan {
         let path =
             std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell/cornell.json");
         let scene = hort_core::scene::load_scene(&path).expect("the bundled Cornell box");
@@ -681,9 +687,9 @@ mod tests {
             width: 64,
             height: 48,
             spp: 2,
-            splits: Some(2),
-            spans: Some(3),
-            mode: SplitMode::Spatial,
+            splits: Some(splits),
+            spans: Some(spans),
+            mode,
             execution: None,
             memory_mb: 2048,
             adaptive: None,
@@ -694,22 +700,7 @@ mod tests {
 
     #[test]
     fn several_inputs_or_outputs_of_a_task_are_waited_for_in_waves_of_eight() {
-        let path =
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell/cornell.json");
-        let scene = hort_core::scene::load_scene(&path).expect("the bundled Cornell box");
-        let request = PlanRequest {
-            width: 64,
-            height: 48,
-            spp: 1,
-            splits: Some(20),
-            spans: Some(10),
-            mode: SplitMode::Naive,
-            execution: None,
-            memory_mb: 2048,
-            adaptive: None,
-        };
-        let (shape, s) = hort_core::pipeline::resolve_counts(&request, 36).unwrap();
-        let plan = preview_plan(&scene, &request, &shape, s).unwrap();
+        let plan = cornell_plan_of(20, 10, SplitMode::Naive);
         assert!(plan.has_shadows());
         let per_task = |stage: Stage| {
             let (g, p) = stage_requests(&plan, JobStep::Stage(stage));

@@ -86,10 +86,12 @@ pub const EMULATOR_REQUESTS_IN_OVERHEAD: f64 = 3.0;
 /// table: about 0.004 s per request on the reference machine).
 pub const EMULATOR_REQUEST_MS: f64 = 4.0;
 /// The embedded S3 server's time per byte of the job's outputs (Combine's PNG, PFM and hit
-/// buffer, stored uncompressed), us at speed 1, beyond Combine's per-pixel rate: fitted
-/// 2026-12-02 to the Combine stage of the Cornell box at 960x540 (0.035 us per byte at speed
-/// 0.83). The shuffle blocks of the other stages are compressed and small beside their work.
-pub const EMULATOR_OUTPUT_BYTE_US: f64 = 0.03;
+/// buffer, stored uncompressed, at once), us at speed 1, beyond Combine's per-pixel rate:
+/// fitted 2026-12-02 to the Combine stage of the teapot, the Cornell box and a generated
+/// 300,000-triangle scene at 960x540 (storage 0.14 to 0.26 s for 12.4 MB at speed 0.8) and
+/// `hort bench plan`. The shuffle blocks of the other stages are compressed and small beside
+/// their work.
+pub const EMULATOR_OUTPUT_BYTE_US: f64 = 0.012;
 
 /// Where the job would run.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
