@@ -441,14 +441,10 @@ impl Task<'_> {
                 let (image, hits) = timed(&mut self.metrics.compute_us, || {
                     stages::combine(plan, &blocks)
                 });
-                // The PNG (the slowest to encode) is encoded beside the other two, and the
-                // three are stored at once: a Combine task is the only one running then.
+                // Encoded on this thread, so that the task's memory count sees the encoders'
+                // buffers (it counts this thread's allocations); stored at once.
                 let (png, pfm, hit_bytes) = timed(&mut self.metrics.encode_us, || {
-                    std::thread::scope(|scope| {
-                        let png = scope.spawn(|| encode_png(&image));
-                        let others = (encode_pfm(&image), encode_hits(&hits));
-                        (joined(png), others.0, others.1)
-                    })
+                    (encode_png(&image), encode_pfm(&image), encode_hits(&hits))
                 });
                 let png = png.map_err(|e| PipelineError::BadInput(e.to_string()))?;
                 self.write_plain_all(&[
@@ -709,7 +705,10 @@ fn in_waves<I: Sync, T: Send>(items: &[I], request: impl Fn(&I) -> T + Sync) -> 
     })
 }
 
-/// Every object of `keys`, in order, fetched [`in_waves`].
+/// Every object of `keys`, in order, fetched [`in_waves`]. The bytes are allocated on the
+/// helper threads, so a task's memory count of its own thread (`hort-task-memory`, as the
+/// emulator measures functions that share a process) leaves them out: at most the compressed
+/// size of the task's inputs. A Lambda function's count is the whole process's and has them.
 fn fetch_all(store: &dyn BlobStore, keys: &[String]) -> Vec<Result<Vec<u8>, StoreError>> {
     in_waves(keys, |key| store.get(key))
 }
