@@ -13,7 +13,8 @@ use aws_sdk_s3::Client;
 use aws_sdk_s3::config::{ProvideCredentials, SharedCredentialsProvider};
 use aws_sdk_s3::primitives::ByteStream;
 use aws_sdk_s3::types::{BucketLocationConstraint, CreateBucketConfiguration};
-use hort_core::store::{BlobStore, PutOutcome, StoreError};
+use futures_util::{StreamExt, stream};
+use hort_core::store::{BlobStore, PARALLEL_REQUESTS, PutOutcome, StoreError};
 use tokio::runtime::{Handle, Runtime, RuntimeFlavor};
 
 use crate::s3_config::{S3Config, signs_payloads};
@@ -550,33 +551,80 @@ impl S3Store {
     }
 }
 
-impl BlobStore for S3Store {
-    fn get(&self, key: &str) -> Result<Vec<u8>, StoreError> {
+impl S3Store {
+    async fn get_async(&self, key: &str) -> Result<Vec<u8>, StoreError> {
         let request = Request {
             op: "get",
             key: Some(key),
             object_read: true,
         };
-        self.handle.block_on(async {
-            let mut attempt = 1;
-            loop {
-                let out = self
-                    .client
-                    .get_object()
-                    .bucket(&self.target.bucket)
-                    .key(key)
-                    .send()
-                    .await
-                    .map_err(|e| s3_errors::store_error(e, request, &self.target))?;
-                match self.collect(out.body, out.content_length, request).await {
-                    Err(_) if attempt < self.body_attempts => {
-                        body_retry_pause(attempt).await;
-                        attempt += 1;
-                    }
-                    read => return read,
+        let mut attempt = 1;
+        loop {
+            let out = self
+                .client
+                .get_object()
+                .bucket(&self.target.bucket)
+                .key(key)
+                .send()
+                .await
+                .map_err(|e| s3_errors::store_error(e, request, &self.target))?;
+            match self.collect(out.body, out.content_length, request).await {
+                Err(_) if attempt < self.body_attempts => {
+                    body_retry_pause(attempt).await;
+                    attempt += 1;
                 }
+                read => return read,
             }
-        })
+        }
+    }
+
+    async fn put_async(&self, key: &str, bytes: &[u8]) -> Result<(), StoreError> {
+        let request = Request {
+            op: "put",
+            key: Some(key),
+            object_read: false,
+        };
+        let put = self
+            .client
+            .put_object()
+            .bucket(&self.target.bucket)
+            .key(key)
+            .content_length(len_i64(bytes))
+            .body(ByteStream::from(bytes.to_vec()));
+        let answer = if self.signs_payloads {
+            put.send().await
+        } else {
+            put.customize().disable_payload_signing().send().await
+        };
+        answer
+            .map(drop)
+            .map_err(|e| s3_errors::store_error(e, request, &self.target))
+    }
+}
+
+impl BlobStore for S3Store {
+    fn get(&self, key: &str) -> Result<Vec<u8>, StoreError> {
+        self.handle.block_on(self.get_async(key))
+    }
+
+    /// Up to [`PARALLEL_REQUESTS`] GETs in flight, driven on the calling thread.
+    fn get_many(&self, keys: &[String]) -> Vec<Result<Vec<u8>, StoreError>> {
+        self.handle.block_on(
+            stream::iter(keys)
+                .map(|key| self.get_async(key))
+                .buffered(PARALLEL_REQUESTS)
+                .collect(),
+        )
+    }
+
+    /// Up to [`PARALLEL_REQUESTS`] PUTs in flight, driven on the calling thread.
+    fn put_many(&self, objects: &[(String, Vec<u8>)]) -> Vec<Result<(), StoreError>> {
+        self.handle.block_on(
+            stream::iter(objects)
+                .map(|(key, bytes)| self.put_async(key, bytes))
+                .buffered(PARALLEL_REQUESTS)
+                .collect(),
+        )
     }
 
     fn get_range(&self, key: &str, range: Range<u64>) -> Result<Vec<u8>, StoreError> {
@@ -584,28 +632,7 @@ impl BlobStore for S3Store {
     }
 
     fn put(&self, key: &str, bytes: &[u8]) -> Result<(), StoreError> {
-        let request = Request {
-            op: "put",
-            key: Some(key),
-            object_read: false,
-        };
-        self.handle.block_on(async {
-            let put = self
-                .client
-                .put_object()
-                .bucket(&self.target.bucket)
-                .key(key)
-                .content_length(len_i64(bytes))
-                .body(ByteStream::from(bytes.to_vec()));
-            let answer = if self.signs_payloads {
-                put.send().await
-            } else {
-                put.customize().disable_payload_signing().send().await
-            };
-            answer
-                .map(drop)
-                .map_err(|e| s3_errors::store_error(e, request, &self.target))
-        })
+        self.handle.block_on(self.put_async(key, bytes))
     }
 
     /// Sends `If-None-Match: *`: HTTP 412 means [`PutOutcome::AlreadyExists`]. If an attempt

@@ -61,8 +61,8 @@ pub use records::{
 };
 pub use refine_list::{RefineList, decode_refine_list, encode_refine_list};
 pub use runner::{
-    PARALLEL_REQUESTS, RebuildSplit, TaskMetrics, micros, producer_of, refined_spans, run_task,
-    run_task_cached, run_task_with, timed,
+    RebuildSplit, TaskMetrics, micros, producer_of, refined_spans, run_task, run_task_cached,
+    run_task_with, timed,
 };
 pub use split::{SplitMode, assign_splits, rebuild_split, split_scene, split_scene_objects};
 pub use split_cache::SplitCache;

@@ -441,8 +441,7 @@ impl Task<'_> {
                 let (image, hits) = timed(&mut self.metrics.compute_us, || {
                     stages::combine(plan, &blocks)
                 });
-                // Encoded on this thread, so that the task's memory count sees the encoders'
-                // buffers (it counts this thread's allocations); stored at once.
+                // Stored at once (`put_all`).
                 let (png, pfm, hit_bytes) = timed(&mut self.metrics.encode_us, || {
                     (encode_png(&image), encode_pfm(&image), encode_hits(&hits))
                 });
@@ -554,10 +553,10 @@ impl Task<'_> {
         self.decode_or_recompute(key, fetched, decode)
     }
 
-    /// [`Task::read`] of every key of `keys`, decoded in order, with up to [`PARALLEL_REQUESTS`]
-    /// fetched at once first (their requests' latencies overlap instead of adding up; storage
-    /// time is the wall time of the fetches). A block lost or corrupt is recomputed from its
-    /// producer as `read` does.
+    /// [`Task::read`] of every key of `keys`, decoded in order, all fetched first with
+    /// [`BlobStore::get_many`] (on S3 several at once, so their requests' latencies overlap
+    /// instead of adding up; storage time is the wall time of the fetches). A block lost or
+    /// corrupt is recomputed from its producer as `read` does.
     fn read_all<T>(
         &mut self,
         keys: &[String],
@@ -639,8 +638,7 @@ impl Task<'_> {
         self.put_output(key, block)
     }
 
-    /// Writes blocks `(key, block, records)`, up to [`PARALLEL_REQUESTS`] at once (see
-    /// [`put_all`]).
+    /// Writes blocks `(key, block, records)` with [`put_all`].
     fn write_all(&mut self, blocks: Vec<(String, Vec<u8>, usize)>) -> Result<(), PipelineError> {
         let objects = blocks
             .into_iter()
@@ -653,8 +651,7 @@ impl Task<'_> {
         self.put_objects(&objects)
     }
 
-    /// Writes final outputs (not blocks: their raw size is their size) at once (see
-    /// [`put_all`]).
+    /// Writes final outputs (not blocks: their raw size is their size) with [`put_all`].
     fn write_plain_all(&mut self, outputs: &[(String, Vec<u8>)]) -> Result<(), PipelineError> {
         for (_, bytes) in outputs {
             self.metrics.bytes_written_raw += bytes.len() as u64;
@@ -680,52 +677,16 @@ impl Task<'_> {
     }
 }
 
-/// How many requests a task has in flight when it reads or writes several objects (its inputs
-/// from the stage before, its partitions for the next): on S3 each request waits tens of
-/// milliseconds for its first byte, and waiting for several at once costs no more than for one.
-pub const PARALLEL_REQUESTS: usize = 8;
-
-/// `request` of every item of `items`, in order, up to [`PARALLEL_REQUESTS`] at a time, each
-/// wave on threads of its own (one item runs on the calling thread).
-fn in_waves<I: Sync, T: Send>(items: &[I], request: impl Fn(&I) -> T + Sync) -> Vec<T> {
-    if items.len() < 2 {
-        return items.iter().map(request).collect();
-    }
-    let request = &request;
-    std::thread::scope(|scope| {
-        let mut done = Vec::with_capacity(items.len());
-        for wave in items.chunks(PARALLEL_REQUESTS) {
-            let running: Vec<_> = wave
-                .iter()
-                .map(|item| scope.spawn(move || request(item)))
-                .collect();
-            done.extend(running.into_iter().map(joined));
-        }
-        done
-    })
-}
-
-/// Every object of `keys`, in order, fetched [`in_waves`]. The bytes are allocated on the
-/// helper threads, so a task's memory count of its own thread (`hort-task-memory`, as the
-/// emulator measures functions that share a process) leaves them out: at most the compressed
-/// size of the task's inputs. A Lambda function's count is the whole process's and has them.
+/// Every object of `keys`, in order: [`BlobStore::get_many`], which keeps several requests in
+/// flight on this thread where they wait on a network.
 fn fetch_all(store: &dyn BlobStore, keys: &[String]) -> Vec<Result<Vec<u8>, StoreError>> {
-    in_waves(keys, |key| store.get(key))
+    store.get_many(keys)
 }
 
-/// Stores every `(key, bytes)` of `objects` [`in_waves`]; the first error in `objects` order,
-/// if any (others may be stored: a retry rewrites the same bytes).
+/// Stores every `(key, bytes)` of `objects` with [`BlobStore::put_many`]; the first error in
+/// `objects` order, if any (others may be stored: a retry rewrites the same bytes).
 fn put_all(store: &dyn BlobStore, objects: &[(String, Vec<u8>)]) -> Result<(), StoreError> {
-    in_waves(objects, |(key, bytes)| store.put(key, bytes))
-        .into_iter()
-        .collect()
-}
-
-/// What a scoped thread returned; its panic, if it panicked, goes on in this thread.
-fn joined<T>(handle: std::thread::ScopedJoinHandle<'_, T>) -> T {
-    handle
-        .join()
-        .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+    store.put_many(objects).into_iter().collect()
 }
 
 /// The record count recorded at bytes 12..20 of a block header already checked.

@@ -20,6 +20,7 @@ pub fn run_all(store: &dyn BlobStore, prefix: &str) {
     get_missing_is_not_found(store, prefix);
     put_get_round_trip(store, prefix);
     overwrite_replaces(store, prefix);
+    many_at_once_keep_their_order(store, prefix);
     get_range_clamps_and_rejects(store, prefix);
     put_if_absent_creates_once(store, prefix);
     put_if_absent_race_has_one_winner(store, prefix);
@@ -79,6 +80,33 @@ pub fn put_get_round_trip(store: &dyn BlobStore, prefix: &str) {
         must("put", &key, store.put(&key, &bytes));
         let back = must("get after put", &key, store.get(&key));
         expect_bytes("get after put", &key, &back, &bytes);
+    }
+}
+
+/// `put_many` stores every object and `get_many` returns each key's own result, in order,
+/// for more keys than one wave of [`super::PARALLEL_REQUESTS`], a missing key among them.
+pub fn many_at_once_keep_their_order(store: &dyn BlobStore, prefix: &str) {
+    let objects: Vec<(String, Vec<u8>)> = (0..2 * super::PARALLEL_REQUESTS + 3)
+        .map(|i| (format!("{prefix}many/{i:02}"), vec![i as u8; 1000 * i]))
+        .collect();
+    for (result, (key, _)) in store.put_many(&objects).into_iter().zip(&objects) {
+        must("put_many", key, result);
+    }
+    let mut keys: Vec<String> = objects.iter().map(|(key, _)| key.clone()).collect();
+    let missing = format!("{prefix}many/missing");
+    keys.insert(5, missing.clone());
+    let results = store.get_many(&keys);
+    expect_eq("get_many result count", prefix, results.len(), keys.len());
+    let mut results = results.into_iter();
+    for (i, key) in keys.iter().enumerate() {
+        let result = results.next().expect("one result per key");
+        if i == 5 {
+            expect_not_found("get_many of a missing key", &missing, result);
+        } else {
+            let back = must("get_many", key, result);
+            let (_, want) = &objects[if i < 5 { i } else { i - 1 }];
+            expect_bytes("get_many", key, &back, want);
+        }
     }
 }
 

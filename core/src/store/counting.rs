@@ -132,6 +132,20 @@ impl<S: BlobStore> BlobStore for CountingStore<S> {
         self.counters.delete();
         self.inner.delete(key)
     }
+
+    fn get_many(&self, keys: &[String]) -> Vec<Result<Vec<u8>, StoreError>> {
+        let results = self.inner.get_many(keys);
+        results.iter().for_each(|result| self.counters.get(result));
+        results
+    }
+
+    fn put_many(&self, objects: &[(String, Vec<u8>)]) -> Vec<Result<(), StoreError>> {
+        let results = self.inner.put_many(objects);
+        for ((_, bytes), result) in objects.iter().zip(&results) {
+            self.counters.put(bytes.len(), result.is_ok());
+        }
+        results
+    }
 }
 
 #[cfg(test)]

@@ -112,7 +112,28 @@ pub trait BlobStore: Send + Sync {
 
     /// Removes the object; deleting a missing key succeeds (S3 semantics).
     fn delete(&self, key: &str) -> Result<(), StoreError>;
+
+    /// `get` of every key of `keys`, in order. A store whose requests wait on a network keeps up
+    /// to [`PARALLEL_REQUESTS`] in flight at once, on the calling thread (so a task's memory
+    /// count, which is per thread, sees the bytes); by default they run one after another.
+    fn get_many(&self, keys: &[String]) -> Vec<Result<Vec<u8>, StoreError>> {
+        keys.iter().map(|key| self.get(key)).collect()
+    }
+
+    /// `put` of every `(key, bytes)` of `objects`, in order, as [`BlobStore::get_many`] runs
+    /// its requests.
+    fn put_many(&self, objects: &[(String, Vec<u8>)]) -> Vec<Result<(), StoreError>> {
+        objects
+            .iter()
+            .map(|(key, bytes)| self.put(key, bytes))
+            .collect()
+    }
 }
+
+/// How many requests [`BlobStore::get_many`] and [`BlobStore::put_many`] keep in flight on a
+/// store whose requests wait on a network: on S3 each waits tens of milliseconds for its first
+/// byte, and waiting for several at once costs no more than for one.
+pub const PARALLEL_REQUESTS: usize = 8;
 
 /// Request and byte counts of a store, as counted by [`CountingStore`] or [`MemoryStore`].
 ///

@@ -62,6 +62,14 @@ impl<S: BlobStore> BlobStore for TimedStore<S> {
     fn delete(&self, key: &str) -> Result<(), StoreError> {
         self.timed(|s| s.delete(key))
     }
+
+    fn get_many(&self, keys: &[String]) -> Vec<Result<Vec<u8>, StoreError>> {
+        self.timed(|s| s.get_many(keys))
+    }
+
+    fn put_many(&self, objects: &[(String, Vec<u8>)]) -> Vec<Result<(), StoreError>> {
+        self.timed(|s| s.put_many(objects))
+    }
 }
 
 #[cfg(test)]

@@ -35,10 +35,9 @@ use hort_core::camera::Camera;
 use hort_core::cost::{Arch, CostBreakdown, CostInputs, estimate, standard_transitions_for};
 use hort_core::coverage::camera_hit_fraction;
 use hort_core::ids::Stage;
-use hort_core::pipeline::{
-    JobPlan, JobShape, PARALLEL_REQUESTS, PlanRequest, SplitInfo, assign_splits, plan_job,
-};
+use hort_core::pipeline::{JobPlan, JobShape, PlanRequest, SplitInfo, assign_splits, plan_job};
 use hort_core::scene::{NO_NORMAL, Scene};
+use hort_core::store::PARALLEL_REQUESTS;
 use serde::Serialize;
 
 use super::error::ApiError;

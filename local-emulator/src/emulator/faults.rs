@@ -254,4 +254,17 @@ impl BlobStore for FailAfterPuts<'_> {
     fn delete(&self, key: &str) -> Result<(), StoreError> {
         self.inner.delete(key)
     }
+    fn get_many(&self, keys: &[String]) -> Vec<Result<Vec<u8>, StoreError>> {
+        self.inner.get_many(keys)
+    }
+    fn put_many(&self, objects: &[(String, Vec<u8>)]) -> Vec<Result<(), StoreError>> {
+        // The objects the budget still covers go through; the first it does not, and every
+        // one after, fail.
+        let spent: Vec<Result<(), StoreError>> =
+            objects.iter().map(|(key, _)| self.spend(key)).collect();
+        let allowed = spent.iter().take_while(|r| r.is_ok()).count();
+        let mut results = self.inner.put_many(&objects[..allowed]);
+        results.extend(spent.into_iter().skip(allowed));
+        results
+    }
 }
