@@ -17,11 +17,17 @@ pub fn printable(text: &str) -> String {
         .collect()
 }
 
+/// `path` as a message shows it: its display form, control characters escaped ([`printable`]),
+/// so a file name taken from a manifest keeps the message on one line.
+fn shown(path: &std::path::Path) -> String {
+    printable(&path.display().to_string())
+}
+
 /// Why a scene could not be loaded or rendered. `Display` is one line meant for a user.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
     /// The file could not be read at all.
-    #[error("cannot read {path}: {source}")]
+    #[error("cannot read {p}: {source}", p = shown(path))]
     Io {
         /// The file that could not be opened or read.
         path: PathBuf,
@@ -30,7 +36,7 @@ pub enum SceneError {
         source: std::io::Error,
     },
     /// The file is not an OBJ (binary data, or a statement OBJ does not have).
-    #[error("{path}:{line}: not an OBJ file: {detail}")]
+    #[error("{p}:{line}: not an OBJ file: {detail}", p = shown(path))]
     NotObj {
         /// The OBJ file.
         path: PathBuf,
@@ -40,7 +46,7 @@ pub enum SceneError {
         detail: String,
     },
     /// A statement of a known kind could not be parsed (bad number, too few values).
-    #[error("{path}:{line}: {detail}")]
+    #[error("{p}:{line}: {detail}", p = shown(path))]
     Syntax {
         /// The OBJ file.
         path: PathBuf,
@@ -51,8 +57,9 @@ pub enum SceneError {
     },
     /// A face refers to a vertex or normal that does not exist.
     #[error(
-        "{path}:{line}: face refers to {what} {index}, but only {count} {plural} are defined so far",
-        plural = plural_of(what)
+        "{p}:{line}: face refers to {what} {index}, but only {count} {plural} are defined so far",
+        plural = plural_of(what),
+        p = shown(path)
     )]
     IndexOutOfRange {
         /// The OBJ file.
@@ -67,7 +74,7 @@ pub enum SceneError {
         count: usize,
     },
     /// A vertex or normal has a NaN or infinite coordinate.
-    #[error("{path}:{line}: {what} has a non-finite coordinate ({text})")]
+    #[error("{p}:{line}: {what} has a non-finite coordinate ({text})", p = shown(path))]
     NonFinite {
         /// The OBJ file.
         path: PathBuf,
@@ -79,28 +86,29 @@ pub enum SceneError {
         text: String,
     },
     /// The scene has no triangles at all.
-    #[error("{path}: the scene contains no triangles")]
+    #[error("{p}: the scene contains no triangles", p = shown(path))]
     Empty {
         /// The scene file (OBJ or manifest).
         path: PathBuf,
     },
     /// Every triangle is degenerate, so the scene has no extent to frame or light.
-    #[error("{path}: the scene has no extent (all vertices coincide), so it cannot be framed")]
+    #[error("{p}: the scene has no extent (all vertices coincide), so it cannot be framed", p = shown(path))]
     NoExtent {
         /// The scene file (OBJ or manifest).
         path: PathBuf,
     },
     /// Some vertices lie farther from the scene's centre than f32 can hold.
     #[error(
-        "{path}: the scene is too large: vertices lie farther than 3.4e38 from its centre, \
-         beyond single precision"
+        "{p}: the scene is too large: vertices lie farther than 3.4e38 from its centre, \
+         beyond single precision",
+        p = shown(path)
     )]
     TooLarge {
         /// The scene file (OBJ or manifest).
         path: PathBuf,
     },
     /// A material library could not be read or parsed.
-    #[error("{path}: material library: {detail}")]
+    #[error("{p}: material library: {detail}", p = shown(path))]
     Mtl {
         /// The `.mtl` file, resolved against the OBJ file's directory.
         path: PathBuf,
@@ -108,7 +116,7 @@ pub enum SceneError {
         detail: String,
     },
     /// A JSON scene manifest is malformed; `field` is the JSON path of the bad field.
-    #[error("{path}: manifest field `{field}`: {detail}")]
+    #[error("{p}: manifest field `{field}`: {detail}", p = shown(path))]
     Manifest {
         /// The manifest file.
         path: PathBuf,
