@@ -11,6 +11,9 @@ use std::ops::Range;
 
 use aws_sdk_s3::Client;
 use aws_sdk_s3::config::{ProvideCredentials, SharedCredentialsProvider};
+use aws_sdk_s3::error::SdkError;
+use aws_sdk_s3::operation::put_object::builders::PutObjectFluentBuilder;
+use aws_sdk_s3::operation::put_object::{PutObjectError, PutObjectOutput};
 use aws_sdk_s3::primitives::ByteStream;
 use aws_sdk_s3::types::{BucketLocationConstraint, CreateBucketConfiguration};
 use futures_util::{StreamExt, stream};
@@ -483,12 +486,7 @@ impl S3Store {
                 .if_none_match("*")
                 .content_length(len_i64(bytes))
                 .body(ByteStream::from(bytes.to_vec()));
-            let answer = if self.signs_payloads {
-                put.send().await
-            } else {
-                put.customize().disable_payload_signing().send().await
-            };
-            match answer {
+            match self.send_put(put).await {
                 Ok(_) => return Ok(PutOutcome::Created),
                 Err(err) if s3_errors::is_precondition_failed(&err) => {
                     return Ok(PutOutcome::AlreadyExists);
@@ -578,6 +576,18 @@ impl S3Store {
         }
     }
 
+    /// Sends `put`, its body signed only where [`signs_payloads`] says it must be.
+    async fn send_put(
+        &self,
+        put: PutObjectFluentBuilder,
+    ) -> Result<PutObjectOutput, SdkError<PutObjectError>> {
+        if self.signs_payloads {
+            put.send().await
+        } else {
+            put.customize().disable_payload_signing().send().await
+        }
+    }
+
     async fn put_async(&self, key: &str, bytes: &[u8]) -> Result<(), StoreError> {
         let request = Request {
             op: "put",
@@ -591,12 +601,8 @@ impl S3Store {
             .key(key)
             .content_length(len_i64(bytes))
             .body(ByteStream::from(bytes.to_vec()));
-        let answer = if self.signs_payloads {
-            put.send().await
-        } else {
-            put.customize().disable_payload_signing().send().await
-        };
-        answer
+        self.send_put(put)
+            .await
             .map(drop)
             .map_err(|e| s3_errors::store_error(e, request, &self.target))
     }

@@ -441,7 +441,7 @@ impl Task<'_> {
                 let (image, hits) = timed(&mut self.metrics.compute_us, || {
                     stages::combine(plan, &blocks)
                 });
-                // Stored at once (`put_all`).
+                // Stored at once (`BlobStore::put_many`).
                 let (png, pfm, hit_bytes) = timed(&mut self.metrics.encode_us, || {
                     (encode_png(&image), encode_pfm(&image), encode_hits(&hits))
                 });
@@ -563,7 +563,7 @@ impl Task<'_> {
         decode: impl Fn(&str, &[u8]) -> Result<T, PipelineError>,
     ) -> Result<Vec<T>, PipelineError> {
         let store = self.store;
-        let fetched = timed(&mut self.metrics.storage_us, || fetch_all(store, keys));
+        let fetched = timed(&mut self.metrics.storage_us, || store.get_many(keys));
         keys.iter()
             .zip(fetched)
             .map(|(key, bytes)| self.decode_or_recompute(key, bytes, &decode))
@@ -638,7 +638,7 @@ impl Task<'_> {
         self.put_output(key, block)
     }
 
-    /// Writes blocks `(key, block, records)` with [`put_all`].
+    /// Writes blocks `(key, block, records)` with [`Task::put_objects`].
     fn write_all(&mut self, blocks: Vec<(String, Vec<u8>, usize)>) -> Result<(), PipelineError> {
         let objects = blocks
             .into_iter()
@@ -651,7 +651,8 @@ impl Task<'_> {
         self.put_objects(&objects)
     }
 
-    /// Writes final outputs (not blocks: their raw size is their size) with [`put_all`].
+    /// Writes final outputs (not blocks: their raw size is their size) with
+    /// [`Task::put_objects`].
     fn write_plain_all(&mut self, outputs: &[(String, Vec<u8>)]) -> Result<(), PipelineError> {
         for (_, bytes) in outputs {
             self.metrics.bytes_written_raw += bytes.len() as u64;
@@ -659,13 +660,17 @@ impl Task<'_> {
         self.put_objects(outputs)
     }
 
-    /// [`put_all`], counting the bytes written and the wall time as storage time.
+    /// Stores every `(key, bytes)` with [`BlobStore::put_many`], counting the bytes written and
+    /// the wall time as storage time: the first error in `objects` order, if any (others may be
+    /// stored; a retry rewrites the same bytes).
     fn put_objects(&mut self, objects: &[(String, Vec<u8>)]) -> Result<(), PipelineError> {
         for (_, bytes) in objects {
             self.metrics.bytes_written += bytes.len() as u64;
         }
         let store = self.store;
-        timed(&mut self.metrics.storage_us, || put_all(store, objects))?;
+        timed(&mut self.metrics.storage_us, || store.put_many(objects))
+            .into_iter()
+            .collect::<Result<(), StoreError>>()?;
         Ok(())
     }
 
@@ -675,18 +680,6 @@ impl Task<'_> {
         timed(&mut self.metrics.storage_us, || store.put(key, &bytes))?;
         Ok(())
     }
-}
-
-/// Every object of `keys`, in order: [`BlobStore::get_many`], which keeps several requests in
-/// flight on this thread where they wait on a network.
-fn fetch_all(store: &dyn BlobStore, keys: &[String]) -> Vec<Result<Vec<u8>, StoreError>> {
-    store.get_many(keys)
-}
-
-/// Stores every `(key, bytes)` of `objects` with [`BlobStore::put_many`]; the first error in
-/// `objects` order, if any (others may be stored: a retry rewrites the same bytes).
-fn put_all(store: &dyn BlobStore, objects: &[(String, Vec<u8>)]) -> Result<(), StoreError> {
-    store.put_many(objects).into_iter().collect()
 }
 
 /// The record count recorded at bytes 12..20 of a block header already checked.
