@@ -341,8 +341,8 @@ fn emulator_render_equals_monolithic_and_reports_cost() {
         stderr.contains("stage") && stderr.contains("compression"),
         "summary table: {stderr}"
     );
-    // A PNG is written as the job's Combine task stored it: the bytes a monolithic render
-    // encodes.
+    // A PNG is written as the job's Combine task stored it (emulator and in-process runs):
+    // the bytes a monolithic render encodes.
     let cornell = scene("cornell/cornell.json");
     let png = |name: &str, mode: &[&str]| {
         let path = dir.join(name);
@@ -361,10 +361,9 @@ fn emulator_render_equals_monolithic_and_reports_cost() {
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         std::fs::read(path).unwrap()
     };
-    assert_eq!(
-        png("emulator.png", &["--splits", "1"]),
-        png("monolithic.png", &["--monolithic"])
-    );
+    let monolithic = png("monolithic.png", &["--monolithic"]);
+    assert_eq!(png("emulator.png", &["--splits", "1"]), monolithic);
+    assert_eq!(png("in-process.png", &["--in-process"]), monolithic);
     // --data-dir keeps the objects for inspection, and a job id is used once.
     assert!(std::fs::read_dir(&data).unwrap().count() > 0);
     let again = hort(&[
