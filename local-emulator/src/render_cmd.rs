@@ -16,7 +16,6 @@ use hort_core::cost::Arch;
 use hort_core::hits::{Hit, encode_hits};
 use hort_core::ids::JobId;
 use hort_core::image::{Image, write_image};
-use hort_core::keys::image_key;
 use hort_core::pipeline::{
     ExecutionMode, PipelineOptions, PlanRequest, resolve_counts, run_pipeline,
 };
@@ -25,7 +24,7 @@ use hort_core::report::{AdaptiveReport, Outputs, RayReport, Report, Seconds, Sta
 use hort_core::scene::{
     DEFAULT_HEIGHT, DEFAULT_WIDTH, Scene, check_image_size, load_scene, scene_image_settings,
 };
-use hort_core::store::{BlobStore, MemoryStore};
+use hort_core::store::MemoryStore;
 use hort_core::unoccludable::unoccludable_lights;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -388,8 +387,6 @@ fn render_pipeline(scene: &Scene, request: PlanRequest, args: &RenderArgs) -> Re
     };
     let store = MemoryStore::new();
     let run = run_pipeline(&store, scene, request, &options)?;
-    let png_key = image_key(&options.job, "png");
-    let png = store.get(&png_key).with_context(|| png_key.clone())?;
     let counts = run
         .metrics
         .iter()
@@ -400,7 +397,7 @@ fn render_pipeline(scene: &Scene, request: PlanRequest, args: &RenderArgs) -> Re
     let adaptive = adaptive_report(request, counts);
     Ok(Rendered {
         image: run.image,
-        png: Some(png),
+        png: Some(run.png),
         hits: run.hits,
         rays: RayReport {
             primary: run.primary_rays,

@@ -40,6 +40,8 @@ pub struct PipelineRun {
     pub image: Image,
     /// The hit buffer (sample 0 of each pixel), row-major from the top-left.
     pub hits: Vec<Hit>,
+    /// The PNG the Combine task stored: `encode_png` of `image`, byte for byte.
+    pub png: Vec<u8>,
     /// Per stage: `plan` then the task stages of the plan's mode, in order.
     pub stages: Vec<StageReport>,
     /// Summed task metrics per stage, same order as `stages`.
@@ -159,6 +161,7 @@ pub fn run_pipeline(
         plan,
         image: outputs.image,
         hits: outputs.hits,
+        png: outputs.png,
         stages,
         metrics,
         render_seconds,

@@ -16,36 +16,33 @@ pub struct JobOutputs {
     pub image: Image,
     /// The hit buffer, `plan.width x plan.height` records, row-major from the top-left.
     pub hits: Vec<Hit>,
+    /// The PNG as stored (`jobs/{job}/out/image.png`): `encode_png` of `image`, byte for byte,
+    /// so a caller writing a `.png` need not encode it again.
+    pub png: Vec<u8>,
 }
 
-/// Reads and decodes the image and hit buffer of `job`, the two at once; a missing object is a
-/// storage error, a malformed one a [`PipelineError::Corrupt`] naming its key (the image's
-/// error first when both fail).
+/// Reads the image, hit buffer and PNG of `job` with one [`BlobStore::get_many`] (at once
+/// where the store can) and decodes the first two; a missing object is a storage error, a
+/// malformed one a [`PipelineError::Corrupt`] naming its key (in that order of objects when
+/// several fail).
 pub fn read_outputs(
     store: &dyn BlobStore,
     job: &JobId,
     plan: &JobPlan,
 ) -> Result<JobOutputs, PipelineError> {
-    let read_image = || {
-        let pfm_key = image_key(job, "pfm");
-        decode_pfm(&store.get(&pfm_key)?)
-            .map_err(|e| PipelineError::Corrupt(format!("{pfm_key}: {e}")))
-    };
-    let read_hits = || {
-        let hits_key = hits_key(job);
-        decode_hits(&store.get(&hits_key)?, plan.width, plan.height)
-            .map_err(|e| PipelineError::Corrupt(format!("{hits_key}: {e}")))
-    };
-    let (image, hits) = std::thread::scope(|scope| {
-        let hits = scope.spawn(read_hits);
-        let image = read_image();
-        let hits = hits
-            .join()
-            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
-        (image, hits)
-    });
+    let (pfm_key, hits_key, png_key) =
+        (image_key(job, "pfm"), hits_key(job), image_key(job, "png"));
+    let mut fetched = store
+        .get_many(&[pfm_key.clone(), hits_key.clone(), png_key])
+        .into_iter();
+    let mut next = || fetched.next().expect("get_many answers every key");
+    let (pfm, hits, png) = (next(), next(), next());
+    let image = decode_pfm(&pfm?).map_err(|e| PipelineError::Corrupt(format!("{pfm_key}: {e}")))?;
+    let hits = decode_hits(&hits?, plan.width, plan.height)
+        .map_err(|e| PipelineError::Corrupt(format!("{hits_key}: {e}")))?;
     Ok(JobOutputs {
-        image: image?,
-        hits: hits?,
+        image,
+        hits,
+        png: png?,
     })
 }

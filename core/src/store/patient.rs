@@ -28,14 +28,26 @@ impl<S: BlobStore> PatientStore<S> {
     }
 
     fn patiently<T>(&self, op: impl Fn() -> Result<T, StoreError>) -> Result<T, StoreError> {
+        self.retried(op(), op)
+    }
+
+    /// `first`, the result of a first try of `op`, or the result of trying `op` again while
+    /// the failure is retryable and attempts are left.
+    fn retried<T>(
+        &self,
+        first: Result<T, StoreError>,
+        op: impl Fn() -> Result<T, StoreError>,
+    ) -> Result<T, StoreError> {
+        let mut result = first;
         let mut wait = self.first_wait;
         let mut tries = 1;
         loop {
-            match op() {
+            match result {
                 Err(e) if e.is_retryable() && tries < self.attempts => {
                     std::thread::sleep(wait);
                     wait = wait.saturating_mul(2);
                     tries += 1;
+                    result = op();
                 }
                 result => return result,
             }
@@ -66,6 +78,27 @@ impl<S: BlobStore> BlobStore for PatientStore<S> {
 
     fn delete(&self, key: &str) -> Result<(), StoreError> {
         self.patiently(|| self.inner.delete(key))
+    }
+
+    /// All at once through the inner store's `get_many`; then each key whose first try failed
+    /// retryably is tried again on its own, with the attempts left.
+    fn get_many(&self, keys: &[String]) -> Vec<Result<Vec<u8>, StoreError>> {
+        let firsts = self.inner.get_many(keys);
+        firsts
+            .into_iter()
+            .zip(keys)
+            .map(|(first, key)| self.retried(first, || self.inner.get(key)))
+            .collect()
+    }
+
+    /// As [`PatientStore::get_many`], for puts.
+    fn put_many(&self, objects: &[(String, Vec<u8>)]) -> Vec<Result<(), StoreError>> {
+        let firsts = self.inner.put_many(objects);
+        firsts
+            .into_iter()
+            .zip(objects)
+            .map(|(first, (key, bytes))| self.retried(first, || self.inner.put(key, bytes)))
+            .collect()
     }
 }
 
@@ -131,6 +164,33 @@ mod tests {
         let store = flaky(4, unavailable);
         assert_eq!(store.get("k"), Err(unavailable()));
         assert_eq!(store.inner.calls.load(Ordering::SeqCst), 4);
+    }
+
+    #[test]
+    fn several_at_once_retry_each_failed_key_with_the_attempts_left() {
+        // Flaky's get_many is one get after another: the batch's two gets fail (calls 1 and 2),
+        // then the first key is tried again (call 3 fails, call 4 succeeds) and the second
+        // (call 5 succeeds).
+        let keys = ["k".to_owned(), "k".to_owned()];
+        let store = flaky(3, unavailable);
+        assert_eq!(
+            store.get_many(&keys),
+            [Ok(b"v".to_vec()), Ok(b"v".to_vec())]
+        );
+        assert_eq!(store.inner.calls.load(Ordering::SeqCst), 5);
+        // Five failures: the first key's four attempts (calls 1, 3, 4, 5) all fail; the second
+        // key's first try (call 2) failed and its retry (call 6) succeeds.
+        let store = flaky(5, unavailable);
+        assert_eq!(
+            store.get_many(&keys),
+            [Err(unavailable()), Ok(b"v".to_vec())]
+        );
+        assert_eq!(store.inner.calls.load(Ordering::SeqCst), 6);
+        // A missing key is an answer, not a failure: no retry.
+        let store = flaky(0, unavailable);
+        let results = store.get_many(&["gone".to_owned()]);
+        assert!(matches!(results[0], Err(StoreError::NotFound { .. })));
+        assert_eq!(store.inner.calls.load(Ordering::SeqCst), 1);
     }
 
     #[test]

@@ -35,7 +35,7 @@ use hort_core::cost::{Arch, CostBreakdown, CostInputs, estimate, standard_transi
 use hort_core::hits::Hit;
 use hort_core::ids::{JobId, Stage, TaskId};
 use hort_core::image::Image;
-use hort_core::keys::{image_key, parts_table_key, plan_key};
+use hort_core::keys::{parts_table_key, plan_key};
 use hort_core::pipeline::partition::{PartsTable, scene_range_bytes};
 use hort_core::pipeline::{JobOutputs, JobPlan, PlanRequest, read_outputs};
 use hort_core::report::StageReport;
@@ -366,17 +366,7 @@ pub fn run_job_loaded(
     };
     let plan_bytes = client.get(&plan_key(&job))?;
     let plan = JobPlan::from_json(&plan_key(&job), &plan_bytes)?;
-    // The PNG comes beside the image and the hit buffer.
-    let (outputs, png) = std::thread::scope(|scope| {
-        let png = scope.spawn(|| client.get(&image_key(&job, "png")));
-        let outputs = read_outputs(&client, &job, &plan);
-        let png = png
-            .join()
-            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
-        (outputs, png)
-    });
-    let JobOutputs { image, hits } = outputs?;
-    let png = png?;
+    let JobOutputs { image, hits, png } = read_outputs(&client, &job, &plan)?;
     let deleted_intermediates = (config.storage.is_persistent() && !options.keep_intermediates)
         .then(|| delete_intermediates(storage.s3(), &job).map_err(|e| format!("{e:#}")));
     let ledger = functions.ledger();
