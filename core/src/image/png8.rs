@@ -12,8 +12,9 @@ use super::{Image, ImageError};
 /// without evaluating it: the code value is the number of [`SrgbTable::thresholds`] at or below
 /// `v`, found from a table indexed by the top 16 bits of `v` (its exponent and 7 mantissa bits)
 /// and at most one step along the thresholds. A 1080p image's 6.2 million channels took about
-/// 0.3 s through `powf` and take 0.02 s here; the test compares the two around every threshold and over a stride
-/// of all inputs (every `f32` from 0 to 1 was compared once when this was written).
+/// 0.3 s through `powf` and take 0.02 s here; the test compares the two around every threshold
+/// and over a stride of all inputs (every `f32` from 0 to 1 was compared once when this was
+/// written).
 pub fn linear_to_srgb8(v: f32) -> u8 {
     if v.is_nan() || v <= 0.0 {
         return 0;

@@ -32,11 +32,10 @@ pub fn read_outputs(
 ) -> Result<JobOutputs, PipelineError> {
     let (pfm_key, hits_key, png_key) =
         (image_key(job, "pfm"), hits_key(job), image_key(job, "png"));
-    let mut fetched = store
+    let [pfm, hits, png]: [_; 3] = store
         .get_many(&[pfm_key.clone(), hits_key.clone(), png_key])
-        .into_iter();
-    let mut next = || fetched.next().expect("get_many answers every key");
-    let (pfm, hits, png) = (next(), next(), next());
+        .try_into()
+        .expect("get_many answers every key");
     let image = decode_pfm(&pfm?).map_err(|e| PipelineError::Corrupt(format!("{pfm_key}: {e}")))?;
     let hits = decode_hits(&hits?, plan.width, plan.height)
         .map_err(|e| PipelineError::Corrupt(format!("{hits_key}: {e}")))?;

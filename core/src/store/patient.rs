@@ -53,6 +53,21 @@ impl<S: BlobStore> PatientStore<S> {
             }
         }
     }
+
+    /// [`PatientStore::retried`] of each item's first result (`firsts[i]` the first try of
+    /// `op(&items[i])`), in order.
+    fn each_retried<I, T>(
+        &self,
+        firsts: Vec<Result<T, StoreError>>,
+        items: &[I],
+        op: impl Fn(&I) -> Result<T, StoreError>,
+    ) -> Vec<Result<T, StoreError>> {
+        firsts
+            .into_iter()
+            .zip(items)
+            .map(|(first, item)| self.retried(first, || op(item)))
+            .collect()
+    }
 }
 
 impl<S: BlobStore> BlobStore for PatientStore<S> {
@@ -83,22 +98,14 @@ impl<S: BlobStore> BlobStore for PatientStore<S> {
     /// All at once through the inner store's `get_many`; then each key whose first try failed
     /// retryably is tried again on its own, with the attempts left.
     fn get_many(&self, keys: &[String]) -> Vec<Result<Vec<u8>, StoreError>> {
-        let firsts = self.inner.get_many(keys);
-        firsts
-            .into_iter()
-            .zip(keys)
-            .map(|(first, key)| self.retried(first, || self.inner.get(key)))
-            .collect()
+        self.each_retried(self.inner.get_many(keys), keys, |key| self.inner.get(key))
     }
 
     /// As [`PatientStore::get_many`], for puts.
     fn put_many(&self, objects: &[(String, Vec<u8>)]) -> Vec<Result<(), StoreError>> {
-        let firsts = self.inner.put_many(objects);
-        firsts
-            .into_iter()
-            .zip(objects)
-            .map(|(first, (key, bytes))| self.retried(first, || self.inner.put(key, bytes)))
-            .collect()
+        self.each_retried(self.inner.put_many(objects), objects, |(key, bytes)| {
+            self.inner.put(key, bytes)
+        })
     }
 }
 
