@@ -184,7 +184,7 @@ impl PartsLoader {
     pub fn new(bounds: Aabb, nodes: usize) -> Self {
         PartsLoader {
             bounds,
-            wide: Vec::with_capacity(nodes),
+            wide: hort_huge_pages::vec_with_capacity(nodes),
             lanes: Vec::new(),
             triangles: Vec::new(),
             pack_boxes: Vec::new(),
@@ -232,8 +232,8 @@ impl PartsLoader {
             return Err(BvhPartsError::PackTotal { held, triangles });
         }
         check_nodes(&self.wide, lanes.len())?;
-        self.triangles = Vec::with_capacity(lanes.len());
-        self.pack_boxes = Vec::with_capacity(lanes.len());
+        self.triangles = hort_huge_pages::vec_with_capacity(lanes.len());
+        self.pack_boxes = hort_huge_pages::vec_with_capacity(lanes.len());
         self.lanes = lanes;
         Ok(())
     }

@@ -88,11 +88,11 @@ fn read_object(stream: &mut RawStream<'_>) -> Result<SplitObject, String> {
     if let Some(e) = nodes_error {
         return Err(e);
     }
-    let mut lanes = Vec::with_capacity(p);
+    let mut lanes = hort_huge_pages::vec_with_capacity(p);
     read_units(stream, p, 1, |b| lanes.extend_from_slice(b))?;
     bvh.set_lanes(lanes, n).map_err(|e| e.to_string())?;
 
-    let mut vertex_bits: Vec<u32> = Vec::with_capacity(3 * v);
+    let mut vertex_bits: Vec<u32> = hort_huge_pages::vec_with_capacity(3 * v);
     read_planes(stream, 3 * v, |words| {
         vertex_bits.extend_from_slice(words);
         Ok(())
@@ -117,7 +117,7 @@ fn read_object(stream: &mut RawStream<'_>) -> Result<SplitObject, String> {
     corners.finish()?;
     drop(vertex_bits);
 
-    let mut ids = Vec::with_capacity(n);
+    let mut ids = hort_huge_pages::vec_with_capacity(n);
     read_planes(stream, n, |words| {
         ids.extend_from_slice(words);
         Ok(())
@@ -131,7 +131,7 @@ fn read_object(stream: &mut RawStream<'_>) -> Result<SplitObject, String> {
             [f(&w[0]), f(&w[1]), f(&w[2])]
         }));
     })?;
-    let mut kd_index: Vec<u32> = Vec::with_capacity(n);
+    let mut kd_index: Vec<u32> = hort_huge_pages::vec_with_capacity(n);
     let mut kd = FirstUse::new(k, "kd");
     read_planes(stream, n, |indices| {
         for &i in indices {
@@ -158,7 +158,7 @@ fn read_normals(
     n: usize,
     c: usize,
 ) -> Result<(Vec<u32>, Vec<[Vec3; 3]>), String> {
-    let mut slots: Vec<u32> = Vec::with_capacity(if c > 0 { n } else { 0 });
+    let mut slots: Vec<u32> = hort_huge_pages::vec_with_capacity(if c > 0 { n } else { 0 });
     let (mut set, mut at, mut bad) = (0usize, 0usize, None);
     read_units(stream, n, 1, |flags| {
         if flags.iter().all(|&f| f == 0) {
@@ -193,7 +193,7 @@ fn read_normals(
     if set != c {
         return Err(format!("normal flags: {set} set, the header declares {c}"));
     }
-    let mut normals = Vec::with_capacity(c);
+    let mut normals = hort_huge_pages::vec_with_capacity(c);
     read_units(stream, c, 36, |bytes| {
         let (triangles, _) = bytes.as_chunks::<36>();
         normals.extend(triangles.iter().map(|t| {
