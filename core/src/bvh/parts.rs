@@ -8,7 +8,7 @@
 
 use super::build::MAX_DEPTH;
 use super::node4::{LEAF, Node4, Triangle4, UNUSED};
-use super::refit::{grow, refit};
+use super::refit::{pack_box, refit};
 use super::{Aabb, Bvh};
 use glam::Vec3;
 
@@ -168,12 +168,11 @@ pub struct PartsLoader {
     wide: Vec<Node4>,
     lanes: Vec<u8>,
     triangles: Vec<Triangle4>,
-    /// Each full pack's box, grown triangle by triangle as the pack is filled.
+    /// Each full pack's box ([`pack_box`]).
     pack_boxes: Vec<Aabb>,
-    /// The pack being filled, its box so far, its next lane, and the triangles in the packs
-    /// before it.
-    pack: Triangle4,
-    pack_box: Aabb,
+    /// The full packs, the next lane of the pack being filled (the last in `triangles` unless
+    /// 0), and the triangles in the full packs.
+    full: usize,
     lane: usize,
     first: usize,
 }
@@ -188,8 +187,7 @@ impl PartsLoader {
             lanes: Vec::new(),
             triangles: Vec::new(),
             pack_boxes: Vec::new(),
-            pack: EMPTY_PACK,
-            pack_box: Aabb::EMPTY,
+            full: 0,
             lane: 0,
             first: 0,
         }
@@ -239,28 +237,34 @@ impl PartsLoader {
     }
 
     /// Puts the next leaf-order triangle in its pack (after [`PartsLoader::set_lanes`]
-    /// succeeded; triangles beyond the packs are ignored).
+    /// succeeded; triangles beyond the packs are ignored). The pack is written where it stays,
+    /// and its box is taken once it is full.
     #[inline]
     pub fn push_triangle(&mut self, corners: [Vec3; 3]) {
-        let Some(&lanes) = self.lanes.get(self.triangles.len()) else {
+        let Some(&lanes) = self.lanes.get(self.full) else {
             return;
         };
         let lane = self.lane;
-        self.pack_box = grow(self.pack_box, &corners);
-        for (vc, p) in self.pack.v.iter_mut().zip(corners) {
+        if lane == 0 {
+            self.triangles.push(Triangle4 {
+                first: self.first as u32,
+                lanes: u32::from(lanes),
+                ..EMPTY_PACK
+            });
+        }
+        let Some(pack) = self.triangles.last_mut() else {
+            return;
+        };
+        for (vc, p) in pack.v.iter_mut().zip(corners) {
             for (va, x) in vc.iter_mut().zip(p.to_array()) {
                 va[lane] = x;
             }
         }
         self.lane += 1;
         if self.lane == usize::from(lanes) {
-            self.pack.first = self.first as u32;
-            self.pack.lanes = u32::from(lanes);
-            self.triangles.push(self.pack);
-            self.pack_boxes.push(self.pack_box);
+            self.pack_boxes.push(pack_box(pack));
             self.first += self.lane;
-            self.pack = EMPTY_PACK;
-            self.pack_box = Aabb::EMPTY;
+            self.full += 1;
             self.lane = 0;
         }
     }

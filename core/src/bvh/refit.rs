@@ -11,17 +11,40 @@
 
 use super::Aabb;
 use super::node4::{LEAF, Node4, Triangle4};
+use wide::f32x4;
 
-/// `bounds` grown by the triangle with `corners`: the step every pack box is folded with, from
-/// [`Aabb::EMPTY`], lane by lane.
-#[inline(always)]
-pub(super) fn grow(bounds: Aabb, corners: &[glam::Vec3; 3]) -> Aabb {
-    bounds.union(Aabb::of_triangle(corners))
-}
-
-/// The smallest box holding pack `pack`'s triangles (its `lanes` lanes, in lane order).
+/// The smallest box holding pack `pack`'s triangles (its `lanes` lanes): per axis, the least
+/// and the greatest of its corners' coordinates, four lanes at once. Taken with comparisons and
+/// selects in a fixed order (corners 0, 1, 2 in each lane, then lanes 0 to 3; a value replaces
+/// the one so far only if strictly less, or greater), so the bits are the same on every
+/// machine, whichever zero wins a tie between -0 and +0; a NaN coordinate is passed over.
+#[inline]
 pub(super) fn pack_box(pack: &Triangle4) -> Aabb {
-    (0..pack.lanes as usize).fold(Aabb::EMPTY, |b, lane| grow(b, &pack.corners(lane)))
+    let used = f32x4::from([0.0, 1.0, 2.0, 3.0]).simd_lt(f32x4::splat(pack.lanes as f32));
+    let v = |corner: usize, axis: usize| f32x4::from(pack.v[corner][axis]);
+    let mut lo = [0.0; 3];
+    let mut hi = [0.0; 3];
+    for axis in 0..3 {
+        let (a, b, c) = (v(0, axis), v(1, axis), v(2, axis));
+        let least = b.simd_lt(a).select(b, a);
+        let least = c.simd_lt(least).select(c, least);
+        let greatest = b.simd_gt(a).select(b, a);
+        let greatest = c.simd_gt(greatest).select(c, greatest);
+        let least = used.select(least, f32x4::splat(f32::INFINITY)).to_array();
+        let greatest = used
+            .select(greatest, f32x4::splat(f32::NEG_INFINITY))
+            .to_array();
+        lo[axis] = least
+            .into_iter()
+            .fold(f32::INFINITY, |m, x| if x < m { x } else { m });
+        hi[axis] = greatest
+            .into_iter()
+            .fold(f32::NEG_INFINITY, |m, x| if x > m { x } else { m });
+    }
+    Aabb {
+        lo: glam::Vec3::from_array(lo),
+        hi: glam::Vec3::from_array(hi),
+    }
 }
 
 /// Sets every child box of `wide` from `pack_boxes` (one per pack, [`pack_box`]'s): a leaf

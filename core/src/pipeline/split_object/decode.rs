@@ -93,10 +93,7 @@ fn read_object(stream: &mut RawStream<'_>) -> Result<SplitObject, String> {
     bvh.set_lanes(lanes, n).map_err(|e| e.to_string())?;
 
     let mut vertex_bits: Vec<u32> = hort_huge_pages::vec_with_capacity(3 * v);
-    read_planes(stream, 3 * v, |words| {
-        vertex_bits.extend_from_slice(words);
-        Ok(())
-    })?;
+    read_planes_into(stream, 3 * v, &mut vertex_bits, |_| Ok(()))?;
     let (vertices, _) = vertex_bits.as_chunks::<3>();
     let corner = |i: u32| {
         vertices
@@ -105,11 +102,9 @@ fn read_object(stream: &mut RawStream<'_>) -> Result<SplitObject, String> {
     };
     let mut corners = FirstUse::new(v, "vertex");
     read_planes(stream, 3 * n, |words| {
+        corners.check(words)?;
         let (triangles, _) = words.as_chunks::<3>();
         for &[a, b, c] in triangles {
-            corners.check(a)?;
-            corners.check(b)?;
-            corners.check(c)?;
             bvh.push_triangle([corner(a), corner(b), corner(c)]);
         }
         Ok(())
@@ -118,10 +113,7 @@ fn read_object(stream: &mut RawStream<'_>) -> Result<SplitObject, String> {
     drop(vertex_bits);
 
     let mut ids = hort_huge_pages::vec_with_capacity(n);
-    read_planes(stream, n, |words| {
-        ids.extend_from_slice(words);
-        Ok(())
-    })?;
+    read_planes_into(stream, n, &mut ids, |_| Ok(()))?;
 
     let mut kd_values: Vec<[f32; 3]> = Vec::with_capacity(k);
     read_units(stream, k, 12, |b| {
@@ -133,13 +125,7 @@ fn read_object(stream: &mut RawStream<'_>) -> Result<SplitObject, String> {
     })?;
     let mut kd_index: Vec<u32> = hort_huge_pages::vec_with_capacity(n);
     let mut kd = FirstUse::new(k, "kd");
-    read_planes(stream, n, |indices| {
-        for &i in indices {
-            kd.check(i)?;
-        }
-        kd_index.extend_from_slice(indices);
-        Ok(())
-    })?;
+    read_planes_into(stream, n, &mut kd_index, |indices| kd.check(indices))?;
     kd.finish()?;
 
     let (normal_slots, normals) = read_normals(stream, n, c)?;
@@ -225,7 +211,7 @@ fn read_units(
 }
 
 /// Reads a planes section of `count` words, handing `f` each group's words in order (whole
-/// groups of [`PLANE_GROUP`], the last one shorter).
+/// groups of [`PLANE_GROUP`], the last one shorter), from one reused buffer.
 fn read_planes(
     stream: &mut RawStream<'_>,
     count: usize,
@@ -235,21 +221,50 @@ fn read_planes(
     let mut left = count;
     while left > 0 {
         let len = left.min(PLANE_GROUP);
-        let bytes = stream.take(4 * len).ok_or(ENDED)?;
-        let (b0, rest) = bytes.split_at(len);
-        let (b1, rest) = rest.split_at(len);
-        let (b2, b3) = rest.split_at(len);
         words.clear();
-        words.extend(
-            b0.iter()
-                .zip(b1)
-                .zip(b2)
-                .zip(b3)
-                .map(|(((&a, &b), &c), &d)| u32::from_le_bytes([a, b, c, d])),
-        );
+        unshuffle_group(stream, len, &mut words)?;
         f(&words)?;
         left -= len;
     }
+    Ok(())
+}
+
+/// Reads a planes section of `count` words onto the end of `out`, group by group, handing
+/// `check` each group's words once they are in `out`.
+fn read_planes_into(
+    stream: &mut RawStream<'_>,
+    count: usize,
+    out: &mut Vec<u32>,
+    mut check: impl FnMut(&[u32]) -> Result<(), String>,
+) -> Result<(), String> {
+    let mut left = count;
+    while left > 0 {
+        let len = left.min(PLANE_GROUP);
+        let start = out.len();
+        unshuffle_group(stream, len, out)?;
+        check(&out[start..])?;
+        left -= len;
+    }
+    Ok(())
+}
+
+/// Appends to `out` the `len` words of the next group: its byte 0s, 1s, 2s and 3s.
+fn unshuffle_group(
+    stream: &mut RawStream<'_>,
+    len: usize,
+    out: &mut Vec<u32>,
+) -> Result<(), String> {
+    let bytes = stream.take(4 * len).ok_or(ENDED)?;
+    let (b0, rest) = bytes.split_at(len);
+    let (b1, rest) = rest.split_at(len);
+    let (b2, b3) = rest.split_at(len);
+    out.extend(
+        b0.iter()
+            .zip(b1)
+            .zip(b2)
+            .zip(b3)
+            .map(|(((&a, &b), &c), &d)| u32::from_le_bytes([a, b, c, d])),
+    );
     Ok(())
 }
 
@@ -273,20 +288,24 @@ impl FirstUse {
         }
     }
 
-    /// Checks the next index: after `Ok`, `index` is below `values`.
-    #[inline]
-    fn check(&mut self, index: u32) -> Result<(), String> {
-        let index_usize = index as usize;
-        if index_usize > self.used || index_usize >= self.values {
-            return Err(format!(
-                "{} index {} is {index}, expected at most {} (values in order of first use)",
-                self.what,
-                self.seen,
-                self.used.min(self.values.saturating_sub(1))
-            ));
+    /// Checks the next indices, in order: after `Ok`, each is below `values`; the error names
+    /// the first bad one.
+    fn check(&mut self, indices: &[u32]) -> Result<(), String> {
+        let mut used = self.used;
+        for (k, &index) in indices.iter().enumerate() {
+            let index_usize = index as usize;
+            if index_usize > used || index_usize >= self.values {
+                return Err(format!(
+                    "{} index {} is {index}, expected at most {} (values in order of first use)",
+                    self.what,
+                    self.seen + k,
+                    used.min(self.values.saturating_sub(1))
+                ));
+            }
+            used += usize::from(index_usize == used);
         }
-        self.used += usize::from(index_usize == self.used);
-        self.seen += 1;
+        self.used = used;
+        self.seen += indices.len();
         Ok(())
     }
 
