@@ -7,8 +7,9 @@
 //! undoing the block (checksums and zstd), of the whole `decode_split`, and of a plain copy of
 //! as many bytes as the decoded object holds into a fresh buffer (the memory-speed baseline:
 //! the same allocation and page faults, no work), once as a plain `Vec` and once advised to use
-//! huge pages as the decoder's arrays are (`hort_huge_pages`), and prints the sizes and the minimum and
-//! median times, so that a change of the split object's layout can be judged on any scene.
+//! huge pages as the decoder's arrays are (`hort_huge_pages`), and prints the sizes and the
+//! minimum and median times, so that a change of the split object's layout can be judged on any
+//! scene.
 
 use hort_core::generate::generate_scene;
 use hort_core::pipeline::{SplitMode, decode_split, encode_split, split_scene};

@@ -3,9 +3,9 @@
 //!
 //! Filling fresh memory costs a page fault per page: with 4 KiB pages that is most of the time
 //! of writing an array once (on the 2-core Firecracker VM this was measured on, a copy of 78 MB
-//! into a fresh `Vec` took 43 ms, 4 ms of it the copy, the rest 19,000 faults that each also
-//! zero their page). With the region advised `MADV_HUGEPAGE` the kernel faults in 2 MiB at a
-//! time: the same copy took 9.5 ms.
+//! into a fresh `Vec` took 36 to 43 ms, mostly its 19,000 page faults, each of which also zeroes
+//! its page). With the block advised `MADV_HUGEPAGE` the kernel faults in 2 MiB at a time: the
+//! same copy took 9.2 to 9.9 ms.
 //!
 //! # Guarantees
 //!

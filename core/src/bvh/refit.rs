@@ -21,19 +21,18 @@ use wide::f32x4;
 #[inline]
 pub(super) fn pack_box(pack: &Triangle4) -> Aabb {
     let used = f32x4::from([0.0, 1.0, 2.0, 3.0]).simd_lt(f32x4::splat(pack.lanes as f32));
-    let v = |corner: usize, axis: usize| f32x4::from(pack.v[corner][axis]);
+    let (inf, neg_inf) = (f32x4::splat(f32::INFINITY), f32x4::splat(f32::NEG_INFINITY));
     let mut lo = [0.0; 3];
     let mut hi = [0.0; 3];
     for axis in 0..3 {
-        let (a, b, c) = (v(0, axis), v(1, axis), v(2, axis));
-        let least = b.simd_lt(a).select(b, a);
-        let least = c.simd_lt(least).select(c, least);
-        let greatest = b.simd_gt(a).select(b, a);
-        let greatest = c.simd_gt(greatest).select(c, greatest);
-        let least = used.select(least, f32x4::splat(f32::INFINITY)).to_array();
-        let greatest = used
-            .select(greatest, f32x4::splat(f32::NEG_INFINITY))
-            .to_array();
+        let (mut least, mut greatest) = (inf, neg_inf);
+        for corner in &pack.v {
+            let x = f32x4::from(corner[axis]);
+            least = x.simd_lt(least).select(x, least);
+            greatest = x.simd_gt(greatest).select(x, greatest);
+        }
+        let least = used.select(least, inf).to_array();
+        let greatest = used.select(greatest, neg_inf).to_array();
         lo[axis] = least
             .into_iter()
             .fold(f32::INFINITY, |m, x| if x < m { x } else { m });

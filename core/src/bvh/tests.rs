@@ -415,3 +415,36 @@ fn every_child_box_is_the_smallest_box_of_its_triangles() {
         }
     }
 }
+
+#[test]
+fn a_pack_box_takes_its_used_lanes_in_order_passing_over_nan() {
+    // v[corner][axis][lane]; lanes 2 and 3 hold values that must not count.
+    let mut pack = node4::Triangle4 {
+        v: [[[-100.0; 4]; 3]; 3],
+        first: 0,
+        lanes: 2,
+    };
+    let corners = [
+        [[1.0, 2.0, 3.0], [4.0, f32::NAN, 6.0]],
+        [[-1.0, 5.0, 0.0], [4.0, -7.0, 6.0]],
+        [[0.5, f32::NAN, -0.0], [4.0, 5.0, f32::NAN]],
+    ];
+    for (c, lanes) in corners.iter().enumerate() {
+        for (lane, xyz) in lanes.iter().enumerate() {
+            for axis in 0..3 {
+                pack.v[c][axis][lane] = xyz[axis];
+            }
+        }
+    }
+    let b = refit::pack_box(&pack);
+    assert_eq!(
+        b.lo.to_array().map(f32::to_bits),
+        [-1.0f32, -7.0, 0.0].map(f32::to_bits)
+    );
+    assert_eq!(
+        b.hi.to_array().map(f32::to_bits),
+        [4.0f32, 5.0, 6.0].map(f32::to_bits)
+    );
+    // The +0 of corner 1 came before the -0 of corner 2, and a tie keeps the first.
+    assert!(b.lo.z.is_sign_positive());
+}

@@ -33,9 +33,8 @@
 //! boxes from the packs' boxes (each taken as its pack is filled); nothing is collapsed or
 //! searched, and no buffer holds the raw bytes whole. The final arrays are asked to be backed
 //! by huge pages (`hort_huge_pages`), so filling them costs a page fault per 2 MiB, not per
-//! 4 KiB. The node boxes are not stored (version 5)
-//! because they are derived exactly, in less time than zstd took to undo them: they were three
-//! quarters of the node bytes, 15 of the 47 raw MB and about half the stored bytes of a
+//! 4 KiB. The node boxes are not stored (version 5) because they are derived exactly, in less
+//! time than zstd took to undo them: they were three quarters of the node bytes, 15 of the 47 raw MB and about half the stored bytes of a
 //! million-triangle split, mostly incompressible float bits. Planes come in groups so that a
 //! group (48 KiB) is unshuffled as it arrives. The corners refer to distinct vertices rather
 //! than being written out: written out they compress about as small (zstd finds the repeated
