@@ -218,13 +218,10 @@ fn read_planes(
     mut f: impl FnMut(&[u32]) -> Result<(), String>,
 ) -> Result<(), String> {
     let mut words = Vec::with_capacity(count.min(PLANE_GROUP));
-    let mut left = count;
-    while left > 0 {
-        let len = left.min(PLANE_GROUP);
+    for len in group_lengths(count) {
         words.clear();
         unshuffle_group(stream, len, &mut words)?;
         f(&words)?;
-        left -= len;
     }
     Ok(())
 }
@@ -237,15 +234,20 @@ fn read_planes_into(
     out: &mut Vec<u32>,
     mut check: impl FnMut(&[u32]) -> Result<(), String>,
 ) -> Result<(), String> {
-    let mut left = count;
-    while left > 0 {
-        let len = left.min(PLANE_GROUP);
+    for len in group_lengths(count) {
         let start = out.len();
         unshuffle_group(stream, len, out)?;
         check(&out[start..])?;
-        left -= len;
     }
     Ok(())
+}
+
+/// The word counts of the groups of a planes section of `count` words: [`PLANE_GROUP`] each,
+/// the last one shorter.
+fn group_lengths(count: usize) -> impl Iterator<Item = usize> {
+    (0..count)
+        .step_by(PLANE_GROUP)
+        .map(move |start| (count - start).min(PLANE_GROUP))
 }
 
 /// Appends to `out` the `len` words of the next group: its byte 0s, 1s, 2s and 3s.
