@@ -431,8 +431,8 @@ fn a_pack_box_takes_its_used_lanes_in_order_passing_over_nan() {
     ];
     for (c, lanes) in corners.iter().enumerate() {
         for (lane, xyz) in lanes.iter().enumerate() {
-            for axis in 0..3 {
-                pack.v[c][axis][lane] = xyz[axis];
+            for (axis, &x) in xyz.iter().enumerate() {
+                pack.v[c][axis][lane] = x;
             }
         }
     }
