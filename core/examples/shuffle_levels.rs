@@ -9,7 +9,9 @@
 //! 100 MB/s), so the level in `core/src/shuffle/block.rs` can be checked on any scene.
 
 use hort_core::ids::JobId;
-use hort_core::pipeline::{ExecutionMode, PipelineOptions, PlanRequest, SplitMode, run_pipeline};
+use hort_core::pipeline::{
+    ExecutionMode, PipelineOptions, PlanRequest, SplitMode, StoredOutputs, run_pipeline,
+};
 use hort_core::scene::load_scene;
 use hort_core::shuffle::{BLOCK_HEADER_LEN, BLOCK_MAGIC, RecordKind, decode_block};
 use hort_core::store::{BlobStore, MemoryStore};
@@ -52,6 +54,7 @@ fn main() {
         execution: Some(ExecutionMode::Staged),
         memory_mb: 10_240,
         adaptive: None,
+        outputs: StoredOutputs::ALL,
     };
     let options = PipelineOptions {
         job: JobId::new("levels").expect("a valid job id"),

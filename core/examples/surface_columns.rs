@@ -10,8 +10,8 @@
 
 use hort_core::ids::JobId;
 use hort_core::pipeline::{
-    ExecutionMode, PipelineOptions, PlanRequest, SplitMode, SurfaceHit, decode_surface_hits,
-    run_pipeline,
+    ExecutionMode, PipelineOptions, PlanRequest, SplitMode, StoredOutputs, SurfaceHit,
+    decode_surface_hits, run_pipeline,
 };
 use hort_core::scene::load_scene;
 use hort_core::shuffle::columns::ColumnWriter;
@@ -86,6 +86,7 @@ fn main() {
         execution: Some(ExecutionMode::Staged),
         memory_mb: 10_240,
         adaptive: None,
+        outputs: StoredOutputs::ALL,
     };
     let options = PipelineOptions {
         job: JobId::new("columns").expect("a valid job id"),

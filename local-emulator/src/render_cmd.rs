@@ -17,7 +17,7 @@ use hort_core::hits::{Hit, encode_hits};
 use hort_core::ids::JobId;
 use hort_core::image::{Image, write_image};
 use hort_core::pipeline::{
-    ExecutionMode, PipelineOptions, PlanRequest, resolve_counts, run_pipeline,
+    ExecutionMode, PipelineOptions, PlanRequest, StoredOutputs, resolve_counts, run_pipeline,
 };
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
 use hort_core::report::{AdaptiveReport, Outputs, RayReport, Report, Seconds, StageReport};
@@ -33,10 +33,13 @@ use std::time::Instant;
 
 /// What either renderer hands back for writing.
 struct Rendered {
-    image: Image,
+    /// The linear image: always from a monolithic render, from a job only when `--out` is not a
+    /// PNG (the request's `outputs.linear`).
+    image: Option<Image>,
     /// The PNG the Combine task stored (pipeline runs): `encode_png` of `image`, byte for byte.
     png: Option<Vec<u8>>,
-    hits: Vec<Hit>,
+    /// The hit buffer: always from a monolithic render, from a job only with `--hits`.
+    hits: Option<Vec<Hit>>,
     rays: RayReport,
     build_seconds: f64,
     render_seconds: f64,
@@ -62,6 +65,12 @@ struct Rendered {
     /// The scene's lights and triangles (the plan's, in pipeline modes).
     lights: usize,
     triangles: u64,
+}
+
+/// True if `out` names a PNG (the one output a job always stores).
+fn is_png(out: &Path) -> bool {
+    out.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
 }
 
 /// The default of `--adaptive-threshold`.
@@ -139,6 +148,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
         execution: args.mode,
         memory_mb: args.memory_mb,
         adaptive,
+        // A job stores the large outputs only when this command writes them.
+        outputs: StoredOutputs {
+            linear: !is_png(&out),
+            hits: args.hits.is_some(),
+        },
     };
     if let Some(scene) = scene.as_ref().filter(|_| !args.monolithic) {
         // Refuse impossible partitionings here, with the scene at hand, before any upload.
@@ -158,16 +172,18 @@ pub fn run(args: RenderArgs) -> Result<()> {
         hits: args.hits.as_ref().map(|p| p.display().to_string()),
         report: args.report.as_ref().map(|p| p.display().to_string()),
     };
-    let png_out = out
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
-    match rendered.png.as_deref() {
+    match (rendered.png.as_deref(), &rendered.image) {
         // The job stored this very encoding of the image: no need to encode it again.
-        Some(png) if png_out => write_output(&OutputTarget::File(out.clone()), png)?,
-        _ => write_image(&out, &rendered.image)?,
+        (Some(png), _) if is_png(&out) => write_output(&OutputTarget::File(out.clone()), png)?,
+        (_, Some(image)) => write_image(&out, image)?,
+        (_, None) => bail!("the job stored no linear image to write {}", out.display()),
     }
     if let Some(target) = &hits_target {
-        write_output(target, &encode_hits(&rendered.hits))?;
+        let hits = rendered
+            .hits
+            .as_deref()
+            .ok_or_else(|| anyhow!("the job stored no hit buffer to write --hits"))?;
+        write_output(target, &encode_hits(hits))?;
     }
     let skipped = skips(
         rendered.lights,
@@ -347,9 +363,9 @@ fn render_monolithic(
         None => (render(scene, &bvh, settings)?, None),
     };
     Ok(Rendered {
-        image: output.image,
+        image: Some(output.image),
         png: None,
-        hits: output.hits,
+        hits: Some(output.hits),
         rays: RayReport {
             primary: output.rays.primary,
             shadow: output.rays.shadow,

@@ -26,8 +26,8 @@ use hort::emulator::binary_scene;
 use hort_core::ids::{JobId, SplitId};
 use hort_core::keys::{manifest_key, scene_binary_key, split_key};
 use hort_core::pipeline::{
-    PlanRequest, SplitMode, SurfaceHit, decode_split, decode_surface_hits, encode_surface_hits,
-    plan_into_store, run_task,
+    PlanRequest, SplitMode, StoredOutputs, SurfaceHit, decode_split, decode_surface_hits,
+    encode_surface_hits, plan_into_store, run_task,
 };
 use hort_core::scene::load_scene;
 use hort_core::shading::SurfacePoint;
@@ -206,6 +206,7 @@ fn planned_job(dir: &Path, obj: &str) -> (MemoryStore, JobId, hort_core::pipelin
         execution: Some(hort_core::pipeline::ExecutionMode::Staged),
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
         adaptive: None,
+        outputs: StoredOutputs::ALL,
     };
     let planned = plan_into_store(&store, &job, &scene, &request).unwrap();
     (store, job, planned.plan)
@@ -334,6 +335,7 @@ fn binary_scene_error(dir: &Path, op: &str) -> String {
             execution: None,
             memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
             adaptive: None,
+            outputs: StoredOutputs::ALL,
         },
         max_concurrency: 1,
         task_timeout_seconds: None,

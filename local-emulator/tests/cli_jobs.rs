@@ -294,7 +294,14 @@ fn a_successful_job_keeps_only_its_request_plan_and_outputs() {
         &dir,
         &bucket,
         "bunny/bunny.json",
-        &["--job", "j1", "--out", out.to_str().unwrap()],
+        &[
+            "--job",
+            "j1",
+            "--out",
+            out.to_str().unwrap(),
+            "--hits",
+            dir.join("o.hits").to_str().unwrap(),
+        ],
     );
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
@@ -504,11 +511,11 @@ fn a_stopped_job_is_refused_without_resume_and_finished_with_it() {
         std::fs::read(&second).unwrap(),
         std::fs::read(&first).unwrap()
     );
+    // A `.pfm` without `--hits`: the job stores no hit buffer.
     assert_eq!(
         bucket.keys("jobs/r1/"),
         [
             "manifest.json",
-            "out/hits.bin",
             "out/image.pfm",
             "out/image.png",
             "plan.json"
@@ -659,7 +666,8 @@ fn jobs_commands_need_a_place_and_a_choice() {
     );
     assert!(o.status.success(), "{}", stderr(&o));
     let listed = String::from_utf8(o.stdout).unwrap();
-    assert!(listed.contains("\nd1   finished           5  "), "{listed}");
+    // A PNG alone: the request, the plan and the PNG.
+    assert!(listed.contains("\nd1   finished           3  "), "{listed}");
     let o = hort_in(
         &dir,
         &[
@@ -672,7 +680,7 @@ fn jobs_commands_need_a_place_and_a_choice() {
         ],
     );
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(stderr(&o).starts_with("deleted job d1: 5 objects, "));
+    assert!(stderr(&o).starts_with("deleted job d1: 3 objects, "));
     let o = hort_in(
         &dir,
         &["jobs", "list", "--data-dir", data.to_str().unwrap()],

@@ -26,6 +26,13 @@ pub fn monolithic(rel: &str, width: u32, height: u32, spp: u32) -> RenderOutput 
     render(&scene, &bvh, settings).expect("monolithic render")
 }
 
+/// An output a job stored (its request asks for every output, `StoredOutputs::ALL`).
+pub fn stored<T>(output: &Option<T>) -> &T {
+    output
+        .as_ref()
+        .expect("the job stores every output its request asks for")
+}
+
 /// Every channel of every pixel as its f32 bit pattern.
 pub fn pixel_bits(pixels: &[[f32; 3]]) -> Vec<u32> {
     pixels.iter().flatten().map(|v| v.to_bits()).collect()

@@ -5,11 +5,13 @@
 
 use hort_core::adaptive::{AdaptiveSettings, render_adaptive};
 use hort_core::ids::JobId;
-use hort_core::pipeline::{ExecutionMode, PipelineOptions, PlanRequest, SplitMode, run_pipeline};
+use hort_core::pipeline::{
+    ExecutionMode, PipelineOptions, PlanRequest, SplitMode, StoredOutputs, run_pipeline,
+};
 use hort_core::render::{RenderSettings, build_scene_bvh};
 use hort_core::scene::load_scene;
 use hort_core::store::MemoryStore;
-use hort_tests::{hit_bits, pixel_bits, scene_path};
+use hort_tests::{hit_bits, pixel_bits, scene_path, stored};
 
 const W: u32 = 64;
 const H: u32 = 48;
@@ -30,6 +32,7 @@ fn request(
         execution,
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
         adaptive: Some(adaptive),
+        outputs: StoredOutputs::ALL,
     }
 }
 
@@ -78,11 +81,15 @@ fn adaptive_jobs_equal_the_monolithic_adaptive_render() {
             .unwrap_or_else(|e| panic!("{what}: {e}"));
             assert_eq!(run.plan.mode, mode, "{what}");
             assert_eq!(
-                pixel_bits(&run.image.pixels),
+                pixel_bits(&stored(&run.image).pixels),
                 pixel_bits(&mono.image.pixels),
                 "image differs: {what}"
             );
-            assert_eq!(hit_bits(&run.hits), hit_bits(&mono.hits), "{what}");
+            assert_eq!(
+                hit_bits(stored(&run.hits).as_slice()),
+                hit_bits(&mono.hits),
+                "{what}"
+            );
             assert_eq!(run.primary_rays, mono.rays.primary, "{what}");
             assert_eq!(run.shadow_rays, mono.rays.shadow, "{what}");
             let mut summed = hort_core::adaptive::AdaptiveCounts::default();
@@ -149,7 +156,7 @@ fn a_staged_adaptive_job_with_nothing_to_refine_runs_one_round() {
     )
     .unwrap();
     assert_eq!(
-        pixel_bits(&run.image.pixels),
+        pixel_bits(&stored(&run.image).pixels),
         pixel_bits(&mono.image.pixels)
     );
     let tasks: Vec<u64> = run.stages.iter().map(|s| s.tasks).collect();

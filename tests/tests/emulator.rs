@@ -7,11 +7,11 @@ mod s3_support;
 use asl_interpreter::{Event, NoObserver, Observer};
 use hort::emulator::{EmulatorConfig, EmulatorRun, FaultSettings, StorageTarget, run_job};
 use hort_core::cost::Arch;
-use hort_core::pipeline::{PlanRequest, SplitMode};
+use hort_core::pipeline::{PlanRequest, SplitMode, StoredOutputs};
 use hort_core::render::RenderOutput;
 use hort_core::store::BlobStore;
 use hort_functions::S3Credentials;
-use hort_tests::{hit_bits, pixel_bits, scene_path};
+use hort_tests::{hit_bits, pixel_bits, scene_path, stored};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
@@ -59,17 +59,18 @@ fn settings(spp: u32, k: u32, s: u32, mode: SplitMode) -> PlanRequest {
         execution: None,
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
         adaptive: None,
+        outputs: StoredOutputs::ALL,
     }
 }
 
 fn assert_same(run: &EmulatorRun, mono: &RenderOutput, what: &str) {
     assert_eq!(
-        pixel_bits(&run.image.pixels),
+        pixel_bits(&stored(&run.image).pixels),
         pixel_bits(&mono.image.pixels),
         "image differs: {what}"
     );
     assert_eq!(
-        hit_bits(&run.hits),
+        hit_bits(stored(&run.hits).as_slice()),
         hit_bits(&mono.hits),
         "hit buffer differs: {what}"
     );

@@ -4,12 +4,12 @@
 
 use hort_core::ids::JobId;
 use hort_core::pipeline::{
-    ExecutionMode, PipelineOptions, PlanRequest, SplitMode, run_pipeline, task_bytes,
+    ExecutionMode, PipelineOptions, PlanRequest, SplitMode, StoredOutputs, run_pipeline, task_bytes,
 };
 use hort_core::render::{RenderSettings, build_scene_bvh, render};
 use hort_core::scene::load_scene;
 use hort_core::store::MemoryStore;
-use hort_tests::{hit_bits, pixel_bits};
+use hort_tests::{hit_bits, pixel_bits, stored};
 
 /// 120,000 generated triangles: over what one 128 MB task holds (about 104,000 with this
 /// image's small spans), far under what a 2048 MB one does.
@@ -51,6 +51,7 @@ fn a_tiny_budget_runs_staged_with_the_fewest_splits_and_a_large_one_fused() {
             execution: None,
             memory_mb,
             adaptive: None,
+            outputs: StoredOutputs::ALL,
         };
         let options = PipelineOptions {
             job: JobId::new("choice").unwrap(),
@@ -76,10 +77,14 @@ fn a_tiny_budget_runs_staged_with_the_fewest_splits_and_a_large_one_fused() {
             );
         }
         assert_eq!(
-            pixel_bits(&run.image.pixels),
+            pixel_bits(&stored(&run.image).pixels),
             pixel_bits(&mono.image.pixels),
             "{what}"
         );
-        assert_eq!(hit_bits(&run.hits), hit_bits(&mono.hits), "{what}");
+        assert_eq!(
+            hit_bits(stored(&run.hits).as_slice()),
+            hit_bits(&mono.hits),
+            "{what}"
+        );
     }
 }

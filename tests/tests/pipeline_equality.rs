@@ -3,11 +3,12 @@
 
 use hort_core::ids::{JobId, Stage};
 use hort_core::pipeline::{
-    ExecutionMode, PipelineOptions, PipelineRun, PlanRequest, SplitMode, run_pipeline,
+    ExecutionMode, PipelineOptions, PipelineRun, PlanRequest, SplitMode, StoredOutputs,
+    run_pipeline,
 };
 use hort_core::scene::{Scene, load_scene};
 use hort_core::store::{BlobStore, MemoryStore};
-use hort_tests::{hit_bits, pixel_bits, scene_path};
+use hort_tests::{hit_bits, pixel_bits, scene_path, stored};
 
 const W: u32 = 64;
 const H: u32 = 48;
@@ -48,6 +49,7 @@ fn check_scene(rel: &str, spps: &[u32]) {
                         execution: forced,
                         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
                         adaptive: None,
+                        outputs: StoredOutputs::ALL,
                     };
                     let options = PipelineOptions {
                         job: JobId::new("eq").unwrap(),
@@ -68,12 +70,12 @@ fn check_scene(rel: &str, spps: &[u32]) {
                     });
                     assert_eq!(execution, expected, "{what}");
                     assert_eq!(
-                        pixel_bits(&run.image.pixels),
+                        pixel_bits(&stored(&run.image).pixels),
                         mono_bits,
                         "image differs: {what}"
                     );
                     assert_eq!(
-                        hit_bits(&run.hits),
+                        hit_bits(stored(&run.hits).as_slice()),
                         hit_bits(&mono.hits),
                         "hits differ: {what}"
                     );
@@ -133,6 +135,7 @@ fn run_in_memory(rel: &str, spp: u32, k: u32, s: u32) -> (MemoryStore, PipelineR
         execution: None,
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
         adaptive: None,
+        outputs: StoredOutputs::ALL,
     };
     let job = JobId::new("memory").unwrap();
     let options = PipelineOptions {

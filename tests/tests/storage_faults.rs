@@ -11,10 +11,10 @@ use embedded_s3::{FaultKind, PersistentFault, StorageFaults};
 use hort::emulator::{EmulatorConfig, EmulatorRun, FaultSettings, StorageTarget, run_job};
 use hort_core::cost::Arch;
 use hort_core::image::encode_png;
-use hort_core::pipeline::{PlanRequest, SplitMode};
+use hort_core::pipeline::{PlanRequest, SplitMode, StoredOutputs};
 use hort_core::store::{BlobStore, StoreError};
 use hort_functions::{S3Config, S3Store};
-use hort_tests::{hit_bits, pixel_bits, scene_path};
+use hort_tests::{hit_bits, pixel_bits, scene_path, stored};
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -63,6 +63,7 @@ fn settings() -> PlanRequest {
         execution: None,
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
         adaptive: None,
+        outputs: StoredOutputs::ALL,
     }
 }
 
@@ -89,12 +90,12 @@ fn reference() -> Vec<u8> {
 
 fn assert_same(run: &EmulatorRun, mono: &hort_core::render::RenderOutput, what: &str) {
     assert_eq!(
-        pixel_bits(&run.image.pixels),
+        pixel_bits(&stored(&run.image).pixels),
         pixel_bits(&mono.image.pixels),
         "image differs: {what}"
     );
     assert_eq!(
-        hit_bits(&run.hits),
+        hit_bits(stored(&run.hits).as_slice()),
         hit_bits(&mono.hits),
         "hit buffer differs: {what}"
     );

@@ -6,10 +6,10 @@
 use asl_interpreter::{Event, NoObserver, Observer};
 use hort::emulator::{EmulatorConfig, run_job};
 use hort_core::ids::Stage;
-use hort_core::pipeline::{PlanRequest, SplitMode, decode_split, rebuild_split};
+use hort_core::pipeline::{PlanRequest, SplitMode, StoredOutputs, decode_split, rebuild_split};
 use hort_core::scene::load_scene;
 use hort_task_memory::TaskAlloc;
-use hort_tests::{hit_bits, pixel_bits, scene_path};
+use hort_tests::{hit_bits, pixel_bits, scene_path, stored};
 use std::sync::Mutex;
 
 #[global_allocator]
@@ -41,6 +41,7 @@ fn request(k: u32, spans: u32, mode: SplitMode, spp: u32) -> PlanRequest {
         execution: None,
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
         adaptive: None,
+        outputs: StoredOutputs::ALL,
     }
 }
 
@@ -79,10 +80,10 @@ fn every_task_reports_its_peak_and_the_image_stays_the_same() {
         )
         .unwrap_or_else(|e| panic!("k = {k}: {e:#}"));
         assert_eq!(
-            pixel_bits(&run.image.pixels),
+            pixel_bits(&stored(&run.image).pixels),
             pixel_bits(&mono.image.pixels)
         );
-        assert_eq!(hit_bits(&run.hits), hit_bits(&mono.hits));
+        assert_eq!(hit_bits(stored(&run.hits).as_slice()), hit_bits(&mono.hits));
         // Every task of every stage after the plan was measured, within the budget.
         assert!(!run.ledger.tasks.is_empty());
         for ((stage, task), m) in &run.ledger.tasks {
@@ -186,7 +187,7 @@ fn a_warm_workers_cached_splits_count_for_every_task_it_runs() {
     .unwrap_or_else(|e| panic!("{e:#}"));
     let mono = hort_tests::monolithic(SCENE, W, H, 1);
     assert_eq!(
-        pixel_bits(&run.image.pixels),
+        pixel_bits(&stored(&run.image).pixels),
         pixel_bits(&mono.image.pixels)
     );
     let both: u64 = split_memory(k, mode).into_iter().sum();

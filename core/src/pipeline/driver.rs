@@ -36,11 +36,13 @@ pub struct PipelineOptions {
 pub struct PipelineRun {
     /// The plan the job ran.
     pub plan: JobPlan,
-    /// The linear image, bit-identical to the monolithic render's.
-    pub image: Image,
-    /// The hit buffer (sample 0 of each pixel), row-major from the top-left.
-    pub hits: Vec<Hit>,
-    /// The PNG the Combine task stored: `encode_png` of `image`, byte for byte.
+    /// The linear image, bit-identical to the monolithic render's; `None` unless the plan's
+    /// `outputs.linear` asked for it.
+    pub image: Option<Image>,
+    /// The hit buffer (sample 0 of each pixel), row-major from the top-left; `None` unless the
+    /// plan's `outputs.hits` asked for it.
+    pub hits: Option<Vec<Hit>>,
+    /// The PNG the Combine task stored: `encode_png` of the linear image, byte for byte.
     pub png: Vec<u8>,
     /// Per stage: `plan` then the task stages of the plan's mode, in order.
     pub stages: Vec<StageReport>,

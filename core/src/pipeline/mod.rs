@@ -47,7 +47,7 @@ pub use mode::{
     DEFAULT_MEMORY_MB, ExecutionMode, JobShape, RUNTIME_BYTES, SAMPLE_BYTES, TRIANGLE_BYTES,
     choose_shape, task_bytes,
 };
-pub use outputs::{JobOutputs, read_outputs};
+pub use outputs::{JobOutputs, StoredOutputs, read_outputs};
 pub use plan::{
     CastTask, JobPlan, MAX_SPANS, MAX_SPLITS, PLAN_FORMAT_VERSION, PlanRequest, ScenePartsShape,
     Span, SplitInfo, TraceTask, plan_job, resolve_counts,

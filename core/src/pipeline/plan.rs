@@ -4,6 +4,7 @@
 use super::PipelineError;
 use super::frustum::span_may_meet_box;
 use super::mode::{DEFAULT_MEMORY_MB, ExecutionMode, JobShape, choose_shape};
+use super::outputs::StoredOutputs;
 use super::split::SplitMode;
 use crate::adaptive::AdaptiveSettings;
 use crate::bvh::Aabb;
@@ -67,6 +68,10 @@ pub struct PlanRequest {
     /// pixel gets `spp` samples. Absent from the JSON when `None`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub adaptive: Option<AdaptiveSettings>,
+    /// Which outputs Combine stores besides the PNG; all of them when absent from the JSON
+    /// (and then left out of it).
+    #[serde(default, skip_serializing_if = "StoredOutputs::is_all")]
+    pub outputs: StoredOutputs,
 }
 
 fn default_memory_mb() -> u32 {
@@ -190,6 +195,10 @@ pub struct JobPlan {
     /// assume every sample hits); absent from the JSON when `None`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub camera_hit_estimate: Option<f64>,
+    /// Which outputs Combine stores besides the PNG (the request's). Absent from the JSON when
+    /// all of them, so other plans keep their bytes.
+    #[serde(default, skip_serializing_if = "StoredOutputs::is_all")]
+    pub outputs: StoredOutputs,
 }
 
 /// What the scan of a scene split by tasks found, as the prediction models need it.
@@ -490,6 +499,7 @@ pub fn plan_job(
         adaptive: request.adaptive,
         scene_parts: None,
         camera_hit_estimate: None,
+        outputs: request.outputs,
     })
 }
 
@@ -508,6 +518,7 @@ mod tests {
             execution: None,
             memory_mb: DEFAULT_MEMORY_MB,
             adaptive: None,
+            outputs: StoredOutputs::ALL,
         }
     }
 

@@ -441,16 +441,25 @@ impl Task<'_> {
                 let (image, hits) = timed(&mut self.metrics.compute_us, || {
                     stages::combine(plan, &blocks)
                 });
-                // Stored at once (`BlobStore::put_many`).
-                let (png, pfm, hit_bytes) = timed(&mut self.metrics.encode_us, || {
-                    (encode_png(&image), encode_pfm(&image), encode_hits(&hits))
+                // The outputs the plan asks for besides the PNG, stored at once
+                // (`BlobStore::put_many`), then the PNG: a job whose PNG exists has every
+                // output it asked for.
+                let outputs = plan.outputs;
+                let (png, others) = timed(&mut self.metrics.encode_us, || {
+                    let mut others = Vec::new();
+                    if outputs.linear {
+                        others.push((image_key(self.job, "pfm"), encode_pfm(&image)));
+                    }
+                    if outputs.hits {
+                        others.push((hits_key(self.job), encode_hits(&hits)));
+                    }
+                    (encode_png(&image), others)
                 });
                 let png = png.map_err(|e| PipelineError::BadInput(e.to_string()))?;
-                self.write_plain_all(&[
-                    (image_key(self.job, "png"), png),
-                    (image_key(self.job, "pfm"), pfm),
-                    (hits_key(self.job), hit_bytes),
-                ])?;
+                if !others.is_empty() {
+                    self.write_plain_all(&others)?;
+                }
+                self.write_plain_all(&[(image_key(self.job, "png"), png)])?;
                 self.metrics.records += hits.len() as u64;
                 Ok(())
             }
@@ -701,7 +710,7 @@ fn raw_length(block: &[u8]) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pipeline::{PlanRequest, SplitMode, plan_into_store};
+    use crate::pipeline::{PlanRequest, SplitMode, StoredOutputs, plan_into_store};
     use crate::store::MemoryStore;
 
     #[test]
@@ -723,6 +732,7 @@ mod tests {
             execution: None,
             memory_mb: crate::pipeline::DEFAULT_MEMORY_MB,
             adaptive: None,
+            outputs: StoredOutputs::ALL,
         };
         let plan = plan_into_store(&store, &job, &scene, &request)
             .unwrap()
@@ -762,6 +772,7 @@ mod tests {
             execution: None,
             memory_mb: crate::pipeline::DEFAULT_MEMORY_MB,
             adaptive: None,
+            outputs: StoredOutputs::ALL,
         };
         let plan = plan_into_store(&store, &job, &scene, &request)
             .unwrap()
@@ -859,6 +870,7 @@ mod tests {
                 execution: Some(crate::pipeline::ExecutionMode::Staged),
                 memory_mb: crate::pipeline::DEFAULT_MEMORY_MB,
                 adaptive: None,
+                outputs: StoredOutputs::ALL,
             };
             let plan = plan_into_store(&store, &job, &scene, &request)
                 .unwrap()

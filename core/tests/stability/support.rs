@@ -4,7 +4,7 @@
 use hort_core::hits::Hit;
 use hort_core::ids::JobId;
 use hort_core::image::linear_to_srgb8;
-use hort_core::pipeline::{PipelineOptions, PlanRequest, SplitMode, run_pipeline};
+use hort_core::pipeline::{PipelineOptions, PlanRequest, SplitMode, StoredOutputs, run_pipeline};
 use hort_core::render::{RenderOutput, RenderSettings, build_scene_bvh, render};
 use hort_core::scene::{Scene, load_scene};
 use hort_core::store::MemoryStore;
@@ -85,6 +85,7 @@ pub fn distributed(
         execution: None,
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
         adaptive: None,
+        outputs: StoredOutputs::ALL,
     };
     let options = PipelineOptions {
         job: JobId::new("stability").unwrap(),
@@ -94,7 +95,10 @@ pub fn distributed(
     let run = run_pipeline(&store, scene, request, &options)
         .unwrap_or_else(|e| panic!("k={k} {mode:?}: {e}"));
     assert_eq!(run.plan.k(), k);
-    (run.image.pixels, run.hits)
+    (
+        run.image.expect("the linear image").pixels,
+        run.hits.expect("the hit buffer"),
+    )
 }
 
 /// Every channel of every pixel as its f32 bit pattern.

@@ -57,7 +57,7 @@ use std::collections::BTreeMap;
 
 use hort_core::camera::Camera;
 use hort_core::ids::JobId;
-use hort_core::pipeline::{MAX_SPANS, MAX_SPLITS, PlanRequest, SplitMode};
+use hort_core::pipeline::{MAX_SPANS, MAX_SPLITS, PlanRequest, SplitMode, StoredOutputs};
 use hort_core::scene::{
     DEFAULT_HEIGHT, DEFAULT_WIDTH, MAX_IMAGE_SIDE, MAX_PIXELS, MAX_SAMPLES, MAX_SPP,
 };
@@ -493,6 +493,7 @@ fn post_renders(
             .memory_mb
             .unwrap_or(hort_core::pipeline::DEFAULT_MEMORY_MB),
         adaptive: None,
+        outputs: StoredOutputs::ALL,
     };
     if let Some(mb) = request.memory_mb
         && !(128..=10240).contains(&mb)

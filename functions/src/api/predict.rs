@@ -616,7 +616,14 @@ pub fn stage_bytes(plan: &JobPlan, step: JobStep) -> u64 {
         (Stage::CastMap | Stage::CastReduce, _) => hits * RECORD_BYTES,
         (Stage::TraceReduce, _) => samples * RECORD_BYTES,
         (Stage::Expand | Stage::TraceMap, _) => queries * RECORD_BYTES,
-        (Stage::Combine, _) => pixels as f64 * 24.0,
+        // The PNG (3 bytes and a filter byte per pixel before compression), and the linear
+        // image (12) and the hit buffer (8) when the job stores them.
+        (Stage::Combine, _) => {
+            let per_pixel = 4.0
+                + if plan.outputs.linear { 12.0 } else { 0.0 }
+                + if plan.outputs.hits { 8.0 } else { 0.0 };
+            pixels as f64 * per_pixel
+        }
     };
     bytes as u64
 }
@@ -692,6 +699,7 @@ mod tests {
             execution: None,
             memory_mb: 2048,
             adaptive: None,
+            outputs: hort_core::pipeline::StoredOutputs::ALL,
         };
         let (shape, s) = hort_core::pipeline::resolve_counts(&request, 36).unwrap();
         preview_plan(&scene, &request, &shape, s).unwrap()

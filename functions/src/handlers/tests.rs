@@ -4,7 +4,7 @@ use super::*;
 use hort_core::ids::TaskId;
 use hort_core::ids::{JobId, Stage};
 use hort_core::keys::{hits_key, items_key, manifest_key, scene_binary_key, scene_prefix};
-use hort_core::pipeline::{PlanRequest, SplitCache, SplitMode};
+use hort_core::pipeline::{PlanRequest, SplitCache, SplitMode, StoredOutputs};
 use hort_core::store::{BlobStore, MemoryStore};
 
 fn request(scene: &str) -> JobRequest {
@@ -20,6 +20,7 @@ fn request(scene: &str) -> JobRequest {
             execution: None,
             memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
             adaptive: None,
+            outputs: StoredOutputs::ALL,
         },
         max_concurrency: 4,
         task_timeout_seconds: None,

@@ -14,7 +14,10 @@ use anyhow::Result;
 use asl_interpreter::NoObserver;
 use hort::emulator::{EmulatorConfig, FaultSettings, run_job};
 use hort_core::ids::JobId;
-use hort_core::pipeline::{ExecutionMode, PipelineOptions, PlanRequest, SplitMode, run_pipeline};
+use hort_core::image::encode_png;
+use hort_core::pipeline::{
+    ExecutionMode, PipelineOptions, PlanRequest, SplitMode, StoredOutputs, run_pipeline,
+};
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
 use hort_core::scene::load_scene;
 use hort_core::store::MemoryStore;
@@ -79,11 +82,13 @@ pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
             "MB written",
             "B/pixel/stage",
             "cost USD",
-            "identical",
+            "identical PNG",
         ],
     );
     // Every row starts from the OBJ file, as `hort render` does: the emulator's client parses
     // the scene once (and uploads it binary), so the monolithic and in-process rows parse too.
+    // Every row ends with the PNG in memory: the monolithic row encodes it, the jobs store it
+    // (and only it, as `hort render x.png` asks) and read it back.
     let start = Instant::now();
     let scene = load_scene(&path)?;
     let bvh = build_scene_bvh(&scene.mesh);
@@ -94,6 +99,7 @@ pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
         threads,
     };
     let mono = render(&scene, &bvh, settings)?;
+    let mono_png = encode_png(&mono.image)?;
     let mono_seconds = start.elapsed().as_secs_f64();
     drop(bvh);
     table.push(vec![
@@ -123,6 +129,7 @@ pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
             execution: Some(execution),
             memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
             adaptive: None,
+            outputs: StoredOutputs::PNG,
         };
         let options = PipelineOptions {
             job: JobId::new("bench")?,
@@ -141,7 +148,7 @@ pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
             "-".into(),
             "-".into(),
             "-".into(),
-            yes(run.image.pixels == mono.image.pixels && run.hits == mono.hits),
+            yes(run.png == mono_png),
         ]);
         let t = Instant::now();
         let run = run_job(
@@ -165,12 +172,12 @@ pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
             format!("{:.1}", written as f64 / 1e6),
             format!("{:.1}", shuffle_bytes_per_pixel_stage(&run)),
             format!("{:.5}", run.cost.total),
-            yes(run.image.pixels == mono.image.pixels && run.hits == mono.hits),
+            yes(run.png == mono_png),
         ]);
     }
     let mut tables = vec![table];
     if !args.skip_faults {
-        tables.push(fault_table(args, &path, &mono.image.pixels)?);
+        tables.push(fault_table(args, &path, &mono_png)?);
     }
     for t in &tables {
         print(t)?;
@@ -199,7 +206,7 @@ fn yes(b: bool) -> String {
 fn fault_table(
     args: &EmulatorBenchArgs,
     path: &std::path::Path,
-    reference: &[[f32; 3]],
+    reference: &[u8],
 ) -> Result<Table> {
     let job = PlanRequest {
         width: args.common.width,
@@ -211,6 +218,7 @@ fn fault_table(
         execution: None,
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
         adaptive: None,
+        outputs: StoredOutputs::PNG,
     };
     let t = Instant::now();
     let clean = run_job(
@@ -229,21 +237,27 @@ fn fault_table(
     let killed_seconds = t.elapsed().as_secs_f64();
     let mut table = Table::new(
         "one of 16 function slots dies halfway (the paper: +60% on Hadoop)",
-        &["run", "seconds", "extra", "failed attempts", "identical"],
+        &[
+            "run",
+            "seconds",
+            "extra",
+            "failed attempts",
+            "identical PNG",
+        ],
     );
     table.push(vec![
         "16 slots".into(),
         f3(clean_seconds),
         "-".into(),
         clean.failed_attempts().to_string(),
-        yes(clean.image.pixels == reference),
+        yes(clean.png == reference),
     ]);
     table.push(vec![
         "16 slots, one dies".into(),
         f3(killed_seconds),
         format!("{:+.0}%", 100.0 * (killed_seconds / clean_seconds - 1.0)),
         killed.failed_attempts().to_string(),
-        yes(killed.image.pixels == reference),
+        yes(killed.png == reference),
     ]);
     Ok(table)
 }

@@ -14,7 +14,7 @@ use super::table::{Table, f3};
 use anyhow::{Result, bail};
 use asl_interpreter::{Event, Observer};
 use hort::emulator::{EmulatorConfig, EmulatorRun, FaultSettings, run_job};
-use hort_core::pipeline::{PlanRequest, SplitMode};
+use hort_core::pipeline::{PlanRequest, SplitMode, StoredOutputs};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
@@ -169,6 +169,7 @@ fn timed(
         execution: None,
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
         adaptive: None,
+        outputs: StoredOutputs::ALL,
     };
     let reruns = Reruns::default();
     let t = Instant::now();
@@ -229,8 +230,9 @@ pub fn run_faults_bench(args: &FaultsBenchArgs) -> Result<()> {
             match run {
                 Ok(run) => {
                     ratios[i].push(ratio);
-                    let identical =
-                        run.image.pixels == clean.image.pixels && run.hits == clean.hits;
+                    let identical = run.image.as_ref().map(|i| &i.pixels)
+                        == clean.image.as_ref().map(|i| &i.pixels)
+                        && run.hits == clean.hits;
                     if !identical {
                         bad.push(format!("seed {seed}, {}: the image differs", mix.label()));
                     }

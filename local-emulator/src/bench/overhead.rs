@@ -13,7 +13,7 @@ use anyhow::{Result, bail};
 use asl_interpreter::NoObserver;
 use hort::emulator::{EmulatorConfig, EmulatorRun, run_job};
 use hort_core::breakdown::StageBreakdown;
-use hort_core::pipeline::{PlanRequest, SplitMode};
+use hort_core::pipeline::{PlanRequest, SplitMode, StoredOutputs};
 use std::path::Path;
 
 /// Image size of the overhead jobs: small enough that tracing is negligible.
@@ -63,6 +63,7 @@ pub fn overhead_table(config: &EmulatorConfig, scene: &Path) -> Result<Table> {
             execution: Some(hort_core::pipeline::ExecutionMode::Staged),
             memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
             adaptive: None,
+            outputs: StoredOutputs::ALL,
         };
         runs.push(run_job(&config, scene, request, &NoObserver)?);
     }

@@ -9,8 +9,8 @@ use anyhow::{Result, ensure};
 use hort_core::ids::{JobId, SplitId, Stage};
 use hort_core::keys::split_key;
 use hort_core::pipeline::{
-    ExecutionMode, PipelineOptions, PipelineRun, PlanRequest, SplitMode, plan_job, resolve_counts,
-    run_pipeline, run_task, split_scene,
+    ExecutionMode, PipelineOptions, PipelineRun, PlanRequest, SplitMode, StoredOutputs, plan_job,
+    resolve_counts, run_pipeline, run_task, split_scene,
 };
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
 use hort_core::scene::{Scene, load_scene};
@@ -78,6 +78,7 @@ fn request(
         execution,
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
         adaptive: None,
+        outputs: StoredOutputs::ALL,
     }
 }
 
@@ -166,7 +167,8 @@ fn time_table(scene: &Scene, args: &PipelineBenchArgs, threads: usize) -> Result
         ("MR2 k=8 s=16 naive", 8, 16, SplitMode::Naive, None),
     ] {
         let (run, seconds) = run(scene, request(args, k, s, mode, execution), threads)?;
-        let identical = run.image.pixels == mono.image.pixels && run.hits == mono.hits;
+        let identical = run.image.as_ref().map(|i| &i.pixels) == Some(&mono.image.pixels)
+            && run.hits.as_ref() == Some(&mono.hits);
         ensure!(
             identical,
             "{name}: the pipeline image differs from the monolithic one"

@@ -113,12 +113,14 @@ pub struct EmulatorRun {
     pub endpoint: String,
     /// The plan the Plan function stored.
     pub plan: JobPlan,
-    /// The linear image the Combine function stored (bit-exact from its PFM).
-    pub image: Image,
+    /// The linear image the Combine function stored (bit-exact from its PFM); `None` unless
+    /// the request's `outputs.linear` asked for it.
+    pub image: Option<Image>,
     /// The PNG the Combine function stored.
     pub png: Vec<u8>,
-    /// The hit buffer the Combine function stored.
-    pub hits: Vec<Hit>,
+    /// The hit buffer the Combine function stored; `None` unless the request's
+    /// `outputs.hits` asked for it.
+    pub hits: Option<Vec<Hit>>,
     /// `plan`, then the task stages of the plan's mode, `combine` last.
     pub stages: Vec<StageReport>,
     /// What each top-level state used (time, attempts, storage traffic), in order entered.

@@ -26,8 +26,8 @@ use anyhow::{Context, Result, bail};
 use asl_interpreter::{TaskFailure, TaskInvoker};
 use hort_core::ids::{JobId, PartitionId, Stage, TaskId};
 use hort_core::keys::{
-    hits_key, image_key, manifest_key, partition_key, parts_index_key, parts_split_info_key,
-    plan_key, scene_binary_key, scene_prefix,
+    image_key, manifest_key, partition_key, parts_index_key, parts_split_info_key, plan_key,
+    scene_binary_key, scene_prefix,
 };
 use hort_core::pipeline::{JobPlan, TaskMetrics};
 use hort_core::scene::{Scene, encode_scene_named, parse_manifest};
@@ -313,11 +313,10 @@ fn count(n: Option<u32>) -> String {
     n.map_or_else(|| "automatic".to_owned(), |n| n.to_string())
 }
 
-/// True if `keys` hold everything Combine writes for `job`.
+/// True if `keys` hold what Combine stores last for `job`, its PNG: then every output the job
+/// asked for is there.
 fn is_finished(keys: &[String], job: &JobId) -> bool {
-    [image_key(job, "png"), image_key(job, "pfm"), hits_key(job)]
-        .iter()
-        .all(|k| keys.contains(k))
+    keys.contains(&image_key(job, "png"))
 }
 
 /// True if `key` of `job` stays after the job succeeded: the job request, the plan, outputs.
@@ -368,7 +367,7 @@ fn delete_objects(
 pub struct JobSummary {
     /// The job id (the folder name under `jobs/`).
     pub job: String,
-    /// True if Combine's outputs are all there.
+    /// True if Combine finished (its PNG, stored last, is there).
     pub finished: bool,
     /// Objects under `jobs/{job}/`.
     pub objects: u64,

@@ -3,7 +3,7 @@
 
 use super::upload::{Submitted, binary_scene, scene_files, submit_job, submit_or_resume};
 use hort_core::ids::JobId;
-use hort_core::pipeline::{PlanRequest, SplitMode};
+use hort_core::pipeline::{PlanRequest, SplitMode, StoredOutputs};
 use hort_core::scene::{Scene, decode_scene, load_scene};
 use hort_core::store::{BlobStore, MemoryStore};
 use hort_functions::handlers::{JobRequest, SceneFormat};
@@ -34,6 +34,7 @@ fn request(format: SceneFormat) -> JobRequest {
             execution: None,
             memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
             adaptive: None,
+            outputs: StoredOutputs::ALL,
         },
         max_concurrency: 2,
         task_timeout_seconds: None,

@@ -9,7 +9,7 @@ use hort::emulator::{EmulatorConfig, run_job};
 use hort_core::adaptive::{AdaptiveSettings, render_adaptive};
 use hort_core::bvh::Bvh;
 use hort_core::image::{Image, decode_pfm};
-use hort_core::pipeline::{PlanRequest, SplitMode};
+use hort_core::pipeline::{PlanRequest, SplitMode, StoredOutputs};
 use hort_core::render::{RenderSettings, build_scene_bvh, render};
 use hort_core::scene::{Scene, load_scene};
 use std::path::{Path, PathBuf};
@@ -192,12 +192,17 @@ pub fn distributed(
                 execution: None,
                 memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
                 adaptive: settings,
+                outputs: StoredOutputs::ALL,
             };
             let start = Instant::now();
             let run = run_job(&config, &scene.path, request, &NoObserver)
                 .with_context(|| format!("{} {name} at {max} spp", scene.name))?;
             let seconds = start.elapsed().as_secs_f64();
-            let point = scene.point(&name, max, seconds, &run.image)?;
+            let image = run
+                .image
+                .as_ref()
+                .context("the job stored no linear image")?;
+            let point = scene.point(&name, max, seconds, image)?;
             eprintln!(
                 "{} {name} {max} spp: {seconds:.3} s, PSNR {:.2} dB",
                 scene.name, point.errors.psnr

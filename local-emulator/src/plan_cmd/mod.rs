@@ -14,7 +14,9 @@ use hort::emulator::scene_range_for;
 use hort_core::camera::Camera;
 use hort_core::cost::Arch;
 use hort_core::pipeline::partition::{preview_plan_from_table, scan_table};
-use hort_core::pipeline::{ExecutionMode, JobPlan, PlanRequest, SplitMode, resolve_counts};
+use hort_core::pipeline::{
+    ExecutionMode, JobPlan, PlanRequest, SplitMode, StoredOutputs, resolve_counts,
+};
 use hort_core::render::available_cores;
 use hort_core::scene::{
     DEFAULT_HEIGHT, DEFAULT_WIDTH, ImageSettings, check_image_size, load_scene,
@@ -286,6 +288,7 @@ fn plan_request(args: &PlanArgs, image: &ImageSettings) -> Result<PlanRequest> {
         execution: args.mode,
         memory_mb: args.memory_mb,
         adaptive: None,
+        outputs: StoredOutputs::ALL,
     })
 }
 

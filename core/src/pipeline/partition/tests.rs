@@ -2,7 +2,8 @@ use super::*;
 use crate::ids::{JobId, SplitId};
 use crate::keys::{parts_table_key, scene_prefix, split_key};
 use crate::pipeline::{
-    ExecutionMode, JobPlan, PlanRequest, SplitMode, plan_into_store, read_outputs, run_task,
+    ExecutionMode, JobPlan, PlanRequest, SplitMode, StoredOutputs, plan_into_store, read_outputs,
+    run_task,
 };
 use crate::scene::load_scene;
 use crate::store::{BlobStore, MemoryStore};
@@ -23,6 +24,7 @@ fn request(splits: u32, execution: Option<ExecutionMode>) -> PlanRequest {
         execution,
         memory_mb: crate::pipeline::DEFAULT_MEMORY_MB,
         adaptive: None,
+        outputs: StoredOutputs::ALL,
     }
 }
 
@@ -208,8 +210,8 @@ fn staged_jobs_split_by_tasks_render_the_monolithic_image() {
         );
         let got = run_all(&parts, &job, &plan);
         assert_eq!(
-            bits(&got.image),
-            bits(&expected.image),
+            bits(got.image.as_ref().expect("the linear image")),
+            bits(expected.image.as_ref().expect("the linear image")),
             "{}",
             main.display()
         );
