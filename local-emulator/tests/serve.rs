@@ -12,8 +12,10 @@ use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-fn monolithic_pfm(dir: &Path, args: &[&str]) -> Vec<u8> {
-    let out = dir.join("monolithic.pfm");
+/// The bundled Cornell box rendered with `--monolithic` into `dir/file` (its extension chooses
+/// the format), with `args`: the file's bytes.
+fn monolithic(dir: &Path, file: &str, args: &[&str]) -> Vec<u8> {
+    let out = dir.join(file);
     let scene = scenes().join("cornell/cornell.json");
     let o = Command::new(HORT)
         .args(["render", scene.to_str().unwrap(), "--monolithic", "--out"])
@@ -117,7 +119,11 @@ fn a_render_equals_the_monolithic_one_and_outlives_the_server() {
         pfm.header("content-type"),
         Some("image/x-portable-floatmap")
     );
-    let reference = monolithic_pfm(&dir, &["--width", "64", "--height", "48", "--spp", "2"]);
+    let reference = monolithic(
+        &dir,
+        "monolithic.pfm",
+        &["--width", "64", "--height", "48", "--spp", "2"],
+    );
     assert!(
         pfm.body == reference,
         "the served image equals the monolithic render"
@@ -188,6 +194,47 @@ fn a_render_equals_the_monolithic_one_and_outlives_the_server() {
 type Case<'a> = (&'a str, Reply, u16, &'a str, String, Option<&'a str>);
 
 #[test]
+fn a_render_asking_for_the_png_alone_stores_and_serves_only_it() {
+    let dir = scratch("png-only");
+    let data = dir.join("data");
+    let server = Serve::start(&data);
+    let body = json!({
+        "scene": cornell(), "width": 32, "height": 24, "splits": 2, "spans": 2,
+        "outputs": {"linear": false, "hits": false}
+    });
+    let posted = server.post("/renders", &body, &[]);
+    assert_eq!(
+        posted.status,
+        202,
+        "{}",
+        String::from_utf8_lossy(&posted.body)
+    );
+    let job = posted.json()["job"].as_str().unwrap().to_owned();
+    let status = server.wait_done(&job, Duration::from_secs(120));
+    assert_eq!(status["status"], "SUCCEEDED", "{status}");
+
+    // The PNG is the monolithic render's, byte for byte; nothing else is stored under out/.
+    let png = server.get(&format!("/renders/{job}/image"));
+    assert_eq!(png.status, 200);
+    let mono = monolithic(&dir, "monolithic.png", &["--width", "32", "--height", "24"]);
+    assert!(png.body == mono, "the monolithic PNG");
+    let stored = files_under(&data.join(format!("hort/jobs/{job}/out")));
+    assert_eq!(stored, ["image.png~obj"], "{stored:?}");
+    for format in ["pfm", "exr"] {
+        let image = server.get(&format!("/renders/{job}/image?format={format}"));
+        assert_eq!(image.status, 404, "{format}");
+        assert_eq!(
+            image.json()["error"]["message"],
+            format!(
+                "render {job} stored no linear image (its request's outputs.linear was false): \
+                 only format=png is served"
+            ),
+            "{format}"
+        );
+    }
+}
+
+#[test]
 fn bad_requests_get_their_status_and_exact_message() {
     let dir = scratch("errors");
     let data = dir.join("data");
@@ -237,9 +284,21 @@ fn bad_requests_get_their_status_and_exact_message() {
             400,
             "invalid_request",
             "colour: unknown field `colour`, expected one of `scene`, `width`, `height`, `spp`, \
-             `splits`, `spans`, `split_mode`, `mode`, `memory_mb`, `max_cost_usd`"
+             `splits`, `spans`, `split_mode`, `mode`, `memory_mb`, `max_cost_usd`, `outputs`"
                 .into(),
             Some("colour"),
+        ),
+        (
+            "unknown output",
+            server.post(
+                "/renders",
+                &json!({"scene": cornell(), "outputs": {"linear": true, "hit": true}}),
+                &[],
+            ),
+            400,
+            "invalid_request",
+            "outputs.hit: unknown field `hit`, expected `linear` or `hits`".into(),
+            Some("outputs.hit"),
         ),
         (
             "unknown nested field",

@@ -4,6 +4,9 @@
 
 use std::collections::BTreeMap;
 
+use hort_core::ids::JobId;
+use hort_core::image::{decode_pfm, encode_exr};
+use hort_core::keys::image_key;
 use hort_core::pipeline::PlanRequest;
 use serde::{Deserialize, Serialize};
 
@@ -169,6 +172,38 @@ impl ImageFormat {
             ImageFormat::Png => "image/png",
             ImageFormat::Pfm => "image/x-portable-floatmap",
             ImageFormat::Exr => "image/x-exr",
+        }
+    }
+}
+
+/// The image of the finished render `id` (job `job`) in `format`, from the outputs its Combine
+/// task stored, which `read` fetches (`Ok(None)`: no such object): the PNG or the PFM as
+/// stored, an EXR converted from the PFM. A job whose request asked for no linear image
+/// (`outputs.linear` false) has no PFM: then `pfm` and `exr` are 404 `not_found`, saying so.
+pub fn stored_image(
+    id: &str,
+    job: &JobId,
+    format: ImageFormat,
+    read: impl Fn(&str) -> Result<Option<Vec<u8>>, ApiError>,
+) -> Result<Vec<u8>, ApiError> {
+    let read_output = |extension: &str| {
+        read(&image_key(job, extension))?.ok_or_else(|| match extension {
+            "pfm" => ApiError::not_found(format!(
+                "render {id} stored no linear image (its request's outputs.linear was false): \
+                 only format=png is served"
+            )),
+            _ => ApiError::internal(format!(
+                "render {id} succeeded but its {extension} is missing"
+            )),
+        })
+    };
+    match format {
+        ImageFormat::Png | ImageFormat::Pfm => read_output(format.extension()),
+        ImageFormat::Exr => {
+            let image = decode_pfm(&read_output("pfm")?)
+                .map_err(|e| ApiError::internal(format!("the stored image of {id}: {e}")))?;
+            encode_exr(&image)
+                .map_err(|e| ApiError::internal(format!("cannot encode OpenEXR: {e}")))
         }
     }
 }

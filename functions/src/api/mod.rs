@@ -38,6 +38,7 @@ mod tests;
 
 pub use backend::{
     ImageFormat, JobSpec, JobState, JobStatus, RenderBackend, StageProgress, Submission,
+    stored_image,
 };
 pub use dashboard::{DASHBOARD_JOBS, escape_html, jobs_table, page};
 pub use error::ApiError;
@@ -493,7 +494,7 @@ fn post_renders(
             .memory_mb
             .unwrap_or(hort_core::pipeline::DEFAULT_MEMORY_MB),
         adaptive: None,
-        outputs: StoredOutputs::ALL,
+        outputs: request.outputs.unwrap_or(StoredOutputs::ALL),
     };
     if let Some(mb) = request.memory_mb
         && !(128..=10240).contains(&mb)

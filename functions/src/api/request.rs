@@ -3,7 +3,7 @@
 
 use std::collections::BTreeMap;
 
-use hort_core::pipeline::{ExecutionMode, SplitMode};
+use hort_core::pipeline::{ExecutionMode, SplitMode, StoredOutputs};
 use serde::Deserialize;
 
 use super::error::ApiError;
@@ -41,6 +41,10 @@ pub struct RenderRequest {
     /// A hard budget: the request is refused (422) when the predicted cost is higher.
     #[serde(default)]
     pub max_cost_usd: Option<f64>,
+    /// Which large outputs the job stores beside its PNG, `{"linear": bool, "hits": bool}`
+    /// (default: both). A job without its linear image serves no `pfm` or `exr` (404).
+    #[serde(default)]
+    pub outputs: Option<StoredOutputs>,
 }
 
 /// Where the scene comes from: `{"main", "files"}` inline, or `{"key"}` in the bucket.

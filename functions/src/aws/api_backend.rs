@@ -17,8 +17,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 
 use hort_core::cost::Arch;
 use hort_core::ids::{JobId, Stage};
-use hort_core::image::{decode_pfm, encode_exr};
-use hort_core::keys::{image_key, manifest_key, parse_partition_key, scene_binary_key};
+use hort_core::keys::{manifest_key, parse_partition_key, scene_binary_key};
 use hort_core::store::{BlobStore, PutOutcome, StoreError};
 use serde::{Deserialize, Serialize};
 use tokio::runtime::Handle;
@@ -29,7 +28,7 @@ use super::sqs::JobQueue;
 use crate::S3Store;
 use crate::api::{
     ApiError, ImageFormat, JobSpec, JobState, JobStatus, PredictionModel, RATES, RenderBackend,
-    Submission,
+    Submission, stored_image,
 };
 use crate::handlers::JobRequest;
 
@@ -241,12 +240,6 @@ impl AwsBackend {
             stages: Vec::new(),
         })
     }
-
-    fn get_output(&self, key: &str) -> Result<Vec<u8>, ApiError> {
-        self.store
-            .get(key)
-            .map_err(|e| Self::storage_error("cannot read the image", e))
-    }
 }
 
 impl RenderBackend for AwsBackend {
@@ -366,18 +359,7 @@ impl RenderBackend for AwsBackend {
             )));
         }
         let job = Self::job_id(id)?;
-        match format {
-            ImageFormat::Png | ImageFormat::Pfm => {
-                self.get_output(&image_key(&job, format.extension()))
-            }
-            ImageFormat::Exr => {
-                let pfm = self.get_output(&image_key(&job, "pfm"))?;
-                let image = decode_pfm(&pfm)
-                    .map_err(|e| ApiError::internal(format!("the stored image of {id}: {e}")))?;
-                encode_exr(&image)
-                    .map_err(|e| ApiError::internal(format!("cannot encode OpenEXR: {e}")))
-            }
-        }
+        stored_image(id, &job, format, |key| self.read_object(key))
     }
 
     fn report(&self, id: &str) -> Result<Vec<u8>, ApiError> {

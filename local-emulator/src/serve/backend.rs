@@ -24,14 +24,13 @@ use hort::emulator::{
 };
 use hort_core::cost::Arch;
 use hort_core::ids::{JobId, Stage};
-use hort_core::image::{decode_pfm, encode_exr};
-use hort_core::keys::{image_key, manifest_key};
+use hort_core::keys::manifest_key;
 use hort_core::pipeline::PlanRequest;
 use hort_core::report::{Outputs, RayReport, Report, Seconds};
 use hort_core::store::{BlobStore, CountingStore, StoreError};
 use hort_functions::api::{
     ApiError, ImageFormat, JobSpec, JobState, JobStatus, PredictionModel, RenderBackend,
-    StageProgress, Submission,
+    StageProgress, Submission, stored_image,
 };
 use hort_functions::{S3Config, S3Store};
 use serde::{Deserialize, Serialize};
@@ -490,16 +489,7 @@ impl RenderBackend for EmulatorBackend {
     fn image(&self, id: &str, format: ImageFormat) -> Result<Vec<u8>, ApiError> {
         self.require_succeeded(id, "image")?;
         let job = JobId::new(id).map_err(|_| ApiError::not_found(format!("no render {id:?}")))?;
-        match format {
-            ImageFormat::Png | ImageFormat::Pfm => self.get(&image_key(&job, format.extension())),
-            ImageFormat::Exr => {
-                let pfm = self.get(&image_key(&job, "pfm"))?;
-                let image = decode_pfm(&pfm)
-                    .map_err(|e| ApiError::internal(format!("the stored image of {id}: {e}")))?;
-                encode_exr(&image)
-                    .map_err(|e| ApiError::internal(format!("cannot encode OpenEXR: {e}")))
-            }
-        }
+        stored_image(id, &job, format, |key| self.read_object(key))
     }
 
     fn report(&self, id: &str) -> Result<Vec<u8>, ApiError> {
