@@ -493,7 +493,32 @@ fn a_stopped_job_is_refused_without_resume_and_finished_with_it() {
              delete it\n"
         )
     );
-    assert!(!second.exists());
+    // Nor can a resume that asks for an output the job does not store.
+    let hits = dir.join("r1.hits");
+    let o = render_to(
+        &dir,
+        &bucket,
+        "bunny/bunny.json",
+        &[
+            "--job",
+            "r1",
+            "--resume",
+            "--out",
+            second.to_str().unwrap(),
+            "--hits",
+            hits.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(
+        stderr(&o),
+        format!(
+            "error: cannot resume job \"r1\": it was started without storing its hit buffer \
+             (--hits); resume it without asking for that, or run `hort jobs clean --job r1 \
+             --s3-endpoint {endpoint} --bucket jobs` to delete it\n"
+        )
+    );
+    assert!(!second.exists() && !hits.exists());
 
     // --resume finishes it, skipping the tasks whose outputs are there, with the same image.
     let o = render_to(

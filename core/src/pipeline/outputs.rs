@@ -1,5 +1,5 @@
-//! Which outputs a job stores ([`StoredOutputs`]), and reading a finished job's outputs back from its
-//! store: the one reader the in-process driver and the emulator share.
+//! Which outputs a job stores ([`StoredOutputs`]), and reading a finished job's outputs back
+//! from its store: the one reader the in-process driver and the emulator share.
 
 use super::PipelineError;
 use super::plan::JobPlan;

@@ -29,7 +29,7 @@ use hort_core::keys::{
     image_key, manifest_key, partition_key, parts_index_key, parts_split_info_key, plan_key,
     scene_binary_key, scene_prefix,
 };
-use hort_core::pipeline::{JobPlan, TaskMetrics};
+use hort_core::pipeline::{JobPlan, PlanRequest, StoredOutputs, TaskMetrics};
 use hort_core::scene::{Scene, encode_scene_named, parse_manifest};
 use hort_core::store::{BlobStore, PutOutcome, StoreError};
 use hort_functions::S3Store;
@@ -271,7 +271,13 @@ pub fn submit_or_resume(
     }
     let stored: JobRequest = serde_json::from_slice(&stored)
         .with_context(|| format!("cannot resume job \"{job}\": its job request"))?;
-    if stored.scene != request.scene || stored.render != request.render {
+    // Which outputs are stored is not a setting of the tasks before Combine: a resume may ask
+    // for fewer (the stored request still governs), not for more.
+    let settings = |r: &JobRequest| PlanRequest {
+        outputs: StoredOutputs::ALL,
+        ..r.render
+    };
+    if stored.scene != request.scene || settings(&stored) != settings(request) {
         bail!(
             "cannot resume job \"{job}\": it was started with other settings (scene {}, {}x{} \
              at {} spp, splits {}, spans {}, split mode {}); resume it with those, or run {clean} \
@@ -286,6 +292,21 @@ pub fn submit_or_resume(
                 .ok()
                 .and_then(|v| v.as_str().map(str::to_owned))
                 .unwrap_or_default(),
+        );
+    }
+    let (had, asked) = (stored.render.outputs, request.render.outputs);
+    let missing: Vec<&str> = [
+        (asked.linear && !had.linear).then_some("its linear image (an --out other than .png)"),
+        (asked.hits && !had.hits).then_some("its hit buffer (--hits)"),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    if !missing.is_empty() {
+        bail!(
+            "cannot resume job \"{job}\": it was started without storing {}; resume it without \
+             asking for that, or run {clean} to delete it",
+            missing.join(" or ")
         );
     }
     // The scene as the job stored it: the functions read it in the stored request's format.
