@@ -76,19 +76,21 @@ pub fn read_outputs(
 ) -> Result<JobOutputs, PipelineError> {
     let (pfm_key, hits_key, png_key) =
         (image_key(job, "pfm"), hits_key(job), image_key(job, "png"));
-    let wanted = [
-        plan.outputs.linear.then_some(&pfm_key),
-        plan.outputs.hits.then_some(&hits_key),
-        Some(&png_key),
-    ];
-    let keys: Vec<String> = wanted.iter().flatten().map(|k| (*k).clone()).collect();
+    let StoredOutputs {
+        linear,
+        hits: with_hits,
+    } = plan.outputs;
+    let mut keys = Vec::with_capacity(3);
+    if linear {
+        keys.push(pfm_key.clone());
+    }
+    if with_hits {
+        keys.push(hits_key.clone());
+    }
+    keys.push(png_key);
     let mut fetched = store.get_many(&keys).into_iter();
-    let mut next = |asked: bool| asked.then(|| fetched.next().expect("get_many answers every key"));
-    let (pfm, hits, png) = (
-        next(plan.outputs.linear),
-        next(plan.outputs.hits),
-        next(true),
-    );
+    let mut next = || fetched.next().expect("get_many answers every key");
+    let (pfm, hits, png) = (linear.then(&mut next), with_hits.then(&mut next), next());
     let image = pfm
         .map(|pfm| decode_pfm(&pfm?).map_err(|e| PipelineError::Corrupt(format!("{pfm_key}: {e}"))))
         .transpose()?;
@@ -101,7 +103,7 @@ pub fn read_outputs(
     Ok(JobOutputs {
         image,
         hits,
-        png: png.expect("the PNG is always asked for")?,
+        png: png?,
     })
 }
 

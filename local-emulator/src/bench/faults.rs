@@ -230,9 +230,7 @@ pub fn run_faults_bench(args: &FaultsBenchArgs) -> Result<()> {
             match run {
                 Ok(run) => {
                     ratios[i].push(ratio);
-                    let identical = run.image.as_ref().map(|i| &i.pixels)
-                        == clean.image.as_ref().map(|i| &i.pixels)
-                        && run.hits == clean.hits;
+                    let identical = run.image == clean.image && run.hits == clean.hits;
                     if !identical {
                         bad.push(format!("seed {seed}, {}: the image differs", mix.label()));
                     }

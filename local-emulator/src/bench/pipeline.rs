@@ -167,8 +167,8 @@ fn time_table(scene: &Scene, args: &PipelineBenchArgs, threads: usize) -> Result
         ("MR2 k=8 s=16 naive", 8, 16, SplitMode::Naive, None),
     ] {
         let (run, seconds) = run(scene, request(args, k, s, mode, execution), threads)?;
-        let identical = run.image.as_ref().map(|i| &i.pixels) == Some(&mono.image.pixels)
-            && run.hits.as_ref() == Some(&mono.hits);
+        let identical =
+            run.image.as_ref() == Some(&mono.image) && run.hits.as_ref() == Some(&mono.hits);
         ensure!(
             identical,
             "{name}: the pipeline image differs from the monolithic one"
