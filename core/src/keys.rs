@@ -119,6 +119,27 @@ pub fn round_two_items_key(job: &JobId, stage: Stage) -> String {
     format!("jobs/{job}/items/{stage}-round-2.json")
 }
 
+/// `jobs/{job}/map-results`: where the Distributed Maps' `ResultWriter`s write each Map Run's
+/// results (`{prefix}/{map run}/manifest.json` and the result files it names), so nothing of
+/// them travels through the 256 KiB state payload.
+pub fn map_results_prefix(job: &JobId) -> String {
+    format!("jobs/{job}/map-results")
+}
+
+/// `{map run folder}/lost.json` beside a Map Run's `manifest.json`: the items its children lost
+/// after their retries, which the stage's rerun Map reads. `None` unless `manifest_key` is a
+/// manifest under `job`'s [`map_results_prefix`] (one folder deep), so one job's Lost step
+/// cannot read or write another's keys.
+pub fn lost_items_key(job: &JobId, manifest_key: &str) -> Option<String> {
+    let prefix = map_results_prefix(job);
+    let run = manifest_key
+        .strip_prefix(prefix.as_str())?
+        .strip_prefix('/')?
+        .strip_suffix("/manifest.json")?;
+    let safe = !run.is_empty() && !run.contains('/') && run != "." && run != "..";
+    safe.then(|| format!("{prefix}/{run}/lost.json"))
+}
+
 /// Parses a key made by [`partition_key`]; `None` for any other string.
 ///
 /// Guarantee: `parse_partition_key(k) == Some(x)` exactly when `partition_key(x) == k`, so a
@@ -157,6 +178,26 @@ mod tests {
 
     fn job() -> JobId {
         JobId::new("job-42").unwrap()
+    }
+
+    #[test]
+    fn lost_items_sit_beside_their_map_runs_manifest_of_the_same_job() {
+        let j = job();
+        assert_eq!(map_results_prefix(&j), "jobs/job-42/map-results");
+        assert_eq!(
+            lost_items_key(&j, "jobs/job-42/map-results/CastMap-3/manifest.json").as_deref(),
+            Some("jobs/job-42/map-results/CastMap-3/lost.json")
+        );
+        for foreign in [
+            "jobs/job-43/map-results/CastMap-3/manifest.json",
+            "jobs/job-42/map-results/manifest.json",
+            "jobs/job-42/map-results/a/b/manifest.json",
+            "jobs/job-42/map-results/../manifest.json",
+            "jobs/job-42/map-results/CastMap-3/SUCCEEDED_0.json",
+            "jobs/job-42/map-resultsX/CastMap-3/manifest.json",
+        ] {
+            assert_eq!(lost_items_key(&j, foreign), None, "{foreign}");
+        }
     }
 
     #[test]

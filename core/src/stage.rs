@@ -151,7 +151,27 @@ impl Stage {
         let top = path.split('/').next().unwrap_or(path);
         Stage::ALL.into_iter().find(|s| s.state_name() == top)
     }
+
+    /// The Map stage whose rerun loop the top-level state of `path` belongs to (`CastMapLost`,
+    /// `CastMapCheck`, `CastMapRerun/…`, `CastMapRound`, `CastMapGiveUp` -> [`Stage::CastMap`]:
+    /// the suffixes of [`RERUN_LOOP_STATES`]); `None` for any other state, the stage's own
+    /// state included.
+    pub fn of_rerun_loop_state(path: &str) -> Option<Stage> {
+        let top = path.split('/').next().unwrap_or(path);
+        Stage::ALL.into_iter().find(|s| {
+            top.strip_prefix(s.state_name())
+                .is_some_and(|rest| RERUN_LOOP_STATES.contains(&rest))
+        })
+    }
 }
+
+/// The states a Map stage `{Map}` runs after its Map state, by the suffix of their names
+/// (`infra/statemachine.asl.json`): `{Map}Lost` (the Plan function collects the lost items from
+/// the Map Run's written results), `{Map}Check` (go on, rerun or give up), `{Map}Rerun` (the
+/// lost items again), `{Map}Round` (count the round) and `{Map}GiveUp` (the job's failure).
+pub const RERUN_LOOP_STATES: [&str; 5] = ["Lost", "Check", "Rerun", "Round", "GiveUp"];
+
+impl Stage {}
 
 impl fmt::Display for Stage {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {

@@ -1,7 +1,7 @@
 //! HORT's state machine, `infra/statemachine.asl.json`: the file AWS Step Functions runs and the
 //! emulator interprets, compiled into this crate.
 
-use asl_interpreter::{DefinitionError, ItemReader, Orchestrator, OrchestratorOptions};
+use asl_interpreter::{Bucket, DefinitionError, Orchestrator, OrchestratorOptions};
 use hort_core::store::BlobStore;
 
 /// The definition's text, exactly as deployed.
@@ -12,12 +12,16 @@ pub fn hort_orchestrator(options: OrchestratorOptions) -> Result<Orchestrator, D
     Orchestrator::new(HORT_DEFINITION, options)
 }
 
-/// A bucket as the interpreter's `ItemReader` sees it: `GetObject` on the job's store.
+/// A bucket as the interpreter sees it: `GetObject` (ItemReader) and `PutObject` (ResultWriter) on the job's store.
 pub struct StoreItems<'a>(pub &'a dyn BlobStore);
 
-impl ItemReader for StoreItems<'_> {
+impl Bucket for StoreItems<'_> {
     fn read_object(&self, key: &str) -> Result<Vec<u8>, String> {
         self.0.get(key).map_err(|e| e.to_string())
+    }
+
+    fn write_object(&self, key: &str, bytes: Vec<u8>) -> Result<(), String> {
+        self.0.put(key, &bytes).map_err(|e| e.to_string())
     }
 }
 
@@ -31,7 +35,8 @@ mod tests {
     /// The stage of one top-level state as the definition spells it: the state's name, the
     /// `stage` literal it passes to the Worker (`None` for Plan), the function it invokes, and
     /// for a Map state its items key path. The main path goes through each Map stage's
-    /// `{Map}Check` Choice by its first rule (nothing lost); that Choice's other targets must be
+    /// `{Map}Lost` Task (the Plan function's lost step, skipped here) and `{Map}Check` Choice by
+    /// its first rule (nothing lost); that Choice's other targets must be
     /// the stage's rerun loop (`{Map}GiveUp`, `{Map}Rerun`), whose Map reruns the same stage
     /// with the same function.
     /// `ChooseScene`, the Choice after Plan, is followed to Partition when the scene is split
@@ -51,6 +56,20 @@ mod tests {
         while let Some(name) = next {
             let state = &states[name];
             match state["Type"].as_str() {
+                Some("Task") if name.ends_with("Lost") => {
+                    // `{Map}Lost`: the Plan function's lost step for the Map before it.
+                    let map = name.strip_suffix("Lost").unwrap();
+                    let payload = &state["Parameters"]["Payload"];
+                    assert_eq!(payload["step"], "lost", "{name}");
+                    assert_eq!(
+                        payload["stage"], states[map]["ItemSelector"]["stage"],
+                        "{name}"
+                    );
+                    assert_eq!(states[map]["Next"], name, "{name}");
+                    assert_eq!(state["Next"], format!("{map}Check"), "{name}");
+                    next = state["Next"].as_str();
+                    continue;
+                }
                 Some("Task") => {
                     let params = &state["Parameters"];
                     out.push((
@@ -116,7 +135,8 @@ mod tests {
                         .strip_suffix("Check")
                         .expect("a Choice named {Map}Check");
                     let rules = state["Choices"].as_array().unwrap();
-                    assert_eq!(rules[0]["IsPresent"], Value::Bool(false), "{name}");
+                    assert_eq!(rules[0]["Variable"], "$.rerun.lost", "{name}");
+                    assert_eq!(rules[0]["NumericEquals"], 0, "{name}");
                     assert_eq!(rules[1]["Next"], format!("{map}GiveUp"), "{name}");
                     assert_eq!(state["Default"], format!("{map}Rerun"), "{name}");
                     let rerun = &states[format!("{map}Rerun")];

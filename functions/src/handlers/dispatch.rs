@@ -10,6 +10,7 @@ use hort_core::stage::{PLAN_FUNCTION, WORKER_FUNCTION};
 use serde_json::Value;
 
 use super::events::{PlanEvent, WorkerEvent};
+use super::lost::{LostEvent, handle_lost, is_lost_event};
 use super::{BlobStore, HandlerError, handle_plan_measured, handle_worker};
 
 /// The functions of a deployment.
@@ -92,6 +93,15 @@ pub fn dispatch(
     };
     let encode = |e: serde_json::Error| HandlerError::bad_input(format!("cannot encode: {e}"));
     match function {
+        Function::Plan if is_lost_event(&event) => {
+            let event: LostEvent =
+                serde_json::from_value(event).map_err(|e| malformed("Plan (lost step)", e))?;
+            let out = handle_lost(env.store, env.bucket, &event)?;
+            Ok(Invoked {
+                output: serde_json::to_value(out).map_err(encode)?,
+                task: None,
+            })
+        }
         Function::Plan => {
             let event: PlanEvent =
                 serde_json::from_value(event).map_err(|e| malformed("Plan", e))?;

@@ -145,6 +145,9 @@ pub struct PlanOutput {
     /// Whether a second round may follow this one: true for round 1 of a staged adaptive job,
     /// whose TraceReduce is followed by the `Refine` state (the Plan function with round 2).
     pub refine_after: bool,
+    /// Where the Map states' `ResultWriter`s store each Map Run's results
+    /// ([`hort_core::keys::map_results_prefix`]), read by the Plan function's `lost` step.
+    pub results: String,
 }
 
 impl PlanOutput {

@@ -127,6 +127,7 @@ pub(super) fn write_round(
         max_concurrency: request.max_concurrency,
         shadows: plan.has_shadows(),
         refine_after: refined.is_none() && plan.has_second_round(),
+        results: hort_core::keys::map_results_prefix(job),
     })
 }
 

@@ -198,6 +198,7 @@ fn parts_output(
         max_concurrency: request.max_concurrency,
         shadows: false,
         refine_after: false,
+        results: hort_core::keys::map_results_prefix(job),
     })
 }
 

@@ -7,8 +7,8 @@
 //! `Variable` compared with `IsPresent`, `StringEquals`, `BooleanEquals` or a `Numeric…` operator against a literal, and
 //! `Default`), Pass, Succeed, Fail; fields InputPath, OutputPath, Parameters, ResultSelector,
 //! ResultPath, ItemSelector, TimeoutSeconds(Path), MaxConcurrency(Path), Retry, Catch,
-//! Next/End, Comment. Anything else (Wait, Parallel, HeartbeatSeconds, ResultWriter,
-//! ItemBatcher, ToleratedFailure*, And/Or/Not and string or timestamp comparisons in Choice,
+//! Next/End, Comment, and a Map's `ResultWriter` (`s3:putObject` with `Bucket` and `Prefix`).
+//! Anything else (Wait, Parallel, HeartbeatSeconds, `ResultWriter.WriterConfig`, ItemBatcher, ToleratedFailure*, And/Or/Not and string or timestamp comparisons in Choice,
 //! JSONata, …) is a load error naming the state and the field: the emulator refuses what it
 //! would not run exactly as Step Functions does.
 
@@ -174,6 +174,10 @@ pub enum Items {
 pub struct MapState {
     /// Where the items come from.
     pub items: Items,
+    /// `ResultWriter.Parameters` (`{"Bucket": …, "Prefix": …}`): the children's results go to
+    /// the bucket as AWS writes them, and the Map's result is only where they went. Without
+    /// it the results come back inline, and the 256 KiB payload limit applies to them.
+    pub result_writer: Option<Template>,
     /// `ItemSelector`: each child's input, with `$$.Map.Item.{Index,Value}` in the context.
     pub item_selector: Option<Template>,
     /// `ItemProcessor`: the machine each item runs through.

@@ -21,7 +21,9 @@
 //! jitter uniform in `[0, delay)` (deterministic from [`OrchestratorOptions::seed`]); `Catch`
 //! after retries; Task `TimeoutSeconds` fails the attempt with `States.Timeout` while the
 //! invocation runs on as a zombie holding its slot; a failed Map item fails the Map with
-//! `States.ExceedToleratedFailureThreshold`.
+//! `States.ExceedToleratedFailureThreshold`; a state input or output, a Task's payload or
+//! result, or a Map's inline results over 256 KiB fail the execution with
+//! `States.DataLimitExceeded`, which no Catch catches (`hort_aws_quotas`).
 //!
 //! # Error contract of the functions
 //! A function signals failure with a [`TaskFailure`] whose `error` is the error name Step
@@ -61,18 +63,29 @@ pub use clock::{Clock, ManualClock, RealClock};
 pub use definition::{DefinitionError, State, StateMachine};
 pub use events::{Event, EventLog, NoObserver, Observer};
 pub use retry::{Jitter, Retrier, backoff_seconds, retry_delay};
-pub use run::{CANCELLED, EXCEED_TOLERATED_FAILURE, ITEM_READER_FAILED, NO_CHOICE_MATCHED, PANIC};
+pub use run::{
+    CANCELLED, EXCEED_TOLERATED_FAILURE, ITEM_READER_FAILED, NO_CHOICE_MATCHED, PANIC,
+    RESULT_WRITER_FAILED,
+};
 
 /// The error of an attempt that ran past its `TimeoutSeconds`.
 pub const TIMEOUT: &str = retry::TIMEOUT;
 /// The error of a path or data error inside the interpreter (never retried or caught).
 pub const RUNTIME: &str = retry::RUNTIME;
+/// The error of a state input or output, Task payload or result, or inline Map result over
+/// Step Functions' 256 KiB (never retried or caught).
+pub const DATA_LIMIT_EXCEEDED: &str = retry::DATA_LIMIT_EXCEEDED;
 
-/// Reads a Distributed Map's items file: the stand-in for S3 `GetObject` of an `ItemReader`.
-pub trait ItemReader: Sync {
+/// The execution's bucket as Distributed Maps use it: the stand-in for S3 `GetObject` of an
+/// `ItemReader` and `PutObject` of a `ResultWriter`.
+pub trait Bucket: Sync {
     /// The bytes of object `key` of the execution's bucket, or a one-line reason it cannot be
     /// read (shown in the `States.ItemReaderFailed` cause).
     fn read_object(&self, key: &str) -> Result<Vec<u8>, String>;
+
+    /// Stores `bytes` at `key` of the execution's bucket (replacing any object there), or a
+    /// one-line reason it cannot (shown in the `States.ResultWriterFailed` cause).
+    fn write_object(&self, key: &str, bytes: Vec<u8>) -> Result<(), String>;
 }
 
 /// Runs functions for the emulator: the in-process stand-in for Lambda.
@@ -244,13 +257,14 @@ impl Orchestrator {
     /// Runs one execution to its end and returns its output.
     ///
     /// `invoker` runs the functions (shared with invocation threads that may outlive a timed-out
-    /// attempt, hence the `Arc`); `items` reads the bucket named by the input's `"bucket"` field,
-    /// the only bucket an `ItemReader` may read; `observer` sees progress from many threads.
+    /// attempt, hence the `Arc`); `items` is the bucket named by the input's `"bucket"` field,
+    /// the only bucket an `ItemReader` may read and a `ResultWriter` may write; `observer` sees
+    /// progress from many threads.
     pub fn run(
         &self,
         input: Value,
         invoker: Arc<dyn TaskInvoker>,
-        items: &dyn ItemReader,
+        items: &dyn Bucket,
         observer: &dyn Observer,
     ) -> Result<Value, ExecutionFailure> {
         let name = input
@@ -265,6 +279,7 @@ impl Orchestrator {
             items,
             observer,
             slots: slots::Slots::new(self.options.slots),
+            map_runs: std::sync::atomic::AtomicU64::new(0),
             context: json!({
                 "Execution": {
                     "Id": format!("arn:aws:states:local:000000000000:execution:hort:{name}"),

@@ -6,8 +6,9 @@
 //! - Attempt counts are kept per retrier; the delay before the retrier's (n+1)-th retry
 //!   (n = 0, 1, …) is `IntervalSeconds * BackoffRate^n`, capped at `MaxDelaySeconds`; with
 //!   `JitterStrategy: FULL` the delay is uniform in `[0, delay)`.
-//! - `States.ALL` matches every error but `States.Runtime`; `States.TaskFailed` matches every
-//!   error but `States.Timeout` and `States.Runtime`; `States.Runtime` is never retried or caught.
+//! - `States.ALL` matches every error but `States.Runtime` and `States.DataLimitExceeded`;
+//!   `States.TaskFailed` matches every error but those two and `States.Timeout`. Those two are
+//!   terminal: never retried or caught, by any name.
 //!
 //! Jitter is deterministic: it is a hash of the run's seed, the state path, the item index and
 //! the retry number, so it does not depend on thread interleaving.
@@ -16,6 +17,8 @@ use std::time::Duration;
 
 /// The error name of a data or path error inside the interpreter: never retried or caught.
 pub const RUNTIME: &str = "States.Runtime";
+/// The error of a payload over Step Functions' 256 KiB (terminal, like [`RUNTIME`]).
+pub const DATA_LIMIT_EXCEEDED: &str = hort_aws_quotas::DATA_LIMIT_EXCEEDED;
 /// The error name of an attempt (or execution) that ran past its timeout.
 pub const TIMEOUT: &str = "States.Timeout";
 /// The wildcard matching every error but [`RUNTIME`].
@@ -62,7 +65,7 @@ pub struct Catcher {
 
 /// True if the pattern (an `ErrorEquals` entry) matches the error name.
 pub fn error_matches(pattern: &str, error: &str) -> bool {
-    if error == RUNTIME {
+    if error == RUNTIME || error == DATA_LIMIT_EXCEEDED {
         return false;
     }
     match pattern {
@@ -252,6 +255,9 @@ mod tests {
         assert!(error_matches(TASK_FAILED, "Hort.Retryable"));
         assert!(!error_matches(TASK_FAILED, TIMEOUT));
         assert!(!error_matches(RUNTIME, RUNTIME));
+        assert!(!error_matches(ALL, DATA_LIMIT_EXCEEDED));
+        assert!(!error_matches(TASK_FAILED, DATA_LIMIT_EXCEEDED));
+        assert!(!error_matches(DATA_LIMIT_EXCEEDED, DATA_LIMIT_EXCEEDED));
         assert!(error_matches("Hort.Retryable", "Hort.Retryable"));
         assert!(!error_matches("Hort.Retryable", "Hort.BadInput"));
     }

@@ -25,6 +25,20 @@
 //! EXPRESS children fail with `States.Timeout` after 5 minutes, as Express executions do.
 //! A Map with `ItemsPath` runs the same way over an array of its effective input.
 //!
+//! With a `ResultWriter`, a Map's children's results go to the bucket as AWS writes them
+//! (`{Prefix}/{map run}/manifest.json` naming `SUCCEEDED_0.json`, an array of
+//! `{"ExecutionArn", "Name", "Input", "InputDetails", "Output", "OutputDetails", "Status",
+//! "StateMachineArn"}` with `Input` and `Output` as JSON text), and the Map's result is
+//! `{"MapRunArn", "ResultWriterDetails": {"Bucket", "Key"}}` with `Key` the manifest's. The
+//! emulator names a Map Run `{state}-{n}` (n counts the execution's Map Runs) where AWS uses a
+//! UUID, leaves out the start and stop dates (so the bytes do not depend on the clock), and
+//! writes nothing for a Map Run that failed.
+//!
+//! Payloads are held to Step Functions' 256 KiB, counted as compact JSON text: the execution
+//! input, each state's output, each Map child's input, each Task's payload and its function's
+//! result, and a Map's results when they come back inline. Over it, the execution fails with
+//! `States.DataLimitExceeded`, which neither Retry nor Catch matches.
+//!
 //! A Choice state goes to the `Next` of its first rule that holds, else to `Default`; with
 //! neither, the execution fails with `States.NoChoiceMatched`. `IsPresent` holds when the
 //! `Variable` selects something (true) or nothing (false); a `Numeric…` rule whose `Variable`
@@ -33,7 +47,7 @@
 mod invoke;
 mod map_run;
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -52,6 +66,8 @@ use super::{Clock, ItemFailure, OrchestratorOptions, TaskInvoker};
 pub const EXCEED_TOLERATED_FAILURE: &str = "States.ExceedToleratedFailureThreshold";
 /// The error of a Map whose items could not be read.
 pub const ITEM_READER_FAILED: &str = "States.ItemReaderFailed";
+/// The error of a Map whose results could not be written by its `ResultWriter`.
+pub const RESULT_WRITER_FAILED: &str = "States.ResultWriterFailed";
 /// The error of an execution stopped through the cancel flag.
 pub const CANCELLED: &str = "States.Cancelled";
 /// The error a panicking invocation reports: Step Functions reports unhandled Lambda errors
@@ -60,7 +76,7 @@ pub const PANIC: &str = "Lambda.Unknown";
 /// The error of a Choice state none of whose rules held, without a `Default`.
 pub const NO_CHOICE_MATCHED: &str = "States.NoChoiceMatched";
 /// The longest an EXPRESS child execution may run, in seconds (before time scaling).
-const EXPRESS_LIMIT_SECONDS: f64 = 300.0;
+const EXPRESS_LIMIT_SECONDS: f64 = hort_aws_quotas::EXPRESS_EXECUTION_SECONDS as f64;
 /// How often waits re-check the cancel flag and deadlines.
 const POLL: Duration = Duration::from_millis(5);
 
@@ -138,12 +154,14 @@ pub struct Execution<'a> {
     pub clock: &'a dyn Clock,
     /// Runs the functions.
     pub invoker: &'a Arc<dyn TaskInvoker>,
-    /// Reads the Map states' items files.
-    pub items: &'a dyn crate::ItemReader,
+    /// Reads the Map states' items files and takes their written results.
+    pub items: &'a dyn crate::Bucket,
     /// Sees the events.
     pub observer: &'a dyn Observer,
     /// The function slots shared by all its invocations.
     pub slots: Arc<Slots>,
+    /// How many Map Runs the execution has started (names the runs' result folders).
+    pub map_runs: AtomicU64,
     /// `{"Execution": …, "StateMachine": …}` of the context object.
     pub context: Value,
     /// The execution input's `bucket`, the only bucket ItemReader may read.
@@ -162,6 +180,7 @@ impl Execution<'_> {
             },
             deadline: None,
         };
+        within_limit(&input, "(execution input)", "the execution input").map_err(Stop::Failed)?;
         self.machine(machine, input, &frame)
     }
 
@@ -253,6 +272,7 @@ impl Execution<'_> {
                 }
                 State::Fail(fail) => return Err(self.fail(fail, &path, name, &input, caught)),
             };
+            within_limit(&step.output, &path, "the state's output").map_err(Stop::Failed)?;
             if step.caught.is_some() {
                 caught = step.caught;
             }
@@ -416,10 +436,14 @@ impl Execution<'_> {
                 Ok(p) => p,
                 Err(e) => return Ok(Err(Self::runtime(path, e))),
             };
+            if let Err(failure) = within_limit(&payload, path, "the Task's payload") {
+                return Ok(Err(failure));
+            }
             self.invoke(&task.function, payload, timeout, path, attempt, frame)
         })?;
         match outcome {
             Ok((result, attempt)) => {
+                within_limit(&result, path, "the function's result").map_err(Stop::Failed)?;
                 let ctx = self.context(name, attempt, None);
                 let wrapped = json!({
                     "ExecutedVersion": "$LATEST",
@@ -544,6 +568,43 @@ fn next(t: &Transition) -> Option<&str> {
         Transition::Next(n) => Some(n),
         Transition::End => None,
     }
+}
+
+/// Fails with `States.DataLimitExceeded` when `value`, as compact JSON text, is over Step
+/// Functions' payload quota; `what` names the payload in the cause.
+fn within_limit(value: &Value, path: &str, what: &str) -> Result<(), Failure> {
+    let limit = hort_aws_quotas::STATE_PAYLOAD_BYTES;
+    let size = json_len(value);
+    if size <= limit {
+        return Ok(());
+    }
+    Err(Failure {
+        error: retry::DATA_LIMIT_EXCEEDED.into(),
+        cause: format!(
+            "{path}: {what} is {size} bytes, over Step Functions' {limit}-byte (256 KiB) \
+             payload quota"
+        ),
+        state: path.to_owned(),
+        item: None,
+    })
+}
+
+/// The length of `value` as compact JSON text, without building the text.
+fn json_len(value: &Value) -> usize {
+    struct Count(usize);
+    impl std::io::Write for Count {
+        fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+            self.0 += buf.len();
+            Ok(buf.len())
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+    let mut count = Count(0);
+    // Writing into a counter cannot fail, and a Value always serialises.
+    let _ = serde_json::to_writer(&mut count, value);
+    count.0
 }
 
 fn select(selector: &Selector, value: Value, ctx: &Value) -> Result<Value, String> {

@@ -21,6 +21,8 @@ use serde_json::{Value, json};
 use super::*;
 use crate::retry::retry_delay;
 
+mod payload;
+
 /// HORT's state machine: the definition these tests run.
 pub(crate) const HORT_DEFINITION: &str = include_str!("../../../infra/statemachine.asl.json");
 
@@ -165,9 +167,10 @@ impl Observer for Board {
     }
 }
 
-/// An in-memory bucket serving the Map states' items files.
-#[derive(Default)]
-struct MemoryItems(Mutex<BTreeMap<String, Vec<u8>>>);
+/// An in-memory bucket serving the Map states' items files and taking their results; clones
+/// share the objects.
+#[derive(Default, Clone)]
+struct MemoryItems(Arc<Mutex<BTreeMap<String, Vec<u8>>>>);
 
 impl MemoryItems {
     fn new() -> Self {
@@ -182,9 +185,15 @@ impl MemoryItems {
     fn delete(&self, key: &str) {
         self.0.lock().unwrap().remove(key);
     }
+    fn keys(&self) -> Vec<String> {
+        self.0.lock().unwrap().keys().cloned().collect()
+    }
+    fn json(&self, key: &str) -> Value {
+        serde_json::from_slice(&self.read_object(key).unwrap()).unwrap()
+    }
 }
 
-impl ItemReader for MemoryItems {
+impl Bucket for MemoryItems {
     fn read_object(&self, key: &str) -> Result<Vec<u8>, String> {
         self.0
             .lock()
@@ -192,6 +201,11 @@ impl ItemReader for MemoryItems {
             .get(key)
             .cloned()
             .ok_or_else(|| format!("no object {key}"))
+    }
+
+    fn write_object(&self, key: &str, bytes: Vec<u8>) -> Result<(), String> {
+        self.put(key, &bytes);
+        Ok(())
     }
 }
 
@@ -249,6 +263,8 @@ struct Fake {
     clock: Arc<ManualClock>,
     calls: Mutex<Vec<(String, String, Value)>>,
     per_task: Mutex<BTreeMap<(String, u64), u32>>,
+    /// The bucket of the running execution, for the Plan function's `lost` step.
+    bucket: Mutex<Option<MemoryItems>>,
 }
 
 /// Counts an invocation out of the board when it ends, panicking or not.
@@ -284,6 +300,7 @@ impl Fake {
             clock: Arc::new(ManualClock::new()),
             calls: Mutex::new(Vec::new()),
             per_task: Mutex::new(BTreeMap::new()),
+            bucket: Mutex::new(None),
         })
     }
 
@@ -315,6 +332,40 @@ impl Fake {
         self.board.lock().peak
     }
 
+    /// The Plan function's `lost` step, as `hort_functions` runs it: the lost items of the Map
+    /// Run whose manifest is `input.results`, stored beside it.
+    fn lost_step(&self, input: &Value) -> Value {
+        let bucket = self.bucket.lock().unwrap().clone().expect("a bucket");
+        let manifest_key = input["results"].as_str().unwrap();
+        let manifest = bucket.json(manifest_key);
+        let mut lost: Vec<Value> = Vec::new();
+        for file in manifest["ResultFiles"]["SUCCEEDED"].as_array().unwrap() {
+            let children = bucket.json(file["Key"].as_str().unwrap());
+            for child in children.as_array().unwrap() {
+                assert_eq!(child["Status"], "SUCCEEDED");
+                let output: Value =
+                    serde_json::from_str(child["Output"].as_str().unwrap()).unwrap();
+                if let Some(record) = output.get("lost") {
+                    lost.push(record.clone());
+                }
+            }
+        }
+        lost.sort_by_key(|r| r["item"]["task"].as_u64());
+        let rounds = input["round"].clone();
+        let Some(first) = lost.first() else {
+            return json!({"lost": 0, "rounds": rounds, "items": null, "first": null});
+        };
+        let key = manifest_key.replace("manifest.json", "lost.json");
+        let items: Vec<Value> = lost.iter().map(|r| r["item"].clone()).collect();
+        bucket.put(&key, json!(items).to_string().as_bytes());
+        json!({
+            "lost": lost.len(),
+            "rounds": rounds,
+            "items": key,
+            "first": {"task": first["item"]["task"], "error": first["error"], "cause": first["cause"]},
+        })
+    }
+
     /// The HORT definition on this fake's clock.
     fn hort(&self, options: OrchestratorOptions) -> Orchestrator {
         self.machine(HORT_DEFINITION, options)
@@ -330,7 +381,12 @@ impl Fake {
 
 impl TaskInvoker for Fake {
     fn invoke(&self, resource: &str, input: Value) -> Result<Value, TaskFailure> {
-        let stage = input["stage"].as_str().unwrap_or("plan").to_owned();
+        let lost_step = input["step"] == "lost";
+        let stage = match input["stage"].as_str() {
+            Some(stage) if lost_step => format!("lost:{stage}"),
+            Some(stage) => stage.to_owned(),
+            None => "plan".to_owned(),
+        };
         self.board.update(|s| {
             s.in_flight += 1;
             s.peak = s.peak.max(s.in_flight);
@@ -347,6 +403,7 @@ impl TaskInvoker for Fake {
             .unwrap()
             .push((resource.to_owned(), stage.clone(), input.clone()));
         match resource {
+            "PlanFunctionArn" if lost_step => Ok(self.lost_step(&input)),
             "PlanFunctionArn" => {
                 assert_eq!(input, json!({"job": "j1", "bucket": "b1", "attempt": 0}));
                 let fused = self.fused.load(Ordering::Relaxed);
@@ -357,7 +414,7 @@ impl TaskInvoker for Fake {
                     .collect();
                 let mode = if fused { "fused" } else { "staged" };
                 Ok(
-                    json!({"mode": mode, "items": items, "max_concurrency": self.max_concurrency, "shadows": true, "refine_after": false}),
+                    json!({"mode": mode, "items": items, "max_concurrency": self.max_concurrency, "shadows": true, "refine_after": false, "results": "jobs/j1/map-results"}),
                 )
             }
             "WorkerFunctionArn" => {
@@ -384,6 +441,7 @@ fn run_on(
     store: &MemoryItems,
 ) -> (Result<Value, ExecutionFailure>, Vec<Event>) {
     let invoker: Arc<dyn TaskInvoker> = fake.clone();
+    *fake.bucket.lock().unwrap() = Some(store.clone());
     let out = orchestrator.run(input, invoker, store, &fake.board);
     fake.board.update(|s| {
         s.in_flight_at_return = Some(s.in_flight);
@@ -491,15 +549,20 @@ fn all_stages_run_in_order_with_every_item_once() {
             "ChooseScene",
             "ChooseMode",
             "CastMap",
+            "CastMapLost",
             "CastMapCheck",
             "CastReduce",
+            "CastReduceLost",
             "CastReduceCheck",
             "ChooseShadows",
             "Expand",
+            "ExpandLost",
             "ExpandCheck",
             "TraceMap",
+            "TraceMapLost",
             "TraceMapCheck",
             "TraceReduce",
+            "TraceReduceLost",
             "TraceReduceCheck",
             "ChooseRefine",
             "Combine",

@@ -69,20 +69,16 @@ impl Accounting {
 }
 
 /// The row a state's events count in: its top-level state, where the states of a Map stage's
-/// rerun loop (`CastMapCheck`, `CastMapRerun`, `CastMapRound`, `CastMapGiveUp`) count in the
-/// stage's own row (`CastMap`).
+/// rerun loop (`CastMapLost`, `CastMapCheck`, `CastMapRerun`, `CastMapRound`, `CastMapGiveUp`)
+/// count in the stage's own row (`CastMap`).
 fn top_level(state: &str) -> Option<&str> {
     let top = state.split('/').next()?;
-    Some(
-        Stage::ALL
-            .iter()
-            .map(|s| s.state_name())
-            .find(|name| {
-                top.strip_prefix(name)
-                    .is_some_and(|rest| ["Check", "Rerun", "Round", "GiveUp"].contains(&rest))
-            })
-            .unwrap_or(top),
-    )
+    Some(Stage::of_rerun_loop_state(top).map_or(top, |s| s.state_name()))
+}
+
+/// True for a Map stage's `{Map}Lost` Task state.
+fn is_lost_step(state: &str) -> bool {
+    state.ends_with("Lost") && !state.contains('/') && Stage::of_rerun_loop_state(state).is_some()
 }
 
 impl Observer for Accounting {
@@ -110,6 +106,11 @@ impl Observer for Accounting {
                     row.items += *items as u64;
                 }
             }
+            // The Plan function's lost step (`CastMapLost`) is the orchestration's bookkeeping,
+            // no task of the stage: its time counts in the row, its invocations in the cost
+            // (the ledger), not in the stage's attempts.
+            Event::TaskAttemptStarted { state, .. } | Event::TaskAttemptFailed { state, .. }
+                if is_lost_step(state) => {}
             Event::TaskAttemptStarted { state, .. } => {
                 let top = top_level(state).unwrap_or_default().to_string();
                 if let Some(row) = s.rows.iter_mut().rev().find(|r| r.state == top) {

@@ -435,17 +435,17 @@ impl Functions {
 }
 
 /// The stage name of a state path (`CastMap/CastMapTask` -> `cast-map`, and the states of its
-/// rerun loop and its Fail state, `CastMapRerun/CastMapRerunTask` or `CastMapFailed`, too); a
+/// rerun loop and its Fail state, `CastMapLost`, `CastMapRerun/CastMapRerunTask` or
+/// `CastMapFailed`, too); a
 /// state outside the stage table keeps its own name.
 pub fn stage_name(state: &str) -> String {
     let top = state.split('/').next().unwrap_or(state);
     Stage::of_state(state)
+        .or_else(|| Stage::of_rerun_loop_state(state))
         .or_else(|| {
-            Stage::ALL.into_iter().find(|s| {
-                top.strip_prefix(s.state_name()).is_some_and(|rest| {
-                    ["Check", "Rerun", "Round", "GiveUp", "Failed"].contains(&rest)
-                })
-            })
+            Stage::ALL
+                .into_iter()
+                .find(|s| top.strip_prefix(s.state_name()) == Some("Failed"))
         })
         .map_or_else(
             || match top {

@@ -66,6 +66,7 @@ pub(super) struct RawMap {
     pub(super) _comment: Option<String>,
     pub(super) item_reader: Option<RawItemReader>,
     pub(super) items_path: Option<String>,
+    pub(super) result_writer: Option<RawResultWriter>,
     pub(super) item_selector: Option<Value>,
     pub(super) item_processor: RawProcessor,
     pub(super) max_concurrency: Option<u64>,
@@ -90,6 +91,13 @@ pub(super) struct RawMap {
 pub(super) struct RawItemReader {
     pub(super) resource: String,
     pub(super) reader_config: RawReaderConfig,
+    pub(super) parameters: Value,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "PascalCase", deny_unknown_fields)]
+pub(super) struct RawResultWriter {
+    pub(super) resource: String,
     pub(super) parameters: Value,
 }
 

@@ -14,6 +14,7 @@ use crate::retry::{self, Catcher, Jitter, Retrier};
 
 const LAMBDA_INVOKE: &str = "arn:aws:states:::lambda:invoke";
 const S3_GET_OBJECT: &str = "arn:aws:states:::s3:getObject";
+const S3_PUT_OBJECT: &str = "arn:aws:states:::s3:putObject";
 /// The largest timeout or interval ASL accepts, in seconds.
 const MAX_SECONDS: u64 = 99_999_999;
 
@@ -289,8 +290,25 @@ fn map_fields(raw: RawMap, processor: StateMachine) -> Result<State, String> {
             )
         }
     };
+    let result_writer = match raw.result_writer {
+        None => None,
+        Some(writer) => {
+            if writer.resource != S3_PUT_OBJECT {
+                return Err(format!(
+                    "ResultWriter.Resource {:?} is not supported by the emulator (only \
+                     {S3_PUT_OBJECT:?})",
+                    writer.resource
+                ));
+            }
+            Some(
+                template("ResultWriter.Parameters", Some(writer.parameters))?
+                    .ok_or("ResultWriter.Parameters is required")?,
+            )
+        }
+    };
     Ok(State::Map(MapState {
         items,
+        result_writer,
         item_selector: template("ItemSelector", raw.item_selector)?,
         processor,
         express,

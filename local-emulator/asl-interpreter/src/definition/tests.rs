@@ -54,10 +54,10 @@ fn unsupported_states_and_fields_are_named() {
     );
 
     let mut machine: Value = serde_json::from_str(HORT_DEFINITION).unwrap();
-    machine["States"]["TraceMap"]["ResultWriter"] = json!({});
+    machine["States"]["TraceMap"]["ItemBatcher"] = json!({"MaxItemsPerBatch": 10});
     let err = load_error(machine);
     assert!(
-        err.contains("\"TraceMap\"") && err.contains("ResultWriter"),
+        err.contains("\"TraceMap\"") && err.contains("ItemBatcher"),
         "{err}"
     );
 
@@ -98,7 +98,9 @@ fn unsupported_states_and_fields_are_named() {
 
     // A wildcard is for template paths only, never a reference path.
     let mut machine: Value = serde_json::from_str(HORT_DEFINITION).unwrap();
-    machine["States"]["CastMapRerun"]["ItemsPath"] = json!("$.rerun[*]");
+    let rerun = machine["States"]["CastMapRerun"].as_object_mut().unwrap();
+    rerun.remove("ItemReader");
+    rerun.insert("ItemsPath".into(), json!("$.rerun[*]"));
     let err = load_error(machine);
     assert!(
         err.contains("\"CastMapRerun\"") && err.contains("ItemsPath") && err.contains("[*]"),
@@ -106,8 +108,7 @@ fn unsupported_states_and_fields_are_named() {
     );
 
     let mut machine: Value = serde_json::from_str(HORT_DEFINITION).unwrap();
-    machine["States"]["CastMapRerun"]["ItemReader"] =
-        machine["States"]["CastMap"]["ItemReader"].clone();
+    machine["States"]["CastMapRerun"]["ItemsPath"] = json!("$.rerun.items");
     let err = load_error(machine);
     assert!(
         err.contains("\"CastMapRerun\"") && err.contains("both ItemReader and ItemsPath"),
@@ -188,17 +189,28 @@ fn the_hort_definition_compiles_to_the_documented_graph() {
     assert!(map.express);
     assert_eq!(
         map.result_path,
-        crate::paths::ResultPath::Field(vec!["rerun".into()], "$.rerun".into())
+        crate::paths::ResultPath::Field(vec!["results".into()], "$.results".into())
     );
-    // Every Map stage reruns its lost items in a bounded loop before its Fail state.
-    for stage in ["CastMap", "CastReduce", "Expand", "TraceMap", "TraceReduce"] {
+    // Every Map stage writes its results to S3, collects its lost items with the Plan
+    // function, and reruns them (read from S3 too) in a bounded loop before its Fail state.
+    let stages = ["Partition", "Build", "Render", "CastMap", "CastReduce"];
+    for stage in stages
+        .into_iter()
+        .chain(["Expand", "TraceMap", "TraceReduce"])
+    {
         let state = |suffix: &str| &machine.states[&format!("{stage}{suffix}")];
-        assert!(matches!(state("Check"), super::State::Choice(_)), "{stage}");
+        for map in [state(""), state("Rerun")] {
+            assert!(
+                matches!(map, super::State::Map(m)
+                if matches!(m.items, super::Items::Reader(_)) && m.result_writer.is_some()),
+                "{stage}"
+            );
+        }
         assert!(
-            matches!(state("Rerun"), super::State::Map(m)
-            if matches!(m.items, super::Items::Path(_))),
+            matches!(state("Lost"), super::State::Task(t) if t.function == "PlanFunctionArn"),
             "{stage}"
         );
+        assert!(matches!(state("Check"), super::State::Choice(_)), "{stage}");
         assert!(matches!(state("Round"), super::State::Pass(_)), "{stage}");
         assert!(matches!(state("GiveUp"), super::State::Pass(_)), "{stage}");
     }

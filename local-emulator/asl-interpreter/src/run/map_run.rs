@@ -1,15 +1,17 @@
 //! Map states: reading the items file, running the children on at most
-//! min(MaxConcurrency, slots, items) threads, and failing the Map Run on the first failed item.
+//! min(MaxConcurrency, slots, items) threads, failing the Map Run on the first failed item, and
+//! handing back the results inline (within 256 KiB) or written by the `ResultWriter`.
 
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::thread;
 
-use serde_json::Value;
+use serde_json::{Value, json};
 
 use super::{
     EXCEED_TOLERATED_FAILURE, EXPRESS_LIMIT_SECONDS, Execution, Failure, Frame, Halt,
-    ITEM_READER_FAILED, Step, Stop, lock, next, positive, select,
+    ITEM_READER_FAILED, RESULT_WRITER_FAILED, Step, Stop, lock, next, positive, select,
+    within_limit,
 };
 use crate::ItemFailure;
 use crate::definition::{Items, MapState};
@@ -153,6 +155,11 @@ impl Execution<'_> {
         let next_item = AtomicUsize::new(0);
         let first_failure: Mutex<Option<(usize, Failure)>> = Mutex::new(None);
         let outputs: Mutex<Vec<Value>> = Mutex::new(vec![Value::Null; items.len()]);
+        // The children's inputs, for the result files of a ResultWriter.
+        let inputs: Mutex<Vec<Value>> = Mutex::new(match map.result_writer {
+            Some(_) => vec![Value::Null; items.len()],
+            None => Vec::new(),
+        });
         let halt = Halt {
             flag: &abort,
             parent: Some(&frame.halt),
@@ -181,6 +188,14 @@ impl Execution<'_> {
                             Some(t) => t.eval(input, &child_ctx),
                             None => Ok(item.clone()),
                         };
+                        let child_input = child_input.and_then(|input| {
+                            within_limit(&input, path, &format!("the input of item {i}"))
+                                .map_err(|f| f.cause)?;
+                            Ok(input)
+                        });
+                        if let (Ok(input), Some(slot)) = (&child_input, lock(&inputs).get_mut(i)) {
+                            *slot = input.clone();
+                        }
                         let result = match child_input {
                             Ok(child_input) => self.machine(&map.processor, child_input, &child),
                             Err(e) => Err(Stop::Failed(Self::runtime(
@@ -225,8 +240,123 @@ impl Execution<'_> {
                 })),
             }));
         }
-        Ok(Ok(Value::Array(
-            outputs.into_inner().unwrap_or_else(|p| p.into_inner()),
-        )))
+        let outputs = outputs.into_inner().unwrap_or_else(|p| p.into_inner());
+        if map.result_writer.is_some() {
+            let inputs = inputs.into_inner().unwrap_or_else(|p| p.into_inner());
+            return Ok(self.write_results(map, path, name, input, &ctx, &inputs, &outputs));
+        }
+        let outputs = Value::Array(outputs);
+        if let Err(failure) = within_limit(&outputs, path, "the Map's inline result array") {
+            return Ok(Err(failure));
+        }
+        Ok(Ok(outputs))
+    }
+
+    /// Writes a successful Map Run's results as a `ResultWriter` of `s3:putObject` does, and
+    /// returns the Map's result: `{"MapRunArn", "ResultWriterDetails": {"Bucket", "Key"}}`.
+    #[allow(clippy::too_many_arguments)]
+    fn write_results(
+        &self,
+        map: &MapState,
+        path: &str,
+        name: &str,
+        input: &Value,
+        ctx: &Value,
+        inputs: &[Value],
+        outputs: &[Value],
+    ) -> Result<Value, Failure> {
+        let failed = |cause: String| Failure {
+            error: RESULT_WRITER_FAILED.into(),
+            cause: format!("{path}: {cause}"),
+            state: path.to_owned(),
+            item: None,
+        };
+        let Some(writer) = &map.result_writer else {
+            return Err(failed("no ResultWriter".into()));
+        };
+        let params = writer
+            .eval(input, ctx)
+            .map_err(|e| Self::runtime(path, format!("ResultWriter.Parameters: {e}")))?;
+        let (Some(bucket), Some(prefix)) = (
+            params.get("Bucket").and_then(Value::as_str),
+            params.get("Prefix").and_then(Value::as_str),
+        ) else {
+            return Err(Self::runtime(
+                path,
+                format!(
+                    "ResultWriter.Parameters must give Bucket and Prefix strings, got {params}"
+                ),
+            ));
+        };
+        if self.bucket.as_deref() != Some(bucket) {
+            return Err(failed(format!(
+                "ResultWriter writes bucket {bucket:?}, but the emulator's store holds only the \
+                 execution input's bucket ({:?})",
+                self.bucket.as_deref().unwrap_or("none given")
+            )));
+        }
+        let run = format!("{name}-{}", self.map_runs.fetch_add(1, Ordering::SeqCst));
+        let machine_arn = self.context["StateMachine"]["Id"].as_str().unwrap_or("");
+        // AWS: `…:mapRun:{machine}/{label}:{id}`, children `…:express:{machine}/{label}:…`.
+        let map_run_arn = format!(
+            "{}/{name}:{run}",
+            machine_arn.replacen(":stateMachine:", ":mapRun:", 1)
+        );
+        let child_kind = if map.express {
+            ":express:"
+        } else {
+            ":execution:"
+        };
+        let child_arn = |i: usize| {
+            format!(
+                "{}/{name}:{run}:{i}",
+                machine_arn.replacen(":stateMachine:", child_kind, 1)
+            )
+        };
+        let records: Vec<Value> = outputs
+            .iter()
+            .enumerate()
+            .map(|(i, output)| {
+                json!({
+                    "ExecutionArn": child_arn(i),
+                    "Name": i.to_string(),
+                    "Input": inputs.get(i).unwrap_or(&Value::Null).to_string(),
+                    "InputDetails": {"Included": true},
+                    "Output": output.to_string(),
+                    "OutputDetails": {"Included": true},
+                    "StateMachineArn": machine_arn,
+                    "Status": "SUCCEEDED",
+                })
+            })
+            .collect();
+        let folder = match prefix {
+            "" => run.clone(),
+            p if p.ends_with('/') => format!("{p}{run}"),
+            p => format!("{p}/{run}"),
+        };
+        let results_key = format!("{folder}/SUCCEEDED_0.json");
+        let results = Value::Array(records).to_string().into_bytes();
+        let size = results.len();
+        let put = |key: &str, bytes: Vec<u8>| {
+            self.items
+                .write_object(key, bytes)
+                .map_err(|e| failed(format!("cannot write s3://{bucket}/{key}: {e}")))
+        };
+        put(&results_key, results)?;
+        let manifest_key = format!("{folder}/manifest.json");
+        let manifest = json!({
+            "DestinationBucket": bucket,
+            "MapRunArn": map_run_arn,
+            "ResultFiles": {
+                "FAILED": [],
+                "PENDING": [],
+                "SUCCEEDED": [{"Key": results_key, "Size": size}],
+            },
+        });
+        put(&manifest_key, manifest.to_string().into_bytes())?;
+        Ok(json!({
+            "MapRunArn": map_run_arn,
+            "ResultWriterDetails": {"Bucket": bucket, "Key": manifest_key},
+        }))
     }
 }
