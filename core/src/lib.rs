@@ -31,6 +31,7 @@ pub mod report;
 pub mod generate;
 
 // HORT pipeline building blocks.
+pub mod digest;
 pub mod ids;
 pub mod keys;
 pub mod pipeline;

@@ -90,6 +90,22 @@ fn a_render_equals_the_monolithic_one_and_outlives_the_server() {
         "the same key names the same job"
     );
     assert_eq!(again.json()["replayed"], true);
+    // The same key with another body is no retry: 422 naming the key and the job, nothing
+    // started (IETF Idempotency-Key draft).
+    let mut other = body.clone();
+    other["width"] = json!(32);
+    let reused = server.post("/renders", &other, &key);
+    assert_eq!(
+        (reused.status, reused.json()),
+        (
+            422,
+            serde_json::json!({"error": {"code": "idempotency_key_reused",
+            "field": "headers.Idempotency-Key",
+            "message": format!("Idempotency-Key \"cornell-64x48\" was used for job {job} with \
+                another request body: a key names one request; send the same body to see that \
+                job, or use a new key for a new request")}})
+        )
+    );
 
     let status = server.wait_done(&job, Duration::from_secs(120));
     let seconds = t0.elapsed().as_secs_f64();

@@ -502,6 +502,14 @@ fn the_deployment_api_backend_queues_starts_reports_and_cancels_jobs() {
         again["job"], accepted["job"],
         "the idempotency key names the first job"
     );
+    let mut other = triangle.clone();
+    other["width"] = serde_json::json!(16);
+    let (status, reused) = call(&backend, "POST", "/renders", Some(other), Some("k1"));
+    assert_eq!(
+        (status, &reused["error"]["code"]),
+        (422, &serde_json::json!("idempotency_key_reused")),
+        "the key with another body: {reused}"
+    );
     // The job is stored as the Plan function reads it.
     let manifest: hort_functions::handlers::JobRequest =
         serde_json::from_slice(&store.get(&format!("jobs/{job}/manifest.json")).unwrap()).unwrap();

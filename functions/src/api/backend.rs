@@ -121,9 +121,26 @@ pub struct JobSpec {
     pub prediction: Prediction,
     /// The budget, if one was given.
     pub max_cost_usd: Option<f64>,
-    /// The client's `Idempotency-Key`: a second submission with the same key names the job of
-    /// the first and starts nothing.
+    /// The client's `Idempotency-Key`: a second submission with the same key and the same body
+    /// names the job of the first and starts nothing; with another body it is refused (422).
     pub idempotency_key: Option<String>,
+    /// The fingerprint of the request body ([`request_fingerprint`]), which a reused
+    /// `Idempotency-Key` must match.
+    pub request_fingerprint: String,
+}
+
+/// The fingerprint of a `POST /renders` body: `fnv1a64-` and the 64-bit FNV-1a of its bytes in
+/// hex. Two bodies with the same bytes have the same fingerprint on every machine.
+pub fn request_fingerprint(body: &[u8]) -> String {
+    format!("fnv1a64-{:016x}", hort_core::digest::fnv1a64(body))
+}
+
+/// The 422 of an `Idempotency-Key` reused with another body than the one that started `job`.
+pub fn idempotency_key_reused(key: &str, job: &str) -> ApiError {
+    ApiError::idempotency_key_reused(format!(
+        "Idempotency-Key {key:?} was used for job {job} with another request body: a key names \
+         one request; send the same body to see that job, or use a new key for a new request"
+    ))
 }
 
 /// What [`RenderBackend::submit`] did.

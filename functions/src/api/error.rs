@@ -103,6 +103,26 @@ impl ApiError {
         e
     }
 
+    /// 422 `over_deployment`: the request asks for more than the deployed functions have
+    /// (`field` names what: e.g. `memory_mb` over the Worker's memory).
+    pub fn over_deployment(field: impl Into<String>, message: impl Into<String>) -> Self {
+        let mut e = Self::new(StatusCode::UNPROCESSABLE_ENTITY, "over_deployment", message);
+        e.field = Some(field.into());
+        e
+    }
+
+    /// 422 `idempotency_key_reused`: the `Idempotency-Key` named a job started by a request with
+    /// another body (the IETF Idempotency-Key draft: the server must not treat it as a retry).
+    pub fn idempotency_key_reused(message: impl Into<String>) -> Self {
+        let mut e = Self::new(
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "idempotency_key_reused",
+            message,
+        );
+        e.field = Some("headers.Idempotency-Key".into());
+        e
+    }
+
     /// 429 `too_many_jobs`: the backend runs as many jobs as it takes; submit again once one
     /// ended.
     pub fn too_many_jobs(message: impl Into<String>) -> Self {

@@ -38,7 +38,7 @@ mod tests;
 
 pub use backend::{
     ImageFormat, JobSpec, JobState, JobStatus, RenderBackend, StageProgress, Submission,
-    stored_image,
+    idempotency_key_reused, request_fingerprint, stored_image,
 };
 pub use dashboard::{DASHBOARD_JOBS, escape_html, jobs_table, page};
 pub use error::ApiError;
@@ -482,6 +482,8 @@ fn post_renders(
         .map_err(|e| ApiError::invalid_scene(format!("{}: {e}", loaded.files.name)))?;
     let triangles = scene.mesh.triangle_count() as u64;
     let pixels = u64::from(width) * u64::from(height);
+    // Tasks run on the deployed Worker: plan for its memory, never for more.
+    let worker_memory_mb = backend.prediction_model().memory_mb;
     let plan_request = PlanRequest {
         width,
         height,
@@ -490,19 +492,33 @@ fn post_renders(
         spans: request.spans,
         mode: request.split_mode.unwrap_or(SplitMode::Spatial),
         execution: request.mode,
-        memory_mb: request
-            .memory_mb
-            .unwrap_or(hort_core::pipeline::DEFAULT_MEMORY_MB),
+        memory_mb: request.memory_mb.unwrap_or(worker_memory_mb),
         adaptive: None,
         outputs: request.outputs.unwrap_or(StoredOutputs::ALL),
     };
-    if let Some(mb) = request.memory_mb
-        && !(128..=10240).contains(&mb)
-    {
-        return Err(ApiError::invalid_field(
-            "memory_mb",
-            format!("memory_mb: {mb} is out of range: use 128 to 10240, as Lambda does"),
-        ));
+    if let Some(mb) = request.memory_mb {
+        let lambda = hort_aws_quotas::LAMBDA_MEMORY_MB;
+        if !lambda.contains(&u64::from(mb)) {
+            return Err(ApiError::invalid_field(
+                "memory_mb",
+                format!(
+                    "memory_mb: {mb} is out of range: use {} to {}, as Lambda does",
+                    lambda.start(),
+                    lambda.end()
+                ),
+            ));
+        }
+        if mb > worker_memory_mb {
+            return Err(ApiError::over_deployment(
+                "memory_mb",
+                format!(
+                    "memory_mb: {mb} MB is more than the deployed Worker function has \
+                     ({worker_memory_mb} MB): tasks planned for it would run out of memory; \
+                     ask for {worker_memory_mb} MB or less (the default), or redeploy with a \
+                     larger WorkerMemoryMB"
+                ),
+            ));
+        }
     }
     let max_k = triangles.min(u64::from(MAX_SPLITS)) as u32;
     let max_s = pixels.min(u64::from(MAX_SPANS)) as u32;
@@ -567,6 +583,7 @@ fn post_renders(
         prediction: prediction.clone(),
         max_cost_usd: request.max_cost_usd,
         idempotency_key,
+        request_fingerprint: backend::request_fingerprint(body),
     };
     let submission = backend.submit(spec)?;
     let status_url = format!("/renders/{}", submission.job);

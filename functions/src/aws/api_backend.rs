@@ -28,7 +28,7 @@ use super::sqs::JobQueue;
 use crate::S3Store;
 use crate::api::{
     ApiError, ImageFormat, JobSpec, JobState, JobStatus, PredictionModel, RATES, RenderBackend,
-    Submission, stored_image,
+    Submission, idempotency_key_reused, stored_image,
 };
 use crate::handlers::JobRequest;
 
@@ -54,6 +54,9 @@ struct JobRecord {
     created_unix_us: u64,
     idempotency_key: Option<String>,
     max_cost_usd: Option<f64>,
+    /// The request body's fingerprint (records of older versions have none: any body matches).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    request_fingerprint: Option<String>,
 }
 
 fn record_key(job: &JobId) -> String {
@@ -68,9 +71,7 @@ fn now_unix_us() -> u64 {
 
 /// The job id an idempotency key always names: `key-` and a 64-bit FNV-1a hash of the key.
 fn keyed_id(key: &str) -> JobId {
-    let hash = key.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| {
-        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
-    });
+    let hash = hort_core::digest::fnv1a64(key.as_bytes());
     JobId::new(format!("key-{hash:016x}")).expect("a valid job id")
 }
 
@@ -279,6 +280,7 @@ impl RenderBackend for AwsBackend {
             created_unix_us: now_unix_us(),
             idempotency_key: spec.idempotency_key.clone(),
             max_cost_usd: spec.max_cost_usd,
+            request_fingerprint: Some(spec.request_fingerprint.clone()),
         };
         let json = serde_json::to_vec(&record)
             .map_err(|e| ApiError::internal(format!("cannot encode the job's record: {e}")))?;
@@ -296,6 +298,15 @@ impl RenderBackend for AwsBackend {
             }
         };
         if replayed {
+            let first: Option<JobRecord> = self
+                .read_object(&record_key(&job))?
+                .and_then(|bytes| serde_json::from_slice(&bytes).ok());
+            let first_fingerprint = first.and_then(|r| r.request_fingerprint);
+            if let (Some(key), Some(first)) = (&spec.idempotency_key, first_fingerprint)
+                && first != spec.request_fingerprint
+            {
+                return Err(idempotency_key_reused(key, job.as_str()));
+            }
             // The first submission may have stopped between its record and its message: finish
             // its work (the Starter starts each job once, whatever the messages).
             if self.execution(&job)?.is_some() {

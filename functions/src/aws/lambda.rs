@@ -12,7 +12,7 @@
 //! | `HORT_STATE_MACHINE_ARN` | starter, api | the state machine to start (required) |
 //! | `HORT_QUEUE_URL` | api | the intake queue (required) |
 //! | `HORT_MAX_CONCURRENCY` | api | the Map concurrency of submitted jobs (default 0: no limit) |
-//! | `HORT_WORKER_MEMORY_MB` | api | the Worker's memory, for predictions (default 2048) |
+//! | `HORT_WORKER_MEMORY_MB` | plan, api | the Worker's memory: the API's default and most for `memory_mb` (default 2048), the most the Plan function plans tasks for |
 //! | `HORT_S3_ENDPOINT` | plan, worker, api | an S3-compatible server instead of AWS S3 (local runs), path-style |
 //! | `HORT_AWS_ENDPOINT` | starter, api | a server for the SQS and Step Functions APIs instead of AWS (local runs) |
 //!
@@ -50,7 +50,8 @@ pub const AWS_ENDPOINT_VAR: &str = "HORT_AWS_ENDPOINT";
 pub const QUEUE_URL_VAR: &str = "HORT_QUEUE_URL";
 /// The Map concurrency written into job requests (the api function; default 0, no limit).
 pub const MAX_CONCURRENCY_VAR: &str = "HORT_MAX_CONCURRENCY";
-/// The Worker's memory in MB, for predictions (the api function; default 2048).
+/// The Worker's memory in MB: the most a job may plan its tasks for (the api function, default
+/// 2048; the Plan function, unchecked when unset).
 pub const WORKER_MEMORY_VAR: &str = "HORT_WORKER_MEMORY_MB";
 /// Lambda's variable holding the function's memory in MiB.
 pub const MEMORY_VAR: &str = "AWS_LAMBDA_FUNCTION_MEMORY_SIZE";
@@ -66,6 +67,9 @@ pub struct FunctionSettings {
     pub split_cache_bytes: u64,
     /// An S3-compatible endpoint instead of AWS S3.
     pub s3_endpoint: Option<String>,
+    /// The Worker function's memory, MB: for the Plan function [`WORKER_MEMORY_VAR`] (set by
+    /// the template), for the Worker its own [`MEMORY_VAR`]; `None` when unset.
+    pub worker_memory_mb: Option<u32>,
 }
 
 impl FunctionSettings {
@@ -90,10 +94,22 @@ impl FunctionSettings {
                 mb << 20
             }
         };
+        let memory_var = match function {
+            Function::Plan => WORKER_MEMORY_VAR,
+            Function::Worker => MEMORY_VAR,
+        };
+        let worker_memory_mb = match var(memory_var) {
+            Some(mb) => Some(
+                u32::try_from(parse_mb(memory_var, &mb)?)
+                    .map_err(|_| format!("{memory_var}={mb:?} is not a memory size in MB"))?,
+            ),
+            None => None,
+        };
         Ok(FunctionSettings {
             bucket,
             split_cache_bytes,
             s3_endpoint: var(S3_ENDPOINT_VAR).filter(|v| !v.is_empty()),
+            worker_memory_mb,
         })
     }
 
@@ -218,6 +234,7 @@ struct Container {
     bucket: String,
     work_dir: PathBuf,
     split_cache: SplitCache,
+    worker_memory_mb: Option<u32>,
 }
 
 /// The tokio runtime of an entry point (multi-threaded: the S3 store blocks handler threads
@@ -244,6 +261,7 @@ pub fn run_handler_function(function: Function) -> Result<(), lambda_runtime::Er
             bucket: settings.bucket,
             work_dir: std::env::temp_dir(),
             split_cache: SplitCache::new(settings.split_cache_bytes),
+            worker_memory_mb: settings.worker_memory_mb,
         });
         lambda_runtime::run(service_fn(move |event: LambdaEvent<Value>| {
             invoke(Arc::clone(&container), event.payload)
@@ -260,6 +278,7 @@ async fn invoke(container: Arc<Container>, event: Value) -> Result<Value, Diagno
             bucket: &container.bucket,
             work_dir: &container.work_dir,
             split_cache: &container.split_cache,
+            worker_memory_mb: container.worker_memory_mb,
         };
         // One invocation at a time per container: the process's high-water mark during this
         // one is the task's memory (with what the container keeps: its split cache, clients).

@@ -9,8 +9,9 @@ use hort_core::pipeline::{SplitCache, TaskMetrics};
 use hort_core::stage::{PLAN_FUNCTION, WORKER_FUNCTION};
 use serde_json::Value;
 
-use super::events::{PlanEvent, WorkerEvent};
+use super::events::{PlanEvent, PlanStep, WorkerEvent};
 use super::lost::{LostEvent, handle_lost, is_lost_event};
+use super::plan::check_worker_memory;
 use super::{BlobStore, HandlerError, handle_plan_measured, handle_worker};
 
 /// The functions of a deployment.
@@ -43,6 +44,10 @@ pub struct FunctionEnv<'a> {
     pub work_dir: &'a Path,
     /// Decoded splits kept between invocations of this container.
     pub split_cache: &'a SplitCache,
+    /// The deployed Worker function's memory, MB, where known: the Plan function refuses a job
+    /// request planned for more (its tasks would run out of memory, be retried, lost and rerun
+    /// before the job failed). `None` checks nothing.
+    pub worker_memory_mb: Option<u32>,
 }
 
 /// A successful invocation.
@@ -105,6 +110,12 @@ pub fn dispatch(
         Function::Plan => {
             let event: PlanEvent =
                 serde_json::from_value(event).map_err(|e| malformed("Plan", e))?;
+            if let Some(worker_mb) = env.worker_memory_mb
+                && event.round == 1
+                && event.step == PlanStep::Start
+            {
+                check_worker_memory(env.store, &event.job, worker_mb)?;
+            }
             let (out, metrics) = handle_plan_measured(env.store, env.bucket, &event, env.work_dir)?;
             Ok(Invoked {
                 output: serde_json::to_value(out).map_err(encode)?,

@@ -256,6 +256,29 @@ pub(super) fn scratch_dir(work_dir: &Path, label: &str, job: &JobId) -> PathBuf 
     ))
 }
 
+/// Refuses job `job` when its request plans tasks for more memory than the deployed Worker
+/// function has (`worker_mb`), naming both. A request that cannot be read is left to the plan
+/// itself to report.
+pub(super) fn check_worker_memory(
+    store: &dyn BlobStore,
+    job: &JobId,
+    worker_mb: u32,
+) -> Result<(), HandlerError> {
+    let Ok(request) = read_request(store, job) else {
+        return Ok(());
+    };
+    let asked = request.render.memory_mb;
+    if asked <= worker_mb {
+        return Ok(());
+    }
+    Err(HandlerError::bad_input(format!(
+        "job request {} plans tasks for {asked} MB (render.memory_mb), but the Worker function \
+         has {worker_mb} MB: plan for {worker_mb} MB or less, or deploy the Worker with more \
+         memory (WorkerMemoryMB)",
+        manifest_key(job)
+    )))
+}
+
 pub(super) fn read_request(store: &dyn BlobStore, job: &JobId) -> Result<JobRequest, HandlerError> {
     let key = manifest_key(job);
     let bytes = store.get(&key).map_err(|e| {

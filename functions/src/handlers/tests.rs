@@ -392,6 +392,7 @@ fn bad_requests_are_bad_input_with_clear_causes() {
         bucket: "b",
         work_dir: &tmp,
         split_cache: &SplitCache::new(0),
+        worker_memory_mb: None,
     };
     let bad_id = serde_json::json!({"job": "Bad Id", "bucket": "b"});
     let e = dispatch(Function::Plan, bad_id, &env).unwrap_err();
@@ -417,6 +418,7 @@ fn bad_requests_are_bad_input_with_clear_causes() {
         bucket: "b",
         work_dir: &tmp,
         split_cache: &SplitCache::new(0),
+        worker_memory_mb: None,
     };
     let shine = serde_json::json!({"job": "j2", "bucket": "b", "stage": "shine",
         "item": {"task": 0}});
@@ -699,4 +701,36 @@ fn a_scene_split_by_tasks_plans_in_steps_and_rebuilds_what_is_lost_from_its_part
             .cause,
         "plan event round 2 with step Finish: only round 1 has steps"
     );
+}
+
+/// The Plan function never plans tasks for more memory than the deployed Worker has: a request
+/// asking for more is refused before any work, naming both; one within it is planned.
+#[test]
+fn a_job_planned_for_more_memory_than_the_worker_has_is_refused_naming_both() {
+    let store = submitted("j1");
+    let tmp = std::env::temp_dir();
+    let cache = SplitCache::new(0);
+    let env = |worker_memory_mb| FunctionEnv {
+        store: &store,
+        bucket: "b",
+        work_dir: &tmp,
+        split_cache: &cache,
+        worker_memory_mb,
+    };
+    let event = serde_json::json!({"job": "j1", "bucket": "b"});
+    let e = dispatch(Function::Plan, event.clone(), &env(Some(1024))).unwrap_err();
+    assert_eq!(
+        e,
+        HandlerError::bad_input(
+            "job request jobs/j1/manifest.json plans tasks for 2048 MB (render.memory_mb), but \
+             the Worker function has 1024 MB: plan for 1024 MB or less, or deploy the Worker \
+             with more memory (WorkerMemoryMB)"
+        )
+    );
+    assert!(
+        store.get("jobs/j1/plan.json").is_err(),
+        "nothing was planned"
+    );
+    dispatch(Function::Plan, event, &env(Some(2048))).unwrap();
+    assert!(store.get("jobs/j1/plan.json").is_ok());
 }

@@ -212,6 +212,7 @@ impl InProcessInvoker {
             bucket: &self.bucket,
             work_dir: &self.work_dir,
             split_cache: &cache,
+            worker_memory_mb: self.budget.as_ref().map(|b| b.mb),
         };
         let attempt = input.get("attempt").and_then(Value::as_u64).unwrap_or(0);
         // The warm container's splits are its memory too, whichever task uses them.

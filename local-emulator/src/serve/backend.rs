@@ -30,7 +30,7 @@ use hort_core::report::{Outputs, RayReport, Report, Seconds};
 use hort_core::store::{BlobStore, CountingStore, StoreError};
 use hort_functions::api::{
     ApiError, ImageFormat, JobSpec, JobState, JobStatus, PredictionModel, RenderBackend,
-    StageProgress, Submission, stored_image,
+    StageProgress, Submission, idempotency_key_reused, stored_image,
 };
 use hort_functions::{S3Config, S3Store};
 use serde::{Deserialize, Serialize};
@@ -81,6 +81,9 @@ struct JobRecord {
     /// Tasks done of each stage's tasks, in stage order (records of older servers have none).
     #[serde(default)]
     stages: Vec<StageProgress>,
+    /// The request body's fingerprint (records of older servers have none: any body matches).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    request_fingerprint: Option<String>,
 }
 
 /// Live progress of a running job, from the orchestrator's events.
@@ -392,6 +395,13 @@ impl RenderBackend for EmulatorBackend {
         if let Some(key) = &spec.idempotency_key
             && let Some(job) = registry.by_key.get(key)
         {
+            let first = registry
+                .jobs
+                .get(job)
+                .and_then(|j| lock(&j.record).request_fingerprint.clone());
+            if first.is_some_and(|f| f != spec.request_fingerprint) {
+                return Err(idempotency_key_reused(key, job));
+            }
             return Ok(Submission {
                 job: job.clone(),
                 replayed: true,
@@ -429,6 +439,7 @@ impl RenderBackend for EmulatorBackend {
             triangles: spec.prediction.triangles,
             request: spec.request,
             max_cost_usd: spec.max_cost_usd,
+            request_fingerprint: Some(spec.request_fingerprint.clone()),
             stages: spec
                 .prediction
                 .stages
