@@ -208,6 +208,42 @@ impl S3Store {
         }
     }
 
+    /// The size of object `key` in bytes (HeadObject); `NotFound` when there is none.
+    pub fn size(&self, key: &str) -> Result<u64, StoreError> {
+        self.handle.block_on(self.object_len(key, "head"))
+    }
+
+    /// A presigned GET of object `key`, valid for `expires_in`: a URL anyone holding it can
+    /// fetch the object with, straight from S3 (or the S3-compatible endpoint), without
+    /// credentials of their own. Signing is local: nothing is sent.
+    pub fn presigned_get(
+        &self,
+        key: &str,
+        expires_in: std::time::Duration,
+    ) -> Result<String, StoreError> {
+        let config =
+            aws_sdk_s3::presigning::PresigningConfig::expires_in(expires_in).map_err(|e| {
+                StoreError::Other {
+                    what: format!("presign {key:?}: {e}"),
+                }
+            })?;
+        let presigned = self.handle.block_on(
+            self.client
+                .get_object()
+                .bucket(&self.target.bucket)
+                .key(key)
+                .presigned(config),
+        );
+        presigned
+            .map(|p| p.uri().to_owned())
+            .map_err(|e| StoreError::Other {
+                what: format!(
+                    "presign {key:?} on S3 endpoint {}: {e}",
+                    self.target.endpoint
+                ),
+            })
+    }
+
     /// Every object under `prefix` with its size, sorted by key (all pages).
     pub fn list_sizes(&self, prefix: &str) -> Result<Vec<ListedObject>, StoreError> {
         self.handle.block_on(self.list_async(prefix))

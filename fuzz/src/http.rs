@@ -2,8 +2,8 @@
 //! and knows one scene object.
 
 use hort_functions::api::{
-    ApiError, ImageFormat, JobSpec, JobStatus, PredictionModel, RenderBackend, Submission,
-    check_head, handle,
+    ApiError, ImageAnswer, ImageFormat, JobSpec, JobStatus, PredictionModel, RenderBackend,
+    Submission, check_head, handle,
 };
 use http::{Method, Request, StatusCode};
 
@@ -35,7 +35,7 @@ impl RenderBackend for Backend {
     fn list(&self, _limit: usize) -> Result<Vec<JobStatus>, ApiError> {
         Ok(Vec::new())
     }
-    fn image(&self, job: &str, _format: ImageFormat) -> Result<Vec<u8>, ApiError> {
+    fn image(&self, job: &str, _format: ImageFormat) -> Result<ImageAnswer, ApiError> {
         Err(ApiError::not_found(format!("no render {job:?}")))
     }
     fn report(&self, job: &str) -> Result<Vec<u8>, ApiError> {

@@ -379,8 +379,8 @@ fn hit() -> SurfaceHit {
 /// The API router's answer to a request, as `STATUS body`.
 fn http(input: &[u8]) -> String {
     use hort_functions::api::{
-        ApiError, ImageFormat, JobSpec, JobStatus, PredictionModel, RenderBackend, Submission,
-        handle,
+        ApiError, ImageAnswer, ImageFormat, JobSpec, JobStatus, PredictionModel, RenderBackend,
+        Submission, handle,
     };
     struct Backend;
     impl RenderBackend for Backend {
@@ -402,7 +402,7 @@ fn http(input: &[u8]) -> String {
         fn list(&self, _limit: usize) -> Result<Vec<JobStatus>, ApiError> {
             Ok(Vec::new())
         }
-        fn image(&self, job: &str, _format: ImageFormat) -> Result<Vec<u8>, ApiError> {
+        fn image(&self, job: &str, _format: ImageFormat) -> Result<ImageAnswer, ApiError> {
             Err(ApiError::not_found(format!("no render {job:?}")))
         }
         fn report(&self, job: &str) -> Result<Vec<u8>, ApiError> {

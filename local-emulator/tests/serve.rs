@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::server::{Reply, Serve, cornell, scenes};
+use common::server::{Reply, Serve, call, cornell, scenes};
 use common::{HORT, scratch};
 use hort_functions::api::usd;
 use serde_json::{Value, json};
@@ -656,4 +656,73 @@ fn a_chunked_body_over_the_limit_is_read_no_further_than_the_limit() {
         "the request body is over the limit of 6291456 bytes; give a large scene by key \
          ({\"scene\": {\"key\": \"...\"}}) instead of inline files"
     );
+}
+
+/// An image too large for a Lambda response (the 1080p PFM: 24.9 MB, 33 MB as base64) is
+/// answered with a 307 to a presigned GET of the stored object, which the embedded S3 server
+/// serves byte for byte as the monolithic render wrote it; no answer of the API has a body over
+/// 4.5 MiB (whose base64 is Lambda's 6 MB).
+#[test]
+fn a_large_image_is_redirected_to_a_presigned_get_within_the_lambda_quota() {
+    let dir = scratch("presigned");
+    let server = Serve::start(&dir.join("data"));
+    let body = json!({"scene": cornell(), "width": 1920, "height": 1080});
+    let accepted = server.post("/renders", &body, &[]);
+    assert_eq!(accepted.status, 202, "{}", accepted.text());
+    let job = accepted.json()["job"].as_str().unwrap().to_owned();
+    let status = server.wait_done(&job, Duration::from_secs(300));
+    assert_eq!(status["status"], "SUCCEEDED", "{status}");
+    let quota = 4_718_592; // 4.5 MiB: 6 MiB once base64-encoded
+    let pfm = server.get(&format!("/renders/{job}/image?format=pfm"));
+    assert_eq!(pfm.status, 307, "{}", pfm.text());
+    assert!(pfm.body.len() < quota);
+    let location = pfm.header("Location").expect("a Location").to_owned();
+    let answer = pfm.json();
+    assert_eq!(answer["image_url"], location.as_str());
+    assert_eq!(
+        answer["bytes"],
+        1920 * 1080 * 12 + "PF\n1920 1080\n-1.0\n".len()
+    );
+    let rest = location
+        .strip_prefix("http://127.0.0.1:")
+        .expect("the embedded S3 server's address");
+    let (port, path) = rest.split_at(rest.find('/').unwrap());
+    assert!(path.contains("X-Amz-Signature="), "{location}");
+    let fetched = call(port.parse().unwrap(), "GET", path, &[], b"");
+    assert_eq!(fetched.status, 200, "{}", fetched.text());
+    let reference = monolithic(&dir, "ref.pfm", &["--width", "1920", "--height", "1080"]);
+    assert!(
+        fetched.body == reference,
+        "the presigned GET serves the monolithic render's PFM"
+    );
+    // A tampered signature is refused by the server, not served.
+    let at = path.find("X-Amz-Signature=").unwrap() + "X-Amz-Signature=".len();
+    let flipped = if &path[at..=at] == "0" { "1" } else { "0" };
+    let forged = format!("{}{flipped}{}", &path[..at], &path[at + 1..]);
+    assert_eq!(
+        call(port.parse().unwrap(), "GET", &forged, &[], b"").status,
+        403
+    );
+    // The PNG fits a Lambda response and is answered inline.
+    let png = server.get(&format!("/renders/{job}/image"));
+    assert_eq!(
+        (png.status, png.header("Content-Type")),
+        (200, Some("image/png"))
+    );
+    assert!(png.body.len() < quota);
+    for format in ["exr", "png"] {
+        let reply = server.get(&format!("/renders/{job}/image?format={format}"));
+        assert!(
+            matches!(reply.status, 200 | 307),
+            "{format}: {}",
+            reply.status
+        );
+        assert!(
+            reply.body.len() < quota,
+            "{format}: {} bytes",
+            reply.body.len()
+        );
+    }
+    drop(server);
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -4,13 +4,11 @@
 
 use std::collections::BTreeMap;
 
-use hort_core::ids::JobId;
-use hort_core::image::{decode_pfm, encode_exr};
-use hort_core::keys::image_key;
 use hort_core::pipeline::PlanRequest;
 use serde::{Deserialize, Serialize};
 
 use super::error::ApiError;
+use super::image::ImageAnswer;
 use super::predict::{Prediction, PredictionModel, predict};
 use hort_core::pipeline::JobPlan;
 
@@ -193,38 +191,6 @@ impl ImageFormat {
     }
 }
 
-/// The image of the finished render `id` (job `job`) in `format`, from the outputs its Combine
-/// task stored, which `read` fetches (`Ok(None)`: no such object): the PNG or the PFM as
-/// stored, an EXR converted from the PFM. A job whose request asked for no linear image
-/// (`outputs.linear` false) has no PFM: then `pfm` and `exr` are 404 `not_found`, saying so.
-pub fn stored_image(
-    id: &str,
-    job: &JobId,
-    format: ImageFormat,
-    read: impl Fn(&str) -> Result<Option<Vec<u8>>, ApiError>,
-) -> Result<Vec<u8>, ApiError> {
-    let read_output = |extension: &str| {
-        read(&image_key(job, extension))?.ok_or_else(|| match extension {
-            "pfm" => ApiError::not_found(format!(
-                "render {id} stored no linear image (its request's outputs.linear was false): \
-                 only format=png is served"
-            )),
-            _ => ApiError::internal(format!(
-                "render {id} succeeded but its {extension} is missing"
-            )),
-        })
-    };
-    match format {
-        ImageFormat::Png | ImageFormat::Pfm => read_output(format.extension()),
-        ImageFormat::Exr => {
-            let image = decode_pfm(&read_output("pfm")?)
-                .map_err(|e| ApiError::internal(format!("the stored image of {id}: {e}")))?;
-            encode_exr(&image)
-                .map_err(|e| ApiError::internal(format!("cannot encode OpenEXR: {e}")))
-        }
-    }
-}
-
 /// Whatever runs the jobs. Every method may block (storage, threads); the router calls them
 /// from the request's thread. Unknown jobs are [`ApiError::not_found`].
 pub trait RenderBackend: Send + Sync {
@@ -250,8 +216,10 @@ pub trait RenderBackend: Send + Sync {
     /// The jobs this backend knows, newest first, at most `limit` of them.
     fn list(&self, limit: usize) -> Result<Vec<JobStatus>, ApiError>;
 
-    /// The finished job's image; [`ApiError::not_found`] until it succeeded.
-    fn image(&self, job: &str, format: ImageFormat) -> Result<Vec<u8>, ApiError>;
+    /// The finished job's image, or where to fetch it when it is too large for a Lambda
+    /// response ([`stored_image`](super::stored_image)); [`ApiError::not_found`] until it
+    /// succeeded.
+    fn image(&self, job: &str, format: ImageFormat) -> Result<ImageAnswer, ApiError>;
 
     /// The finished job's report (the JSON of `hort render --report`); not found until it
     /// succeeded.

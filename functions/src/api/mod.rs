@@ -29,6 +29,7 @@ mod dashboard;
 mod error;
 #[cfg(test)]
 mod hostile_tests;
+mod image;
 mod predict;
 mod projection;
 mod request;
@@ -38,10 +39,14 @@ mod tests;
 
 pub use backend::{
     ImageFormat, JobSpec, JobState, JobStatus, RenderBackend, StageProgress, Submission,
-    idempotency_key_reused, request_fingerprint, stored_image,
+    idempotency_key_reused, request_fingerprint,
 };
 pub use dashboard::{DASHBOARD_JOBS, escape_html, jobs_table, page};
 pub use error::ApiError;
+pub use image::{
+    ImageAnswer, ImageBucket, MAX_INLINE_BODY_BYTES, PRESIGNED_URL_SECONDS, check_response_size,
+    stored_image,
+};
 pub use predict::{
     CLIENT_PUTS, JobStep, Prediction, PredictionModel, RATES, Rates, SPLIT_BYTES_PER_TRIANGLE,
     SPLIT_NORMAL_BYTES_PER_TRIANGLE, StagePrediction, job_steps, predict, preview_plan,
@@ -202,8 +207,17 @@ pub fn handle<B: AsRef<[u8]>>(
     backend: &dyn RenderBackend,
     request: Request<B>,
 ) -> Response<Vec<u8>> {
-    match route(backend, request) {
+    let response = match route(backend, request) {
         Ok(response) => response,
+        Err(e) => return e.into_response(),
+    };
+    let text = response
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|t| t.starts_with("text/") || t.starts_with("application/json"));
+    match check_response_size(response.body().len(), text) {
+        Ok(()) => response,
         Err(e) => e.into_response(),
     }
 }
@@ -304,8 +318,18 @@ fn route<B: AsRef<[u8]>>(
                     )
                 })?,
             };
-            let bytes = backend.image(&id, format)?;
-            bytes_response(format.content_type(), bytes)
+            match backend.image(&id, format)? {
+                ImageAnswer::Bytes(bytes) => bytes_response(format.content_type(), bytes),
+                ImageAnswer::Redirect { url, bytes } => {
+                    let body = serde_json::json!({"image_url": url, "bytes": bytes});
+                    let mut response = json(StatusCode::TEMPORARY_REDIRECT, &body)?;
+                    let location = http::HeaderValue::from_str(&url).map_err(|e| {
+                        ApiError::internal(format!("the presigned URL is no header value: {e}"))
+                    })?;
+                    response.headers_mut().insert(header::LOCATION, location);
+                    Ok(response)
+                }
+            }
         }
         Route::Report(id) => {
             only_params(&query, &[])?;

@@ -91,9 +91,9 @@ impl RenderBackend for Fake {
             .map(|i| self.status(&format!("job-{i}")))
             .collect()
     }
-    fn image(&self, job: &str, format: ImageFormat) -> Result<Vec<u8>, ApiError> {
+    fn image(&self, job: &str, format: ImageFormat) -> Result<ImageAnswer, ApiError> {
         self.status(job)?;
-        Ok(format.extension().as_bytes().to_vec())
+        Ok(ImageAnswer::Bytes(format.extension().as_bytes().to_vec()))
     }
     fn report(&self, job: &str) -> Result<Vec<u8>, ApiError> {
         self.status(job)?;

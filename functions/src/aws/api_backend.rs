@@ -27,8 +27,8 @@ use super::sfn::{ExecutionInput, ExecutionStatus, Executions};
 use super::sqs::JobQueue;
 use crate::S3Store;
 use crate::api::{
-    ApiError, ImageFormat, JobSpec, JobState, JobStatus, PredictionModel, RATES, RenderBackend,
-    Submission, idempotency_key_reused, stored_image,
+    ApiError, ImageAnswer, ImageFormat, JobSpec, JobState, JobStatus, PredictionModel, RATES,
+    RenderBackend, Submission, idempotency_key_reused, stored_image,
 };
 use crate::handlers::JobRequest;
 
@@ -361,7 +361,7 @@ impl RenderBackend for AwsBackend {
             .collect()
     }
 
-    fn image(&self, id: &str, format: ImageFormat) -> Result<Vec<u8>, ApiError> {
+    fn image(&self, id: &str, format: ImageFormat) -> Result<ImageAnswer, ApiError> {
         let status = self.status(id)?;
         if status.status != JobState::Succeeded {
             return Err(ApiError::not_found(format!(
@@ -370,7 +370,7 @@ impl RenderBackend for AwsBackend {
             )));
         }
         let job = Self::job_id(id)?;
-        stored_image(id, &job, format, |key| self.read_object(key))
+        stored_image(id, &job, format, &self.store)
     }
 
     fn report(&self, id: &str) -> Result<Vec<u8>, ApiError> {

@@ -29,8 +29,8 @@ use hort_core::pipeline::PlanRequest;
 use hort_core::report::{Outputs, RayReport, Report, Seconds};
 use hort_core::store::{BlobStore, CountingStore, StoreError};
 use hort_functions::api::{
-    ApiError, ImageFormat, JobSpec, JobState, JobStatus, PredictionModel, RenderBackend,
-    StageProgress, Submission, idempotency_key_reused, stored_image,
+    ApiError, ImageAnswer, ImageFormat, JobSpec, JobState, JobStatus, PredictionModel,
+    RenderBackend, StageProgress, Submission, idempotency_key_reused, stored_image,
 };
 use hort_functions::{S3Config, S3Store};
 use serde::{Deserialize, Serialize};
@@ -497,10 +497,10 @@ impl RenderBackend for EmulatorBackend {
         Ok(statuses.into_iter().take(limit).map(|(_, s)| s).collect())
     }
 
-    fn image(&self, id: &str, format: ImageFormat) -> Result<Vec<u8>, ApiError> {
+    fn image(&self, id: &str, format: ImageFormat) -> Result<ImageAnswer, ApiError> {
         self.require_succeeded(id, "image")?;
         let job = JobId::new(id).map_err(|_| ApiError::not_found(format!("no render {id:?}")))?;
-        stored_image(id, &job, format, |key| self.read_object(key))
+        stored_image(id, &job, format, self.shared.store.inner())
     }
 
     fn report(&self, id: &str) -> Result<Vec<u8>, ApiError> {
