@@ -159,8 +159,10 @@ impl Stage {
     pub fn of_rerun_loop_state(path: &str) -> Option<Stage> {
         let top = path.split('/').next().unwrap_or(path);
         Stage::ALL.into_iter().find(|s| {
-            top.strip_prefix(s.state_name())
-                .is_some_and(|rest| RERUN_LOOP_STATES.contains(&rest))
+            s.items_field().is_some()
+                && top
+                    .strip_prefix(s.state_name())
+                    .is_some_and(|rest| RERUN_LOOP_STATES.contains(&rest))
         })
     }
 }
@@ -170,6 +172,17 @@ impl Stage {
 /// the Map Run's written results), `{Map}Check` (go on, rerun or give up), `{Map}Rerun` (the
 /// lost items again), `{Map}Round` (count the round) and `{Map}GiveUp` (the job's failure).
 pub const RERUN_LOOP_STATES: [&str; 5] = ["Lost", "Check", "Rerun", "Round", "GiveUp"];
+
+/// True for a Map stage's `{Map}Lost` Task state (a top-level state path): the Plan function's
+/// bookkeeping after each Map Run, no task of the stage.
+pub fn is_lost_step(path: &str) -> bool {
+    !path.contains('/')
+        && path.strip_suffix("Lost").is_some_and(|map| {
+            Stage::ALL
+                .iter()
+                .any(|s| s.items_field().is_some() && s.state_name() == map)
+        })
+}
 
 impl Stage {}
 
@@ -195,6 +208,29 @@ impl FromStr for Stage {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn rerun_loop_states_name_their_stage_and_only_lost_steps_are_lost_steps() {
+        assert_eq!(
+            Stage::of_rerun_loop_state("CastMapLost"),
+            Some(Stage::CastMap)
+        );
+        assert_eq!(
+            Stage::of_rerun_loop_state("TraceMapRerun/TraceMapRerunTask"),
+            Some(Stage::TraceMap)
+        );
+        assert_eq!(
+            Stage::of_rerun_loop_state("RenderGiveUp"),
+            Some(Stage::Render)
+        );
+        assert_eq!(Stage::of_rerun_loop_state("CastMap"), None);
+        assert_eq!(Stage::of_rerun_loop_state("CastMapFailed"), None);
+        assert_eq!(Stage::of_rerun_loop_state("CombineCheck"), None, "no Map");
+        assert!(is_lost_step("BuildLost"));
+        assert!(!is_lost_step("CastMapRerun/CastMapRerunTaskLost"));
+        assert!(!is_lost_step("CombineLost"));
+        assert!(!is_lost_step("Lost"));
+    }
 
     #[test]
     fn the_table_is_the_documented_one() {

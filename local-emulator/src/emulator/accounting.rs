@@ -4,6 +4,7 @@
 
 use asl_interpreter::{Event, Observer};
 use hort_core::ids::Stage;
+use hort_core::stage::is_lost_step;
 use hort_core::store::{CountingStore, StoreStats};
 use hort_functions::S3Store;
 use std::sync::{Arc, Mutex};
@@ -74,11 +75,6 @@ impl Accounting {
 fn top_level(state: &str) -> Option<&str> {
     let top = state.split('/').next()?;
     Some(Stage::of_rerun_loop_state(top).map_or(top, |s| s.state_name()))
-}
-
-/// True for a Map stage's `{Map}Lost` Task state.
-fn is_lost_step(state: &str) -> bool {
-    state.ends_with("Lost") && !state.contains('/') && Stage::of_rerun_loop_state(state).is_some()
 }
 
 impl Observer for Accounting {

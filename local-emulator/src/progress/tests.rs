@@ -279,6 +279,11 @@ fn lines_mode_writes_the_expected_lines() {
     }
     clock.set(3100);
     o.event(&map_finished("CastMap", true));
+    // The Plan function's lost step after the Map Run is bookkeeping: no line, no task.
+    o.event(&entered("CastMapLost", None));
+    o.event(&attempt("CastMapLost", None, 0));
+    o.event(&succeeded("CastMapLost", None, 0));
+    o.event(&entered("CastMapCheck", None));
     o.event(&entered("CastReduce", None));
     o.event(&map_started("CastReduce", 2, 2));
     clock.set(3500);

@@ -73,6 +73,10 @@ impl Stage {
 impl Inner {
     pub(super) fn handle(&mut self, e: &Event, now: Duration) {
         match e {
+            // The Plan function's lost step after each Map Run (`CastMapLost`) is no task of
+            // the stage; only its failure is shown (below).
+            Event::TaskAttemptStarted { state, .. } | Event::TaskSucceeded { state, .. }
+                if hort_core::stage::is_lost_step(state) => {}
             Event::StateEntered { state, .. } => {
                 if let (top, true) = top(state) {
                     self.entered.entry(top.to_owned()).or_insert(now);
