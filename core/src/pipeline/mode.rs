@@ -123,6 +123,59 @@ pub fn task_bytes(triangles: u64, span_samples: u64) -> u64 {
         .saturating_add(span_samples.saturating_mul(SAMPLE_BYTES))
 }
 
+/// Bytes per pixel Combine holds at its peak whatever it stores: the assembled radiance, the
+/// sRGB rows and the PNG being encoded. Measured with the task memory counter on the bundled
+/// Cornell box (1024², 2048², 3072²; 2026-12): 36.6 to 39.9 B/px with the runtime included.
+pub const COMBINE_PIXEL_BYTES: u64 = 40;
+/// Bytes per pixel more when Combine stores the hit buffer (measured: 13 B/px).
+pub const COMBINE_HITS_PIXEL_BYTES: u64 = 14;
+/// Bytes per pixel more when Combine stores the linear image (measured: 22 to 25 B/px).
+pub const COMBINE_LINEAR_PIXEL_BYTES: u64 = 26;
+
+/// Predicted peak memory of the Combine task of a `pixels`-pixel image storing `outputs`
+/// (bytes): an upper bound of the measured figures above, the runtime included.
+pub fn combine_bytes(pixels: u64, outputs: super::outputs::StoredOutputs) -> u64 {
+    let per_pixel = COMBINE_PIXEL_BYTES
+        + if outputs.hits {
+            COMBINE_HITS_PIXEL_BYTES
+        } else {
+            0
+        }
+        + if outputs.linear {
+            COMBINE_LINEAR_PIXEL_BYTES
+        } else {
+            0
+        };
+    RUNTIME_BYTES.saturating_add(pixels.saturating_mul(per_pixel))
+}
+
+/// Refuses an image whose Combine task would not fit `memory_mb`, naming the figures and
+/// `--memory-mb`, before any work is done: otherwise every task would run, and Combine would
+/// then run out of memory and be retried until the job failed.
+pub fn check_combine_memory(
+    width: u32,
+    height: u32,
+    outputs: super::outputs::StoredOutputs,
+    memory_mb: u32,
+) -> Result<(), PipelineError> {
+    let need = combine_bytes(u64::from(width) * u64::from(height), outputs);
+    if need <= u64::from(memory_mb) << 20 {
+        return Ok(());
+    }
+    let stored = match (outputs.linear, outputs.hits) {
+        (true, true) => "the PNG, the linear image and the hit buffer",
+        (true, false) => "the PNG and the linear image",
+        (false, true) => "the PNG and the hit buffer",
+        (false, false) => "the PNG",
+    };
+    Err(PipelineError::BadInput(format!(
+        "combining a {width}x{height} image ({stored}) would need about {} MB, over \
+         --memory-mb {memory_mb}: raise --memory-mb (Lambda allows up to 10240), store fewer \
+         outputs, or render fewer pixels",
+        need.div_ceil(1 << 20)
+    )))
+}
+
 /// What the plan chose: the mode, the split count and why, in one sentence.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct JobShape {
@@ -243,6 +296,28 @@ fn too_big(triangles: u64, memory_mb: u32, max_splits: u32) -> PipelineError {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::pipeline::StoredOutputs;
+
+    /// The largest image the contract allows (8192x8192) does not fit the default 2048 MB
+    /// even as a PNG alone: refused before any work, naming --memory-mb; 8192 MB holds it.
+    #[test]
+    fn combine_memory_is_checked_before_any_work() {
+        let png = StoredOutputs {
+            linear: false,
+            hits: false,
+        };
+        let e = check_combine_memory(8192, 8192, png, 2048).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "combining a 8192x8192 image (the PNG) would need about 2656 MB, over --memory-mb \
+             2048: raise --memory-mb (Lambda allows up to 10240), store fewer outputs, or \
+             render fewer pixels"
+        );
+        assert!(check_combine_memory(8192, 8192, png, 4096).is_ok());
+        assert!(check_combine_memory(8192, 8192, StoredOutputs::ALL, 4096).is_err());
+        assert!(check_combine_memory(8192, 8192, StoredOutputs::ALL, 8192).is_ok());
+        assert!(check_combine_memory(1920, 1080, StoredOutputs::ALL, 512).is_ok());
+    }
 
     fn shape(
         triangles: u64,

@@ -3,7 +3,7 @@
 
 use super::PipelineError;
 use super::frustum::span_may_meet_box;
-use super::mode::{DEFAULT_MEMORY_MB, ExecutionMode, JobShape, choose_shape};
+use super::mode::{DEFAULT_MEMORY_MB, ExecutionMode, JobShape, check_combine_memory, choose_shape};
 use super::outputs::StoredOutputs;
 use super::split::SplitMode;
 use crate::adaptive::AdaptiveSettings;
@@ -411,6 +411,12 @@ pub fn resolve_counts(
         }
     };
     let span_samples = pixels.div_ceil(u64::from(s)) * u64::from(spp);
+    check_combine_memory(
+        request.width,
+        request.height,
+        request.outputs,
+        request.memory_mb,
+    )?;
     let shape = choose_shape(
         triangles,
         span_samples,
