@@ -212,7 +212,11 @@ impl InProcessInvoker {
             bucket: &self.bucket,
             work_dir: &self.work_dir,
             split_cache: &cache,
-            worker_memory_mb: self.budget.as_ref().map(|b| b.mb),
+            // The emulator's clients plan every job for the functions' own memory (`--memory-mb`
+            // is both), so the Plan function's check could only refuse what a harness built
+            // on purpose, such as a job planned past its functions to reach the Worker's
+            // `Runtime.OutOfMemory`; the deployment sets it (`HORT_WORKER_MEMORY_MB`).
+            worker_memory_mb: None,
         };
         let attempt = input.get("attempt").and_then(Value::as_u64).unwrap_or(0);
         // The warm container's splits are its memory too, whichever task uses them.
