@@ -20,9 +20,11 @@
 //! | Step Functions Express duration | $0.00001667 per GB-s | each execution rounded up to 100 ms; memory in 64 MB chunks |
 //!
 //! # How our state machine is billed (`infra/statemachine.asl.json`)
-//! The job is one STANDARD execution: Plan (Task) → five Distributed Map states → Combine (Task) →
-//! Done (Succeed). Each Map runs one EXPRESS child execution per item; the child runs one Lambda
-//! Task whose retries happen inside the child. So:
+//! The job is one STANDARD execution: Plan (Task) → Choice states → per stage a Distributed Map,
+//! its lost step (a Plan function Task) and a Choice → Combine (Task) → Done (Succeed). Each Map
+//! runs one EXPRESS child execution per item; the child runs one Lambda Task whose retries
+//! happen inside the child, and the Map writes its results to S3 (`ResultWriter`: a few PUTs,
+//! counted with the S3 requests where the caller counts them). So:
 //! - Standard transitions ([`standard_transitions_for`]): one per state entered in the parent,
 //!   the terminal state included, plus one per retry of a parent state, plus one per child
 //!   execution a Distributed Map starts (the Step Functions guide, "Transitions": "you're charged
@@ -177,27 +179,41 @@ pub fn gb_seconds(memory_mb: u32, billed_ms: u64) -> f64 {
 }
 
 /// State transitions of one STANDARD execution of our machine, as Step Functions bills them:
-/// - one per state entered: `task_states` Task states (Plan, Combine) and `map_states`
-///   Distributed Map states, plus one for the terminal state (Succeed `Done`, or a Fail state);
-/// - one per retry of a parent state (`retries_outside_maps`: Plan and Combine retries; our Map
-///   states have no Retry of their own);
-/// - one per child execution a Distributed Map starts (`child_executions`, summed over the five
+/// - one per top-level state entered (`states_entered`: Task, Map, Choice, Pass, and the
+///   terminal Succeed or Fail state; a state entered again, as in a rerun loop, counts again);
+/// - one per retry of a top-level state (`retries_outside_maps`: Plan, Combine and the lost
+///   steps; our Map states have no Retry of their own);
+/// - one per child execution a Distributed Map starts (`child_executions`, summed over the
 ///   Maps). The states inside an EXPRESS child, and the retries of its Task, are not Standard
 ///   transitions: they are billed as the child's Express duration and as Lambda invocations.
 ///
-/// A successful run without retries: `standard_transitions_for(5, 2, items, 0)` = 8 + items.
+/// A fused job without retries or lost items: `standard_transitions_for(8, items, 0)`
+/// ([`clean_path_states`]).
 pub fn standard_transitions_for(
-    map_states: u32,
-    task_states: u32,
+    states_entered: u64,
     child_executions: u64,
     retries_outside_maps: u64,
 ) -> u64 {
-    const TERMINAL_STATE: u64 = 1;
-    u64::from(map_states)
-        + u64::from(task_states)
-        + TERMINAL_STATE
-        + child_executions
-        + retries_outside_maps
+    states_entered + child_executions + retries_outside_maps
+}
+
+/// The top-level states a job without failures, lost items or a second round enters in
+/// `infra/statemachine.asl.json` (a test walks the definition to check it): `Plan`,
+/// `ChooseScene`, `ChooseMode`; per Map stage its Map, its lost step and its Check (`map_stages`
+/// of them: 1 fused, 5 staged, 3 staged without shadows); staged jobs add `ChooseShadows` and
+/// `ChooseRefine`; then `Combine` and `Done`. A scene split by tasks adds the `Partition` and
+/// `Build` stages (3 states each) and the `Cut` and `PlanFromParts` steps.
+pub fn clean_path_states(map_stages: u64, staged: bool, split_by_tasks: bool) -> u64 {
+    const PLAN_AND_CHOICES: u64 = 3;
+    const PER_MAP_STAGE: u64 = 3;
+    const COMBINE_AND_DONE: u64 = 2;
+    let staged_choices = if staged { 2 } else { 0 };
+    let by_tasks = if split_by_tasks {
+        2 * PER_MAP_STAGE + 2
+    } else {
+        0
+    };
+    PLAN_AND_CHOICES + PER_MAP_STAGE * map_stages + staged_choices + COMBINE_AND_DONE + by_tasks
 }
 
 /// The price model: [`CostInputs`] to dollars. Empty inputs cost exactly zero.
@@ -353,11 +369,15 @@ mod tests {
 
     #[test]
     fn transitions_of_our_machine() {
-        // Plan, 5 Maps, Combine, Done, and one per child execution.
-        assert_eq!(standard_transitions_for(5, 2, 0, 0), 8);
-        assert_eq!(standard_transitions_for(5, 2, 1000, 0), 1008);
+        // Fused: Plan, ChooseScene, ChooseMode, Render, RenderLost, RenderCheck, Combine, Done.
+        assert_eq!(clean_path_states(1, false, false), 8);
+        // Staged: 5 Map stages of 3 states, ChooseShadows and ChooseRefine.
+        assert_eq!(clean_path_states(5, true, false), 22);
+        assert_eq!(clean_path_states(3, true, false), 16);
+        assert_eq!(clean_path_states(5, true, true), 30);
+        assert_eq!(standard_transitions_for(22, 1000, 0), 1022);
         // Two Plan retries and one Combine retry.
-        assert_eq!(standard_transitions_for(5, 2, 1000, 3), 1011);
+        assert_eq!(standard_transitions_for(22, 1000, 3), 1025);
     }
 
     #[test]
@@ -366,7 +386,7 @@ mod tests {
         // Express: 1,000 requests x 1 / 1e6 = 0.001; 1,000 x 1,050 ms bills 1,100 ms each,
         // 1,100 s at 64 MB = 0.0625 GB -> 68.75 GB-s x 0.00001667 = 0.0011460625.
         let cost = estimate(&CostInputs {
-            standard_transitions: standard_transitions_for(5, 2, 1000, 0),
+            standard_transitions: standard_transitions_for(8, 1000, 0),
             express_ms: vec![1050.0; 1000],
             ..CostInputs::default()
         });

@@ -50,10 +50,22 @@ mod tests {
         shadows: bool,
         by_tasks: bool,
     ) -> Vec<(String, Option<String>, String, Option<String>)> {
+        walk(machine, mode, shadows, by_tasks).0
+    }
+
+    /// [`stage_states`], and how many states the path enters, the `Succeed` included.
+    fn walk(
+        machine: &Value,
+        mode: ExecutionMode,
+        shadows: bool,
+        by_tasks: bool,
+    ) -> (Vec<(String, Option<String>, String, Option<String>)>, u64) {
         let states = &machine["States"];
         let mut out = Vec::new();
+        let mut entered = 0;
         let mut next = machine["StartAt"].as_str();
         while let Some(name) = next {
+            entered += 1;
             let state = &states[name];
             match state["Type"].as_str() {
                 Some("Task") if name.ends_with("Lost") => {
@@ -162,7 +174,28 @@ mod tests {
             }
             next = state["Next"].as_str();
         }
-        out
+        (out, entered)
+    }
+
+    /// The cost model's count of the states a job enters is the definition's.
+    #[test]
+    fn the_cost_model_counts_the_states_the_definition_enters() {
+        let machine: Value = serde_json::from_str(HORT_DEFINITION).unwrap();
+        for mode in [ExecutionMode::Fused, ExecutionMode::Staged] {
+            for shadows in [true, false] {
+                for by_tasks in [false, true] {
+                    let (rows, entered) = walk(&machine, mode, shadows, by_tasks);
+                    let maps = rows.iter().filter(|r| r.3.is_some()).count() as u64;
+                    let by_task_maps = if by_tasks { 2 } else { 0 };
+                    let staged = mode == ExecutionMode::Staged;
+                    assert_eq!(
+                        hort_core::cost::clean_path_states(maps - by_task_maps, staged, by_tasks),
+                        entered,
+                        "{mode}, shadows {shadows}, split by tasks {by_tasks}"
+                    );
+                }
+            }
+        }
     }
 
     /// After round 1 of a staged adaptive job, `Refine` calls the Plan function for round 2

@@ -32,7 +32,9 @@
 //! read once per task, the Map states' item files).
 
 use hort_core::camera::Camera;
-use hort_core::cost::{Arch, CostBreakdown, CostInputs, estimate, standard_transitions_for};
+use hort_core::cost::{
+    Arch, CostBreakdown, CostInputs, clean_path_states, estimate, standard_transitions_for,
+};
 use hort_core::coverage::camera_hit_fraction;
 use hort_core::ids::Stage;
 use hort_core::pipeline::{JobPlan, JobShape, PlanRequest, SplitInfo, assign_splits, plan_job};
@@ -503,17 +505,18 @@ fn s3_requests(plan: &JobPlan, s: u64, k: u64) -> (u64, u64) {
     (gets, puts)
 }
 
-/// Step Functions Standard transitions of `plan`'s job without retries, its Map states'
-/// `children` child executions among them: the five Maps and two Plan and Combine tasks of
-/// every job, and for a scene split by tasks its two Maps (Partition, Build) and two Plan
-/// function steps (cut, plan-from-parts) (`infra/statemachine.asl.json`).
+/// Step Functions Standard transitions of `plan`'s job without retries or lost items, its Map
+/// states' `children` child executions among them: the states of its path through
+/// `infra/statemachine.asl.json` ([`clean_path_states`]).
 pub fn standard_transitions(plan: &JobPlan, children: u64) -> u64 {
-    let (maps, tasks) = if plan.scene_parts.is_some() {
-        (7, 4)
-    } else {
-        (5, 2)
-    };
-    standard_transitions_for(maps, tasks, children, 0)
+    let map_stages = plan
+        .task_stages()
+        .iter()
+        .filter(|s| s.items_field().is_some())
+        .count() as u64;
+    let staged = plan.mode == hort_core::pipeline::ExecutionMode::Staged;
+    let states = clean_path_states(map_stages, staged, plan.scene_parts.is_some());
+    standard_transitions_for(states, children, 0)
 }
 
 /// S3 PUT-like requests of the client before the job starts: scene files and the job request.
@@ -829,8 +832,9 @@ mod tests {
             stage_bytes(&plan, JobStep::Stage(Stage::Partition)),
             36 * 128
         );
-        // Four more top-level states than a scene loaded whole: two Maps, two Plan steps.
-        assert_eq!(standard_transitions(&plan, 0), 12);
+        // Eight more top-level states than a scene loaded whole (22 for a staged job): two Map
+        // stages of three states (Map, lost step, Check) and two Plan steps.
+        assert_eq!(standard_transitions(&plan, 0), 30);
     }
 
     #[test]

@@ -38,6 +38,8 @@ pub struct Accounting {
 struct State {
     rows: Vec<StageUsage>,
     started: Option<(Instant, StoreStats)>,
+    /// Top-level states entered, and retries of top-level states: Standard transitions.
+    transitions: u64,
 }
 
 impl Accounting {
@@ -48,8 +50,19 @@ impl Accounting {
             inner: Mutex::new(State {
                 rows: Vec::new(),
                 started: None,
+                transitions: 0,
             }),
         }
+    }
+
+    /// The Standard state transitions of the execution's own states so far: one per top-level
+    /// state entered (a rerun loop's states again each round) and one per retry of a top-level
+    /// state; the Map children come on top (see `hort_core::cost::standard_transitions_for`).
+    pub fn top_level_transitions(&self) -> u64 {
+        self.inner
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .transitions
     }
 
     /// Closes the running stage and returns every row.
@@ -85,6 +98,7 @@ impl Observer for Accounting {
                 state,
                 item_index: None,
             } if !state.contains('/') => {
+                s.transitions += 1;
                 let state = &top_level(state).unwrap_or(state).to_owned();
                 if s.rows.last().is_some_and(|r| &r.state == state) {
                     return;
@@ -105,15 +119,23 @@ impl Observer for Accounting {
             // The Plan function's lost step (`CastMapLost`) is the orchestration's bookkeeping,
             // no task of the stage: its time counts in the row, its invocations in the cost
             // (the ledger), not in the stage's attempts.
-            Event::TaskAttemptStarted { state, .. } | Event::TaskAttemptFailed { state, .. }
-                if is_lost_step(state) => {}
+            Event::TaskAttemptFailed {
+                state, will_retry, ..
+            } if is_lost_step(state) => {
+                s.transitions += u64::from(*will_retry);
+            }
+            Event::TaskAttemptStarted { state, .. } if is_lost_step(state) => {}
             Event::TaskAttemptStarted { state, .. } => {
                 let top = top_level(state).unwrap_or_default().to_string();
                 if let Some(row) = s.rows.iter_mut().rev().find(|r| r.state == top) {
                     row.attempts += 1;
                 }
             }
-            Event::TaskAttemptFailed { state, .. } => {
+            Event::TaskAttemptFailed {
+                state, will_retry, ..
+            } => {
+                // A retry of a top-level Task (Plan, Combine) is a Standard transition.
+                s.transitions += u64::from(*will_retry && !state.contains('/'));
                 let top = top_level(state).unwrap_or_default().to_string();
                 if let Some(row) = s.rows.iter_mut().rev().find(|r| r.state == top) {
                     row.failed_attempts += 1;

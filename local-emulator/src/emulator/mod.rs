@@ -374,7 +374,13 @@ pub fn run_job_loaded(
     let ledger = functions.ledger();
     let stages = stage_reports(&plan, &usage, &ledger);
     let seconds = started.elapsed().as_secs_f64();
-    let cost = estimate_cost(config, &usage, &ledger, seconds);
+    let cost = estimate_cost(
+        config,
+        &usage,
+        &ledger,
+        seconds,
+        accounting.top_level_transitions(),
+    );
     Ok(EmulatorRun {
         job,
         endpoint: storage.endpoint.clone(),
@@ -528,11 +534,14 @@ fn stage_report(plan: &JobPlan, u: &StageUsage, ledger: &Ledger) -> StageReport 
     }
 }
 
+/// The job's cost from what it used; `top_level_transitions` is the execution's own states
+/// entered and retried ([`Accounting::top_level_transitions`]).
 fn estimate_cost(
     config: &EmulatorConfig,
     usage: &[StageUsage],
     ledger: &Ledger,
     seconds: f64,
+    top_level_transitions: u64,
 ) -> CostBreakdown {
     let traffic = usage
         .iter()
@@ -544,13 +553,6 @@ fn estimate_cost(
             a
         });
     let children: u64 = usage.iter().map(|u| u.items).sum();
-    let maps = usage.iter().filter(|u| u.items > 0).count() as u32;
-    let tasks = usage.len() as u32 - maps;
-    let retries_outside: u64 = usage
-        .iter()
-        .filter(|u| u.items == 0)
-        .map(|u| u.attempts.saturating_sub(1))
-        .sum();
     estimate(&CostInputs {
         arch: config.arch,
         memory_mb: config.memory_mb,
@@ -558,7 +560,7 @@ fn estimate_cost(
         s3_put_like: traffic.puts + traffic.lists,
         s3_get_like: traffic.gets,
         s3_byte_seconds: traffic.bytes_written as f64 * seconds,
-        standard_transitions: standard_transitions_for(maps, tasks, children, retries_outside),
+        standard_transitions: standard_transitions_for(top_level_transitions, children, 0),
         // One EXPRESS child per item; its duration is approximated by its worker's run time.
         express_ms: ledger
             .invocation_ms
