@@ -49,9 +49,12 @@ mod tests {
         mode: ExecutionMode,
         shadows: bool,
         by_tasks: bool,
-    ) -> Vec<(String, Option<String>, String, Option<String>)> {
+    ) -> Vec<StageRow> {
         walk(machine, mode, shadows, by_tasks).0
     }
+
+    /// A stage's state name, its `stage` literal, its function and its items key path.
+    type StageRow = (String, Option<String>, String, Option<String>);
 
     /// [`stage_states`], and how many states the path enters, the `Succeed` included.
     fn walk(
@@ -59,7 +62,7 @@ mod tests {
         mode: ExecutionMode,
         shadows: bool,
         by_tasks: bool,
-    ) -> (Vec<(String, Option<String>, String, Option<String>)>, u64) {
+    ) -> (Vec<StageRow>, u64) {
         let states = &machine["States"];
         let mut out = Vec::new();
         let mut entered = 0;
