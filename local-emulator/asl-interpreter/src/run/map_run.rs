@@ -78,31 +78,21 @@ impl Execution<'_> {
                 };
             }
         };
-        let params = reader
-            .eval(input, ctx)
-            .map_err(|e| Self::runtime(path, format!("ItemReader.Parameters: {e}")))?;
-        let (Some(bucket), Some(key)) = (
-            params.get("Bucket").and_then(Value::as_str),
-            params.get("Key").and_then(Value::as_str),
-        ) else {
-            return Err(Self::runtime(
-                path,
-                format!("ItemReader.Parameters must give Bucket and Key strings, got {params}"),
-            ));
-        };
         let reader_failed = |cause: String| Failure {
             error: ITEM_READER_FAILED.into(),
             cause: format!("{path}: {cause}"),
             state: path.to_owned(),
             item: None,
         };
-        if self.bucket.as_deref() != Some(bucket) {
-            return Err(reader_failed(format!(
-                "ItemReader reads bucket {bucket:?}, but the emulator's store holds only the \
-                 execution input's bucket ({:?})",
-                self.bucket.as_deref().unwrap_or("none given")
-            )));
-        }
+        let (bucket, key) = self.s3_parameters(
+            ("ItemReader", "reads", "Key"),
+            reader,
+            path,
+            input,
+            ctx,
+            reader_failed,
+        )?;
+        let (bucket, key) = (bucket.as_str(), key.as_str());
         let bytes = self
             .items
             .read_object(key)
@@ -252,6 +242,41 @@ impl Execution<'_> {
         Ok(Ok(outputs))
     }
 
+    /// The `Bucket` and the `Key` (or `Prefix`) an `ItemReader` (or `ResultWriter`) names:
+    /// `field` is (its name, what it does to the bucket, the second parameter). Parameters that
+    /// do not give both strings are `States.Runtime`; a bucket other than the execution input's
+    /// is `failed` (the field's own error).
+    fn s3_parameters(
+        &self,
+        (field, verb, second): (&str, &str, &str),
+        template: &crate::paths::Template,
+        path: &str,
+        input: &Value,
+        ctx: &Value,
+        failed: impl Fn(String) -> Failure,
+    ) -> Result<(String, String), Failure> {
+        let params = template
+            .eval(input, ctx)
+            .map_err(|e| Self::runtime(path, format!("{field}.Parameters: {e}")))?;
+        let (Some(bucket), Some(value)) = (
+            params.get("Bucket").and_then(Value::as_str),
+            params.get(second).and_then(Value::as_str),
+        ) else {
+            return Err(Self::runtime(
+                path,
+                format!("{field}.Parameters must give Bucket and {second} strings, got {params}"),
+            ));
+        };
+        if self.bucket.as_deref() != Some(bucket) {
+            return Err(failed(format!(
+                "{field} {verb} bucket {bucket:?}, but the emulator's store holds only the \
+                 execution input's bucket ({:?})",
+                self.bucket.as_deref().unwrap_or("none given")
+            )));
+        }
+        Ok((bucket.to_owned(), value.to_owned()))
+    }
+
     /// Writes a successful Map Run's results as a `ResultWriter` of `s3:putObject` does, and
     /// returns the Map's result: `{"MapRunArn", "ResultWriterDetails": {"Bucket", "Key"}}`.
     #[allow(clippy::too_many_arguments)]
@@ -274,27 +299,15 @@ impl Execution<'_> {
         let Some(writer) = &map.result_writer else {
             return Err(failed("no ResultWriter".into()));
         };
-        let params = writer
-            .eval(input, ctx)
-            .map_err(|e| Self::runtime(path, format!("ResultWriter.Parameters: {e}")))?;
-        let (Some(bucket), Some(prefix)) = (
-            params.get("Bucket").and_then(Value::as_str),
-            params.get("Prefix").and_then(Value::as_str),
-        ) else {
-            return Err(Self::runtime(
-                path,
-                format!(
-                    "ResultWriter.Parameters must give Bucket and Prefix strings, got {params}"
-                ),
-            ));
-        };
-        if self.bucket.as_deref() != Some(bucket) {
-            return Err(failed(format!(
-                "ResultWriter writes bucket {bucket:?}, but the emulator's store holds only the \
-                 execution input's bucket ({:?})",
-                self.bucket.as_deref().unwrap_or("none given")
-            )));
-        }
+        let (bucket, prefix) = self.s3_parameters(
+            ("ResultWriter", "writes", "Prefix"),
+            writer,
+            path,
+            input,
+            ctx,
+            failed,
+        )?;
+        let (bucket, prefix) = (bucket.as_str(), prefix.as_str());
         let run = format!("{name}-{}", self.map_runs.fetch_add(1, Ordering::SeqCst));
         let machine_arn = self.context["StateMachine"]["Id"].as_str().unwrap_or("");
         // AWS: `…:mapRun:{machine}/{label}:{id}`, children `…:express:{machine}/{label}:…`.
