@@ -176,15 +176,8 @@ pub const RERUN_LOOP_STATES: [&str; 5] = ["Lost", "Check", "Rerun", "Round", "Gi
 /// True for a Map stage's `{Map}Lost` Task state (a top-level state path): the Plan function's
 /// bookkeeping after each Map Run, no task of the stage.
 pub fn is_lost_step(path: &str) -> bool {
-    !path.contains('/')
-        && path.strip_suffix("Lost").is_some_and(|map| {
-            Stage::ALL
-                .iter()
-                .any(|s| s.items_field().is_some() && s.state_name() == map)
-        })
+    !path.contains('/') && path.ends_with("Lost") && Stage::of_rerun_loop_state(path).is_some()
 }
-
-impl Stage {}
 
 impl fmt::Display for Stage {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {

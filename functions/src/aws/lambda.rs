@@ -67,8 +67,8 @@ pub struct FunctionSettings {
     pub split_cache_bytes: u64,
     /// An S3-compatible endpoint instead of AWS S3.
     pub s3_endpoint: Option<String>,
-    /// The Worker function's memory, MB: for the Plan function [`WORKER_MEMORY_VAR`] (set by
-    /// the template), for the Worker its own [`MEMORY_VAR`]; `None` when unset.
+    /// The Worker function's memory, MB, the most the Plan function plans tasks for: its
+    /// [`WORKER_MEMORY_VAR`] (set by the template); `None` when unset, and for the Worker.
     pub worker_memory_mb: Option<u32>,
 }
 
@@ -94,16 +94,13 @@ impl FunctionSettings {
                 mb << 20
             }
         };
-        let memory_var = match function {
-            Function::Plan => WORKER_MEMORY_VAR,
-            Function::Worker => MEMORY_VAR,
-        };
-        let worker_memory_mb = match var(memory_var) {
-            Some(mb) => Some(
-                u32::try_from(parse_mb(memory_var, &mb)?)
-                    .map_err(|_| format!("{memory_var}={mb:?} is not a memory size in MB"))?,
+        let worker_memory_mb = match (function, var(WORKER_MEMORY_VAR)) {
+            (Function::Plan, Some(mb)) => Some(
+                u32::try_from(parse_mb(WORKER_MEMORY_VAR, &mb)?).map_err(|_| {
+                    format!("{WORKER_MEMORY_VAR}={mb:?} is not a memory size in MB")
+                })?,
             ),
-            None => None,
+            _ => None,
         };
         Ok(FunctionSettings {
             bucket,

@@ -93,6 +93,13 @@ fn top_level(state: &str) -> Option<&str> {
 impl Observer for Accounting {
     fn event(&self, event: &Event) {
         let mut s = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        // A retry of a top-level Task (Plan, a lost step, Combine) is a Standard transition.
+        if let Event::TaskAttemptFailed {
+            state, will_retry, ..
+        } = event
+        {
+            s.transitions += u64::from(*will_retry && !state.contains('/'));
+        }
         match event {
             Event::StateEntered {
                 state,
@@ -119,23 +126,15 @@ impl Observer for Accounting {
             // The Plan function's lost step (`CastMapLost`) is the orchestration's bookkeeping,
             // no task of the stage: its time counts in the row, its invocations in the cost
             // (the ledger), not in the stage's attempts.
-            Event::TaskAttemptFailed {
-                state, will_retry, ..
-            } if is_lost_step(state) => {
-                s.transitions += u64::from(*will_retry);
-            }
-            Event::TaskAttemptStarted { state, .. } if is_lost_step(state) => {}
+            Event::TaskAttemptStarted { state, .. } | Event::TaskAttemptFailed { state, .. }
+                if is_lost_step(state) => {}
             Event::TaskAttemptStarted { state, .. } => {
                 let top = top_level(state).unwrap_or_default().to_string();
                 if let Some(row) = s.rows.iter_mut().rev().find(|r| r.state == top) {
                     row.attempts += 1;
                 }
             }
-            Event::TaskAttemptFailed {
-                state, will_retry, ..
-            } => {
-                // A retry of a top-level Task (Plan, Combine) is a Standard transition.
-                s.transitions += u64::from(*will_retry && !state.contains('/'));
+            Event::TaskAttemptFailed { state, .. } => {
                 let top = top_level(state).unwrap_or_default().to_string();
                 if let Some(row) = s.rows.iter_mut().rev().find(|r| r.state == top) {
                     row.failed_attempts += 1;

@@ -442,8 +442,7 @@ impl Functions {
 
 /// The stage name of a state path (`CastMap/CastMapTask` -> `cast-map`, and the states of its
 /// rerun loop and its Fail state, `CastMapLost`, `CastMapRerun/CastMapRerunTask` or
-/// `CastMapFailed`, too); a
-/// state outside the stage table keeps its own name.
+/// `CastMapFailed`, too); a state outside the stage table keeps its own name.
 pub fn stage_name(state: &str) -> String {
     let top = state.split('/').next().unwrap_or(state);
     Stage::of_state(state)
