@@ -214,7 +214,8 @@ pub struct RenderArgs {
     pub worker_function: String,
     /// Memory of one function, MB, 128 to 10240 as in Lambda: the plan keeps every task within
     /// it (choosing fused or staged and the split count), and the cost estimate assumes it.
-    #[arg(long, default_value_t = 2048, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(128..=10240))]
+    /// Default: the Worker's in infra/template.yaml.
+    #[arg(long, default_value_t = hort::deployment::Deployment::bundled().worker.memory_mb, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(128..=10240))]
     pub memory_mb: u32,
     /// Output image: .png or .jpg (8-bit sRGB), .pfm or .exr (linear). Default: the scene file's name
     /// with .png, in the current folder. Checked before any work; written atomically.

@@ -6,6 +6,7 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod deployment;
 pub mod emulator;
 pub mod progress;
 pub mod state_machine;

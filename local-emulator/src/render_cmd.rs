@@ -6,6 +6,7 @@ use crate::outputs::{
     OutputTarget, check_distinct, check_image_path, check_output_path, write_output,
 };
 use anyhow::{Context, Result, anyhow, bail};
+use hort::deployment::Deployment;
 use hort::emulator::{
     EmulatorConfig, FaultSettings, JobOptions, LambdaTarget, run_job_loaded, splits_by_tasks,
 };
@@ -495,6 +496,7 @@ fn render_emulated(
             plan: args.plan_function.clone(),
             worker: args.worker_function.clone(),
         }),
+        functions: Deployment::bundled().function_limits(),
     };
     let progress = ProgressObserver::new(ProgressMode::detect());
     let options = JobOptions {

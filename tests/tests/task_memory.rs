@@ -3,7 +3,7 @@
 //! image stays the monolithic render's, and a task over the functions' memory fails the job at
 //! once with `Runtime.OutOfMemory`, naming the task, what it used and the budget.
 
-use asl_interpreter::{Event, NoObserver, Observer};
+use asl_interpreter::{Event, FunctionLimits, NoObserver, Observer};
 use hort::emulator::{EmulatorConfig, run_job};
 use hort_core::ids::Stage;
 use hort_core::pipeline::{PlanRequest, SplitMode, StoredOutputs, decode_split, rebuild_split};
@@ -26,6 +26,9 @@ fn config(workers: usize, memory_mb: u32, job: Option<&str>) -> EmulatorConfig {
         time_scale: 0.02,
         task_timeout_seconds: Some(250),
         memory_mb,
+        // The deployment's Worker timeout (120 s) would be 2.4 s at this time scale: these
+        // tests time their tasks by their own 250 s timeouts instead.
+        functions: FunctionLimits::none(),
         ..EmulatorConfig::embedded(workers)
     }
 }

@@ -47,6 +47,18 @@ pub const LAMBDA_RESPONSE_TOO_LARGE: &str = "Function.ResponseSizeTooLarge";
 /// throttled, not queued. <https://docs.aws.amazon.com/lambda/latest/dg/lambda-concurrency.html>
 pub const LAMBDA_THROTTLED: &str = "Lambda.TooManyRequestsException";
 
+/// Lambda: the error of an invocation stopped at its function's own timeout (the runtime's
+/// `errorType`; older runtimes leave it out and Step Functions reports `Lambda.Unknown`, which
+/// HORT's definition retries alike).
+/// <https://docs.aws.amazon.com/lambda/latest/dg/troubleshooting-invocation.html>,
+/// <https://docs.aws.amazon.com/step-functions/latest/dg/bp-lambda-serviceexception.html>
+pub const LAMBDA_TIMED_OUT: &str = "Sandbox.Timedout";
+
+/// API Gateway: the answer to a client when the Lambda proxy integration fails (the function
+/// timed out, crashed or was throttled): status 500 and this body.
+/// <https://docs.aws.amazon.com/apigateway/latest/developerguide/http-api-troubleshooting-lambda.html>
+pub const API_GATEWAY_INTERNAL_ERROR_BODY: &str = r#"{"message":"Internal Server Error"}"#;
+
 /// Lambda: the longest a function may be configured to run: 900 s.
 /// <https://docs.aws.amazon.com/lambda/latest/dg/gettingstarted-limits.html> ("Function timeout").
 pub const LAMBDA_MAX_TIMEOUT_SECONDS: u64 = 900;

@@ -43,6 +43,7 @@
 pub mod clock;
 pub mod definition;
 pub mod events;
+pub mod functions;
 pub mod intrinsic;
 pub mod paths;
 pub mod retry;
@@ -62,6 +63,7 @@ use serde_json::{Value, json};
 pub use clock::{Clock, ManualClock, RealClock};
 pub use definition::{DefinitionError, State, StateMachine};
 pub use events::{Event, EventLog, NoObserver, Observer};
+pub use functions::{FunctionLimit, FunctionLimits};
 pub use retry::{Jitter, Retrier, backoff_seconds, retry_delay};
 pub use run::{
     CANCELLED, EXCEED_TOLERATED_FAILURE, ITEM_READER_FAILED, NO_CHOICE_MATCHED, PANIC,
@@ -132,16 +134,21 @@ pub struct OrchestratorOptions {
     /// Set to stop: no new attempt starts and [`Orchestrator::run`] returns
     /// [`CANCELLED`] within milliseconds (invocations in flight run on and are ignored).
     pub cancel: Arc<AtomicBool>,
+    /// Each function's reserved concurrency and timeout, as its deployment sets them (see
+    /// [`functions`]); clones share the count of running invocations, so executions given
+    /// clones of one value are one account's jobs.
+    pub functions: FunctionLimits,
 }
 
 impl Default for OrchestratorOptions {
-    /// One slot per available core, real time, seed 0, not cancelled.
+    /// One slot per available core, real time, seed 0, not cancelled, no function limits.
     fn default() -> Self {
         Self {
             slots: std::thread::available_parallelism().map_or(1, |n| n.get()),
             time_scale: 1.0,
             seed: 0,
             cancel: Arc::new(AtomicBool::new(false)),
+            functions: FunctionLimits::none(),
         }
     }
 }
@@ -274,7 +281,7 @@ impl Orchestrator {
             .to_owned();
         let execution = run::Execution {
             options: &self.options,
-            clock: self.clock.as_ref(),
+            clock: &self.clock,
             invoker: &invoker,
             items,
             observer,

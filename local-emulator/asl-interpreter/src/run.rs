@@ -151,7 +151,7 @@ pub struct Execution<'a> {
     /// The options it runs with.
     pub options: &'a OrchestratorOptions,
     /// What backoff, timeouts and the EXPRESS limit are measured on.
-    pub clock: &'a dyn Clock,
+    pub clock: &'a Arc<dyn Clock>,
     /// Runs the functions.
     pub invoker: &'a Arc<dyn TaskInvoker>,
     /// Reads the Map states' items files and takes their written results.
@@ -215,7 +215,7 @@ impl Execution<'_> {
         if frame.halt.is_set() {
             return Err(Stop::Halted(path.to_owned()));
         }
-        if frame.expired(self.clock) {
+        if frame.expired(self.clock.as_ref()) {
             return Err(Stop::Failed(Failure {
                 error: retry::TIMEOUT.into(),
                 cause: format!(

@@ -21,6 +21,7 @@ use serde_json::{Value, json};
 use super::*;
 use crate::retry::retry_delay;
 
+mod functions;
 mod payload;
 
 /// HORT's state machine: the definition these tests run.
@@ -246,6 +247,7 @@ fn options(slots: usize) -> OrchestratorOptions {
         time_scale: SCALE,
         seed: 7,
         cancel: Arc::new(AtomicBool::new(false)),
+        functions: crate::FunctionLimits::none(),
     }
 }
 

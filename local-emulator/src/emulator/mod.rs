@@ -27,9 +27,10 @@ pub use upload::{
     delete_job, is_kept_after_success, list_jobs, scene_files, submit_job, submit_or_resume,
 };
 
+use crate::deployment::Deployment;
 use crate::state_machine::{StoreItems, hort_orchestrator};
 use anyhow::{Context, Result, anyhow};
-use asl_interpreter::{Observer, OrchestratorOptions, TaskInvoker};
+use asl_interpreter::{FunctionLimits, Observer, OrchestratorOptions, TaskInvoker};
 use hort_core::breakdown::{StageBreakdown, uncovered};
 use hort_core::cost::{Arch, CostBreakdown, CostInputs, estimate, standard_transitions_for};
 use hort_core::hits::Hit;
@@ -83,11 +84,16 @@ pub struct EmulatorConfig {
     /// Invoke the Plan and Worker functions through the Lambda Invoke API instead of in this
     /// process (`--lambda-endpoint`); they must serve the run's bucket.
     pub lambda: Option<LambdaTarget>,
+    /// The Plan and Worker functions' reserved concurrency and timeouts (by default the
+    /// deployment's, [`Deployment::function_limits`]); clones share the count of running
+    /// invocations, so jobs given clones of one value throttle each other as one account's do.
+    pub functions: FunctionLimits,
 }
 
 impl EmulatorConfig {
     /// A fresh embedded S3 server in a temporary folder, `workers` function slots, no faults,
-    /// real time, derived timeouts, 1 GiB of split cache, 2048 MB arm64 functions.
+    /// real time, derived timeouts, 1 GiB of split cache, arm64 functions with the deployment's
+    /// memory, reserved concurrency and timeouts.
     pub fn embedded(workers: usize) -> EmulatorConfig {
         EmulatorConfig {
             storage: StorageTarget::Embedded { data_dir: None },
@@ -97,10 +103,11 @@ impl EmulatorConfig {
             time_scale: 1.0,
             task_timeout_seconds: None,
             split_cache_bytes: 1 << 30,
-            memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
+            memory_mb: Deployment::bundled().worker.memory_mb,
             arch: Arch::Arm64,
             cancel: Arc::new(AtomicBool::new(false)),
             lambda: None,
+            functions: Deployment::bundled().function_limits(),
         }
     }
 }
@@ -219,6 +226,18 @@ pub fn run_job_loaded(
     observer: &dyn Observer,
 ) -> Result<EmulatorRun> {
     let started = Instant::now();
+    let reserved = config
+        .functions
+        .limit(hort_core::stage::WORKER_FUNCTION)
+        .reserved_concurrency;
+    if let Some(reserved) = reserved.filter(|&r| config.workers > r) {
+        return Err(anyhow!(
+            "--workers {} is more than the Worker function's reserved concurrency ({reserved}, \
+             WorkerConcurrency in infra/template.yaml): Lambda would throttle every task past \
+             it; give --workers {reserved} or fewer",
+            config.workers
+        ));
+    }
     let storage = Storage::open_scaled(&config.storage, config.time_scale)?;
     let job = JobId::new(config.job.clone().unwrap_or_else(fresh_job_id))?;
     let request = JobRequest {
@@ -314,6 +333,7 @@ pub fn run_job_loaded(
         time_scale: config.time_scale,
         seed: config.faults.seed,
         cancel: Arc::clone(&config.cancel),
+        functions: config.functions.clone(),
     })
     .map_err(|e| anyhow!("the state machine definition: {e}"))?;
     let accounting = Accounting::new(Arc::clone(&storage.store));

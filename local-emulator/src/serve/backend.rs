@@ -17,7 +17,8 @@ use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, Result};
-use asl_interpreter::{Event, Observer};
+use asl_interpreter::{Event, FunctionLimits, Observer};
+use hort::deployment::Deployment;
 use hort::emulator::{
     EmulatorConfig, EmulatorRun, FaultSettings, JobOptions, Storage, StorageTarget, run_job_with,
     stage_name,
@@ -226,6 +227,8 @@ struct Shared {
     /// up each other's uploads in progress).
     s3: S3Config,
     workers: usize,
+    /// The functions' reserved concurrency and timeouts, one count for all the jobs.
+    functions: FunctionLimits,
     /// The bucket, through the server's own embedded S3 server over `data_dir`.
     store: Arc<CountingStore<S3Store>>,
     /// Scene files of jobs about to start, `{scratch}/{job}/...` (removed when they end).
@@ -273,6 +276,7 @@ impl EmulatorBackend {
         let shared = Arc::new(Shared {
             s3: storage.config.clone(),
             workers,
+            functions: Deployment::bundled().function_limits(),
             store: Arc::clone(&storage.store),
             scratch,
             stopping: AtomicBool::new(false),
@@ -541,10 +545,12 @@ fn run(shared: &Shared, job: &Job, spec: &JobSpec) {
                 time_scale: 1.0,
                 task_timeout_seconds: None,
                 split_cache_bytes: 1 << 30,
-                memory_mb: 2048,
+                memory_mb: Deployment::bundled().worker.memory_mb,
                 arch: Arch::Arm64,
                 cancel: Arc::clone(&job.cancel),
                 lambda: None,
+                // One account: the jobs share the functions' reserved concurrency.
+                functions: shared.functions.clone(),
             };
             run_job_with(
                 &config,

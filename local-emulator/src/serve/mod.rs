@@ -89,8 +89,12 @@ fn serve_over(
     } else {
         ""
     };
+    let timeout = std::time::Duration::from_secs(u64::from(
+        hort::deployment::Deployment::bundled().api.timeout_seconds,
+    ));
     server::serve(
         backend.clone(),
+        timeout,
         addr,
         |addr| {
             let reach = if addr.ip().is_loopback() {
