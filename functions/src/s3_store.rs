@@ -31,8 +31,8 @@ const CONDITIONAL_CONFLICT_ATTEMPTS: u32 = 5;
 /// the store reserve memory it never fills.
 const MAX_PREALLOCATION: usize = 64 << 20;
 
-/// How many DELETE requests [`S3Store::delete_all`] keeps in flight.
-const PARALLEL_DELETES: usize = 32;
+/// How many `DeleteObjects` requests [`S3Store::delete_all`] keeps in flight.
+const PARALLEL_DELETE_BATCHES: usize = 4;
 
 /// Why the bucket cannot be used, as [`S3Store::probe_bucket`] finds out: the two cases callers
 /// explain in their own words, and every other classified failure.
@@ -249,17 +249,22 @@ impl S3Store {
         self.handle.block_on(self.list_async(prefix))
     }
 
-    /// Deletes every key of `keys` (missing ones included, as [`BlobStore::delete`]), with up
-    /// to 32 requests in flight; the first failure is returned after the requests in flight
-    /// end, and keys not yet sent are left alone.
+    /// Deletes every key of `keys` (missing ones included, as [`BlobStore::delete`]) with
+    /// `DeleteObjects` requests of at most 1,000 keys (S3's limit), up to
+    /// [`PARALLEL_DELETE_BATCHES`] in flight; the first failure (a failed request, or the first
+    /// key S3 could not delete, named) is returned after the requests in flight end, and keys
+    /// not yet sent are left alone.
     pub fn delete_all(&self, keys: &[String]) -> Result<(), StoreError> {
+        let batches: Vec<&[String]> = keys
+            .chunks(hort_aws_quotas::S3_DELETE_OBJECTS_MAX_KEYS)
+            .collect();
         self.handle.block_on(async {
-            for chunk in keys.chunks(PARALLEL_DELETES) {
+            for wave in batches.chunks(PARALLEL_DELETE_BATCHES) {
                 let mut deletes = tokio::task::JoinSet::new();
-                for key in chunk {
-                    let (client, target, key) =
-                        (self.client.clone(), self.target.clone(), key.clone());
-                    deletes.spawn(async move { delete_object(&client, &target, &key).await });
+                for batch in wave {
+                    let (client, target, batch) =
+                        (self.client.clone(), self.target.clone(), batch.to_vec());
+                    deletes.spawn(async move { delete_objects(&client, &target, &batch).await });
                 }
                 let mut first_error = None;
                 while let Some(done) = deletes.join_next().await {
@@ -723,6 +728,61 @@ async fn delete_object(client: &Client, target: &Target, key: &str) -> Result<()
             Ok(())
         }
         Err(err) => Err(s3_errors::store_error(err, request, target)),
+    }
+}
+
+/// One `DeleteObjects` request for `keys` (at most 1,000), in quiet mode: S3 answers only the
+/// keys it could not delete, and the first of them is the error.
+async fn delete_objects(
+    client: &Client,
+    target: &Target,
+    keys: &[String],
+) -> Result<(), StoreError> {
+    use aws_sdk_s3::types::{Delete, ObjectIdentifier};
+    let Some(first) = keys.first() else {
+        return Ok(());
+    };
+    let request = Request {
+        op: "delete",
+        key: Some(first),
+        object_read: false,
+    };
+    let objects = keys
+        .iter()
+        .map(|key| ObjectIdentifier::builder().key(key).build())
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| StoreError::Other {
+            what: format!("delete {first:?} and on: {e}"),
+        })?;
+    let delete = Delete::builder()
+        .set_objects(Some(objects))
+        .quiet(true)
+        .build()
+        .map_err(|e| StoreError::Other {
+            what: format!("delete {first:?} and on: {e}"),
+        })?;
+    let output = client
+        .delete_objects()
+        .bucket(&target.bucket)
+        .delete(delete)
+        .send()
+        .await
+        .map_err(|err| s3_errors::store_error(err, request, target))?;
+    match output.errors().first() {
+        None => Ok(()),
+        Some(failed) => Err(StoreError::Other {
+            what: format!(
+                "delete {:?} on S3 endpoint {} (bucket {}): {} {} ({} of {} keys of the request \
+                 not deleted)",
+                failed.key().unwrap_or_default(),
+                target.endpoint,
+                target.bucket,
+                failed.code().unwrap_or("an error"),
+                failed.message().unwrap_or_default(),
+                output.errors().len(),
+                keys.len()
+            ),
+        }),
     }
 }
 

@@ -83,4 +83,29 @@ fn external_s3_passes_the_conformance_suite() {
     conformance::run_all(&store, &prefix);
     conformance::list_returns_every_page(&store, &prefix);
     assert_eq!(store.list(&prefix).expect("list"), Vec::<String>::new());
+    delete_all_takes_more_keys_than_one_request(&store, &prefix);
+}
+
+#[test]
+fn embedded_s3_deletes_more_keys_than_one_request_takes() {
+    let embedded = Embedded::start(Some("batches"));
+    delete_all_takes_more_keys_than_one_request(&embedded.store("batches"), "suite/");
+}
+
+/// `delete_all` of 1,001 stored keys and 2 missing ones (two `DeleteObjects` requests, S3
+/// taking at most 1,000 keys each) removes exactly those keys.
+fn delete_all_takes_more_keys_than_one_request(store: &hort_functions::S3Store, prefix: &str) {
+    let base = format!("{prefix}batches/");
+    let kept = format!("{prefix}kept");
+    store.put(&kept, b"k").expect("put");
+    let mut doomed: Vec<String> = (0..1001).map(|i| format!("{base}{i:05}")).collect();
+    for key in &doomed {
+        store.put(key, b"d").expect("put");
+    }
+    doomed.push(format!("{base}missing-1"));
+    doomed.insert(500, format!("{base}missing-0"));
+    store.delete_all(&doomed).expect("delete_all");
+    assert_eq!(store.list(&base).expect("list"), Vec::<String>::new());
+    assert_eq!(store.get(&kept).expect("get"), b"k");
+    store.delete(&kept).expect("delete");
 }

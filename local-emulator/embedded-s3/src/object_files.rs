@@ -10,7 +10,8 @@
 //!   and max-keys as S3 defines them), since the stored names sort differently from the keys.
 //!
 //! Only the operations the project's S3 client uses are forwarded (bucket create/head/delete/
-//! list/location, object put/get/head/delete, ListObjects v1 and v2); the rest answer
+//! list/location, object put/get/head/delete, DeleteObjects of at most 1,000 keys as on AWS,
+//! ListObjects v1 and v2); the rest answer
 //! `NotImplemented`. Keys that path normalisation would alter (`a//b`, `./a`, `a/../b`) are
 //! outside the S3 subset this server supports.
 
@@ -19,7 +20,8 @@ use std::path::PathBuf;
 
 use s3s::dto::{
     CommonPrefix, CreateBucketInput, CreateBucketOutput, DeleteBucketInput, DeleteBucketOutput,
-    DeleteObjectInput, DeleteObjectOutput, GetBucketLocationInput, GetBucketLocationOutput,
+    DeleteObjectInput, DeleteObjectOutput, DeleteObjectsInput, DeleteObjectsOutput,
+    GetBucketLocationInput, GetBucketLocationOutput,
     GetObjectInput, GetObjectOutput, HeadBucketInput, HeadBucketOutput, HeadObjectInput,
     HeadObjectOutput, ListBucketsInput, ListBucketsOutput, ListObjectsInput, ListObjectsOutput,
     ListObjectsV2Input, ListObjectsV2Output, Object, PutObjectInput, PutObjectOutput,
@@ -277,6 +279,33 @@ impl S3 for ObjectFiles {
         self.require_bucket(&req.input.bucket)?;
         req.input.key = file_of_key(&req.input.key);
         self.files.delete_object(req).await
+    }
+
+    async fn delete_objects(
+        &self,
+        mut req: S3Request<DeleteObjectsInput>,
+    ) -> S3Result<S3Response<DeleteObjectsOutput>> {
+        self.require_bucket(&req.input.bucket)?;
+        let objects = &mut req.input.delete.objects;
+        if objects.len() > hort_aws_quotas::S3_DELETE_OBJECTS_MAX_KEYS {
+            // What S3 answers a request of more keys than it takes.
+            return Err(s3_error!(
+                MalformedXML,
+                "The XML you provided was not well-formed or did not validate against our \
+                 published schema ({} keys; at most {} per request)",
+                objects.len(),
+                hort_aws_quotas::S3_DELETE_OBJECTS_MAX_KEYS
+            ));
+        }
+        for object in objects.iter_mut() {
+            object.key = file_of_key(&object.key);
+        }
+        let _shared = self.puts.read().await;
+        let mut response = self.files.delete_objects(req).await?;
+        for deleted in response.output.deleted.iter_mut().flatten() {
+            deleted.key = deleted.key.as_deref().and_then(key_of_file);
+        }
+        Ok(response)
     }
 
     async fn list_objects_v2(
