@@ -244,6 +244,59 @@ impl S3Store {
             })
     }
 
+    /// The "folders" right under `prefix`: each distinct key prefix up to and including the
+    /// first `/` after `prefix` (S3's `CommonPrefixes` of a listing with `Delimiter` `/`),
+    /// sorted, all pages. One entry per folder however many objects it holds: a listing of
+    /// `jobs/` is one page per 1,000 jobs, not one per 1,000 objects.
+    pub fn list_folders(&self, prefix: &str) -> Result<Vec<String>, StoreError> {
+        let request = Request {
+            op: "list",
+            key: Some(prefix),
+            object_read: false,
+        };
+        self.handle.block_on(async {
+            let mut folders = Vec::new();
+            let mut token: Option<String> = None;
+            loop {
+                let page = self
+                    .client
+                    .list_objects_v2()
+                    .bucket(&self.target.bucket)
+                    .prefix(prefix)
+                    .delimiter("/")
+                    .set_continuation_token(token.clone())
+                    .send()
+                    .await
+                    .map_err(|e| s3_errors::store_error(e, request, &self.target))?;
+                folders.extend(
+                    page.common_prefixes()
+                        .iter()
+                        .filter_map(|p| p.prefix().map(str::to_owned)),
+                );
+                if !page.is_truncated().unwrap_or(false) {
+                    break;
+                }
+                match page.next_continuation_token() {
+                    Some(next) if token.as_deref() != Some(next) => {
+                        token = Some(next.to_owned());
+                    }
+                    _ => {
+                        return Err(StoreError::Other {
+                            what: format!(
+                                "list {prefix:?}: S3 endpoint {} sent a truncated page without \
+                                 a new continuation token",
+                                self.target.endpoint
+                            ),
+                        });
+                    }
+                }
+            }
+            folders.sort_unstable();
+            folders.dedup();
+            Ok(folders)
+        })
+    }
+
     /// Every object under `prefix` with its size, sorted by key (all pages).
     pub fn list_sizes(&self, prefix: &str) -> Result<Vec<ListedObject>, StoreError> {
         self.handle.block_on(self.list_async(prefix))

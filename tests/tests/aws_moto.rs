@@ -562,9 +562,11 @@ fn the_deployment_api_backend_queues_starts_reports_and_cancels_jobs() {
         hort_core::ids::PartitionId(0),
     );
     store.put(&block, b"block").unwrap();
+    // Progress comes from the execution's Map Runs, not from listing the job's objects; moto
+    // records executions without running them, so this one is still planning.
     let (_, progress) = call(&backend, "GET", &format!("/renders/{job}"), None, None);
-    assert_eq!(progress["tasks_done"], 1, "{progress}");
-    assert_eq!(progress["stage"], "cast-map", "{progress}");
+    assert_eq!(progress["tasks_done"], 0, "{progress}");
+    assert_eq!(progress["stage"], "plan", "{progress}");
     let (status, cancelled) = call(&backend, "DELETE", &format!("/renders/{job}"), None, None);
     assert_eq!(
         (status, cancelled["status"].as_str()),
@@ -603,4 +605,87 @@ fn the_deployment_api_backend_queues_starts_reports_and_cancels_jobs() {
         None,
     );
     assert_eq!(status, 404, "{report}");
+}
+
+#[test]
+fn the_deployment_api_lists_a_thousand_jobs_within_api_gateways_30_seconds() {
+    let runtime = runtime();
+    let Some((config, label)) = runtime.block_on(moto()) else {
+        return;
+    };
+    let endpoint = std::env::var("HORT_TEST_AWS_ENDPOINT").unwrap();
+    let bucket = unique("hort-list");
+    let (backend, executions) = runtime.block_on(async {
+        let s3 = hort_functions::S3Config::compatible(&endpoint, &bucket, "testing", "testing");
+        let store = hort_functions::S3Store::connect(&s3)
+            .await
+            .expect("S3 client");
+        let sqs = aws_sdk_sqs::Client::new(&config);
+        let sfn = aws_sdk_sfn::Client::new(&config);
+        let intake = queue(&sqs, &label, &unique("hort-list-intake"), &[]).await;
+        let arn = state_machine(&sfn, &unique("hort-list-jobs")).await;
+        let executions = Executions::new(sfn, &arn, &label);
+        let backend = hort_functions::aws::api_backend::AwsBackend::new(
+            store,
+            intake,
+            executions.clone(),
+            tokio::runtime::Handle::current(),
+            hort_functions::aws::api_backend::DeploymentLimits {
+                max_concurrency: 50,
+                worker_memory_mb: 2048,
+            },
+        );
+        (backend, executions)
+    });
+    let store = hort_functions::S3Store::open(&hort_functions::S3Config::compatible(
+        &endpoint, &bucket, "testing", "testing",
+    ))
+    .expect("S3 client");
+    store.create_bucket_if_missing().expect("bucket");
+    // 1,000 jobs as the API stores them (its record), each with 4 intermediate objects a
+    // listing of every key would have to page through, and a folder the API did not make.
+    const JOBS: usize = 1000;
+    let mut objects = Vec::new();
+    for i in 0..JOBS {
+        let job = format!("r-{i:04}");
+        let record = serde_json::json!({
+            "job": job, "scene": "a.obj", "tasks_total": 9, "predicted_cost_usd": 0.001,
+            "predicted_seconds": 2.0, "created_unix_us": 1_000_000 + i as u64,
+            "idempotency_key": null, "max_cost_usd": null
+        });
+        objects.push((
+            format!("jobs/{job}/api.json"),
+            record.to_string().into_bytes(),
+        ));
+        for block in 0..4 {
+            objects.push((format!("jobs/{job}/cast-map/{block}/part-0"), b"b".to_vec()));
+        }
+    }
+    objects.push(("jobs/from-the-cli/manifest.json".into(), b"{}".to_vec()));
+    for result in store.put_many(&objects) {
+        result.expect("put");
+    }
+    let running = JobId::new("r-0999").unwrap();
+    runtime
+        .block_on(executions.start(&input(running.as_str(), &bucket)))
+        .expect("start");
+
+    let started = std::time::Instant::now();
+    let (status, listed) = call(&backend, "GET", "/renders?limit=1000", None, None);
+    let took = started.elapsed();
+    println!("GET /renders?limit=1000 over {JOBS} jobs of 5 objects each: {took:?}");
+    assert_eq!(status, 200, "{listed}");
+    let renders = listed["renders"].as_array().expect("renders");
+    assert_eq!(renders.len(), JOBS);
+    assert_eq!(renders[0]["job"], "r-0999", "newest first");
+    assert_eq!(renders[0]["status"], "RUNNING");
+    assert_eq!(renders[0]["stage"], "plan");
+    assert_eq!(renders[JOBS - 1]["job"], "r-0000");
+    assert!(renders[1..].iter().all(|r| r["status"] == "QUEUED"));
+    assert!(
+        took < Duration::from_secs(hort_aws_quotas::HTTP_API_INTEGRATION_SECONDS),
+        "the list took {took:?}, past API Gateway's integration timeout"
+    );
+    let (_, one) = call(&backend, "GET", "/renders?limit=1", None, None);
+    assert_eq!(one["renders"][0]["job"], "r-0999", "{one}");
 }

@@ -1,29 +1,34 @@
 //! [`AwsBackend`]: the HTTP API's [`RenderBackend`] in a deployment. A submitted job is stored
 //! in the bucket (`jobs/{job}/scene/`, `manifest.json`, and the API's own record
 //! `jobs/{job}/api.json`) and its message sent to the intake queue, where the Starter function
-//! starts the execution named by the job id. Status comes from that execution and the job's
-//! objects; images are read from `jobs/{job}/out/`.
+//! starts the execution named by the job id. Status comes from that execution and its Map Runs
+//! (DescribeExecution, ListMapRuns, DescribeMapRun: a handful of requests, however many objects
+//! the job has); images are read from `jobs/{job}/out/`. The list reads the job folders with a
+//! delimited listing (one entry per job), one small record per job, and the executions' states
+//! with ListExecutions (1,000 a page), so it answers within API Gateway's 30 s for thousands of
+//! jobs; a cancel deletes the job's intermediates with `DeleteObjects` (1,000 keys a request).
 //!
 //! What a deployment does not report (yet): `cost_usd` (no per-task accounting in the cloud:
 //! `null`), `retried_attempts` (0), and the report JSON of `hort render --report` (404 saying so).
-//! `tasks_done` counts the tasks whose outputs are stored.
+//! `tasks_done` counts the Plan step and the Map items that succeeded; in the list, only jobs
+//! still running carry it (a finished job's is `tasks_total` if it succeeded, else 0 there: its
+//! own status has the count).
 //!
 //! Every method blocks: S3 through the store, SQS and Step Functions on the runtime `handle`.
 //! Call them from a blocking thread (`tokio::task::spawn_blocking`), never from an async task.
 
-use std::collections::BTreeSet;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{SystemTime, UNIX_EPOCH};
 
 use hort_core::cost::Arch;
 use hort_core::ids::{JobId, Stage};
-use hort_core::keys::{manifest_key, parse_partition_key, scene_binary_key};
+use hort_core::keys::{manifest_key, scene_binary_key};
 use hort_core::store::{BlobStore, PutOutcome, StoreError};
 use serde::{Deserialize, Serialize};
 use tokio::runtime::Handle;
 
 use super::error::AwsErrorKind;
-use super::sfn::{ExecutionInput, ExecutionStatus, Executions};
+use super::sfn::{ExecutionInput, ExecutionStatus, Executions, Listed, MapRun};
 use super::sqs::JobQueue;
 use crate::S3Store;
 use crate::api::{
@@ -172,29 +177,26 @@ impl AwsBackend {
         }
     }
 
-    /// Tasks whose outputs are stored, and the latest stage with any, from a listing.
+    /// Tasks done (the Plan step once a Map Run started, and every Map item that succeeded)
+    /// and the stage of the latest Map Run, from the execution's Map Runs: no listing of the
+    /// job's objects.
     fn progress(&self, job: &JobId) -> Result<(u64, Option<Stage>), ApiError> {
-        let keys = self
-            .store
-            .list(&format!("jobs/{job}/"))
-            .map_err(|e| Self::storage_error("cannot list the job's objects", e))?;
-        let mut tasks = BTreeSet::new();
-        for key in &keys {
-            if let Some((_, stage, task, _)) = parse_partition_key(key) {
-                tasks.insert((stage, task.0));
-            }
-        }
-        let plan = keys.iter().any(|k| k.ends_with("/plan.json"));
-        let latest = tasks
-            .iter()
-            .map(|(stage, _)| *stage)
-            .max_by_key(|stage| Stage::ALL.iter().position(|s| s == stage))
-            .or(plan.then_some(Stage::Plan));
-        Ok((tasks.len() as u64 + u64::from(plan), latest))
+        let runs = self
+            .handle
+            .block_on(self.executions.map_runs(job))
+            .map_err(|e| ApiError::internal(e.to_string()))?;
+        Ok(progress_of(&runs))
     }
 
-    fn status_of(&self, job: &JobId, record: &JobRecord) -> Result<JobStatus, ApiError> {
-        let execution = self.execution(job)?;
+    /// The job's status from its record and its execution's state (`None`: still queued);
+    /// with `progress`, the execution's Map Runs are read for the tasks done.
+    fn status_of(
+        &self,
+        job: &JobId,
+        record: &JobRecord,
+        execution: Option<ExecutionView>,
+        progress: bool,
+    ) -> Result<JobStatus, ApiError> {
         let status = match execution.as_ref().map(|e| &e.status) {
             None => JobState::Queued,
             Some(ExecutionStatus::Running | ExecutionStatus::PendingRedrive) => JobState::Running,
@@ -204,16 +206,14 @@ impl AwsBackend {
                 ExecutionStatus::Failed | ExecutionStatus::TimedOut | ExecutionStatus::Unknown(_),
             ) => JobState::Failed,
         };
-        let (mut tasks_done, stage) = self.progress(job)?;
-        if status == JobState::Succeeded {
-            tasks_done = record.tasks_total;
-        }
+        let (tasks_done, stage) = match status {
+            JobState::Succeeded => (record.tasks_total, None),
+            JobState::Queued => (0, None),
+            _ if progress => self.progress(job)?,
+            _ => (0, None),
+        };
         let error = match (status, &execution) {
-            (JobState::Failed, Some(e)) => Some(format!(
-                "{}: {}",
-                e.error.as_deref().unwrap_or("failed"),
-                e.cause.as_deref().unwrap_or("no cause given")
-            )),
+            (JobState::Failed, Some(e)) => e.error.clone(),
             _ => None,
         };
         let end = if status.is_final() {
@@ -240,6 +240,56 @@ impl AwsBackend {
             scene: Some(record.scene.clone()),
             stages: Vec::new(),
         })
+    }
+
+    /// The job's status with its progress: DescribeExecution, then its Map Runs.
+    fn full_status(&self, job: &JobId, record: &JobRecord) -> Result<JobStatus, ApiError> {
+        let execution = self.execution(job)?.map(ExecutionView::described);
+        self.status_of(job, record, execution, true)
+    }
+}
+
+/// Tasks done and the current stage of an execution whose Map Runs (oldest first) are `runs`:
+/// before the first Map Run it is planning (nothing done); after, the Plan step and every item
+/// that succeeded in any run (a rerun's items are the ones an earlier run lost), in the stage of
+/// the latest run.
+fn progress_of(runs: &[MapRun]) -> (u64, Option<Stage>) {
+    let Some(latest) = runs.last() else {
+        return (0, Some(Stage::Plan));
+    };
+    let items: u64 = runs.iter().map(|r| r.succeeded).sum();
+    let stage = Stage::of_state(&latest.label).or(Stage::of_rerun_loop_state(&latest.label));
+    (1 + items, stage)
+}
+
+/// What a job's status needs of its execution.
+struct ExecutionView {
+    status: ExecutionStatus,
+    /// `"{error}: {cause}"` of a failed execution, when described.
+    error: Option<String>,
+    stopped_unix_us: Option<u64>,
+}
+
+impl ExecutionView {
+    fn described(e: super::sfn::Execution) -> Self {
+        let error = Some(format!(
+            "{}: {}",
+            e.error.as_deref().unwrap_or("failed"),
+            e.cause.as_deref().unwrap_or("no cause given")
+        ));
+        ExecutionView {
+            status: e.status,
+            error,
+            stopped_unix_us: e.stopped_unix_us,
+        }
+    }
+
+    fn listed(e: &Listed) -> Self {
+        ExecutionView {
+            status: e.status.clone(),
+            error: None,
+            stopped_unix_us: e.stopped_unix_us,
+        }
     }
 }
 
@@ -332,32 +382,58 @@ impl RenderBackend for AwsBackend {
     fn status(&self, id: &str) -> Result<JobStatus, ApiError> {
         let job = Self::job_id(id)?;
         let record = self.record(&job)?;
-        self.status_of(&job, &record)
+        self.full_status(&job, &record)
     }
 
-    /// Lists `jobs/` for the records (`jobs/{job}/api.json`), so it reads every key of the
-    /// bucket's jobs: fine for a dashboard of a few hundred jobs.
+    /// The job folders under `jobs/` (a delimited listing: one entry per job, however many
+    /// objects each holds), each job's record, and every execution's state (ListExecutions);
+    /// the progress of the jobs still running (their Map Runs), and the error of the failed
+    /// ones among the `limit` answered (DescribeExecution).
     fn list(&self, limit: usize) -> Result<Vec<JobStatus>, ApiError> {
-        let keys = self
+        let folders = self
             .store
-            .list("jobs/")
+            .list_folders("jobs/")
             .map_err(|e| Self::storage_error("cannot list the jobs", e))?;
+        let jobs: Vec<JobId> = folders
+            .iter()
+            .filter_map(|f| f.strip_prefix("jobs/")?.strip_suffix('/'))
+            .filter_map(|id| JobId::new(id).ok())
+            .collect();
+        let keys: Vec<String> = jobs.iter().map(record_key).collect();
         let mut records = Vec::new();
-        for key in keys.iter().filter(|k| k.ends_with("/api.json")) {
-            let id = key
-                .strip_prefix("jobs/")
-                .and_then(|k| k.strip_suffix("/api.json"))
-                .unwrap_or_default();
-            let Ok(job) = Self::job_id(id) else { continue };
-            records.push((self.record(&job)?, job));
+        for ((job, key), bytes) in jobs.into_iter().zip(&keys).zip(self.store.get_many(&keys)) {
+            let bytes = match bytes {
+                Ok(bytes) => bytes,
+                // A folder the API did not make (a job run by `hort render` on this bucket).
+                Err(StoreError::NotFound { .. }) => continue,
+                Err(e) => return Err(Self::storage_error("cannot read a job's record", e)),
+            };
+            let record: JobRecord = serde_json::from_slice(&bytes)
+                .map_err(|e| ApiError::internal(format!("the record {key} is malformed: {e}")))?;
+            records.push((record, job));
         }
         records.sort_by(|(a, _), (b, _)| {
             (b.created_unix_us, &b.job).cmp(&(a.created_unix_us, &a.job))
         });
+        records.truncate(limit);
+        let executions = self
+            .handle
+            .block_on(self.executions.list())
+            .map_err(|e| ApiError::internal(e.to_string()))?;
         records
             .iter()
-            .take(limit)
-            .map(|(record, job)| self.status_of(job, record))
+            .map(|(record, job)| {
+                let listed = executions.get(job.as_str());
+                let running = listed.is_some_and(|l| !l.status.is_final());
+                let execution = match listed {
+                    Some(l) if l.status == ExecutionStatus::Failed => {
+                        self.execution(job)?.map(ExecutionView::described)
+                    }
+                    Some(l) => Some(ExecutionView::listed(l)),
+                    None => None,
+                };
+                self.status_of(job, record, execution, running)
+            })
             .collect()
     }
 
@@ -384,7 +460,7 @@ impl RenderBackend for AwsBackend {
     fn cancel(&self, id: &str) -> Result<JobStatus, ApiError> {
         let job = Self::job_id(id)?;
         let record = self.record(&job)?;
-        let status = self.status_of(&job, &record)?;
+        let status = self.full_status(&job, &record)?;
         if status.status.is_final() {
             return Ok(status);
         }
@@ -420,13 +496,32 @@ impl RenderBackend for AwsBackend {
         self.store
             .delete_all(&keys)
             .map_err(|e| Self::storage_error("cannot delete the job's objects", e))?;
-        self.status_of(&job, &record)
+        self.full_status(&job, &record)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn progress_counts_the_plan_and_every_succeeded_item_in_the_latest_runs_stage() {
+        let run = |label: &str, succeeded, total, started| MapRun {
+            arn: format!("arn:aws:states:r:1:mapRun:m/{label}:{started}"),
+            label: label.into(),
+            succeeded,
+            total,
+            started_unix_ms: started,
+        };
+        assert_eq!(progress_of(&[]), (0, Some(Stage::Plan)));
+        let runs = [
+            run("CastMap", 98, 100, 1),
+            run("CastMapRerun", 2, 2, 2),
+            run("CastReduce", 7, 10, 3),
+        ];
+        assert_eq!(progress_of(&runs), (108, Some(Stage::CastReduce)));
+        assert_eq!(progress_of(&runs[..2]), (101, Some(Stage::CastMap)));
+    }
 
     #[test]
     fn ids_are_valid_and_keys_name_one_job() {

@@ -2,6 +2,8 @@
 //! named by its job id, so that a job has at most one execution and its ARN follows from the
 //! job id.
 
+use std::collections::BTreeMap;
+
 use aws_sdk_sfn::Client;
 use aws_sdk_sfn::types::ExecutionStatus as SdkStatus;
 use hort_core::ids::JobId;
@@ -81,6 +83,39 @@ pub struct Execution {
     pub cause: Option<String>,
     /// When it ended, in microseconds since the Unix epoch, once it did.
     pub stopped_unix_us: Option<u64>,
+}
+
+/// One execution as ListExecutions tells it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Listed {
+    /// Where it is.
+    pub status: ExecutionStatus,
+    /// When it ended, in microseconds since the Unix epoch, once it did.
+    pub stopped_unix_us: Option<u64>,
+}
+
+/// One Map Run of an execution, as DescribeMapRun tells it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct MapRun {
+    /// Its ARN.
+    pub arn: String,
+    /// The Map state's label (its name, for HORT's Maps): `CastMap`, `CastMapRerun`, ...
+    pub label: String,
+    /// Items that succeeded so far.
+    pub succeeded: u64,
+    /// Items in the run.
+    pub total: u64,
+    /// When it started, milliseconds since the Unix epoch.
+    pub started_unix_ms: i64,
+}
+
+/// The label of a Map Run ARN, `arn:…:mapRun:{state machine}/{label}:{id}`.
+fn map_run_label(arn: &str) -> &str {
+    let tail = arn.rsplit_once(":mapRun:").map_or(arn, |(_, t)| t);
+    let after_machine = tail.split_once('/').map_or(tail, |(_, t)| t);
+    after_machine
+        .rsplit_once(':')
+        .map_or(after_machine, |(label, _)| label)
 }
 
 /// A successful [`Executions::start`].
@@ -204,6 +239,84 @@ impl Executions {
         })
     }
 
+    /// The Map Runs the execution of `job` has started, with their items' counts (ListMapRuns,
+    /// then DescribeMapRun of each): a job's progress without listing its objects.
+    pub async fn map_runs(&self, job: &JobId) -> Result<Vec<MapRun>, AwsError> {
+        let what = |op: &str| format!("{op} of execution {:?}", job.as_str());
+        let mut arns = Vec::new();
+        let mut token: Option<String> = None;
+        loop {
+            let page = self
+                .client
+                .list_map_runs()
+                .execution_arn(self.execution_arn(job))
+                .set_next_token(token.clone())
+                .send()
+                .await
+                .map_err(|e| classify(e, &what("list map runs"), SERVICE, &self.endpoint))?;
+            arns.extend(page.map_runs().iter().map(|r| r.map_run_arn().to_owned()));
+            match page.next_token() {
+                Some(next) if token.as_deref() != Some(next) => token = Some(next.to_owned()),
+                _ => break,
+            }
+        }
+        let mut runs = Vec::with_capacity(arns.len());
+        for arn in arns {
+            let out = self
+                .client
+                .describe_map_run()
+                .map_run_arn(&arn)
+                .send()
+                .await
+                .map_err(|e| classify(e, &what("describe map run"), SERVICE, &self.endpoint))?;
+            let counts = out.item_counts();
+            runs.push(MapRun {
+                label: map_run_label(&arn).to_owned(),
+                succeeded: counts.map_or(0, |c| u64::try_from(c.succeeded()).unwrap_or(0)),
+                total: counts.map_or(0, |c| u64::try_from(c.total()).unwrap_or(0)),
+                started_unix_ms: out.start_date().to_millis().unwrap_or(0),
+                arn,
+            });
+        }
+        runs.sort_by_key(|r| r.started_unix_ms);
+        Ok(runs)
+    }
+
+    /// Every execution of the state machine by name, with its status and end (ListExecutions,
+    /// 1,000 a page): the state of many jobs in a few requests.
+    pub async fn list(&self) -> Result<BTreeMap<String, Listed>, AwsError> {
+        let mut out = BTreeMap::new();
+        let mut token: Option<String> = None;
+        loop {
+            let page = self
+                .client
+                .list_executions()
+                .state_machine_arn(&self.state_machine_arn)
+                .max_results(1000)
+                .set_next_token(token.clone())
+                .send()
+                .await
+                .map_err(|e| classify(e, "list executions", SERVICE, &self.endpoint))?;
+            for e in page.executions() {
+                out.insert(
+                    e.name().to_owned(),
+                    Listed {
+                        status: ExecutionStatus::from_sdk(e.status()),
+                        stopped_unix_us: e.stop_date().and_then(|d| {
+                            let micros = d.to_millis().ok()?.checked_mul(1000)?;
+                            u64::try_from(micros).ok()
+                        }),
+                    },
+                );
+            }
+            match page.next_token() {
+                Some(next) if token.as_deref() != Some(next) => token = Some(next.to_owned()),
+                _ => break,
+            }
+        }
+        Ok(out)
+    }
+
     /// Stops the execution of `job` with `error` and `cause` (at most 256 and 32768 characters);
     /// it ends `Aborted`. Stopping a finished execution is not an error on AWS.
     pub async fn stop(&self, job: &JobId, error: &str, cause: &str) -> Result<(), AwsError> {
@@ -243,6 +356,16 @@ mod tests {
         assert_eq!(
             executions.execution_arn(&JobId::new("job-7").unwrap()),
             "arn:aws:states:eu-west-1:123456789012:execution:hort-jobs:job-7"
+        );
+    }
+
+    #[test]
+    fn a_map_runs_label_is_its_map_states_name() {
+        assert_eq!(
+            map_run_label(
+                "arn:aws:states:eu-west-1:123456789012:mapRun:hort-jobs/CastMapRerun:7f0c-1"
+            ),
+            "CastMapRerun"
         );
     }
 
