@@ -34,7 +34,7 @@ use hort_core::shading::SurfacePoint;
 use hort_core::shuffle::RecordKind;
 use hort_core::stage::Stage;
 use hort_core::store::{BlobStore, MemoryStore};
-use hort_functions::handlers::{JobRequest, PlanEvent, PlanStep, SceneFormat, handle_plan};
+use hort_functions::handlers::{JobRequest, PlanEvent, PlanStep, SceneFormat, Tmp, handle_plan};
 
 const TRIANGLE: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
 /// The triangle and a second one behind it, so that the default light can be occluded and a
@@ -354,7 +354,7 @@ fn binary_scene_error(dir: &Path, op: &str) -> String {
         round: 1,
         step: PlanStep::Start,
     };
-    handle_plan(&store, "b", &event, dir)
+    handle_plan(&store, "b", &event, Tmp::unlimited(dir))
         .expect_err("an edit that breaks the scene")
         .to_string()
 }

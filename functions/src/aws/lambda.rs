@@ -13,6 +13,7 @@
 //! | `HORT_QUEUE_URL` | api | the intake queue (required) |
 //! | `HORT_MAX_CONCURRENCY` | api | the Map concurrency of submitted jobs (default 0: no limit) |
 //! | `HORT_WORKER_MEMORY_MB` | plan, api | the Worker's memory: the API's default and most for `memory_mb` (default 2048), the most the Plan function plans tasks for |
+//! | `HORT_TMP_MB` | plan, worker | the size of the function's `/tmp` (its `EphemeralStorage`), MB: a scene copy that would not fit is refused, naming both sizes (default: not checked) |
 //! | `HORT_S3_ENDPOINT` | plan, worker, api | an S3-compatible server instead of AWS S3 (local runs), path-style |
 //! | `HORT_AWS_ENDPOINT` | starter, api | a server for the SQS and Step Functions APIs instead of AWS (local runs) |
 //!
@@ -33,7 +34,7 @@ use super::api_backend::{AwsBackend, DeploymentLimits};
 use super::sfn::Executions;
 use super::sqs::JobQueue;
 use super::starter::start_batch;
-use crate::handlers::{Function, FunctionEnv, HandlerError, Invoked, dispatch};
+use crate::handlers::{Function, FunctionEnv, HandlerError, Invoked, Tmp, dispatch};
 use crate::{S3Config, S3Store};
 
 /// The bucket the functions serve.
@@ -53,6 +54,8 @@ pub const MAX_CONCURRENCY_VAR: &str = "HORT_MAX_CONCURRENCY";
 /// The Worker's memory in MB: the most a job may plan its tasks for (the api function, default
 /// 2048; the Plan function, unchecked when unset).
 pub const WORKER_MEMORY_VAR: &str = "HORT_WORKER_MEMORY_MB";
+/// The size of the function's `/tmp` in MB (the template sets it with its `EphemeralStorage`).
+pub const TMP_VAR: &str = "HORT_TMP_MB";
 /// Lambda's variable holding the function's memory in MiB.
 pub const MEMORY_VAR: &str = "AWS_LAMBDA_FUNCTION_MEMORY_SIZE";
 /// The split cache budget without [`SPLIT_CACHE_VAR`], before the half-memory cap.
@@ -70,6 +73,8 @@ pub struct FunctionSettings {
     /// The Worker function's memory, MB, the most the Plan function plans tasks for: its
     /// [`WORKER_MEMORY_VAR`] (set by the template); `None` when unset, and for the Worker.
     pub worker_memory_mb: Option<u32>,
+    /// The size of `/tmp` in bytes ([`TMP_VAR`]); `None` when unset (not checked).
+    pub tmp_bytes: Option<u64>,
 }
 
 impl FunctionSettings {
@@ -107,6 +112,9 @@ impl FunctionSettings {
             split_cache_bytes,
             s3_endpoint: var(S3_ENDPOINT_VAR).filter(|v| !v.is_empty()),
             worker_memory_mb,
+            tmp_bytes: var(TMP_VAR)
+                .map(|mb| parse_mb(TMP_VAR, &mb).map(|mb| mb << 20))
+                .transpose()?,
         })
     }
 
@@ -230,6 +238,7 @@ struct Container {
     store: S3Store,
     bucket: String,
     work_dir: PathBuf,
+    tmp_bytes: Option<u64>,
     split_cache: SplitCache,
     worker_memory_mb: Option<u32>,
 }
@@ -257,6 +266,7 @@ pub fn run_handler_function(function: Function) -> Result<(), lambda_runtime::Er
             store,
             bucket: settings.bucket,
             work_dir: std::env::temp_dir(),
+            tmp_bytes: settings.tmp_bytes,
             split_cache: SplitCache::new(settings.split_cache_bytes),
             worker_memory_mb: settings.worker_memory_mb,
         });
@@ -273,7 +283,10 @@ async fn invoke(container: Arc<Container>, event: Value) -> Result<Value, Diagno
         let env = FunctionEnv {
             store: &container.store,
             bucket: &container.bucket,
-            work_dir: &container.work_dir,
+            tmp: Tmp {
+                dir: &container.work_dir,
+                limit_bytes: container.tmp_bytes,
+            },
             split_cache: &container.split_cache,
             worker_memory_mb: container.worker_memory_mb,
         };

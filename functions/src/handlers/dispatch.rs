@@ -2,7 +2,7 @@
 //! classify any failure. The local emulator calls [`dispatch`] for every invocation; a Lambda
 //! entry point would do the same.
 
-use std::path::Path;
+use super::Tmp;
 
 use hort_core::ids::{Stage, TaskId};
 use hort_core::pipeline::{SplitCache, TaskMetrics};
@@ -40,8 +40,9 @@ pub struct FunctionEnv<'a> {
     pub store: &'a dyn BlobStore,
     /// The bucket the function serves; events naming another are refused.
     pub bucket: &'a str,
-    /// Scratch space (a function's `/tmp`): the Plan function copies the scene here.
-    pub work_dir: &'a Path,
+    /// Scratch space (a function's `/tmp`) and its size: the Plan function copies the scene
+    /// here, and so does a Worker rebuilding a lost split object from the scene.
+    pub tmp: Tmp<'a>,
     /// Decoded splits kept between invocations of this container.
     pub split_cache: &'a SplitCache,
     /// The deployed Worker function's memory, MB, where known: the Plan function refuses a job
@@ -116,7 +117,7 @@ pub fn dispatch(
             {
                 check_worker_memory(env.store, &event.job, worker_mb)?;
             }
-            let (out, metrics) = handle_plan_measured(env.store, env.bucket, &event, env.work_dir)?;
+            let (out, metrics) = handle_plan_measured(env.store, env.bucket, &event, env.tmp)?;
             Ok(Invoked {
                 output: serde_json::to_value(out).map_err(encode)?,
                 // Round 2 (the `Refine` state) is no task of the plan stage.
@@ -130,8 +131,7 @@ pub fn dispatch(
         Function::Worker => {
             let event: WorkerEvent =
                 serde_json::from_value(event).map_err(|e| malformed("Worker", e))?;
-            let metrics =
-                handle_worker(env.store, env.bucket, env.split_cache, &event, env.work_dir)?;
+            let metrics = handle_worker(env.store, env.bucket, env.split_cache, &event, env.tmp)?;
             Ok(Invoked {
                 output: serde_json::to_value(metrics).map_err(encode)?,
                 task: Some(TaskDone {

@@ -15,12 +15,14 @@ mod events;
 mod lost;
 mod plan;
 mod plan_parts;
+mod tmp;
 mod worker;
 
 pub use dispatch::{Function, FunctionEnv, Invoked, TaskDone, dispatch};
 pub use events::{JobRequest, PlanEvent, PlanOutput, PlanStep, SceneFormat, TaskItem, WorkerEvent};
 pub use lost::{LostEvent, LostItem, LostOutput, handle_lost};
 pub use plan::{handle_plan, handle_plan_measured, scene_prefix};
+pub use tmp::Tmp;
 pub use worker::handle_worker;
 
 pub use hort_core::ErrorType;

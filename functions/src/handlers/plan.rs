@@ -3,6 +3,7 @@
 //! (fused: `render`; staged: `cast_map` to `trace_reduce`). A scene too large to load whole is
 //! scanned instead and split by tasks (`plan_parts.rs`: the `start`, `cut` and `finish` steps).
 
+use super::Tmp;
 use super::events::{JobRequest, PlanEvent, PlanOutput, PlanStep, SceneFormat, TaskItem};
 use super::{HandlerError, check_bucket};
 use hort_core::ids::{JobId, TaskId};
@@ -25,9 +26,9 @@ pub fn handle_plan(
     store: &dyn BlobStore,
     bucket: &str,
     event: &PlanEvent,
-    work_dir: &Path,
+    tmp: Tmp<'_>,
 ) -> Result<PlanOutput, HandlerError> {
-    handle_plan_measured(store, bucket, event, work_dir).map(|(output, _)| output)
+    handle_plan_measured(store, bucket, event, tmp).map(|(output, _)| output)
 }
 
 /// [`handle_plan`], and where its time went: `storage_us` waiting on the store, `decode_us`
@@ -38,7 +39,7 @@ pub fn handle_plan_measured(
     store: &dyn BlobStore,
     bucket: &str,
     event: &PlanEvent,
-    work_dir: &Path,
+    tmp: Tmp<'_>,
 ) -> Result<(PlanOutput, TaskMetrics), HandlerError> {
     let started = Instant::now();
     let store = TimedStore::new(store);
@@ -48,7 +49,7 @@ pub fn handle_plan_measured(
         (1, PlanStep::Start) => {}
         (1, PlanStep::Cut) => return super::plan_parts::cut_step(&store, job, started),
         (1, PlanStep::Finish) => {
-            return super::plan_parts::finish_step(&store, job, work_dir, started);
+            return super::plan_parts::finish_step(&store, job, tmp, started);
         }
         (2, PlanStep::Start) => return plan_round_two(&store, job, started),
         (2, step) => {
@@ -63,7 +64,7 @@ pub fn handle_plan_measured(
         }
     }
     let label = format!("plan-{}", event.attempt);
-    let (request, scene) = match super::plan_parts::load_or_scan(&store, job, work_dir, &label)? {
+    let (request, scene) = match super::plan_parts::load_or_scan(&store, job, tmp, &label)? {
         super::plan_parts::Loaded::Whole(loaded) => *loaded,
         super::plan_parts::Loaded::Scanned(output) => {
             let task_us = micros(started.elapsed());
@@ -188,16 +189,16 @@ fn plan_round_two(
 /// Reads the job request and loads the job's scene as its `scene_format` says: the binary
 /// scene `jobs/{job}/scene/scene.bin`, decoded (never parsed; a missing or invalid one is
 /// `Hort.BadInput`, naming the key), or the files under `jobs/{job}/scene/`, parsed from a
-/// scratch copy under `work_dir` (in a folder named after `label`, unique per call, removed
+/// scratch copy under `tmp` (in a folder named after `label`, unique per call, removed
 /// afterwards).
 pub(super) fn load_job_scene(
     store: &dyn BlobStore,
     job: &JobId,
-    work_dir: &Path,
+    tmp: Tmp<'_>,
     label: &str,
 ) -> Result<(JobRequest, Scene), HandlerError> {
     let request = read_request(store, job)?;
-    let scene = load_requested_scene(store, job, &request, work_dir, label)?;
+    let scene = load_requested_scene(store, job, &request, tmp, label)?;
     Ok((request, scene))
 }
 
@@ -206,7 +207,7 @@ pub(super) fn load_requested_scene(
     store: &dyn BlobStore,
     job: &JobId,
     request: &JobRequest,
-    work_dir: &Path,
+    tmp: Tmp<'_>,
     label: &str,
 ) -> Result<Scene, HandlerError> {
     if request.scene_format == SceneFormat::Binary {
@@ -222,25 +223,25 @@ pub(super) fn load_requested_scene(
         })?;
         return decode_scene(&key, &bytes).map_err(|e| HandlerError::bad_input(e.to_string()));
     }
-    with_scene_files(store, job, request, work_dir, label, |_, main| {
+    with_scene_files(store, job, request, tmp, label, |_, main| {
         load_scene(main).map_err(|e| HandlerError::bad_input(e.to_string()))
     })
 }
 
-/// Copies the job's scene files into a scratch folder under `work_dir` (named after `label`,
+/// Copies the job's scene files into a scratch folder under `tmp` (named after `label`,
 /// unique per call) and runs `f` with the folder and the main file's path there; the folder is
 /// removed afterwards, whatever `f` returns.
 pub(super) fn with_scene_files<T>(
     store: &dyn BlobStore,
     job: &JobId,
     request: &JobRequest,
-    work_dir: &Path,
+    tmp: Tmp<'_>,
     label: &str,
     f: impl FnOnce(&Path, &Path) -> Result<T, HandlerError>,
 ) -> Result<T, HandlerError> {
-    let scene_dir = scratch_dir(work_dir, label, job);
+    let scene_dir = scratch_dir(tmp.dir, label, job);
     let result =
-        download_scene(store, job, request, &scene_dir).and_then(|main| f(&scene_dir, &main));
+        download_scene(store, job, request, tmp, &scene_dir).and_then(|main| f(&scene_dir, &main));
     let _ = std::fs::remove_dir_all(&scene_dir);
     result
 }
@@ -297,8 +298,10 @@ fn download_scene(
     store: &dyn BlobStore,
     job: &JobId,
     request: &JobRequest,
+    tmp: Tmp<'_>,
     dir: &Path,
 ) -> Result<PathBuf, HandlerError> {
+    let mut copied = 0u64;
     let prefix = scene_prefix(job);
     let io = |what: &Path, e: std::io::Error| {
         HandlerError::retryable(format!("cannot write {}: {e}", what.display()))
@@ -311,7 +314,7 @@ fn download_scene(
         if let Some(parent) = path.parent() {
             std::fs::create_dir_all(parent).map_err(|e| io(parent, e))?;
         }
-        download_object(store, &key, &path)?;
+        copied += download_object(store, &key, &path, tmp, copied)?;
     }
     let main = safe_relative(&request.scene).ok_or_else(|| {
         HandlerError::bad_input(format!(
@@ -326,12 +329,16 @@ fn download_scene(
 const DOWNLOAD_CHUNK_BYTES: u64 = 16 << 20;
 
 /// Copies object `key` into the file `path` in ranged reads of [`DOWNLOAD_CHUNK_BYTES`], so
-/// that a scene file larger than the function's memory can be copied.
+/// that a scene file larger than the function's memory can be copied, and returns its size;
+/// `copied` bytes of the same copy are in `tmp` already, and a chunk that would not fit it is
+/// refused before it is written ([`Tmp::check`]).
 pub(super) fn download_object(
     store: &dyn BlobStore,
     key: &str,
     path: &Path,
-) -> Result<(), HandlerError> {
+    tmp: Tmp<'_>,
+    copied: u64,
+) -> Result<u64, HandlerError> {
     use std::io::Write;
     let io = |e: std::io::Error| {
         HandlerError::retryable(format!("cannot write {}: {e}", path.display()))
@@ -345,13 +352,19 @@ pub(super) fn download_object(
             Err(StoreError::InvalidRange { .. }) => break,
             Err(e) => return Err(e.into()),
         };
+        tmp.check(
+            copied + offset,
+            chunk.len() as u64,
+            &format!("scene file {key}"),
+        )?;
         file.write_all(&chunk).map_err(io)?;
         offset += chunk.len() as u64;
         if (chunk.len() as u64) < DOWNLOAD_CHUNK_BYTES {
             break;
         }
     }
-    file.flush().map_err(io)
+    file.flush().map_err(io)?;
+    Ok(offset)
 }
 
 /// `rel` as a relative path without `..`, root or prefix components.

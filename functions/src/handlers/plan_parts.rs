@@ -4,6 +4,7 @@
 //! job from the built splits. None of them holds more than one range's vertices.
 
 use super::HandlerError;
+use super::Tmp;
 use super::events::{JobRequest, PlanOutput, SceneFormat};
 use super::plan::{
     download_object, load_requested_scene, read_request, scratch_dir, with_scene_files,
@@ -34,20 +35,20 @@ pub(super) enum Loaded {
 }
 
 /// The `start` step's scene: the binary scene decoded, or the scene files copied into a scratch
-/// folder under `work_dir` (named after `label`) and loaded whole, or, when the request asks for
+/// folder under `tmp` (named after `label`) and loaded whole, or, when the request asks for
 /// it or a whole load would not fit the function's memory, scanned (see [`scene_range_bytes`]).
 pub(super) fn load_or_scan(
     store: &dyn BlobStore,
     job: &JobId,
-    work_dir: &Path,
+    tmp: Tmp<'_>,
     label: &str,
 ) -> Result<Loaded, HandlerError> {
     let request = read_request(store, job)?;
     if request.scene_format == SceneFormat::Binary {
-        let scene = load_requested_scene(store, job, &request, work_dir, label)?;
+        let scene = load_requested_scene(store, job, &request, tmp, label)?;
         return Ok(Loaded::Whole(Box::new((request, scene))));
     }
-    with_scene_files(store, job, &request, work_dir, label, |dir, main| {
+    with_scene_files(store, job, &request, tmp, label, |dir, main| {
         let bytes = folder_bytes(dir);
         let range = request
             .scene_range_bytes
@@ -132,22 +133,22 @@ pub(super) fn cut_step(
 pub(super) fn finish_step(
     store: &TimedStore<&dyn BlobStore>,
     job: &JobId,
-    work_dir: &Path,
+    tmp: Tmp<'_>,
     started: Instant,
 ) -> Result<(PlanOutput, TaskMetrics), HandlerError> {
     let request = read_request(store, job)?;
-    let plan = plan_from_stored_parts(store, job, &request, work_dir)?;
+    let plan = plan_from_stored_parts(store, job, &request, tmp)?;
     let output = write_round(store, job, &plan, &request, None)?;
     Ok((output, step_metrics(store, started)))
 }
 
 /// Plans job `job` (`request`) from its built splits, reading the scene's manifest, if it has
-/// one, into a scratch folder under `work_dir`, and no mesh; stores and returns the plan.
+/// one, into a scratch folder under `tmp`, and no mesh; stores and returns the plan.
 pub(super) fn plan_from_stored_parts(
     store: &dyn BlobStore,
     job: &JobId,
     request: &JobRequest,
-    work_dir: &Path,
+    tmp: Tmp<'_>,
 ) -> Result<JobPlan, HandlerError> {
     let main = Path::new(&request.scene);
     let is_manifest = main
@@ -156,13 +157,13 @@ pub(super) fn plan_from_stored_parts(
     if !is_manifest {
         return Ok(plan_from_parts(store, job, main, &request.render)?.plan);
     }
-    let dir = scratch_dir(work_dir, "finish", job);
+    let dir = scratch_dir(tmp.dir, "finish", job);
     let local = dir.join(main.file_name().unwrap_or_default());
     let result = std::fs::create_dir_all(&dir)
         .map_err(|e| HandlerError::retryable(format!("cannot create {}: {e}", dir.display())))
         .and_then(|()| {
             let key = format!("{}{}", scene_prefix(job), request.scene);
-            download_object(store, &key, &local)
+            download_object(store, &key, &local, tmp, 0).map(drop)
         })
         .and_then(|()| Ok(plan_from_parts(store, job, &local, &request.render)?.plan));
     let _ = std::fs::remove_dir_all(&dir);

@@ -59,14 +59,16 @@ fn plan_event(job: &str) -> PlanEvent {
 fn a_second_round_is_planned_only_for_staged_adaptive_jobs_and_rounds_stop_at_two() {
     let store = submitted("j1");
     let tmp = std::env::temp_dir();
-    let out = handle_plan(&store, "b", &plan_event("j1"), &tmp).unwrap();
+    let out = handle_plan(&store, "b", &plan_event("j1"), Tmp::unlimited(&tmp)).unwrap();
     assert!(!out.refine_after && out.shadows);
     let round = |n: u32| {
         let event = PlanEvent {
             round: n,
             ..plan_event("j1")
         };
-        handle_plan(&store, "b", &event, &tmp).unwrap_err().cause
+        handle_plan(&store, "b", &event, Tmp::unlimited(&tmp))
+            .unwrap_err()
+            .cause
     };
     assert_eq!(
         round(2),
@@ -78,7 +80,13 @@ fn a_second_round_is_planned_only_for_staged_adaptive_jobs_and_rounds_stop_at_tw
 #[test]
 fn plan_then_every_worker_task_produces_the_outputs() {
     let store = submitted("j1");
-    let out = handle_plan(&store, "b", &plan_event("j1"), &std::env::temp_dir()).unwrap();
+    let out = handle_plan(
+        &store,
+        "b",
+        &plan_event("j1"),
+        Tmp::unlimited(&std::env::temp_dir()),
+    )
+    .unwrap();
     let job = JobId::new("j1").unwrap();
     assert_eq!(
         serde_json::to_value(&out.items).unwrap(),
@@ -116,7 +124,14 @@ fn plan_then_every_worker_task_produces_the_outputs() {
                 item,
                 attempt: 0,
             };
-            handle_worker(&store, "b", &cache, &event, &std::env::temp_dir()).unwrap();
+            handle_worker(
+                &store,
+                "b",
+                &cache,
+                &event,
+                Tmp::unlimited(&std::env::temp_dir()),
+            )
+            .unwrap();
         }
     }
     let combine = WorkerEvent {
@@ -129,7 +144,14 @@ fn plan_then_every_worker_task_produces_the_outputs() {
         },
         attempt: 0,
     };
-    handle_worker(&store, "b", &cache, &combine, &std::env::temp_dir()).unwrap();
+    handle_worker(
+        &store,
+        "b",
+        &cache,
+        &combine,
+        Tmp::unlimited(&std::env::temp_dir()),
+    )
+    .unwrap();
     assert_eq!(store.get(&hits_key(&job)).unwrap().len(), 32 * 24 * 8);
 }
 
@@ -150,7 +172,7 @@ fn cast_map_event(job: &str, task: u32) -> WorkerEvent {
 /// Runs the Plan function, then every task of every later stage, over `store`.
 fn run_job(store: &MemoryStore, job: &str) {
     let tmp = std::env::temp_dir();
-    let out = handle_plan(store, "b", &plan_event(job), &tmp).unwrap();
+    let out = handle_plan(store, "b", &plan_event(job), Tmp::unlimited(&tmp)).unwrap();
     let cache = SplitCache::new(0);
     for &stage in out.task_stages() {
         let items: Vec<TaskItem> = match out.items_key(stage) {
@@ -168,7 +190,7 @@ fn run_job(store: &MemoryStore, job: &str) {
                 item,
                 attempt: 0,
             };
-            handle_worker(store, "b", &cache, &event, &tmp).unwrap();
+            handle_worker(store, "b", &cache, &event, Tmp::unlimited(&tmp)).unwrap();
         }
     }
 }
@@ -254,7 +276,14 @@ fn a_binary_scene_job_renders_the_same_bytes_as_the_files_without_parsing() {
     let splits = objects(&binary, "jb", "splits/");
     assert_eq!(splits.len(), 2);
     binary.delete("jobs/jb/plan.json").unwrap();
-    let done = handle_worker(&binary, "b", &SplitCache::new(0), &cast(0), &tmp).unwrap();
+    let done = handle_worker(
+        &binary,
+        "b",
+        &SplitCache::new(0),
+        &cast(0),
+        Tmp::unlimited(&tmp),
+    )
+    .unwrap();
     assert_eq!(done.recomputed, 1);
     assert_eq!(binary.get("jobs/jb/plan.json").unwrap(), plan);
     for (key, _) in &splits {
@@ -266,9 +295,15 @@ fn a_binary_scene_job_renders_the_same_bytes_as_the_files_without_parsing() {
         .len() as u32;
     let recomputed: u64 = (0..cast_tasks)
         .map(|t| {
-            handle_worker(&binary, "b", &SplitCache::new(0), &cast(t), &tmp)
-                .unwrap()
-                .recomputed
+            handle_worker(
+                &binary,
+                "b",
+                &SplitCache::new(0),
+                &cast(t),
+                Tmp::unlimited(&tmp),
+            )
+            .unwrap()
+            .recomputed
         })
         .sum();
     assert_eq!(recomputed, 2);
@@ -278,7 +313,9 @@ fn a_binary_scene_job_renders_the_same_bytes_as_the_files_without_parsing() {
 #[test]
 fn a_missing_corrupt_or_newer_binary_scene_is_bad_input_naming_the_key() {
     let tmp = std::env::temp_dir();
-    let plan = |store: &MemoryStore| handle_plan(store, "b", &plan_event("jb"), &tmp).unwrap_err();
+    let plan = |store: &MemoryStore| {
+        handle_plan(store, "b", &plan_event("jb"), Tmp::unlimited(&tmp)).unwrap_err()
+    };
     let store = submitted_binary("jb");
     let good = store.get("jobs/jb/scene/scene.bin").unwrap();
     let body = good.len() - 24;
@@ -336,7 +373,14 @@ fn a_missing_corrupt_or_newer_binary_scene_is_bad_input_naming_the_key() {
         },
         attempt: 0,
     };
-    let e = handle_worker(&store, "b", &SplitCache::new(0), &worker, &tmp).unwrap_err();
+    let e = handle_worker(
+        &store,
+        "b",
+        &SplitCache::new(0),
+        &worker,
+        Tmp::unlimited(&tmp),
+    )
+    .unwrap_err();
     assert_eq!(
         e,
         HandlerError::bad_input(
@@ -377,12 +421,12 @@ fn the_job_request_reads_old_json_and_writes_files_format_as_before() {
 fn bad_requests_are_bad_input_with_clear_causes() {
     let store = MemoryStore::new();
     let tmp = std::env::temp_dir();
-    let e = handle_plan(&store, "b", &plan_event("nojob"), &tmp).unwrap_err();
+    let e = handle_plan(&store, "b", &plan_event("nojob"), Tmp::unlimited(&tmp)).unwrap_err();
     assert_eq!(
         e,
         HandlerError::bad_input("job request jobs/nojob/manifest.json does not exist")
     );
-    let e = handle_plan(&store, "other", &plan_event("nojob"), &tmp).unwrap_err();
+    let e = handle_plan(&store, "other", &plan_event("nojob"), Tmp::unlimited(&tmp)).unwrap_err();
     assert_eq!(
         e,
         HandlerError::bad_input("the event names bucket \"b\", this function serves \"other\"")
@@ -390,7 +434,7 @@ fn bad_requests_are_bad_input_with_clear_causes() {
     let env = FunctionEnv {
         store: &store,
         bucket: "b",
-        work_dir: &tmp,
+        tmp: Tmp::unlimited(&tmp),
         split_cache: &SplitCache::new(0),
         worker_memory_mb: None,
     };
@@ -407,7 +451,7 @@ fn bad_requests_are_bad_input_with_clear_causes() {
     let store = submitted("j2");
     let json = serde_json::to_vec(&request("../escape.json")).unwrap();
     store.put("jobs/j2/manifest.json", &json).unwrap();
-    let e = handle_plan(&store, "b", &plan_event("j2"), &tmp).unwrap_err();
+    let e = handle_plan(&store, "b", &plan_event("j2"), Tmp::unlimited(&tmp)).unwrap_err();
     assert_eq!(
         e,
         HandlerError::bad_input("job request names an unsafe scene path \"../escape.json\"")
@@ -416,7 +460,7 @@ fn bad_requests_are_bad_input_with_clear_causes() {
     let env = FunctionEnv {
         store: &store,
         bucket: "b",
-        work_dir: &tmp,
+        tmp: Tmp::unlimited(&tmp),
         split_cache: &SplitCache::new(0),
         worker_memory_mb: None,
     };
@@ -469,13 +513,19 @@ fn a_missing_plan_is_rebuilt_and_a_missing_request_or_bad_scene_is_not_retried()
         "b",
         &SplitCache::new(0),
         &worker,
-        &std::env::temp_dir(),
+        Tmp::unlimited(&std::env::temp_dir()),
     )
     .unwrap();
     assert_eq!(done.recomputed, 1);
     let rebuilt = store.get("jobs/j3/plan.json").unwrap();
     let planned = submitted("j3");
-    handle_plan(&planned, "b", &plan_event("j3"), &std::env::temp_dir()).unwrap();
+    handle_plan(
+        &planned,
+        "b",
+        &plan_event("j3"),
+        Tmp::unlimited(&std::env::temp_dir()),
+    )
+    .unwrap();
     assert_eq!(rebuilt, planned.get("jobs/j3/plan.json").unwrap());
     // Without the job request it cannot be: S3 is strongly consistent, so an object that is
     // not there now will not appear on a retry.
@@ -486,7 +536,7 @@ fn a_missing_plan_is_rebuilt_and_a_missing_request_or_bad_scene_is_not_retried()
         "b",
         &SplitCache::new(0),
         &worker,
-        &std::env::temp_dir(),
+        Tmp::unlimited(&std::env::temp_dir()),
     )
     .unwrap_err();
     assert_eq!(
@@ -499,7 +549,13 @@ fn a_missing_plan_is_rebuilt_and_a_missing_request_or_bad_scene_is_not_retried()
     store
         .put("jobs/j3/scene/cornell.obj", b"v 0 0 0\nf 1 2 3\n")
         .unwrap();
-    let e = handle_plan(&store, "b", &plan_event("j3"), &std::env::temp_dir()).unwrap_err();
+    let e = handle_plan(
+        &store,
+        "b",
+        &plan_event("j3"),
+        Tmp::unlimited(&std::env::temp_dir()),
+    )
+    .unwrap_err();
     assert_eq!(e.error_type, ErrorType::BadInput);
     assert!(
         e.cause.contains("cornell.obj:2: face refers to vertex 2"),
@@ -514,21 +570,28 @@ fn a_missing_plan_is_rebuilt_and_a_missing_request_or_bad_scene_is_not_retried()
 fn a_warm_worker_reads_the_plan_once_per_job() {
     let store = submitted("jw");
     let tmp = std::env::temp_dir();
-    handle_plan(&store, "b", &plan_event("jw"), &tmp).unwrap();
+    handle_plan(&store, "b", &plan_event("jw"), Tmp::unlimited(&tmp)).unwrap();
     let cast = |task: u32| cast_map_event("jw", task);
     let warm = SplitCache::new(1 << 24);
-    let first = handle_worker(&store, "b", &warm, &cast(0), &tmp).unwrap();
+    let first = handle_worker(&store, "b", &warm, &cast(0), Tmp::unlimited(&tmp)).unwrap();
     assert_eq!(first.recomputed, 0);
     assert!(first.storage_us > 0 || first.bytes_read > 0);
     let plan = store.get("jobs/jw/plan.json").unwrap();
     store.delete("jobs/jw/plan.json").unwrap();
-    let second = handle_worker(&store, "b", &warm, &cast(1), &tmp).unwrap();
+    let second = handle_worker(&store, "b", &warm, &cast(1), Tmp::unlimited(&tmp)).unwrap();
     assert_eq!(second.recomputed, 0, "the cached plan served the task");
     assert!(
         store.get("jobs/jw/plan.json").is_err(),
         "a warm worker does not rewrite the plan"
     );
-    let cold = handle_worker(&store, "b", &SplitCache::new(0), &cast(1), &tmp).unwrap();
+    let cold = handle_worker(
+        &store,
+        "b",
+        &SplitCache::new(0),
+        &cast(1),
+        Tmp::unlimited(&tmp),
+    )
+    .unwrap();
     assert_eq!(cold.recomputed, 1, "a cold worker rebuilds the lost plan");
     assert_eq!(store.get("jobs/jw/plan.json").unwrap(), plan);
 }
@@ -589,7 +652,14 @@ fn run_items(store: &MemoryStore, job: &JobId, stage: Stage, key: &str, cache: &
             item,
             attempt: 0,
         };
-        handle_worker(store, "b", cache, &event, &std::env::temp_dir()).unwrap();
+        handle_worker(
+            store,
+            "b",
+            cache,
+            &event,
+            Tmp::unlimited(&std::env::temp_dir()),
+        )
+        .unwrap();
     }
 }
 
@@ -611,7 +681,14 @@ fn run_job_from(store: &MemoryStore, job: &JobId, out: &PlanOutput) -> Vec<u8> {
                     },
                     attempt: 0,
                 };
-                handle_worker(store, "b", &cache, &combine, &std::env::temp_dir()).unwrap();
+                handle_worker(
+                    store,
+                    "b",
+                    &cache,
+                    &combine,
+                    Tmp::unlimited(&std::env::temp_dir()),
+                )
+                .unwrap();
             }
         }
     }
@@ -623,7 +700,7 @@ fn a_scene_split_by_tasks_plans_in_steps_and_rebuilds_what_is_lost_from_its_part
     let whole = submitted("whole");
     let job = JobId::new("whole").unwrap();
     let tmp = std::env::temp_dir();
-    let out = handle_plan(&whole, "b", &plan_event("whole"), &tmp).unwrap();
+    let out = handle_plan(&whole, "b", &plan_event("whole"), Tmp::unlimited(&tmp)).unwrap();
     let expected = run_job_from(&whole, &job, &out);
 
     let store = submitted("parts");
@@ -638,7 +715,7 @@ fn a_scene_split_by_tasks_plans_in_steps_and_rebuilds_what_is_lost_from_its_part
             step,
             ..plan_event("parts")
         };
-        handle_plan(&store, "b", &event, &tmp).unwrap()
+        handle_plan(&store, "b", &event, Tmp::unlimited(&tmp)).unwrap()
     };
     let cache = SplitCache::new(0);
     let scanned = step(PlanStep::Start);
@@ -678,7 +755,14 @@ fn a_scene_split_by_tasks_plans_in_steps_and_rebuilds_what_is_lost_from_its_part
             hort_core::ids::SplitId(1),
         ))
         .unwrap();
-    let cast = handle_worker(&store, "b", &cache, &cast_map_event("parts", 1), &tmp).unwrap();
+    let cast = handle_worker(
+        &store,
+        "b",
+        &cache,
+        &cast_map_event("parts", 1),
+        Tmp::unlimited(&tmp),
+    )
+    .unwrap();
     assert!(cast.recomputed >= 1, "{cast:?}");
     assert_eq!(run_job_from(&store, &job, &planned), expected);
     // Steps out of place are refused, naming what is missing.
@@ -687,7 +771,7 @@ fn a_scene_split_by_tasks_plans_in_steps_and_rebuilds_what_is_lost_from_its_part
         ..plan_event("j1")
     };
     let submitted_only = submitted("j1");
-    let err = handle_plan(&submitted_only, "b", &early, &tmp).unwrap_err();
+    let err = handle_plan(&submitted_only, "b", &early, Tmp::unlimited(&tmp)).unwrap_err();
     assert_eq!(err.error_type, ErrorType::BadInput, "{err}");
     assert!(err.cause.contains("jobs/j1/parts/table.json"), "{err}");
     let late = PlanEvent {
@@ -696,7 +780,7 @@ fn a_scene_split_by_tasks_plans_in_steps_and_rebuilds_what_is_lost_from_its_part
         ..plan_event("j1")
     };
     assert_eq!(
-        handle_plan(&submitted_only, "b", &late, &tmp)
+        handle_plan(&submitted_only, "b", &late, Tmp::unlimited(&tmp))
             .unwrap_err()
             .cause,
         "plan event round 2 with step Finish: only round 1 has steps"
@@ -713,7 +797,7 @@ fn a_job_planned_for_more_memory_than_the_worker_has_is_refused_naming_both() {
     let env = |worker_memory_mb| FunctionEnv {
         store: &store,
         bucket: "b",
-        work_dir: &tmp,
+        tmp: Tmp::unlimited(&tmp),
         split_cache: &cache,
         worker_memory_mb,
     };
@@ -733,4 +817,34 @@ fn a_job_planned_for_more_memory_than_the_worker_has_is_refused_naming_both() {
     );
     dispatch(Function::Plan, event, &env(Some(2048))).unwrap();
     assert!(store.get("jobs/j1/plan.json").is_ok());
+}
+
+#[test]
+fn a_scene_copy_that_would_not_fit_tmp_is_refused_naming_both_sizes() {
+    // The Cornell room's files are about 3 KB: a /tmp of 2 KiB cannot hold them; 1 MiB can.
+    let store = submitted("j1");
+    let dir = std::env::temp_dir();
+    let small = Tmp {
+        dir: &dir,
+        limit_bytes: Some(2048),
+    };
+    let e = handle_plan(&store, "b", &plan_event("j1"), small).unwrap_err();
+    assert_eq!(e.error_type, ErrorType::BadInput);
+    assert!(
+        e.cause.starts_with("scene file jobs/j1/scene/cornell.")
+            && e.cause.contains(
+                " does not fit this function's /tmp of 2048 bytes: the copy would reach "
+            )
+            && e.cause.ends_with(
+                " bytes; raise the function's EphemeralStorage (infra/template.yaml; Lambda \
+                 allows up to 10240 MB)"
+            ),
+        "{}",
+        e.cause
+    );
+    let roomy = Tmp {
+        dir: &dir,
+        limit_bytes: Some(1 << 20),
+    };
+    handle_plan(&store, "b", &plan_event("j1"), roomy).unwrap();
 }

@@ -1,5 +1,6 @@
 //! The Worker function: run one task of one stage (the plan names its inputs and outputs).
 
+use super::Tmp;
 use super::events::WorkerEvent;
 use super::plan::{load_job_scene, read_request};
 use super::plan_parts::{plan_from_stored_parts, split_by_tasks};
@@ -13,7 +14,6 @@ use hort_core::pipeline::{
     rebuild_split, run_task_with, task_bytes, timed,
 };
 use hort_core::store::BlobStore;
-use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -21,7 +21,7 @@ use std::time::Instant;
 /// splits and plans (a warm container's memory). Returns what the task did. The outputs are the same bytes
 /// on every attempt. A lost or corrupt input block is recomputed from its producer; a lost or
 /// corrupt split object, or a lost or unreadable `plan.json`, is rebuilt from the job's scene,
-/// copied into `work_dir` (the function's `/tmp`) for the purpose (the plan step again, for
+/// copied into `tmp` (the function's `/tmp`) for the purpose (the plan step again, for
 /// the plan: the same bytes, split objects included). Before the task runs, `cache` is trimmed
 /// to what the job's memory leaves beside the plan's largest task as the memory model predicts
 /// it, so cache and task together stay within the function's memory; the splits the task
@@ -32,7 +32,7 @@ pub fn handle_worker(
     bucket: &str,
     cache: &SplitCache,
     event: &WorkerEvent,
-    work_dir: &Path,
+    tmp: Tmp<'_>,
 ) -> Result<TaskMetrics, HandlerError> {
     let started = Instant::now();
     check_bucket(&event.bucket, bucket)?;
@@ -51,7 +51,7 @@ pub fn handle_worker(
     let key = plan_key(&event.job);
     let load = |what: &str| {
         let label = format!("{what}-{}-{}", event.stage, event.item.task.0);
-        load_job_scene(store, &event.job, work_dir, &label).map_err(|e| {
+        load_job_scene(store, &event.job, tmp, &label).map_err(|e| {
             // Same class and cause once the handler reports it.
             match e.error_type {
                 ErrorType::Retryable => PipelineError::Corrupt(e.cause),
@@ -74,7 +74,7 @@ pub fn handle_worker(
                 {
                     let request = read_request(store, &event.job)?;
                     (
-                        plan_from_stored_parts(store, &event.job, &request, work_dir)?,
+                        plan_from_stored_parts(store, &event.job, &request, tmp)?,
                         true,
                     )
                 }

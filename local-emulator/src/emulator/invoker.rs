@@ -9,7 +9,7 @@ use hort_core::breakdown::StageBreakdown;
 use hort_core::ids::{Stage, TaskId};
 use hort_core::pipeline::{SplitCache, TaskMetrics, micros};
 use hort_core::store::BlobStore;
-use hort_functions::handlers::{Function, FunctionEnv, Invoked, TaskDone, dispatch};
+use hort_functions::handlers::{Function, FunctionEnv, Invoked, TaskDone, Tmp, dispatch};
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -207,10 +207,19 @@ impl InProcessInvoker {
             .unwrap_or_else(|e| e.into_inner())
             .pop()
             .unwrap_or_else(|| SplitCache::new(self.cache_bytes));
+        // Each function's /tmp as the template sets it (the emulator's folder stands in).
+        let deployed = crate::deployment::Deployment::bundled();
+        let tmp_mb = match function {
+            Function::Plan => deployed.plan.tmp_mb,
+            Function::Worker => deployed.worker.tmp_mb,
+        };
         let env = FunctionEnv {
             store,
             bucket: &self.bucket,
-            work_dir: &self.work_dir,
+            tmp: Tmp {
+                dir: &self.work_dir,
+                limit_bytes: Some(u64::from(tmp_mb) << 20),
+            },
             split_cache: &cache,
             // The emulator's clients plan every job for the functions' own memory (`--memory-mb`
             // is both), so the Plan function's check could only refuse what a harness built
