@@ -1,17 +1,18 @@
 #!/usr/bin/env bash
 # Installs cargo-lambda (with the zig linker it cross-links with) from PyPI into a venv under
-# target/tools/cargo-lambda-venv, once, and prints the folder to put on PATH:
+# target/tools/cargo-lambda-venv ($CARGO_TARGET_DIR/tools/... when CARGO_TARGET_DIR is set),
+# once, and prints the folder to put on PATH:
 #
 #   export PATH="$(bash infra/install-cargo-lambda.sh):$PATH"
 #   cargo lambda build --bin worker --bin plan --bin starter
 #
-# Needs python3 (with venv). Nothing lands outside target/. HORT_CARGO_LAMBDA_VENV overrides the
+# Needs python3 (with venv). Nothing lands outside the target folder. HORT_CARGO_LAMBDA_VENV overrides the
 # venv folder.
 set -euo pipefail
 
 version='1.9.2'
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
-venv="${HORT_CARGO_LAMBDA_VENV:-$here/../target/tools/cargo-lambda-venv}"
+venv="${HORT_CARGO_LAMBDA_VENV:-${CARGO_TARGET_DIR:-$here/../target}/tools/cargo-lambda-venv}"
 
 installed() {
     [[ -x "$venv/bin/cargo-lambda" ]] \

@@ -579,7 +579,7 @@ fn the_deployment_api_backend_queues_starts_reports_and_cancels_jobs() {
     assert_eq!(described.status, ExecutionStatus::Aborted);
 
     // A job cancelled while queued never runs: its message later starts nothing.
-    let (_, second) = call(&backend, "POST", "/renders", Some(triangle), None);
+    let (_, second) = call(&backend, "POST", "/renders", Some(triangle.clone()), None);
     let second = second["job"].as_str().expect("job id").to_owned();
     assert_ne!(second, job);
     let (_, cancelled) = call(
@@ -605,6 +605,22 @@ fn the_deployment_api_backend_queues_starts_reports_and_cancels_jobs() {
         None,
     );
     assert_eq!(status, 404, "{report}");
+
+    // The first job's objects expire (the bucket's lifecycle rule) while its execution's name
+    // stays taken: its key can start nothing new, and says so.
+    let record = format!("jobs/{job}/api.json");
+    store.delete(&record).unwrap();
+    let (status, expired) = call(&backend, "POST", "/renders", Some(triangle), Some("k1"));
+    assert_eq!(status, 422, "{expired}");
+    assert_eq!(
+        expired["error"]["message"],
+        format!(
+            "Idempotency-Key \"k1\" named job {job}, whose objects have expired (the bucket \
+             deletes jobs/ after JobExpirationDays) while Step Functions keeps its execution's \
+             name for 90 days: use a new key"
+        )
+    );
+    assert!(store.get(&record).unwrap_err().is_not_found());
 }
 
 #[test]

@@ -170,9 +170,10 @@ pub fn check_combine_memory(
     };
     Err(PipelineError::BadInput(format!(
         "combining a {width}x{height} image ({stored}) would need about {} MB, over \
-         --memory-mb {memory_mb}: raise --memory-mb (Lambda allows up to 10240), store fewer \
+         --memory-mb {memory_mb}: raise --memory-mb (Lambda allows up to {}), store fewer \
          outputs, or render fewer pixels",
-        need.div_ceil(1 << 20)
+        need.div_ceil(1 << 20),
+        hort_aws_quotas::LAMBDA_MEMORY_MB.end()
     )))
 }
 

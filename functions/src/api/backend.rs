@@ -141,6 +141,16 @@ pub fn idempotency_key_reused(key: &str, job: &str) -> ApiError {
     ))
 }
 
+/// The 422 of an `Idempotency-Key` whose job's objects expired while its execution's name is
+/// still taken (Step Functions keeps it 90 days): the same key can start nothing new.
+pub fn idempotency_key_expired(key: &str, job: &str) -> ApiError {
+    ApiError::idempotency_key_reused(format!(
+        "Idempotency-Key {key:?} named job {job}, whose objects have expired (the bucket deletes \
+         jobs/ after JobExpirationDays) while Step Functions keeps its execution's name for 90 \
+         days: use a new key"
+    ))
+}
+
 /// What [`RenderBackend::submit`] did.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Submission {

@@ -39,7 +39,7 @@ mod tests;
 
 pub use backend::{
     ImageFormat, JobSpec, JobState, JobStatus, RenderBackend, StageProgress, Submission,
-    idempotency_key_reused, request_fingerprint,
+    idempotency_key_expired, idempotency_key_reused, request_fingerprint,
 };
 pub use dashboard::{DASHBOARD_JOBS, escape_html, jobs_table, page};
 pub use error::ApiError;
@@ -245,12 +245,16 @@ fn route<B: AsRef<[u8]>>(
                 }
             };
             let mut response = bytes_response("text/html; charset=utf-8", html.into_bytes())?;
-            // The page runs only its own inline script and loads nothing from elsewhere.
+            // The page runs only its own inline script and loads nothing from elsewhere but
+            // images: one over a Lambda response's size comes by redirect from the bucket (a
+            // presigned S3 URL: https on AWS, the embedded server on loopback under `hort
+            // serve`), and a CSP checks the redirect's target too.
             response.headers_mut().insert(
                 header::CONTENT_SECURITY_POLICY,
                 http::HeaderValue::from_static(
                     "default-src 'self'; script-src 'unsafe-inline'; style-src \
-                     'unsafe-inline'; img-src 'self'; frame-ancestors 'none'",
+                     'unsafe-inline'; img-src 'self' https: http://127.0.0.1:* \
+                     http://localhost:*; frame-ancestors 'none'",
                 ),
             );
             Ok(response)

@@ -33,7 +33,7 @@ use super::sqs::JobQueue;
 use crate::S3Store;
 use crate::api::{
     ApiError, ImageAnswer, ImageFormat, JobSpec, JobState, JobStatus, PredictionModel, RATES,
-    RenderBackend, Submission, idempotency_key_reused, stored_image,
+    RenderBackend, Submission, idempotency_key_expired, idempotency_key_reused, stored_image,
 };
 use crate::handlers::JobRequest;
 
@@ -339,6 +339,18 @@ impl RenderBackend for AwsBackend {
             .put_if_absent(&record_key(&job), &json)
             .map_err(|e| Self::storage_error("cannot store the job's record", e))?;
         let replayed = match outcome {
+            PutOutcome::Created
+                if spec.idempotency_key.is_some() && self.execution(&job)?.is_some() =>
+            {
+                // The key's earlier job expired (S3 deletes jobs/ after JobExpirationDays) while
+                // Step Functions keeps its execution's name for 90 days: a new execution under
+                // that name could never start, so the job would never run.
+                let _ = self.store.delete(&record_key(&job));
+                return Err(idempotency_key_expired(
+                    spec.idempotency_key.as_deref().unwrap_or_default(),
+                    job.as_str(),
+                ));
+            }
             PutOutcome::Created => false,
             PutOutcome::AlreadyExists if spec.idempotency_key.is_some() => true,
             PutOutcome::AlreadyExists => {

@@ -240,11 +240,20 @@ impl InProcessInvoker {
         // held to the budget; its answer is the plan output, which stays as it is.
         let worker_task = invoked.task.filter(|done| done.stage != Stage::Plan);
         if let (None, Some(measured)) = (worker_task, measured) {
-            let mut ledger = self.ledger.lock().unwrap_or_else(|e| e.into_inner());
             let peak = resident.saturating_add(measured);
-            ledger.plan_peak_memory_bytes = ledger.plan_peak_memory_bytes.max(peak);
+            {
+                let mut ledger = self.ledger.lock().unwrap_or_else(|e| e.into_inner());
+                ledger.plan_peak_memory_bytes = ledger.plan_peak_memory_bytes.max(peak);
+            }
             if let Some(done) = &mut invoked.task {
                 done.metrics.peak_memory_bytes = peak;
+            }
+            // The Plan function's own memory, as the template sets it.
+            let plan = MemoryBudget {
+                mb: deployed.plan.memory_mb,
+            };
+            if let Some(failure) = plan.check(Stage::Plan, 0, attempt, peak) {
+                return Err(failure);
             }
         }
         if let (Some(done), Some(measured)) = (worker_task, measured) {
