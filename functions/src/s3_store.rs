@@ -12,6 +12,7 @@ use std::ops::Range;
 use aws_sdk_s3::Client;
 use aws_sdk_s3::config::{ProvideCredentials, SharedCredentialsProvider};
 use aws_sdk_s3::error::SdkError;
+use aws_sdk_s3::operation::list_objects_v2::ListObjectsV2Output;
 use aws_sdk_s3::operation::put_object::builders::PutObjectFluentBuilder;
 use aws_sdk_s3::operation::put_object::{PutObjectError, PutObjectOutput};
 use aws_sdk_s3::primitives::ByteStream;
@@ -249,52 +250,18 @@ impl S3Store {
     /// sorted, all pages. One entry per folder however many objects it holds: a listing of
     /// `jobs/` is one page per 1,000 jobs, not one per 1,000 objects.
     pub fn list_folders(&self, prefix: &str) -> Result<Vec<String>, StoreError> {
-        let request = Request {
-            op: "list",
-            key: Some(prefix),
-            object_read: false,
-        };
-        self.handle.block_on(async {
-            let mut folders = Vec::new();
-            let mut token: Option<String> = None;
-            loop {
-                let page = self
-                    .client
-                    .list_objects_v2()
-                    .bucket(&self.target.bucket)
-                    .prefix(prefix)
-                    .delimiter("/")
-                    .set_continuation_token(token.clone())
-                    .send()
-                    .await
-                    .map_err(|e| s3_errors::store_error(e, request, &self.target))?;
+        let mut folders = Vec::new();
+        self.handle
+            .block_on(self.list_pages(prefix, Some("/"), |page| {
                 folders.extend(
                     page.common_prefixes()
                         .iter()
                         .filter_map(|p| p.prefix().map(str::to_owned)),
                 );
-                if !page.is_truncated().unwrap_or(false) {
-                    break;
-                }
-                match page.next_continuation_token() {
-                    Some(next) if token.as_deref() != Some(next) => {
-                        token = Some(next.to_owned());
-                    }
-                    _ => {
-                        return Err(StoreError::Other {
-                            what: format!(
-                                "list {prefix:?}: S3 endpoint {} sent a truncated page without \
-                                 a new continuation token",
-                                self.target.endpoint
-                            ),
-                        });
-                    }
-                }
-            }
-            folders.sort_unstable();
-            folders.dedup();
-            Ok(folders)
-        })
+            }))?;
+        folders.sort_unstable();
+        folders.dedup();
+        Ok(folders)
     }
 
     /// Every object under `prefix` with its size, sorted by key (all pages).
@@ -598,33 +565,51 @@ impl S3Store {
     }
 
     async fn list_async(&self, prefix: &str) -> Result<Vec<ListedObject>, StoreError> {
-        let request = Request {
-            op: "list",
-            key: Some(prefix),
-            object_read: false,
-        };
         let mut keys = Vec::new();
-        let mut token: Option<String> = None;
-        loop {
-            let page = self
-                .client
-                .list_objects_v2()
-                .bucket(&self.target.bucket)
-                .prefix(prefix)
-                .set_continuation_token(token.clone())
-                .send()
-                .await
-                .map_err(|e| s3_errors::store_error(e, request, &self.target))?;
+        self.list_pages(prefix, None, |page| {
             keys.extend(page.contents().iter().filter_map(|object| {
                 Some(ListedObject {
                     key: object.key()?.to_owned(),
                     bytes: u64::try_from(object.size().unwrap_or(0)).unwrap_or(0),
                 })
             }));
-            if !page.is_truncated().unwrap_or(false) {
-                break;
+        })
+        .await?;
+        keys.sort_unstable_by(|a, b| a.key.cmp(&b.key));
+        keys.dedup_by(|a, b| a.key == b.key);
+        Ok(keys)
+    }
+
+    /// Every page of the listing of `prefix` (with `delimiter`, if given), each handed to
+    /// `page`; a truncated page without a new continuation token is an error.
+    async fn list_pages(
+        &self,
+        prefix: &str,
+        delimiter: Option<&str>,
+        mut page: impl FnMut(&ListObjectsV2Output),
+    ) -> Result<(), StoreError> {
+        let request = Request {
+            op: "list",
+            key: Some(prefix),
+            object_read: false,
+        };
+        let mut token: Option<String> = None;
+        loop {
+            let out = self
+                .client
+                .list_objects_v2()
+                .bucket(&self.target.bucket)
+                .prefix(prefix)
+                .set_delimiter(delimiter.map(str::to_owned))
+                .set_continuation_token(token.clone())
+                .send()
+                .await
+                .map_err(|e| s3_errors::store_error(e, request, &self.target))?;
+            page(&out);
+            if !out.is_truncated().unwrap_or(false) {
+                return Ok(());
             }
-            match page.next_continuation_token() {
+            match out.next_continuation_token() {
                 Some(next) if token.as_deref() != Some(next) => token = Some(next.to_owned()),
                 _ => {
                     return Err(StoreError::Other {
@@ -637,9 +622,6 @@ impl S3Store {
                 }
             }
         }
-        keys.sort_unstable_by(|a, b| a.key.cmp(&b.key));
-        keys.dedup_by(|a, b| a.key == b.key);
-        Ok(keys)
     }
 }
 

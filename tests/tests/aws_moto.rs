@@ -439,24 +439,31 @@ fn call(
     (status, json)
 }
 
-#[test]
-fn the_deployment_api_backend_queues_starts_reports_and_cancels_jobs() {
-    let runtime = runtime();
-    let Some((config, label)) = runtime.block_on(moto()) else {
-        return;
-    };
+/// The deployed API's backend over moto (a fresh intake queue and state machine, bucket
+/// `bucket`), its queue and executions, and a store of the bucket for this (non-runtime) thread:
+/// the backend's store blocks on `runtime`.
+fn api_backend(
+    runtime: &tokio::runtime::Runtime,
+    config: &hort_functions::aws::SdkConfig,
+    label: &str,
+    bucket: &str,
+) -> (
+    hort_functions::aws::api_backend::AwsBackend,
+    JobQueue,
+    Executions,
+    hort_functions::S3Store,
+) {
     let endpoint = std::env::var("HORT_TEST_AWS_ENDPOINT").unwrap();
-    let bucket = unique("hort-api");
     let (backend, intake, executions) = runtime.block_on(async {
-        let s3 = hort_functions::S3Config::compatible(&endpoint, &bucket, "testing", "testing");
+        let s3 = hort_functions::S3Config::compatible(&endpoint, bucket, "testing", "testing");
         let store = hort_functions::S3Store::connect(&s3)
             .await
             .expect("S3 client");
-        let sqs = aws_sdk_sqs::Client::new(&config);
-        let sfn = aws_sdk_sfn::Client::new(&config);
-        let intake = queue(&sqs, &label, &unique("hort-api-intake"), &[]).await;
-        let arn = state_machine(&sfn, &unique("hort-api-jobs")).await;
-        let executions = Executions::new(sfn, &arn, &label);
+        let sqs = aws_sdk_sqs::Client::new(config);
+        let sfn = aws_sdk_sfn::Client::new(config);
+        let intake = queue(&sqs, label, &unique(&format!("{bucket}-intake")), &[]).await;
+        let arn = state_machine(&sfn, &unique(&format!("{bucket}-jobs"))).await;
+        let executions = Executions::new(sfn, &arn, label);
         let backend = hort_functions::aws::api_backend::AwsBackend::new(
             store,
             intake.clone(),
@@ -469,12 +476,22 @@ fn the_deployment_api_backend_queues_starts_reports_and_cancels_jobs() {
         );
         (backend, intake, executions)
     });
-    // The store blocks on the runtime: from here on, call it from this (non-runtime) thread.
     let store = hort_functions::S3Store::open(&hort_functions::S3Config::compatible(
-        &endpoint, &bucket, "testing", "testing",
+        &endpoint, bucket, "testing", "testing",
     ))
     .expect("S3 client");
     store.create_bucket_if_missing().expect("bucket");
+    (backend, intake, executions, store)
+}
+
+#[test]
+fn the_deployment_api_backend_queues_starts_reports_and_cancels_jobs() {
+    let runtime = runtime();
+    let Some((config, label)) = runtime.block_on(moto()) else {
+        return;
+    };
+    let bucket = unique("hort-api");
+    let (backend, intake, executions, store) = api_backend(&runtime, &config, &label, &bucket);
     let triangle = serde_json::json!({
         "scene": {"main": "a.obj", "files": {"a.obj": "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"}},
         "width": 32, "height": 24
@@ -629,35 +646,8 @@ fn the_deployment_api_lists_a_thousand_jobs_within_api_gateways_30_seconds() {
     let Some((config, label)) = runtime.block_on(moto()) else {
         return;
     };
-    let endpoint = std::env::var("HORT_TEST_AWS_ENDPOINT").unwrap();
     let bucket = unique("hort-list");
-    let (backend, executions) = runtime.block_on(async {
-        let s3 = hort_functions::S3Config::compatible(&endpoint, &bucket, "testing", "testing");
-        let store = hort_functions::S3Store::connect(&s3)
-            .await
-            .expect("S3 client");
-        let sqs = aws_sdk_sqs::Client::new(&config);
-        let sfn = aws_sdk_sfn::Client::new(&config);
-        let intake = queue(&sqs, &label, &unique("hort-list-intake"), &[]).await;
-        let arn = state_machine(&sfn, &unique("hort-list-jobs")).await;
-        let executions = Executions::new(sfn, &arn, &label);
-        let backend = hort_functions::aws::api_backend::AwsBackend::new(
-            store,
-            intake,
-            executions.clone(),
-            tokio::runtime::Handle::current(),
-            hort_functions::aws::api_backend::DeploymentLimits {
-                max_concurrency: 50,
-                worker_memory_mb: 2048,
-            },
-        );
-        (backend, executions)
-    });
-    let store = hort_functions::S3Store::open(&hort_functions::S3Config::compatible(
-        &endpoint, &bucket, "testing", "testing",
-    ))
-    .expect("S3 client");
-    store.create_bucket_if_missing().expect("bucket");
+    let (backend, _, executions, store) = api_backend(&runtime, &config, &label, &bucket);
     // 1,000 jobs as the API stores them (its record), each with 4 intermediate objects a
     // listing of every key would have to page through, and a folder the API did not make.
     const JOBS: usize = 1000;

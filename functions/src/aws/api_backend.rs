@@ -207,7 +207,7 @@ impl AwsBackend {
             ) => JobState::Failed,
         };
         let (tasks_done, stage) = match status {
-            JobState::Succeeded => (record.tasks_total, None),
+            JobState::Succeeded => (record.tasks_total, Some(Stage::Combine)),
             JobState::Queued => (0, None),
             _ if progress => self.progress(job)?,
             _ => (0, None),

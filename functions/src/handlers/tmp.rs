@@ -46,7 +46,7 @@ impl<'a> Tmp<'a> {
 
 /// `bytes` in MB when whole (as the template gives sizes), else in bytes.
 fn size(bytes: u64) -> String {
-    if bytes % (1 << 20) == 0 {
+    if bytes.is_multiple_of(1 << 20) {
         format!("{} MB", bytes >> 20)
     } else {
         format!("{bytes} bytes")
