@@ -67,7 +67,11 @@ for b in bins:
     print(f"build-lambdas: {path}: {size / 2**20:.1f} MiB, zipped {len(buf.getvalue()) / 2**20:.1f} MiB")
 PY
 
-if [[ "$arch" != arm64 || "${HORT_SKIP_SAM_BUILD:-}" == 1 ]]; then
+if [[ "${HORT_SKIP_SAM_BUILD:-}" == 1 ]]; then
+    echo "build-lambdas: no sam build (HORT_SKIP_SAM_BUILD=1)" >&2
+    exit 0
+fi
+if [[ "$arch" != arm64 ]]; then
     echo "build-lambdas: no sam build (it builds for the template's arm64 only)" >&2
     exit 0
 fi
