@@ -38,7 +38,8 @@ print(s.getsockname()[1])')"
 endpoint="http://127.0.0.1:$port"
 log="$tools/moto-server.log"
 
-"$venv/bin/moto_server" -H 127.0.0.1 -p "$port" >"$log" 2>&1 &
+# moto_server, its conditional PUTs made atomic as on S3 (see moto_atomic.py).
+"$venv/bin/python" "$(dirname "${BASH_SOURCE[0]}")/moto_atomic.py" -H 127.0.0.1 -p "$port" >"$log" 2>&1 &
 server_pid=$!
 stop_server() {
     kill "$server_pid" 2>/dev/null || true
