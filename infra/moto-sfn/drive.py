@@ -2,7 +2,7 @@
 image with `hort render --monolithic` (mode fused or staged), or checks that a job the Plan
 function refuses ends FAILED with Hort.BadInput through PlanFailed (mode refused). Run by run.sh:
 
-    EP=http://127.0.0.1:MOTO MODE=fused|staged|refused REPO=... OUT=... python drive.py
+    EP=http://127.0.0.1:MOTO MODE=fused|staged|refused REPO=... OUT=... HORT_BIN=... python drive.py
 
 moto 5.x's engine cannot run the definition as deployed; two rewrites, for moto only, each
 with the line of moto that needs it, are below. What it cannot run at all (its ResultWriter
@@ -106,7 +106,7 @@ for run in sfn.list_map_runs(executionArn=ex)["mapRuns"]:
     print(f"drive:   map run {run['mapRunArn'].split(':')[-2]}: {m['status']}, maxConcurrency {m['maxConcurrency']}, items {m['itemCounts'].get('succeeded')}/{m['itemCounts'].get('total')}")
 assert plan["mode"] == mode, plan
 s3.download_file(bucket, f"jobs/{job}/out/image.pfm", f"{out}/moto-sfn.pfm")
-subprocess.run([f"{repo}/target/debug/hort", "render", f"{scene_dir}/{main_file}", "--width", str(width),
+subprocess.run([os.environ["HORT_BIN"], "render", f"{scene_dir}/{main_file}", "--width", str(width),
                 "--height", str(height), "--spp", str(spp), "--monolithic", "--out", f"{out}/monolithic.pfm"],
                check=True, stdout=subprocess.DEVNULL)
 same = open(f"{out}/moto-sfn.pfm", "rb").read() == open(f"{out}/monolithic.pfm", "rb").read()

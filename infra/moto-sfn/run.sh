@@ -50,6 +50,7 @@ done
 status=0
 for mode in ${@:-fused staged refused}; do
     EP="http://127.0.0.1:$moto" MODE=$mode BUCKET=$bucket REPO="$repo" OUT="$out" \
+        HORT_BIN="$target/debug/hort" \
         "$venv/bin/python" "$here/drive.py" || status=1
 done
 for stage in render cast-map cast-reduce expand trace-map trace-reduce combine; do
