@@ -109,6 +109,13 @@ pub struct MapRun {
     pub started_unix_ms: i64,
 }
 
+/// `date` in microseconds since the Unix epoch (at millisecond precision, as the service gives
+/// it); `None` before the epoch or out of range.
+fn unix_micros(date: &aws_sdk_sfn::primitives::DateTime) -> Option<u64> {
+    let micros = date.to_millis().ok()?.checked_mul(1000)?;
+    u64::try_from(micros).ok()
+}
+
 /// The label of a Map Run ARN, `arn:…:mapRun:{state machine}/{label}:{id}`.
 fn map_run_label(arn: &str) -> &str {
     let tail = arn.rsplit_once(":mapRun:").map_or(arn, |(_, t)| t);
@@ -232,10 +239,7 @@ impl Executions {
             output: out.output,
             error: out.error,
             cause: out.cause,
-            stopped_unix_us: out.stop_date.and_then(|d| {
-                let micros = d.to_millis().ok()?.checked_mul(1000)?;
-                u64::try_from(micros).ok()
-            }),
+            stopped_unix_us: out.stop_date.as_ref().and_then(unix_micros),
         })
     }
 
@@ -302,10 +306,7 @@ impl Executions {
                     e.name().to_owned(),
                     Listed {
                         status: ExecutionStatus::from_sdk(e.status()),
-                        stopped_unix_us: e.stop_date().and_then(|d| {
-                            let micros = d.to_millis().ok()?.checked_mul(1000)?;
-                            u64::try_from(micros).ok()
-                        }),
+                        stopped_unix_us: e.stop_date().and_then(unix_micros),
                     },
                 );
             }
