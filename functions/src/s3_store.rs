@@ -733,6 +733,50 @@ impl BlobStore for S3Store {
         self.handle
             .block_on(delete_object(&self.client, &self.target, key))
     }
+
+    fn size(&self, key: &str) -> Result<u64, StoreError> {
+        S3Store::size(self, key)
+    }
+
+    /// CopyObject inside the bucket: no bytes pass through this process. S3 copies at most
+    /// [`hort_core::store::COPY_MAX_BYTES`] this way; a larger source fails with S3's error.
+    fn copy(&self, from: &str, to: &str) -> Result<(), StoreError> {
+        self.handle.block_on(self.copy_async(from, to))
+    }
+}
+
+/// The characters CopyObject's source must have percent-encoded: all but letters, digits,
+/// `/`, `-`, `_`, `.` and `~`.
+const COPY_SOURCE_ENCODED: &percent_encoding::AsciiSet = &percent_encoding::NON_ALPHANUMERIC
+    .remove(b'/')
+    .remove(b'-')
+    .remove(b'_')
+    .remove(b'.')
+    .remove(b'~');
+
+impl S3Store {
+    async fn copy_async(&self, from: &str, to: &str) -> Result<(), StoreError> {
+        // A missing source is the error to name: S3 answers NoSuchKey for it.
+        let request = Request {
+            op: "copy",
+            key: Some(from),
+            object_read: true,
+        };
+        let source = format!(
+            "{}/{}",
+            self.target.bucket,
+            percent_encoding::utf8_percent_encode(from, COPY_SOURCE_ENCODED)
+        );
+        self.client
+            .copy_object()
+            .bucket(&self.target.bucket)
+            .key(to)
+            .copy_source(source)
+            .send()
+            .await
+            .map(drop)
+            .map_err(|e| s3_errors::store_error(e, request, &self.target))
+    }
 }
 
 /// The wait before sending a GET again whose body broke off: 20 ms, doubling per attempt, at

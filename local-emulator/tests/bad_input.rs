@@ -341,6 +341,8 @@ fn binary_scene_error(dir: &Path, op: &str) -> String {
         task_timeout_seconds: None,
         scene_format: SceneFormat::Binary,
         scene_range_bytes: None,
+        scene_key: None,
+        budget: None,
     };
     let json = serde_json::to_vec(&request).unwrap();
     store.put(&manifest_key(&job), &json).unwrap();

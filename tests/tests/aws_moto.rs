@@ -695,3 +695,79 @@ fn the_deployment_api_lists_a_thousand_jobs_within_api_gateways_30_seconds() {
     let (_, one) = call(&backend, "GET", "/renders?limit=1", None, None);
     assert_eq!(one["renders"][0]["job"], "r-0999", "{one}");
 }
+
+#[test]
+fn a_scene_by_key_is_sized_by_the_api_and_copied_into_its_job_by_the_plan_function() {
+    let runtime = runtime();
+    let Some((config, label)) = runtime.block_on(moto()) else {
+        return;
+    };
+    let bucket = unique("hort-key");
+    let (backend, _intake, _executions, store) = api_backend(&runtime, &config, &label, &bucket);
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/cornell");
+    for file in ["cornell.json", "cornell.obj", "cornell.mtl"] {
+        let bytes = std::fs::read(format!("{dir}/{file}")).unwrap();
+        // A space in the key: CopyObject's source must be URL-encoded.
+        store.put(&format!("scenes/my box/{file}"), &bytes).unwrap();
+    }
+    let body = serde_json::json!({
+        "scene": {"key": "scenes/my box/cornell.json"}, "width": 32, "height": 24,
+        "max_cost_usd": 1.0
+    });
+    let (status, accepted) = call(&backend, "POST", "/renders", Some(body), None);
+    assert_eq!(status, 202, "{accepted}");
+    let job = accepted["job"].as_str().expect("job id").to_owned();
+    // Only the request is stored: the scene stays where it is until the Plan function runs.
+    let manifest: hort_functions::handlers::JobRequest =
+        serde_json::from_slice(&store.get(&format!("jobs/{job}/manifest.json")).unwrap()).unwrap();
+    assert_eq!(manifest.scene, "cornell.json");
+    assert_eq!(
+        manifest.scene_key.as_deref(),
+        Some("scenes/my box/cornell.json")
+    );
+    assert_eq!(
+        manifest.scene_format,
+        hort_functions::handlers::SceneFormat::Files
+    );
+    let budget = manifest.budget.expect("the budget to check again");
+    assert_eq!(budget.max_cost_usd, 1.0);
+    assert_eq!(
+        (budget.model.concurrency, budget.model.memory_mb),
+        (50, 2048)
+    );
+    assert!(
+        store
+            .list(&format!("jobs/{job}/scene/"))
+            .unwrap()
+            .is_empty()
+    );
+
+    // The Plan function copies the files (CopyObject on moto) and plans the job.
+    let event = hort_functions::handlers::PlanEvent {
+        job: JobId::new(&job).unwrap(),
+        bucket: bucket.clone(),
+        attempt: 0,
+        round: 1,
+        step: hort_functions::handlers::PlanStep::Start,
+    };
+    let tmp = std::env::temp_dir();
+    hort_functions::handlers::handle_plan(
+        &store,
+        &bucket,
+        &event,
+        hort_functions::handlers::Tmp::unlimited(&tmp),
+    )
+    .expect("plan");
+    assert_eq!(
+        store.list(&format!("jobs/{job}/scene/")).unwrap(),
+        ["cornell.json", "cornell.mtl", "cornell.obj"].map(|f| format!("jobs/{job}/scene/{f}"))
+    );
+    for file in ["cornell.json", "cornell.mtl", "cornell.obj"] {
+        assert_eq!(
+            store.get(&format!("jobs/{job}/scene/{file}")).unwrap(),
+            store.get(&format!("scenes/my box/{file}")).unwrap(),
+            "{file}"
+        );
+    }
+    assert!(store.get(&format!("jobs/{job}/plan.json")).is_ok());
+}

@@ -82,6 +82,12 @@ pub const HTTP_API_INTEGRATION_SECONDS: u64 = 30;
 /// ("Payload size": 10 MB).
 pub const HTTP_API_PAYLOAD_BYTES: usize = 10 * 1024 * 1024;
 
+/// S3: the largest object one `CopyObject` request copies, 5 GiB (larger ones need a multipart
+/// copy, `UploadPartCopy`). <https://docs.aws.amazon.com/AmazonS3/latest/API/API_CopyObject.html>
+/// ("You can store individual objects of up to 5 TB in Amazon S3. You create a copy of your
+/// object up to 5 GB in size in a single atomic action using this API").
+pub const S3_COPY_OBJECT_MAX_BYTES: u64 = 5 * 1024 * 1024 * 1024;
+
 /// S3: the most keys one `DeleteObjects` request removes.
 /// <https://docs.aws.amazon.com/AmazonS3/latest/API/API_DeleteObjects.html>
 pub const S3_DELETE_OBJECTS_MAX_KEYS: usize = 1000;

@@ -25,6 +25,7 @@
 mod adaptive_rounds;
 mod adaptive_span;
 mod driver;
+pub mod estimate;
 mod frustum;
 mod mode;
 mod outputs;

@@ -22,7 +22,8 @@ pub use manifest::{MANIFEST_SCHEMA, Manifest, parse_manifest};
 pub use mesh::{Material, Mesh, NO_NORMAL};
 pub use obj::{ObjRange, ObjScan, RangeFaces, parse_obj, parse_obj_range, scan_obj};
 pub use ranged::{
-    override_materials, scene_image_settings, scene_mesh_files, scene_without_geometry,
+    override_materials, scene_image_settings, scene_mesh_files, scene_of_manifest_without_geometry,
+    scene_without_geometry,
 };
 
 use crate::error::SceneError;

@@ -3,7 +3,9 @@
 //! once the local frame and bounds are known, exactly as [`super::load_scene`] assembles it.
 
 use super::framing::{default_camera, default_light};
-use super::manifest::{apply_material_overrides, image_settings, manifest_scene, read_manifest};
+use super::manifest::{
+    Manifest, apply_material_overrides, image_settings, manifest_scene, read_manifest,
+};
 use super::mesh::{Material, Mesh};
 use super::{ImageSettings, Scene};
 use crate::error::SceneError;
@@ -66,9 +68,26 @@ pub fn scene_without_geometry(
     bounds: (DVec3, DVec3),
     warnings: Vec<String>,
 ) -> Result<Scene, SceneError> {
-    if is_manifest(path) {
-        let manifest = read_manifest(path)?;
-        return manifest_scene(path, &manifest, origin, bounds, Mesh::default(), warnings);
+    let manifest = if is_manifest(path) {
+        Some(read_manifest(path)?)
+    } else {
+        None
+    };
+    scene_of_manifest_without_geometry(path, manifest.as_ref(), origin, bounds, warnings)
+}
+
+/// [`scene_without_geometry`] for a manifest read already (`None`: the scene is the OBJ file
+/// at `path`, which is not read): nothing is read from disk, `path` names the scene in
+/// messages.
+pub fn scene_of_manifest_without_geometry(
+    path: &Path,
+    manifest: Option<&Manifest>,
+    origin: DVec3,
+    bounds: (DVec3, DVec3),
+    warnings: Vec<String>,
+) -> Result<Scene, SceneError> {
+    if let Some(manifest) = manifest {
+        return manifest_scene(path, manifest, origin, bounds, Mesh::default(), warnings);
     }
     let (lo, hi) = bounds;
     Ok(Scene {

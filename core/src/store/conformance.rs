@@ -26,6 +26,7 @@ pub fn run_all(store: &dyn BlobStore, prefix: &str) {
     put_if_absent_race_has_one_winner(store, prefix);
     list_is_sorted_and_exact(store, prefix);
     delete_removes_and_is_idempotent(store, prefix);
+    size_and_copy_inside_the_store(store, prefix);
     keys_with_safe_punctuation(store, prefix);
     clear(store, prefix);
     expect_eq(
@@ -108,6 +109,46 @@ pub fn many_at_once_keep_their_order(store: &dyn BlobStore, prefix: &str) {
             expect_bytes("get_many", key, &back, want);
         }
     }
+}
+
+/// `size` gives an object's length (0 for an empty one) without its bytes; `copy` stores the
+/// source's bytes under the target, replacing what was there, and leaves the source as it was;
+/// both are `NotFound` naming the missing source.
+pub fn size_and_copy_inside_the_store(store: &dyn BlobStore, prefix: &str) {
+    let (from, to) = (format!("{prefix}copy/from"), format!("{prefix}copy/to"));
+    let empty = format!("{prefix}copy/empty");
+    must("put", &empty, store.put(&empty, b""));
+    expect_eq(
+        "size of an empty object",
+        &empty,
+        must("size", &empty, store.size(&empty)),
+        0,
+    );
+    let bytes: Vec<u8> = (0..70_000u32).map(|i| (i % 251) as u8).collect();
+    must("put", &from, store.put(&from, &bytes));
+    must("put", &to, store.put(&to, b"old"));
+    expect_eq(
+        "size",
+        &from,
+        must("size", &from, store.size(&from)),
+        70_000,
+    );
+    must("copy", &from, store.copy(&from, &to));
+    expect_bytes(
+        "get after copy",
+        &to,
+        &must("get", &to, store.get(&to)),
+        &bytes,
+    );
+    expect_bytes(
+        "source after copy",
+        &from,
+        &must("get", &from, store.get(&from)),
+        &bytes,
+    );
+    let missing = format!("{prefix}copy/missing");
+    expect_not_found("size of a missing key", &missing, store.size(&missing));
+    expect_not_found("copy of a missing key", &missing, store.copy(&missing, &to));
 }
 
 /// A second `put` replaces the object whole (longer, then shorter).

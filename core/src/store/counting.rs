@@ -30,6 +30,11 @@ impl Counters {
         }
     }
 
+    /// Counts one HEAD, as a get of no bytes.
+    pub(super) fn head(&self) {
+        add(&self.gets, 1);
+    }
+
     /// Counts one put of `len` bytes; adds them if `stored`.
     pub(super) fn put(&self, len: usize, stored: bool) {
         add(&self.puts, 1);
@@ -131,6 +136,21 @@ impl<S: BlobStore> BlobStore for CountingStore<S> {
     fn delete(&self, key: &str) -> Result<(), StoreError> {
         self.counters.delete();
         self.inner.delete(key)
+    }
+
+    /// A HEAD: counted as a GET of no bytes (S3 prices them alike).
+    fn size(&self, key: &str) -> Result<u64, StoreError> {
+        let result = self.inner.size(key);
+        self.counters.head();
+        result
+    }
+
+    /// A copy inside the store: counted as a PUT of no bytes through the client (S3 prices a
+    /// CopyObject as a PUT).
+    fn copy(&self, from: &str, to: &str) -> Result<(), StoreError> {
+        let result = self.inner.copy(from, to);
+        self.counters.put(0, result.is_ok());
+        result
     }
 
     fn get_many(&self, keys: &[String]) -> Vec<Result<Vec<u8>, StoreError>> {

@@ -85,6 +85,26 @@ impl BlobStore for MemoryStore {
         Ok(())
     }
 
+    fn size(&self, key: &str) -> Result<u64, StoreError> {
+        self.counters.head();
+        let objects = self.objects();
+        let object = objects.get(key).ok_or_else(|| StoreError::NotFound {
+            key: key.to_owned(),
+        })?;
+        Ok(object.len() as u64)
+    }
+
+    fn copy(&self, from: &str, to: &str) -> Result<(), StoreError> {
+        let mut objects = self.objects();
+        let copied = objects.get(from).cloned();
+        self.counters.put(0, copied.is_some());
+        let bytes = copied.ok_or_else(|| StoreError::NotFound {
+            key: from.to_owned(),
+        })?;
+        objects.insert(to.to_owned(), bytes);
+        Ok(())
+    }
+
     fn put_if_absent(&self, key: &str, bytes: &[u8]) -> Result<PutOutcome, StoreError> {
         let outcome = match self.objects().entry(key.to_owned()) {
             std::collections::btree_map::Entry::Occupied(_) => PutOutcome::AlreadyExists,

@@ -113,6 +113,21 @@ pub trait BlobStore: Send + Sync {
     /// Removes the object; deleting a missing key succeeds (S3 semantics).
     fn delete(&self, key: &str) -> Result<(), StoreError>;
 
+    /// The object's size in bytes, without its bytes (S3: HeadObject); [`StoreError::NotFound`]
+    /// naming the key if there is none. By default the length of a whole `get`.
+    fn size(&self, key: &str) -> Result<u64, StoreError> {
+        self.get(key).map(|bytes| bytes.len() as u64)
+    }
+
+    /// Stores a copy of object `from` under `to`, replacing any object there (S3: CopyObject,
+    /// inside the store, no bytes through the caller; at most
+    /// [`COPY_MAX_BYTES`] bytes); [`StoreError::NotFound`] naming `from` if there is none. By
+    /// default a `get` and a `put`.
+    fn copy(&self, from: &str, to: &str) -> Result<(), StoreError> {
+        let bytes = self.get(from)?;
+        self.put(to, &bytes)
+    }
+
     /// `get` of every key of `keys`, in order. A store whose requests wait on a network keeps up
     /// to [`PARALLEL_REQUESTS`] in flight at once, on the calling thread (so a task's memory
     /// count, which is per thread, sees the bytes); by default they run one after another.
@@ -129,6 +144,10 @@ pub trait BlobStore: Send + Sync {
             .collect()
     }
 }
+
+/// The largest object one [`BlobStore::copy`] copies: S3's CopyObject limit, 5 GiB (larger
+/// objects need a multipart copy, which this project does not do).
+pub const COPY_MAX_BYTES: u64 = hort_aws_quotas::S3_COPY_OBJECT_MAX_BYTES;
 
 /// How many requests [`BlobStore::get_many`] and [`BlobStore::put_many`] keep in flight on a
 /// store whose requests wait on a network: on S3 each waits tens of milliseconds for its first
@@ -192,6 +211,18 @@ macro_rules! forward_blob_store {
             }
             fn delete(&self, key: &str) -> Result<(), StoreError> {
                 (**self).delete(key)
+            }
+            fn size(&self, key: &str) -> Result<u64, StoreError> {
+                (**self).size(key)
+            }
+            fn copy(&self, from: &str, to: &str) -> Result<(), StoreError> {
+                (**self).copy(from, to)
+            }
+            fn get_many(&self, keys: &[String]) -> Vec<Result<Vec<u8>, StoreError>> {
+                (**self).get_many(keys)
+            }
+            fn put_many(&self, objects: &[(String, Vec<u8>)]) -> Vec<Result<(), StoreError>> {
+                (**self).put_many(objects)
             }
         }
     )*};

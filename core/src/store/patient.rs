@@ -95,6 +95,14 @@ impl<S: BlobStore> BlobStore for PatientStore<S> {
         self.patiently(|| self.inner.delete(key))
     }
 
+    fn size(&self, key: &str) -> Result<u64, StoreError> {
+        self.patiently(|| self.inner.size(key))
+    }
+
+    fn copy(&self, from: &str, to: &str) -> Result<(), StoreError> {
+        self.patiently(|| self.inner.copy(from, to))
+    }
+
     /// All at once through the inner store's `get_many`; then each key whose first try failed
     /// retryably is tried again on its own, with the attempts left.
     fn get_many(&self, keys: &[String]) -> Vec<Result<Vec<u8>, StoreError>> {

@@ -63,6 +63,14 @@ impl<S: BlobStore> BlobStore for TimedStore<S> {
         self.timed(|s| s.delete(key))
     }
 
+    fn size(&self, key: &str) -> Result<u64, StoreError> {
+        self.timed(|s| s.size(key))
+    }
+
+    fn copy(&self, from: &str, to: &str) -> Result<(), StoreError> {
+        self.timed(|s| s.copy(from, to))
+    }
+
     fn get_many(&self, keys: &[String]) -> Vec<Result<Vec<u8>, StoreError>> {
         self.timed(|s| s.get_many(keys))
     }

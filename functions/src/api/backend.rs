@@ -3,6 +3,7 @@
 //! and background threads; a Lambda deployment would implement it over S3 and Step Functions.
 
 use std::collections::BTreeMap;
+use std::ops::Range;
 
 use hort_core::pipeline::PlanRequest;
 use serde::{Deserialize, Serialize};
@@ -105,14 +106,8 @@ pub struct StageProgress {
 pub struct JobSpec {
     /// How the scene is named in reports: the main file, or its key.
     pub scene_name: String,
-    /// The main file, relative to the scene's folder.
-    pub main: String,
-    /// Every file of the scene, relative to the scene's folder.
-    pub files: BTreeMap<String, Vec<u8>>,
-    /// The scene the request was checked with, in the binary scene format
-    /// ([`hort_core::scene::encode_scene_named`]): a backend that stores it instead of the files
-    /// spares the Plan function a second parse.
-    pub scene_bin: Vec<u8>,
+    /// The scene: files the request carried, or a key in the bucket.
+    pub scene: JobScene,
     /// Image size, samples, splits, spans (resolved and checked) and split mode.
     pub request: PlanRequest,
     /// The prediction the request was checked against.
@@ -125,6 +120,26 @@ pub struct JobSpec {
     /// The fingerprint of the request body ([`request_fingerprint`]), which a reused
     /// `Idempotency-Key` must match.
     pub request_fingerprint: String,
+}
+
+/// Where a job's scene is.
+#[derive(Clone, Debug)]
+pub enum JobScene {
+    /// Files the request carried, checked and parsed by the API.
+    Uploaded {
+        /// The main file, relative to the scene's folder.
+        main: String,
+        /// Every file of the scene, relative to the scene's folder.
+        files: BTreeMap<String, Vec<u8>>,
+        /// The scene the request was checked with, in the binary scene format
+        /// ([`hort_core::scene::encode_scene_named`]): a backend that stores it instead of the
+        /// files spares the Plan function a second parse.
+        scene_bin: Vec<u8>,
+    },
+    /// The main file's key in the bucket (the files it names beside it), sized but not loaded
+    /// by the API: the Plan function copies the scene into the job and plans it exactly, and
+    /// checks the budget (`max_cost_usd`) again on that plan.
+    Key(String),
 }
 
 /// The fingerprint of a `POST /renders` body: `fnv1a64-` and the 64-bit FNV-1a of its bytes in
@@ -206,6 +221,20 @@ impl ImageFormat {
 pub trait RenderBackend: Send + Sync {
     /// An object of the bucket, for scenes given by key; `None` if there is none.
     fn read_object(&self, key: &str) -> Result<Option<Vec<u8>>, ApiError>;
+
+    /// The size of an object of the bucket (a HEAD), `None` if there is none. By default the
+    /// length of [`RenderBackend::read_object`]'s bytes.
+    fn object_size(&self, key: &str) -> Result<Option<u64>, ApiError> {
+        Ok(self.read_object(key)?.map(|bytes| bytes.len() as u64))
+    }
+
+    /// Bytes `range` of an object of the bucket, clamped to its end (a range GET). By default
+    /// a slice of [`RenderBackend::read_object`]'s bytes.
+    fn read_object_range(&self, key: &str, range: Range<u64>) -> Result<Vec<u8>, ApiError> {
+        let bytes = self.read_object(key)?.unwrap_or_default();
+        let end = (range.end as usize).min(bytes.len());
+        Ok(bytes[(range.start as usize).min(end)..end].to_vec())
+    }
 
     /// What jobs run on, for predictions.
     fn prediction_model(&self) -> PredictionModel;

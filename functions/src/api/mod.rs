@@ -34,11 +34,12 @@ mod predict;
 mod projection;
 mod request;
 mod scene;
+mod scene_by_key;
 #[cfg(test)]
 mod tests;
 
 pub use backend::{
-    ImageFormat, JobSpec, JobState, JobStatus, RenderBackend, StageProgress, Submission,
+    ImageFormat, JobScene, JobSpec, JobState, JobStatus, RenderBackend, StageProgress, Submission,
     idempotency_key_expired, idempotency_key_reused, request_fingerprint,
 };
 pub use dashboard::{DASHBOARD_JOBS, escape_html, jobs_table, page};
@@ -57,15 +58,17 @@ pub use projection::{
     best_of, project,
 };
 pub use request::{MAX_JSON_DEPTH, RenderRequest, SceneSpec, parse_render_request};
-pub use scene::{LoadedScene, MAX_SCENE_FILES, SceneFiles, check_relative};
+pub use scene::{LoadedScene, MAX_SCENE_FILES, SceneFiles, check_relative, material_libraries};
+pub use scene_by_key::{ESTIMATE_BOUNDS, SceneEstimate, SizedScene, size_scene};
 
 use std::collections::BTreeMap;
 
 use hort_core::camera::Camera;
 use hort_core::ids::JobId;
+use hort_core::pipeline::estimate::estimated_plan;
 use hort_core::pipeline::{MAX_SPANS, MAX_SPLITS, PlanRequest, SplitMode, StoredOutputs};
 use hort_core::scene::{
-    DEFAULT_HEIGHT, DEFAULT_WIDTH, MAX_IMAGE_SIDE, MAX_PIXELS, MAX_SAMPLES, MAX_SPP,
+    DEFAULT_HEIGHT, DEFAULT_WIDTH, MAX_IMAGE_SIDE, MAX_PIXELS, MAX_SAMPLES, MAX_SPP, Scene,
 };
 use http::{HeaderMap, Method, Request, Response, StatusCode, header};
 use serde::Serialize;
@@ -474,6 +477,9 @@ struct DryRun<'a> {
     scene: &'a str,
     #[serde(flatten)]
     prediction: &'a Prediction,
+    /// How a scene given by key was sized (its plan is an estimate); absent otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    scene_estimate: Option<&'a SceneEstimate>,
     max_cost_usd: Option<f64>,
     warnings: &'a [String],
 }
@@ -500,15 +506,15 @@ fn post_renders(
     check_range("splits", request.splits, 1, MAX_SPLITS)?;
     check_range("spans", request.spans, 1, MAX_SPANS)?;
     let loaded = load_request_scene(backend, &request.scene)?;
-    let scene = &loaded.scene;
+    let scene = loaded.scene();
     let image = scene.image;
     let width = request.width.or(image.width).unwrap_or(DEFAULT_WIDTH);
     let height = request.height.or(image.height).unwrap_or(DEFAULT_HEIGHT);
     let spp = request.spp.or(image.spp).unwrap_or(1);
     check_size(width, height, spp, &request)?;
     Camera::new(&scene.camera_for(width, height), width, height)
-        .map_err(|e| ApiError::invalid_scene(format!("{}: {e}", loaded.files.name)))?;
-    let triangles = scene.mesh.triangle_count() as u64;
+        .map_err(|e| ApiError::invalid_scene(format!("{}: {e}", loaded.name())))?;
+    let triangles = loaded.triangles();
     let pixels = u64::from(width) * u64::from(height);
     // Tasks run on the deployed Worker: plan for its memory, never for more.
     let worker_memory_mb = backend.prediction_model().memory_mb;
@@ -550,8 +556,10 @@ fn post_renders(
     }
     let max_k = triangles.min(u64::from(MAX_SPLITS)) as u32;
     let max_s = pixels.min(u64::from(MAX_SPANS)) as u32;
+    // A scene by key has an estimated count only: the Plan function checks its splits.
     if let Some(k) = request.splits
         && k > max_k
+        && matches!(loaded, RequestScene::Loaded(_))
     {
         return Err(ApiError::invalid_field(
             "splits",
@@ -572,7 +580,18 @@ fn post_renders(
     }
     let (shape, s) = hort_core::pipeline::resolve_counts(&plan_request, triangles)
         .map_err(|e| ApiError::invalid_field("splits", e.to_string()))?;
-    let plan = preview_plan(scene, &plan_request, &shape, s)?;
+    let plan = match &loaded {
+        RequestScene::Loaded(loaded) => preview_plan(&loaded.scene, &plan_request, &shape, s)?,
+        RequestScene::ByKey(sized) => estimated_plan(
+            &sized.scene,
+            sized.estimate.triangles,
+            sized.estimate.obj_bytes,
+            &plan_request,
+            ESTIMATE_BOUNDS,
+            SPLIT_BYTES_PER_TRIANGLE + SPLIT_NORMAL_BYTES_PER_TRIANGLE,
+        )
+        .map_err(|e| ApiError::invalid_scene(format!("{}: {e}", sized.key)))?,
+    };
     let prediction = backend.predict(&plan);
     if let Some(budget) = request.max_cost_usd
         && prediction.predicted_cost_usd > budget
@@ -591,22 +610,35 @@ fn post_renders(
             StatusCode::OK,
             &DryRun {
                 dry_run: true,
-                scene: &loaded.files.name,
+                scene: loaded.name(),
                 prediction: &prediction,
+                scene_estimate: match &loaded {
+                    RequestScene::ByKey(sized) => Some(&sized.estimate),
+                    RequestScene::Loaded(_) => None,
+                },
                 max_cost_usd: request.max_cost_usd,
-                warnings: &loaded.warnings,
+                warnings: loaded.warnings(),
             },
         );
     }
-    let scene_bin = hort_core::scene::encode_scene_named(&loaded.scene, &loaded.files.main);
-    let LoadedScene {
-        files, warnings, ..
-    } = loaded;
+    let (scene_name, scene, warnings) = match loaded {
+        RequestScene::Loaded(loaded) => {
+            let scene_bin = hort_core::scene::encode_scene_named(&loaded.scene, &loaded.files.main);
+            let LoadedScene {
+                files, warnings, ..
+            } = loaded;
+            let scene = JobScene::Uploaded {
+                main: files.main,
+                files: files.files,
+                scene_bin,
+            };
+            (files.name, scene, warnings)
+        }
+        RequestScene::ByKey(sized) => (sized.key.clone(), JobScene::Key(sized.key), Vec::new()),
+    };
     let spec = JobSpec {
-        scene_name: files.name,
-        main: files.main,
-        files: files.files,
-        scene_bin,
+        scene_name,
+        scene,
         request: plan_request,
         prediction: prediction.clone(),
         max_cost_usd: request.max_cost_usd,
@@ -667,12 +699,54 @@ fn check_size(width: u32, height: u32, spp: u32, request: &RenderRequest) -> Res
     Ok(())
 }
 
-/// Gathers and loads the request's scene: inline files, or the key's object and the files it
-/// names beside it in the bucket.
+/// The request's scene, as far as the API reads it.
+enum RequestScene {
+    /// Inline files, gathered and loaded.
+    Loaded(LoadedScene),
+    /// A scene given by key, sized and never loaded.
+    ByKey(SizedScene),
+}
+
+impl RequestScene {
+    /// The scene: whole, or without geometry (by key).
+    fn scene(&self) -> &Scene {
+        match self {
+            RequestScene::Loaded(loaded) => &loaded.scene,
+            RequestScene::ByKey(sized) => &sized.scene,
+        }
+    }
+
+    /// How messages and reports name it: the main file, or the key.
+    fn name(&self) -> &str {
+        match self {
+            RequestScene::Loaded(loaded) => &loaded.files.name,
+            RequestScene::ByKey(sized) => &sized.key,
+        }
+    }
+
+    /// Its triangles: counted, or estimated (by key).
+    fn triangles(&self) -> u64 {
+        match self {
+            RequestScene::Loaded(loaded) => loaded.scene.mesh.triangle_count() as u64,
+            RequestScene::ByKey(sized) => sized.estimate.triangles,
+        }
+    }
+
+    /// The loader's warnings (none for a scene not loaded).
+    fn warnings(&self) -> &[String] {
+        match self {
+            RequestScene::Loaded(loaded) => &loaded.warnings,
+            RequestScene::ByKey(_) => &[],
+        }
+    }
+}
+
+/// Gathers and loads the request's inline scene, or sizes the scene given by key (see
+/// [`scene_by_key`]).
 fn load_request_scene(
     backend: &dyn RenderBackend,
     spec: &SceneSpec,
-) -> Result<LoadedScene, ApiError> {
+) -> Result<RequestScene, ApiError> {
     match (&spec.main, &spec.files, &spec.key) {
         (Some(main), Some(files), None) => {
             check_relative(main, "scene.main")
@@ -711,31 +785,12 @@ fn load_request_scene(
                 },
                 "",
             )
+            .map(RequestScene::Loaded)
         }
         (None, None, Some(key)) => {
             check_relative(key, "scene.key")
                 .map_err(|m| ApiError::invalid_field("scene.key", format!("scene.key: {m}")))?;
-            let (folder, main) = match key.rsplit_once('/') {
-                Some((folder, main)) => (format!("{folder}/"), main.to_owned()),
-                None => (String::new(), key.clone()),
-            };
-            if backend.read_object(key)?.is_none() {
-                return Err(ApiError::invalid_field(
-                    "scene.key",
-                    format!("scene.key: there is no object {key} in the bucket"),
-                ));
-            }
-            let gathered = scene::gather(&main, &|name| format!("{folder}{name}"), &mut |name| {
-                backend.read_object(&format!("{folder}{name}"))
-            })?;
-            scene::load(
-                SceneFiles {
-                    main,
-                    name: key.clone(),
-                    files: gathered,
-                },
-                &folder,
-            )
+            scene_by_key::size_scene(backend, key).map(RequestScene::ByKey)
         }
         _ => Err(ApiError::invalid_field(
             "scene",

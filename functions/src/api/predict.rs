@@ -40,12 +40,12 @@ use hort_core::ids::Stage;
 use hort_core::pipeline::{JobPlan, JobShape, PlanRequest, SplitInfo, assign_splits, plan_job};
 use hort_core::scene::{NO_NORMAL, Scene};
 use hort_core::store::PARALLEL_REQUESTS;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::error::ApiError;
 
 /// Reference costs of the work units, microseconds each, at `speed` 1.
-#[derive(Clone, Copy, Debug, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Rates {
     /// A job's fixed cost outside its stages: uploading the scene and the job request,
     /// starting the execution, reading the outputs back (ms).
@@ -125,7 +125,7 @@ pub const RATES: Rates = Rates {
 };
 
 /// What a backend runs jobs on.
-#[derive(Clone, Copy, Debug, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PredictionModel {
     /// Tasks running at once (function slots, or the Map states' concurrency).
     pub concurrency: u32,

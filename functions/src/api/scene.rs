@@ -139,7 +139,7 @@ pub fn gather(
 }
 
 /// The names after `mtllib` in OBJ text.
-fn material_libraries(obj: &[u8]) -> Vec<String> {
+pub fn material_libraries(obj: &[u8]) -> Vec<String> {
     let mut libs = Vec::new();
     for line in obj.split(|&b| b == b'\n') {
         let line = String::from_utf8_lossy(line);

@@ -32,10 +32,11 @@ use super::sfn::{ExecutionInput, ExecutionStatus, Executions, Listed, MapRun};
 use super::sqs::JobQueue;
 use crate::S3Store;
 use crate::api::{
-    ApiError, ImageAnswer, ImageFormat, JobSpec, JobState, JobStatus, PredictionModel, RATES,
-    RenderBackend, Submission, idempotency_key_expired, idempotency_key_reused, stored_image,
+    ApiError, ImageAnswer, ImageFormat, JobScene, JobSpec, JobState, JobStatus, PredictionModel,
+    RATES, RenderBackend, Submission, idempotency_key_expired, idempotency_key_reused,
+    stored_image,
 };
-use crate::handlers::JobRequest;
+use crate::handlers::{BudgetCheck, JobRequest};
 
 /// What a deployment's jobs run with, for the job requests and the predictions.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -136,20 +137,40 @@ impl AwsBackend {
             .map_err(|e| ApiError::internal(format!("the record {key} is malformed: {e}")))
     }
 
-    /// Stores the scene (the binary scene the API parsed and checked, so the Plan function
-    /// decodes it and never parses the files again) and the job request of `spec` as job `job`.
+    /// Stores the scene and the job request of `spec` as job `job`: the binary scene the API
+    /// parsed and checked (so the Plan function decodes it and never parses the files again),
+    /// or, for a scene by key, nothing but the request naming the key (the Plan function
+    /// copies the scene into the job, and checks the budget again on its exact plan).
     fn store_job(&self, job: &JobId, spec: &JobSpec) -> Result<(), ApiError> {
-        self.store
-            .put(&scene_binary_key(job), &spec.scene_bin)
-            .map_err(|e| Self::storage_error("cannot store the scene", e))?;
-        let request = JobRequest {
-            scene: spec.main.clone(),
+        let mut request = JobRequest {
+            scene: String::new(),
             render: spec.request,
             max_concurrency: self.limits.max_concurrency,
             task_timeout_seconds: None,
             scene_format: crate::handlers::SceneFormat::Binary,
             scene_range_bytes: None,
+            scene_key: None,
+            budget: None,
         };
+        match &spec.scene {
+            JobScene::Uploaded {
+                main, scene_bin, ..
+            } => {
+                self.store
+                    .put(&scene_binary_key(job), scene_bin)
+                    .map_err(|e| Self::storage_error("cannot store the scene", e))?;
+                request.scene = main.clone();
+            }
+            JobScene::Key(key) => {
+                request.scene = key.rsplit('/').next().unwrap_or(key).to_owned();
+                request.scene_format = crate::handlers::SceneFormat::Files;
+                request.scene_key = Some(key.clone());
+                request.budget = spec.max_cost_usd.map(|max_cost_usd| BudgetCheck {
+                    max_cost_usd,
+                    model: self.prediction_model(),
+                });
+            }
+        }
         let json = serde_json::to_vec(&request)
             .map_err(|e| ApiError::internal(format!("cannot encode the job request: {e}")))?;
         self.store
@@ -299,6 +320,29 @@ impl RenderBackend for AwsBackend {
             Ok(bytes) => Ok(Some(bytes)),
             Err(StoreError::NotFound { .. }) => Ok(None),
             Err(e) => Err(Self::storage_error(&format!("cannot read {key}"), e)),
+        }
+    }
+
+    fn object_size(&self, key: &str) -> Result<Option<u64>, ApiError> {
+        match self.store.size(key) {
+            Ok(size) => Ok(Some(size)),
+            Err(StoreError::NotFound { .. }) => Ok(None),
+            Err(e) => Err(ApiError::internal(format!(
+                "cannot read the size of {key}: {e}"
+            ))),
+        }
+    }
+
+    fn read_object_range(
+        &self,
+        key: &str,
+        range: std::ops::Range<u64>,
+    ) -> Result<Vec<u8>, ApiError> {
+        match self.store.get_range(key, range) {
+            Ok(bytes) => Ok(bytes),
+            // Past the end of the object (it changed since its size was read): nothing there.
+            Err(StoreError::InvalidRange { .. }) => Ok(Vec::new()),
+            Err(e) => Err(ApiError::internal(format!("cannot read {key}: {e}"))),
         }
     }
 

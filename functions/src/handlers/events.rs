@@ -31,6 +31,26 @@ pub struct JobRequest {
     /// whole-scene load would not fit the function's memory.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub scene_range_bytes: Option<u64>,
+    /// A scene given by key in the bucket (`scenes/box/cornell.json`), which the HTTP API does
+    /// not load: the Plan function copies it and the files it names into `jobs/{job}/scene/`
+    /// (see `handlers/stage_in.rs`) before anything else, and `scene` is its file name there.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scene_key: Option<String>,
+    /// The budget to check again on the exact plan: set when the job was accepted on a plan
+    /// estimated from the scene's sizes (a scene given by key), so the Plan function refuses a
+    /// job whose loaded scene costs more than its `max_cost_usd` before any Map runs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub budget: Option<BudgetCheck>,
+}
+
+/// The budget a job was accepted under, and the model its cost was predicted with.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BudgetCheck {
+    /// The request's `max_cost_usd`.
+    pub max_cost_usd: f64,
+    /// What the API predicted the cost with (the deployment's concurrency, memory, rates).
+    pub model: crate::api::PredictionModel,
 }
 
 /// How a job's scene is stored (the job request's `scene_format`).

@@ -10,18 +10,23 @@
 //! state machine: the consuming task recomputes them from lineage (their producer task, or the
 //! job's scene) first.
 
+mod budget;
 mod dispatch;
 mod events;
 mod lost;
 mod plan;
 mod plan_parts;
+mod stage_in;
 mod tmp;
 mod worker;
 
 pub use dispatch::{Function, FunctionEnv, Invoked, TaskDone, dispatch};
-pub use events::{JobRequest, PlanEvent, PlanOutput, PlanStep, SceneFormat, TaskItem, WorkerEvent};
+pub use events::{
+    BudgetCheck, JobRequest, PlanEvent, PlanOutput, PlanStep, SceneFormat, TaskItem, WorkerEvent,
+};
 pub use lost::{LostEvent, LostItem, LostOutput, handle_lost};
 pub use plan::{handle_plan, handle_plan_measured, scene_prefix};
+pub use stage_in::MAX_MANIFEST_BYTES;
 pub use tmp::Tmp;
 pub use worker::handle_worker;
 

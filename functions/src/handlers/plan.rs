@@ -63,6 +63,7 @@ pub fn handle_plan_measured(
             )));
         }
     }
+    super::stage_in::stage_in(&store, job, &read_request(&store, job)?)?;
     let label = format!("plan-{}", event.attempt);
     let (request, scene) = match super::plan_parts::load_or_scan(&store, job, tmp, &label)? {
         super::plan_parts::Loaded::Whole(loaded) => *loaded,
@@ -78,6 +79,17 @@ pub fn handle_plan_measured(
         }
     };
     let decode_us = micros(started.elapsed()).saturating_sub(store.waited_us());
+    if request.budget.is_some() {
+        // The cheap plan the API would have checked an uploaded scene with: no split is built
+        // before the budget holds.
+        let (shape, s) = hort_core::pipeline::resolve_counts(
+            &request.render,
+            scene.mesh.triangle_count() as u64,
+        )?;
+        let preview = crate::api::preview_plan(&scene, &request.render, &shape, s)
+            .map_err(|e| HandlerError::bad_input(e.message))?;
+        super::budget::check_budget(&request, &preview)?;
+    }
     let planned = plan_into_store(&store, job, &scene, &request.render)?;
     let plan = planned.plan;
     let output = write_round(&store, job, &plan, &request, None)?;

@@ -53,13 +53,31 @@ pub(super) fn load_or_scan(
         let range = request
             .scene_range_bytes
             .or_else(|| scene_range_bytes(bytes, request.render.memory_mb));
-        match range {
+        let loaded = match range {
             Some(range) => scan(store, job, &request, dir, main, range).map(Loaded::Scanned),
             None => load_scene(main)
                 .map(|scene| Loaded::Whole(Box::new((request.clone(), scene))))
                 .map_err(|e| HandlerError::bad_input(e.to_string())),
-        }
+        };
+        loaded.map_err(|e| shown_as_given(e, dir, &request))
     })
+}
+
+/// `e` with the scratch folder `dir` in its message replaced by where the user's files are:
+/// the folder of the request's `scene_key`, or nothing (names relative to the scene's folder).
+fn shown_as_given(e: HandlerError, dir: &Path, request: &JobRequest) -> HandlerError {
+    let folder = match request
+        .scene_key
+        .as_deref()
+        .and_then(|k| k.rsplit_once('/'))
+    {
+        Some((folder, _)) => format!("{folder}/"),
+        None => String::new(),
+    };
+    HandlerError {
+        cause: e.cause.replace(&format!("{}/", dir.display()), &folder),
+        ..e
+    }
 }
 
 /// Bytes of the files under `dir` (recursively).
@@ -85,14 +103,7 @@ fn scan(
     range: u64,
 ) -> Result<PlanOutput, HandlerError> {
     // Files are named as the user named them, relative to the scene's folder.
-    let folder = format!("{}/", dir.display());
-    let table = scan_scene(store, job, dir, main, range).map_err(|e| {
-        let e = HandlerError::from(e);
-        HandlerError {
-            cause: e.cause.replace(&folder, ""),
-            ..e
-        }
-    })?;
+    let table = scan_scene(store, job, dir, main, range)?;
     let (shape, _) = resolve_counts(&request.render, table.triangles)?;
     let timeout = parts_timeout_seconds(range >> 22);
     let ranges = table.ranges.len() as u32;
@@ -138,6 +149,7 @@ pub(super) fn finish_step(
 ) -> Result<(PlanOutput, TaskMetrics), HandlerError> {
     let request = read_request(store, job)?;
     let plan = plan_from_stored_parts(store, job, &request, tmp)?;
+    super::budget::check_budget(&request, &plan)?;
     let output = write_round(store, job, &plan, &request, None)?;
     Ok((output, step_metrics(store, started)))
 }

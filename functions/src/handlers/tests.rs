@@ -7,7 +7,7 @@ use hort_core::keys::{hits_key, items_key, manifest_key, scene_binary_key, scene
 use hort_core::pipeline::{PlanRequest, SplitCache, SplitMode, StoredOutputs};
 use hort_core::store::{BlobStore, MemoryStore};
 
-fn request(scene: &str) -> JobRequest {
+pub(super) fn request(scene: &str) -> JobRequest {
     JobRequest {
         scene: scene.into(),
         render: PlanRequest {
@@ -26,6 +26,8 @@ fn request(scene: &str) -> JobRequest {
         task_timeout_seconds: None,
         scene_format: SceneFormat::Files,
         scene_range_bytes: None,
+        scene_key: None,
+        budget: None,
     }
 }
 
@@ -210,6 +212,8 @@ fn submitted_binary(job: &str) -> MemoryStore {
     let request = JobRequest {
         scene_format: SceneFormat::Binary,
         scene_range_bytes: None,
+        scene_key: None,
+        budget: None,
         ..request("cornell.json")
     };
     store
@@ -401,6 +405,8 @@ fn the_job_request_reads_old_json_and_writes_files_format_as_before() {
     let binary = JobRequest {
         scene_format: SceneFormat::Binary,
         scene_range_bytes: None,
+        scene_key: None,
+        budget: None,
         ..request
     };
     let json = serde_json::to_value(&binary).unwrap();
@@ -847,4 +853,83 @@ fn a_scene_copy_that_would_not_fit_tmp_is_refused_naming_both_sizes() {
         limit_bytes: Some(1 << 20),
     };
     handle_plan(&store, "b", &plan_event("j1"), roomy).unwrap();
+}
+
+/// A store holding the bundled Cornell room under `scenes/box/` and a job request naming it by
+/// key, with `budget`.
+fn submitted_by_key(job: &str, budget: Option<BudgetCheck>) -> MemoryStore {
+    let store = MemoryStore::new();
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/cornell");
+    for file in ["cornell.json", "cornell.obj", "cornell.mtl"] {
+        let bytes = std::fs::read(format!("{dir}/{file}")).unwrap();
+        store.put(&format!("scenes/box/{file}"), &bytes).unwrap();
+    }
+    let request = JobRequest {
+        scene_key: Some("scenes/box/cornell.json".into()),
+        budget,
+        ..request("cornell.json")
+    };
+    let json = serde_json::to_vec(&request).unwrap();
+    store
+        .put(&manifest_key(&JobId::new(job).unwrap()), &json)
+        .unwrap();
+    store
+}
+
+#[test]
+fn a_scene_by_key_is_copied_into_its_job_and_planned_as_if_uploaded() {
+    let tmp = std::env::temp_dir();
+    let uploaded = submitted("j1");
+    handle_plan(&uploaded, "b", &plan_event("j1"), Tmp::unlimited(&tmp)).unwrap();
+    let by_key = submitted_by_key("j1", None);
+    handle_plan(&by_key, "b", &plan_event("j1"), Tmp::unlimited(&tmp)).unwrap();
+    for key in uploaded.list("jobs/j1/").unwrap() {
+        if key != manifest_key(&JobId::new("j1").unwrap()) {
+            assert_eq!(by_key.get(&key).ok(), uploaded.get(&key).ok(), "{key}");
+        }
+    }
+    assert_eq!(
+        by_key.list("jobs/j1/").unwrap().len(),
+        uploaded.list("jobs/j1/").unwrap().len()
+    );
+}
+
+#[test]
+fn a_scene_by_key_is_refused_at_plan_naming_its_key_or_its_budget() {
+    let tmp = std::env::temp_dir();
+    let store = submitted_by_key("j1", None);
+    store
+        .put(
+            "scenes/box/cornell.obj",
+            b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n",
+        )
+        .unwrap();
+    let e = handle_plan(&store, "b", &plan_event("j1"), Tmp::unlimited(&tmp)).unwrap_err();
+    assert_eq!(
+        e.cause,
+        "scenes/box/cornell.obj:4: face refers to vertex 9, but only 3 vertices are defined so far"
+    );
+    assert_eq!(e.error_type, ErrorType::BadInput);
+
+    let budget = BudgetCheck {
+        max_cost_usd: 1e-9,
+        model: crate::api::PredictionModel::reference(4),
+    };
+    let store = submitted_by_key("j1", Some(budget));
+    let e = handle_plan(&store, "b", &plan_event("j1"), Tmp::unlimited(&tmp)).unwrap_err();
+    assert!(
+        e.cause.starts_with("the predicted cost $")
+            && e.cause.contains(" of the scene as loaded (36 triangles, ")
+            && e.cause.ends_with(
+                " is over the budget max_cost_usd = $0.00000000100: the job was accepted on an \
+                 estimate from the scene's file sizes; raise the budget or render fewer pixels \
+                 or samples"
+            ),
+        "{}",
+        e.cause
+    );
+    assert!(
+        store.list("jobs/j1/splits/").unwrap().is_empty(),
+        "no split is built before the budget holds"
+    );
 }

@@ -10,7 +10,7 @@
 //!   and max-keys as S3 defines them), since the stored names sort differently from the keys.
 //!
 //! Only the operations the project's S3 client uses are forwarded (bucket create/head/delete/
-//! list/location, object put/get/head/delete, DeleteObjects of at most 1,000 keys as on AWS,
+//! list/location, object put/get/head/delete/copy, DeleteObjects of at most 1,000 keys as on AWS,
 //! ListObjects v1 and v2); the rest answer
 //! `NotImplemented`. Keys that path normalisation would alter (`a//b`, `./a`, `a/../b`) are
 //! outside the S3 subset this server supports.
@@ -19,12 +19,13 @@ use std::collections::BTreeSet;
 use std::path::PathBuf;
 
 use s3s::dto::{
-    CommonPrefix, CreateBucketInput, CreateBucketOutput, DeleteBucketInput, DeleteBucketOutput,
-    DeleteObjectInput, DeleteObjectOutput, DeleteObjectsInput, DeleteObjectsOutput,
-    GetBucketLocationInput, GetBucketLocationOutput, GetObjectInput, GetObjectOutput,
-    HeadBucketInput, HeadBucketOutput, HeadObjectInput, HeadObjectOutput, ListBucketsInput,
-    ListBucketsOutput, ListObjectsInput, ListObjectsOutput, ListObjectsV2Input,
-    ListObjectsV2Output, Object, PutObjectInput, PutObjectOutput,
+    CommonPrefix, CopyObjectInput, CopyObjectOutput, CopySource, CreateBucketInput,
+    CreateBucketOutput, DeleteBucketInput, DeleteBucketOutput, DeleteObjectInput,
+    DeleteObjectOutput, DeleteObjectsInput, DeleteObjectsOutput, GetBucketLocationInput,
+    GetBucketLocationOutput, GetObjectInput, GetObjectOutput, HeadBucketInput, HeadBucketOutput,
+    HeadObjectInput, HeadObjectOutput, ListBucketsInput, ListBucketsOutput, ListObjectsInput,
+    ListObjectsOutput, ListObjectsV2Input, ListObjectsV2Output, Object, PutObjectInput,
+    PutObjectOutput,
 };
 use s3s::{S3, S3Request, S3Response, S3Result, s3_error};
 use tokio::sync::RwLock;
@@ -270,6 +271,33 @@ impl S3 for ObjectFiles {
             let _shared = self.puts.read().await;
             self.files.put_object(req).await
         }
+    }
+
+    /// CopyObject of a source in a bucket of this server (as `s3s-fs` copies it, with both keys
+    /// encoded); a source over S3's 5 GiB single-copy limit is refused with S3's error.
+    async fn copy_object(
+        &self,
+        mut req: S3Request<CopyObjectInput>,
+    ) -> S3Result<S3Response<CopyObjectOutput>> {
+        self.require_bucket(&req.input.bucket)?;
+        let CopySource::Bucket { bucket, key, .. } = &mut req.input.copy_source else {
+            return Err(s3_error!(NotImplemented, "only bucket/key copy sources"));
+        };
+        self.require_bucket(bucket)?;
+        *key = file_of_key(key).into();
+        let source = self.root.join(&**bucket).join(&**key);
+        let len = std::fs::metadata(&source).map_or(0, |m| m.len());
+        if len > hort_aws_quotas::S3_COPY_OBJECT_MAX_BYTES {
+            return Err(s3_error!(
+                InvalidRequest,
+                "The specified copy source is larger than the maximum allowable size for a copy \
+                 source: {}",
+                hort_aws_quotas::S3_COPY_OBJECT_MAX_BYTES
+            ));
+        }
+        req.input.key = file_of_key(&req.input.key);
+        let _shared = self.puts.read().await;
+        self.files.copy_object(req).await
     }
 
     async fn delete_object(

@@ -42,7 +42,7 @@ use hort_core::pipeline::{JobOutputs, JobPlan, PlanRequest, read_outputs};
 use hort_core::report::StageReport;
 use hort_core::scene::{Scene, load_scene};
 use hort_core::store::{BlobStore, PatientStore, StoreError};
-use hort_functions::handlers::{JobRequest, SceneFormat};
+use hort_functions::handlers::{BudgetCheck, JobRequest, SceneFormat};
 use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -225,6 +225,59 @@ pub fn run_job_loaded(
     settings: PlanRequest,
     observer: &dyn Observer,
 ) -> Result<EmulatorRun> {
+    run_job_of(
+        config,
+        options,
+        SceneInput::File {
+            path: scene,
+            loaded,
+        },
+        settings,
+        observer,
+    )
+}
+
+/// [`run_job_with`] for a scene already in the bucket at `key` (and the files it names beside
+/// it): nothing is uploaded or loaded here; the Plan function copies it into the job, as it does
+/// for a scene the HTTP API accepted by key, and checks `budget` (if any) on its exact plan.
+pub fn run_job_by_key(
+    config: &EmulatorConfig,
+    options: JobOptions,
+    key: &str,
+    budget: Option<BudgetCheck>,
+    settings: PlanRequest,
+    observer: &dyn Observer,
+) -> Result<EmulatorRun> {
+    run_job_of(
+        config,
+        options,
+        SceneInput::Key { key, budget },
+        settings,
+        observer,
+    )
+}
+
+/// Where a job's scene comes from.
+enum SceneInput<'a> {
+    /// A file on this machine (loaded already, or not, see [`run_job_loaded`]).
+    File {
+        path: &'a Path,
+        loaded: Option<&'a Scene>,
+    },
+    /// A key in the bucket, with the budget to check on the exact plan.
+    Key {
+        key: &'a str,
+        budget: Option<BudgetCheck>,
+    },
+}
+
+fn run_job_of(
+    config: &EmulatorConfig,
+    options: JobOptions,
+    input: SceneInput<'_>,
+    settings: PlanRequest,
+    observer: &dyn Observer,
+) -> Result<EmulatorRun> {
     let started = Instant::now();
     let reserved = config
         .functions
@@ -240,6 +293,10 @@ pub fn run_job_loaded(
     }
     let storage = Storage::open_scaled(&config.storage, config.time_scale)?;
     let job = JobId::new(config.job.clone().unwrap_or_else(fresh_job_id))?;
+    let (scene, loaded) = match &input {
+        SceneInput::File { path, loaded } => (*path, *loaded),
+        SceneInput::Key { key, .. } => (Path::new(*key), None),
+    };
     let request = JobRequest {
         scene: scene
             .file_name()
@@ -250,13 +307,25 @@ pub fn run_job_loaded(
         max_concurrency: config.workers as u32,
         task_timeout_seconds: config.task_timeout_seconds,
         // A scene split by tasks goes up as its files (the partition tasks read byte ranges
-        // of them); any other goes up parsed, so no function parses it again.
-        scene_format: if splits_by_tasks(scene, settings.memory_mb, options.scene_range_bytes) {
-            SceneFormat::Files
-        } else {
-            SceneFormat::Binary
+        // of them); any other goes up parsed, so no function parses it again. A scene by key
+        // is copied as its files.
+        scene_format: match input {
+            SceneInput::File { path, .. }
+                if !splits_by_tasks(path, settings.memory_mb, options.scene_range_bytes) =>
+            {
+                SceneFormat::Binary
+            }
+            _ => SceneFormat::Files,
         },
         scene_range_bytes: options.scene_range_bytes,
+        scene_key: match input {
+            SceneInput::Key { key, .. } => Some(key.to_owned()),
+            SceneInput::File { .. } => None,
+        },
+        budget: match input {
+            SceneInput::Key { budget, .. } => budget,
+            SceneInput::File { .. } => None,
+        },
     };
     let store = storage.blob_store();
     // The client's own requests (upload, items, outputs) have no state machine to retry them:

@@ -240,8 +240,11 @@ pub fn submit_or_resume(
         if resume {
             bail!("job \"{job}\" does not exist in this bucket: there is nothing to resume");
         }
-        for object in scene_objects(job, main, scene, request, request.scene_format)? {
-            store.put(&object.key, &object.bytes)?;
+        // A scene by key is copied into the job by the Plan function.
+        if request.scene_key.is_none() {
+            for object in scene_objects(job, main, scene, request, request.scene_format)? {
+                store.put(&object.key, &object.bytes)?;
+            }
         }
         let json = serde_json::to_vec_pretty(request).context("job request")?;
         return match store.put_if_absent(&manifest_key(job), &json)? {

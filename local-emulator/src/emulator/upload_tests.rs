@@ -40,6 +40,8 @@ fn request(format: SceneFormat) -> JobRequest {
         task_timeout_seconds: None,
         scene_format: format,
         scene_range_bytes: None,
+        scene_key: None,
+        budget: None,
     }
 }
 

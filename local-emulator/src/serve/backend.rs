@@ -20,8 +20,8 @@ use anyhow::{Context, Result};
 use asl_interpreter::{Event, FunctionLimits, Observer};
 use hort::deployment::Deployment;
 use hort::emulator::{
-    EmulatorConfig, EmulatorRun, FaultSettings, JobOptions, Storage, StorageTarget, run_job_with,
-    stage_name,
+    EmulatorConfig, EmulatorRun, FaultSettings, JobOptions, Storage, StorageTarget, run_job_by_key,
+    run_job_with, stage_name,
 };
 use hort_core::cost::Arch;
 use hort_core::ids::{JobId, Stage};
@@ -30,9 +30,10 @@ use hort_core::pipeline::PlanRequest;
 use hort_core::report::{Outputs, RayReport, Report, Seconds};
 use hort_core::store::{BlobStore, CountingStore, StoreError};
 use hort_functions::api::{
-    ApiError, ImageAnswer, ImageFormat, JobSpec, JobState, JobStatus, PredictionModel,
+    ApiError, ImageAnswer, ImageFormat, JobScene, JobSpec, JobState, JobStatus, PredictionModel,
     RenderBackend, StageProgress, Submission, idempotency_key_reused, stored_image,
 };
+use hort_functions::handlers::BudgetCheck;
 use hort_functions::{S3Config, S3Store};
 use serde::{Deserialize, Serialize};
 
@@ -251,6 +252,11 @@ impl Shared {
             .put(&status_key(&record.job), &json)
             .map_err(|e| ApiError::internal(format!("cannot store the job record: {e}")))
     }
+
+    /// What the jobs' costs are predicted with: the reference rates at this server's workers.
+    fn prediction_model(&self) -> PredictionModel {
+        PredictionModel::reference(self.workers as u32)
+    }
 }
 
 /// The emulator as a [`RenderBackend`].
@@ -390,8 +396,31 @@ impl RenderBackend for EmulatorBackend {
         }
     }
 
+    fn object_size(&self, key: &str) -> Result<Option<u64>, ApiError> {
+        match self.shared.store.size(key) {
+            Ok(size) => Ok(Some(size)),
+            Err(StoreError::NotFound { .. }) => Ok(None),
+            Err(e) => Err(ApiError::internal(format!(
+                "cannot read the size of {key}: {e}"
+            ))),
+        }
+    }
+
+    fn read_object_range(
+        &self,
+        key: &str,
+        range: std::ops::Range<u64>,
+    ) -> Result<Vec<u8>, ApiError> {
+        match self.shared.store.get_range(key, range) {
+            Ok(bytes) => Ok(bytes),
+            // Past the end of the object (it changed since its size was read): nothing there.
+            Err(StoreError::InvalidRange { .. }) => Ok(Vec::new()),
+            Err(e) => Err(ApiError::internal(format!("cannot read {key}: {e}"))),
+        }
+    }
+
     fn prediction_model(&self) -> PredictionModel {
-        PredictionModel::reference(self.shared.workers as u32)
+        self.shared.prediction_model()
     }
 
     fn submit(&self, spec: JobSpec) -> Result<Submission, ApiError> {
@@ -536,7 +565,7 @@ fn run(shared: &Shared, job: &Job, spec: &JobSpec) {
             r.started_unix_us = Some(now_unix_us());
             let _ = shared.save(&mut r);
         }
-        Some(write_scene(&folder, spec).and_then(|main| {
+        Some({
             let config = EmulatorConfig {
                 storage: StorageTarget::Bucket(shared.s3.clone()),
                 job: Some(id.clone()),
@@ -552,14 +581,30 @@ fn run(shared: &Shared, job: &Job, spec: &JobSpec) {
                 // One account: the jobs share the functions' reserved concurrency.
                 functions: shared.functions.clone(),
             };
-            run_job_with(
-                &config,
-                JobOptions::default(),
-                &main,
-                spec.request,
-                &job.live,
-            )
-        }))
+            match &spec.scene {
+                JobScene::Uploaded { main, files, .. } => write_scene(&folder, main, files)
+                    .and_then(|main| {
+                        run_job_with(
+                            &config,
+                            JobOptions::default(),
+                            &main,
+                            spec.request,
+                            &job.live,
+                        )
+                    }),
+                JobScene::Key(key) => run_job_by_key(
+                    &config,
+                    JobOptions::default(),
+                    key,
+                    spec.max_cost_usd.map(|max_cost_usd| BudgetCheck {
+                        max_cost_usd,
+                        model: shared.prediction_model(),
+                    }),
+                    spec.request,
+                    &job.live,
+                ),
+            }
+        })
     };
     let _ = std::fs::remove_dir_all(&folder);
     let cancelled = job.cancel.load(Ordering::SeqCst);
@@ -620,9 +665,9 @@ fn run(shared: &Shared, job: &Job, spec: &JobSpec) {
     job.mark_ended();
 }
 
-/// Writes the scene's files under `folder`; the main file's path.
-fn write_scene(folder: &Path, spec: &JobSpec) -> Result<PathBuf> {
-    for (name, bytes) in &spec.files {
+/// Writes the scene's `files` under `folder`; the path of the main file `main`.
+fn write_scene(folder: &Path, main: &str, files: &BTreeMap<String, Vec<u8>>) -> Result<PathBuf> {
+    for (name, bytes) in files {
         let path = folder.join(name);
         if let Some(parent) = path.parent() {
             std::fs::create_dir_all(parent)
@@ -630,7 +675,7 @@ fn write_scene(folder: &Path, spec: &JobSpec) -> Result<PathBuf> {
         }
         std::fs::write(&path, bytes).with_context(|| format!("cannot write {}", path.display()))?;
     }
-    Ok(folder.join(&spec.main))
+    Ok(folder.join(main))
 }
 
 /// Deletes every object of a cancelled job but its job request (`manifest.json`, the job's
