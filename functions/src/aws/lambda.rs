@@ -13,6 +13,7 @@
 //! | `HORT_QUEUE_URL` | api | the intake queue (required) |
 //! | `HORT_MAX_CONCURRENCY` | api | the Map concurrency of submitted jobs (default 0: no limit) |
 //! | `HORT_WORKER_MEMORY_MB` | plan, api | the Worker's memory: the API's default and most for `memory_mb` (default 2048), the most the Plan function plans tasks for |
+//! | `AWS_LAMBDA_FUNCTION_MEMORY_SIZE` | worker | set by Lambda: the Worker's own memory; a task of a plan for more is refused before any work, naming both |
 //! | `HORT_TMP_MB` | plan, worker | the size of the function's `/tmp` (its `EphemeralStorage`), MB: a scene copy that would not fit is refused, naming both sizes (default: not checked) |
 //! | `HORT_S3_ENDPOINT` | plan, worker, api | an S3-compatible server instead of AWS S3 (local runs), path-style |
 //! | `HORT_AWS_ENDPOINT` | starter, api | a server for the SQS and Step Functions APIs instead of AWS (local runs) |
@@ -70,8 +71,9 @@ pub struct FunctionSettings {
     pub split_cache_bytes: u64,
     /// An S3-compatible endpoint instead of AWS S3.
     pub s3_endpoint: Option<String>,
-    /// The Worker function's memory, MB, the most the Plan function plans tasks for: its
-    /// [`WORKER_MEMORY_VAR`] (set by the template); `None` when unset, and for the Worker.
+    /// The Worker function's memory, MB, the most a job's tasks may be planned for: for the
+    /// Plan function its [`WORKER_MEMORY_VAR`] (set by the template), for the Worker its own
+    /// [`MEMORY_VAR`] (set by Lambda); `None` when unset.
     pub worker_memory_mb: Option<u32>,
     /// The size of `/tmp` in bytes ([`TMP_VAR`]); `None` when unset (not checked).
     pub tmp_bytes: Option<u64>,
@@ -99,14 +101,17 @@ impl FunctionSettings {
                 mb << 20
             }
         };
-        let worker_memory_mb = match (function, var(WORKER_MEMORY_VAR)) {
-            (Function::Plan, Some(mb)) => Some(
-                u32::try_from(parse_mb(WORKER_MEMORY_VAR, &mb)?).map_err(|_| {
-                    format!("{WORKER_MEMORY_VAR}={mb:?} is not a memory size in MB")
-                })?,
-            ),
-            _ => None,
+        // The Plan function is told the Worker's memory; the Worker knows its own.
+        let memory_var = match function {
+            Function::Plan => WORKER_MEMORY_VAR,
+            Function::Worker => MEMORY_VAR,
         };
+        let worker_memory_mb = var(memory_var)
+            .map(|mb| {
+                u32::try_from(parse_mb(memory_var, &mb)?)
+                    .map_err(|_| format!("{memory_var}={mb:?} is not a memory size in MB"))
+            })
+            .transpose()?;
         Ok(FunctionSettings {
             bucket,
             split_cache_bytes,
@@ -386,8 +391,14 @@ mod tests {
         assert_eq!(s.split_cache_bytes, 1024 << 20);
         assert_eq!(s.s3_endpoint, None);
         assert_eq!(s.s3_config().endpoint, None);
+        assert_eq!(s.worker_memory_mb, None);
         let s = worker(&[("HORT_BUCKET", "b"), (MEMORY_VAR, "1024")]).unwrap();
         assert_eq!(s.split_cache_bytes, 512 << 20, "half the memory");
+        assert_eq!(
+            s.worker_memory_mb,
+            Some(1024),
+            "the Worker's own memory, from Lambda"
+        );
         let s = worker(&[
             ("HORT_BUCKET", "b"),
             (MEMORY_VAR, "1024"),

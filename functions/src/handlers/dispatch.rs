@@ -11,7 +11,7 @@ use serde_json::Value;
 
 use super::events::{PlanEvent, PlanStep, WorkerEvent};
 use super::lost::{LostEvent, handle_lost, is_lost_event};
-use super::plan::check_worker_memory;
+use super::plan::{check_plan_memory, check_worker_memory};
 use super::{BlobStore, HandlerError, handle_plan_measured, handle_worker};
 
 /// The functions of a deployment.
@@ -46,8 +46,9 @@ pub struct FunctionEnv<'a> {
     /// Decoded splits kept between invocations of this container.
     pub split_cache: &'a SplitCache,
     /// The deployed Worker function's memory, MB, where known: the Plan function refuses a job
-    /// request planned for more (its tasks would run out of memory, be retried, lost and rerun
-    /// before the job failed). `None` checks nothing.
+    /// request planned for more, and so does the Worker (knowing its own memory) a task of a
+    /// plan for more, before any work (its tasks would run out of memory, be retried, lost and
+    /// rerun before the job failed). `None` checks nothing.
     pub worker_memory_mb: Option<u32>,
 }
 
@@ -131,6 +132,9 @@ pub fn dispatch(
         Function::Worker => {
             let event: WorkerEvent =
                 serde_json::from_value(event).map_err(|e| malformed("Worker", e))?;
+            if let Some(own_mb) = env.worker_memory_mb {
+                check_plan_memory(env.store, env.split_cache, &event, own_mb)?;
+            }
             let metrics = handle_worker(env.store, env.bucket, env.split_cache, &event, env.tmp)?;
             Ok(Invoked {
                 output: serde_json::to_value(metrics).map_err(encode)?,

@@ -292,6 +292,48 @@ pub(super) fn check_worker_memory(
     )))
 }
 
+/// Refuses a Worker task of a job whose plan is for more memory than this Worker function has
+/// (`own_mb`, its `AWS_LAMBDA_FUNCTION_MEMORY_SIZE`), naming both, before any work. The plan is
+/// read through the warm container's cache, where the task finds it next (no second GET); a
+/// plan that cannot be read is left to the task (which rebuilds a lost one), and the tasks that
+/// cut the scene before there is a plan (Partition, Build) are sized by byte ranges, not by it.
+pub(super) fn check_plan_memory(
+    store: &dyn BlobStore,
+    cache: &SplitCache,
+    event: &super::events::WorkerEvent,
+    own_mb: u32,
+) -> Result<(), HandlerError> {
+    use hort_core::ids::Stage;
+    if matches!(event.stage, Stage::Partition | Stage::Build) {
+        return Ok(());
+    }
+    let key = plan_key(&event.job);
+    let plan = match cache.plan(&key) {
+        Some(plan) => plan,
+        None => {
+            let Ok(plan) = store
+                .get(&key)
+                .map_err(hort_core::pipeline::PipelineError::from)
+                .and_then(|bytes| JobPlan::from_json(&key, &bytes))
+            else {
+                return Ok(());
+            };
+            let plan = std::sync::Arc::new(plan);
+            cache.insert_plan(&key, std::sync::Arc::clone(&plan));
+            plan
+        }
+    };
+    if plan.memory_mb <= own_mb {
+        return Ok(());
+    }
+    Err(HandlerError::bad_input(format!(
+        "plan {key} is for functions of {} MB, but this Worker function has {own_mb} MB \
+         (AWS_LAMBDA_FUNCTION_MEMORY_SIZE): its tasks would run out of memory; plan for \
+         {own_mb} MB or less, or deploy the Worker with more memory (WorkerMemoryMB)",
+        plan.memory_mb
+    )))
+}
+
 pub(super) fn read_request(store: &dyn BlobStore, job: &JobId) -> Result<JobRequest, HandlerError> {
     let key = manifest_key(job);
     let bytes = store.get(&key).map_err(|e| {

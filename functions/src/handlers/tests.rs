@@ -823,6 +823,31 @@ fn a_job_planned_for_more_memory_than_the_worker_has_is_refused_naming_both() {
     );
     dispatch(Function::Plan, event, &env(Some(2048))).unwrap();
     assert!(store.get("jobs/j1/plan.json").is_ok());
+
+    // A Worker with less memory than the plan's (its own AWS_LAMBDA_FUNCTION_MEMORY_SIZE)
+    // refuses its task before any work; with enough, the task runs.
+    let task = serde_json::json!({"job": "j1", "bucket": "b", "stage": "cast-map",
+        "item": {"task": 0}});
+    let fresh = SplitCache::new(0);
+    let small = FunctionEnv {
+        split_cache: &fresh,
+        ..env(Some(1024))
+    };
+    let e = dispatch(Function::Worker, task.clone(), &small).unwrap_err();
+    assert_eq!(
+        e,
+        HandlerError::bad_input(
+            "plan jobs/j1/plan.json is for functions of 2048 MB, but this Worker function has \
+             1024 MB (AWS_LAMBDA_FUNCTION_MEMORY_SIZE): its tasks would run out of memory; plan \
+             for 1024 MB or less, or deploy the Worker with more memory (WorkerMemoryMB)"
+        )
+    );
+    assert!(
+        store.list("jobs/j1/cast-map/").unwrap().is_empty(),
+        "no work done"
+    );
+    dispatch(Function::Worker, task, &env(Some(2048))).unwrap();
+    assert!(!store.list("jobs/j1/cast-map/").unwrap().is_empty());
 }
 
 #[test]

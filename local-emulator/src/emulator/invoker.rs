@@ -224,7 +224,8 @@ impl InProcessInvoker {
             // The emulator's clients plan every job for the functions' own memory (`--memory-mb`
             // is both), so the Plan function's check could only refuse what a harness built
             // on purpose, such as a job planned past its functions to reach the Worker's
-            // `Runtime.OutOfMemory`; the deployment sets it (`HORT_WORKER_MEMORY_MB`).
+            // `Runtime.OutOfMemory`; the deployment sets it (`HORT_WORKER_MEMORY_MB` for the
+            // Plan function, Lambda's `AWS_LAMBDA_FUNCTION_MEMORY_SIZE` for the Worker).
             worker_memory_mb: None,
         };
         let attempt = input.get("attempt").and_then(Value::as_u64).unwrap_or(0);

@@ -89,12 +89,14 @@ fn serve_over(
     } else {
         ""
     };
-    let timeout = std::time::Duration::from_secs(u64::from(
-        hort::deployment::Deployment::bundled().api.timeout_seconds,
-    ));
+    let deployed = hort::deployment::Deployment::bundled().api;
+    let api = server::ApiFunction {
+        timeout: std::time::Duration::from_secs(u64::from(deployed.timeout_seconds)),
+        reserved_concurrency: deployed.reserved_concurrency.map(|n| n as usize),
+    };
     server::serve(
         backend.clone(),
-        timeout,
+        api,
         addr,
         |addr| {
             let reach = if addr.ip().is_loopback() {

@@ -8,11 +8,14 @@
 //! A request is answered within the API function's timeout (the deployment's, 29 s), as API
 //! Gateway answers it: past it, Lambda stops the function and the client gets API Gateway's
 //! `500 {"message":"Internal Server Error"}` (the emulator cannot stop the request's thread; its
-//! answer is dropped).
+//! answer is dropped). At most the API function's reserved concurrency (the deployment's, 10) of
+//! requests run at once: one more is throttled by Lambda, which API Gateway also answers with
+//! that 500, at once. A request holds its seat until it is answered or its timeout stops it.
 
 use std::convert::Infallible;
 use std::net::SocketAddr;
 use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
@@ -27,11 +30,49 @@ use hyper_util::rt::TokioIo;
 use tokio::net::TcpListener;
 use tokio::sync::oneshot;
 
-/// Serves `backend` on `addr` until `stop` fires, each request answered within `timeout` (the
-/// API function's). `ready` gets the bound address (the port may be 0: a free one).
+/// The API function's settings, as the deployment sets them.
+#[derive(Debug, Clone, Copy)]
+pub struct ApiFunction {
+    /// Its timeout: a request not answered by then gets API Gateway's 500.
+    pub timeout: Duration,
+    /// Its reserved concurrency: requests at once past it get API Gateway's 500 at once;
+    /// `None`: unreserved.
+    pub reserved_concurrency: Option<usize>,
+}
+
+/// Requests running in the API function, against its reserved concurrency.
+struct Seats {
+    reserved: Option<usize>,
+    taken: AtomicUsize,
+}
+
+/// One request's seat, freed when dropped.
+struct Seat<'a>(&'a AtomicUsize);
+
+impl Seats {
+    /// A seat, or `None` when all `reserved` are taken (Lambda throttles the invocation).
+    fn take(&self) -> Option<Seat<'_>> {
+        let reserved = self.reserved.unwrap_or(usize::MAX);
+        self.taken
+            .fetch_update(Ordering::SeqCst, Ordering::SeqCst, |n| {
+                (n < reserved).then_some(n + 1)
+            })
+            .ok()
+            .map(|_| Seat(&self.taken))
+    }
+}
+
+impl Drop for Seat<'_> {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::SeqCst);
+    }
+}
+
+/// Serves `backend` on `addr` until `stop` fires, as the API function `api` would answer
+/// behind API Gateway. `ready` gets the bound address (the port may be 0: a free one).
 pub fn serve(
     backend: Arc<dyn RenderBackend>,
-    timeout: Duration,
+    api: ApiFunction,
     addr: SocketAddr,
     ready: impl FnOnce(SocketAddr),
     stop: oneshot::Receiver<()>,
@@ -48,15 +89,26 @@ pub fn serve(
             .with_context(|| format!("cannot listen on {addr}"))?;
         ready(listener.local_addr()?);
         let started = Instant::now();
+        let seats = Arc::new(Seats {
+            reserved: api.reserved_concurrency,
+            taken: AtomicUsize::new(0),
+        });
         let mut stop = stop;
         loop {
             tokio::select! {
                 accepted = listener.accept() => {
                     let Ok((stream, _peer)) = accepted else { continue };
                     let backend = Arc::clone(&backend);
+                    let seats = Arc::clone(&seats);
                     tokio::spawn(async move {
                         let service = service_fn(move |request| {
-                            respond(Arc::clone(&backend), request, started, timeout)
+                            respond(
+                                Arc::clone(&backend),
+                                request,
+                                started,
+                                api.timeout,
+                                Arc::clone(&seats),
+                            )
                         });
                         // A client that goes away ends its connection, nothing else: jobs run
                         // on their own threads.
@@ -82,6 +134,7 @@ async fn respond(
     request: Request<Incoming>,
     started: Instant,
     timeout: Duration,
+    seats: Arc<Seats>,
 ) -> Result<Answer, Infallible> {
     let t0 = Instant::now();
     let (parts, body) = request.into_parts();
@@ -95,7 +148,15 @@ async fn respond(
                 }
                 Err(e) => ApiError::invalid_json(format!("cannot read the request body: {e}"))
                     .into_response(),
-                Ok(collected) => {
+                Ok(collected) => 'invoked: {
+                    let Some(_seat) = seats.take() else {
+                        break 'invoked api_gateway_500(&format!(
+                            "the API function is running {} requests, its reserved \
+                             concurrency: Lambda throttles this one (TooManyRequestsException), \
+                             API Gateway answers 500",
+                            seats.reserved.unwrap_or_default()
+                        ));
+                    };
                     let request = Request::from_parts(parts, collected.to_bytes());
                     let (tx, rx) = oneshot::channel();
                     let spawned = std::thread::Builder::new()
@@ -128,10 +189,16 @@ async fn respond(
 
 /// API Gateway's answer when the API function ran past its timeout (Lambda stopped it).
 fn function_timed_out(timeout: Duration) -> Response<Vec<u8>> {
-    eprintln!(
+    api_gateway_500(&format!(
         "the API function ran past its timeout of {} s: Lambda stops it, API Gateway answers 500",
         timeout.as_secs_f64()
-    );
+    ))
+}
+
+/// API Gateway's `500 {"message":"Internal Server Error"}` when the Lambda integration fails
+/// (`why` goes to the log, as it would to CloudWatch: the client sees nothing of it).
+fn api_gateway_500(why: &str) -> Response<Vec<u8>> {
+    eprintln!("{why}");
     Response::builder()
         .status(500)
         .header("content-type", "application/json")
@@ -201,7 +268,10 @@ mod tests {
         let server = std::thread::spawn(move || {
             serve(
                 Arc::new(Slow),
-                Duration::from_millis(300),
+                ApiFunction {
+                    timeout: Duration::from_millis(300),
+                    reserved_concurrency: None,
+                },
                 "127.0.0.1:0".parse().unwrap(),
                 |addr| addr_tx.send(addr).unwrap(),
                 stop_rx,
@@ -214,6 +284,43 @@ mod tests {
             slow.ends_with("\r\n\r\n{\"message\":\"Internal Server Error\"}"),
             "{slow}"
         );
+        let quick = get(addr, "/renders/r-1");
+        assert!(quick.starts_with("HTTP/1.1 404 "), "{quick}");
+        stop_tx.send(()).unwrap();
+        server.join().unwrap().unwrap();
+    }
+
+    #[test]
+    fn a_request_past_the_api_functions_reserved_concurrency_gets_api_gateways_500_at_once() {
+        let (addr_tx, addr_rx) = std::sync::mpsc::channel();
+        let (stop_tx, stop_rx) = oneshot::channel();
+        let server = std::thread::spawn(move || {
+            serve(
+                Arc::new(Slow),
+                ApiFunction {
+                    timeout: Duration::from_secs(10),
+                    reserved_concurrency: Some(1),
+                },
+                "127.0.0.1:0".parse().unwrap(),
+                |addr| addr_tx.send(addr).unwrap(),
+                stop_rx,
+            )
+        });
+        let addr = addr_rx.recv().unwrap();
+        // The list takes 2 s: it holds the one seat meanwhile.
+        let slow = std::thread::spawn(move || get(addr, "/renders"));
+        std::thread::sleep(Duration::from_millis(500));
+        let t0 = Instant::now();
+        let throttled = get(addr, "/renders/r-1");
+        assert!(throttled.starts_with("HTTP/1.1 500 "), "{throttled}");
+        assert!(
+            throttled.ends_with("\r\n\r\n{\"message\":\"Internal Server Error\"}"),
+            "{throttled}"
+        );
+        assert!(t0.elapsed() < Duration::from_secs(1), "throttled at once");
+        let slow = slow.join().unwrap();
+        assert!(slow.starts_with("HTTP/1.1 200 "), "{slow}");
+        // The seat is free again.
         let quick = get(addr, "/renders/r-1");
         assert!(quick.starts_with("HTTP/1.1 404 "), "{quick}");
         stop_tx.send(()).unwrap();
