@@ -23,6 +23,7 @@
 
 use hort_core::bvh::{Bvh, ClosestHit};
 use hort_core::camera::Camera;
+use hort_core::digest::Fnv1a64;
 use hort_core::render::{build_scene_bvh, surface_of};
 use hort_core::scene::load_scene;
 use hort_core::shading::shadow_test;
@@ -138,35 +139,35 @@ fn run() -> Result<(), Box<dyn Error>> {
         if packet_hits != hits {
             return Err("16-ray packets and single rays disagree".into());
         }
-        let mut primary_digest = Fnv::new();
+        let mut primary_digest = Fnv1a64::new();
         for hit in &hits {
             match hit {
-                None => primary_digest.bytes(&[0]),
+                None => primary_digest.write(&[0]),
                 Some(h) => {
-                    primary_digest.bytes(&[1]);
-                    primary_digest.bytes(&h.id.to_le_bytes());
-                    primary_digest.bytes(&h.t.to_bits().to_le_bytes());
+                    primary_digest.write(&[1]);
+                    primary_digest.write(&h.id.to_le_bytes());
+                    primary_digest.write(&h.t.to_bits().to_le_bytes());
                     for b in h.b {
-                        primary_digest.bytes(&b.to_bits().to_le_bytes());
+                        primary_digest.write(&b.to_bits().to_le_bytes());
                     }
-                    primary_digest.bytes(&h.index.to_le_bytes());
+                    primary_digest.write(&h.index.to_le_bytes());
                 }
             }
         }
-        let mut shadow_digest = Fnv::new();
+        let mut shadow_digest = Fnv1a64::new();
         for (&o, (ray, t_max)) in occluded.iter().zip(&shadow) {
-            shadow_digest.bytes(&[u8::from(o)]);
+            shadow_digest.write(&[u8::from(o)]);
             for v in ray.origin.to_array().into_iter().chain(ray.dir.to_array()) {
-                shadow_digest.bytes(&v.to_bits().to_le_bytes());
+                shadow_digest.write(&v.to_bits().to_le_bytes());
             }
-            shadow_digest.bytes(&t_max.to_bits().to_le_bytes());
+            shadow_digest.write(&t_max.to_bits().to_le_bytes());
         }
         println!(
             "hits={} occluded={} primary_digest={:016x} shadow_digest={:016x}",
             hits.iter().flatten().count(),
             occluded.iter().filter(|&&o| o).count(),
-            primary_digest.0,
-            shadow_digest.0
+            primary_digest.finish(),
+            shadow_digest.finish()
         );
     }
     Ok(())
@@ -188,20 +189,5 @@ fn trace_primary(bvh: &Bvh, rays: &[Ray], hits: &mut [Option<ClosestHit>]) {
 fn trace_shadow(bvh: &Bvh, rays: &[(Ray, f32)], occluded: &mut [bool]) {
     for (out, (r, t_max)) in occluded.iter_mut().zip(rays) {
         *out = bvh.occluded(r, *t_max);
-    }
-}
-
-/// 64-bit FNV-1a.
-struct Fnv(u64);
-
-impl Fnv {
-    fn new() -> Fnv {
-        Fnv(0xcbf2_9ce4_8422_2325)
-    }
-
-    fn bytes(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.0 = (self.0 ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
-        }
     }
 }

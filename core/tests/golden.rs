@@ -18,12 +18,8 @@ use hort_core::render::{RenderSettings, build_scene_bvh, render};
 use hort_core::scene::load_scene;
 use std::path::Path;
 
-/// 64-bit FNV-1a (offset basis 0xcbf29ce484222325, prime 0x100000001b3).
-fn fnv1a64(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
-        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
-    })
-}
+// 64-bit FNV-1a (offset basis 0xcbf29ce484222325, prime 0x100000001b3): the project's one.
+use hort_core::digest::fnv1a64;
 
 /// One pinned render: scene path (relative to the repository root), size, samples per pixel,
 /// and the FNV-1a 64 digests of the PFM and of the hit buffer.

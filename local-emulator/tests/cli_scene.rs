@@ -72,12 +72,8 @@ fn border_and_all_hits(hits: &[Hit], width: u32, height: u32) -> (usize, usize) 
     (border, (0..hits.len()).filter(hit).count())
 }
 
-/// 64-bit FNV-1a, as core/tests/golden.rs pins the renders.
-fn fnv1a64(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
-        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
-    })
-}
+// 64-bit FNV-1a, as core/tests/golden.rs pins the renders.
+use hort_core::digest::fnv1a64;
 
 /// Column 0 of a 1 x 48 image and column 47 of a 95 x 48 image look through the same image
 /// centre line, so with the same camera their hits are equal bit for bit.

@@ -98,12 +98,8 @@ fn deterministic_and_seed_dependent() {
     assert_ne!(scene(5_001, 7).0[..200], a[..200]);
 }
 
-/// FNV-1a 64: a tiny, fully specified hash for pinning byte streams.
-fn fnv1a(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
-        (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3)
-    })
-}
+// FNV-1a 64: a tiny, fully specified hash for pinning byte streams.
+use crate::digest::fnv1a64 as fnv1a;
 
 #[test]
 fn golden_bytes_are_stable() {

@@ -296,12 +296,7 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
-    /// 64-bit FNV-1a, as in `core/tests/golden.rs`.
-    fn fnv1a64(bytes: &[u8]) -> u64 {
-        bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
-            (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
-        })
-    }
+    use crate::digest::fnv1a64;
 
     #[test]
     fn encoder_bytes_are_pinned() {

@@ -118,10 +118,7 @@ pub fn retry_delay(
 /// and any other seeded decision a caller wants reproducible (the emulator's fault injection).
 pub fn unit_draw(seed: u64, state: &str, item: Option<usize>, retry: u32) -> f64 {
     // FNV-1a over the state path, then splitmix64 rounds mixing in the other keys.
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for b in state.bytes() {
-        h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
-    }
+    let h = hort_digest::fnv1a64(state.as_bytes());
     let item = item.map_or(u64::MAX, |i| i as u64);
     let mut x = splitmix(seed ^ splitmix(h));
     x = splitmix(x ^ item);

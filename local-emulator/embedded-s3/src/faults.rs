@@ -351,11 +351,7 @@ impl Injector {
 /// A uniform draw in [0, 1) from the seed, a label and an occurrence number (FNV-1a over the
 /// label, mixed with SplitMix64; the top 53 bits make the fraction).
 fn unit_draw(seed: u64, label: &str, occurrence: u64) -> f64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for b in label.bytes() {
-        h ^= u64::from(b);
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
-    }
+    let h = hort_digest::fnv1a64(label.as_bytes());
     let mut x = seed ^ h.rotate_left(17) ^ occurrence.wrapping_mul(0x9e37_79b9_7f4a_7c15);
     for _ in 0..2 {
         x = x.wrapping_add(0x9e37_79b9_7f4a_7c15);

@@ -154,14 +154,11 @@ fn stem(path: &Path) -> Result<String> {
 
 /// FNV-1a 64 over the little-endian bits of every channel of every pixel, row-major.
 fn image_digest(image: &Image) -> u64 {
-    image
-        .pixels
-        .iter()
-        .flatten()
-        .flat_map(|c| c.to_bits().to_le_bytes())
-        .fold(0xcbf2_9ce4_8422_2325, |h, b| {
-            (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
-        })
+    let mut h = hort_core::digest::Fnv1a64::new();
+    for c in image.pixels.iter().flatten() {
+        h.write(&c.to_bits().to_le_bytes());
+    }
+    h.finish()
 }
 
 #[cfg(test)]
@@ -174,9 +171,7 @@ mod tests {
         image.pixels[0] = [f32::from_bits(0x6261_6f66), 0.0, 0.0];
         let mut bytes = b"foab".to_vec();
         bytes.extend([0u8; 8]);
-        let expected = bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
-            (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
-        });
+        let expected = hort_core::digest::fnv1a64(&bytes);
         assert_eq!(image_digest(&image), expected);
         image.pixels[0][2] = -0.0;
         assert_ne!(image_digest(&image), expected, "-0 and +0 differ in bits");
