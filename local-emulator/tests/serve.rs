@@ -657,6 +657,18 @@ fn a_full_server_answers_429_binds_loopback_and_keeps_its_keys_private() {
         &[],
     );
     assert_eq!(third.status, 202, "{}", third.text());
+    // The server's own listing is newest first, and `limit` keeps the newest.
+    let third = third.json()["job"].as_str().unwrap().to_owned();
+    let jobs = |path: &str| -> Vec<String> {
+        server.get(path).json()["renders"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| r["job"].as_str().unwrap().to_owned())
+            .collect()
+    };
+    assert_eq!(jobs("/renders"), [third.clone(), job]);
+    assert_eq!(jobs("/renders?limit=1"), [third]);
 }
 
 #[test]

@@ -6,6 +6,27 @@ use hort_core::render::{RenderOutput, RenderSettings, build_scene_bvh, render};
 use hort_core::scene::load_scene;
 use std::path::PathBuf;
 
+/// Set (to anything), it makes the integration tests required: a test whose server variable
+/// (`HORT_TEST_S3_ENDPOINT`, `HORT_TEST_AWS_ENDPOINT`) is missing fails instead of skipping.
+/// `.ci/run` sets it for its moto steps, so a lost variable cannot pass as a skipped test.
+pub const REQUIRE_INTEGRATION_VAR: &str = "HORT_TEST_INTEGRATION";
+
+/// The value of the server variable `var` of an integration test, when set and not empty; else
+/// `None` after saying the test is skipped (`how` says how to run it), or, when
+/// [`REQUIRE_INTEGRATION_VAR`] is set, a panic naming both variables.
+pub fn integration_endpoint(var: &str, how: &str) -> Option<String> {
+    if let Some(value) = std::env::var(var).ok().filter(|v| !v.is_empty()) {
+        return Some(value);
+    }
+    assert!(
+        std::env::var_os(REQUIRE_INTEGRATION_VAR).is_none(),
+        "{REQUIRE_INTEGRATION_VAR} is set, so this integration test must run, but {var} is not \
+         set ({how})"
+    );
+    println!("skipped: set {var} ({how})");
+    None
+}
+
 /// The path of a bundled scene, e.g. `scene_path("bunny/bunny.json")`.
 pub fn scene_path(rel: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))

@@ -5,8 +5,9 @@
 //!     bash tests/s3-servers/with-moto.sh cargo test -p hort-tests --test aws_moto -- --nocapture
 //!
 //! The API's deployment backend is driven through the router (`hort_functions::api::handle`).
-//! Without that variable the moto tests say they are skipped and pass; `.ci/run` always runs
-//! them with it. moto keeps real time: visibility timeouts expire, and a message received
+//! Without that variable the moto tests say they are skipped and pass, unless
+//! `HORT_TEST_INTEGRATION` is set (then they fail); `.ci/run` sets it and runs them under
+//! `with-moto.sh`. moto keeps real time: visibility timeouts expire, and a message received
 //! `maxReceiveCount` times moves to the dead-letter queue on the next receive. moto records
 //! Step Functions executions (start, describe, stop) but does not run the state machine.
 
@@ -29,13 +30,10 @@ const ROLE_ARN: &str = "arn:aws:iam::123456789012:role/hort-state-machine";
 /// The moto server's SDK configuration, or `None` (after saying so) without
 /// `HORT_TEST_AWS_ENDPOINT`.
 async fn moto() -> Option<(hort_functions::aws::SdkConfig, String)> {
-    let Some(endpoint) = std::env::var("HORT_TEST_AWS_ENDPOINT")
-        .ok()
-        .filter(|e| !e.is_empty())
-    else {
-        println!("skipped: set HORT_TEST_AWS_ENDPOINT (see tests/s3-servers/with-moto.sh)");
-        return None;
-    };
+    let endpoint = hort_tests::integration_endpoint(
+        "HORT_TEST_AWS_ENDPOINT",
+        "see tests/s3-servers/with-moto.sh",
+    )?;
     println!("AWS endpoint (SQS, Step Functions): {endpoint}");
     let settings = AwsSettings {
         endpoint: Some(endpoint),

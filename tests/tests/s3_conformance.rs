@@ -69,7 +69,6 @@ fn create_bucket_if_missing_creates_once_then_accepts_the_existing_bucket() {
 #[test]
 fn external_s3_passes_the_conformance_suite() {
     let Some(config) = external_config() else {
-        println!("skipped: set HORT_TEST_S3_ENDPOINT (see tests/s3-servers/with-moto.sh)");
         return;
     };
     println!(

@@ -85,17 +85,56 @@ mod tests {
     use super::*;
     use crate::store::MemoryStore;
 
-    /// Every call passes through, and the time counted only grows.
+    /// A store whose every call takes at least 2 ms.
+    struct Slow(MemoryStore);
+
+    const CALL: std::time::Duration = std::time::Duration::from_millis(2);
+
+    impl BlobStore for Slow {
+        fn get(&self, key: &str) -> Result<Vec<u8>, StoreError> {
+            std::thread::sleep(CALL);
+            self.0.get(key)
+        }
+        fn get_range(&self, key: &str, range: Range<u64>) -> Result<Vec<u8>, StoreError> {
+            std::thread::sleep(CALL);
+            self.0.get_range(key, range)
+        }
+        fn put(&self, key: &str, bytes: &[u8]) -> Result<(), StoreError> {
+            std::thread::sleep(CALL);
+            self.0.put(key, bytes)
+        }
+        fn put_if_absent(&self, key: &str, bytes: &[u8]) -> Result<PutOutcome, StoreError> {
+            std::thread::sleep(CALL);
+            self.0.put_if_absent(key, bytes)
+        }
+        fn list(&self, prefix: &str) -> Result<Vec<String>, StoreError> {
+            std::thread::sleep(CALL);
+            self.0.list(prefix)
+        }
+        fn delete(&self, key: &str) -> Result<(), StoreError> {
+            std::thread::sleep(CALL);
+            self.0.delete(key)
+        }
+    }
+
+    /// Every call passes through, and each one's time is counted: nine calls of at least
+    /// 2 ms each wait at least 18 ms.
     #[test]
     fn passes_calls_through_and_counts_their_time() {
-        let store = TimedStore::new(MemoryStore::new());
+        let store = TimedStore::new(Slow(MemoryStore::new()));
         store.put("a", b"xyz").unwrap();
-        let after_put = store.waited_us();
+        assert!(store.waited_us() >= 2_000, "{}", store.waited_us());
         assert_eq!(store.get("a").unwrap(), b"xyz");
         assert_eq!(store.get_range("a", 1..3).unwrap(), b"yz");
         assert_eq!(store.list("").unwrap(), ["a"]);
         assert!(store.get("b").unwrap_err().is_not_found());
+        assert_eq!(store.size("a").unwrap(), 3);
+        store.copy("a", "c").unwrap();
+        assert_eq!(
+            store.get_many(&["c".to_owned()])[0].as_deref().unwrap(),
+            b"xyz"
+        );
         store.delete("a").unwrap();
-        assert!(store.waited_us() >= after_put);
+        assert!(store.waited_us() >= 9 * 2_000, "{}", store.waited_us());
     }
 }

@@ -251,8 +251,11 @@ fn escape_html_escapes_the_five_characters() {
     );
 }
 
+/// The router passes `limit` on and adds each job's image URL; the order is the backend's (the
+/// real backends' newest-first listings are tested in `local-emulator/tests/serve.rs`,
+/// `a_full_server_...`, and `tests/tests/aws_moto.rs`, `the_deployment_api_lists_...`).
 #[test]
-fn the_listing_is_newest_first_with_image_urls() {
+fn the_listing_passes_the_limit_and_adds_image_urls() {
     let fake = Fake::default();
     let body = json!({"scene": cornell(), "width": 8, "height": 8});
     for _ in 0..3 {

@@ -56,9 +56,10 @@ impl Embedded {
 /// # Panics
 /// If the endpoint is set but another variable is missing.
 pub fn external_config() -> Option<S3Config> {
-    let endpoint = std::env::var("HORT_TEST_S3_ENDPOINT")
-        .ok()
-        .filter(|e| !e.is_empty())?;
+    let endpoint = hort_tests::integration_endpoint(
+        "HORT_TEST_S3_ENDPOINT",
+        "see tests/s3-servers/with-moto.sh",
+    )?;
     let var = |name: &str| {
         std::env::var(name)
             .unwrap_or_else(|_| panic!("HORT_TEST_S3_ENDPOINT is set, so {name} must be too"))
