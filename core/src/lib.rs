@@ -35,6 +35,7 @@ pub mod digest;
 pub mod ids;
 pub mod keys;
 pub mod pipeline;
+pub mod predict;
 pub mod shuffle;
 pub mod stage;
 pub mod store;

@@ -10,8 +10,8 @@ use serde::{Deserialize, Serialize};
 
 use super::error::ApiError;
 use super::image::ImageAnswer;
-use super::predict::{Prediction, PredictionModel, predict};
 use hort_core::pipeline::JobPlan;
+use hort_core::predict::{Prediction, PredictionModel, predict};
 
 /// A job's state. Serialized in capitals (`"RUNNING"`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]

@@ -15,7 +15,7 @@
 use std::fmt::Write;
 
 use super::backend::{JobState, JobStatus};
-use super::predict::usd;
+use hort_core::predict::usd;
 
 /// Most jobs the dashboard lists (the newest).
 pub const DASHBOARD_JOBS: usize = 50;

@@ -30,8 +30,6 @@ mod error;
 #[cfg(test)]
 mod hostile_tests;
 mod image;
-mod predict;
-mod projection;
 mod request;
 mod scene;
 mod scene_by_key;
@@ -44,18 +42,13 @@ pub use backend::{
 };
 pub use dashboard::{DASHBOARD_JOBS, escape_html, jobs_table, page};
 pub use error::ApiError;
+pub use hort_core::predict::{
+    CLIENT_PUTS, JobStep, Prediction, PredictionModel, RATES, Rates, SPLIT_BYTES_PER_TRIANGLE,
+    SPLIT_NORMAL_BYTES_PER_TRIANGLE, StagePrediction, predict, preview_plan, usd,
+};
 pub use image::{
     ImageAnswer, ImageBucket, MAX_INLINE_BODY_BYTES, PRESIGNED_URL_SECONDS, check_response_size,
     stored_image,
-};
-pub use predict::{
-    CLIENT_PUTS, JobStep, Prediction, PredictionModel, RATES, Rates, SPLIT_BYTES_PER_TRIANGLE,
-    SPLIT_NORMAL_BYTES_PER_TRIANGLE, StagePrediction, job_steps, predict, preview_plan,
-    stage_bytes, stage_bytes_read, stage_requests, step_tasks, task_milliseconds, task_waits, usd,
-};
-pub use projection::{
-    LAMBDA_FACTS, LambdaFacts, Projection, ProjectionSettings, SWEEP, StageProjection, Target,
-    best_of, project,
 };
 pub use request::{MAX_JSON_DEPTH, RenderRequest, SceneSpec, parse_render_request};
 pub use scene::{LoadedScene, MAX_SCENE_FILES, SceneFiles, check_relative, material_libraries};
@@ -581,7 +574,8 @@ fn post_renders(
     let (shape, s) = hort_core::pipeline::resolve_counts(&plan_request, triangles)
         .map_err(|e| ApiError::invalid_field("splits", e.to_string()))?;
     let plan = match &loaded {
-        RequestScene::Loaded(loaded) => preview_plan(&loaded.scene, &plan_request, &shape, s)?,
+        RequestScene::Loaded(loaded) => preview_plan(&loaded.scene, &plan_request, &shape, s)
+            .map_err(|e| ApiError::invalid_scene(e.to_string()))?,
         RequestScene::ByKey(sized) => estimated_plan(
             &sized.scene,
             sized.estimate.triangles,

@@ -5,8 +5,8 @@
 
 use super::HandlerError;
 use super::events::JobRequest;
-use crate::api::{predict, usd};
 use hort_core::pipeline::JobPlan;
+use hort_core::predict::{predict, usd};
 
 /// `Hort.BadInput` when the cost predicted for `plan` (with the model the API predicted with)
 /// is over the request's budget; nothing for a job without one.

@@ -50,7 +50,7 @@ pub struct BudgetCheck {
     /// The request's `max_cost_usd`.
     pub max_cost_usd: f64,
     /// What the API predicted the cost with (the deployment's concurrency, memory, rates).
-    pub model: crate::api::PredictionModel,
+    pub model: hort_core::predict::PredictionModel,
 }
 
 /// How a job's scene is stored (the job request's `scene_format`).

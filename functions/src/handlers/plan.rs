@@ -86,8 +86,8 @@ pub fn handle_plan_measured(
             &request.render,
             scene.mesh.triangle_count() as u64,
         )?;
-        let preview = crate::api::preview_plan(&scene, &request.render, &shape, s)
-            .map_err(|e| HandlerError::bad_input(e.message))?;
+        let preview = hort_core::predict::preview_plan(&scene, &request.render, &shape, s)
+            .map_err(|e| HandlerError::bad_input(e.to_string()))?;
         super::budget::check_budget(&request, &preview)?;
     }
     let planned = plan_into_store(&store, job, &scene, &request.render)?;

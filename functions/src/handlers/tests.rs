@@ -938,7 +938,7 @@ fn a_scene_by_key_is_refused_at_plan_naming_its_key_or_its_budget() {
 
     let budget = BudgetCheck {
         max_cost_usd: 1e-9,
-        model: crate::api::PredictionModel::reference(4),
+        model: hort_core::predict::PredictionModel::reference(4),
     };
     let store = submitted_by_key("j1", Some(budget));
     let e = handle_plan(&store, "b", &plan_event("j1"), Tmp::unlimited(&tmp)).unwrap_err();

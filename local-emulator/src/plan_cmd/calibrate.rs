@@ -1,4 +1,4 @@
-//! How fast this machine runs the renderer against the reference machine of `api::RATES`: a
+//! How fast this machine runs the renderer against the reference machine of `predict::RATES`: a
 //! BVH build and a single-threaded render of a small generated scene, timed at start-up of
 //! `hort plan` (about a third of a second), nothing stored.
 

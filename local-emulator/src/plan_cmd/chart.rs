@@ -4,7 +4,7 @@
 
 use crate::eval::chart::{FAMILY, PALETTE, encode_png, plot_err, register_font, tick};
 use anyhow::{Result, bail};
-use hort_functions::api::Projection;
+use hort_core::predict::Projection;
 use plotters::prelude::*;
 
 /// The function counts a chart sweeps: 1, 2 and 5 per decade from 1 to 10,000.

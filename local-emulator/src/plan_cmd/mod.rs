@@ -17,14 +17,14 @@ use hort_core::pipeline::partition::{preview_plan_from_table, scan_table};
 use hort_core::pipeline::{
     ExecutionMode, JobPlan, PlanRequest, SplitMode, StoredOutputs, resolve_counts,
 };
+use hort_core::predict::{
+    Projection, ProjectionSettings, RATES, SPLIT_BYTES_PER_TRIANGLE,
+    SPLIT_NORMAL_BYTES_PER_TRIANGLE, SWEEP, Target, best_of, preview_plan, project,
+};
 use hort_core::render::available_cores;
 use hort_core::scene::{
     DEFAULT_HEIGHT, DEFAULT_WIDTH, ImageSettings, check_image_size, load_scene,
     scene_image_settings,
-};
-use hort_functions::api::{
-    Projection, ProjectionSettings, RATES, SPLIT_BYTES_PER_TRIANGLE,
-    SPLIT_NORMAL_BYTES_PER_TRIANGLE, SWEEP, Target, best_of, preview_plan, project,
 };
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -143,7 +143,7 @@ pub struct PlanOutput {
     /// Tasks over all stages.
     pub tasks: u64,
     /// The stages at the chosen function count.
-    pub stages: Vec<hort_functions::api::StageProjection>,
+    pub stages: Vec<hort_core::predict::StageProjection>,
     /// Where the projection runs.
     pub target: Target,
     /// This machine against the reference.
@@ -301,7 +301,7 @@ fn preview_loaded(args: &PlanArgs, scene_path: &Path) -> Result<JobPlan> {
         .map_err(|e| anyhow!("{}: {e}", scene_path.display()))?;
     let (shape, s) = resolve_counts(&request, scene.mesh.triangle_count() as u64)?;
     preview_plan(&scene, &request, &shape, s)
-        .map_err(|e| anyhow!("{}: {}", scene_path.display(), e.message))
+        .map_err(|e| anyhow!("{}: {}", scene_path.display(), e))
 }
 
 /// The plan of a scene split by tasks in ranges of `range` bytes, from its scan (the vertex

@@ -2,7 +2,7 @@
 //! the sweep, and the notes, in fixed-width tables.
 
 use super::PlanOutput;
-use hort_functions::api::{Projection, Target, usd};
+use hort_core::predict::{Projection, Target, usd};
 use std::fmt::Write;
 
 /// The whole text `hort plan` prints, ending in a newline.

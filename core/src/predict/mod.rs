@@ -22,27 +22,35 @@
 //! with the scene's size, by log2 of its triangles (the depth of its BVH).
 //!
 //! `hort plan` projects the same per-task model onto N functions on Lambda or the emulator
-//! (`super::projection`).
+//! ([`projection`]). The HTTP API (`hort_functions::api`) answers dry runs and checks budgets
+//! with it; it lives here, under the crates that use it, with nothing of HTTP or AWS.
 //!
 //! # The cost
-//! The price model of `hort_core::cost` applied to the predicted invocations: one Lambda
+//! The price model of `crate::cost` applied to the predicted invocations: one Lambda
 //! invocation per task (no retries) at the predicted duration, one EXPRESS child per Map item,
 //! the Standard transitions of a run without retries, and the S3 requests each task makes by
 //! the dataflow table of docs/ARCHITECTURE.md (its inputs read, its outputs written, the plan
 //! read once per task, the Map states' item files).
 
-use hort_core::camera::Camera;
-use hort_core::cost::{
+mod projection;
+
+pub use projection::{
+    LAMBDA_FACTS, LambdaFacts, Projection, ProjectionSettings, SWEEP, StageProjection, Target,
+    best_of, project,
+};
+
+use crate::camera::Camera;
+use crate::cost::{
     Arch, CostBreakdown, CostInputs, clean_path_states, estimate, standard_transitions_for,
 };
-use hort_core::coverage::camera_hit_fraction;
-use hort_core::ids::Stage;
-use hort_core::pipeline::{JobPlan, JobShape, PlanRequest, SplitInfo, assign_splits, plan_job};
-use hort_core::scene::{NO_NORMAL, Scene};
-use hort_core::store::PARALLEL_REQUESTS;
+use crate::coverage::camera_hit_fraction;
+use crate::ids::Stage;
+use crate::pipeline::{
+    JobPlan, JobShape, PipelineError, PlanRequest, SplitInfo, assign_splits, plan_job,
+};
+use crate::scene::{NO_NORMAL, Scene};
+use crate::store::PARALLEL_REQUESTS;
 use serde::{Deserialize, Serialize};
-
-use super::error::ApiError;
 
 /// Reference costs of the work units, microseconds each, at `speed` 1.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -179,7 +187,7 @@ pub struct Prediction {
     /// Lights in the scene.
     pub lights: u64,
     /// `spatial` or `naive`.
-    pub split_mode: hort_core::pipeline::SplitMode,
+    pub split_mode: crate::pipeline::SplitMode,
     /// Scene splits k.
     pub splits: u32,
     /// Pixel spans s.
@@ -192,7 +200,7 @@ pub struct Prediction {
     pub concurrency: u32,
     /// Predicted wall-clock seconds from the job's start to its outputs read back.
     pub predicted_seconds: f64,
-    /// Predicted cost, USD (`hort_core::cost`).
+    /// Predicted cost, USD (`crate::cost`).
     pub predicted_cost_usd: f64,
     /// The predicted cost per service line.
     pub cost: CostBreakdown,
@@ -296,7 +304,7 @@ pub fn preview_plan(
     request: &PlanRequest,
     shape: &JobShape,
     s: u32,
-) -> Result<JobPlan, ApiError> {
+) -> Result<JobPlan, PipelineError> {
     let groups = assign_splits(&scene.mesh, shape.splits as usize, request.mode);
     let infos = groups
         .iter()
@@ -325,10 +333,8 @@ pub fn preview_plan(
             }
         })
         .collect();
-    let mut plan = plan_job(scene, request, infos, shape, s)
-        .map_err(|e| ApiError::invalid_scene(e.to_string()))?;
-    let camera = Camera::new(&plan.camera, plan.width, plan.height)
-        .map_err(|e| ApiError::invalid_scene(e.to_string()))?;
+    let mut plan = plan_job(scene, request, infos, shape, s)?;
+    let camera = Camera::new(&plan.camera, plan.width, plan.height)?;
     plan.camera_hit_estimate = Some(camera_hit_fraction(
         &scene.mesh,
         &camera,
@@ -514,7 +520,7 @@ pub fn standard_transitions(plan: &JobPlan, children: u64) -> u64 {
         .iter()
         .filter(|s| s.items_field().is_some())
         .count() as u64;
-    let staged = plan.mode == hort_core::pipeline::ExecutionMode::Staged;
+    let staged = plan.mode == crate::pipeline::ExecutionMode::Staged;
     let states = clean_path_states(map_stages, staged, plan.scene_parts.is_some());
     standard_transitions_for(states, children, 0)
 }
@@ -531,7 +537,7 @@ pub fn stage_requests(plan: &JobPlan, step: JobStep) -> (u64, u64) {
     let k = u64::from(plan.k());
     let cast = plan.cast_tasks.len() as u64;
     let trace = plan.trace_tasks.len() as u64;
-    let fused = plan.mode == hort_core::pipeline::ExecutionMode::Fused;
+    let fused = plan.mode == crate::pipeline::ExecutionMode::Fused;
     let ranges = plan.scene_parts.map_or(0, |p| u64::from(p.ranges));
     let stage = match step {
         // Every range's index and the table; the cut and the Build items.
@@ -679,7 +685,7 @@ pub fn usd(x: f64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use hort_core::pipeline::{ScenePartsShape, SplitMode};
+    use crate::pipeline::{ScenePartsShape, SplitMode};
 
     /// The bundled Cornell box previewed at 64x48, 2 spp, staged over 2 splits and 3 spans.
     fn cornell_plan() -> JobPlan {
@@ -691,7 +697,7 @@ mod tests {
     fn cornell_plan_of(splits: u32, spans: u32, mode: SplitMode) -> JobPlan {
         let path =
             std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell/cornell.json");
-        let scene = hort_core::scene::load_scene(&path).expect("the bundled Cornell box");
+        let scene = crate::scene::load_scene(&path).expect("the bundled Cornell box");
         let request = PlanRequest {
             width: 64,
             height: 48,
@@ -702,9 +708,9 @@ mod tests {
             execution: None,
             memory_mb: 2048,
             adaptive: None,
-            outputs: hort_core::pipeline::StoredOutputs::ALL,
+            outputs: crate::pipeline::StoredOutputs::ALL,
         };
-        let (shape, s) = hort_core::pipeline::resolve_counts(&request, 36).unwrap();
+        let (shape, s) = crate::pipeline::resolve_counts(&request, 36).unwrap();
         preview_plan(&scene, &request, &shape, s).unwrap()
     }
 

@@ -9,18 +9,18 @@
 //!   floors AWS imposes (S3 requests per second on the job's one prefix, Map children started
 //!   per second); more functions never make a stage's waves longer, so seconds do not grow with
 //!   N except by the cold-start ramp ([`LambdaFacts::scale_per_10s`]), which is stated.
-//! - Dollars are `hort_core::cost::estimate` over the projected invocations, requests and
+//! - Dollars are `crate::cost::estimate` over the projected invocations, requests and
 //!   transitions: the constants of `core/src/cost.rs`, nothing else.
 //! - Retries: at failure rate P every task runs 1 / (1 - P) attempts on average (billed,
 //!   requested and waited for), and a stage with a failure waits one more attempt plus the state
 //!   machine's 1 s retry interval with probability 1 - (1 - P)^T (the straggler tail).
 
-use hort_core::cost::{Arch, CostBreakdown, CostInputs, estimate};
-use hort_core::ids::Stage;
-use hort_core::pipeline::JobPlan;
+use crate::cost::{Arch, CostBreakdown, CostInputs, estimate};
+use crate::ids::Stage;
+use crate::pipeline::JobPlan;
 use serde::Serialize;
 
-use super::predict::{
+use super::{
     CLIENT_PUTS, JobStep, Rates, job_steps, split_load_ms, stage_bytes, stage_bytes_read,
     stage_requests, standard_transitions, step_tasks, task_milliseconds, task_waits, upload_ms,
 };
