@@ -57,11 +57,12 @@ pub use scene_by_key::{ESTIMATE_BOUNDS, SceneEstimate, SizedScene, size_scene};
 use std::collections::BTreeMap;
 
 use hort_core::camera::Camera;
+use hort_core::error::SceneError;
 use hort_core::ids::JobId;
 use hort_core::pipeline::estimate::estimated_plan;
 use hort_core::pipeline::{MAX_SPANS, MAX_SPLITS, PlanRequest, SplitMode, StoredOutputs};
 use hort_core::scene::{
-    DEFAULT_HEIGHT, DEFAULT_WIDTH, MAX_IMAGE_SIDE, MAX_PIXELS, MAX_SAMPLES, MAX_SPP, Scene,
+    DEFAULT_HEIGHT, DEFAULT_WIDTH, MAX_IMAGE_SIDE, MAX_SPP, Scene, check_image_size,
 };
 use http::{HeaderMap, Method, Request, Response, StatusCode, header};
 use serde::Serialize;
@@ -668,29 +669,25 @@ fn check_range(field: &str, value: Option<u32>, lo: u32, hi: u32) -> Result<(), 
     }
 }
 
-/// The image limits on the resolved size, naming the request's fields (or the manifest's, when
-/// the value came from there).
+/// The image limits of `hort render` (`hort_core::scene::check_image_size`, the one check) on
+/// the resolved size, naming the request's field the value came from, or `scene` when the
+/// manifest gave it.
 fn check_size(width: u32, height: u32, spp: u32, request: &RenderRequest) -> Result<(), ApiError> {
-    let pixels = u64::from(width) * u64::from(height);
     let named = |given: Option<u32>, field: &'static str| {
         if given.is_some() { field } else { "scene" }
     };
-    if pixels > MAX_PIXELS {
-        return Err(ApiError::invalid_field(
-            named(request.width.or(request.height), "width"),
-            format!("width x height = {pixels} is out of range: at most {MAX_PIXELS} pixels"),
-        ));
-    }
-    let samples = pixels * u64::from(spp);
-    if samples > MAX_SAMPLES {
-        return Err(ApiError::invalid_field(
-            named(request.spp, "spp"),
-            format!(
-                "width x height x spp = {samples} is out of range: at most {MAX_SAMPLES} samples"
-            ),
-        ));
-    }
-    Ok(())
+    check_image_size(width, height, spp).map_err(|e| {
+        let field = match &e {
+            SceneError::OutOfRange { what, .. } if what.contains("spp") => {
+                named(request.spp, "spp")
+            }
+            SceneError::OutOfRange { what, .. } if *what == "height" => {
+                named(request.height, "height")
+            }
+            _ => named(request.width.or(request.height), "width"),
+        };
+        ApiError::invalid_field(field, e.to_string())
+    })
 }
 
 /// The request's scene, as far as the API reads it.
