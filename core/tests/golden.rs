@@ -76,13 +76,6 @@ const GOLDEN: [Golden; 5] = [
 ];
 
 #[test]
-fn fnv1a64_known_vectors() {
-    assert_eq!(fnv1a64(b""), 0xcbf2_9ce4_8422_2325);
-    assert_eq!(fnv1a64(b"a"), 0xaf63_dc4c_8601_ec8c);
-    assert_eq!(fnv1a64(b"foobar"), 0x8594_4171_f739_67e8);
-}
-
-#[test]
 fn bundled_scenes_render_to_the_pinned_digests() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let mut failures = Vec::new();

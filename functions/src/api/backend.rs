@@ -6,6 +6,7 @@ use std::collections::BTreeMap;
 use std::ops::Range;
 
 use hort_core::pipeline::PlanRequest;
+use hort_core::store::{BlobStore, StoreError};
 use serde::{Deserialize, Serialize};
 
 use super::error::ApiError;
@@ -213,6 +214,40 @@ impl ImageFormat {
             ImageFormat::Pfm => "image/x-portable-floatmap",
             ImageFormat::Exr => "image/x-exr",
         }
+    }
+}
+
+/// [`RenderBackend::read_object`] over a bucket's `store`.
+pub fn object_in(store: &dyn BlobStore, key: &str) -> Result<Option<Vec<u8>>, ApiError> {
+    match store.get(key) {
+        Ok(bytes) => Ok(Some(bytes)),
+        Err(StoreError::NotFound { .. }) => Ok(None),
+        Err(e) => Err(ApiError::internal(format!("cannot read {key}: {e}"))),
+    }
+}
+
+/// [`RenderBackend::object_size`] over a bucket's `store` (a HEAD).
+pub fn object_size_in(store: &dyn BlobStore, key: &str) -> Result<Option<u64>, ApiError> {
+    match store.size(key) {
+        Ok(size) => Ok(Some(size)),
+        Err(StoreError::NotFound { .. }) => Ok(None),
+        Err(e) => Err(ApiError::internal(format!(
+            "cannot read the size of {key}: {e}"
+        ))),
+    }
+}
+
+/// [`RenderBackend::read_object_range`] over a bucket's `store` (a range GET).
+pub fn object_range_in(
+    store: &dyn BlobStore,
+    key: &str,
+    range: Range<u64>,
+) -> Result<Vec<u8>, ApiError> {
+    match store.get_range(key, range) {
+        Ok(bytes) => Ok(bytes),
+        // Past the end of the object (it changed since its size was read): nothing there.
+        Err(StoreError::InvalidRange { .. }) => Ok(Vec::new()),
+        Err(e) => Err(ApiError::internal(format!("cannot read {key}: {e}"))),
     }
 }
 

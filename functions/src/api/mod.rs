@@ -38,7 +38,8 @@ mod tests;
 
 pub use backend::{
     ImageFormat, JobScene, JobSpec, JobState, JobStatus, RenderBackend, StageProgress, Submission,
-    idempotency_key_expired, idempotency_key_reused, request_fingerprint,
+    idempotency_key_expired, idempotency_key_reused, object_in, object_range_in, object_size_in,
+    request_fingerprint,
 };
 pub use dashboard::{DASHBOARD_JOBS, escape_html, jobs_table, page};
 pub use error::ApiError;

@@ -33,8 +33,8 @@ use super::sqs::JobQueue;
 use crate::S3Store;
 use crate::api::{
     ApiError, ImageAnswer, ImageFormat, JobScene, JobSpec, JobState, JobStatus, PredictionModel,
-    RATES, RenderBackend, Submission, idempotency_key_expired, idempotency_key_reused,
-    stored_image,
+    RATES, RenderBackend, Submission, idempotency_key_expired, idempotency_key_reused, object_in,
+    object_range_in, object_size_in, stored_image,
 };
 use crate::handlers::{BudgetCheck, JobRequest};
 
@@ -316,21 +316,11 @@ impl ExecutionView {
 
 impl RenderBackend for AwsBackend {
     fn read_object(&self, key: &str) -> Result<Option<Vec<u8>>, ApiError> {
-        match self.store.get(key) {
-            Ok(bytes) => Ok(Some(bytes)),
-            Err(StoreError::NotFound { .. }) => Ok(None),
-            Err(e) => Err(Self::storage_error(&format!("cannot read {key}"), e)),
-        }
+        object_in(&self.store, key)
     }
 
     fn object_size(&self, key: &str) -> Result<Option<u64>, ApiError> {
-        match self.store.size(key) {
-            Ok(size) => Ok(Some(size)),
-            Err(StoreError::NotFound { .. }) => Ok(None),
-            Err(e) => Err(ApiError::internal(format!(
-                "cannot read the size of {key}: {e}"
-            ))),
-        }
+        object_size_in(&self.store, key)
     }
 
     fn read_object_range(
@@ -338,12 +328,7 @@ impl RenderBackend for AwsBackend {
         key: &str,
         range: std::ops::Range<u64>,
     ) -> Result<Vec<u8>, ApiError> {
-        match self.store.get_range(key, range) {
-            Ok(bytes) => Ok(bytes),
-            // Past the end of the object (it changed since its size was read): nothing there.
-            Err(StoreError::InvalidRange { .. }) => Ok(Vec::new()),
-            Err(e) => Err(ApiError::internal(format!("cannot read {key}: {e}"))),
-        }
+        object_range_in(&self.store, key, range)
     }
 
     fn prediction_model(&self) -> PredictionModel {

@@ -28,10 +28,11 @@ use hort_core::ids::{JobId, Stage};
 use hort_core::keys::manifest_key;
 use hort_core::pipeline::PlanRequest;
 use hort_core::report::{Outputs, RayReport, Report, Seconds};
-use hort_core::store::{BlobStore, CountingStore, StoreError};
+use hort_core::store::{BlobStore, CountingStore};
 use hort_functions::api::{
     ApiError, ImageAnswer, ImageFormat, JobScene, JobSpec, JobState, JobStatus, PredictionModel,
-    RenderBackend, StageProgress, Submission, idempotency_key_reused, stored_image,
+    RenderBackend, StageProgress, Submission, idempotency_key_reused, object_in, object_range_in,
+    object_size_in, stored_image,
 };
 use hort_functions::handlers::BudgetCheck;
 use hort_functions::{S3Config, S3Store};
@@ -389,21 +390,11 @@ impl EmulatorBackend {
 
 impl RenderBackend for EmulatorBackend {
     fn read_object(&self, key: &str) -> Result<Option<Vec<u8>>, ApiError> {
-        match self.shared.store.get(key) {
-            Ok(bytes) => Ok(Some(bytes)),
-            Err(StoreError::NotFound { .. }) => Ok(None),
-            Err(e) => Err(ApiError::internal(format!("cannot read {key}: {e}"))),
-        }
+        object_in(self.shared.store.as_ref(), key)
     }
 
     fn object_size(&self, key: &str) -> Result<Option<u64>, ApiError> {
-        match self.shared.store.size(key) {
-            Ok(size) => Ok(Some(size)),
-            Err(StoreError::NotFound { .. }) => Ok(None),
-            Err(e) => Err(ApiError::internal(format!(
-                "cannot read the size of {key}: {e}"
-            ))),
-        }
+        object_size_in(self.shared.store.as_ref(), key)
     }
 
     fn read_object_range(
@@ -411,12 +402,7 @@ impl RenderBackend for EmulatorBackend {
         key: &str,
         range: std::ops::Range<u64>,
     ) -> Result<Vec<u8>, ApiError> {
-        match self.shared.store.get_range(key, range) {
-            Ok(bytes) => Ok(bytes),
-            // Past the end of the object (it changed since its size was read): nothing there.
-            Err(StoreError::InvalidRange { .. }) => Ok(Vec::new()),
-            Err(e) => Err(ApiError::internal(format!("cannot read {key}: {e}"))),
-        }
+        object_range_in(self.shared.store.as_ref(), key, range)
     }
 
     fn prediction_model(&self) -> PredictionModel {

@@ -261,23 +261,33 @@ mod tests {
         answer
     }
 
-    #[test]
-    fn a_request_past_the_api_functions_timeout_gets_api_gateways_500() {
+    /// [`serve`] of [`Slow`] as the API function `api`, on a free port of 127.0.0.1: its
+    /// address, and a closure that stops it and waits for it.
+    fn start(api: ApiFunction) -> (SocketAddr, impl FnOnce()) {
         let (addr_tx, addr_rx) = std::sync::mpsc::channel();
         let (stop_tx, stop_rx) = oneshot::channel();
         let server = std::thread::spawn(move || {
             serve(
                 Arc::new(Slow),
-                ApiFunction {
-                    timeout: Duration::from_millis(300),
-                    reserved_concurrency: None,
-                },
+                api,
                 "127.0.0.1:0".parse().unwrap(),
                 |addr| addr_tx.send(addr).unwrap(),
                 stop_rx,
             )
         });
-        let addr = addr_rx.recv().unwrap();
+        let stop = move || {
+            stop_tx.send(()).unwrap();
+            server.join().unwrap().unwrap();
+        };
+        (addr_rx.recv().unwrap(), stop)
+    }
+
+    #[test]
+    fn a_request_past_the_api_functions_timeout_gets_api_gateways_500() {
+        let (addr, stop) = start(ApiFunction {
+            timeout: Duration::from_millis(300),
+            reserved_concurrency: None,
+        });
         let slow = get(addr, "/renders");
         assert!(slow.starts_with("HTTP/1.1 500 "), "{slow}");
         assert!(
@@ -286,27 +296,15 @@ mod tests {
         );
         let quick = get(addr, "/renders/r-1");
         assert!(quick.starts_with("HTTP/1.1 404 "), "{quick}");
-        stop_tx.send(()).unwrap();
-        server.join().unwrap().unwrap();
+        stop();
     }
 
     #[test]
     fn a_request_past_the_api_functions_reserved_concurrency_gets_api_gateways_500_at_once() {
-        let (addr_tx, addr_rx) = std::sync::mpsc::channel();
-        let (stop_tx, stop_rx) = oneshot::channel();
-        let server = std::thread::spawn(move || {
-            serve(
-                Arc::new(Slow),
-                ApiFunction {
-                    timeout: Duration::from_secs(10),
-                    reserved_concurrency: Some(1),
-                },
-                "127.0.0.1:0".parse().unwrap(),
-                |addr| addr_tx.send(addr).unwrap(),
-                stop_rx,
-            )
+        let (addr, stop) = start(ApiFunction {
+            timeout: Duration::from_secs(10),
+            reserved_concurrency: Some(1),
         });
-        let addr = addr_rx.recv().unwrap();
         // The list takes 2 s: it holds the one seat meanwhile.
         let slow = std::thread::spawn(move || get(addr, "/renders"));
         std::thread::sleep(Duration::from_millis(500));
@@ -323,7 +321,6 @@ mod tests {
         // The seat is free again.
         let quick = get(addr, "/renders/r-1");
         assert!(quick.starts_with("HTTP/1.1 404 "), "{quick}");
-        stop_tx.send(()).unwrap();
-        server.join().unwrap().unwrap();
+        stop();
     }
 }
