@@ -136,30 +136,9 @@ pub struct RenderArgs {
         "seed", "task_timeout", "time_scale", "lambda_endpoint", "scene_range_bytes",
     ])]
     pub in_process: bool,
-    /// Use this S3-compatible endpoint (MinIO, Garage, Ceph RGW, moto) instead of the
-    /// embedded server; credentials from --access-key/--secret-key or the AWS environment.
-    #[arg(long, requires = "bucket")]
-    pub s3_endpoint: Option<String>,
-    /// Bucket at --s3-endpoint, or without it a bucket of AWS S3 itself; it must exist.
-    #[arg(long)]
-    pub bucket: Option<String>,
-    /// Signing region of --bucket (default: AWS_REGION or the AWS profile's, else us-east-1).
-    #[arg(long, requires = "bucket")]
-    pub region: Option<String>,
-    /// Access key for --s3-endpoint (else AWS_ACCESS_KEY_ID and the default chain).
-    #[arg(long, requires = "secret_key", env = "HORT_S3_ACCESS_KEY")]
-    pub access_key: Option<String>,
-    /// Secret key for --s3-endpoint.
-    #[arg(
-        long,
-        requires = "access_key",
-        env = "HORT_S3_SECRET_KEY",
-        hide_env_values = true
-    )]
-    pub secret_key: Option<String>,
-    /// Keep the embedded server's objects in DIR (default: a temporary folder, removed after).
-    #[arg(long, conflicts_with_all = ["s3_endpoint", "bucket"])]
-    pub data_dir: Option<PathBuf>,
+    /// Where the job's objects go (the storage flags of `hort jobs` too).
+    #[command(flatten)]
+    pub storage: crate::jobs_cmd::StorageArgs,
     /// Job id (default: a fresh one); objects go under jobs/ID/.
     #[arg(long)]
     pub job: Option<String>,

@@ -11,30 +11,30 @@ use std::path::{Path, PathBuf};
 #[derive(Subcommand)]
 pub enum JobsCommand {
     /// List the jobs: id, status (finished or unfinished), objects and bytes, on standard output.
-    List(StorageArgs),
+    List(ListArgs),
     /// Delete every object of one job (--job ID) or of all jobs (--all).
     Clean(CleanArgs),
 }
 
-/// Where the jobs are: a bucket (--bucket, with --s3-endpoint for a compatible server), or an
-/// embedded server's data folder (--data-dir).
-#[derive(Args)]
-#[command(group(clap::ArgGroup::new("where").required(true).args(["bucket", "data_dir"])))]
+/// The storage flags of every emulator command that reaches a bucket (`hort render`, `hort jobs`):
+/// a bucket (--bucket, with --s3-endpoint for a compatible server), or the embedded server over
+/// a data folder (--data-dir).
+#[derive(Args, Clone, Debug, Default)]
 pub struct StorageArgs {
-    /// An S3-compatible endpoint (MinIO, Garage, Ceph RGW, moto); without it, --bucket is on
-    /// AWS S3.
+    /// Use this S3-compatible endpoint (MinIO, Garage, Ceph RGW, moto) instead of the embedded
+    /// server; credentials from --access-key/--secret-key or the AWS environment.
     #[arg(long, requires = "bucket")]
     pub s3_endpoint: Option<String>,
-    /// The bucket holding the jobs.
+    /// Bucket at --s3-endpoint, or without it a bucket of AWS S3 itself; it must exist.
     #[arg(long)]
     pub bucket: Option<String>,
-    /// Signing region (default: AWS_REGION or the AWS profile's, else us-east-1).
+    /// Signing region of --bucket (default: AWS_REGION or the AWS profile's, else us-east-1).
     #[arg(long, requires = "bucket")]
     pub region: Option<String>,
-    /// Access key (else AWS_ACCESS_KEY_ID and the AWS default chain).
+    /// Access key for --s3-endpoint (else AWS_ACCESS_KEY_ID and the default chain).
     #[arg(long, requires = "secret_key", env = "HORT_S3_ACCESS_KEY")]
     pub access_key: Option<String>,
-    /// Secret key.
+    /// Secret key for --s3-endpoint.
     #[arg(
         long,
         requires = "access_key",
@@ -42,12 +42,22 @@ pub struct StorageArgs {
         hide_env_values = true
     )]
     pub secret_key: Option<String>,
-    /// The data folder of `hort render --data-dir DIR`.
+    /// The embedded server's objects in DIR (`hort render`: default a temporary folder,
+    /// removed after).
     #[arg(long, conflicts_with_all = ["s3_endpoint", "bucket"])]
     pub data_dir: Option<PathBuf>,
 }
 
+/// Where the jobs to list are: one of --bucket and --data-dir is required.
 #[derive(Args)]
+#[command(group(clap::ArgGroup::new("where").required(true).args(["bucket", "data_dir"])))]
+pub struct ListArgs {
+    #[command(flatten)]
+    pub storage: StorageArgs,
+}
+
+#[derive(Args)]
+#[command(group(clap::ArgGroup::new("where").required(true).args(["bucket", "data_dir"])))]
 #[command(group(clap::ArgGroup::new("which").required(true).args(["job", "all"])))]
 pub struct CleanArgs {
     #[command(flatten)]
@@ -64,7 +74,7 @@ pub struct CleanArgs {
 /// (at `endpoint`, else on AWS S3), else the embedded server over `data_dir` (a temporary
 /// folder when `None`). Credentials are the key pair when both are given, else the AWS default
 /// chain; the region is `region`, else the chain's, else us-east-1.
-pub fn storage_target(
+fn storage_target(
     endpoint: Option<&str>,
     bucket: Option<&str>,
     region: Option<&str>,
@@ -104,31 +114,37 @@ impl StorageArgs {
         }
     }
 
-    fn target(&self) -> Result<StorageTarget> {
+    /// The storage target of an existing bucket or data folder (`hort jobs`).
+    fn existing_target(&self) -> Result<StorageTarget> {
         if let Some(dir) = &self.data_dir
             && !dir.is_dir()
         {
             bail!("--data-dir {}: no such folder", dir.display());
         }
-        Ok(storage_target(
+        Ok(self.target())
+    }
+
+    /// The storage target of these flags (see [`storage_target`]).
+    pub fn target(&self) -> StorageTarget {
+        storage_target(
             self.s3_endpoint.as_deref(),
             self.bucket.as_deref(),
             self.region.as_deref(),
             (self.access_key.as_deref(), self.secret_key.as_deref()),
             self.data_dir.as_deref(),
-        ))
+        )
     }
 }
 
 pub fn run(command: JobsCommand) -> Result<()> {
     match command {
-        JobsCommand::List(args) => list(&args),
+        JobsCommand::List(args) => list(&args.storage),
         JobsCommand::Clean(args) => clean(&args),
     }
 }
 
 fn list(args: &StorageArgs) -> Result<()> {
-    let storage = Storage::open(&args.target()?)?;
+    let storage = Storage::open(&args.existing_target()?)?;
     let jobs = list_jobs(storage.s3())?;
     if jobs.is_empty() {
         eprintln!("no jobs in {}", args.place(&storage));
@@ -154,7 +170,7 @@ fn list(args: &StorageArgs) -> Result<()> {
 }
 
 fn clean(args: &CleanArgs) -> Result<()> {
-    let storage = Storage::open(&args.storage.target()?)?;
+    let storage = Storage::open(&args.storage.existing_target()?)?;
     let jobs: Vec<String> = match &args.job {
         Some(job) => vec![JobId::new(job.clone())?.as_str().to_owned()],
         None => list_jobs(storage.s3())?

@@ -457,13 +457,7 @@ fn render_emulated(
     if !(args.time_scale > 0.0 && args.time_scale.is_finite()) {
         bail!("--time-scale must be a positive number");
     }
-    let storage = crate::jobs_cmd::storage_target(
-        args.s3_endpoint.as_deref(),
-        args.bucket.as_deref(),
-        args.region.as_deref(),
-        (args.access_key.as_deref(), args.secret_key.as_deref()),
-        args.data_dir.as_deref(),
-    );
+    let storage = args.storage.target();
     let cancel = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&cancel);
     // A second Ctrl-C (or a failure to install the handler) leaves the default behaviour.
