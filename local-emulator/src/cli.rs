@@ -2,7 +2,6 @@
 //! rely on.
 
 use clap::{Args, Parser, Subcommand};
-use hort_core::pipeline::{ExecutionMode, SplitMode};
 use std::path::PathBuf;
 
 #[derive(Parser)]
@@ -79,15 +78,9 @@ pub enum SceneCommand {
 pub struct RenderArgs {
     /// The scene: an OBJ file, or a JSON manifest (.json) naming OBJ files.
     pub scene: PathBuf,
-    /// Image width in pixels, 1 to 65536 (default: manifest, else 960).
-    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=65536))]
-    pub width: Option<u32>,
-    /// Image height in pixels, 1 to 65536 (default: manifest, else 540).
-    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=65536))]
-    pub height: Option<u32>,
-    /// Samples per pixel, 1 to 65536 (default: manifest, else 1).
-    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=65536))]
-    pub spp: Option<u32>,
+    /// The image and the plan's shape (the flags of `hort plan` too).
+    #[command(flatten)]
+    pub plan: crate::plan_flags::PlanFlags,
     /// Adaptive sampling up to MAX_SPP samples per pixel (a power of 4, above --spp): first
     /// --spp samples (a power of 4, at least 4) in every pixel, then MAX_SPP in the pixels
     /// whose standard error is above --adaptive-threshold. Monolithic or fused mode.
@@ -108,22 +101,6 @@ pub struct RenderArgs {
     /// Worker threads of a monolithic render (default: all cores).
     #[arg(long, requires = "monolithic", allow_negative_numbers = true, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=4096))]
     pub threads: Option<usize>,
-    /// Scene splits k. 1 runs fused (one task renders a span against the whole scene), K > 1
-    /// runs HORT's staged shuffle over K splits (default: fused when one function holds the
-    /// whole scene within --memory-mb, else staged with the fewest splits that fit).
-    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..))]
-    pub splits: Option<u32>,
-    /// Pixel spans s, one reduce task each; HORT's d = s x k map inputs (default: about one per
-    /// 64k samples, at most 100).
-    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..))]
-    pub spans: Option<u32>,
-    /// Force fused (no shuffle) or staged (HORT's map/reduce stages) execution, for tests and
-    /// benchmarks; by default the plan chooses from the scene's size and --memory-mb.
-    #[arg(long)]
-    pub mode: Option<ExecutionMode>,
-    /// How the scene is cut: spatial clusters (default) or the paper's naive index ranges.
-    #[arg(long, default_value = "spatial")]
-    pub split_mode: SplitMode,
     /// Function slots (emulator) or worker threads (--in-process): tasks run concurrently
     /// (default: all cores).
     #[arg(long, allow_negative_numbers = true, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=4096))]
@@ -149,12 +126,6 @@ pub struct RenderArgs {
     /// plan.json and out/ stay in a bucket or --data-dir).
     #[arg(long)]
     pub keep_intermediates: bool,
-    /// Split the scene by tasks (partition tasks over byte ranges of its OBJ files, then one
-    /// build task per split) in ranges of this many bytes, whatever its size (default: only a
-    /// scene too large for one function to load within --memory-mb is, in ranges of a
-    /// sixteenth of it).
-    #[arg(long, value_name = "BYTES", value_parser = clap::value_parser!(u64).range(1..))]
-    pub scene_range_bytes: Option<u64>,
     /// Probability that an attempt fails (before running, or after writing part of its outputs).
     #[arg(long, default_value_t = 0.0)]
     pub fail_rate: f64,
@@ -191,11 +162,6 @@ pub struct RenderArgs {
     /// The Worker function's name at --lambda-endpoint.
     #[arg(long, default_value = "worker", requires = "lambda_endpoint")]
     pub worker_function: String,
-    /// Memory of one function, MB, 128 to 10240 as in Lambda: the plan keeps every task within
-    /// it (choosing fused or staged and the split count), and the cost estimate assumes it.
-    /// Default: the Worker's in infra/template.yaml.
-    #[arg(long, default_value_t = hort::deployment::Deployment::bundled().worker.memory_mb, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(128..=10240))]
-    pub memory_mb: u32,
     /// Output image: .png or .jpg (8-bit sRGB), .pfm or .exr (linear). Default: the scene file's name
     /// with .png, in the current folder. Checked before any work; written atomically.
     #[arg(long)]

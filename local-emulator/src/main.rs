@@ -8,6 +8,7 @@ mod eval;
 mod jobs_cmd;
 mod outputs;
 mod plan_cmd;
+mod plan_flags;
 mod render_cmd;
 mod scene_cmd;
 mod serve;

@@ -5,6 +5,7 @@ use crate::cli::RenderArgs;
 use crate::outputs::{
     OutputTarget, check_distinct, check_image_path, check_output_path, write_output,
 };
+use crate::plan_flags::ImageSize;
 use anyhow::{Context, Result, anyhow, bail};
 use hort::deployment::Deployment;
 use hort::emulator::{
@@ -22,9 +23,7 @@ use hort_core::pipeline::{
 };
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
 use hort_core::report::{AdaptiveReport, Outputs, RayReport, Report, Seconds, StageReport};
-use hort_core::scene::{
-    DEFAULT_HEIGHT, DEFAULT_WIDTH, Scene, check_image_size, load_scene, scene_image_settings,
-};
+use hort_core::scene::{Scene, check_image_size, load_scene, scene_image_settings};
 use hort_core::store::MemoryStore;
 use hort_core::unoccludable::unoccludable_lights;
 use std::path::{Path, PathBuf};
@@ -99,7 +98,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
     // (it may not fit here either); the Plan function checks it.
     let by_tasks = !args.monolithic
         && !args.in_process
-        && splits_by_tasks(&args.scene, args.memory_mb, args.scene_range_bytes);
+        && splits_by_tasks(
+            &args.scene,
+            args.plan.memory_mb,
+            args.plan.scene_range_bytes,
+        );
     let scene = if by_tasks {
         None
     } else {
@@ -113,10 +116,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
         Some(scene) => scene.image,
         None => scene_image_settings(&args.scene)?,
     };
-    let width = args.width.or(image.width).unwrap_or(DEFAULT_WIDTH);
-    let height = args.height.or(image.height).unwrap_or(DEFAULT_HEIGHT);
-    let spp = args.spp.or(image.spp).unwrap_or(1);
-    check_image_size(width, height, spp)?;
+    let size = args.plan.image_size(&image)?;
+    let ImageSize { width, height, spp } = size;
     // A camera that cannot be built is the scene's fault: say so before any upload or render.
     if let Some(scene) = &scene {
         Camera::new(&scene.camera_for(width, height), width, height)
@@ -139,22 +140,15 @@ pub fn run(args: RenderArgs) -> Result<()> {
         }
         None => None,
     };
-    let request = PlanRequest {
-        width,
-        height,
-        spp,
-        splits: args.splits,
-        spans: args.spans,
-        mode: args.split_mode,
-        execution: args.mode,
-        memory_mb: args.memory_mb,
+    let request = args.plan.request(
+        size,
         adaptive,
         // A job stores the large outputs only when this command writes them.
-        outputs: StoredOutputs {
+        StoredOutputs {
             linear: !is_png(&out),
             hits: args.hits.is_some(),
         },
-    };
+    );
     if let Some(scene) = scene.as_ref().filter(|_| !args.monolithic) {
         // Refuse impossible partitionings here, with the scene at hand, before any upload.
         let triangles = scene.mesh.triangle_count() as u64;
@@ -482,7 +476,7 @@ fn render_emulated(
         time_scale: args.time_scale,
         task_timeout_seconds: args.task_timeout,
         split_cache_bytes: 1 << 30,
-        memory_mb: args.memory_mb,
+        memory_mb: args.plan.memory_mb,
         arch: Arch::Arm64,
         cancel,
         lambda: args.lambda_endpoint.as_ref().map(|endpoint| LambdaTarget {
@@ -496,7 +490,7 @@ fn render_emulated(
     let options = JobOptions {
         keep_intermediates: args.keep_intermediates,
         resume: args.resume,
-        scene_range_bytes: args.scene_range_bytes,
+        scene_range_bytes: args.plan.scene_range_bytes,
     };
     // The scene loaded above goes up parsed: no function parses it again (a scene split by
     // tasks, not loaded, goes up as its files).

@@ -6,6 +6,7 @@
 
 use super::table::{Table, f3};
 use crate::plan_cmd::{ArchArg, PlanArgs, TargetArg, calibrate, plan_with};
+use crate::plan_flags::PlanFlags;
 use anyhow::{Context, Result, bail};
 use hort::emulator::S3_FAULTS_VAR;
 use hort_core::pipeline::{ExecutionMode, SplitMode};
@@ -88,20 +89,22 @@ pub fn run_plan_bench(args: &PlanBenchArgs) -> Result<()> {
                         more_scenes: Vec::new(),
                         chart: None,
                         functions: Some(workers),
-                        memory_mb: 2048,
                         arch: ArchArg::Arm64,
                         target: TargetArg::Emulator,
                         json: true,
                         fail_rate: 0.0,
                         s3_latency_ms: latency,
-                        width: args.width,
-                        height: args.height,
-                        spp: args.spp,
-                        splits: args.splits,
-                        spans: None,
-                        split_mode: SplitMode::Spatial,
-                        mode: args.mode,
-                        scene_range_bytes: args.scene_range_bytes,
+                        plan: PlanFlags {
+                            width: args.width,
+                            height: args.height,
+                            spp: args.spp,
+                            splits: args.splits,
+                            spans: None,
+                            split_mode: SplitMode::Spatial,
+                            mode: args.mode,
+                            memory_mb: 2048,
+                            scene_range_bytes: args.scene_range_bytes,
+                        },
                     },
                     calibration,
                 )?;

@@ -22,10 +22,7 @@ use hort_core::predict::{
     SPLIT_NORMAL_BYTES_PER_TRIANGLE, SWEEP, Target, best_of, preview_plan, project,
 };
 use hort_core::render::available_cores;
-use hort_core::scene::{
-    DEFAULT_HEIGHT, DEFAULT_WIDTH, ImageSettings, check_image_size, load_scene,
-    scene_image_settings,
-};
+use hort_core::scene::{ImageSettings, load_scene, scene_image_settings};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -48,9 +45,6 @@ pub struct PlanArgs {
     /// Functions to project (default: the best of the sweep), 1 to 10000.
     #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=10_000))]
     pub functions: Option<u32>,
-    /// Memory of one function, MB, 128 to 10240 (as `hort render --memory-mb`).
-    #[arg(long, default_value_t = 2048, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(128..=10240))]
-    pub memory_mb: u32,
     /// Lambda architecture: its price per GB-second and its cold start.
     #[arg(long, value_enum, default_value = "arm64")]
     pub arch: ArchArg,
@@ -68,32 +62,9 @@ pub struct PlanArgs {
     /// HORT_S3_FAULTS=latency=1,latency-ms=N does).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub s3_latency_ms: f64,
-    /// Image width in pixels (default: manifest, else 960).
-    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=65536))]
-    pub width: Option<u32>,
-    /// Image height in pixels (default: manifest, else 540).
-    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=65536))]
-    pub height: Option<u32>,
-    /// Samples per pixel (default: manifest, else 1).
-    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=65536))]
-    pub spp: Option<u32>,
-    /// Scene splits k (default: as `hort render`).
-    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..))]
-    pub splits: Option<u32>,
-    /// Pixel spans s (default: as `hort render`).
-    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..))]
-    pub spans: Option<u32>,
-    /// How the scene is cut: spatial clusters (default) or naive index ranges.
-    #[arg(long, default_value = "spatial")]
-    pub split_mode: SplitMode,
-    /// Force fused or staged execution (default: the plan chooses).
-    #[arg(long)]
-    pub mode: Option<ExecutionMode>,
-    /// Plan the scene split by tasks in ranges of this many bytes (as `hort render
-    /// --scene-range-bytes`; default: only a scene too large for one function to load within
-    /// --memory-mb is).
-    #[arg(long, value_name = "BYTES", value_parser = clap::value_parser!(u64).range(1..))]
-    pub scene_range_bytes: Option<u64>,
+    /// The image and the plan's shape: `hort render`'s flags, with its names and defaults.
+    #[command(flatten)]
+    pub plan: crate::plan_flags::PlanFlags,
 }
 
 /// `--arch`.
@@ -274,22 +245,8 @@ pub fn plan_with(args: &PlanArgs, calibration: Calibration) -> Result<PlanOutput
 
 /// The request `hort render` would send for a scene whose manifest fixes `image`.
 fn plan_request(args: &PlanArgs, image: &ImageSettings) -> Result<PlanRequest> {
-    let width = args.width.or(image.width).unwrap_or(DEFAULT_WIDTH);
-    let height = args.height.or(image.height).unwrap_or(DEFAULT_HEIGHT);
-    let spp = args.spp.or(image.spp).unwrap_or(1);
-    check_image_size(width, height, spp)?;
-    Ok(PlanRequest {
-        width,
-        height,
-        spp,
-        splits: args.splits,
-        spans: args.spans,
-        mode: args.split_mode,
-        execution: args.mode,
-        memory_mb: args.memory_mb,
-        adaptive: None,
-        outputs: StoredOutputs::ALL,
-    })
+    let size = args.plan.image_size(image)?;
+    Ok(args.plan.request(size, None, StoredOutputs::ALL))
 }
 
 /// The plan of a scene loaded whole, with its camera samples' hit fraction estimated.
@@ -350,7 +307,7 @@ struct Prepared {
 /// Plan function would split by tasks, scanned range by range as it would scan it (so that no
 /// more than a range's vertices are held).
 fn prepare(args: &PlanArgs, scene_path: &Path, calibration: &Calibration) -> Result<Prepared> {
-    let job = match scene_range_for(scene_path, args.memory_mb, args.scene_range_bytes) {
+    let job = match scene_range_for(scene_path, args.plan.memory_mb, args.plan.scene_range_bytes) {
         Some(range) => preview_scanned(args, scene_path, range)?,
         None => preview_loaded(args, scene_path)?,
     };
@@ -362,7 +319,7 @@ fn prepare(args: &PlanArgs, scene_path: &Path, calibration: &Calibration) -> Res
     let (target, speed, sweep): (Target, f64, &'static [u32]) = match args.target {
         TargetArg::Aws => (
             Target::Aws {
-                memory_mb: args.memory_mb,
+                memory_mb: args.plan.memory_mb,
                 arch,
             },
             1.0,
@@ -372,7 +329,7 @@ fn prepare(args: &PlanArgs, scene_path: &Path, calibration: &Calibration) -> Res
             Target::Emulator {
                 cores: available_cores() as u32,
                 s3_latency_ms: args.s3_latency_ms,
-                memory_mb: args.memory_mb,
+                memory_mb: args.plan.memory_mb,
                 arch,
             },
             calibration.speed,
