@@ -1,18 +1,23 @@
 //! The stage table: the one place that says which stages a job has, in which order, what each
 //! is called in object keys, reports and the state machine, and how its tasks are handed out.
 //!
-//! | stage | name | state | items field | function |
-//! |---|---|---|---|---|
-//! | [`Stage::Plan`] | `plan` | `Plan` | - | `PlanFunctionArn` |
-//! | [`Stage::Partition`] | `partition` | `Partition` | `partition` | `WorkerFunctionArn` |
-//! | [`Stage::Build`] | `build` | `Build` | `build` | `WorkerFunctionArn` |
-//! | [`Stage::Render`] | `render` | `Render` | `render` | `WorkerFunctionArn` |
-//! | [`Stage::CastMap`] | `cast-map` | `CastMap` | `cast_map` | `WorkerFunctionArn` |
-//! | [`Stage::CastReduce`] | `cast-reduce` | `CastReduce` | `cast_reduce` | `WorkerFunctionArn` |
-//! | [`Stage::Expand`] | `expand` | `Expand` | `expand` | `WorkerFunctionArn` |
-//! | [`Stage::TraceMap`] | `trace-map` | `TraceMap` | `trace_map` | `WorkerFunctionArn` |
-//! | [`Stage::TraceReduce`] | `trace-reduce` | `TraceReduce` | `trace_reduce` | `WorkerFunctionArn` |
-//! | [`Stage::Combine`] | `combine` | `Combine` | - | `WorkerFunctionArn` |
+//! | stage | name | state | items field | function | fused | staged | round | needs shadows |
+//! |---|---|---|---|---|---|---|---|---|
+//! | [`Stage::Plan`] | `plan` | `Plan` | - | `PlanFunctionArn` | yes | yes | | |
+//! | [`Stage::Partition`] | `partition` | `Partition` | `partition` | `WorkerFunctionArn` | | | | |
+//! | [`Stage::Build`] | `build` | `Build` | `build` | `WorkerFunctionArn` | | | | |
+//! | [`Stage::Render`] | `render` | `Render` | `render` | `WorkerFunctionArn` | yes | | | |
+//! | [`Stage::CastMap`] | `cast-map` | `CastMap` | `cast_map` | `WorkerFunctionArn` | | yes | yes | |
+//! | [`Stage::CastReduce`] | `cast-reduce` | `CastReduce` | `cast_reduce` | `WorkerFunctionArn` | | yes | yes | |
+//! | [`Stage::Expand`] | `expand` | `Expand` | `expand` | `WorkerFunctionArn` | | yes | yes | yes |
+//! | [`Stage::TraceMap`] | `trace-map` | `TraceMap` | `trace_map` | `WorkerFunctionArn` | | yes | yes | yes |
+//! | [`Stage::TraceReduce`] | `trace-reduce` | `TraceReduce` | `trace_reduce` | `WorkerFunctionArn` | | yes | yes | |
+//! | [`Stage::Combine`] | `combine` | `Combine` | - | `WorkerFunctionArn` | yes | yes | | |
+//!
+//! The last four columns are [`Stage::role`]: the fused and staged paths, the stages of a staged
+//! round (HORT's shuffle, run again for the refined spans of an adaptive job), and the stages a
+//! staged job skips when no light can be occluded; every ordered stage list is derived from them
+//! ([`Stage::FUSED`], [`Stage::STAGED`], [`Stage::STAGED_WITHOUT_SHADOWS`], [`Stage::ROUND`]).
 //!
 //! A scene too large for one function is split by tasks first (Partition, then Build, with the
 //! Plan function's `Cut` and `PlanFromParts` steps between and after them; see
@@ -58,6 +63,53 @@ pub enum Stage {
     Combine,
 }
 
+/// Where a stage runs (the last columns of the stage table).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StageRole {
+    /// A fused job runs it.
+    pub fused: bool,
+    /// A staged job runs it.
+    pub staged: bool,
+    /// One of a staged round's stages (HORT's shuffle).
+    pub round: bool,
+    /// Only a job that traces shadow rays runs it.
+    pub needs_shadows: bool,
+}
+
+/// Which ordered list of [`Stage::ALL`] [`select`] makes.
+#[derive(Clone, Copy)]
+enum Path {
+    Fused,
+    Staged,
+    StagedWithoutShadows,
+    Round,
+}
+
+/// The stages of [`Stage::ALL`] on `path`, in order; `N` must be their count (a wrong `N` fails
+/// at compile time).
+const fn select<const N: usize>(path: Path) -> [Stage; N] {
+    let mut out = [Stage::Plan; N];
+    let (mut i, mut n) = (0, 0);
+    while i < Stage::ALL.len() {
+        let stage = Stage::ALL[i];
+        let role = stage.role();
+        let on = match path {
+            Path::Fused => role.fused,
+            Path::Staged => role.staged,
+            Path::StagedWithoutShadows => role.staged && !role.needs_shadows,
+            Path::Round => role.round,
+        };
+        if on {
+            assert!(n < N, "more stages on the path than the array holds");
+            out[n] = stage;
+            n += 1;
+        }
+        i += 1;
+    }
+    assert!(n == N, "fewer stages on the path than the array holds");
+    out
+}
+
 /// The state machine's name of the function that plans a job.
 pub const PLAN_FUNCTION: &str = "PlanFunctionArn";
 /// The state machine's name of the function that runs any task of the other stages.
@@ -81,6 +133,35 @@ impl Stage {
     /// The stages whose tasks the Worker function runs (every stage after [`Stage::Plan`]), in
     /// order.
     pub const TASKS: &'static [Stage] = Stage::ALL.split_at(1).1;
+
+    /// A fused job's stages, in order: Plan, Render, Combine.
+    pub const FUSED: [Stage; 3] = select(Path::Fused);
+
+    /// A staged job's stages, in order: Plan, HORT's five, Combine.
+    pub const STAGED: [Stage; 7] = select(Path::Staged);
+
+    /// A staged job's stages when no light can be occluded: without Expand and TraceMap.
+    pub const STAGED_WITHOUT_SHADOWS: [Stage; 5] = select(Path::StagedWithoutShadows);
+
+    /// The stages of a staged round, in order (HORT's shuffle).
+    pub const ROUND: [Stage; 5] = select(Path::Round);
+
+    /// Where the stage runs (the stage table's last columns).
+    pub const fn role(self) -> StageRole {
+        let (fused, staged, round, needs_shadows) = match self {
+            Stage::Plan | Stage::Combine => (true, true, false, false),
+            Stage::Partition | Stage::Build => (false, false, false, false),
+            Stage::Render => (true, false, false, false),
+            Stage::CastMap | Stage::CastReduce | Stage::TraceReduce => (false, true, true, false),
+            Stage::Expand | Stage::TraceMap => (false, true, true, true),
+        };
+        StageRole {
+            fused,
+            staged,
+            round,
+            needs_shadows,
+        }
+    }
 
     /// The stage's stable kebab-case name, used in object keys, JSON, reports and logs.
     pub const fn as_str(self) -> &'static str {

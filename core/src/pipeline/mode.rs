@@ -33,16 +33,8 @@ impl ExecutionMode {
     /// The stages a job of this mode runs, in order.
     pub fn stages(self) -> &'static [Stage] {
         match self {
-            ExecutionMode::Fused => &[Stage::Plan, Stage::Render, Stage::Combine],
-            ExecutionMode::Staged => &[
-                Stage::Plan,
-                Stage::CastMap,
-                Stage::CastReduce,
-                Stage::Expand,
-                Stage::TraceMap,
-                Stage::TraceReduce,
-                Stage::Combine,
-            ],
+            ExecutionMode::Fused => &Stage::FUSED,
+            ExecutionMode::Staged => &Stage::STAGED,
         }
     }
 
@@ -57,13 +49,7 @@ impl ExecutionMode {
     /// way.
     pub fn stages_with(self, shadows: bool) -> &'static [Stage] {
         match (self, shadows) {
-            (ExecutionMode::Staged, false) => &[
-                Stage::Plan,
-                Stage::CastMap,
-                Stage::CastReduce,
-                Stage::TraceReduce,
-                Stage::Combine,
-            ],
+            (ExecutionMode::Staged, false) => &Stage::STAGED_WITHOUT_SHADOWS,
             _ => self.stages(),
         }
     }

@@ -14,13 +14,7 @@ use crate::stage::Stage;
 
 /// The stages a round runs, in order (without the stages a job skips; see
 /// [`JobPlan::stages`]).
-const ROUND_STAGES: [Stage; 5] = [
-    Stage::CastMap,
-    Stage::CastReduce,
-    Stage::Expand,
-    Stage::TraceMap,
-    Stage::TraceReduce,
-];
+const ROUND_STAGES: [Stage; 5] = Stage::ROUND;
 
 impl JobPlan {
     /// Whether the job may run a second round: staged with the adaptive sampler. (Fused

@@ -94,13 +94,7 @@ fn run(scene: &Scene, req: PlanRequest, workers: usize) -> Result<(PipelineRun, 
     Ok((run, start.elapsed().as_secs_f64()))
 }
 
-const SHUFFLE_STAGES: [Stage; 5] = [
-    Stage::CastMap,
-    Stage::CastReduce,
-    Stage::Expand,
-    Stage::TraceMap,
-    Stage::TraceReduce,
-];
+const SHUFFLE_STAGES: [Stage; 5] = Stage::ROUND;
 
 fn time_table(scene: &Scene, args: &PipelineBenchArgs, threads: usize) -> Result<Table> {
     let mut table = Table::new(
