@@ -509,6 +509,24 @@ pub fn plan_job(
     })
 }
 
+/// The timeout of a Partition task over a byte range of `range_bytes`, seconds: a fixed 30 s
+/// plus a second per 4 MiB of its range, three times over (a few times the time it takes on a
+/// slow function), at most 900 s (Lambda's longest; the Worker's own timeout bounds it further,
+/// `docs/AWS-LIMITS.md`). Beside [`JobPlan::task_timeout_seconds`]: one home for the timeouts.
+pub fn partition_timeout_seconds(range_bytes: u64) -> u32 {
+    parts_timeout_seconds(range_bytes >> 22)
+}
+
+/// The timeout of a Build task whose split holds `triangles`, seconds: as
+/// [`partition_timeout_seconds`], with a second per 50,000 triangles.
+pub fn build_timeout_seconds(triangles: u64) -> u32 {
+    parts_timeout_seconds(triangles / 50_000)
+}
+
+fn parts_timeout_seconds(units: u64) -> u32 {
+    (3 * (30 + units)).min(900) as u32
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

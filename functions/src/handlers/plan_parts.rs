@@ -13,18 +13,13 @@ use super::plan::{
 use hort_core::ids::{JobId, Stage};
 use hort_core::keys::{items_key, parts_table_key, scene_prefix};
 use hort_core::pipeline::partition::{cut_scene, plan_from_parts, scan_scene, scene_range_bytes};
-use hort_core::pipeline::{JobPlan, TaskMetrics, micros, resolve_counts};
+use hort_core::pipeline::{
+    JobPlan, TaskMetrics, build_timeout_seconds, micros, partition_timeout_seconds, resolve_counts,
+};
 use hort_core::scene::{Scene, load_scene};
 use hort_core::store::{BlobStore, StoreError, TimedStore};
 use std::path::Path;
 use std::time::Instant;
-
-/// Timeout of a partition or build task: a fixed allowance plus a second per 4 MiB of its
-/// range or 50,000 triangles of its split, three times over (a few times the time it takes on
-/// a slow function).
-fn parts_timeout_seconds(units: u64) -> u32 {
-    (3 * (30 + units)).min(900) as u32
-}
 
 /// What the `start` step found.
 pub(super) enum Loaded {
@@ -105,7 +100,7 @@ fn scan(
     // Files are named as the user named them, relative to the scene's folder.
     let table = scan_scene(store, job, dir, main, range)?;
     let (shape, _) = resolve_counts(&request.render, table.triangles)?;
-    let timeout = parts_timeout_seconds(range >> 22);
+    let timeout = partition_timeout_seconds(range);
     let ranges = table.ranges.len() as u32;
     parts_output(
         store,
@@ -134,7 +129,7 @@ pub(super) fn cut_step(
         .max()
         .unwrap_or(0);
     let k = cut.splits.len() as u32;
-    let timeout = parts_timeout_seconds(largest / 50_000);
+    let timeout = build_timeout_seconds(largest);
     let output = parts_output(store, job, &request, shape.mode, Stage::Build, k, timeout)?;
     Ok((output, step_metrics(store, started)))
 }
