@@ -738,16 +738,32 @@ mod tests {
             .unwrap()
             .plan;
         let cache = SplitCache::new(1 << 24);
-        let output = |m: &TaskMetrics| (m.bytes_written, m.records);
+        // The task's stored outputs, key and bytes, and then none: each run writes its own.
+        let take_outputs = || -> Vec<(String, Vec<u8>)> {
+            let keys = store.list("jobs/cache/cast-map/").unwrap();
+            let outputs = keys
+                .iter()
+                .map(|k| (k.clone(), store.get(k).unwrap()))
+                .collect();
+            keys.iter().for_each(|k| store.delete(k).unwrap());
+            outputs
+        };
         let cold = run_task_cached(&store, &job, &plan, Stage::CastMap, 0, &cache).unwrap();
+        let cold_outputs = take_outputs();
+        assert!(!cold_outputs.is_empty());
         assert_eq!(cold.split_cache_hits, 0);
         assert!(cold.split_bytes_read > 0);
         let warm = run_task_cached(&store, &job, &plan, Stage::CastMap, 0, &cache).unwrap();
         assert_eq!(warm.split_cache_hits, 1);
         assert_eq!(warm.split_bytes_read, 0);
-        assert_eq!(output(&warm), output(&cold));
+        assert_eq!(
+            take_outputs(),
+            cold_outputs,
+            "a cache hit stores the same bytes"
+        );
         let uncached = run_task(&store, &job, &plan, Stage::CastMap, 0).unwrap();
         assert_eq!(uncached.split_cache_hits, 0);
+        assert_eq!(take_outputs(), cold_outputs, "so does no cache");
         let mut total = cold;
         total += warm;
         assert_eq!(total.split_cache_hits, 1);
