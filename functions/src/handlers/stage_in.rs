@@ -1,9 +1,10 @@
 //! A scene given by key (`JobRequest::scene_key`), staged into its job: the Plan function copies
 //! the main file, the meshes a manifest names and the material libraries the meshes name from
-//! beside the key into `jobs/{job}/scene/`, inside the store (CopyObject: no scene bytes pass
-//! through the function but a manifest's and the lines that name material libraries). From
-//! there on the job is like any other whose files were uploaded: a retried or rerun task reads
-//! the job's own copy, whatever happens to the key later.
+//! beside the key into `jobs/{job}/scene/`, inside the store (CopyObject). The function itself
+//! reads only a manifest and each OBJ file once, in chunks, for its `mtllib` lines. From there
+//! on the job is like any other whose files were uploaded: its later tasks (a Worker rebuilding
+//! a lost split, a rerun) read the job's own copy, whatever happens to the key; a retried Plan
+//! attempt copies again.
 //!
 //! The HTTP API checked that the main file and the meshes existed when it accepted the job;
 //! they are checked again here (the bucket may have changed), with the same messages.
