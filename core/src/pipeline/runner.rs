@@ -230,6 +230,13 @@ pub fn refined_spans(
     Ok((spans, ctx.metrics))
 }
 
+/// The error of a task that the plan does not have: `what` names the plan's list it is not in.
+fn missing(stage: Stage, task: u32, what: &str) -> PipelineError {
+    PipelineError::BadInput(format!(
+        "{stage} task {task} does not exist in the plan ({what})"
+    ))
+}
+
 struct Task<'a> {
     store: &'a dyn BlobStore,
     job: &'a JobId,
@@ -243,226 +250,14 @@ struct Task<'a> {
 
 impl Task<'_> {
     fn run(&mut self, stage: Stage, task: u32) -> Result<(), PipelineError> {
-        let plan = self.plan;
-        let missing = |what: &str| {
-            PipelineError::BadInput(format!(
-                "{stage} task {task} does not exist in the plan ({what})"
-            ))
-        };
         match stage {
-            Stage::Render => {
-                let span = *plan
-                    .spans
-                    .get(task as usize)
-                    .filter(|_| plan.task_count(Stage::Render) > 0)
-                    .ok_or_else(|| missing("render tasks"))?;
-                let splits = (0..plan.k())
-                    .map(|split| self.read_split(split))
-                    .collect::<Result<Vec<_>, _>>()?;
-                let splits: Vec<&SplitObject> = splits.iter().map(Arc::as_ref).collect();
-                let (block, shadow_rays, adaptive) =
-                    timed(&mut self.metrics.compute_us, || match plan.adaptive {
-                        Some(a) => render_span_adaptive(plan, &span, &splits, a),
-                        None => stages::render_span(plan, &span, &splits)
-                            .map(|(block, rays)| (block, rays, AdaptiveCounts::default())),
-                    })?;
-                self.metrics.shadow_rays += shadow_rays;
-                self.metrics.adaptive += adaptive;
-                let n = block.colours.len();
-                let bytes = timed(&mut self.metrics.encode_us, || encode_pixels(&block));
-                self.write(&self.key(stage, task, 0), bytes, n)
-            }
-            Stage::CastMap => {
-                let (round, index) = plan
-                    .round_of(stage, task)
-                    .ok_or_else(|| missing("cast tasks"))?;
-                let t = plan.cast_tasks[index as usize];
-                let span = plan.spans[t.span as usize];
-                let reduce = plan.round_task(Stage::CastReduce, t.span, round);
-                let hits = match plan.adaptive {
-                    Some(a) => {
-                        let samples = match round {
-                            1 => first_round_samples(&span, &a),
-                            _ => second_round_samples(&self.read_refine_list(t.span)?, &a),
-                        };
-                        if samples.is_empty() {
-                            self.metrics.skipped_tasks += 1;
-                            Vec::new()
-                        } else {
-                            let split = self.read_split(t.split)?;
-                            let camera = Camera::new(&plan.camera, plan.width, plan.height)?;
-                            timed(&mut self.metrics.compute_us, || {
-                                cast_samples(plan, &camera, &split, &samples, a.max_spp)
-                            })
-                        }
-                    }
-                    None => {
-                        let split = self.read_split(t.split)?;
-                        timed(&mut self.metrics.compute_us, || {
-                            stages::cast_map(plan, &span, &split)
-                        })?
-                    }
-                };
-                self.write_hits(stage, task, reduce, RecordKind::CastCandidate, &hits)
-            }
-            Stage::CastReduce => {
-                let (round, index) = plan.round_of(stage, task).ok_or_else(|| missing("spans"))?;
-                let span = plan.spans[index as usize];
-                let inputs: Vec<u32> = plan
-                    .cast_tasks_of(index)
-                    .map(|t| plan.round_task(Stage::CastMap, t.task, round))
-                    .collect();
-                if let [only] = inputs[..] {
-                    return self.pass_through_hits(only, task);
-                }
-                let keys: Vec<String> = inputs
-                    .iter()
-                    .map(|&cast_task| self.key(Stage::CastMap, cast_task, task))
-                    .collect();
-                let candidates = self.read_all(&keys, |k, b| {
-                    decode_surface_hits(k, b, RecordKind::CastCandidate)
-                })?;
-                let hits = timed(&mut self.metrics.compute_us, || {
-                    stages::cast_reduce(candidates)
-                });
-                debug_assert!(
-                    hits.iter()
-                        .all(|h| u64::from(h.pixel) >= span.start && u64::from(h.pixel) < span.end)
-                );
-                self.write_hits(stage, task, 0, RecordKind::Hit, &hits)
-            }
-            Stage::Expand => {
-                plan.round_of(stage, task).ok_or_else(|| missing("spans"))?;
-                let hits = self.read_span_hits(task)?;
-                let routed = timed(&mut self.metrics.compute_us, || stages::expand(plan, &hits));
-                let blocks = routed
-                    .iter()
-                    .enumerate()
-                    .map(|(split, queries)| {
-                        let block = timed(&mut self.metrics.encode_us, || encode_queries(queries));
-                        (self.key(stage, task, split as u32), block, queries.len())
-                    })
-                    .collect();
-                self.write_all(blocks)
-            }
-            Stage::TraceMap => {
-                let (round, index) = plan
-                    .round_of(stage, task)
-                    .ok_or_else(|| missing("trace tasks"))?;
-                let t = plan.trace_tasks[index as usize];
-                let expand = plan.round_task(Stage::Expand, t.span, round);
-                let key = self.key(Stage::Expand, expand, t.split);
-                let queries = self.read(&key, decode_queries)?;
-                let occluded = if queries.is_empty() {
-                    self.metrics.skipped_tasks += 1;
-                    Vec::new()
-                } else {
-                    let split = self.read_split(t.split)?;
-                    timed(&mut self.metrics.compute_us, || {
-                        stages::trace_map(plan, &split, &queries)
-                    })
-                    .map_err(|light| {
-                        PipelineError::Corrupt(format!(
-                            "shuffle block {key}: a query names light {light}, the plan has {}",
-                            plan.lights.len()
-                        ))
-                    })?
-                };
-                let bytes = timed(&mut self.metrics.encode_us, || encode_occluded(&occluded));
-                let reduce = plan.round_task(Stage::TraceReduce, t.span, round);
-                self.write(&self.key(stage, task, reduce), bytes, occluded.len())
-            }
-            Stage::TraceReduce => {
-                let (round, index) = plan.round_of(stage, task).ok_or_else(|| missing("spans"))?;
-                let span = plan.spans[index as usize];
-                let hits = self.read_span_hits(task)?;
-                // Without shadow rays (no light a surface can occlude) there are no TraceMap tasks.
-                let shadow_splits = if plan.has_shadows() { plan.k() } else { 0 };
-                let keys: Vec<String> = (0..shadow_splits)
-                    .map(|split| {
-                        let map = plan.trace_task_id(index, split);
-                        self.key(
-                            Stage::TraceMap,
-                            plan.round_task(Stage::TraceMap, map, round),
-                            task,
-                        )
-                    })
-                    .collect();
-                let occluded = self.read_all(&keys, decode_occluded)?;
-                self.metrics.shadow_rays += hits.len() as u64 * plan.lights.len() as u64;
-                let Some(a) = plan.adaptive else {
-                    let block = timed(&mut self.metrics.compute_us, || {
-                        stages::trace_reduce(plan, &span, &hits, occluded)
-                    });
-                    return self.write_pixels(task, &block);
-                };
-                let blocked = stages::merge_occluded(occluded);
-                if round == 1 {
-                    let samples = first_round_samples(&span, &a);
-                    let (block, list, counts) = timed(&mut self.metrics.compute_us, || {
-                        let (colours, sample_hits) =
-                            sample_colours(plan, &samples, &hits, &blocked);
-                        first_round_pixels(&span, &a, &colours, &sample_hits)
-                    });
-                    self.metrics.adaptive += counts;
-                    let bytes = timed(&mut self.metrics.encode_us, || encode_refine_list(&list));
-                    self.write(&self.key(stage, task, 1), bytes, list.pixels.len())?;
-                    return self.write_pixels(task, &block);
-                }
-                let list = self.read_refine_list(index)?;
-                let first_key = self.key(stage, index, 0);
-                let first = self.read(&first_key, decode_pixels)?;
-                check_block(&first_key, &first, &span)?;
-                let block = timed(&mut self.metrics.compute_us, || {
-                    let samples = second_round_samples(&list, &a);
-                    let (colours, _) = sample_colours(plan, &samples, &hits, &blocked);
-                    second_round_pixels(first, &list, &a, &colours)
-                });
-                self.write_pixels(task, &block)
-            }
-            Stage::Combine => {
-                let mut keys = Vec::with_capacity(plan.spans.len());
-                for i in 0..plan.spans.len() as u32 {
-                    // A span with pixels to refine has its final pixels from round 2.
-                    let round = if plan.has_second_round()
-                        && !self.read_refine_list(i)?.pixels.is_empty()
-                    {
-                        2
-                    } else {
-                        1
-                    };
-                    let stage = plan.mode.pixel_stage();
-                    keys.push(self.key(stage, plan.round_task(stage, i, round), 0));
-                }
-                let blocks = self.read_all(&keys, decode_pixels)?;
-                for ((key, block), span) in keys.iter().zip(&blocks).zip(&plan.spans) {
-                    check_block(key, block, span)?;
-                }
-                let (image, hits) = timed(&mut self.metrics.compute_us, || {
-                    stages::combine(plan, &blocks)
-                });
-                // The outputs the plan asks for besides the PNG, stored at once
-                // (`BlobStore::put_many`), then the PNG: a job whose PNG exists has every
-                // output it asked for.
-                let outputs = plan.outputs;
-                let (png, others) = timed(&mut self.metrics.encode_us, || {
-                    let mut others = Vec::new();
-                    if outputs.linear {
-                        others.push((image_key(self.job, "pfm"), encode_pfm(&image)));
-                    }
-                    if outputs.hits {
-                        others.push((hits_key(self.job), encode_hits(&hits)));
-                    }
-                    (encode_png(&image), others)
-                });
-                let png = png.map_err(|e| PipelineError::BadInput(e.to_string()))?;
-                if !others.is_empty() {
-                    self.write_plain_all(&others)?;
-                }
-                self.write_plain_all(&[(image_key(self.job, "png"), png)])?;
-                self.metrics.records += hits.len() as u64;
-                Ok(())
-            }
+            Stage::Render => self.render(task),
+            Stage::CastMap => self.cast_map(task),
+            Stage::CastReduce => self.cast_reduce(task),
+            Stage::Expand => self.expand(task),
+            Stage::TraceMap => self.trace_map(task),
+            Stage::TraceReduce => self.trace_reduce(task),
+            Stage::Combine => self.combine(),
             Stage::Plan => Err(PipelineError::BadInput(
                 "the plan stage runs in the Plan function, not as a worker task".into(),
             )),
@@ -471,6 +266,248 @@ impl Task<'_> {
                  tasks run before the plan exists)"
             ))),
         }
+    }
+
+    /// Render (fused mode): one span against every split, cast, shadow rays and shading.
+    fn render(&mut self, task: u32) -> Result<(), PipelineError> {
+        let plan = self.plan;
+        let stage = Stage::Render;
+        let span = *plan
+            .spans
+            .get(task as usize)
+            .filter(|_| plan.task_count(Stage::Render) > 0)
+            .ok_or_else(|| missing(stage, task, "render tasks"))?;
+        let splits = (0..plan.k())
+            .map(|split| self.read_split(split))
+            .collect::<Result<Vec<_>, _>>()?;
+        let splits: Vec<&SplitObject> = splits.iter().map(Arc::as_ref).collect();
+        let (block, shadow_rays, adaptive) =
+            timed(&mut self.metrics.compute_us, || match plan.adaptive {
+                Some(a) => render_span_adaptive(plan, &span, &splits, a),
+                None => stages::render_span(plan, &span, &splits)
+                    .map(|(block, rays)| (block, rays, AdaptiveCounts::default())),
+            })?;
+        self.metrics.shadow_rays += shadow_rays;
+        self.metrics.adaptive += adaptive;
+        let n = block.colours.len();
+        let bytes = timed(&mut self.metrics.encode_us, || encode_pixels(&block));
+        self.write(&self.key(stage, task, 0), bytes, n)
+    }
+
+    /// CastMap: a span's camera samples (or a round's) against one split; candidate hits by reducer.
+    fn cast_map(&mut self, task: u32) -> Result<(), PipelineError> {
+        let plan = self.plan;
+        let stage = Stage::CastMap;
+        let (round, index) = plan
+            .round_of(stage, task)
+            .ok_or_else(|| missing(stage, task, "cast tasks"))?;
+        let t = plan.cast_tasks[index as usize];
+        let span = plan.spans[t.span as usize];
+        let reduce = plan.round_task(Stage::CastReduce, t.span, round);
+        let hits = match plan.adaptive {
+            Some(a) => {
+                let samples = match round {
+                    1 => first_round_samples(&span, &a),
+                    _ => second_round_samples(&self.read_refine_list(t.span)?, &a),
+                };
+                if samples.is_empty() {
+                    self.metrics.skipped_tasks += 1;
+                    Vec::new()
+                } else {
+                    let split = self.read_split(t.split)?;
+                    let camera = Camera::new(&plan.camera, plan.width, plan.height)?;
+                    timed(&mut self.metrics.compute_us, || {
+                        cast_samples(plan, &camera, &split, &samples, a.max_spp)
+                    })
+                }
+            }
+            None => {
+                let split = self.read_split(t.split)?;
+                timed(&mut self.metrics.compute_us, || {
+                    stages::cast_map(plan, &span, &split)
+                })?
+            }
+        };
+        self.write_hits(stage, task, reduce, RecordKind::CastCandidate, &hits)
+    }
+
+    /// CastReduce: the nearest candidate per sample of a span (one input is passed through).
+    fn cast_reduce(&mut self, task: u32) -> Result<(), PipelineError> {
+        let plan = self.plan;
+        let stage = Stage::CastReduce;
+        let (round, index) = plan
+            .round_of(stage, task)
+            .ok_or_else(|| missing(stage, task, "spans"))?;
+        let span = plan.spans[index as usize];
+        let inputs: Vec<u32> = plan
+            .cast_tasks_of(index)
+            .map(|t| plan.round_task(Stage::CastMap, t.task, round))
+            .collect();
+        if let [only] = inputs[..] {
+            return self.pass_through_hits(only, task);
+        }
+        let keys: Vec<String> = inputs
+            .iter()
+            .map(|&cast_task| self.key(Stage::CastMap, cast_task, task))
+            .collect();
+        let candidates = self.read_all(&keys, |k, b| {
+            decode_surface_hits(k, b, RecordKind::CastCandidate)
+        })?;
+        let hits = timed(&mut self.metrics.compute_us, || {
+            stages::cast_reduce(candidates)
+        });
+        debug_assert!(
+            hits.iter()
+                .all(|h| u64::from(h.pixel) >= span.start && u64::from(h.pixel) < span.end)
+        );
+        self.write_hits(stage, task, 0, RecordKind::Hit, &hits)
+    }
+
+    /// Expand: a span's hits routed to the splits their shadow rays must be tested against.
+    fn expand(&mut self, task: u32) -> Result<(), PipelineError> {
+        let plan = self.plan;
+        let stage = Stage::Expand;
+        plan.round_of(stage, task)
+            .ok_or_else(|| missing(stage, task, "spans"))?;
+        let hits = self.read_span_hits(task)?;
+        let routed = timed(&mut self.metrics.compute_us, || stages::expand(plan, &hits));
+        let blocks = routed
+            .iter()
+            .enumerate()
+            .map(|(split, queries)| {
+                let block = timed(&mut self.metrics.encode_us, || encode_queries(queries));
+                (self.key(stage, task, split as u32), block, queries.len())
+            })
+            .collect();
+        self.write_all(blocks)
+    }
+
+    /// TraceMap: routed shadow queries against one split; the occluded ones.
+    fn trace_map(&mut self, task: u32) -> Result<(), PipelineError> {
+        let plan = self.plan;
+        let stage = Stage::TraceMap;
+        let (round, index) = plan
+            .round_of(stage, task)
+            .ok_or_else(|| missing(stage, task, "trace tasks"))?;
+        let t = plan.trace_tasks[index as usize];
+        let expand = plan.round_task(Stage::Expand, t.span, round);
+        let key = self.key(Stage::Expand, expand, t.split);
+        let queries = self.read(&key, decode_queries)?;
+        let occluded = if queries.is_empty() {
+            self.metrics.skipped_tasks += 1;
+            Vec::new()
+        } else {
+            let split = self.read_split(t.split)?;
+            timed(&mut self.metrics.compute_us, || {
+                stages::trace_map(plan, &split, &queries)
+            })
+            .map_err(|light| {
+                PipelineError::Corrupt(format!(
+                    "shuffle block {key}: a query names light {light}, the plan has {}",
+                    plan.lights.len()
+                ))
+            })?
+        };
+        let bytes = timed(&mut self.metrics.encode_us, || encode_occluded(&occluded));
+        let reduce = plan.round_task(Stage::TraceReduce, t.span, round);
+        self.write(&self.key(stage, task, reduce), bytes, occluded.len())
+    }
+
+    /// TraceReduce: a span's samples shaded from its hits and the occluded queries (with the adaptive sampler, round 1 also writes the refine list and round 2 refines).
+    fn trace_reduce(&mut self, task: u32) -> Result<(), PipelineError> {
+        let plan = self.plan;
+        let stage = Stage::TraceReduce;
+        let (round, index) = plan
+            .round_of(stage, task)
+            .ok_or_else(|| missing(stage, task, "spans"))?;
+        let span = plan.spans[index as usize];
+        let hits = self.read_span_hits(task)?;
+        // Without shadow rays (no light a surface can occlude) there are no TraceMap tasks.
+        let shadow_splits = if plan.has_shadows() { plan.k() } else { 0 };
+        let keys: Vec<String> = (0..shadow_splits)
+            .map(|split| {
+                let map = plan.trace_task_id(index, split);
+                self.key(
+                    Stage::TraceMap,
+                    plan.round_task(Stage::TraceMap, map, round),
+                    task,
+                )
+            })
+            .collect();
+        let occluded = self.read_all(&keys, decode_occluded)?;
+        self.metrics.shadow_rays += hits.len() as u64 * plan.lights.len() as u64;
+        let Some(a) = plan.adaptive else {
+            let block = timed(&mut self.metrics.compute_us, || {
+                stages::trace_reduce(plan, &span, &hits, occluded)
+            });
+            return self.write_pixels(task, &block);
+        };
+        let blocked = stages::merge_occluded(occluded);
+        if round == 1 {
+            let samples = first_round_samples(&span, &a);
+            let (block, list, counts) = timed(&mut self.metrics.compute_us, || {
+                let (colours, sample_hits) = sample_colours(plan, &samples, &hits, &blocked);
+                first_round_pixels(&span, &a, &colours, &sample_hits)
+            });
+            self.metrics.adaptive += counts;
+            let bytes = timed(&mut self.metrics.encode_us, || encode_refine_list(&list));
+            self.write(&self.key(stage, task, 1), bytes, list.pixels.len())?;
+            return self.write_pixels(task, &block);
+        }
+        let list = self.read_refine_list(index)?;
+        let first_key = self.key(stage, index, 0);
+        let first = self.read(&first_key, decode_pixels)?;
+        check_block(&first_key, &first, &span)?;
+        let block = timed(&mut self.metrics.compute_us, || {
+            let samples = second_round_samples(&list, &a);
+            let (colours, _) = sample_colours(plan, &samples, &hits, &blocked);
+            second_round_pixels(first, &list, &a, &colours)
+        });
+        self.write_pixels(task, &block)
+    }
+
+    /// Combine: every span's pixels assembled into the image and the outputs the plan asks for.
+    fn combine(&mut self) -> Result<(), PipelineError> {
+        let plan = self.plan;
+        let mut keys = Vec::with_capacity(plan.spans.len());
+        for i in 0..plan.spans.len() as u32 {
+            // A span with pixels to refine has its final pixels from round 2.
+            let round = if plan.has_second_round() && !self.read_refine_list(i)?.pixels.is_empty() {
+                2
+            } else {
+                1
+            };
+            let stage = plan.mode.pixel_stage();
+            keys.push(self.key(stage, plan.round_task(stage, i, round), 0));
+        }
+        let blocks = self.read_all(&keys, decode_pixels)?;
+        for ((key, block), span) in keys.iter().zip(&blocks).zip(&plan.spans) {
+            check_block(key, block, span)?;
+        }
+        let (image, hits) = timed(&mut self.metrics.compute_us, || {
+            stages::combine(plan, &blocks)
+        });
+        // The outputs the plan asks for besides the PNG, stored at once
+        // (`BlobStore::put_many`), then the PNG: a job whose PNG exists has every
+        // output it asked for.
+        let outputs = plan.outputs;
+        let (png, others) = timed(&mut self.metrics.encode_us, || {
+            let mut others = Vec::new();
+            if outputs.linear {
+                others.push((image_key(self.job, "pfm"), encode_pfm(&image)));
+            }
+            if outputs.hits {
+                others.push((hits_key(self.job), encode_hits(&hits)));
+            }
+            (encode_png(&image), others)
+        });
+        let png = png.map_err(|e| PipelineError::BadInput(e.to_string()))?;
+        if !others.is_empty() {
+            self.write_plain_all(&others)?;
+        }
+        self.write_plain_all(&[(image_key(self.job, "png"), png)])?;
+        self.metrics.records += hits.len() as u64;
+        Ok(())
     }
 
     fn key(&self, stage: Stage, task: u32, partition: u32) -> String {
