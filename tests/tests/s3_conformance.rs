@@ -32,6 +32,31 @@ fn embedded_s3_lists_every_page() {
     assert_eq!(store.list("suite/").expect("list"), Vec::<String>::new());
 }
 
+/// A copy source over S3's 5 GiB single-copy limit is refused as S3 refuses it (a sparse file
+/// stands in for the object: no 5 GiB is written).
+#[test]
+fn embedded_s3_refuses_a_copy_over_five_gib() {
+    let embedded = Embedded::start(Some("big"));
+    let store = embedded.store("big");
+    let file = embedded.server.data_dir().join("big/huge.obj~obj");
+    std::fs::File::create(&file)
+        .and_then(|f| f.set_len(hort_aws_quotas::S3_COPY_OBJECT_MAX_BYTES + 1))
+        .expect("sparse file");
+    let e = store
+        .copy("huge.obj", "jobs/j/scene/huge.obj")
+        .expect_err("over the limit");
+    let message = e.to_string();
+    assert!(
+        message.contains("InvalidRequest")
+            && message.contains("larger than the maximum allowable size for a copy source"),
+        "{message}"
+    );
+    assert!(
+        store.list("jobs/").expect("list").is_empty(),
+        "nothing copied"
+    );
+}
+
 #[test]
 fn embedded_s3_keeps_objects_across_restarts() {
     let embedded = Embedded::start(Some("durable"));

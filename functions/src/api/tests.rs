@@ -18,6 +18,8 @@ pub(super) struct Fake {
     pub(super) capacity: Option<usize>,
     /// Every object read whole, and every range read, in order.
     pub(super) reads: Mutex<Vec<String>>,
+    /// Sizes to report for objects not held (a HEAD of a huge object).
+    pub(super) sizes: BTreeMap<String, u64>,
 }
 
 impl RenderBackend for Fake {
@@ -26,7 +28,8 @@ impl RenderBackend for Fake {
         Ok(self.objects.get(key).cloned())
     }
     fn object_size(&self, key: &str) -> Result<Option<u64>, ApiError> {
-        Ok(self.objects.get(key).map(|b| b.len() as u64))
+        let held = self.objects.get(key).map(|b| b.len() as u64);
+        Ok(held.or_else(|| self.sizes.get(key).copied()))
     }
     fn read_object_range(
         &self,
@@ -325,6 +328,18 @@ fn scenes_by_key_are_sized_beside_their_main_file_and_never_loaded() {
     assert_eq!(
         error(&value).1,
         "scenes/c/cornell.json: the mesh scenes/c/cornell.obj does not exist"
+    );
+    // A mesh over S3's 5 GiB single-copy limit cannot be copied into a job: refused at once.
+    let huge = hort_aws_quotas::S3_COPY_OBJECT_MAX_BYTES + 1;
+    fake.sizes.insert("scenes/c/cornell.obj".into(), huge);
+    let (status, value) = post(&fake, "/renders", &body);
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+    assert_eq!(
+        error(&value).1,
+        format!(
+            "scenes/c/cornell.obj: {huge} bytes, over the 5368709120 bytes S3 copies in one \
+             request; split the mesh into files of at most 5 GiB and list them in a manifest"
+        )
     );
     // A mesh the API does not parse: the Plan function finds its fault (handlers' tests).
     fake.objects.insert(
