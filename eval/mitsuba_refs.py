@@ -2,7 +2,7 @@
 """Independent references for `hort eval`, rendered by Mitsuba 3 under HORT's scene contract.
 
 usage: mitsuba_refs.py OUT_DIR MANIFEST.json [MANIFEST.json ...]
-       [--width W] [--height H] [--ref-spp N] [--sweep-spp 1,2,4,...] [--runs R]
+       [--width W] [--height H] [--ref-spp N] [--sweep-spp 1,2,3,4,...] [--runs R]
 
 For each manifest (docs/ARCHITECTURE.md, "Scene contract"): the same meshes, materials (MTL Kd,
 then the manifest's overrides, grey 0.7 without one), pinhole camera, point and directional
@@ -221,7 +221,7 @@ def main():
     ap.add_argument("--width", type=int, default=320)
     ap.add_argument("--height", type=int, default=180)
     ap.add_argument("--ref-spp", type=int, default=4096)
-    ap.add_argument("--sweep-spp", default="1,2,4,8,16,32,64,128,256")
+    ap.add_argument("--sweep-spp", default="1,2,3,4,6,8,12,16,24,32,48,64,96,128,192,256")
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--reuse-references", action="store_true",
                     help="keep OUT_DIR's references and floor.csv; run the timed sweep only")

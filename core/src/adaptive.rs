@@ -6,20 +6,17 @@
 //! - **Deterministic and local.** A pixel's decision ([`decide`]) depends only on its own
 //!   first-pass sample radiances and hits, so it does not depend on threads, spans or splits;
 //!   the monolithic renderer and the pipeline make the same decisions from the same samples.
-//! - **Nested stratification.** Sample positions ([`adaptive_offset`]) are the cells of a
-//!   `g x g` grid (`g = sqrt(max_spp)`), visited in a base-4 order whose every prefix of `4^j`
-//!   samples puts exactly one sample in each cell of the `2^j x 2^j` grid, Owen-scrambled per
-//!   pixel and jittered inside the cell. So the first pass (ranks `0..base_spp`) is stratified
-//!   like a uniform render of `base_spp` samples, and first and second pass together (ranks
-//!   `0..max_spp`) are stratified like one of `max_spp` samples: error falls as it should.
+//! - **One sequence.** A pixel's sample of rank `r` is sample `r` of the uniform sampler
+//!   ([`crate::sampling`]): the first pass (ranks `0..base_spp`) is exactly a uniform render's
+//!   `base_spp` samples, and the second pass continues the same sequence (ranks
+//!   `base_spp..max_spp`), so first and second pass together are stratified like one render of
+//!   `max_spp` samples, for any base and maximum count.
 //! - **The pixel** is the in-order f32 sum ([`crate::sampling::PixelSum`]) of its samples in
 //!   rank order divided by the number of samples it got (`base_spp` or `max_spp`); the hit
 //!   buffer keeps the hit of rank 0.
 
-use crate::camera::Camera;
 use crate::error::SceneError;
-use crate::sampling::{ONE_MINUS_ULP, PixelSum, hash32, hash64, unit_float};
-use crate::triangle::Ray;
+use crate::sampling::PixelSum;
 use serde::{Deserialize, Serialize};
 
 mod render;
@@ -29,9 +26,10 @@ pub use render::render_adaptive;
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AdaptiveSettings {
-    /// Samples of the first pass in every pixel: a power of 4, at least 4.
+    /// Samples of the first pass in every pixel: at least 2 (a pixel's error estimate needs
+    /// two), below `max_spp`.
     pub base_spp: u32,
-    /// Samples of a pixel that needs more: a power of 4 above `base_spp`, at most 65536.
+    /// Samples of a pixel that needs more: above `base_spp`, at most 65536.
     pub max_spp: u32,
     /// A pixel gets the second pass when the standard error of its first-pass mean (the
     /// largest over R, G, B, in linear radiance) is above this; finite and positive.
@@ -48,20 +46,22 @@ impl AdaptiveSettings {
     /// Checks the settings; the error names the bad value and the limit it breaks, as
     /// [`crate::scene::check_image_size`] does for the image size.
     pub fn check(&self) -> Result<(), SceneError> {
-        let power_of_4 = |v: u32| v.is_power_of_two() && v.trailing_zeros().is_multiple_of(2);
-        if !power_of_4(self.base_spp) || self.base_spp < 4 || self.base_spp >= MAX_SPP {
+        if !(2..MAX_SPP).contains(&self.base_spp) {
             return Err(SceneError::OutOfRange {
                 what: "adaptive base spp",
                 value: self.base_spp.to_string(),
-                limit: "must be a power of 4 from 4 to 16384 (4, 16, 64, 256, ...)".into(),
+                limit: format!(
+                    "must be from 2 (a pixel's error estimate needs two samples) to {}",
+                    MAX_SPP - 1
+                ),
             });
         }
-        if !power_of_4(self.max_spp) || self.max_spp <= self.base_spp || self.max_spp > MAX_SPP {
+        if self.max_spp <= self.base_spp || self.max_spp > MAX_SPP {
             return Err(SceneError::OutOfRange {
                 what: "adaptive max spp",
                 value: self.max_spp.to_string(),
                 limit: format!(
-                    "must be a power of 4 above the base spp {} and at most {MAX_SPP}",
+                    "must be above the base spp {} and at most {MAX_SPP}",
                     self.base_spp
                 ),
             });
@@ -157,17 +157,6 @@ impl std::ops::AddAssign for AdaptiveCounts {
     }
 }
 
-/// The camera ray of the sample of rank `rank` of pixel `pixel` (row-major in an image
-/// `width` pixels wide) in the adaptive pattern for `max_spp`: the one ray path of the
-/// monolithic renderer and the pipeline.
-pub fn adaptive_ray(camera: &Camera, width: u32, pixel: u64, rank: u32, max_spp: u32) -> Ray {
-    let (ox, oy) = adaptive_offset(pixel, rank, max_spp);
-    // x < 2^32 and y < 2^32: both convert to f64 exactly.
-    let x = (pixel % u64::from(width)) as f64;
-    let y = (pixel / u64::from(width)) as f64;
-    camera.ray(x + ox, y + oy)
-}
-
 /// A pixel from its first-pass sample radiances and, when it was refined, its second-pass
 /// ones (both in rank order): their in-order f32 sum divided by their count, as
 /// [`PixelSum`] computes it.
@@ -177,56 +166,6 @@ pub fn pixel_value(first: &[[f32; 3]], second: &[[f32; 3]]) -> [f32; 3] {
         sum.add(c);
     }
     sum.mean((first.len() + second.len()) as u32)
-}
-
-/// The offset in [0, 1)^2 inside pixel `pixel` (row-major index) of the sample of rank `rank`
-/// (`0..max_spp`) of the adaptive pattern for `max_spp` (a power of 4): point `rank` of the
-/// two-dimensional Sobol sequence (van der Corput in x, the second Sobol dimension in y), Owen
-/// scrambled per pixel and per dimension (the hash-based nested scrambling of Laine and Karras,
-/// as Burley 2020 gives it). The first `2^m` points of that sequence are a (0, m, 2)-net, and
-/// scrambling keeps that: every prefix of `4^j` ranks has one sample in each cell of the
-/// `2^j x 2^j` grid and one in each of the `4^j` columns and rows. Pure integer hashing and
-/// exact conversions, as [`crate::sampling::sample_offset`].
-pub fn adaptive_offset(pixel: u64, rank: u32, max_spp: u32) -> (f64, f64) {
-    let rank = rank & (max_spp.max(1) - 1);
-    let seed = hash64(pixel);
-    let x = nested_scramble(rank.reverse_bits(), seed as u32);
-    let y = nested_scramble(
-        sobol_second(rank),
-        hash32((seed >> 32) as u32 ^ 0x68bc_21eb),
-    );
-    (
-        unit_float(x).min(ONE_MINUS_ULP),
-        unit_float(y).min(ONE_MINUS_ULP),
-    )
-}
-
-/// Point `i` of the second dimension of the Sobol sequence, as a 32-bit binary fraction (its
-/// generator matrix is Pascal's triangle mod 2: direction `v_{k+1} = v_k ^ (v_k >> 1)`).
-fn sobol_second(mut i: u32) -> u32 {
-    let mut v = 1u32 << 31;
-    let mut out = 0;
-    while i != 0 {
-        if i & 1 != 0 {
-            out ^= v;
-        }
-        i >>= 1;
-        v ^= v >> 1;
-    }
-    out
-}
-
-/// Owen scrambling of a 32-bit binary fraction by hashing: every bit is flipped by a function
-/// of the seed and the bits above it only (Laine and Karras's permutation on the reversed
-/// bits), so every dyadic interval maps onto one of the same size and nets stay nets.
-fn nested_scramble(x: u32, seed: u32) -> u32 {
-    let mut v = x.reverse_bits();
-    v = v.wrapping_add(seed);
-    v ^= v.wrapping_mul(0x6c50_b47c);
-    v ^= v.wrapping_mul(0xb82f_1e52);
-    v ^= v.wrapping_mul(0xc7af_e638);
-    v ^= v.wrapping_mul(0x8d22_f6e6);
-    v.reverse_bits()
 }
 
 #[cfg(test)]

@@ -81,9 +81,9 @@ pub struct RenderArgs {
     /// The image and the plan's shape (the flags of `hort plan` too).
     #[command(flatten)]
     pub plan: crate::plan_flags::PlanFlags,
-    /// Adaptive sampling up to MAX_SPP samples per pixel (a power of 4, above --spp): first
-    /// --spp samples (a power of 4, at least 4) in every pixel, then MAX_SPP in the pixels
-    /// whose standard error is above --adaptive-threshold. Monolithic or fused mode.
+    /// Adaptive sampling up to MAX_SPP samples per pixel (above --spp): first --spp samples
+    /// (at least 2) in every pixel, then MAX_SPP in the pixels whose standard error is above
+    /// --adaptive-threshold. Monolithic, fused or staged.
     #[arg(long, value_name = "MAX_SPP", allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=65536))]
     pub adaptive: Option<u32>,
     /// The adaptive sampler's threshold on a pixel's standard error (linear radiance, the

@@ -169,14 +169,14 @@ fn bad_adaptive_settings_get_one_error_line() {
     let size = ["--width", "64", "--height", "48"];
     for (extra, message) in [
         (
-            &["--monolithic", "--spp", "5", "--adaptive", "16"][..],
-            "error: --spp, --adaptive and --adaptive-threshold: adaptive base spp = 5 is out of \
-             range: must be a power of 4 from 4 to 16384 (4, 16, 64, 256, ...)\n",
+            &["--monolithic", "--spp", "1", "--adaptive", "16"][..],
+            "error: --spp, --adaptive and --adaptive-threshold: adaptive base spp = 1 is out of \
+             range: must be from 2 (a pixel's error estimate needs two samples) to 65535\n",
         ),
         (
-            &["--monolithic", "--spp", "4", "--adaptive", "32"][..],
-            "error: --spp, --adaptive and --adaptive-threshold: adaptive max spp = 32 is out of \
-             range: must be a power of 4 above the base spp 4 and at most 65536\n",
+            &["--monolithic", "--spp", "4", "--adaptive", "4"][..],
+            "error: --spp, --adaptive and --adaptive-threshold: adaptive max spp = 4 is out of \
+             range: must be above the base spp 4 and at most 65536\n",
         ),
         (
             &[

@@ -38,18 +38,22 @@ fn request(
 
 #[test]
 fn adaptive_jobs_equal_the_monolithic_adaptive_render() {
-    for rel in ["teapot/teapot.json", "cornell/cornell.json"] {
+    // Powers of 4, and counts that are not (any base and maximum are allowed).
+    for (rel, base_spp, max_spp) in [
+        ("teapot/teapot.json", 4, 16),
+        ("cornell/cornell.json", 3, 12),
+    ] {
         let scene = load_scene(&scene_path(rel)).expect("bundled scene");
         let bvh = build_scene_bvh(&scene.mesh);
         let adaptive = AdaptiveSettings {
-            base_spp: 4,
-            max_spp: 16,
+            base_spp,
+            max_spp,
             threshold: 0.01,
         };
         let settings = RenderSettings {
             width: W,
             height: H,
-            spp: 4,
+            spp: base_spp,
             threads: 2,
         };
         let (mono, counts) = render_adaptive(&scene, &bvh, settings, adaptive).unwrap();
@@ -66,7 +70,7 @@ fn adaptive_jobs_equal_the_monolithic_adaptive_render() {
             (ExecutionMode::Staged, 3, 7, 3),
         ];
         for (mode, k, s, workers) in cases {
-            let what = format!("{rel} {mode} k={k} s={s} workers={workers}");
+            let what = format!("{rel} {base_spp}/{max_spp} {mode} k={k} s={s} workers={workers}");
             let options = PipelineOptions {
                 job: JobId::new("adaptive").unwrap(),
                 workers,

@@ -17,7 +17,38 @@ fn scene(rel: &str) -> Scene {
     load_scene(&scene_path(rel)).expect("bundled scene")
 }
 
+/// One distributed run's shape: split mode, split count, forced execution mode (or the
+/// automatic choice), span count and worker count.
+type Case = (SplitMode, u32, Option<ExecutionMode>, u32, usize);
+
+/// Every split mode, split counts from 1 to 16 with and without a forced mode, and three
+/// (spans, workers) shapes.
+fn all_cases() -> Vec<Case> {
+    let mut cases = Vec::new();
+    for mode in [SplitMode::Spatial, SplitMode::Naive] {
+        // One split runs fused and more run staged, unless the mode is forced.
+        for (k, forced) in [
+            (1u32, None),
+            (1, Some(ExecutionMode::Staged)),
+            (2, None),
+            (3, None),
+            (3, Some(ExecutionMode::Fused)),
+            (7, None),
+            (16, None),
+        ] {
+            for (s, workers) in [(1u32, 1usize), (7, 3), (16, 2)] {
+                cases.push((mode, k, forced, s, workers));
+            }
+        }
+    }
+    cases
+}
+
 fn check_scene(rel: &str, spps: &[u32]) {
+    check_cases(rel, spps, &all_cases());
+}
+
+fn check_cases(rel: &str, spps: &[u32], cases: &[Case]) {
     let scene = scene(rel);
     for &spp in spps {
         let mono = hort_tests::monolithic(rel, W, H, spp);
@@ -26,65 +57,51 @@ fn check_scene(rel: &str, spps: &[u32]) {
             mono_bits.iter().any(|&b| b != 0),
             "{rel}: the render must not be black"
         );
-        for mode in [SplitMode::Spatial, SplitMode::Naive] {
-            // One split runs fused and more run staged, unless the mode is forced.
-            for (k, forced) in [
-                (1u32, None),
-                (1, Some(ExecutionMode::Staged)),
-                (2, None),
-                (3, None),
-                (3, Some(ExecutionMode::Fused)),
-                (7, None),
-                (16, None),
-            ] {
-                for (s, workers) in [(1u32, 1usize), (7, 3), (16, 2)] {
-                    let store = MemoryStore::new();
-                    let request = PlanRequest {
-                        width: W,
-                        height: H,
-                        spp,
-                        splits: Some(k),
-                        spans: Some(s),
-                        mode,
-                        execution: forced,
-                        memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
-                        adaptive: None,
-                        outputs: StoredOutputs::ALL,
-                    };
-                    let options = PipelineOptions {
-                        job: JobId::new("eq").unwrap(),
-                        workers,
-                        // With and without cached splits: the bytes must not change.
-                        split_cache_bytes: if workers == 3 { 0 } else { 1 << 30 },
-                    };
-                    let run = run_pipeline(&store, &scene, request, &options)
-                        .unwrap_or_else(|e| panic!("{rel} k={k} s={s} {mode:?}: {e}"));
-                    let execution = run.plan.mode;
-                    let what = format!(
-                        "{rel} spp={spp} {mode:?} k={k} s={s} workers={workers} {execution}"
-                    );
-                    let expected = forced.unwrap_or(if k == 1 {
-                        ExecutionMode::Fused
-                    } else {
-                        ExecutionMode::Staged
-                    });
-                    assert_eq!(execution, expected, "{what}");
-                    assert_eq!(
-                        pixel_bits(&stored(&run.image).pixels),
-                        mono_bits,
-                        "image differs: {what}"
-                    );
-                    assert_eq!(
-                        hit_bits(stored(&run.hits).as_slice()),
-                        hit_bits(&mono.hits),
-                        "hits differ: {what}"
-                    );
-                    assert_eq!(run.primary_rays, mono.rays.primary, "{what}");
-                    assert_eq!(run.shadow_rays, mono.rays.shadow, "{what}");
-                    assert_eq!(run.plan.k(), k);
-                    assert_eq!(run.plan.spans.len() as u32, s);
-                }
-            }
+        for &(mode, k, forced, s, workers) in cases {
+            let store = MemoryStore::new();
+            let request = PlanRequest {
+                width: W,
+                height: H,
+                spp,
+                splits: Some(k),
+                spans: Some(s),
+                mode,
+                execution: forced,
+                memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
+                adaptive: None,
+                outputs: StoredOutputs::ALL,
+            };
+            let options = PipelineOptions {
+                job: JobId::new("eq").unwrap(),
+                workers,
+                // With and without cached splits: the bytes must not change.
+                split_cache_bytes: if workers == 3 { 0 } else { 1 << 30 },
+            };
+            let run = run_pipeline(&store, &scene, request, &options)
+                .unwrap_or_else(|e| panic!("{rel} k={k} s={s} {mode:?}: {e}"));
+            let execution = run.plan.mode;
+            let what =
+                format!("{rel} spp={spp} {mode:?} k={k} s={s} workers={workers} {execution}");
+            let expected = forced.unwrap_or(if k == 1 {
+                ExecutionMode::Fused
+            } else {
+                ExecutionMode::Staged
+            });
+            assert_eq!(execution, expected, "{what}");
+            assert_eq!(
+                pixel_bits(&stored(&run.image).pixels),
+                mono_bits,
+                "image differs: {what}"
+            );
+            assert_eq!(
+                hit_bits(stored(&run.hits).as_slice()),
+                hit_bits(&mono.hits),
+                "hits differ: {what}"
+            );
+            assert_eq!(run.primary_rays, mono.rays.primary, "{what}");
+            assert_eq!(run.shadow_rays, mono.rays.shadow, "{what}");
+            assert_eq!(run.plan.k(), k);
+            assert_eq!(run.plan.spans.len() as u32, s);
         }
     }
 }
@@ -102,6 +119,20 @@ fn teapot_on_ground_matches_monolithic() {
 #[test]
 fn cornell_room_matches_monolithic() {
     check_scene("cornell/cornell.json", &[1, 4]);
+}
+
+/// Sample counts that are neither powers of 2 nor squares (3, 12, 96): fused and staged, both
+/// split modes, forced modes, several spans and workers.
+#[test]
+fn counts_that_are_not_powers_of_4_match_monolithic() {
+    let cases = [
+        (SplitMode::Spatial, 1, None, 7, 3),
+        (SplitMode::Spatial, 1, Some(ExecutionMode::Staged), 16, 2),
+        (SplitMode::Spatial, 3, None, 7, 3),
+        (SplitMode::Naive, 3, Some(ExecutionMode::Fused), 1, 1),
+        (SplitMode::Naive, 7, None, 16, 2),
+    ];
+    check_cases("cornell/cornell.json", &[3, 12, 96], &cases);
 }
 
 #[test]

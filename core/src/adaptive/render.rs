@@ -2,7 +2,7 @@
 //! in every pixel, then the ranks `base_spp..max_spp` of the pixels [`decide`] refines, traced
 //! and shaded by the renderer's own batch path ([`crate::render`]'s `shade_batch`).
 
-use super::{AdaptiveCounts, AdaptiveSettings, Decision, adaptive_ray, decide, pixel_value};
+use super::{AdaptiveCounts, AdaptiveSettings, Decision, decide, pixel_value};
 use crate::bvh::{Bvh, ClosestHit};
 use crate::camera::Camera;
 use crate::error::SceneError;
@@ -81,7 +81,6 @@ struct Row {
 fn trace_samples(
     (scene, bvh, unoccludable): Shading<'_>,
     camera: &Camera,
-    width: u32,
     max_spp: u32,
     samples: &[(u64, u32)],
 ) -> (Vec<[f32; 3]>, Vec<Option<ClosestHit>>) {
@@ -91,7 +90,7 @@ fn trace_samples(
     for batch in samples.chunks(BATCH_SAMPLES) {
         let rays: Vec<_> = batch
             .iter()
-            .map(|&(pixel, rank)| adaptive_ray(camera, width, pixel, rank, max_spp))
+            .map(|&(pixel, rank)| camera.sample_ray(pixel, rank, max_spp))
             .collect();
         hits.clear();
         hits.resize(rays.len(), None);
@@ -130,7 +129,7 @@ fn render_row(
         .clone()
         .flat_map(|p| (0..a.base_spp).map(move |r| (p, r)))
         .collect();
-    let (colours1, hits1) = trace_samples(shading, camera, width, a.max_spp, &first);
+    let (colours1, hits1) = trace_samples(shading, camera, a.max_spp, &first);
     count(&hits1);
     let decisions: Vec<Decision> = colours1
         .chunks(base)
@@ -143,7 +142,7 @@ fn render_row(
         .filter(|(_, d)| **d == Decision::Refine)
         .flat_map(|(p, _)| (a.base_spp..a.max_spp).map(move |r| (p, r)))
         .collect();
-    let (colours2, hits2) = trace_samples(shading, camera, width, a.max_spp, &second);
+    let (colours2, hits2) = trace_samples(shading, camera, a.max_spp, &second);
     count(&hits2);
     let extra = (a.max_spp - a.base_spp) as usize;
     let mut refined = colours2.chunks(extra);

@@ -17,7 +17,7 @@ use super::records::{Occluded, PixelBlock, SurfaceHit};
 use super::refine_list::RefineList;
 use super::split_object::SplitObject;
 use super::stages::{BATCH, push_surface_hits, sample_colour};
-use crate::adaptive::{AdaptiveCounts, AdaptiveSettings, Decision, adaptive_ray, decide};
+use crate::adaptive::{AdaptiveCounts, AdaptiveSettings, Decision, decide};
 use crate::camera::Camera;
 use crate::hits::Hit;
 use crate::sampling::PixelSum;
@@ -41,7 +41,6 @@ pub fn second_round_samples(list: &RefineList, a: &AdaptiveSettings) -> Vec<(u64
 /// CastMap over an explicit sample list with the adaptive pattern's rays: the split's nearest
 /// hit of each sample that hits it, in sample order (so sorted by (pixel, rank)).
 pub fn cast_samples(
-    plan: &JobPlan,
     camera: &Camera,
     split: &SplitObject,
     samples: &[(u64, u32)],
@@ -52,7 +51,7 @@ pub fn cast_samples(
     for batch in samples.chunks(BATCH) {
         let rays: Vec<_> = batch
             .iter()
-            .map(|&(pixel, rank)| adaptive_ray(camera, plan.width, pixel, rank, max_spp))
+            .map(|&(pixel, rank)| camera.sample_ray(pixel, rank, max_spp))
             .collect();
         push_surface_hits(split, batch, &rays, &mut hits, &mut out);
     }

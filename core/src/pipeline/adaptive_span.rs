@@ -58,7 +58,7 @@ fn pass(
     let camera = Camera::new(&plan.camera, plan.width, plan.height)?;
     let candidates: Vec<Vec<SurfaceHit>> = splits
         .iter()
-        .map(|split| cast_samples(plan, &camera, split, samples, max_spp))
+        .map(|split| cast_samples(&camera, split, samples, max_spp))
         .collect();
     // One split's hits are already the nearest per sample, in order.
     let hits = if candidates.len() == 1 {

@@ -317,7 +317,7 @@ impl Task<'_> {
                     let split = self.read_split(t.split)?;
                     let camera = Camera::new(&plan.camera, plan.width, plan.height)?;
                     timed(&mut self.metrics.compute_us, || {
-                        cast_samples(plan, &camera, &split, &samples, a.max_spp)
+                        cast_samples(&camera, &split, &samples, a.max_spp)
                     })
                 }
             }

@@ -40,11 +40,11 @@ pub struct EvalArgs {
     #[arg(
         long,
         value_delimiter = ',',
-        default_value = "1,2,4,8,16,32,64,128,256"
+        default_value = "1,2,3,4,6,8,12,16,24,32,48,64,96,128,192,256"
     )]
     pub spp: Vec<u32>,
-    /// Max samples per pixel of the adaptive series, comma-separated powers of 4 (16 to
-    /// 65536); each point's first pass takes max / 16 samples (at least 4) in every pixel.
+    /// Max samples per pixel of the adaptive series, comma-separated (5 to 65536); each
+    /// point's first pass takes max / 16 samples (at least 4) in every pixel.
     #[arg(long, value_delimiter = ',', default_value = "16,64,256,1024")]
     pub adaptive_spp: Vec<u32>,
     /// The adaptive series' threshold on a pixel's standard error after the first pass.
@@ -61,7 +61,7 @@ pub struct EvalArgs {
     #[arg(long, value_delimiter = ',', default_value = "1,4,16,64")]
     pub distributed_spp: Vec<u32>,
     /// Max samples per pixel of each distributed series' adaptive runs (series `NAME
-    /// adaptive`), comma-separated powers of 4, as `--adaptive-spp`.
+    /// adaptive`), comma-separated, as `--adaptive-spp`.
     #[arg(long, value_delimiter = ',', default_value = "16,64,256")]
     pub distributed_adaptive_spp: Vec<u32>,
     /// No adaptive runs in the distributed sweep.

@@ -33,7 +33,7 @@ fn pixels_equal_their_samples_traced_alone() {
     let camera = Camera::new(&scene.camera_for(32, 24), 32, 24).unwrap();
     let unoccludable = unoccludable_lights(&scene.mesh, &scene.lights);
     let trace = |pixel: u64, rank: u32| {
-        let ray = adaptive_ray(&camera, 32, pixel, rank, 64);
+        let ray = camera.sample_ray(pixel, rank, 64);
         let hit = bvh.closest_hit(&ray);
         (
             shade_batch(&scene, &bvh, &unoccludable, &[ray], &[hit])[0],
@@ -105,12 +105,44 @@ fn bad_settings_are_refused() {
     let scene = teapot();
     let bvh = build_scene_bvh(&scene.mesh);
     let bad = AdaptiveSettings {
-        max_spp: 32,
+        max_spp: 4,
         ..ADAPTIVE
     };
     let e = render_adaptive(&scene, &bvh, settings(1), bad).unwrap_err();
     assert_eq!(
         e.to_string(),
-        "adaptive max spp = 32 is out of range: must be a power of 4 above the base spp 4 and at most 65536"
+        "adaptive max spp = 4 is out of range: must be above the base spp 4 and at most 65536"
     );
+}
+
+/// The first pass is the uniform sampler's first samples: with a threshold no pixel exceeds,
+/// an adaptive render at base B (any count, here 3 and 12) is the uniform render at B spp, bit
+/// for bit, whatever the maximum.
+#[test]
+fn the_first_pass_is_the_uniform_render() {
+    let scene = teapot();
+    let bvh = build_scene_bvh(&scene.mesh);
+    for (base_spp, max_spp) in [(3u32, 7u32), (12, 96)] {
+        let adaptive = AdaptiveSettings {
+            base_spp,
+            max_spp,
+            threshold: 1e9,
+        };
+        let uniform = RenderSettings {
+            spp: base_spp,
+            ..settings(2)
+        };
+        let (out, counts) = render_adaptive(&scene, &bvh, uniform, adaptive).unwrap();
+        assert_eq!(counts.refined_pixels, 0);
+        let reference = crate::render::render(&scene, &bvh, uniform).unwrap();
+        let bits = |o: &RenderOutput| -> Vec<[u32; 3]> {
+            o.image.pixels.iter().map(|p| p.map(f32::to_bits)).collect()
+        };
+        assert_eq!(
+            bits(&out),
+            bits(&reference),
+            "base {base_spp} max {max_spp}"
+        );
+        assert_eq!(out.hits, reference.hits);
+    }
 }

@@ -1,0 +1,190 @@
+//! The two-dimensional Sobol sequence, Owen scrambled by hashing: the points every sample
+//! position comes from.
+//!
+//! Point `i` is (van der Corput of `i`, the second Sobol dimension of `i`), each coordinate a
+//! 32-bit binary fraction, scrambled by Laine and Karras's hash-based nested scrambling as
+//! Burley ("Practical Hash-based Owen Scrambling", 2020) gives it. The sequence is a
+//! (0, 2)-sequence in base 2: every block of `2^m` consecutive points starting at a multiple of
+//! `2^m` is a (0, m, 2)-net (one point in each of the `2^m` dyadic boxes of any shape
+//! `2^-a x 2^-(m-a)`), and any nested scrambling keeps that. So every prefix of the sequence is
+//! well stratified: at a power of two exactly, in between as the union of such nets.
+//!
+//! Everything here is wrapping integer arithmetic and bit reversal, identical on every target;
+//! the four-lane versions perform the same operations per lane.
+
+use wide::u32x4;
+
+/// Scrambled coordinates `(x, y)` of point `index`, as 32-bit binary fractions (bit 31 is
+/// 1/2), for the scrambling seeds `seed_x` and `seed_y`.
+#[inline(always)]
+pub(super) fn point(index: u32, seed_x: u32, seed_y: u32) -> (u32, u32) {
+    // In reversed bit order, van der Corput's fraction of `index` is `index` itself, so the
+    // scrambling (which works on reversed bits) starts from it directly.
+    let x = laine_karras(index, seed_x).reverse_bits();
+    let y = laine_karras(second_dimension_reversed(index), seed_y).reverse_bits();
+    (x, y)
+}
+
+/// [`point`] of four indices, one per lane.
+#[inline(always)]
+pub(super) fn points4(index: u32x4, seed_x: u32, seed_y: u32) -> (u32x4, u32x4) {
+    let x = reverse_bits4(laine_karras4(index, seed_x));
+    let y = reverse_bits4(laine_karras4(second_dimension_reversed4(index), seed_y));
+    (x, y)
+}
+
+/// The second Sobol dimension of `index` in reversed bit order (bit 0 is 1/2). Its generator
+/// matrix is Pascal's triangle mod 2: column `k` is `v_k` with `v_0 = 1/2` and
+/// `v_(k+1) = v_k ^ (v_k >> 1)` as a fraction, that is `v_(k+1) = v_k ^ (v_k << 1)` reversed.
+#[inline(always)]
+fn second_dimension_reversed(mut index: u32) -> u32 {
+    let (mut v, mut out) = (1u32, 0u32);
+    while index != 0 {
+        if index & 1 != 0 {
+            out ^= v;
+        }
+        index >>= 1;
+        v ^= v << 1;
+    }
+    out
+}
+
+/// [`second_dimension_reversed`] of four indices: the same columns, each added where the
+/// lane's bit is set, for as many bits as the largest index has.
+#[inline(always)]
+fn second_dimension_reversed4(index: u32x4) -> u32x4 {
+    let largest = index.to_array().into_iter().max().unwrap_or(0);
+    let (mut v, mut out) = (1u32, u32x4::splat(0));
+    for bit in 0..32 - largest.leading_zeros() {
+        // All ones where the lane's bit is set: 0 - 1 wraps to u32::MAX.
+        let set = u32x4::splat(0) - ((index >> bit) & u32x4::splat(1));
+        out ^= set & u32x4::splat(v);
+        v ^= v << 1;
+    }
+    out
+}
+
+/// Laine and Karras's permutation of a bit-reversed fraction: every bit is changed by a
+/// function of the seed and the less significant bits only (the more significant ones of the
+/// fraction), so each dyadic interval maps onto one of the same size: a nested (Owen)
+/// scrambling.
+#[inline(always)]
+fn laine_karras(mut v: u32, seed: u32) -> u32 {
+    v = v.wrapping_add(seed);
+    v ^= v.wrapping_mul(0x6c50_b47c);
+    v ^= v.wrapping_mul(0xb82f_1e52);
+    v ^= v.wrapping_mul(0xc7af_e638);
+    v ^= v.wrapping_mul(0x8d22_f6e6);
+    v
+}
+
+/// [`laine_karras`] of four values, one per lane.
+#[inline(always)]
+fn laine_karras4(mut v: u32x4, seed: u32) -> u32x4 {
+    let splat = u32x4::splat;
+    v += splat(seed);
+    v ^= v * splat(0x6c50_b47c);
+    v ^= v * splat(0xb82f_1e52);
+    v ^= v * splat(0xc7af_e638);
+    v ^= v * splat(0x8d22_f6e6);
+    v
+}
+
+/// `u32::reverse_bits` of four values: swaps of halves, bytes, nibbles, pairs and bits.
+#[inline(always)]
+fn reverse_bits4(mut v: u32x4) -> u32x4 {
+    let splat = u32x4::splat;
+    v = (v >> 16u32) | (v << 16u32);
+    v = ((v >> 8u32) & splat(0x00ff_00ff)) | ((v & splat(0x00ff_00ff)) << 8u32);
+    v = ((v >> 4u32) & splat(0x0f0f_0f0f)) | ((v & splat(0x0f0f_0f0f)) << 4u32);
+    v = ((v >> 2u32) & splat(0x3333_3333)) | ((v & splat(0x3333_3333)) << 2u32);
+    ((v >> 1u32) & splat(0x5555_5555)) | ((v & splat(0x5555_5555)) << 1u32)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The second dimension as first written (on fractions, bit 31 is 1/2). Its direction
+    /// numbers are Sobol's for the second dimension (as in Burley 2020's table): 1/2, 3/4,
+    /// 5/8, 15/16, 17/32, ...; in index order (no Gray code) the first eight points are 0, 1/2,
+    /// 3/4, 1/4, 5/8, 1/8, 3/8, 7/8.
+    fn second_dimension(mut i: u32) -> u32 {
+        let (mut v, mut out) = (1u32 << 31, 0u32);
+        while i != 0 {
+            if i & 1 != 0 {
+                out ^= v;
+            }
+            i >>= 1;
+            v ^= v >> 1;
+        }
+        out
+    }
+
+    #[test]
+    fn the_second_dimension_is_sobols() {
+        let eighths: Vec<u32> = (0..8).map(|i| second_dimension(i) >> 29).collect();
+        assert_eq!(eighths, [0, 4, 6, 2, 5, 1, 3, 7]);
+        let directions: Vec<u32> = (0..5).map(|k| second_dimension(1 << k)).collect();
+        assert_eq!(
+            directions,
+            [
+                0x8000_0000,
+                0xc000_0000,
+                0xa000_0000,
+                0xf000_0000,
+                0x8800_0000
+            ]
+        );
+        for i in (0..70_000u32).chain([u32::MAX - 3, u32::MAX]) {
+            assert_eq!(
+                second_dimension_reversed(i).reverse_bits(),
+                second_dimension(i)
+            );
+        }
+    }
+
+    /// Lanes compute the scalar bits: indices around powers of two, large ones, mixed lanes.
+    #[test]
+    fn four_points_are_the_single_points() {
+        let seeds = [(0u32, 0u32), (0xdead_beef, 0x1234_5678), (u32::MAX, 1)];
+        let mut starts: Vec<u32> = (0..300).collect();
+        starts.extend((1..32).map(|k| (1u32 << k) - 2));
+        starts.extend([u32::MAX - 3, 0x8000_0000, 12_345_678]);
+        for (sx, sy) in seeds {
+            for &first in &starts {
+                let lanes = [0u32, 1, 2, 3].map(|k| first.wrapping_add(k * 7));
+                let (x, y) = points4(u32x4::from(lanes), sx, sy);
+                let (x, y) = (x.to_array(), y.to_array());
+                for k in 0..4 {
+                    assert_eq!((x[k], y[k]), point(lanes[k], sx, sy), "index {}", lanes[k]);
+                }
+            }
+        }
+    }
+
+    /// Nested scrambling keeps nets: for every m up to 10, each aligned block of 2^m points
+    /// has one point in each dyadic box 2^-a x 2^-(m-a), whatever the seeds.
+    #[test]
+    fn aligned_blocks_are_nets_after_scrambling() {
+        for (sx, sy) in [(0u32, 0u32), (0x9e37_79b9, 0x7f4a_7c15), (7, u32::MAX)] {
+            for m in 0..=10u32 {
+                let n = 1u32 << m;
+                for block in [0u32, 1, 5] {
+                    for a in 0..=m {
+                        let mut boxes: Vec<u32> = (block * n..(block + 1) * n)
+                            .map(|i| {
+                                let (x, y) = point(i, sx, sy);
+                                let bx = if a == 0 { 0 } else { x >> (32 - a) };
+                                let by = if m == a { 0 } else { y >> (32 - (m - a)) };
+                                (bx << (m - a)) | by
+                            })
+                            .collect();
+                        boxes.sort_unstable();
+                        assert_eq!(boxes, (0..n).collect::<Vec<_>>(), "m {m} a {a}");
+                    }
+                }
+            }
+        }
+    }
+}
