@@ -72,8 +72,8 @@ for _ in $(seq 1 200); do
     sleep 0.1
 done
 
-# 6 spp: each pixel's samples go through both sampler paths (one group of four in SIMD lanes,
-# two one by one), so arm64's lanes are checked against x86-64's too.
+# 6 spp: the samples of each pixel go through both sampler paths (one group of four in SIMD
+# lanes, two one by one), so the arm64 lanes are checked against the x86-64 ones too.
 settings=(--width 64 --height 48 --spp 6)
 hort=target/debug/hort
 "$hort" render "$SCENE" "${settings[@]}" --splits 3 --spans 4 --workers 2 \
