@@ -13,6 +13,7 @@ pub mod adaptive;
 pub mod bvh;
 pub mod camera;
 pub mod coverage;
+pub mod phase_timer;
 pub mod render;
 pub mod sampling;
 pub mod scene;

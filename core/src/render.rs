@@ -9,6 +9,7 @@ use crate::camera::Camera;
 use crate::error::SceneError;
 use crate::hits::Hit;
 use crate::image::Image;
+use crate::phase_timer::{NoTimer, Phase, PhaseTimer, PhaseTimes};
 use crate::sampling::PixelSum;
 use crate::scene::{Mesh, NO_NORMAL, Scene, check_image_size};
 use crate::shading::{SurfacePoint, combine, shadow_test, surface_point};
@@ -97,28 +98,18 @@ pub fn render(
     bvh: &Bvh,
     settings: RenderSettings,
 ) -> Result<RenderOutput, SceneError> {
-    let RenderSettings {
-        width,
-        height,
-        spp,
-        threads,
-    } = settings;
-    check_image_size(width, height, spp)?;
-    let camera = Camera::new(&scene.camera_for(width, height), width, height)?;
-    let threads = if threads == 0 {
+    let (camera, unoccludable) = prepare(scene, settings)?;
+    let threads = if settings.threads == 0 {
         available_cores()
     } else {
-        threads
+        settings.threads
     };
-    let unoccludable = unoccludable_lights(&scene.mesh, &scene.lights);
     let start = Instant::now();
-    let mut image = Image::new(width, height);
-    let mut hits = vec![Hit::MISS; width as usize * height as usize];
-    let mut rays = RayCounts::default();
+    let mut frame = Frame::new(settings);
     // One item per row; each row lands at its own place, so the thread count changes nothing.
     let Ok(()) = run_indexed(
         std::iter::repeat_n((), threads),
-        height as usize,
+        settings.height as usize,
         |(), y| {
             Ok::<Row, Infallible>(render_row(
                 scene,
@@ -127,21 +118,74 @@ pub fn render(
                 &camera,
                 settings,
                 y as u32,
+                &mut NoTimer,
             ))
         },
-        |y, row| {
-            let range = y * width as usize..(y + 1) * width as usize;
-            image.pixels[range.clone()].copy_from_slice(&row.colours);
-            hits[range].copy_from_slice(&row.hits);
-            rays += row.rays;
-        },
+        |y, row| frame.place(y, row),
     );
-    Ok(RenderOutput {
-        image,
-        hits,
-        rays,
-        render_seconds: start.elapsed().as_secs_f64(),
-    })
+    Ok(frame.finish(start))
+}
+
+/// [`render`] on the calling thread alone (`settings.threads` is not used), with the time of
+/// each phase of its row loop ([`crate::phase_timer`], for `hort bench breakdown`). The output
+/// has the same bits as [`render`]'s at any thread count.
+pub fn render_phases(
+    scene: &Scene,
+    bvh: &Bvh,
+    settings: RenderSettings,
+) -> Result<(RenderOutput, PhaseTimes), SceneError> {
+    let (camera, unoccludable) = prepare(scene, settings)?;
+    let start = Instant::now();
+    let mut frame = Frame::new(settings);
+    let mut timer = PhaseTimes::start();
+    for y in 0..settings.height {
+        let row = render_row(scene, bvh, &unoccludable, &camera, settings, y, &mut timer);
+        frame.place(y as usize, row);
+    }
+    Ok((frame.finish(start), timer))
+}
+
+/// The checks and per-render setup of [`render`]: the image size, the camera, and which lights
+/// no surface can occlude.
+fn prepare(scene: &Scene, s: RenderSettings) -> Result<(Camera, Vec<bool>), SceneError> {
+    check_image_size(s.width, s.height, s.spp)?;
+    let camera = Camera::new(&scene.camera_for(s.width, s.height), s.width, s.height)?;
+    Ok((camera, unoccludable_lights(&scene.mesh, &scene.lights)))
+}
+
+/// The image, hit buffer and ray counts as rows arrive (in any order).
+struct Frame {
+    width: usize,
+    image: Image,
+    hits: Vec<Hit>,
+    rays: RayCounts,
+}
+
+impl Frame {
+    fn new(s: RenderSettings) -> Self {
+        Frame {
+            width: s.width as usize,
+            image: Image::new(s.width, s.height),
+            hits: vec![Hit::MISS; s.width as usize * s.height as usize],
+            rays: RayCounts::default(),
+        }
+    }
+
+    fn place(&mut self, y: usize, row: Row) {
+        let range = y * self.width..(y + 1) * self.width;
+        self.image.pixels[range.clone()].copy_from_slice(&row.colours);
+        self.hits[range].copy_from_slice(&row.hits);
+        self.rays += row.rays;
+    }
+
+    fn finish(self, start: Instant) -> RenderOutput {
+        RenderOutput {
+            image: self.image,
+            hits: self.hits,
+            rays: self.rays,
+            render_seconds: start.elapsed().as_secs_f64(),
+        }
+    }
 }
 
 /// The radiance of every sample of a batch whose primary rays `rays` have the closest hits
@@ -158,6 +202,19 @@ pub(crate) fn shade_batch(
     unoccludable: &[bool],
     rays: &[Ray],
     hits: &[Option<ClosestHit>],
+) -> Vec<[f32; 3]> {
+    shade_batch_timed(scene, bvh, unoccludable, rays, hits, &mut NoTimer)
+}
+
+/// [`shade_batch`], reporting its shading and shadow-ray phases to `timer`.
+#[inline(always)]
+fn shade_batch_timed(
+    scene: &Scene,
+    bvh: &Bvh,
+    unoccludable: &[bool],
+    rays: &[Ray],
+    hits: &[Option<ClosestHit>],
+    timer: &mut impl PhaseTimer,
 ) -> Vec<[f32; 3]> {
     let surfaces: Vec<Option<SurfacePoint>> = rays
         .iter()
@@ -179,7 +236,9 @@ pub(crate) fn shade_batch(
         }
     }
     let mut traced = vec![false; segments.len()];
+    timer.lap(Phase::Shading);
     bvh.occluded_many(&segments, &mut traced);
+    timer.lap(Phase::ShadowRays);
     // Each test's answer in test order: unblocked when not traced, else its segment's.
     let mut traced = traced.into_iter();
     let blocked: Vec<bool> = tests
@@ -187,7 +246,7 @@ pub(crate) fn shade_batch(
         .map(|&(_, _, free)| !free && traced.next().unwrap_or(false))
         .collect();
     let mut next = tests.iter().zip(&blocked).peekable();
-    surfaces
+    let colours = surfaces
         .iter()
         .enumerate()
         .map(|(sample, sp)| {
@@ -203,7 +262,9 @@ pub(crate) fn shade_batch(
             .flatten();
             combine(sp.kd, contributions, scene.ambient)
         })
-        .collect()
+        .collect();
+    timer.lap(Phase::Shading);
+    colours
 }
 
 /// Camera samples traced per `closest_hits` call (rounded to whole pixels).
@@ -222,6 +283,7 @@ fn render_row(
     camera: &Camera,
     s: RenderSettings,
     y: u32,
+    timer: &mut impl PhaseTimer,
 ) -> Row {
     let mut row = Row {
         colours: Vec::with_capacity(s.width as usize),
@@ -238,14 +300,17 @@ fn render_row(
     let mut hits = Vec::new();
     for batch_start in (0..s.width).step_by(pixels_per_batch as usize) {
         let batch_end = (batch_start + pixels_per_batch).min(s.width);
+        timer.lap(Phase::Loop);
         rays.clear();
         for x in batch_start..batch_end {
             camera.pixel_rays(first_pixel + u64::from(x), s.spp, &mut rays);
         }
         hits.clear();
         hits.resize(rays.len(), None);
+        timer.lap(Phase::CameraRays);
         bvh.closest_hits(&rays, &mut hits);
-        let colours = shade_batch(scene, bvh, unoccludable, &rays, &hits);
+        timer.lap(Phase::ClosestHits);
+        let colours = shade_batch_timed(scene, bvh, unoccludable, &rays, &hits, timer);
         for (colours, hits) in colours.chunks(samples).zip(hits.chunks(samples)) {
             let mut sum = PixelSum::default();
             for (colour, hit) in colours.iter().zip(hits) {
@@ -266,6 +331,7 @@ fn render_row(
                 t: h.t,
             }));
         }
+        timer.lap(Phase::Accumulation);
     }
     row
 }
@@ -302,6 +368,43 @@ mod tests {
             shadow: scene.lights.len() as u64,
         };
         (colour, rays)
+    }
+
+    /// The phase-timed render on one thread has the bits of the plain render on several, and
+    /// its phases add up to no more than its wall time, the ray work being most of it.
+    #[test]
+    fn phase_timed_render_is_the_render() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/teapot/teapot.json");
+        let scene = load_scene(std::path::Path::new(path)).expect("bundled teapot");
+        let bvh = build_scene_bvh(&scene.mesh);
+        let settings = RenderSettings {
+            width: 40,
+            height: 30,
+            spp: 12,
+            threads: 3,
+        };
+        let plain = render(&scene, &bvh, settings).unwrap();
+        let (timed, times) = render_phases(&scene, &bvh, settings).unwrap();
+        let bits = |o: &RenderOutput| -> Vec<[u32; 3]> {
+            o.image.pixels.iter().map(|p| p.map(f32::to_bits)).collect()
+        };
+        assert_eq!(bits(&timed), bits(&plain));
+        assert_eq!(timed.hits, plain.hits);
+        assert_eq!(timed.rays, plain.rays);
+        let total: u64 = times.nanos.iter().sum();
+        assert!(total as f64 <= timed.render_seconds * 1e9, "{times:?}");
+        for phase in [
+            Phase::CameraRays,
+            Phase::ClosestHits,
+            Phase::Shading,
+            Phase::ShadowRays,
+        ] {
+            assert!(
+                times.of(phase) > 0,
+                "{} took no time: {times:?}",
+                phase.name()
+            );
+        }
     }
 
     /// Rows traced in packets and batches equal the same samples traced one by one with

@@ -82,14 +82,57 @@ struct SceneResult {
     obvhs: super::obvhs_kernel::ObvhsResult,
 }
 
+/// What the Embree harness measured on one ray file (seconds are the best of its repeats).
 #[derive(serde::Deserialize)]
-struct EmbreeResult {
-    build_s: f64,
-    primary_s: f64,
-    primary16_s: f64,
-    primary_same_id: u64,
-    shadow_s: f64,
-    shadow_same: u64,
+pub(super) struct EmbreeResult {
+    pub build_s: f64,
+    /// `rtcIntersect1` over the primary rays.
+    pub primary_s: f64,
+    /// `rtcIntersect16` over the primary rays, 16 consecutive rays a packet.
+    pub primary16_s: f64,
+    /// Primary rays whose hit triangle is ours.
+    pub primary_same_id: u64,
+    /// `rtcOccluded1` over the shadow segments.
+    pub shadow_s: f64,
+    /// Shadow segments whose answer is ours.
+    pub shadow_same: u64,
+}
+
+/// Rays and our answers to them, as the Embree harness reads them.
+#[derive(Clone, Copy)]
+pub(super) struct RaySet<'a> {
+    pub primary: &'a [Ray],
+    pub hits: &'a [Option<hort_core::bvh::ClosestHit>],
+    /// Shadow segments: a ray and its far end.
+    pub shadow: &'a [(Ray, f32)],
+    pub occluded: &'a [bool],
+}
+
+/// Writes `rays` to `file`, runs the compiled Embree `harness` on it (`repeats` passes, one
+/// thread) and returns what it measured; the file is removed afterwards.
+pub(super) fn run_embree(
+    harness: &Path,
+    file: &Path,
+    name: &str,
+    scene: &Scene,
+    rays: &RaySet<'_>,
+    repeats: u32,
+) -> Result<EmbreeResult> {
+    write_ray_file(file, scene, rays)?;
+    let output = Command::new(harness)
+        .arg(file)
+        .arg(repeats.to_string())
+        .output()
+        .with_context(|| format!("cannot run {}", harness.display()));
+    let _ = std::fs::remove_file(file);
+    let output = output?;
+    if !output.status.success() {
+        bail!(
+            "Embree harness failed on {name}: {}",
+            String::from_utf8_lossy(&output.stderr)
+        );
+    }
+    serde_json::from_slice(&output.stdout).context("Embree harness output")
 }
 
 pub fn run_kernel_bench(args: &KernelBenchArgs) -> Result<()> {
@@ -151,7 +194,7 @@ pub fn run_kernel_bench(args: &KernelBenchArgs) -> Result<()> {
 }
 
 /// Compiles the harness into `dir` with `cc`; errors if there is no compiler or no Embree.
-fn compile_harness(dir: &Path) -> Result<PathBuf> {
+pub(super) fn compile_harness(dir: &Path) -> Result<PathBuf> {
     let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("bench/embree_harness.c");
     let out = dir.join("embree_harness");
     let output = Command::new("cc")
@@ -256,23 +299,13 @@ fn bench_scene(
             let file = args
                 .work_dir
                 .join(format!("rays-{}.bin", name.replace(' ', "-")));
-            write_ray_file(&file, scene, &primary, &hits, &shadow, &occluded)?;
-            let output = Command::new(h)
-                .arg(&file)
-                .arg(args.repeats.to_string())
-                .output()
-                .with_context(|| format!("cannot run {}", h.display()))?;
-            if !output.status.success() {
-                bail!(
-                    "Embree harness failed on {name}: {}",
-                    String::from_utf8_lossy(&output.stderr)
-                );
-            }
-            let _ = std::fs::remove_file(&file);
-            Some(
-                serde_json::from_slice::<EmbreeResult>(&output.stdout)
-                    .context("Embree harness output")?,
-            )
+            let rays = RaySet {
+                primary: &primary,
+                hits: &hits,
+                shadow: &shadow,
+                occluded: &occluded,
+            };
+            Some(run_embree(h, &file, name, scene, &rays, args.repeats)?)
         }
     };
     Ok(SceneResult {
@@ -350,14 +383,13 @@ fn split_load(scene: &Scene, bvh: Bvh, repeats: u32) -> Result<SplitLoad> {
 }
 
 /// Writes the ray file `embree_harness.c` documents.
-fn write_ray_file(
-    path: &Path,
-    scene: &Scene,
-    primary: &[Ray],
-    hits: &[Option<hort_core::bvh::ClosestHit>],
-    shadow: &[(Ray, f32)],
-    occluded: &[bool],
-) -> Result<()> {
+fn write_ray_file(path: &Path, scene: &Scene, rays: &RaySet<'_>) -> Result<()> {
+    let RaySet {
+        primary,
+        hits,
+        shadow,
+        occluded,
+    } = *rays;
     let mut out = Vec::new();
     let f32s = |out: &mut Vec<u8>, v: &[f32]| {
         for x in v {

@@ -1,6 +1,7 @@
 //! `hort bench ...`: benchmarks that print tables with ratios against a baseline measured in the
 //! same run, and append the rows to a CSV file.
 
+mod breakdown;
 mod emulator;
 mod faults;
 mod kernel;

@@ -7,8 +7,11 @@
 //! of `--repeats` (render time only: no loading or BVH build, as Mitsuba's timing). The ratio is
 //! ours in samples per second over Mitsuba's, so above 1 means we are faster per sample. Each
 //! row also prints a digest of our image (FNV-1a 64 of the pixels' f32 bits, row-major, RGB), so
-//! that two builds can be checked to render the same bits.
+//! that two builds can be checked to render the same bits. A second table splits our time per
+//! sample into the renderer's phases, beside Embree on the same rays (`breakdown.rs`).
 
+use super::breakdown;
+use super::kernel::compile_harness;
 use super::scenes::bundled;
 use super::table::{Table, f3};
 use crate::eval::mitsuba_csv;
@@ -34,9 +37,15 @@ pub struct SamplesBenchArgs {
     /// Timed renders per scene; the best counts.
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=100))]
     pub repeats: u32,
-    /// Append the table to this CSV file.
+    /// Append the tables to this CSV file.
     #[arg(long)]
     pub csv: Option<PathBuf>,
+    /// Do not run Embree even if it is installed.
+    #[arg(long)]
+    pub no_embree: bool,
+    /// Where the compiled Embree harness and its ray files go.
+    #[arg(long, default_value = "target/kernel-bench")]
+    pub work_dir: PathBuf,
 }
 
 /// Runs `hort bench samples`.
@@ -62,6 +71,17 @@ pub fn run_samples_bench(args: &SamplesBenchArgs) -> Result<()> {
     } else {
         args.scenes.clone()
     };
+    let harness = if args.no_embree {
+        eprintln!("Embree: skipped (--no-embree)");
+        None
+    } else {
+        std::fs::create_dir_all(&args.work_dir)
+            .with_context(|| format!("cannot create {}", args.work_dir.display()))?;
+        compile_harness(&args.work_dir)
+            .map_err(|e| eprintln!("Embree unavailable ({e:#}); its columns stay empty"))
+            .ok()
+    };
+    let mut breakdowns = Vec::new();
     let samples = f64::from(width) * f64::from(height) * f64::from(args.spp);
     let mut table = Table::new(
         &format!(
@@ -108,6 +128,17 @@ pub fn run_samples_bench(args: &SamplesBenchArgs) -> Result<()> {
             }
             best = best.min(out.render_seconds);
         }
+        breakdowns.push(breakdown::measure(
+            &name,
+            &scene,
+            &bvh,
+            settings,
+            args.repeats,
+            best,
+            theirs.seconds,
+            &warm_up.image.pixels,
+            harness.as_deref().map(|h| (h, args.work_dir.as_path())),
+        )?);
         let ours = samples / best / 1e6;
         let mitsuba_rate = samples / theirs.seconds / 1e6;
         table.push(vec![
@@ -120,9 +151,17 @@ pub fn run_samples_bench(args: &SamplesBenchArgs) -> Result<()> {
             format!("{digest:016x}"),
         ]);
     }
-    table.print();
-    if let Some(csv) = &args.csv {
-        table.append_csv(csv)?;
+    let settings = RenderSettings {
+        width,
+        height,
+        spp: args.spp,
+        threads: 1,
+    };
+    for t in [table, breakdown::table(&breakdowns, settings)] {
+        t.print();
+        if let Some(csv) = &args.csv {
+            t.append_csv(csv)?;
+        }
     }
     Ok(())
 }
