@@ -342,6 +342,11 @@ mod tests {
     use crate::sampling::sample_offset;
     use crate::scene::load_scene;
 
+    fn teapot() -> Scene {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/teapot/teapot.json");
+        load_scene(std::path::Path::new(path)).expect("bundled teapot")
+    }
+
     /// The reference: one camera sample shaded alone (single-ray `occluded` per light), with
     /// the logical rays it cast.
     fn shade_sample(
@@ -374,8 +379,7 @@ mod tests {
     /// its phases add up to no more than its wall time, the ray work being most of it.
     #[test]
     fn phase_timed_render_is_the_render() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/teapot/teapot.json");
-        let scene = load_scene(std::path::Path::new(path)).expect("bundled teapot");
+        let scene = teapot();
         let bvh = build_scene_bvh(&scene.mesh);
         let settings = RenderSettings {
             width: 40,
@@ -411,8 +415,7 @@ mod tests {
     /// `closest_hit`: 40 pixels x 64 samples per row is three batches of whole pixels.
     #[test]
     fn batched_packet_rows_equal_sample_by_sample_tracing() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/teapot/teapot.json");
-        let mut scene = load_scene(std::path::Path::new(path)).expect("bundled teapot");
+        let mut scene = teapot();
         // Three lights, so that each sample's shadow rays are several and their order matters.
         let first = scene.lights[0];
         scene.lights.push(crate::scene::Light::Directional {

@@ -44,6 +44,28 @@ fn all_cases() -> Vec<Case> {
     cases
 }
 
+/// The request of a W x H job at `spp` with `k` splits and `s` spans, every output stored.
+fn request(
+    spp: u32,
+    k: u32,
+    s: u32,
+    mode: SplitMode,
+    forced: Option<ExecutionMode>,
+) -> PlanRequest {
+    PlanRequest {
+        width: W,
+        height: H,
+        spp,
+        splits: Some(k),
+        spans: Some(s),
+        mode,
+        execution: forced,
+        memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
+        adaptive: None,
+        outputs: StoredOutputs::ALL,
+    }
+}
+
 fn check_scene(rel: &str, spps: &[u32]) {
     check_cases(rel, spps, &all_cases());
 }
@@ -59,18 +81,7 @@ fn check_cases(rel: &str, spps: &[u32], cases: &[Case]) {
         );
         for &(mode, k, forced, s, workers) in cases {
             let store = MemoryStore::new();
-            let request = PlanRequest {
-                width: W,
-                height: H,
-                spp,
-                splits: Some(k),
-                spans: Some(s),
-                mode,
-                execution: forced,
-                memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
-                adaptive: None,
-                outputs: StoredOutputs::ALL,
-            };
+            let request = request(spp, k, s, mode, forced);
             let options = PipelineOptions {
                 job: JobId::new("eq").unwrap(),
                 workers,
@@ -156,18 +167,7 @@ fn snapshot(store: &MemoryStore) -> Vec<(String, Vec<u8>)> {
 /// Runs the pipeline on a bundled scene into a fresh memory store.
 fn run_in_memory(rel: &str, spp: u32, k: u32, s: u32) -> (MemoryStore, PipelineRun, JobId) {
     let store = MemoryStore::new();
-    let request = PlanRequest {
-        width: W,
-        height: H,
-        spp,
-        splits: Some(k),
-        spans: Some(s),
-        mode: SplitMode::Spatial,
-        execution: None,
-        memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
-        adaptive: None,
-        outputs: StoredOutputs::ALL,
-    };
+    let request = request(spp, k, s, SplitMode::Spatial, None);
     let job = JobId::new("memory").unwrap();
     let options = PipelineOptions {
         job: job.clone(),
