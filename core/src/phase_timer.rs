@@ -1,6 +1,6 @@
 //! Where one thread's render time goes, phase by phase: the monolithic renderer's row loop
 //! reports the end of each phase of each batch to a [`PhaseTimer`]. The renderer itself passes
-//! [`NoTimer`], whose laps compile to nothing; `hort bench breakdown` passes [`PhaseTimes`],
+//! [`NoTimer`], whose laps compile to nothing; `hort bench samples` passes [`PhaseTimes`],
 //! which reads the clock at each lap.
 //!
 //! Timing never changes what is computed: a render with [`PhaseTimes`] has the same bits as

@@ -127,7 +127,7 @@ pub fn render(
 }
 
 /// [`render`] on the calling thread alone (`settings.threads` is not used), with the time of
-/// each phase of its row loop ([`crate::phase_timer`], for `hort bench breakdown`). The output
+/// each phase of its row loop ([`crate::phase_timer`], for `hort bench samples`). The output
 /// has the same bits as [`render`]'s at any thread count.
 pub fn render_phases(
     scene: &Scene,
