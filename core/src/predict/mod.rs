@@ -664,6 +664,8 @@ pub fn stage_bytes_read(plan: &JobPlan, step: JobStep) -> u64 {
 /// Bytes of one partition record of a scene split by tasks, before compression.
 const PART_RECORD_BYTES: u64 = 128;
 
+/// Adds `part`, `times` over, to `total`, field by field (the plan's and the projection's one
+/// way of summing costs).
 fn add(total: &mut CostBreakdown, part: &CostBreakdown, times: f64) {
     total.lambda_compute += part.lambda_compute * times;
     total.lambda_requests += part.lambda_requests * times;

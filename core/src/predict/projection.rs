@@ -21,7 +21,7 @@ use crate::pipeline::JobPlan;
 use serde::Serialize;
 
 use super::{
-    CLIENT_PUTS, JobStep, Rates, job_steps, split_load_ms, stage_bytes, stage_bytes_read,
+    CLIENT_PUTS, JobStep, Rates, add, job_steps, split_load_ms, stage_bytes, stage_bytes_read,
     stage_requests, standard_transitions, step_tasks, task_milliseconds, task_waits, upload_ms,
 };
 
@@ -457,13 +457,4 @@ pub fn best_of(projections: &[Projection]) -> Option<usize> {
         .filter(|(_, p)| p.seconds <= fastest * 1.05)
         .min_by_key(|(_, p)| p.functions)
         .map(|(i, _)| i)
-}
-
-fn add(total: &mut CostBreakdown, part: &CostBreakdown, times: f64) {
-    total.lambda_compute += part.lambda_compute * times;
-    total.lambda_requests += part.lambda_requests * times;
-    total.s3_requests += part.s3_requests * times;
-    total.s3_storage += part.s3_storage * times;
-    total.step_functions += part.step_functions * times;
-    total.total += part.total * times;
 }
