@@ -82,6 +82,12 @@ pub fn run_samples_bench(args: &SamplesBenchArgs) -> Result<()> {
             .ok()
     };
     let mut breakdowns = Vec::new();
+    let settings = RenderSettings {
+        width,
+        height,
+        spp: args.spp,
+        threads: 1,
+    };
     let samples = f64::from(width) * f64::from(height) * f64::from(args.spp);
     let mut table = Table::new(
         &format!(
@@ -112,12 +118,6 @@ pub fn run_samples_bench(args: &SamplesBenchArgs) -> Result<()> {
             })?;
         let scene = load_scene(path).with_context(|| format!("loading {}", path.display()))?;
         let bvh = build_scene_bvh(&scene.mesh);
-        let settings = RenderSettings {
-            width,
-            height,
-            spp: args.spp,
-            threads: 1,
-        };
         let warm_up = render(&scene, &bvh, settings)?;
         let digest = image_digest(&warm_up.image);
         let mut best = f64::INFINITY;
@@ -151,12 +151,6 @@ pub fn run_samples_bench(args: &SamplesBenchArgs) -> Result<()> {
             format!("{digest:016x}"),
         ]);
     }
-    let settings = RenderSettings {
-        width,
-        height,
-        spp: args.spp,
-        threads: 1,
-    };
     for t in [table, breakdown::table(&breakdowns, settings)] {
         t.print();
         if let Some(csv) = &args.csv {
