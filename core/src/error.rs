@@ -115,6 +115,17 @@ pub enum SceneError {
         /// What went wrong reading it.
         detail: String,
     },
+    /// A texture map a material names cannot be used: missing, unreadable, not a PNG or JPEG,
+    /// or too large. `material` is the library and line that names it.
+    #[error("{p}: texture of {material}: {detail}", p = shown(path))]
+    Texture {
+        /// The image file, resolved against the material library's directory.
+        path: PathBuf,
+        /// `library.mtl:line material "name"`.
+        material: String,
+        /// What is wrong with it.
+        detail: String,
+    },
     /// A JSON scene manifest is malformed; `field` is the JSON path of the bad field.
     #[error("{p}: manifest field `{field}`: {detail}", p = shown(path))]
     Manifest {

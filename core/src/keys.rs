@@ -75,6 +75,12 @@ pub fn split_key(job: &JobId, split: SplitId) -> String {
     format!("jobs/{job}/splits/{:05}.bin", split.0)
 }
 
+/// `jobs/{job}/textures/{content_key}.tex`: one of the job's textures, stored once by the plan
+/// step under its content key.
+pub fn texture_key(job: &JobId, content_key: &str) -> String {
+    format!("jobs/{job}/textures/{content_key}.tex")
+}
+
 /// `jobs/{job}/{stage}/{task:05}/part-{p:05}`: partition `p` of the output of one task.
 /// [`parse_partition_key`] inverts it exactly.
 pub fn partition_key(job: &JobId, stage: Stage, task: TaskId, partition: PartitionId) -> String {

@@ -11,12 +11,12 @@ use crate::hits::Hit;
 use crate::image::Image;
 use crate::phase_timer::{NoTimer, Phase, PhaseTimer, PhaseTimes};
 use crate::sampling::PixelSum;
-use crate::scene::{Mesh, NO_NORMAL, Scene, check_image_size};
+use crate::scene::{Mesh, NO_NORMAL, Scene, TriangleShading, check_image_size};
 use crate::shading::{SurfacePoint, combine, shadow_test, surface_point};
+use crate::texture::TexturedCorners;
 use crate::triangle::Ray;
 use crate::unoccludable::unoccludable_lights;
 use crate::worker_pool::run_indexed;
-use glam::Vec3;
 use std::convert::Infallible;
 use std::time::Instant;
 
@@ -74,22 +74,34 @@ pub fn build_scene_bvh(mesh: &Mesh) -> Bvh {
     Bvh::build(triangles, (0..n as u32).collect())
 }
 
-/// The vertex normals (if any) and diffuse reflectance of the scene's triangle `id`.
+/// The vertex normals (if any), material reflectance and texture (if any) of the scene's
+/// triangle `id`: what a split object stores of it.
 #[inline]
-pub fn shading_of(mesh: &Mesh, id: u32) -> (Option<[Vec3; 3]>, [f32; 3]) {
+pub fn shading_of(mesh: &Mesh, id: u32) -> TriangleShading {
     let id = id as usize;
     let normal_ids = mesh.triangle_normals[id];
     let normals =
         (normal_ids[0] != NO_NORMAL).then(|| normal_ids.map(|i| mesh.normals[i as usize]));
     let kd = mesh.materials[mesh.triangle_materials[id] as usize].kd;
-    (normals, kd)
+    let texture = mesh
+        .texture_of(id)
+        .map(|(texture, uv)| TexturedCorners { texture, uv });
+    TriangleShading {
+        normals,
+        kd,
+        texture,
+    }
 }
 
 /// The shading data of a hit on the scene's triangle `hit.id`.
 #[inline]
 pub fn surface_of(mesh: &Mesh, hit: &ClosestHit, ray: &Ray) -> SurfacePoint {
-    let (normals, kd) = shading_of(mesh, hit.id);
-    surface_point(hit.corners, hit.b, ray.dir, normals, kd)
+    let s = shading_of(mesh, hit.id);
+    let kd = match &s.texture {
+        None => s.kd,
+        Some(t) => t.kd_at(s.kd, &mesh.textures[t.texture as usize], hit.b),
+    };
+    surface_point(hit.corners, hit.b, ray.dir, s.normals, kd)
 }
 
 /// Renders `scene` with one BVH over all its triangles.

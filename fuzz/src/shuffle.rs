@@ -135,6 +135,16 @@ pub fn shuffle_block(data: &[u8]) {
         RecordKind::VertexPage => {
             check_error(what, decode_page(KEY, &bytes, 0));
         }
+        RecordKind::Texture => {
+            if let Some(texture) =
+                check_error(what, hort_core::texture::decode_texture(KEY, &bytes))
+            {
+                let again = hort_core::texture::encode_texture(&texture);
+                let back = hort_core::texture::decode_texture(KEY, &again)
+                    .expect("a re-encoded texture decodes");
+                assert!(back == texture, "a texture changed when re-encoded");
+            }
+        }
         RecordKind::PartRecords => {
             if let Some(records) = check_error(what, decode_frame(KEY, &bytes)) {
                 let (again, offsets) = encode_frames(&records);

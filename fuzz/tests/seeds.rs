@@ -52,12 +52,17 @@ fn split(n: usize, normals: bool) -> SplitObject {
         .map(|i| TriangleShading {
             normals: (normals && i % 2 == 0).then_some([Vec3::Z, Vec3::Y, Vec3::X]),
             kd: [0.1 * (i % 3) as f32, 0.5, 0.8],
+            texture: (normals && i % 3 == 0).then_some(hort_core::texture::TexturedCorners {
+                texture: (i % 2) as u32,
+                uv: [[0.0, 1.0], [0.5, 0.25], [i as f32, -1.0]],
+            }),
         })
         .collect();
     SplitObject {
         split: 1,
         bvh,
         shading,
+        textures: Default::default(),
     }
 }
 
@@ -72,12 +77,14 @@ fn strip(n: usize) -> SplitObject {
         .map(|i| TriangleShading {
             normals: None,
             kd: [0.5, 0.25 * (i % 2) as f32, 0.0],
+            texture: None,
         })
         .collect();
     SplitObject {
         split: 0,
         bvh,
         shading,
+        textures: Default::default(),
     }
 }
 

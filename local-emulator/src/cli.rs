@@ -78,6 +78,11 @@ pub enum SceneCommand {
 pub struct RenderArgs {
     /// The scene: an OBJ file, or a JSON manifest (.json) naming OBJ files.
     pub scene: PathBuf,
+    /// What a material's diffuse texture (map_Kd) that is missing or unreadable does: `error`
+    /// refuses the scene, naming the file and the material; `flat` warns and renders the
+    /// material's flat Kd colour.
+    #[arg(long, value_enum, default_value_t = MissingTextures::Error)]
+    pub missing_textures: MissingTextures,
     /// The image and the plan's shape (the flags of `hort plan` too).
     #[command(flatten)]
     pub plan: crate::plan_flags::PlanFlags,
@@ -189,4 +194,22 @@ pub struct GenerateArgs {
     /// Overwrite the .obj and .json if they exist.
     #[arg(long)]
     pub force: bool,
+}
+
+/// `--missing-textures`: see [`hort_core::scene::TextureFallback`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum MissingTextures {
+    /// Refuse the scene, naming the texture file and the material.
+    Error,
+    /// Warn, and render the material's flat Kd colour.
+    Flat,
+}
+
+impl From<MissingTextures> for hort_core::scene::TextureFallback {
+    fn from(m: MissingTextures) -> Self {
+        match m {
+            MissingTextures::Error => hort_core::scene::TextureFallback::Error,
+            MissingTextures::Flat => hort_core::scene::TextureFallback::Flat,
+        }
+    }
 }

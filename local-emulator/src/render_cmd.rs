@@ -19,11 +19,12 @@ use hort_core::hits::{Hit, encode_hits};
 use hort_core::ids::JobId;
 use hort_core::image::{Image, write_image};
 use hort_core::pipeline::{
-    ExecutionMode, PipelineOptions, PlanRequest, StoredOutputs, resolve_counts, run_pipeline,
+    ExecutionMode, PipelineOptions, PlanRequest, StoredOutputs, planned_textures,
+    resolve_counts_with, run_pipeline,
 };
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
 use hort_core::report::{AdaptiveReport, Outputs, RayReport, Report, Seconds, StageReport};
-use hort_core::scene::{Scene, check_image_size, load_scene, scene_image_settings};
+use hort_core::scene::{Scene, check_image_size, load_scene_with, scene_image_settings};
 use hort_core::store::MemoryStore;
 use hort_core::unoccludable::unoccludable_lights;
 use std::path::{Path, PathBuf};
@@ -106,7 +107,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let scene = if by_tasks {
         None
     } else {
-        Some(load_scene(&args.scene)?)
+        Some(load_scene_with(&args.scene, args.missing_textures.into())?)
     };
     for w in scene.iter().flat_map(|s| &s.warnings) {
         eprintln!("warning: {w}");
@@ -152,7 +153,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if let Some(scene) = scene.as_ref().filter(|_| !args.monolithic) {
         // Refuse impossible partitionings here, with the scene at hand, before any upload.
         let triangles = scene.mesh.triangle_count() as u64;
-        let (shape, s) = resolve_counts(&request, triangles)?;
+        let (shape, s) = resolve_counts_with(&request, triangles, &planned_textures(scene))?;
         warn_if_oversplit(triangles, shape.splits, s);
     }
     let rendered = match &scene {

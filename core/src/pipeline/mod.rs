@@ -40,6 +40,7 @@ mod split;
 mod split_cache;
 mod split_object;
 mod stages;
+mod textures;
 
 pub use adaptive_span::render_span_adaptive;
 pub use driver::{PipelineOptions, PipelineRun, run_pipeline};
@@ -52,7 +53,7 @@ pub use outputs::{JobOutputs, StoredOutputs, read_outputs};
 pub use plan::{
     CastTask, JobPlan, MAX_SPANS, MAX_SPLITS, PLAN_FORMAT_VERSION, PlanRequest, ScenePartsShape,
     Span, SplitInfo, TraceTask, build_timeout_seconds, partition_timeout_seconds, plan_job,
-    resolve_counts,
+    resolve_counts, resolve_counts_with,
 };
 pub use plan_step::{PlannedJob, plan_into_store, plan_into_store_keeping};
 pub use records::{Occluded, PixelBlock, ShadowQuery, SurfaceHit};
@@ -71,6 +72,9 @@ pub use split_cache::SplitCache;
 pub use split_object::{SPLIT_FORMAT_VERSION, SplitObject, decode_split, encode_split};
 pub use split_object::{ShadingTable, TriangleShading};
 pub use stages::{cast_map, cast_reduce, combine, expand, render_span, trace_map, trace_reduce};
+pub use textures::{
+    PlannedTexture, check_texture_memory, decode_planned_texture, planned_textures, texture_objects,
+};
 
 use crate::ErrorType;
 use crate::store::StoreError;

@@ -176,7 +176,8 @@ pub struct JobShape {
 
 /// Chooses mode and split count for `triangles` triangles, spans of at most `span_samples`
 /// camera samples, a budget of `memory_mb`, the user's `splits` (if given) and `mode` (if
-/// forced). `max_splits` is the most splits the scene allows.
+/// forced). `max_splits` is the most splits the scene allows; `texture_bytes` are held by every
+/// task beside its triangles (the scene's textures).
 ///
 /// - `mode` forced: that mode; splits as given, else 1 (fused) or the fewest that fit (staged).
 /// - else `splits` = 1: fused; `splits` = K > 1: staged with K splits;
@@ -191,8 +192,9 @@ pub fn choose_shape(
     splits: Option<u32>,
     mode: Option<ExecutionMode>,
     max_splits: u32,
+    texture_bytes: u64,
 ) -> Result<JobShape, PipelineError> {
-    let budget = u64::from(memory_mb) << 20;
+    let budget = (u64::from(memory_mb) << 20).saturating_sub(texture_bytes);
     let fits = |k: u64| task_bytes(triangles.div_ceil(k.max(1)), span_samples) <= budget;
     let mib = |b: u64| b.div_ceil(1 << 20);
     let whole = task_bytes(triangles, span_samples);
@@ -312,7 +314,7 @@ mod tests {
         splits: Option<u32>,
         mode: Option<ExecutionMode>,
     ) -> Result<(ExecutionMode, u32), String> {
-        choose_shape(triangles, 65_536, memory_mb, splits, mode, 4096)
+        choose_shape(triangles, 65_536, memory_mb, splits, mode, 4096, 0)
             .map(|s| (s.mode, s.splits))
             .map_err(|e| e.to_string())
     }
@@ -340,7 +342,7 @@ mod tests {
         assert_eq!(shape(100, 2048, None, Some(Staged)), Ok((Staged, 1)));
         assert_eq!(shape(100, 2048, Some(3), Some(Fused)), Ok((Fused, 3)));
         let reason = |splits, mode| {
-            choose_shape(100_000, 65_536, 128, splits, mode, 4096)
+            choose_shape(100_000, 65_536, 128, splits, mode, 4096, 0)
                 .unwrap()
                 .reason
         };
@@ -365,7 +367,7 @@ mod tests {
             "a fused task of this job would need about 418 MB (1000000 triangles, 65536 samples per span), over --memory-mb 128: raise --memory-mb or use more splits"
         );
         assert_eq!(
-            choose_shape(10_000_000_000, 65_536, 128, None, None, 4096)
+            choose_shape(10_000_000_000, 65_536, 128, None, None, 4096, 0)
                 .unwrap_err()
                 .to_string(),
             "the scene's 10000000000 triangles do not fit --memory-mb 128 even in 4096 splits: raise --memory-mb"

@@ -199,6 +199,10 @@ pub struct JobPlan {
     /// all of them, so other plans keep their bytes.
     #[serde(default, skip_serializing_if = "StoredOutputs::is_all")]
     pub outputs: StoredOutputs,
+    /// The scene's diffuse textures, in the scene's order (a split's triangles name them by
+    /// their index here). Absent from the JSON when none, so other plans keep their bytes.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub textures: Vec<super::PlannedTexture>,
 }
 
 /// What the scan of a scene split by tasks found, as the prediction models need it.
@@ -370,6 +374,17 @@ pub fn resolve_counts(
     request: &PlanRequest,
     triangles: u64,
 ) -> Result<(JobShape, u32), PipelineError> {
+    resolve_counts_with(request, triangles, &[])
+}
+
+/// [`resolve_counts`] for a scene with `textures`, which every task that shades holds: refused
+/// if they leave no room ([`super::check_texture_memory`]), else counted in every task's memory.
+pub fn resolve_counts_with(
+    request: &PlanRequest,
+    triangles: u64,
+    textures: &[super::PlannedTexture],
+) -> Result<(JobShape, u32), PipelineError> {
+    let texture_bytes = super::check_texture_memory(textures, request.memory_mb)?;
     check_image_size(request.width, request.height, request.spp)?;
     // The most samples a pixel may get sizes the spans and tasks.
     let spp = match request.adaptive {
@@ -424,6 +439,7 @@ pub fn resolve_counts(
         request.splits,
         request.execution,
         max_k.max(1),
+        texture_bytes,
     )?;
     Ok((shape, s))
 }
@@ -506,6 +522,7 @@ pub fn plan_job(
         scene_parts: None,
         camera_hit_estimate: None,
         outputs: request.outputs,
+        textures: super::planned_textures(scene),
     })
 }
 

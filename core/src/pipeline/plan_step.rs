@@ -1,10 +1,12 @@
-//! The plan step, shared by the in-process driver and the Plan function: cut the scene into
-//! split objects (stored one at a time), plan the tasks, store the plan.
+//! The plan step, shared by the in-process driver and the Plan function: store the scene's
+//! textures, cut the scene into split objects (stored one at a time), plan the tasks, store the
+//! plan.
 
 use super::PipelineError;
-use super::plan::{JobPlan, PlanRequest, plan_job, resolve_counts};
+use super::plan::{JobPlan, PlanRequest, plan_job, resolve_counts_with};
 use super::split::split_scene_objects;
 use super::split_object::SplitObject;
+use super::textures::{planned_textures, texture_objects};
 use crate::ids::{JobId, SplitId};
 use crate::keys::{plan_key, split_key};
 use crate::scene::Scene;
@@ -16,7 +18,8 @@ use std::time::Instant;
 pub struct PlannedJob {
     /// The plan, as stored at `jobs/{job}/plan.json`.
     pub plan: JobPlan,
-    /// Bytes stored by the step: every split object plus the plan.
+    /// Bytes stored by the step: every split object plus the plan (textures not included:
+    /// they are the scene's, like the scene object).
     pub bytes_written: u64,
     /// Where the step's time went: `task_us` in all, `encode_us` encoding split objects,
     /// `storage_us` storing them and the plan, `compute_us` the rest (assigning triangles to
@@ -25,7 +28,8 @@ pub struct PlannedJob {
     pub metrics: super::TaskMetrics,
 }
 
-/// Splits `scene` as `request` asks (counts checked by [`resolve_counts`]), stores each split
+/// Stores the scene's textures at `jobs/{job}/textures/`, splits `scene` as `request` asks
+/// (counts checked by [`super::resolve_counts_with`], textures counted), stores each split
 /// object at `jobs/{job}/splits/` as soon as it is built (the whole-scene acceleration data is
 /// never held), then stores the plan. Deterministic: the same inputs store the same bytes.
 pub fn plan_into_store(
@@ -38,8 +42,8 @@ pub fn plan_into_store(
 }
 
 /// [`plan_into_store`] that also hands `keep` each split object as it is stored (id, object:
-/// what decoding the stored bytes gives back), for an in-process caller that can keep it instead
-/// of decoding it again.
+/// what decoding the stored bytes and attaching its textures gives back), for an in-process
+/// caller that can keep it instead of decoding it again.
 pub fn plan_into_store_keeping(
     store: &dyn BlobStore,
     job: &JobId,
@@ -50,14 +54,21 @@ pub fn plan_into_store_keeping(
     let started = Instant::now();
     let store = TimedStore::new(store);
     let mut encode_us = 0;
-    let (shape, s) = resolve_counts(request, scene.mesh.triangle_count() as u64)?;
+    let textures = planned_textures(scene);
+    let (shape, s) = resolve_counts_with(request, scene.mesh.triangle_count() as u64, &textures)?;
+    for (key, bytes) in texture_objects(job, &scene.mesh.textures) {
+        store.put(&key, &bytes)?;
+    }
     let infos = split_scene_objects(
         &scene.mesh,
         shape.splits as usize,
         request.mode,
-        |split, object, bytes, encoded_in| {
+        |split, mut object, bytes, encoded_in| {
             encode_us += encoded_in;
             store.put(&split_key(job, SplitId(split)), &bytes)?;
+            object.attach(|id| {
+                Ok::<_, crate::store::StoreError>(scene.mesh.textures[id as usize].clone())
+            })?;
             keep(split, object);
             Ok::<(), crate::store::StoreError>(())
         },

@@ -27,14 +27,18 @@ use super::refine_list::{RefineList, decode_refine_list, encode_refine_list};
 use super::split_cache::SplitCache;
 use super::split_object::{SplitObject, decode_split};
 use super::stages;
+use super::textures::decode_planned_texture;
 use crate::adaptive::AdaptiveCounts;
 use crate::camera::Camera;
 use crate::hits::encode_hits;
 use crate::ids::{JobId, PartitionId, SplitId, Stage, TaskId};
 use crate::image::{encode_pfm, encode_png};
-use crate::keys::{hits_key, image_key, parse_partition_key, partition_key, split_key};
+use crate::keys::{
+    hits_key, image_key, parse_partition_key, partition_key, split_key, texture_key,
+};
 use crate::shuffle::{RecordKind, relabel_block};
 use crate::store::{BlobStore, StoreError};
+use crate::texture::Texture;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -533,13 +537,38 @@ impl Task<'_> {
             Err(PipelineError::Corrupt(_)) => true,
             _ => false,
         };
-        let object = match (first, self.rebuild) {
+        let mut object = match (first, self.rebuild) {
             (Err(_), Some(rebuild)) if lost => self.rebuilt_split(&key, split, rebuild)?,
             (first, _) => first?,
         };
+        object.attach(|id| self.read_texture(split, id))?;
         let object = Arc::new(object);
         self.cache.insert(&key, Arc::clone(&object));
         Ok(object)
+    }
+
+    /// Texture `id` of the plan (used by split `split`): from the cache if a split holds it,
+    /// else read, checked against the plan's content key and remembered.
+    fn read_texture(&mut self, split: u32, id: u32) -> Result<Arc<Texture>, PipelineError> {
+        let planned = self.plan.textures.get(id as usize).ok_or_else(|| {
+            PipelineError::Corrupt(format!(
+                "split {split} uses texture {id}, but the plan lists {} textures",
+                self.plan.textures.len()
+            ))
+        })?;
+        let key = texture_key(self.job, &planned.key);
+        if let Some(texture) = self.cache.texture(&key) {
+            return Ok(texture);
+        }
+        let store = self.store;
+        let bytes = timed(&mut self.metrics.storage_us, || store.get(&key))?;
+        self.metrics.bytes_read += bytes.len() as u64;
+        let texture = timed(&mut self.metrics.decode_us, || {
+            decode_planned_texture(&key, &bytes, planned)
+        })?;
+        let texture = Arc::new(texture);
+        self.cache.insert_texture(&key, &texture);
+        Ok(texture)
     }
 
     /// Rebuilds split object `split` (stored at `key`) from the scene, checks its size against

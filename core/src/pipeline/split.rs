@@ -148,16 +148,7 @@ fn build_split_object(
     encode_us: &mut u64,
 ) -> (super::SplitInfo, SplitObject, Vec<u8>) {
     let triangles = ids.iter().map(|&i| mesh.corners(i as usize)).collect();
-    assemble_split(
-        split,
-        triangles,
-        ids,
-        |id| {
-            let (normals, kd) = shading_of(mesh, id);
-            TriangleShading { normals, kd }
-        },
-        encode_us,
-    )
+    assemble_split(split, triangles, ids, |id| shading_of(mesh, id), encode_us)
 }
 
 /// Builds split `split` of the triangles `ids` with corners `triangles` (same order) and the
@@ -189,6 +180,7 @@ pub(super) fn build_split_bvh(
         split,
         bvh,
         shading,
+        textures: Default::default(),
     }
 }
 
@@ -217,10 +209,8 @@ mod tests {
 
     fn grid_mesh(n: usize) -> Mesh {
         let mut mesh = Mesh::default();
-        mesh.materials.push(crate::scene::Material {
-            name: "default".into(),
-            kd: [0.7; 3],
-        });
+        mesh.materials
+            .push(crate::scene::Material::plain("default", [0.7; 3]));
         for i in 0..n {
             let x = ((i * 7919) % n) as f32;
             let base = mesh.positions.len() as u32;

@@ -3,13 +3,17 @@
 //! decoded split can serve every later task of the same job on the same worker. Output bytes
 //! do not depend on whether a split came from the cache.
 //!
+//! Textures are found through it as well: a texture a cached split holds serves every other
+//! split that uses it (one copy per container), and goes when the last split holding it goes.
+//!
 //! It keeps the last few job plans too: `plan.json` is written once per job (a rebuilt one has
 //! the same bytes), so a warm worker reads and parses it once per job instead of once per task
 //! (a quarter of the S3 requests of a staged job).
 
 use super::plan::JobPlan;
 use super::split_object::SplitObject;
-use std::sync::{Arc, Mutex};
+use crate::texture::Texture;
+use std::sync::{Arc, Mutex, Weak};
 
 /// Least-recently-used cache of decoded splits, bounded by the memory they hold
 /// ([`SplitObject::memory_bytes`]).
@@ -19,6 +23,8 @@ pub struct SplitCache {
     entries: Mutex<Vec<Entry>>,
     /// The last [`PLANS_KEPT`] plans used, newest last, by their `plan.json` key.
     plans: Mutex<Vec<(String, Arc<JobPlan>)>>,
+    /// Textures by object key, alive while some split (cached or in use) holds them.
+    textures: Mutex<Vec<(String, Weak<Texture>)>>,
 }
 
 /// Plans a cache keeps (a worker serves one job at a time, rarely a few interleaved).
@@ -39,6 +45,7 @@ impl SplitCache {
             budget_bytes,
             entries: Mutex::new(Vec::new()),
             plans: Mutex::new(Vec::new()),
+            textures: Mutex::new(Vec::new()),
         }
     }
 
@@ -105,6 +112,26 @@ impl SplitCache {
 }
 
 impl SplitCache {
+    /// The texture stored under `key`, if a split still holds it.
+    pub fn texture(&self, key: &str) -> Option<Arc<Texture>> {
+        let textures = self.textures.lock().unwrap_or_else(|e| e.into_inner());
+        textures
+            .iter()
+            .find(|(k, _)| k == key)
+            .and_then(|(_, t)| t.upgrade())
+    }
+
+    /// Remembers `texture`, read from `key`, for as long as something holds it (nothing when
+    /// the cache is disabled); forgets textures nothing holds any more.
+    pub fn insert_texture(&self, key: &str, texture: &Arc<Texture>) {
+        if self.budget_bytes == 0 {
+            return;
+        }
+        let mut textures = self.textures.lock().unwrap_or_else(|e| e.into_inner());
+        textures.retain(|(k, t)| k != key && t.strong_count() > 0);
+        textures.push((key.to_owned(), Arc::downgrade(texture)));
+    }
+
     /// The plan cached under `key` (a `plan.json` key), if any.
     pub fn plan(&self, key: &str) -> Option<Arc<JobPlan>> {
         let plans = self.plans.lock().unwrap_or_else(|e| e.into_inner());
@@ -145,11 +172,13 @@ mod tests {
                 TriangleShading {
                     normals: None,
                     kd: [0.5; 3],
+                    texture: None,
                 };
                 n
             ]
             .into_iter()
             .collect(),
+            textures: Default::default(),
         })
     }
 

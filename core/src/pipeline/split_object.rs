@@ -6,7 +6,7 @@
 //!
 //! | section | bytes | values |
 //! |---|---|---|
-//! | header | 56 | u32: format version, split id, triangle count n, 4-wide node count w, triangle pack count p, distinct vertex count v, triangles with normals c, distinct kd count k; f32: root box lo.xyz, hi.xyz |
+//! | header | 60 | u32: format version, split id, triangle count n, 4-wide node count w, triangle pack count p, distinct vertex count v, triangles with normals c, distinct kd count k, textured triangles x; f32: root box lo.xyz, hi.xyz |
 //! | nodes | 32 w | the 4-wide nodes' structure, root first ([`NODE_BYTES`]: 4 child words, 4 pack counts); their boxes are derived from the triangles on loading, as the builder derives them |
 //! | pack lanes | p | u8: triangles in each `Triangle4` pack (1 to 4), in pack order |
 //! | vertices | 12 v | planes of 3 f32 (x, y, z) per distinct corner position, in order of first use |
@@ -14,8 +14,9 @@
 //! | ids | 4 n | planes of u32: global triangle id (scene order), leaf order |
 //! | kd values | 12 k | 3 f32 per distinct kd, in order of first use |
 //! | kd indices | 4 n | planes of u32: index of each triangle's kd value, leaf order |
-//! | normal flags | n | u8: 1 if the triangle has vertex normals, else 0 |
+//! | shading flags | n | u8: bit 0 set if the triangle has vertex normals, bit 1 if it is textured; no other bit |
 //! | normals | 36 c | 9 f32 per triangle with normals (corner 0 xyz, 1, 2), leaf order |
+//! | textures | 28 x | per textured triangle, leaf order: u32 texture (an index into the plan's textures), 6 f32 texture coordinates (corner 0 uv, 1, 2) |
 //!
 //! A section of "planes" holds its words in groups of 12,288 ([`PLANE_GROUP`]; the last group
 //! shorter), each group as its words' byte 0s, then their byte 1s, 2s and 3s (as the shuffle
@@ -41,15 +42,18 @@
 //! vertices itself) but are twice the raw bytes, made of short matches that took zstd several
 //! times as long to undo as the vertices and indices. Byte planes make the vertices, indices
 //! and ids a quarter to a half smaller stored and faster to decompress (high bytes repeat).
-//! kd values repeat per material, so kd indices are a small table's; normals are stored
-//! written out, as few scenes have them.
+//! kd values repeat per material, so kd indices are a small table's; normals and texture
+//! coordinates are stored written out, as few scenes have them. The textures themselves are
+//! objects of their own (one per distinct texture per job, [`crate::texture`]), attached to a
+//! decoded split by the task that loads it ([`SplitObject::textures`]).
 //!
 //! Decoding checks everything it relies on: the version (objects of other versions name their
 //! version and are refused; a task rebuilds such an object from the scene as it does a
 //! damaged one), the header's counts against each other and the exact raw length, the BVH as
 //! [`Bvh::from_parts`] does (children in depth-first order after their parent, depth, leaves
 //! inside the packs and covering them, pack sizes), vertex and kd indices numbering their
-//! tables in order of first use, normal flags 0 or 1 and as many set as declared; and, as
+//! tables in order of first use, shading flags of bits 0 and 1 only with as many of each set
+//! as declared; and, as
 //! `decode_block` does, every raw byte against the block's raw CRC and length before it
 //! returns anything (a damaged block gives the block's error, whatever its bytes say). It
 //! does not check that table values are distinct (a duplicate only costs bytes; re-encoding
@@ -59,6 +63,9 @@
 
 use crate::bvh::{Aabb, Bvh, NODE_BYTES};
 use crate::shuffle::{RecordKind, encode_block};
+use crate::texture::Texture;
+use std::collections::BTreeMap;
+use std::sync::Arc;
 
 mod decode;
 mod distinct;
@@ -68,10 +75,10 @@ use distinct::Distinct;
 pub use shading::{ShadingTable, TriangleShading};
 
 /// Version of the layout above; bump on any change.
-pub const SPLIT_FORMAT_VERSION: u32 = 5;
+pub const SPLIT_FORMAT_VERSION: u32 = 6;
 
-/// Bytes of the header section: 8 u32 and 6 f32.
-const HEADER_BYTES: usize = 56;
+/// Bytes of the header section: 9 u32 and 6 f32.
+const HEADER_BYTES: usize = 60;
 
 /// A decoded split: its BVH (triangles in leaf order) and the shading data in the same order.
 #[derive(Clone, Debug, PartialEq)]
@@ -82,17 +89,62 @@ pub struct SplitObject {
     pub bvh: Bvh,
     /// `shading.get(i)` belongs to the BVH's i-th triangle in leaf order.
     pub shading: ShadingTable,
+    /// The textures the triangles use, by index: not part of the stored bytes (textures are
+    /// objects of their own), attached by whoever loads the split ([`SplitObject::attach`]).
+    pub textures: BTreeMap<u32, Arc<Texture>>,
 }
 
 impl SplitObject {
-    /// Bytes the decoded object holds in memory.
+    /// Bytes the decoded object holds in memory, its attached textures included.
     pub fn memory_bytes(&self) -> u64 {
-        self.bvh.memory_bytes() + self.shading.memory_bytes()
+        self.bvh.memory_bytes()
+            + self.shading.memory_bytes()
+            + self
+                .textures
+                .values()
+                .map(|t| t.memory_bytes())
+                .sum::<u64>()
+    }
+
+    /// Attaches the textures the triangles use, taking texture `i` from `texture(i)`; the
+    /// first error `texture` gives is returned.
+    pub fn attach<E>(
+        &mut self,
+        mut texture: impl FnMut(u32) -> Result<Arc<Texture>, E>,
+    ) -> Result<(), E> {
+        for id in self.shading.texture_ids() {
+            if let std::collections::btree_map::Entry::Vacant(slot) = self.textures.entry(id) {
+                slot.insert(texture(id)?);
+            }
+        }
+        Ok(())
+    }
+
+    /// The diffuse reflectance of leaf-order triangle `i`'s shading `s` at barycentrics `b`:
+    /// its material's, times its texture where it has one.
+    ///
+    /// # Panics
+    /// If the triangle's texture was not attached (a loader's bug: every path that loads a
+    /// split attaches its textures before rendering).
+    #[inline]
+    pub fn kd_at(&self, s: &TriangleShading, b: [f32; 3]) -> [f32; 3] {
+        match &s.texture {
+            None => s.kd,
+            Some(t) => {
+                let texture = self.textures.get(&t.texture).unwrap_or_else(|| {
+                    panic!(
+                        "split {}: texture {} is used but was not attached",
+                        self.split, t.texture
+                    )
+                });
+                t.kd_at(s.kd, texture, b)
+            }
+        }
     }
 }
 
 /// The header's counts: triangles, 4-wide nodes, packs, distinct vertices, triangles with
-/// normals, distinct kd.
+/// normals, distinct kd, textured triangles.
 #[derive(Clone, Copy)]
 struct Counts {
     n: u32,
@@ -101,13 +153,25 @@ struct Counts {
     v: u32,
     c: u32,
     k: u32,
+    x: u32,
 }
+
+/// Bytes of one textured triangle's entry: the texture index and 6 f32.
+const TEXTURED_BYTES: u64 = 28;
 
 impl Counts {
     /// The sections' lengths in bytes after the header, in order.
-    fn section_lengths(self) -> [u64; 9] {
-        let Counts { n, w, p, v, c, k } = self;
-        let [n, w, p, v, c, k] = [n, w, p, v, c, k].map(u64::from);
+    fn section_lengths(self) -> [u64; 10] {
+        let Counts {
+            n,
+            w,
+            p,
+            v,
+            c,
+            k,
+            x,
+        } = self;
+        let [n, w, p, v, c, k, x] = [n, w, p, v, c, k, x].map(u64::from);
         [
             w * NODE_BYTES as u64,
             p,
@@ -118,6 +182,7 @@ impl Counts {
             4 * n,
             n,
             36 * c,
+            TEXTURED_BYTES * x,
         ]
     }
 }
@@ -163,11 +228,24 @@ pub fn encode_split(object: &SplitObject) -> Vec<u8> {
             .filter(|s| s.normals.is_some())
             .count() as u32,
         k: kd.values.len() as u32,
+        x: object
+            .shading
+            .iter()
+            .filter(|s| s.texture.is_some())
+            .count() as u32,
     };
     let total: u64 = counts.section_lengths().iter().sum();
     let mut raw = Vec::with_capacity(HEADER_BYTES + total as usize);
-    let Counts { n, w, p, v, c, k } = counts;
-    for word in [SPLIT_FORMAT_VERSION, object.split, n, w, p, v, c, k] {
+    let Counts {
+        n,
+        w,
+        p,
+        v,
+        c,
+        k,
+        x,
+    } = counts;
+    for word in [SPLIT_FORMAT_VERSION, object.split, n, w, p, v, c, k, x] {
         raw.extend_from_slice(&word.to_le_bytes());
     }
     let Aabb { lo, hi } = bvh.bounds();
@@ -189,9 +267,20 @@ pub fn encode_split(object: &SplitObject) -> Vec<u8> {
         raw.extend_from_slice(&x.to_le_bytes());
     }
     put_planes(&mut raw, &kd.uses);
-    raw.extend(object.shading.iter().map(|s| u8::from(s.normals.is_some())));
+    raw.extend(
+        object
+            .shading
+            .iter()
+            .map(|s| u8::from(s.normals.is_some()) | u8::from(s.texture.is_some()) << 1),
+    );
     for normals in object.shading.iter().filter_map(|s| s.normals) {
         for x in normals.iter().flat_map(|v| v.to_array()) {
+            raw.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    for t in object.shading.iter().filter_map(|s| s.texture) {
+        raw.extend_from_slice(&t.texture.to_le_bytes());
+        for x in t.uv.iter().flatten() {
             raw.extend_from_slice(&x.to_le_bytes());
         }
     }

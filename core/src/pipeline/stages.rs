@@ -71,7 +71,13 @@ pub(super) fn push_surface_hits(
             sample,
             t: hit.t,
             triangle: hit.id,
-            surface: surface_point(hit.corners, hit.b, ray.dir, shading.normals, shading.kd),
+            surface: surface_point(
+                hit.corners,
+                hit.b,
+                ray.dir,
+                shading.normals,
+                split.kd_at(&shading, hit.b),
+            ),
         });
     }
 }

@@ -20,8 +20,9 @@
 //! look_at, up: 3 f64 each, then vfov f64); `framed_bounds` (u8 0 or 1, then 6 f64 if 1);
 //! `lights` (u32 count, each a u8 kind, 0 point or 1 directional, 3 f64 position or direction,
 //! 3 f32 intensity or irradiance); `ambient`, `background` (3 f32 each); width, height, spp
-//! (each a u8 0 or 1, then a u32 if 1); `warnings` (u32 count of strings). A string is a u32
-//! byte length and UTF-8 bytes. Nothing follows the last field.
+//! (each a u8 0 or 1, then a u32 if 1); `warnings` (u32 count of strings); the texture
+//! section (`textures.rs`: texture coordinates, each material's texture, the textures). A
+//! string is a u32 byte length and UTF-8 bytes. Nothing follows the last field.
 //!
 //! Guarantees: [`encode_scene`] is deterministic (the same scene gives the same bytes on every
 //! platform), and `decode_scene(encode_scene(s))` equals `s` exactly, floats bit for bit (a
@@ -31,6 +32,8 @@
 //! one triangle; each failure is one line naming the object, the field and its byte offset.
 //! Arrays are read in bulk, so decoding runs at memory speed.
 
+mod textures;
+
 use super::mesh::{Material, Mesh, NO_NORMAL};
 use super::{CameraSpec, ImageSettings, Light, Scene};
 use glam::{DVec3, Vec3};
@@ -39,7 +42,7 @@ use std::path::PathBuf;
 /// The first 8 bytes of every binary scene.
 pub const SCENE_BINARY_MAGIC: [u8; 8] = *b"HORTSCN\0";
 /// The format version this build writes, and the only one it reads.
-pub const SCENE_BINARY_VERSION: u16 = 1;
+pub const SCENE_BINARY_VERSION: u16 = 2;
 /// Header length in bytes; the body starts here.
 pub const SCENE_BINARY_HEADER_LEN: usize = 24;
 /// Offset of the CRC in the header; it covers every header byte before it and the body.
@@ -135,6 +138,7 @@ fn encode_as(scene: &Scene, source: &str, warnings: &[String]) -> Vec<u8> {
     }
     put_u32(&mut out, warnings.len() as u32);
     warnings.iter().for_each(|w| put_str(&mut out, w));
+    textures::put_textures(&mut out, mesh);
 
     let body_len = (out.len() - SCENE_BINARY_HEADER_LEN) as u64;
     out[..8].copy_from_slice(&SCENE_BINARY_MAGIC);
@@ -236,7 +240,7 @@ fn decode(bytes: &[u8]) -> Result<Scene, String> {
     for i in 0..material_count {
         let name = r.string(&format!("materials[{i}].name"))?;
         let kd = r.rgb(&format!("materials[{i}].kd"))?;
-        materials.push(Material { name, kd });
+        materials.push(Material::plain(name, kd));
     }
     check_indices(
         &triangles,
@@ -310,9 +314,19 @@ fn decode(bytes: &[u8]) -> Result<Scene, String> {
     let warnings = (0..warning_count)
         .map(|i| r.string(&format!("warnings[{i}]")))
         .collect::<Result<Vec<_>, _>>()?;
+    let mut mesh = Mesh {
+        positions,
+        normals,
+        triangles,
+        triangle_normals,
+        triangle_materials,
+        materials,
+        ..Mesh::default()
+    };
+    textures::read_textures(&mut r, &mut mesh)?;
     if r.at != bytes.len() {
         return Err(format!(
-            "byte {}: {} bytes follow the last field (warnings)",
+            "byte {}: {} bytes follow the last field (textures)",
             r.at,
             bytes.len() - r.at
         ));
@@ -320,14 +334,7 @@ fn decode(bytes: &[u8]) -> Result<Scene, String> {
     Ok(Scene {
         source,
         origin,
-        mesh: Mesh {
-            positions,
-            normals,
-            triangles,
-            triangle_normals,
-            triangle_materials,
-            materials,
-        },
+        mesh,
         camera,
         framed_bounds,
         lights,

@@ -62,7 +62,16 @@ fn tiny() -> Scene {
             materials: vec![Material {
                 name: "m".into(),
                 kd: [0.7, 0.25, 1.0],
+                texture: Some(0),
             }],
+            texcoords: vec![[0.25, -0.0], [1e9, 0.5]],
+            triangle_texcoords: vec![[0, 1, 0]],
+            textures: vec![std::sync::Arc::new(crate::texture::Texture {
+                name: "wood.png".into(),
+                width: 2,
+                height: 1,
+                texels: vec![1, 2, 3, 250, 251, 252],
+            })],
         },
         camera: CameraSpec {
             eye: DVec3::new(0.0, 0.0, 5.0),
@@ -99,7 +108,7 @@ fn every_field_round_trips_and_encoding_is_deterministic() {
     assert_same(&scene, &decode_scene("t", &bytes).unwrap());
     assert_eq!(encode_scene(&scene), bytes);
     assert_eq!(&bytes[..8], b"HORTSCN\0");
-    assert_eq!(&bytes[8..12], &[1, 0, 0, 0]);
+    assert_eq!(&bytes[8..12], &[2, 0, 0, 0]);
     let body = (bytes.len() - SCENE_BINARY_HEADER_LEN) as u64;
     assert_eq!(&bytes[12..20], &body.to_le_bytes());
     scene.framed_bounds = Some((DVec3::splat(-1.0), DVec3::splat(2.0)));
@@ -109,14 +118,19 @@ fn every_field_round_trips_and_encoding_is_deterministic() {
     assert_same(&scene, &decode_scene("t", &bytes).unwrap());
 }
 
-/// `tiny()` without the directional light, warnings and image settings: the offsets below.
+/// `tiny()` without the directional light, warnings, image settings and textures: the offsets
+/// below.
 fn small() -> Vec<u8> {
     let mut s = tiny();
     s.lights.truncate(1);
     s.image = ImageSettings::default();
     s.warnings.clear();
+    s.mesh.texcoords.clear();
+    s.mesh.triangle_texcoords.clear();
+    s.mesh.textures.clear();
+    s.mesh.materials[0].texture = None;
     let bytes = encode_scene(&s);
-    assert_eq!(bytes.len(), 331);
+    assert_eq!(bytes.len(), 352);
     bytes
 }
 
@@ -124,7 +138,9 @@ fn small() -> Vec<u8> {
 // triangles 65, triangle_normals 77, triangle_materials 89, positions count 93, positions 101,
 // normals count 137, normals 145, materials count 157, name 161, kd 166, camera eye 178,
 // look_at 202, up 226, vfov 250, framed_bounds 258, lights count 259, kind 263, position 264,
-// intensity 288, ambient 300, background 312, width 324, height 325, spp 326, warnings 327.
+// intensity 288, ambient 300, background 312, width 324, height 325, spp 326, warnings 327,
+// texcoords count 331, triangle_texcoords count 339, materials[0].texture 347, textures count
+// 348.
 
 /// Recomputes the body length and checksum after the body was edited.
 fn reseal(mut bytes: Vec<u8>) -> Vec<u8> {
@@ -163,6 +179,8 @@ fn the_offsets_of_small_are_as_documented() {
     assert_eq!(&bytes[250..258], &45f64.to_le_bytes());
     assert_eq!(&bytes[259..263], &1u32.to_le_bytes());
     assert_eq!(&bytes[327..331], &0u32.to_le_bytes());
+    assert_eq!(&bytes[331..347], &[0; 16]);
+    assert_eq!(&bytes[347..352], &[0; 5]);
 }
 
 #[test]
@@ -181,11 +199,11 @@ fn header_errors_name_the_object_and_the_byte() {
         )
     );
     let mut bytes = small();
-    bytes[8] = 2;
+    bytes[8] = 1;
     assert_eq!(
         error(&bytes),
         format!(
-            "{name}: format version 2 at byte 8 is not supported: this build reads version 1 only"
+            "{name}: format version 1 at byte 8 is not supported: this build reads version 2 only"
         )
     );
     let mut bytes = small();
@@ -197,7 +215,7 @@ fn header_errors_name_the_object_and_the_byte() {
     let bytes = small();
     assert_eq!(
         error(&bytes[..300]),
-        format!("{name}: body length at byte 12 declares 307 bytes, but 276 follow the header")
+        format!("{name}: body length at byte 12 declares 328 bytes, but 276 follow the header")
     );
     let mut bytes = small();
     bytes[200] ^= 0x10;
@@ -211,10 +229,15 @@ fn header_errors_name_the_object_and_the_byte() {
 
 #[test]
 fn every_single_bit_flip_is_refused() {
-    let bytes = small();
+    for bytes in [small(), encode_scene(&tiny())] {
+        every_bit_flip_is_refused(&bytes);
+    }
+}
+
+fn every_bit_flip_is_refused(bytes: &[u8]) {
     for byte in 0..bytes.len() {
         for bit in 0..8 {
-            let mut b = bytes.clone();
+            let mut b = bytes.to_vec();
             b[byte] ^= 1 << bit;
             assert!(decode_scene("x", &b).is_err(), "byte {byte} bit {bit}");
         }
@@ -234,7 +257,7 @@ fn body_errors_name_the_field_and_its_byte() {
         (
             48,
             400u32.to_le_bytes().to_vec(),
-            "byte 52: source needs 400 bytes, but only 279 are left",
+            "byte 52: source needs 400 bytes, but only 300 are left",
         ),
         (
             57,
@@ -244,7 +267,7 @@ fn body_errors_name_the_field_and_its_byte() {
         (
             57,
             u64::MAX.to_le_bytes().to_vec(),
-            "byte 57: triangle count is 18446744073709551615, but only 266 bytes are left",
+            "byte 57: triangle count is 18446744073709551615, but only 287 bytes are left",
         ),
         (
             69,
@@ -264,7 +287,7 @@ fn body_errors_name_the_field_and_its_byte() {
         (
             93,
             100u64.to_le_bytes().to_vec(),
-            "byte 93: positions count is 100, but only 230 bytes are left",
+            "byte 93: positions count is 100, but only 251 bytes are left",
         ),
         (
             121,
@@ -279,7 +302,7 @@ fn body_errors_name_the_field_and_its_byte() {
         (
             157,
             u32::MAX.to_le_bytes().to_vec(),
-            "byte 157: materials count is 4294967295, but only 170 bytes are left",
+            "byte 157: materials count is 4294967295, but only 191 bytes are left",
         ),
         (
             170,
@@ -309,8 +332,13 @@ fn body_errors_name_the_field_and_its_byte() {
         (324, vec![9], "byte 324: width flag is 9, expected 0 or 1"),
         (
             327,
-            1u32.to_le_bytes().to_vec(),
-            "byte 327: warnings count is 1, but only 0 bytes are left",
+            6u32.to_le_bytes().to_vec(),
+            "byte 327: warnings count is 6, but only 21 bytes are left",
+        ),
+        (
+            347,
+            vec![2],
+            "byte 347: materials[0].texture flag is 2, expected 0 or 1",
         ),
     ];
     for (at, value, detail) in cases {
@@ -320,13 +348,13 @@ fn body_errors_name_the_field_and_its_byte() {
     longer.extend_from_slice(&[0, 0]);
     assert_eq!(
         error(&reseal(longer)),
-        format!("{name}: byte 331: 2 bytes follow the last field (warnings)")
+        format!("{name}: byte 352: 2 bytes follow the last field (textures)")
     );
     let mut shorter = small();
     shorter.pop();
     assert_eq!(
         error(&reseal(shorter)),
-        format!("{name}: byte 327: warnings count needs 4 bytes, but only 3 are left")
+        format!("{name}: byte 348: textures count needs 4 bytes, but only 3 are left")
     );
 }
 
@@ -345,4 +373,47 @@ fn a_named_encoding_is_the_encoding_of_the_scene_renamed_without_warnings() {
     let named = encode_scene_named(&scene, "main.json");
     assert_eq!(named, encode_scene(&renamed));
     assert_same(&decode_scene("named", &named).unwrap(), &renamed);
+}
+
+/// The texture section's checks, on scenes an encoder would never write: each error names the
+/// field and its byte.
+#[test]
+fn texture_errors_name_the_field() {
+    let check = |edit: &dyn Fn(&mut Scene), expected: &str| {
+        let mut scene = tiny();
+        edit(&mut scene);
+        let err = error(&encode_scene(&scene));
+        assert!(err.ends_with(expected), "{err}\nexpected …{expected}");
+    };
+    check(
+        &|s| s.mesh.materials[0].texture = Some(1),
+        "\"m\"'s texture is 1, but there are 1 textures",
+    );
+    check(
+        &|s| s.mesh.triangle_texcoords[0][2] = 2,
+        "triangle_texcoords[0][2] is 2, but there are 2 texcoords",
+    );
+    check(
+        &|s| s.mesh.triangle_texcoords.push([0; 3]),
+        "triangle_texcoords count is 2, expected 0 or the triangle count 1",
+    );
+    check(
+        &|s| s.mesh.texcoords[1][0] = f32::NAN,
+        "texcoords[1] is [NaN, 0.5], not finite",
+    );
+    check(
+        &|s| {
+            s.mesh.materials[0].texture = None;
+            s.mesh.textures.clear();
+        },
+        "triangle_texcoords[0] gives texture coordinates to a triangle whose material has no \
+         texture",
+    );
+    check(
+        &|s| {
+            let t = std::sync::Arc::make_mut(&mut s.mesh.textures[0]);
+            t.width = 3;
+        },
+        "textures[0].texels needs 9 bytes, but only 6 are left",
+    );
 }

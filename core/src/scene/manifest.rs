@@ -3,6 +3,7 @@
 
 use super::framing::{default_camera, default_light, scene_bounds};
 use super::mesh::Mesh;
+use super::obj::TextureFallback;
 use super::world::WorldMesh;
 use super::{CameraSpec, ImageSettings, Light, MAX_IMAGE_SIDE, MAX_SPP, Scene, obj};
 use crate::error::{SceneError, printable};
@@ -96,13 +97,16 @@ pub struct ManifestMaterial {
 }
 
 /// Loads a manifest and the OBJ files it names.
-pub(super) fn load_manifest_scene(path: &Path) -> Result<Scene, SceneError> {
+pub(super) fn load_manifest_scene(
+    path: &Path,
+    fallback: TextureFallback,
+) -> Result<Scene, SceneError> {
     let manifest = read_manifest(path)?;
     let base = path.parent().unwrap_or(Path::new("."));
     let mut warnings = Vec::new();
     let mut world = WorldMesh::default();
     for file in &manifest.meshes {
-        world.append(obj::load_obj(&base.join(file), &mut warnings)?);
+        world.append(obj::load_obj(&base.join(file), &mut warnings, fallback)?);
     }
     // The local frame (see `Scene`): the manifest's positions are moved by the same origin.
     let (mut mesh, origin) = world.localise(path)?;

@@ -19,8 +19,10 @@ pub use binary::{
 };
 pub use framing::{default_camera, default_light, framed_camera, scene_bounds};
 pub use manifest::{MANIFEST_SCHEMA, Manifest, parse_manifest};
-pub use mesh::{Material, Mesh, NO_NORMAL};
-pub use obj::{ObjRange, ObjScan, RangeFaces, parse_obj, parse_obj_range, scan_obj};
+pub use mesh::{Material, Mesh, NO_NORMAL, NO_TEXCOORD, TriangleShading};
+pub use obj::{
+    ObjRange, ObjScan, RangeFaces, TextureFallback, parse_obj, parse_obj_range, scan_obj,
+};
 pub use ranged::{
     override_materials, scene_image_settings, scene_mesh_files, scene_of_manifest_without_geometry,
     scene_without_geometry,
@@ -144,20 +146,25 @@ impl Scene {
 /// Coordinates are read in double precision and the scene is moved into its local frame (see
 /// [`Scene`]), so its f32 geometry does not depend on where it sits in the world.
 pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
+    load_scene_with(path, TextureFallback::Error)
+}
+
+/// [`load_scene`] with a choice of what a texture that cannot be used does.
+pub fn load_scene_with(path: &Path, fallback: TextureFallback) -> Result<Scene, SceneError> {
     let is_json = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("json"));
     if is_json {
-        manifest::load_manifest_scene(path)
+        manifest::load_manifest_scene(path, fallback)
     } else {
-        load_obj_scene(path)
+        load_obj_scene(path, fallback)
     }
 }
 
 /// Loads a bare OBJ file and frames it with the documented defaults.
-fn load_obj_scene(path: &Path) -> Result<Scene, SceneError> {
+fn load_obj_scene(path: &Path, fallback: TextureFallback) -> Result<Scene, SceneError> {
     let mut warnings = Vec::new();
-    let (mesh, origin) = obj::load_obj(path, &mut warnings)?.localise(path)?;
+    let (mesh, origin) = obj::load_obj(path, &mut warnings, fallback)?.localise(path)?;
     let bounds = scene_bounds(&mesh, path)?;
     let mut scene = scene_without_geometry(path, origin, bounds, warnings)?;
     scene.mesh = mesh;

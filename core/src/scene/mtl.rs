@@ -1,8 +1,10 @@
-//! What a material library asks for that the renderer does not do. The renderer uses `Kd` only
-//! (two-sided Lambertian surfaces); textures, highlights, emission and transparency would change
-//! the image in another renderer, so each of them is reported, once per kind and file, naming
-//! the first material and line and counting the others. So is a `Kd` above 1.
+//! What a material library asks for that the renderer does not do. The renderer uses `Kd` and
+//! its diffuse map `map_Kd` only (two-sided Lambertian surfaces); other texture maps,
+//! highlights, emission and transparency would change the image in another renderer, so each
+//! of them is reported, once per kind and file, naming the first material and line and counting
+//! the others. So is a `Kd` above 1.
 
+use std::collections::HashMap;
 use std::path::Path;
 
 /// The kinds reported, in message order (the discriminant indexes [`KINDS`]).
@@ -75,6 +77,23 @@ pub(super) fn mtl_warnings(path: &Path, text: &str) -> Vec<String> {
         .collect()
 }
 
+/// The 1-based line of each material's `map_Kd` statement (the first, if several).
+pub(super) fn diffuse_map_lines(text: &str) -> HashMap<String, usize> {
+    let mut lines = HashMap::new();
+    let mut material = String::new();
+    for (i, raw) in text.lines().enumerate() {
+        let line = raw.trim();
+        match line.split_whitespace().next() {
+            Some("newmtl") => material = line["newmtl".len()..].trim().to_string(),
+            Some("map_Kd") => {
+                lines.entry(material.clone()).or_insert(i + 1);
+            }
+            _ => {}
+        }
+    }
+    lines
+}
+
 /// Colour statements, which `tobj` reads as exactly three numbers.
 const COLOURS: [&str; 4] = ["Ka", "Kd", "Ks", "Ke"];
 
@@ -116,12 +135,16 @@ pub(super) fn first_bad_number(text: &str) -> Option<(usize, String)> {
     })
 }
 
-/// Which kind a statement shows, if any: texture statements always, colours and factors only
+/// Which kind a statement shows, if any: texture statements other than `map_Kd` always
+/// (`map_Kd` is rendered), colours and factors only
 /// when they have a visible effect elsewhere (a nonzero `Ks` or `Ke`, `d` below 1, `Tr` above 0)
 /// and `Kd` when a channel exceeds 1.
 fn classify(keyword: &str, values: &[&str]) -> Option<Kind> {
     let lower = keyword.to_ascii_lowercase();
     let numbers = || values.iter().filter_map(|v| v.parse::<f32>().ok());
+    if keyword == "map_Kd" {
+        return None;
+    }
     if lower.starts_with("map_") || matches!(lower.as_str(), "bump" | "disp" | "decal" | "refl") {
         return Some(Kind::Texture);
     }
@@ -155,8 +178,8 @@ fn message(path: &Path, kind: Kind, f: &Found) -> String {
     };
     let instead = match kind {
         Kind::Texture => {
-            "textures are not rendered, so the surface shows its flat Kd colour instead (grey 0.7 \
-             without Kd)"
+            "only diffuse textures (map_Kd) are rendered; this map is ignored (the surface shows \
+             its Kd colour and map_Kd, if any)"
         }
         Kind::Specular => {
             "highlights and reflections are not rendered, the surface is purely diffuse (Kd only)"

@@ -15,14 +15,15 @@
 //! or invalid UTF-8 in a statement we read; "unknown statement" for a keyword that is not a word
 //! (`<html>`, `{`, `0.5`, `été`).
 
-use super::mesh::{Material, Mesh, NO_NORMAL};
-use super::mtl::{first_bad_number, mtl_warnings, with_full_colours};
+use super::mesh::{Material, Mesh, NO_NORMAL, NO_TEXCOORD};
+use super::mtl::{diffuse_map_lines, first_bad_number, mtl_warnings, with_full_colours};
 use super::world::WorldMesh;
 use crate::error::SceneError;
 use glam::DVec3;
 use std::collections::{HashMap, HashSet};
 use std::io::BufRead;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 mod stream;
 pub use stream::{ObjRange, ObjScan, RangeFaces, parse_obj_range, scan_obj};
@@ -98,15 +99,29 @@ impl Unrendered {
 /// Unknown keywords reported one by one; more are counted in one last warning.
 const MAX_UNKNOWN_WARNINGS: usize = 8;
 
+/// What a loader does when a material's diffuse texture (`map_Kd`) cannot be used.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TextureFallback {
+    /// The scene is refused, naming the texture file and the material (the default).
+    #[default]
+    Error,
+    /// A warning names the texture and what is wrong, and the surface shows its flat Kd.
+    Flat,
+}
+
 /// Reads an OBJ file (and the MTL libraries it names, relative to its folder), positions in
 /// double precision.
-pub(super) fn load_obj(path: &Path, warnings: &mut Vec<String>) -> Result<WorldMesh, SceneError> {
+pub(super) fn load_obj(
+    path: &Path,
+    warnings: &mut Vec<String>,
+    fallback: TextureFallback,
+) -> Result<WorldMesh, SceneError> {
     let file = std::fs::File::open(path).map_err(|source| SceneError::Io {
         path: path.to_path_buf(),
         source,
     })?;
     let reader = std::io::BufReader::with_capacity(1 << 20, file);
-    let mesh = parse_obj_world(reader, path, warnings)?;
+    let mesh = parse_obj_world(reader, path, warnings, fallback)?;
     if mesh.mesh.triangles.is_empty() {
         return Err(SceneError::Empty {
             path: path.to_path_buf(),
@@ -124,7 +139,7 @@ pub fn parse_obj(
     path: &Path,
     warnings: &mut Vec<String>,
 ) -> Result<Mesh, SceneError> {
-    let world = parse_obj_world(reader, path, warnings)?;
+    let world = parse_obj_world(reader, path, warnings, TextureFallback::Error)?;
     world.into_local(DVec3::ZERO, path)
 }
 
@@ -133,8 +148,11 @@ pub(super) fn parse_obj_world(
     mut reader: impl BufRead,
     path: &Path,
     warnings: &mut Vec<String>,
+    fallback: TextureFallback,
 ) -> Result<WorldMesh, SceneError> {
     let mut parser = ObjParser::new(path);
+    parser.keep_texcoords = true;
+    parser.texture_fallback = fallback;
     let mut buf = Vec::with_capacity(256);
     while read_line(&mut reader, &mut buf, path)? > 0 {
         parser.next_line(&buf)?;
@@ -183,12 +201,18 @@ struct ObjParser<'a> {
     mesh: Mesh,
     /// Vertex positions as written, in double precision.
     positions: Vec<DVec3>,
+    /// Texture coordinates defined so far (including those before a range).
     texcoords: usize,
+    /// Whether texture coordinates are kept in `mesh.texcoords` and faces get their indices:
+    /// only when a whole file is read (a file read in ranges with textures is refused).
+    keep_texcoords: bool,
+    texture_fallback: TextureFallback,
     current_material: u32,
-    /// Materials known from `mtllib` files, by name, as (kd, index in mesh.materials if used).
-    library: HashMap<String, ([f32; 3], Option<u32>)>,
+    /// Materials known from `mtllib` files, by name, as (the material, index in mesh.materials
+    /// if used).
+    library: HashMap<String, (Material, Option<u32>)>,
     warnings: Vec<String>,
-    corners: Vec<(u32, u32)>,
+    corners: Vec<Corner>,
     /// Material libraries already read by this file (each is checked and reported once).
     libraries: HashSet<PathBuf>,
     /// Kinds of unrendered statements already reported.
@@ -216,16 +240,15 @@ struct ObjParser<'a> {
 impl<'a> ObjParser<'a> {
     fn new(path: &'a Path) -> Self {
         let mut mesh = Mesh::default();
-        mesh.materials.push(Material {
-            name: "default".into(),
-            kd: DEFAULT_KD,
-        });
+        mesh.materials.push(Material::plain("default", DEFAULT_KD));
         ObjParser {
             path,
             line: 0,
             mesh,
             positions: Vec::new(),
             texcoords: 0,
+            keep_texcoords: false,
+            texture_fallback: TextureFallback::Error,
             current_material: 0,
             library: HashMap::new(),
             warnings: Vec::new(),
@@ -378,6 +401,10 @@ impl<'a> ObjParser<'a> {
                 if let Some((line, index)) = self.texcoord_without_vt {
                     return Err(self.undefined_index(line, "texture coordinate", index));
                 }
+                let uv = self.texcoord(&mut text(self)?.split_ascii_whitespace())?;
+                if self.keep_texcoords {
+                    self.mesh.texcoords.push(uv);
+                }
                 self.texcoords += 1;
             }
             "f" | "fo" => self.face(text(self)?.split_ascii_whitespace())?,
@@ -437,6 +464,36 @@ impl<'a> ObjParser<'a> {
         Ok(DVec3::from(xyz))
     }
 
+    /// `u [v [w]]` of a `vt` statement (v defaults to 0; w is not used), finite in f32.
+    fn texcoord<'w>(
+        &self,
+        words: &mut impl Iterator<Item = &'w str>,
+    ) -> Result<[f32; 2], SceneError> {
+        let what = "texture coordinate";
+        let mut uv = [0.0f32; 2];
+        for (axis, slot) in uv.iter_mut().enumerate() {
+            let Some(word) = words.next() else {
+                if axis == 0 {
+                    return Err(self.syntax(format!("{what} needs 1 to 3 values, found 0")));
+                }
+                break;
+            };
+            let value: f32 = word
+                .parse()
+                .map_err(|_| self.syntax(format!("{what} value \"{word}\" is not a number")))?;
+            if !value.is_finite() {
+                return Err(SceneError::NonFinite {
+                    path: self.path.to_path_buf(),
+                    line: self.line,
+                    what,
+                    text: word.to_string(),
+                });
+            }
+            *slot = value;
+        }
+        Ok(uv)
+    }
+
     fn face<'w>(&mut self, words: impl Iterator<Item = &'w str>) -> Result<(), SceneError> {
         let mut corners = std::mem::take(&mut self.corners);
         corners.clear();
@@ -449,30 +506,48 @@ impl<'a> ObjParser<'a> {
                 corners.len()
             )));
         }
+        let textured = self.keep_texcoords
+            && self.mesh.materials[self.current_material as usize]
+                .texture
+                .is_some()
+            && corners.iter().all(|c| c.texcoord != NO_TEXCOORD);
+        if textured && self.mesh.triangle_texcoords.is_empty() {
+            let n = self.mesh.triangles.len();
+            self.mesh.triangle_texcoords.resize(n, [NO_TEXCOORD; 3]);
+        }
         for i in 1..corners.len() - 1 {
             let (a, b, c) = (corners[0], corners[i], corners[i + 1]);
-            self.mesh.triangles.push([a.0, b.0, c.0]);
-            let normals = if a.1 == NO_NORMAL || b.1 == NO_NORMAL || c.1 == NO_NORMAL {
+            self.mesh
+                .triangles
+                .push([a.position, b.position, c.position]);
+            let normals = if a.normal == NO_NORMAL || b.normal == NO_NORMAL || c.normal == NO_NORMAL
+            {
                 [NO_NORMAL; 3]
             } else {
-                [a.1, b.1, c.1]
+                [a.normal, b.normal, c.normal]
             };
             self.mesh.triangle_normals.push(normals);
             self.mesh.triangle_materials.push(self.current_material);
+            if textured {
+                let uv = [a.texcoord, b.texcoord, c.texcoord];
+                self.mesh.triangle_texcoords.push(uv);
+            } else if !self.mesh.triangle_texcoords.is_empty() {
+                self.mesh.triangle_texcoords.push([NO_TEXCOORD; 3]);
+            }
         }
         self.corners = corners;
         Ok(())
     }
 
-    /// Resolves one `v[/vt][/vn]` corner to (position index, normal index or NO_NORMAL).
-    /// A normal or texture coordinate named while the file has defined none is noted (see
-    /// `normal_without_vn`) and left out.
-    fn corner(&mut self, word: &str) -> Result<(u32, u32), SceneError> {
+    /// Resolves one `v[/vt][/vn]` corner. A normal or texture coordinate named while the file
+    /// has defined none is noted (see `normal_without_vn`) and left out.
+    fn corner(&mut self, word: &str) -> Result<Corner, SceneError> {
         let mut parts = word.split('/');
         let v = parts.next().unwrap_or("");
         let vt = parts.next().unwrap_or("");
         let vn = parts.next().unwrap_or("");
         let position = self.index(v, self.position_count(), "vertex")?;
+        let mut texcoord = NO_TEXCOORD;
         if !vt.is_empty() {
             if self.texcoords == 0 {
                 let raw = self.raw_index(vt, "texture coordinate")?;
@@ -481,7 +556,7 @@ impl<'a> ObjParser<'a> {
                 }
                 self.texcoord_without_vt.get_or_insert((self.line, raw));
             } else {
-                self.index(vt, self.texcoords, "texture coordinate")?;
+                texcoord = self.index(vt, self.texcoords, "texture coordinate")?;
             }
         }
         let normal = if vn.is_empty() {
@@ -496,7 +571,11 @@ impl<'a> ObjParser<'a> {
         } else {
             self.index(vn, self.normal_count(), "normal")?
         };
-        Ok((position, normal))
+        Ok(Corner {
+            position,
+            texcoord,
+            normal,
+        })
     }
 
     fn raw_index(&self, word: &str, what: &'static str) -> Result<i64, SceneError> {
@@ -535,12 +614,9 @@ impl<'a> ObjParser<'a> {
 
     fn select_material(&mut self, name: &str) {
         match self.library.get_mut(name) {
-            Some((kd, slot)) => {
+            Some((material, slot)) => {
                 let index = *slot.get_or_insert_with(|| {
-                    self.mesh.materials.push(Material {
-                        name: name.to_string(),
-                        kd: *kd,
-                    });
+                    self.mesh.materials.push(material.clone());
                     (self.mesh.materials.len() - 1) as u32
                 });
                 self.current_material = index;
@@ -603,6 +679,7 @@ impl<'a> ObjParser<'a> {
         if self.libraries.insert(mtl_path.clone()) {
             self.warnings.extend(mtl_warnings(&mtl_path, text));
         }
+        let map_lines = diffuse_map_lines(text);
         for m in materials {
             let kd = m.diffuse.unwrap_or(DEFAULT_KD);
             if kd.iter().any(|c| !c.is_finite()) {
@@ -611,8 +688,85 @@ impl<'a> ObjParser<'a> {
                     detail: format!("material {:?} has a non-finite Kd", m.name),
                 });
             }
-            self.library.entry(m.name).or_insert((kd, None));
+            if self.library.contains_key(&m.name) {
+                continue;
+            }
+            let texture = match m.diffuse_texture.as_deref() {
+                Some(map) => {
+                    let line = map_lines.get(&m.name).copied().unwrap_or(0);
+                    if !self.keep_texcoords {
+                        return Err(SceneError::Texture {
+                            path: mtl_path.parent().unwrap_or(Path::new(".")).join(map),
+                            material: format!(
+                                "{}:{line} material {:?}",
+                                mtl_path.display(),
+                                m.name
+                            ),
+                            detail: "diffuse textures are rendered only in scenes loaded whole, \
+                                     and this one is read in ranges (it is too large for one \
+                                     function's memory): raise --memory-mb, or remove the map_Kd"
+                                .into(),
+                        });
+                    }
+                    self.diffuse_map(&mtl_path, line, &m.name, map)?
+                }
+                None => None,
+            };
+            let material = Material {
+                name: m.name.clone(),
+                kd,
+                texture,
+            };
+            self.library.insert(m.name, (material, None));
         }
         Ok(())
     }
+
+    /// Loads the diffuse map `map` (the `map_Kd` statement's file, after any options) of
+    /// material `material`, named at `library:line`, relative to the library's folder; its index
+    /// in the mesh's textures. A texture that cannot be used is an error naming the file and the
+    /// material, or with [`TextureFallback::Flat`] a warning, and `None`.
+    fn diffuse_map(
+        &mut self,
+        library: &Path,
+        line: usize,
+        material: &str,
+        map: &str,
+    ) -> Result<Option<u32>, SceneError> {
+        // Options (`-s 1 1 1 file.png`) come first; the file is the last word.
+        let file = map.split_ascii_whitespace().last().unwrap_or(map);
+        let path = library.parent().unwrap_or(Path::new(".")).join(file);
+        let name = Path::new(file)
+            .file_name()
+            .map_or_else(|| file.to_string(), |n| n.to_string_lossy().into_owned());
+        match crate::texture::decode_texture_file(&path, &name) {
+            Ok(texture) => Ok(Some(self.mesh.texture_id(Arc::new(texture)))),
+            Err(detail) => {
+                let error = SceneError::Texture {
+                    path,
+                    material: format!("{}:{line} material {material:?}", library.display()),
+                    detail,
+                };
+                match self.texture_fallback {
+                    TextureFallback::Error => Err(error),
+                    TextureFallback::Flat => {
+                        self.warnings.push(format!(
+                            "{error}; the surface shows its flat Kd colour instead \
+                             (--missing-textures flat)"
+                        ));
+                        Ok(None)
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// One face corner: its position index, and its texture coordinate and normal indices or
+/// [`NO_TEXCOORD`] / [`NO_NORMAL`].
+#[derive(Clone, Copy, Debug)]
+struct Corner {
+    position: u32,
+    texcoord: u32,
+    normal: u32,
 }

@@ -526,7 +526,7 @@ fn short_colour_statements_are_grey_or_refused_never_a_panic() {
 #[test]
 fn names_with_control_characters_stay_on_one_line() {
     let dir = scratch();
-    write(&dir, "m.mtl", b"newmtl red\rKs 0.5 0.5 0.5\nmap_Kd t.png\n");
+    write(&dir, "m.mtl", b"newmtl red\rKs 0.5 0.5 0.5\nmap_Ks t.png\n");
     let obj = write(
         &dir,
         "s.obj",

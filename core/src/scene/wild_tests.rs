@@ -267,7 +267,7 @@ fn unrendered_mtl_features_warn_once_per_kind() {
                d 1\n\
                Tr 0\n\
                illum 2\n\
-               map_Kd skin.png\n\
+               map_Ks skin.png\n\
                newmtl glass\n\
                Kd 1.2 1.2 1.3\n\
                Ks 0.5 0.5 0.5\n\
@@ -291,9 +291,9 @@ fn unrendered_mtl_features_warn_once_per_kind() {
         s.warnings,
         vec![
             format!(
-                "{m}:11: material \"skin\" uses a texture (map_Kd skin.png) (and 1 more \
-                 material); textures are not rendered, so the surface shows its flat Kd colour \
-                 instead (grey 0.7 without Kd)"
+                "{m}:11: material \"skin\" uses a texture (map_Ks skin.png) (and 1 more \
+                 material); only diffuse textures (map_Kd) are rendered; this map is ignored \
+                 (the surface shows its Kd colour and map_Kd, if any)"
             ),
             format!(
                 "{m}:14: material \"glass\" has a specular colour (Ks 0.5 0.5 0.5) (and 1 more \
@@ -325,14 +325,14 @@ fn unrendered_mtl_features_warn_once_per_kind() {
 #[test]
 fn a_shared_library_warns_once_per_scene() {
     let dir = scratch();
-    write(&dir, "m.mtl", b"newmtl a\nKd 0.5 0.5 0.5\nmap_Kd a.png\n");
+    write(&dir, "m.mtl", b"newmtl a\nKd 0.5 0.5 0.5\nmap_Bump a.png\n");
     let obj = format!("mtllib m.mtl\n{TRIANGLE}usemtl a\nf 1 2 3\n");
     write(&dir, "a.obj", obj.as_bytes());
     write(&dir, "b.obj", obj.as_bytes());
     let p = write(&dir, "s.json", br#"{"meshes": ["a.obj", "b.obj"]}"#);
     let w = load_scene(&p).unwrap().warnings;
     assert_eq!(w.len(), 1, "{w:?}");
-    assert!(w[0].contains("m.mtl:3: material \"a\" uses a texture (map_Kd a.png);"));
+    assert!(w[0].contains("m.mtl:3: material \"a\" uses a texture (map_Bump a.png);"));
 }
 
 // ---- OBJ files from the wild ---------------------------------------------------------------

@@ -50,11 +50,13 @@ pub enum RecordKind {
     VertexPage = 8,
     /// One frame of a scene range's triangles, with positions, shading and scene-wide ids.
     PartRecords = 9,
+    /// A decoded diffuse texture (see [`crate::texture`]).
+    Texture = 10,
 }
 
 impl RecordKind {
     /// Every kind, in numeric order.
-    pub const ALL: [RecordKind; 9] = [
+    pub const ALL: [RecordKind; 10] = [
         RecordKind::CastCandidate,
         RecordKind::Hit,
         RecordKind::ShadowQuery,
@@ -64,6 +66,7 @@ impl RecordKind {
         RecordKind::RefineList,
         RecordKind::VertexPage,
         RecordKind::PartRecords,
+        RecordKind::Texture,
     ];
 
     /// The kind's number in the header.

@@ -18,7 +18,7 @@ use super::table::{Table, f3};
 use anyhow::{Context, Result, bail};
 use hort_core::bvh::Bvh;
 use hort_core::camera::Camera;
-use hort_core::pipeline::{SplitObject, TriangleShading, decode_split, encode_split};
+use hort_core::pipeline::{SplitObject, decode_split, encode_split};
 use hort_core::render::{build_scene_bvh, shading_of, surface_of};
 use hort_core::scene::{Scene, load_scene};
 use hort_core::shading::shadow_test;
@@ -347,15 +347,13 @@ fn split_load(scene: &Scene, bvh: Bvh, repeats: u32) -> Result<SplitLoad> {
     let shading = bvh
         .ids()
         .iter()
-        .map(|&id| {
-            let (normals, kd) = shading_of(&scene.mesh, id);
-            TriangleShading { normals, kd }
-        })
+        .map(|&id| shading_of(&scene.mesh, id))
         .collect();
     let object = SplitObject {
         split: 0,
         bvh,
         shading,
+        textures: Default::default(),
     };
     let bytes = encode_split(&object);
     let (mut decode_s, mut copy_s) = (f64::INFINITY, f64::INFINITY);

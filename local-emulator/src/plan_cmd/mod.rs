@@ -15,7 +15,8 @@ use hort_core::camera::Camera;
 use hort_core::cost::Arch;
 use hort_core::pipeline::partition::{preview_plan_from_table, scan_table};
 use hort_core::pipeline::{
-    ExecutionMode, JobPlan, PlanRequest, SplitMode, StoredOutputs, resolve_counts,
+    ExecutionMode, JobPlan, PlanRequest, SplitMode, StoredOutputs, planned_textures,
+    resolve_counts_with,
 };
 use hort_core::predict::{
     Projection, ProjectionSettings, RATES, SPLIT_BYTES_PER_TRIANGLE,
@@ -256,7 +257,11 @@ fn preview_loaded(args: &PlanArgs, scene_path: &Path) -> Result<JobPlan> {
     let (width, height) = (request.width, request.height);
     Camera::new(&scene.camera_for(width, height), width, height)
         .map_err(|e| anyhow!("{}: {e}", scene_path.display()))?;
-    let (shape, s) = resolve_counts(&request, scene.mesh.triangle_count() as u64)?;
+    let (shape, s) = resolve_counts_with(
+        &request,
+        scene.mesh.triangle_count() as u64,
+        &planned_textures(&scene),
+    )?;
     preview_plan(&scene, &request, &shape, s)
         .map_err(|e| anyhow!("{}: {}", scene_path.display(), e))
 }

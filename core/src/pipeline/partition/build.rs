@@ -85,6 +85,8 @@ pub fn build_split_from_parts(
                 .ok()
                 .map(|i| normals[i].1),
             kd: kd_values[kd_index[at] as usize],
+            // Scenes read in ranges have no textures (refused when planned).
+            texture: None,
         }
     });
     drop((kd_index, normals, sorted_ids));

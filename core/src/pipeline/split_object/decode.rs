@@ -2,11 +2,15 @@
 //! ([`read_block`]), each section converted straight into its final array and checked as it
 //! goes; nothing holds the raw bytes whole.
 
-use super::{Counts, HEADER_BYTES, PLANE_GROUP, SPLIT_FORMAT_VERSION, ShadingTable, SplitObject};
+use super::{
+    Counts, HEADER_BYTES, PLANE_GROUP, SPLIT_FORMAT_VERSION, ShadingTable, SplitObject,
+    TEXTURED_BYTES,
+};
 use crate::bvh::{Aabb, NODE_BYTES, PartsLoader};
 use crate::pipeline::PipelineError;
 use crate::shuffle::columns::ColumnReader;
 use crate::shuffle::{MAX_TAKE, RawStream, RecordKind, read_block};
+use crate::texture::TexturedCorners;
 use glam::Vec3;
 
 /// Decodes and validates a split object read from `key`. Every error is one line naming `key`
@@ -53,14 +57,28 @@ fn read_object(stream: &mut RawStream<'_>) -> Result<SplitObject, String> {
             "format version {version}, this build reads {SPLIT_FORMAT_VERSION}"
         ));
     }
-    let [split, n, w, p, v, c, k] = [1, 2, 3, 4, 5, 6, 7].map(word);
+    let [split, n, w, p, v, c, k, x] = [1, 2, 3, 4, 5, 6, 7, 8].map(word);
     if c > n {
         return Err(format!("header declares {c} triangles with normals of {n}"));
+    }
+    if x > n {
+        return Err(format!("header declares {x} textured triangles of {n}"));
     }
     if k > n || (k == 0 && n > 0) {
         return Err(format!("header declares {k} kd values for {n} triangles"));
     }
-    let expected: u64 = Counts { n, w, p, v, c, k }.section_lengths().iter().sum();
+    let expected: u64 = Counts {
+        n,
+        w,
+        p,
+        v,
+        c,
+        k,
+        x,
+    }
+    .section_lengths()
+    .iter()
+    .sum();
     let body = raw_len - HEADER_BYTES as u64;
     if body != expected {
         return Err(format!(
@@ -69,12 +87,12 @@ fn read_object(stream: &mut RawStream<'_>) -> Result<SplitObject, String> {
     }
     // The sections sum to the raw length (at most MAX_RAW_LEN), so every count below fits in
     // usize and every array reserved is at most a few times the raw bytes that fill it.
-    let [n, w, p, v, c, k] = [n, w, p, v, c, k].map(|x| x as usize);
+    let [n, w, p, v, c, k, x] = [n, w, p, v, c, k, x].map(|x| x as usize);
     let f = |b: &[u8; 4]| f32::from_le_bytes(*b);
     let vec3 = |b: &[[u8; 4]]| Vec3::new(f(&b[0]), f(&b[1]), f(&b[2]));
     let bounds = Aabb {
-        lo: vec3(&words[8..11]),
-        hi: vec3(&words[11..14]),
+        lo: vec3(&words[9..12]),
+        hi: vec3(&words[12..15]),
     };
 
     let mut bvh = PartsLoader::new(bounds, w);
@@ -128,47 +146,87 @@ fn read_object(stream: &mut RawStream<'_>) -> Result<SplitObject, String> {
     read_planes_into(stream, n, &mut kd_index, |indices| kd.check(indices))?;
     kd.finish()?;
 
-    let (normal_slots, normals) = read_normals(stream, n, c)?;
+    let flags = read_flags(stream, n, c, x)?;
+    let normals = read_normals(stream, c)?;
+    let textured = read_textured(stream, x)?;
     Ok(SplitObject {
         split,
         bvh: bvh.finish(ids),
-        shading: ShadingTable::from_parts(kd_values, kd_index, normal_slots, normals),
+        shading: ShadingTable::from_parts(
+            kd_values,
+            kd_index,
+            flags.normal_slots,
+            normals,
+            flags.texture_slots,
+            textured,
+        ),
+        textures: Default::default(),
     })
 }
 
-/// Reads the normal flags of `n` triangles (checked: 0 or 1, as many set as the header's `c`)
-/// and the normals: each triangle's slot in the normals (none if `c` is 0, else one per
-/// triangle, [`ShadingTable::NO_NORMALS`] where the flag is 0) and the normals.
-fn read_normals(
-    stream: &mut RawStream<'_>,
-    n: usize,
-    c: usize,
-) -> Result<(Vec<u32>, Vec<[Vec3; 3]>), String> {
-    let mut slots: Vec<u32> = hort_huge_pages::vec_with_capacity(if c > 0 { n } else { 0 });
-    let (mut set, mut at, mut bad) = (0usize, 0usize, None);
+/// Each triangle's slot in the normals and in the textured entries (none if the header's
+/// count is 0, else one per triangle, [`ShadingTable::NO_SLOT`] where its flag bit is clear).
+struct Slots {
+    normal_slots: Vec<u32>,
+    texture_slots: Vec<u32>,
+}
+
+/// Reads the shading flags of `n` triangles, checked: bits 0 (normals) and 1 (textured) only,
+/// as many of each set as the header's `c` and `x`.
+fn read_flags(stream: &mut RawStream<'_>, n: usize, c: usize, x: usize) -> Result<Slots, String> {
+    let sized = |count: usize| hort_huge_pages::vec_with_capacity(if count > 0 { n } else { 0 });
+    let mut slots = Slots {
+        normal_slots: sized(c),
+        texture_slots: sized(x),
+    };
+    let (mut normals_set, mut textured_set, mut at, mut bad) = (0usize, 0usize, 0usize, None);
     read_units(stream, n, 1, |flags| {
         if flags.iter().all(|&f| f == 0) {
             at += flags.len();
             if c > 0 {
-                slots.resize(at, ShadingTable::NO_NORMALS);
+                slots.normal_slots.resize(at, ShadingTable::NO_SLOT);
+            }
+            if x > 0 {
+                slots.texture_slots.resize(at, ShadingTable::NO_SLOT);
             }
             return;
         }
         for &flag in flags {
             if bad.is_none() {
-                match flag {
-                    0 => slots.push(ShadingTable::NO_NORMALS),
-                    1 if set < c => {
-                        slots.push(set as u32);
-                        set += 1;
-                    }
-                    1 => bad = Some(format!("normal flags: more than the header's {c} are set")),
-                    _ => {
-                        bad = Some(format!(
-                            "normal flag of triangle {at} is {flag}, expected 0 or 1"
-                        ))
-                    }
+                if flag > 3 {
+                    bad = Some(format!(
+                        "shading flags of triangle {at} are {flag}, expected bits 0 and 1 only"
+                    ));
                 }
+                let mut take =
+                    |bit: u8, set: &mut usize, limit: usize, out: &mut Vec<u32>, what| {
+                        if flag & bit == 0 {
+                            if limit > 0 {
+                                out.push(ShadingTable::NO_SLOT);
+                            }
+                        } else if *set < limit {
+                            out.push(*set as u32);
+                            *set += 1;
+                        } else {
+                            bad.get_or_insert(format!(
+                                "shading flags: more {what} than the header's {limit}"
+                            ));
+                        }
+                    };
+                take(
+                    1,
+                    &mut normals_set,
+                    c,
+                    &mut slots.normal_slots,
+                    "triangles with normals",
+                );
+                take(
+                    2,
+                    &mut textured_set,
+                    x,
+                    &mut slots.texture_slots,
+                    "textured triangles",
+                );
             }
             at += 1;
         }
@@ -176,9 +234,38 @@ fn read_normals(
     if let Some(bad) = bad {
         return Err(bad);
     }
-    if set != c {
-        return Err(format!("normal flags: {set} set, the header declares {c}"));
+    if normals_set != c {
+        return Err(format!(
+            "shading flags: {normals_set} triangles with normals, the header declares {c}"
+        ));
     }
+    if textured_set != x {
+        return Err(format!(
+            "shading flags: {textured_set} textured triangles, the header declares {x}"
+        ));
+    }
+    Ok(slots)
+}
+
+/// Reads the `x` textured triangles' entries (texture index, corner texture coordinates).
+fn read_textured(stream: &mut RawStream<'_>, x: usize) -> Result<Vec<TexturedCorners>, String> {
+    let mut textured = Vec::with_capacity(x);
+    read_units(stream, x, TEXTURED_BYTES as usize, |bytes| {
+        let (entries, _) = bytes.as_chunks::<28>();
+        textured.extend(entries.iter().map(|e| {
+            let (w, _) = e.as_chunks::<4>();
+            let f = |i: usize| f32::from_le_bytes(w[i]);
+            TexturedCorners {
+                texture: u32::from_le_bytes(w[0]),
+                uv: [[f(1), f(2)], [f(3), f(4)], [f(5), f(6)]],
+            }
+        }));
+    })?;
+    Ok(textured)
+}
+
+/// Reads the normals of the `c` triangles that have them.
+fn read_normals(stream: &mut RawStream<'_>, c: usize) -> Result<Vec<[Vec3; 3]>, String> {
     let mut normals = hort_huge_pages::vec_with_capacity(c);
     read_units(stream, c, 36, |bytes| {
         let (triangles, _) = bytes.as_chunks::<36>();
@@ -189,7 +276,7 @@ fn read_normals(
             [vec3(&w[0..3]), vec3(&w[3..6]), vec3(&w[6..9])]
         }));
     })?;
-    Ok((slots, normals))
+    Ok(normals)
 }
 
 /// Hands `f` the next `count` units of `unit` bytes, as many whole units at a time as the

@@ -11,18 +11,12 @@
 use glam::Vec3;
 
 use super::distinct::Distinct;
+use crate::texture::TexturedCorners;
 
-/// Per-triangle shading data carried by a split.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct TriangleShading {
-    /// The corners' vertex normals, in corner order; `None` shades with the geometric normal.
-    pub normals: Option<[Vec3; 3]>,
-    /// Diffuse reflectance per RGB channel, from the triangle's material.
-    pub kd: [f32; 3],
-}
+pub use crate::scene::TriangleShading;
 
-/// No normals for this triangle, in [`ShadingTable::normal_slots`].
-const NO_NORMALS: u32 = u32::MAX;
+/// No entry for this triangle, in [`ShadingTable::normal_slots`] and `texture_slots`.
+const NO_SLOT: u32 = u32::MAX;
 
 /// The shading of a split's triangles, in leaf order: `get(i)` belongs to the BVH's i-th
 /// triangle. Equality compares what `get` gives for every triangle, whatever the tables'
@@ -33,11 +27,16 @@ pub struct ShadingTable {
     kd_values: Vec<[f32; 3]>,
     /// Each triangle's index into `kd_values`.
     kd_index: Vec<u32>,
-    /// Each triangle's index into `normals`, or [`NO_NORMALS`]; empty when no triangle has
+    /// Each triangle's index into `normals`, or [`NO_SLOT`]; empty when no triangle has
     /// normals.
     normal_slots: Vec<u32>,
     /// The normals of the triangles that have them, in triangle order.
     normals: Vec<[Vec3; 3]>,
+    /// Each triangle's index into `textured`, or [`NO_SLOT`]; empty when no triangle is
+    /// textured.
+    texture_slots: Vec<u32>,
+    /// The texture data of the textured triangles, in triangle order.
+    textured: Vec<TexturedCorners>,
 }
 
 impl ShadingTable {
@@ -49,19 +48,25 @@ impl ShadingTable {
         kd_index: Vec<u32>,
         normal_slots: Vec<u32>,
         normals: Vec<[Vec3; 3]>,
+        texture_slots: Vec<u32>,
+        textured: Vec<TexturedCorners>,
     ) -> Self {
         debug_assert!(kd_index.iter().all(|&i| (i as usize) < kd_values.len()));
         debug_assert!(normal_slots.is_empty() || normal_slots.len() == kd_index.len());
+        debug_assert!(texture_slots.is_empty() || texture_slots.len() == kd_index.len());
         ShadingTable {
             kd_values,
             kd_index,
             normal_slots,
             normals,
+            texture_slots,
+            textured,
         }
     }
 
-    /// The marker [`ShadingTable::from_parts`] takes for a triangle without normals.
-    pub(super) const NO_NORMALS: u32 = NO_NORMALS;
+    /// The marker [`ShadingTable::from_parts`] takes for a triangle without normals (or
+    /// without a texture).
+    pub(super) const NO_SLOT: u32 = NO_SLOT;
 
     /// Triangles in the table.
     pub fn len(&self) -> usize {
@@ -78,32 +83,40 @@ impl ShadingTable {
     pub fn get(&self, i: usize) -> Option<TriangleShading> {
         let kd = *self.kd_values.get(*self.kd_index.get(i)? as usize)?;
         let normals = match self.normal_slots.get(i) {
-            Some(&slot) if slot != NO_NORMALS => self.normals.get(slot as usize).copied(),
+            Some(&slot) if slot != NO_SLOT => self.normals.get(slot as usize).copied(),
             _ => None,
         };
-        Some(TriangleShading { normals, kd })
+        let texture = match self.texture_slots.get(i) {
+            Some(&slot) if slot != NO_SLOT => self.textured.get(slot as usize).copied(),
+            _ => None,
+        };
+        Some(TriangleShading {
+            normals,
+            kd,
+            texture,
+        })
+    }
+
+    /// The distinct textures the triangles use, ascending.
+    pub fn texture_ids(&self) -> Vec<u32> {
+        let mut ids: Vec<u32> = self.textured.iter().map(|t| t.texture).collect();
+        ids.sort_unstable();
+        ids.dedup();
+        ids
     }
 
     /// Every triangle's shading, in leaf order.
     pub fn iter(&self) -> impl ExactSizeIterator<Item = TriangleShading> + '_ {
-        (0..self.len()).map(|i| self.get(i).unwrap_or(TriangleShading::DEFAULT))
+        (0..self.len()).map(|i| self.get(i).unwrap_or(TriangleShading::NONE))
     }
 
     /// Bytes the table holds in memory.
     pub fn memory_bytes(&self) -> u64 {
         (self.kd_values.len() * 12
-            + (self.kd_index.len() + self.normal_slots.len()) * 4
-            + self.normals.len() * std::mem::size_of::<[Vec3; 3]>()) as u64
+            + (self.kd_index.len() + self.normal_slots.len() + self.texture_slots.len()) * 4
+            + self.normals.len() * std::mem::size_of::<[Vec3; 3]>()
+            + self.textured.len() * std::mem::size_of::<TexturedCorners>()) as u64
     }
-}
-
-impl TriangleShading {
-    /// What [`ShadingTable::iter`] would give for a triangle it cannot find (never, for a
-    /// table its own constructors made).
-    const DEFAULT: TriangleShading = TriangleShading {
-        normals: None,
-        kd: [0.0; 3],
-    };
 }
 
 impl FromIterator<TriangleShading> for ShadingTable {
@@ -114,16 +127,27 @@ impl FromIterator<TriangleShading> for ShadingTable {
         let mut kd = Distinct::with_capacity(shading.size_hint().0);
         let mut normal_slots = Vec::new();
         let mut normals = Vec::new();
+        let mut texture_slots = Vec::new();
+        let mut textured = Vec::new();
         for (i, s) in shading.enumerate() {
+            if let Some(t) = s.texture {
+                if texture_slots.is_empty() {
+                    texture_slots.resize(i, NO_SLOT);
+                }
+                texture_slots.push(textured.len() as u32);
+                textured.push(t);
+            } else if !texture_slots.is_empty() {
+                texture_slots.push(NO_SLOT);
+            }
             kd.push(s.kd);
             if let Some(n) = s.normals {
                 if normal_slots.is_empty() {
-                    normal_slots.resize(i, NO_NORMALS);
+                    normal_slots.resize(i, NO_SLOT);
                 }
                 normal_slots.push(normals.len() as u32);
                 normals.push(n);
             } else if !normal_slots.is_empty() {
-                normal_slots.push(NO_NORMALS);
+                normal_slots.push(NO_SLOT);
             }
         }
         ShadingTable {
@@ -131,6 +155,8 @@ impl FromIterator<TriangleShading> for ShadingTable {
             kd_index: kd.uses,
             normal_slots,
             normals,
+            texture_slots,
+            textured,
         }
     }
 }
@@ -149,6 +175,7 @@ mod tests {
         TriangleShading {
             normals: normals.then(|| [Vec3::X * kd, Vec3::Y, Vec3::Z]),
             kd: [kd, 0.5, -0.0],
+            texture: None,
         }
     }
 
@@ -179,10 +206,23 @@ mod tests {
         let built: ShadingTable = [shading(0.25, false), shading(0.25, false)]
             .into_iter()
             .collect();
-        let repeated =
-            ShadingTable::from_parts(vec![[0.25, 0.5, -0.0]; 2], vec![0, 1], vec![], vec![]);
+        let repeated = ShadingTable::from_parts(
+            vec![[0.25, 0.5, -0.0]; 2],
+            vec![0, 1],
+            vec![],
+            vec![],
+            vec![],
+            vec![],
+        );
         assert_eq!(built, repeated);
-        let other = ShadingTable::from_parts(vec![[0.75, 0.5, -0.0]], vec![0, 0], vec![], vec![]);
+        let other = ShadingTable::from_parts(
+            vec![[0.75, 0.5, -0.0]],
+            vec![0, 0],
+            vec![],
+            vec![],
+            vec![],
+            vec![],
+        );
         assert_ne!(built, other);
     }
 }

@@ -19,12 +19,17 @@ fn sample_object() -> SplitObject {
         .map(|i| TriangleShading {
             normals: (i % 2 == 0).then_some([Vec3::Z, Vec3::Y, Vec3::X]),
             kd: [0.1 * (i % 5) as f32, 0.5, 0.25],
+            texture: (i % 3 == 0).then_some(crate::texture::TexturedCorners {
+                texture: i % 2,
+                uv: [[0.0, 1.0], [0.5 * i as f32, -0.0], [1e9, 0.25]],
+            }),
         })
         .collect();
     SplitObject {
         split: 3,
         bvh,
         shading,
+        textures: Default::default(),
     }
 }
 
@@ -88,12 +93,14 @@ fn mesh_object(n: u32) -> SplitObject {
                 0.5,
                 if i % 5 == 0 { -0.0 } else { 0.0 },
             ],
+            texture: None,
         })
         .collect();
     SplitObject {
         split: 9,
         bvh,
         shading,
+        textures: Default::default(),
     }
 }
 
@@ -167,12 +174,14 @@ fn sample_object_of(n: usize) -> SplitObject {
         .map(|i| TriangleShading {
             normals: None,
             kd: [(i % 3) as f32, 0.5, 0.25],
+            texture: None,
         })
         .collect();
     SplitObject {
         split: 0,
         bvh,
         shading,
+        textures: Default::default(),
     }
 }
 
@@ -211,6 +220,7 @@ impl Sections {
             v: words[5],
             c: words[6],
             k: words[7],
+            x: words[8],
         }
         .section_lengths();
         let mut at = HEADER_BYTES;
@@ -275,7 +285,7 @@ fn versions_and_header_counts_are_checked() {
     assert!(decode_split("k", &encode_block(RecordKind::SplitObject, 0, &good)).is_ok());
     assert_eq!(
         decode_err(&damaged(&good, |r| set_word(r, 0, 4))),
-        "format version 4, this build reads 5"
+        "format version 4, this build reads 6"
     );
     // A version 2 object: columns, the first a u32 column holding the version.
     let mut w = ColumnWriter::new();
@@ -283,11 +293,11 @@ fn versions_and_header_counts_are_checked() {
     w.put_f32(&[0.0; 6]);
     assert_eq!(
         decode_err(w.as_bytes()),
-        "format version 2, this build reads 5"
+        "format version 2, this build reads 6"
     );
     assert_eq!(
         decode_err(&good[..10]),
-        "10 raw bytes, shorter than the 56-byte header"
+        "10 raw bytes, shorter than the 60-byte header"
     );
     assert_eq!(
         decode_err(&damaged(&good, |r| set_word(r, 24, 65))),
@@ -509,19 +519,26 @@ fn hostile_shading_is_an_error_naming_the_triangle() {
     let set = s.flags.start + flags.iter().position(|&f| f == 1).unwrap();
     let clear = s.flags.start + flags.iter().position(|&f| f == 0).unwrap();
     assert_eq!(
-        decode_err(&damaged(&good, |r| r[clear] = 2)),
+        decode_err(&damaged(&good, |r| r[clear] = 4)),
         format!(
-            "normal flag of triangle {} is 2, expected 0 or 1",
+            "shading flags of triangle {} are 4, expected bits 0 and 1 only",
             clear - s.flags.start
         )
     );
     assert_eq!(
+        decode_err(&damaged(&good, |r| r[clear] = 2)),
+        "shading flags: more textured triangles than the header's 0"
+    );
+    assert_eq!(
         decode_err(&damaged(&good, |r| r[set] = 0)),
-        format!("normal flags: {} set, the header declares {c}", c - 1)
+        format!(
+            "shading flags: {} triangles with normals, the header declares {c}",
+            c - 1
+        )
     );
     assert_eq!(
         decode_err(&damaged(&good, |r| r[clear] = 1)),
-        format!("normal flags: more than the header's {c} are set")
+        format!("shading flags: more triangles with normals than the header's {c}")
     );
     assert_eq!(
         decode_err(&damaged(&good, |r| r[s.kd_indices.start] = 1)),

@@ -199,12 +199,12 @@ fn wrong_kind_says_found_and_expected() {
 #[test]
 fn record_kind_codes_are_fixed() {
     let codes: Vec<u16> = RecordKind::ALL.iter().map(|k| k.code()).collect();
-    assert_eq!(codes, [1, 2, 3, 4, 5, 6, 7, 8, 9]);
+    assert_eq!(codes, [1, 2, 3, 4, 5, 6, 7, 8, 9, 10]);
     for kind in RecordKind::ALL {
         assert_eq!(RecordKind::from_code(kind.code()), Some(kind));
     }
     assert_eq!(RecordKind::from_code(0), None);
-    assert_eq!(RecordKind::from_code(10), None);
+    assert_eq!(RecordKind::from_code(11), None);
 }
 
 #[test]

@@ -1,0 +1,52 @@
+//! Image files to [`Texture`]s: PNG and JPEG through the `image` crate, with limits so that an
+//! absurd header is refused before anything large is allocated.
+
+use super::Texture;
+use std::path::Path;
+
+/// The largest accepted texture width or height, in texels (a 16384² texture is 768 MiB
+/// decoded, more than most function budgets; the memory check refuses what does not fit).
+pub const MAX_TEXTURE_SIDE: u32 = 16_384;
+
+/// Decodes the PNG or JPEG bytes `bytes` (format sniffed from the bytes) into a texture called
+/// `name`. The error is one line saying what is wrong.
+pub fn decode_texture_image(bytes: &[u8], name: &str) -> Result<Texture, String> {
+    let format = image::guess_format(bytes).map_err(|_| {
+        "not a PNG or JPEG image (its first bytes match no image format)".to_string()
+    })?;
+    if !matches!(format, image::ImageFormat::Png | image::ImageFormat::Jpeg) {
+        return Err(format!("a {format:?} image; textures must be PNG or JPEG"));
+    }
+    let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), format);
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(MAX_TEXTURE_SIDE);
+    limits.max_image_height = Some(MAX_TEXTURE_SIDE);
+    limits.max_alloc = Some(4 * u64::from(MAX_TEXTURE_SIDE) * u64::from(MAX_TEXTURE_SIDE) * 2);
+    reader.limits(limits);
+    let decoded = reader.decode().map_err(|e| match e {
+        image::ImageError::Limits(_) => format!(
+            "larger than {MAX_TEXTURE_SIDE}x{MAX_TEXTURE_SIDE} texels, the largest texture accepted"
+        ),
+        e => format!("cannot be decoded as {format:?}: {e}"),
+    })?;
+    let rgb = decoded.into_rgb8();
+    let (width, height) = rgb.dimensions();
+    if width == 0 || height == 0 {
+        return Err("the image has no texels".into());
+    }
+    Ok(Texture {
+        name: name.to_string(),
+        width,
+        height,
+        texels: rgb.into_raw(),
+    })
+}
+
+/// Reads and decodes the image file at `path`, calling the texture `name`.
+pub fn decode_texture_file(path: &Path, name: &str) -> Result<Texture, String> {
+    let bytes = std::fs::read(path).map_err(|e| match e.kind() {
+        std::io::ErrorKind::NotFound => "the file does not exist".to_string(),
+        _ => format!("cannot be read: {e}"),
+    })?;
+    decode_texture_image(&bytes, name)
+}

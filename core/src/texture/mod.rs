@@ -1,0 +1,149 @@
+//! Diffuse texture maps (`map_Kd`): decoded once, sampled where a hit is shaded.
+//!
+//! A [`Texture`] holds 8-bit sRGB texels, three bytes per texel, row 0 at the top of the image
+//! (as image files store them). [`Texture::sample`] looks one up at texture coordinates (u, v)
+//! with the OBJ convention ((0, 0) is the image's bottom-left corner), repeat wrapping and
+//! bilinear filtering between the four nearest texel centres, in linear radiance: each texel is
+//! decoded from sRGB through one 256-entry table before filtering, as Mitsuba 3's `bitmap`
+//! texture does (`filter_type = bilinear`, `wrap_mode = repeat`, `raw = false`). Sampling is
+//! plain f32 arithmetic in a fixed order, so it gives the same bits on every CPU.
+//!
+//! Alpha is ignored (surfaces stay opaque); 16-bit and grey images are converted to 8-bit RGB
+//! as the `image` crate does.
+//!
+//! Within a job a texture is stored once under its content key ([`Texture::content_key`]), as
+//! a compressed block of kind [`crate::shuffle::RecordKind::Texture`] ([`encode_texture`]).
+
+mod codec;
+mod decode;
+
+pub use codec::{decode_texture, encode_texture};
+pub use decode::{MAX_TEXTURE_SIDE, decode_texture_file, decode_texture_image};
+
+use std::sync::OnceLock;
+
+/// A decoded diffuse texture.
+#[derive(Clone, PartialEq, Eq)]
+pub struct Texture {
+    /// The file it came from, as the material library names it (for messages).
+    pub name: String,
+    /// Width in texels (at least 1).
+    pub width: u32,
+    /// Height in texels (at least 1).
+    pub height: u32,
+    /// `width * height` sRGB texels, 3 bytes each (r, g, b), rows from the top.
+    pub texels: Vec<u8>,
+}
+
+impl std::fmt::Debug for Texture {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "Texture {{ name: {:?}, {}x{}, key {} }}",
+            self.name,
+            self.width,
+            self.height,
+            self.content_key()
+        )
+    }
+}
+
+impl Texture {
+    /// Bytes the texture holds in memory once decoded.
+    pub fn memory_bytes(&self) -> u64 {
+        self.texels.len() as u64
+    }
+
+    /// The content key: 16 hex digits of the FNV-1a 64 digest of the size and the texels (not
+    /// the name), so the same picture under two names is stored once per job.
+    pub fn content_key(&self) -> String {
+        let digest = hort_digest::Fnv1a64::new()
+            .bytes(&self.width.to_le_bytes())
+            .bytes(&self.height.to_le_bytes())
+            .bytes(&self.texels)
+            .finish();
+        format!("{digest:016x}")
+    }
+
+    /// The linear radiance factor at texture coordinates `uv`: bilinear between the four
+    /// nearest texel centres, wrapping around at every edge. Non-finite coordinates read
+    /// texel (0, 0)'s corner of the grid, as 0 does.
+    #[inline]
+    pub fn sample(&self, uv: [f32; 2]) -> [f32; 3] {
+        let lut = srgb_to_linear_table();
+        let (w, h) = (self.width as f32, self.height as f32);
+        let finite = |x: f32| if x.is_finite() { x } else { 0.0 };
+        let x = finite(uv[0] * w - 0.5);
+        let y = finite((1.0 - uv[1]) * h - 0.5);
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let wrap = |i: f32, n: u32| (i as i64).rem_euclid(i64::from(n)) as usize;
+        let (xa, ya) = (wrap(x0, self.width), wrap(y0, self.height));
+        let xb = if xa + 1 == self.width as usize {
+            0
+        } else {
+            xa + 1
+        };
+        let yb = if ya + 1 == self.height as usize {
+            0
+        } else {
+            ya + 1
+        };
+        let row = self.width as usize;
+        let texel = |x: usize, y: usize, c: usize| lut[self.texels[3 * (y * row + x) + c] as usize];
+        let mut out = [0.0f32; 3];
+        for (c, slot) in out.iter_mut().enumerate() {
+            let top = (1.0 - fx) * texel(xa, ya, c) + fx * texel(xb, ya, c);
+            let bottom = (1.0 - fx) * texel(xa, yb, c) + fx * texel(xb, yb, c);
+            *slot = (1.0 - fy) * top + fy * bottom;
+        }
+        out
+    }
+}
+
+/// A textured triangle's texture (an index into the scene's, or the plan's, textures) and its
+/// corners' texture coordinates, in corner order.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TexturedCorners {
+    /// Index of the texture in the scene's textures.
+    pub texture: u32,
+    /// (u, v) of corners 0, 1 and 2.
+    pub uv: [[f32; 2]; 3],
+}
+
+impl TexturedCorners {
+    /// The diffuse reflectance at barycentrics `b` of a triangle whose material has reflectance
+    /// `kd` and whose texture is `texture`: `kd` times the texture's value at the interpolated
+    /// texture coordinates. Every renderer path shades through this one function, so textured
+    /// hits match bit for bit.
+    #[inline]
+    pub fn kd_at(&self, kd: [f32; 3], texture: &Texture, b: [f32; 3]) -> [f32; 3] {
+        let [t0, t1, t2] = self.uv;
+        let uv = [
+            b[0] * t0[0] + b[1] * t1[0] + b[2] * t2[0],
+            b[0] * t0[1] + b[1] * t1[1] + b[2] * t2[1],
+        ];
+        let c = texture.sample(uv);
+        [kd[0] * c[0], kd[1] * c[1], kd[2] * c[2]]
+    }
+}
+
+/// The sRGB decoding of each 8-bit value (IEC 61966-2-1), computed once with the `libm` crate
+/// so the table is the same on every CPU.
+pub fn srgb_to_linear_table() -> &'static [f32; 256] {
+    static TABLE: OnceLock<[f32; 256]> = OnceLock::new();
+    TABLE.get_or_init(|| {
+        std::array::from_fn(|i| {
+            let c = i as f64 / 255.0;
+            let linear = if c <= 0.04045 {
+                c / 12.92
+            } else {
+                libm::pow((c + 0.055) / 1.055, 2.4)
+            };
+            linear as f32
+        })
+    })
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,121 @@
+use super::*;
+
+/// A `w` x `h` texture whose texel (x, y) has red x, green y and blue 7.
+fn ramp(w: u32, h: u32) -> Texture {
+    let texels = (0..h)
+        .flat_map(|y| (0..w).flat_map(move |x| [x as u8, y as u8, 7]))
+        .collect();
+    Texture {
+        name: "ramp.png".into(),
+        width: w,
+        height: h,
+        texels,
+    }
+}
+
+#[test]
+fn the_srgb_table_decodes_the_ends_and_the_middle() {
+    let t = srgb_to_linear_table();
+    assert_eq!(t[0], 0.0);
+    assert_eq!(t[255], 1.0);
+    // 0.5 in sRGB is 0.214 linear (IEC 61966-2-1).
+    assert!((t[128] - 0.2158605).abs() < 1e-6, "{}", t[128]);
+    assert!(t.windows(2).all(|w| w[0] < w[1]));
+}
+
+#[test]
+fn a_texel_centre_reads_that_texel_and_v_runs_up_the_image() {
+    let t = ramp(4, 2);
+    let lut = srgb_to_linear_table();
+    // Texel (1, 0) is in the top row: v near 1.
+    let c = t.sample([1.5 / 4.0, 1.0 - 0.5 / 2.0]);
+    assert_eq!(c, [lut[1], lut[0], lut[7]]);
+    // Texel (2, 1) is in the bottom row: v near 0.
+    let c = t.sample([2.5 / 4.0, 0.5 / 2.0]);
+    assert_eq!(c, [lut[2], lut[1], lut[7]]);
+}
+
+#[test]
+fn halfway_between_centres_is_the_mean_and_edges_wrap() {
+    let t = ramp(4, 1);
+    let lut = srgb_to_linear_table();
+    let c = t.sample([2.0 / 4.0, 0.5]);
+    assert_eq!(c[0], 0.5 * lut[1] + 0.5 * lut[2]);
+    // u = 0 lies between the last texel's centre and the first's.
+    let c = t.sample([0.0, 0.5]);
+    assert_eq!(c[0], 0.5 * lut[3] + 0.5 * lut[0]);
+    // Whole periods away, the same value, bit for bit.
+    assert_eq!(t.sample([2.25, 0.5]), t.sample([0.25, 0.5]));
+    assert_eq!(t.sample([-0.875, 0.5]), t.sample([0.125, 0.5]));
+}
+
+#[test]
+fn non_finite_coordinates_read_a_finite_value() {
+    let t = ramp(3, 3);
+    for uv in [
+        [f32::NAN, 0.5],
+        [f32::INFINITY, 0.5],
+        [0.5, f32::NEG_INFINITY],
+    ] {
+        assert!(t.sample(uv).iter().all(|c| c.is_finite()), "{uv:?}");
+    }
+}
+
+#[test]
+fn a_texture_object_round_trips_and_a_damaged_one_names_its_key() {
+    let t = ramp(5, 3);
+    let bytes = encode_texture(&t);
+    assert_eq!(decode_texture("k", &bytes).unwrap(), t);
+    let mut damaged = bytes.clone();
+    let last = damaged.len() - 1;
+    damaged[last] ^= 1;
+    let err = decode_texture("jobs/j/textures/x.tex", &damaged).unwrap_err();
+    assert!(err.contains("jobs/j/textures/x.tex"), "{err}");
+}
+
+#[test]
+fn the_content_key_ignores_the_name_and_sees_every_texel() {
+    let a = ramp(4, 4);
+    let mut b = a.clone();
+    b.name = "other.jpg".into();
+    assert_eq!(a.content_key(), b.content_key());
+    b.texels[47] ^= 1;
+    assert_ne!(a.content_key(), b.content_key());
+    assert_eq!(a.content_key().len(), 16);
+}
+
+#[test]
+fn png_and_jpeg_decode_and_other_bytes_are_refused_with_the_reason() {
+    let mut png = Vec::new();
+    image::RgbImage::from_fn(3, 2, |x, y| image::Rgb([x as u8 * 100, y as u8 * 200, 9]))
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    let t = decode_texture_image(&png, "a.png").unwrap();
+    assert_eq!((t.width, t.height), (3, 2));
+    assert_eq!(&t.texels[..6], &[0, 0, 9, 100, 0, 9]);
+    assert_eq!(
+        decode_texture_image(b"hello", "a.png").unwrap_err(),
+        "not a PNG or JPEG image (its first bytes match no image format)"
+    );
+    let truncated = &png[..png.len() / 2];
+    let err = decode_texture_image(truncated, "a.png").unwrap_err();
+    assert!(err.starts_with("cannot be decoded as Png: "), "{err}");
+}
+
+#[test]
+fn an_absurd_size_is_refused_before_it_is_allocated() {
+    // A PNG header claiming 100000 x 100000 texels.
+    let mut png = Vec::new();
+    image::RgbImage::new(1, 1)
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    png[16..20].copy_from_slice(&100_000u32.to_be_bytes());
+    png[20..24].copy_from_slice(&100_000u32.to_be_bytes());
+    let err = decode_texture_image(&png, "big.png").unwrap_err();
+    assert!(
+        err == format!(
+            "larger than {MAX_TEXTURE_SIDE}x{MAX_TEXTURE_SIDE} texels, the largest texture accepted"
+        ) || err.starts_with("cannot be decoded as Png"),
+        "{err}"
+    );
+}
