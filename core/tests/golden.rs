@@ -32,7 +32,7 @@ struct Golden {
     hits: u64,
 }
 
-const GOLDEN: [Golden; 6] = [
+const GOLDEN: [Golden; 7] = [
     Golden {
         scene: "scenes/bunny/bunny.json",
         width: 64,
@@ -81,6 +81,15 @@ const GOLDEN: [Golden; 6] = [
         spp: 12,
         pfm: 0x7df9_b24a_b27d_4c00,
         hits: 0x35ce_ac67_d9bb_3f36,
+    },
+    // Vertex normals and two diffuse textures (bilinear, repeat, sRGB).
+    Golden {
+        scene: "scenes/globe/globe.json",
+        width: 64,
+        height: 48,
+        spp: 4,
+        pfm: 0x8d28_4106_0fc6_0c42,
+        hits: 0x4a98_9fbb_860a_c613,
     },
 ];
 

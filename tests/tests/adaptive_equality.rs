@@ -42,6 +42,7 @@ fn adaptive_jobs_equal_the_monolithic_adaptive_render() {
     for (rel, base_spp, max_spp) in [
         ("teapot/teapot.json", 4, 16),
         ("cornell/cornell.json", 3, 12),
+        ("globe/globe.json", 2, 8),
     ] {
         let scene = load_scene(&scene_path(rel)).expect("bundled scene");
         let bvh = build_scene_bvh(&scene.mesh);

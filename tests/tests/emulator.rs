@@ -121,6 +121,37 @@ fn emulated_pipeline_equals_monolithic_for_several_partitionings() {
     }
 }
 
+/// A textured scene in the emulator: the textures go up inside the binary scene, the Plan
+/// function stores each once under its content key, and every task that shades reads them
+/// (faults included): the monolithic image, fused and staged.
+#[test]
+fn a_textured_scene_under_faults_equals_monolithic() {
+    let server = s3_support::Embedded::start(Some("emu"));
+    let mono = monolithic("globe/globe.json", 2);
+    for (seed, k, s) in [(7u64, 1, 9), (8, 3, 4)] {
+        let faults = FaultSettings {
+            fail_rate: 0.2,
+            duplicate_rate: 0.2,
+            slow_rate: 0.0,
+            seed,
+            kill_slot_after: None,
+        };
+        let run = run_job(
+            &config(&server, 3, faults),
+            &scene_path("globe/globe.json"),
+            settings(2, k, s, SplitMode::Spatial),
+            &NoObserver,
+        )
+        .unwrap_or_else(|e| panic!("seed {seed} k={k}: {e:#}"));
+        assert_same(
+            &run,
+            &mono,
+            &format!("textured, faults with seed {seed}, k={k}"),
+        );
+        assert_eq!(run.plan.textures.len(), 2, "globe.png and tiles.png");
+    }
+}
+
 #[test]
 fn injected_faults_give_the_identical_image_and_are_counted() {
     let server = s3_support::Embedded::start(Some("emu"));

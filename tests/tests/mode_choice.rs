@@ -88,3 +88,51 @@ fn a_tiny_budget_runs_staged_with_the_fewest_splits_and_a_large_one_fused() {
         );
     }
 }
+
+/// Textures are held by every task that shades: a texture that leaves no room in a function's
+/// budget is refused before anything is stored, naming it; a budget that holds it counts it.
+#[test]
+fn a_texture_too_large_for_the_budget_is_refused_before_any_work_naming_it() {
+    let mut scene = load_scene(&hort_tests::scene_path("globe/globe.json")).unwrap();
+    // A 4096 x 4096 texture is 48 MB decoded: over what 128 MB leaves beside the runtime.
+    let big = std::sync::Arc::new(hort_core::texture::Texture {
+        name: "huge.png".into(),
+        width: 4096,
+        height: 4096,
+        texels: vec![128; 3 * 4096 * 4096],
+    });
+    scene.mesh.textures[0] = big;
+    let request = |memory_mb| PlanRequest {
+        width: 32,
+        height: 24,
+        spp: 1,
+        splits: None,
+        spans: Some(2),
+        mode: SplitMode::Spatial,
+        execution: None,
+        memory_mb,
+        adaptive: None,
+        outputs: StoredOutputs::ALL,
+    };
+    let options = PipelineOptions {
+        job: JobId::new("tex").unwrap(),
+        workers: 1,
+        split_cache_bytes: 0,
+    };
+    let store = MemoryStore::new();
+    let err = run_pipeline(&store, &scene, request(128), &options).unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "texture huge.png (4096x4096 texels, 48 MB decoded) does not fit --memory-mb 128 beside \
+         the 96 MB every task needs (the scene's 2 textures hold 49 MB): raise --memory-mb or \
+         use a smaller texture"
+    );
+    assert!(
+        store.is_empty(),
+        "nothing is stored ({} objects)",
+        store.len()
+    );
+    let run = run_pipeline(&store, &scene, request(256), &options).unwrap();
+    assert_eq!(run.plan.textures[0].name, "huge.png");
+    assert_eq!(run.plan.mode, ExecutionMode::Fused);
+}

@@ -146,6 +146,13 @@ fn counts_that_are_not_powers_of_4_match_monolithic() {
     check_cases("cornell/cornell.json", &[3, 12, 96], &cases);
 }
 
+/// Vertex normals and diffuse textures (sampled where the hit is found, in CastMap or Render):
+/// the same bytes in every mode.
+#[test]
+fn textured_smooth_globe_matches_monolithic() {
+    check_scene("globe/globe.json", &[1, 4]);
+}
+
 #[test]
 fn bare_bunny_matches_monolithic() {
     check_scene("bunny/bunny.obj", &[1]);
