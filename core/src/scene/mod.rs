@@ -20,6 +20,7 @@ pub use binary::{
 pub use framing::{default_camera, default_light, framed_camera, scene_bounds};
 pub use manifest::{MANIFEST_SCHEMA, Manifest, parse_manifest};
 pub use mesh::{Material, Mesh, NO_NORMAL, NO_TEXCOORD, TriangleShading};
+pub use mtl::diffuse_map_files;
 pub use obj::{
     ObjRange, ObjScan, RangeFaces, TextureFallback, parse_obj, parse_obj_range, scan_obj,
 };

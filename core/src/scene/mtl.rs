@@ -77,6 +77,34 @@ pub(super) fn mtl_warnings(path: &Path, text: &str) -> Vec<String> {
         .collect()
 }
 
+/// The file a `map_Kd` statement names, from the text after the keyword: options
+/// (`-s 1 1 1 file.png`) come first, so the file is the last word.
+pub fn map_file(statement: &str) -> &str {
+    statement
+        .split_ascii_whitespace()
+        .last()
+        .unwrap_or(statement)
+}
+
+/// The files the `map_Kd` statements of the material library `text` name, relative to the
+/// library's folder, each once, in order: what a scene's files include besides its OBJ and
+/// MTL files.
+pub fn diffuse_map_files(text: &str) -> Vec<String> {
+    let mut files: Vec<String> = Vec::new();
+    for line in text.lines() {
+        let line = line.trim();
+        if let Some(rest) = line.strip_prefix("map_Kd")
+            && rest.starts_with(char::is_whitespace)
+        {
+            let file = map_file(rest).to_string();
+            if !files.contains(&file) {
+                files.push(file);
+            }
+        }
+    }
+    files
+}
+
 /// The 1-based line of each material's `map_Kd` statement (the first, if several).
 pub(super) fn diffuse_map_lines(text: &str) -> HashMap<String, usize> {
     let mut lines = HashMap::new();

@@ -16,7 +16,7 @@
 //! (`<html>`, `{`, `0.5`, `été`).
 
 use super::mesh::{Material, Mesh, NO_NORMAL, NO_TEXCOORD};
-use super::mtl::{diffuse_map_lines, first_bad_number, mtl_warnings, with_full_colours};
+use super::mtl::{diffuse_map_lines, first_bad_number, map_file, mtl_warnings, with_full_colours};
 use super::world::WorldMesh;
 use crate::error::SceneError;
 use glam::DVec3;
@@ -733,8 +733,7 @@ impl<'a> ObjParser<'a> {
         material: &str,
         map: &str,
     ) -> Result<Option<u32>, SceneError> {
-        // Options (`-s 1 1 1 file.png`) come first; the file is the last word.
-        let file = map.split_ascii_whitespace().last().unwrap_or(map);
+        let file = map_file(map);
         let path = library.parent().unwrap_or(Path::new(".")).join(file);
         let name = Path::new(file)
             .file_name()

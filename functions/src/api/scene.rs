@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use hort_core::scene::{Scene, load_scene, parse_manifest};
+use hort_core::scene::{Scene, diffuse_map_files, load_scene, parse_manifest};
 
 use super::error::ApiError;
 
@@ -125,6 +125,17 @@ pub fn gather(
             if !files.contains_key(&lib)
                 && let Some(bytes) = fetch(&lib)?
             {
+                // Diffuse textures: a missing one is the loader's error, naming it.
+                for map in diffuse_map_files(&String::from_utf8_lossy(&bytes)) {
+                    check_relative(&map, "texture")
+                        .map_err(|m| ApiError::invalid_scene(format!("{}: {m}", shown(&lib))))?;
+                    let map = beside(&lib, &map);
+                    if !files.contains_key(&map)
+                        && let Some(texture) = fetch(&map)?
+                    {
+                        files.insert(map, texture);
+                    }
+                }
                 files.insert(lib, bytes);
             }
         }

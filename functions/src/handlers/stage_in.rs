@@ -14,7 +14,7 @@ use super::events::JobRequest;
 use crate::api::check_relative;
 use hort_core::ids::JobId;
 use hort_core::keys::scene_prefix;
-use hort_core::scene::parse_manifest;
+use hort_core::scene::{diffuse_map_files, parse_manifest};
 use hort_core::store::{BlobStore, COPY_MAX_BYTES, StoreError};
 use std::path::Path;
 
@@ -23,6 +23,10 @@ pub const MAX_MANIFEST_BYTES: u64 = 1 << 20;
 
 /// Bytes of an OBJ file read at once while looking for its material libraries.
 const SCAN_CHUNK_BYTES: u64 = 16 << 20;
+
+/// Bytes of a material library read for the textures it names (libraries are small; a texture
+/// named past this is not copied, and the loader then names it as missing).
+const MAX_LIBRARY_BYTES: u64 = 4 << 20;
 
 /// Copies the scene of `request.scene_key` into `jobs/{job}/scene/`; nothing for a job whose
 /// scene was uploaded.
@@ -104,6 +108,19 @@ pub(super) fn stage_in(
             {
                 // A missing library is the loader's warning, as for uploaded scenes.
                 copy(&library, bytes)?;
+                // Its diffuse textures; a missing one is the loader's error, naming it.
+                let text = store.get_range(&source(&library), 0..MAX_LIBRARY_BYTES)?;
+                for map in diffuse_map_files(&String::from_utf8_lossy(&text)) {
+                    check_relative(&map, "texture").map_err(|m| {
+                        HandlerError::bad_input(format!("{}: {m}", source(&library)))
+                    })?;
+                    let map = beside(&library, &map);
+                    if copied.insert(map.clone())
+                        && let Some(bytes) = size(&map)?
+                    {
+                        copy(&map, bytes)?;
+                    }
+                }
             }
         }
     }
@@ -182,7 +199,15 @@ mod tests {
                 b"mtllib one.mtl gone.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
             )
             .unwrap();
-        store.put("scenes/a/m/one.mtl", b"newmtl x\n").unwrap();
+        // Diffuse textures beside their library are copied (options before the file name);
+        // a missing one is left to the loader, which names it.
+        store
+            .put(
+                "scenes/a/m/one.mtl",
+                b"newmtl x\nmap_Kd -s 2 2 1 tex/wood.png\nnewmtl y\nmap_Kd gone.png\n",
+            )
+            .unwrap();
+        store.put("scenes/a/m/tex/wood.png", b"png bytes").unwrap();
         store.put("scenes/a/other.obj", b"not this one").unwrap();
         let job = JobId::new("j1").unwrap();
         stage_in(&store, &job, &request("scenes/a/scene.json")).unwrap();
@@ -191,6 +216,7 @@ mod tests {
             [
                 "jobs/j1/scene/m/one.mtl",
                 "jobs/j1/scene/m/one.obj",
+                "jobs/j1/scene/m/tex/wood.png",
                 "jobs/j1/scene/scene.json"
             ]
         );

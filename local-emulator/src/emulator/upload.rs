@@ -30,7 +30,7 @@ use hort_core::keys::{
     scene_binary_key, scene_prefix,
 };
 use hort_core::pipeline::{JobPlan, PlanRequest, StoredOutputs, TaskMetrics};
-use hort_core::scene::{Scene, encode_scene_named, parse_manifest};
+use hort_core::scene::{Scene, diffuse_map_files, encode_scene_named, parse_manifest};
 use hort_core::store::{BlobStore, PutOutcome, StoreError};
 use hort_functions::S3Store;
 use hort_functions::handlers::{JobRequest, SceneFormat, WorkerEvent};
@@ -42,7 +42,8 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// The scene's files relative to the main file's folder: the main file, the OBJ files a
-/// manifest names, and the material libraries the OBJ files name.
+/// manifest names, the material libraries the OBJ files name and the diffuse textures the
+/// libraries name.
 pub fn scene_files(main: &Path) -> Result<Vec<PathBuf>> {
     let base = main.parent().unwrap_or(Path::new("."));
     let name = PathBuf::from(main.file_name().context("the scene path names no file")?);
@@ -72,7 +73,16 @@ pub fn scene_files(main: &Path) -> Result<Vec<PathBuf>> {
         {
             let rel = obj_dir.join(lib);
             if base.join(&rel).is_file() && !files.contains(&rel) {
+                let text = std::fs::read(base.join(&rel))
+                    .with_context(|| format!("cannot read {}", base.join(&rel).display()))?;
+                let lib_dir = rel.parent().map(Path::to_path_buf).unwrap_or_default();
                 files.push(rel);
+                for map in diffuse_map_files(&String::from_utf8_lossy(&text)) {
+                    let map = lib_dir.join(map);
+                    if base.join(&map).is_file() && !files.contains(&map) {
+                        files.push(map);
+                    }
+                }
             }
         }
     }

@@ -198,3 +198,21 @@ fn scene_files_are_the_obj_and_the_libraries_its_mtllib_lines_name() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// A scene's files include the diffuse textures its libraries name (each once, beside the
+/// library that names it); nothing else of the folder.
+#[test]
+fn scene_files_include_the_diffuse_textures_of_the_libraries() {
+    let globe = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/globe/globe.json");
+    assert_eq!(
+        scene_files(&globe).unwrap(),
+        [
+            "globe.json",
+            "globe.obj",
+            "globe.mtl",
+            "globe.png",
+            "tiles.png"
+        ]
+        .map(PathBuf::from)
+    );
+}
