@@ -8,7 +8,7 @@
 //! sphere cannot shadow itself otherwise). The figures are taken over the pixels whose centre
 //! ray hits both (the mesh's silhouette is inside the sphere's).
 //!
-//! `cargo run -p hort-core --example terminator` prints the table.
+//! `cargo run -p hort-core --example terminator` prints the table of docs/perf/terminator.md.
 
 use crate::bvh::Bvh;
 use crate::render::{RenderSettings, build_scene_bvh, render, surface_of};
