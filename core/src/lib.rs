@@ -18,6 +18,7 @@ pub mod render;
 pub mod sampling;
 pub mod scene;
 pub mod shading;
+pub mod terminator;
 pub mod texture;
 pub mod triangle;
 pub mod unoccludable;

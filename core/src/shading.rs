@@ -5,13 +5,22 @@
 //!   L = sum over visible lights of kd/pi · E_light  +  kd · ambient,
 //! with E = I·cos(theta)/r^2 for a point light of radiant intensity I at distance r, and
 //! E = E_dir·cos(theta) for a directional light, theta measured from the shading normal. A
-//! light contributes only when it is on the viewer's side of the surface (two-sided BSDF) and no
-//! triangle lies on the shadow segment. This is Mitsuba 3's `direct` integrator with a
-//! `twosided(diffuse)` BSDF and `point`/`directional` emitters, so both converge to one image.
+//! light contributes only when it is on the viewer's side of the surface (two-sided BSDF: the
+//! side of the shading normal, turned to face the viewer) and no triangle lies on the shadow
+//! segment. This is Mitsuba 3's `direct` integrator with a `twosided(diffuse)` BSDF and
+//! `point`/`directional` emitters, so both converge to one image (on flat triangles; at the
+//! terminator of a coarse smooth mesh, see below, Mitsuba's shadow rays hit the facets).
 //!
 //! Shadow rays start at the hit point moved off the surface by its floating-point error bound
 //! (pbrt-v4, "Robust Spawned Ray Origins"): the offset scales with the coordinates' magnitudes,
 //! so it works for scenes of any scale, unlike a fixed epsilon.
+//!
+//! **The shadow terminator.** On a triangle with vertex normals, the light side is decided by
+//! the shading normal alone, and the shadow ray starts from the hit point moved onto the
+//! vertices' tangent planes where it lies below them (Hanika, "Hacking the Shadow Terminator",
+//! Ray Tracing Gems II, ch. 4, 2021), with that point's own error bound; flat triangles keep
+//! the hit point, so their bytes are unchanged. A coarse smooth sphere then keeps the smooth
+//! normals' terminator instead of its facets' (docs/perf/terminator.md).
 
 use crate::scene::Light;
 use crate::triangle::{Ray, gamma};
@@ -32,6 +41,11 @@ pub struct SurfacePoint {
     pub n_geo: Vec3,
     /// Unit shading normal (interpolated vertex normals, else `n_geo`), in `n_geo`'s hemisphere.
     pub n_shade: Vec3,
+    /// Where shadow rays start before the robust offset: on a triangle with vertex normals,
+    /// [`shadow_point`] of the hit; else `p` itself.
+    pub p_shadow: Vec3,
+    /// Conservative absolute error bound of `p_shadow` per axis (`p_error` when it is `p`).
+    pub p_shadow_error: Vec3,
     /// Diffuse reflectance.
     pub kd: [f32; 3],
 }
@@ -66,30 +80,93 @@ pub fn surface_point(
     if n_geo.dot(ray_dir) > 0.0 {
         n_geo = -n_geo;
     }
-    let n_shade = match normals {
+    let (n_shade, p_shadow, p_shadow_error) = match normals {
         Some([n0, n1, n2]) => {
             let n = (b[0] * n0 + b[1] * n1 + b[2] * n2).normalize_or_zero();
             if n == Vec3::ZERO {
-                n_geo
-            } else if n.dot(n_geo) < 0.0 {
-                -n
+                (n_geo, p, p_error)
             } else {
-                n
+                // The vertex normals turned with the shading normal, to n_geo's side.
+                let (n, vertex_normals) = if n.dot(n_geo) < 0.0 {
+                    (-n, [-n0, -n1, -n2])
+                } else {
+                    (n, [n0, n1, n2])
+                };
+                let (q, q_error) = shadow_point(corners, b, vertex_normals, n_geo, p, p_error);
+                (n, q, q_error)
             }
         }
-        None => n_geo,
+        None => (n_geo, p, p_error),
     };
     SurfacePoint {
         p,
         p_error,
         n_geo,
         n_shade,
+        p_shadow,
+        p_shadow_error,
         kd,
     }
 }
 
+/// Smallest cosine between a vertex normal and the geometric normal for the vertex to move the
+/// shadow point: the move then has a positive component along the true plane normal despite
+/// rounding (a normal nearly in the triangle's plane would move the point along the surface).
+const MIN_NORMAL_COS: f32 = 1e-3;
+
+/// Hanika's shadow-ray origin for the hit `p` (error bound `p_error`) at barycentrics `b` of a
+/// triangle with corners `corners` and vertex normals `normals` (any length, turned to the side
+/// of the unit geometric normal `n_geo`):
+///
+///   p' = p + sum_i b_i · max(0, (A_i - p)·n_i) · n_i   (n_i normalised),
+///
+/// p projected onto each vertex's tangent plane where it lies below it, blended with the
+/// barycentrics ("Hacking the Shadow Terminator", Ray Tracing Gems II, ch. 4, 2021). On a convex
+/// patch of a coarse mesh p' lies about where the smooth surface the normals describe would be,
+/// so a shadow ray from it toward a light the shading normal faces clears the facets; on a
+/// concave or flat patch no vertex plane is above p and p' = p bit for bit.
+///
+/// Returns p' with a conservative error bound: each term `w_i · n_i` (w_i the computed weight,
+/// an exact input from here on) is rounded once per axis, the three terms are summed and added
+/// to p, so |computed - exact| <= p_error + gamma(2)·|p'| + gamma(4)·sum_i |w_i · n_i| (pbrt-v4
+/// style, in terms of the computed values); the bound is scaled by 1 + gamma(4) to cover its own
+/// rounding. Vertices whose normal is within [`MIN_NORMAL_COS`] of the plane (or behind it) do
+/// not move the point, so the exact p' lies on n_geo's side of the plane or on it, and the
+/// robust spawn along n_geo by this bound starts the ray strictly on that side.
+#[inline]
+pub fn shadow_point(
+    corners: [Vec3; 3],
+    b: [f32; 3],
+    normals: [Vec3; 3],
+    n_geo: Vec3,
+    p: Vec3,
+    p_error: Vec3,
+) -> (Vec3, Vec3) {
+    let mut offset = Vec3::ZERO;
+    let mut magnitude = Vec3::ZERO;
+    for i in 0..3 {
+        let n = normals[i].normalize_or_zero();
+        // (Both tests are false for NaN.)
+        if n.dot(n_geo) >= MIN_NORMAL_COS {
+            let height = (p - corners[i]).dot(n);
+            if height < 0.0 {
+                let term = (b[i].max(0.0) * -height) * n;
+                offset += term;
+                magnitude += term.abs();
+            }
+        }
+    }
+    if magnitude == Vec3::ZERO {
+        return (p, p_error);
+    }
+    let q = p + offset;
+    let error = (p_error + gamma(2.0) * q.abs() + gamma(4.0) * magnitude) * (1.0 + gamma(4.0));
+    (q, error)
+}
+
 /// The shadow test of `light` at `sp`, or `None` when the light cannot contribute (behind the
-/// surface as seen by the viewer, or at grazing angle), so no ray is needed.
+/// shading normal as seen by the viewer, or at grazing angle), so no ray is needed. The ray
+/// starts at `sp.p_shadow` pushed off the triangle along `n_geo` by `sp.p_shadow_error`.
 #[inline]
 pub fn shadow_test(sp: &SurfacePoint, light: &Light) -> Option<ShadowTest> {
     let (to_light, irradiance) = match *light {
@@ -120,12 +197,17 @@ pub fn shadow_test(sp: &SurfacePoint, light: &Light) -> Option<ShadowTest> {
             irradiance,
         } => ((-direction).as_vec3(), irradiance),
     };
-    let cos_geo = sp.n_geo.dot(to_light);
+    // The shading normal decides the light's side. On a flat triangle it is the geometric
+    // normal. On a smooth one, a light behind the flat triangle but in front of the shading
+    // normal (the terminator of a coarse mesh) gets a shadow ray from the shadow point, which
+    // may clear the triangle or hit it: the geometry decides, not a cutoff at the facet.
     let cos = sp.n_shade.dot(to_light);
-    if cos_geo <= 0.0 || cos <= 0.0 {
+    if cos <= 0.0 {
         return None;
     }
-    let origin = offset_origin(sp.p, sp.p_error, sp.n_geo, to_light);
+    // Off the surface on the viewer's (n_geo's) side, whichever side the light is on: for a
+    // flat triangle that is the light's side, as the spawn toward the light would give.
+    let origin = offset_origin(sp.p_shadow, sp.p_shadow_error, sp.n_geo, sp.n_geo);
     let (ray, t_max) = shadow_ray(light, origin);
     let f = std::f32::consts::FRAC_1_PI * cos;
     Some(ShadowTest {
@@ -250,6 +332,137 @@ mod tests {
             [0.5; 3],
         );
         assert_eq!(from_below.n_geo, -Vec3::Y);
+    }
+
+    /// A small deterministic generator (xorshift) for the randomised tests.
+    fn rng(seed: u64) -> impl FnMut() -> f32 {
+        let mut x = seed;
+        move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 40) as f32 / (1u64 << 24) as f32
+        }
+    }
+
+    /// Flat triangles (no vertex normals) shoot from the hit point with its own bound, the
+    /// test's previous origin: their bits are unchanged.
+    #[test]
+    fn flat_triangles_keep_the_hit_point_and_its_bound() {
+        let mut r = rng(7);
+        let light = Light::Point {
+            position: DVec3::new(0.3, 4.0, -0.2),
+            intensity: [5.0; 3],
+        };
+        for _ in 0..1000 {
+            let mut v = || Vec3::new(r() * 4.0 - 2.0, r() * 0.5, r() * 4.0 - 2.0);
+            let corners = [v(), v(), v()];
+            let (b1, b2) = (r() * 0.5, r() * 0.5);
+            let b = [1.0 - b1 - b2, b1, b2];
+            let sp = surface_point(corners, b, Vec3::new(0.1, -1.0, 0.05), None, [0.5; 3]);
+            assert_eq!(sp.p_shadow.to_array(), sp.p.to_array());
+            assert_eq!(sp.p_shadow_error.to_array(), sp.p_error.to_array());
+            if let Some(t) = shadow_test(&sp, &light) {
+                let to_light = (light_position(&light) - sp.p.as_dvec3())
+                    .normalize()
+                    .as_vec3();
+                let before = offset_origin(sp.p, sp.p_error, sp.n_geo, to_light);
+                assert_eq!(
+                    t.ray.origin.to_array().map(f32::to_bits),
+                    before.to_array().map(f32::to_bits)
+                );
+            }
+        }
+    }
+
+    fn light_position(light: &Light) -> DVec3 {
+        match *light {
+            Light::Point { position, .. } => position,
+            Light::Directional { .. } => unreachable!(),
+        }
+    }
+
+    /// Hanika's point, recomputed exactly (f64 from the same f32 inputs and weights), lies on
+    /// the geometric normal's side of the triangle's plane and within the returned bound of the
+    /// computed point; so the robust spawn starts every shadow ray strictly on that side.
+    #[test]
+    fn the_shadow_point_is_above_the_plane_within_its_bound() {
+        let mut r = rng(11);
+        let mut moved = 0;
+        for case in 0..4000 {
+            let scale = [1e-3f32, 1.0, 1e3][case % 3];
+            let centre = Vec3::splat(scale * (r() * 20.0 - 10.0));
+            let mut v = || centre + scale * Vec3::new(r() - 0.5, (r() - 0.5) * 0.2, r() - 0.5);
+            let corners = [v(), v(), v()];
+            // Vertex normals bent outward from the plane, as on a convex patch, unnormalised.
+            let plane = (corners[1] - corners[0]).cross(corners[2] - corners[0]);
+            let centroid = (corners[0] + corners[1] + corners[2]) / 3.0;
+            let normals = corners.map(|c| {
+                let n = plane.normalize() + (c - centroid) / scale * r() * 1.5;
+                n * (0.5 + r() * 3.0)
+            });
+            let (b1, b2) = (r(), r());
+            let (b1, b2) = if b1 + b2 > 1.0 {
+                (1.0 - b1, 1.0 - b2)
+            } else {
+                (b1, b2)
+            };
+            let b = [1.0 - b1 - b2, b1, b2];
+            let eye_side = if case % 2 == 0 { -plane } else { plane };
+            let sp = surface_point(corners, b, eye_side, Some(normals), [1.0; 3]);
+            if sp.p_shadow == sp.p {
+                continue;
+            }
+            moved += 1;
+            // The exact point from the same weights.
+            let n_geo = sp.n_geo.as_dvec3();
+            let sign = if (b[0] * normals[0] + b[1] * normals[1] + b[2] * normals[2])
+                .normalize()
+                .dot(sp.n_geo)
+                < 0.0
+            {
+                -1.0
+            } else {
+                1.0
+            };
+            let p_exact = (0..3).fold(DVec3::ZERO, |a, i| {
+                a + f64::from(b[i]) * corners[i].as_dvec3()
+            });
+            let mut q_exact = p_exact;
+            for i in 0..3 {
+                let n = (sign * normals[i]).normalize_or_zero();
+                let height = (sp.p - corners[i]).dot(n);
+                if n.dot(sp.n_geo) >= MIN_NORMAL_COS && height < 0.0 {
+                    q_exact += f64::from(b[i].max(0.0) * -height) * n.as_dvec3();
+                }
+            }
+            let err = (sp.p_shadow.as_dvec3() - q_exact).abs();
+            let bound = sp.p_shadow_error.as_dvec3();
+            assert!(
+                err.cmple(bound).all(),
+                "case {case}: error {err} over bound {bound}"
+            );
+            // Above the exact plane (through the corners, normal from f64 arithmetic).
+            let [a, b_, c] = corners.map(|c| c.as_dvec3());
+            let plane = (b_ - a).cross(c - a);
+            let up = if plane.dot(n_geo) > 0.0 {
+                plane
+            } else {
+                -plane
+            };
+            assert!((q_exact - a).dot(up) >= 0.0, "case {case}: below the plane");
+            // The spawned origin is strictly above it.
+            let light = Light::Directional {
+                direction: -sp.n_shade.as_dvec3(),
+                irradiance: [1.0; 3],
+            };
+            let t = shadow_test(&sp, &light).expect("the light faces the shading normal");
+            assert!(
+                (t.ray.origin.as_dvec3() - a).dot(up) > 0.0,
+                "case {case}: origin"
+            );
+        }
+        assert!(moved > 1000, "{moved} of the cases moved the point");
     }
 
     #[test]

@@ -17,6 +17,15 @@
 //! edge of two coplanar triangles) are the only case where the real traversal could disagree,
 //! and there the segment only touches an edge of a triangle it would not enter.
 //!
+//! **Vertex normals.** On a triangle whose vertex normals bend away from its plane, shading
+//! decides a light's side with the interpolated normal and starts the shadow ray from a point
+//! off the surface ([`crate::shading::shadow_point`], the terminator fix): a segment may then run
+//! from in front of the triangle to a light behind it, or start on the far side of some plane
+//! from the vertices, which the test above does not cover. So a mesh with such a triangle
+//! (normals more than [`PARALLEL_TOLERANCE`] off the plane normal, or not all to one side)
+//! makes every light occludable. Normals along the plane normal (flat shading written out as
+//! normals) keep the test.
+//!
 //! **Determinism.** The answer depends only on the triangles and the lights, so the monolithic
 //! renderer and every task of a pipeline (which take it from the plan) skip the same shadow
 //! rays and the images stay bit-identical.
@@ -36,9 +45,42 @@ pub const RELATIVE_TOLERANCE: f64 = 1e-9;
 /// Most vertex-against-plane tests spent on one light before it counts as occludable.
 pub const WORK_LIMIT: u64 = 50_000_000;
 
+/// Largest sine of the angle between a vertex normal and its triangle's plane normal for the
+/// normal to count as along it (see the module documentation, "Vertex normals").
+pub const PARALLEL_TOLERANCE: f64 = 1e-6;
+
+/// Whether triangle `t`'s vertex normals bend its shading away from its plane: some normal is
+/// more than [`PARALLEL_TOLERANCE`] off the plane normal, or they do not all face one side.
+fn bends_normals(mesh: &Mesh, t: usize) -> bool {
+    let ids = mesh.triangle_normals[t];
+    // Shading uses vertex normals when the first corner has one (crate::render::shading_of).
+    if ids[0] == crate::scene::NO_NORMAL {
+        return false;
+    }
+    if ids.contains(&crate::scene::NO_NORMAL) {
+        return true;
+    }
+    let [a, b, c] = mesh.corners(t).map(|v| v.as_dvec3());
+    let plane = (b - a).cross(c - a);
+    if plane == DVec3::ZERO {
+        // No area: never hit, so never shaded.
+        return false;
+    }
+    let sides = ids.map(|i| {
+        let n = mesh.normals[i as usize].as_dvec3();
+        let scale = n.length() * plane.length();
+        let along = n.cross(plane).length() <= PARALLEL_TOLERANCE * scale;
+        if along { n.dot(plane).signum() } else { 0.0 }
+    });
+    !(sides.iter().all(|&s| s == 1.0) || sides.iter().all(|&s| s == -1.0))
+}
+
 /// For each light of `lights`, whether no triangle of `mesh` can occlude any shadow ray toward
 /// it (see the module documentation). An empty mesh occludes nothing.
 pub fn unoccludable_lights(mesh: &Mesh, lights: &[Light]) -> Vec<bool> {
+    if (0..mesh.triangle_count()).any(|t| bends_normals(mesh, t)) {
+        return vec![false; lights.len()];
+    }
     let mut used = vec![false; mesh.positions.len()];
     for t in &mesh.triangles {
         for &i in t {

@@ -88,7 +88,7 @@ const GOLDEN: [Golden; 7] = [
         width: 64,
         height: 48,
         spp: 4,
-        pfm: 0x8d28_4106_0fc6_0c42,
+        pfm: 0x7929_f71d_36f3_0568,
         hits: 0x4a98_9fbb_860a_c613,
     },
 ];

@@ -100,6 +100,8 @@ fn hits(n: u32) -> Vec<SurfaceHit> {
                 p_error: Vec3::splat(1e-6),
                 n_geo: Vec3::Z,
                 n_shade: if i % 3 == 0 { Vec3::Y } else { Vec3::Z },
+                p_shadow: Vec3::new(i as f32, 1.0, 2.0),
+                p_shadow_error: Vec3::splat(1e-6),
                 kd: [0.5, 0.25, 0.125],
             },
         })

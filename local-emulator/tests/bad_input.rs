@@ -373,6 +373,8 @@ fn hit() -> SurfaceHit {
             p_error: glam::Vec3::splat(1e-6),
             n_geo: glam::Vec3::Z,
             n_shade: glam::Vec3::Z,
+            p_shadow: v,
+            p_shadow_error: glam::Vec3::splat(1e-6),
             kd: [0.5; 3],
         },
     }

@@ -127,19 +127,43 @@ pub fn encode_surface_hits(kind: RecordKind, hits: &[SurfaceHit]) -> Vec<u8> {
     put_vec3s(&mut w, s.clone().map(|s| s.p));
     put_vec3s(&mut w, s.clone().map(|s| s.p_error));
     put_vec3s(&mut w, s.clone().map(|s| s.n_geo));
-    // Flat shading (the common case) has n_shade == n_geo: store only the others.
-    let smooth = |s: &SurfacePoint| {
-        s.n_shade.to_array().map(f32::to_bits) != s.n_geo.to_array().map(f32::to_bits)
+    // Flat shading (the common case) has n_shade == n_geo and the shadow point at p: store only
+    // the others. Flag bit 0: the shading normal is stored; bit 1: the shadow point and its
+    // error bound are (after kd, and only when some record has one, so blocks of flat scenes
+    // keep their bytes).
+    let flags: Vec<u8> = hits.iter().map(|h| surface_flags(&h.surface)).collect();
+    w.put_bytes(&flags);
+    let with = |bit: u8| {
+        let flags = &flags;
+        s.clone()
+            .enumerate()
+            .filter(move |(i, _)| flags[*i] & bit != 0)
+            .map(|(_, s)| s)
     };
-    w.put_bytes(
-        &hits
-            .iter()
-            .map(|h| u8::from(smooth(&h.surface)))
-            .collect::<Vec<_>>(),
-    );
-    put_vec3s(&mut w, s.clone().filter(smooth).map(|s| s.n_shade));
-    put_vec3s(&mut w, s.map(|s| Vec3::from(s.kd)));
+    put_vec3s(&mut w, with(SMOOTH_NORMAL).map(|s| s.n_shade));
+    put_vec3s(&mut w, s.clone().map(|s| Vec3::from(s.kd)));
+    if flags.iter().any(|f| f & SHADOW_POINT != 0) {
+        put_vec3s(&mut w, with(SHADOW_POINT).map(|s| s.p_shadow));
+        put_vec3s(&mut w, with(SHADOW_POINT).map(|s| s.p_shadow_error));
+    }
     encode_block(kind, hits.len() as u64, w.as_bytes())
+}
+
+/// Flag of a surface hit record whose shading normal differs from its geometric normal.
+const SMOOTH_NORMAL: u8 = 1;
+/// Flag of a surface hit record whose shadow point or its bound differs from `p`, `p_error`.
+const SHADOW_POINT: u8 = 2;
+
+fn surface_flags(s: &SurfacePoint) -> u8 {
+    let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+    let mut f = 0;
+    if bits(s.n_shade) != bits(s.n_geo) {
+        f |= SMOOTH_NORMAL;
+    }
+    if bits(s.p_shadow) != bits(s.p) || bits(s.p_shadow_error) != bits(s.p_error) {
+        f |= SHADOW_POINT;
+    }
+    f
 }
 
 /// Decodes a block written by [`encode_surface_hits`]; `raw_len` receives the raw size.
@@ -164,26 +188,42 @@ pub fn decode_surface_hits(
     let p = read_vec3s(&mut r, n, key)?;
     let p_error = read_vec3s(&mut r, n, key)?;
     let n_geo = read_vec3s(&mut r, n, key)?;
-    let smooth = r.read_bytes().map_err(c)?.to_vec();
-    check_len(key, "smooth", smooth.len(), n)?;
-    let smooth_count = smooth.iter().filter(|&&f| f == 1).count();
-    if smooth_count + smooth.iter().filter(|&&f| f == 0).count() != n {
+    let flags = r.read_bytes().map_err(c)?.to_vec();
+    check_len(key, "smooth", flags.len(), n)?;
+    if flags.iter().any(|&f| f > SMOOTH_NORMAL | SHADOW_POINT) {
         return Err(PipelineError::Corrupt(format!(
-            "shuffle block {key}: smooth flags are not 0 or 1"
+            "shuffle block {key}: smooth flags are not 0 to 3"
         )));
     }
-    let mut n_smooth = read_vec3s(&mut r, smooth_count, key)?.into_iter();
+    let count = |bit: u8| flags.iter().filter(|&&f| f & bit != 0).count();
+    let mut n_smooth = read_vec3s(&mut r, count(SMOOTH_NORMAL), key)?.into_iter();
     let kd = read_vec3s(&mut r, n, key)?;
+    let shadow_count = count(SHADOW_POINT);
+    let (mut q, mut q_error) = if shadow_count > 0 {
+        (
+            read_vec3s(&mut r, shadow_count, key)?.into_iter(),
+            read_vec3s(&mut r, shadow_count, key)?.into_iter(),
+        )
+    } else {
+        (Vec::new().into_iter(), Vec::new().into_iter())
+    };
     r.finish().map_err(c)?;
-    let n_shade: Vec<Vec3> = (0..n)
-        .map(|i| {
-            if smooth[i] == 1 {
-                n_smooth.next().unwrap_or(n_geo[i])
-            } else {
-                n_geo[i]
-            }
-        })
-        .collect();
+    // (The counts were checked: the iterators hold one value per flagged record.)
+    let pick = |i: usize, bit: u8, it: &mut std::vec::IntoIter<Vec3>, own: Vec3| {
+        if flags[i] & bit != 0 {
+            it.next().unwrap_or(own)
+        } else {
+            own
+        }
+    };
+    let mut n_shade = Vec::with_capacity(n);
+    let mut p_shadow = Vec::with_capacity(n);
+    let mut p_shadow_error = Vec::with_capacity(n);
+    for i in 0..n {
+        n_shade.push(pick(i, SMOOTH_NORMAL, &mut n_smooth, n_geo[i]));
+        p_shadow.push(pick(i, SHADOW_POINT, &mut q, p[i]));
+        p_shadow_error.push(pick(i, SHADOW_POINT, &mut q_error, p_error[i]));
+    }
     let hits = (0..n)
         .map(|i| SurfaceHit {
             pixel: pixels[i],
@@ -195,6 +235,8 @@ pub fn decode_surface_hits(
                 p_error: p_error[i],
                 n_geo: n_geo[i],
                 n_shade: n_shade[i],
+                p_shadow: p_shadow[i],
+                p_shadow_error: p_shadow_error[i],
                 kd: kd[i].to_array(),
             },
         })
@@ -323,14 +365,75 @@ mod tests {
 
     fn surface(i: u32) -> SurfacePoint {
         let f = i as f32;
+        let p = Vec3::new(f, 2.0 * f, -f);
+        let p_error = Vec3::splat(1e-6 * f);
+        // Every third record has a shadow point off p, one in five a shading normal.
+        let (p_shadow, p_shadow_error) = if i.is_multiple_of(3) {
+            (p + Vec3::new(0.0, 0.01 * f, 0.0), p_error * 2.0)
+        } else {
+            (p, p_error)
+        };
         SurfacePoint {
-            p: Vec3::new(f, 2.0 * f, -f),
-            p_error: Vec3::splat(1e-6 * f),
+            p,
+            p_error,
             n_geo: Vec3::Y,
-            n_shade: Vec3::new(0.0, 0.6, 0.8),
+            n_shade: if i.is_multiple_of(5) {
+                Vec3::new(0.0, 0.6, 0.8)
+            } else {
+                Vec3::Y
+            },
+            p_shadow,
+            p_shadow_error,
             kd: [0.7, 0.5, f / 100.0],
         }
     }
+
+    /// Flat records (shading normal n_geo, shadow point p) store neither, and a block of flat
+    /// records has no shadow point columns at all: its bytes are those of the layout before
+    /// the shadow point, pinned here.
+    #[test]
+    fn flat_surface_hits_store_no_shading_normal_or_shadow_point() {
+        let flat = |i: u32| {
+            let s = surface(i);
+            SurfacePoint {
+                n_shade: s.n_geo,
+                p_shadow: s.p,
+                p_shadow_error: s.p_error,
+                ..s
+            }
+        };
+        let hits: Vec<SurfaceHit> = (0..40)
+            .map(|i| SurfaceHit {
+                pixel: i * 2,
+                sample: 0,
+                t: 2.0 + i as f32 / 3.0,
+                triangle: i / 4,
+                surface: flat(i),
+            })
+            .collect();
+        let bytes = encode_surface_hits(RecordKind::Hit, &hits);
+        assert_eq!(
+            decode_surface_hits("k", &bytes, RecordKind::Hit).unwrap(),
+            hits
+        );
+        assert_eq!(
+            crate::digest::fnv1a64(&bytes),
+            FLAT_BLOCK_DIGEST,
+            "{} bytes",
+            bytes.len()
+        );
+        let mut one = hits.clone();
+        one[7].surface.p_shadow.y += 0.5;
+        let more = encode_surface_hits(RecordKind::Hit, &one);
+        assert!(more.len() > bytes.len());
+        assert_eq!(
+            decode_surface_hits("k", &more, RecordKind::Hit).unwrap(),
+            one
+        );
+    }
+
+    /// The digest of the flat block above, as the encoder before shadow points wrote it.
+    const FLAT_BLOCK_DIGEST: u64 = 0xbe2d_ed94_88e0_bcd5;
 
     #[test]
     fn all_record_kinds_round_trip_bit_exactly() {

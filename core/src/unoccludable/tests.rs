@@ -118,3 +118,21 @@ fn skipping_the_shadow_rays_changes_no_pixel() {
     let lit = skipping.iter().filter(|c| c[0] > 0.0).count();
     assert!(lit > rays.len() / 2, "most samples see the light ({lit})");
 }
+
+/// Vertex normals along the plane normal keep a light over the ground unoccludable; normals
+/// bent off it (smooth shading, whose shadow rays may start off the surface and reach lights
+/// behind the triangle) make it occludable.
+#[test]
+fn bent_vertex_normals_make_every_light_occludable() {
+    let light = [point(0.0, 3.0, 0.0), sun(DVec3::NEG_Y)];
+    let flat = mesh(&format!(
+        "{GROUND}vn 0 1 0\nvn 0 -2 0\nf 1//1 2//1 3//1\nf 1//2 3//2 4//2\n"
+    ));
+    assert_eq!(unoccludable_lights(&flat, &light), [true, true]);
+    let mixed = mesh(&format!("{GROUND}vn 0 1 0\nvn 0 -1 0\nf 1//1 2//2 3//1\n"));
+    assert_eq!(unoccludable_lights(&mixed, &light), [false, false]);
+    let bent = mesh(&format!(
+        "{GROUND}vn 0 1 0\nvn 0.1 1 0\nf 1//1 2//2 3//1\nf 1 3 4\n"
+    ));
+    assert_eq!(unoccludable_lights(&bent, &light), [false, false]);
+}
