@@ -8,8 +8,13 @@ For each manifest (docs/ARCHITECTURE.md, "Scene contract"): the same meshes, mat
 then the manifest's overrides, grey 0.7 without one), pinhole camera, point and directional
 lights, black background and no ambient, rendered with Mitsuba's `direct` integrator, a
 `twosided(diffuse)` BSDF with albedo Kd (Mitsuba's diffuse BSDF is Kd/pi, as ours), point
-emitters of radiant intensity I (irradiance I cos / r^2, as ours), face normals (our OBJs have
-none), and a box pixel filter of one pixel (a pixel is the mean of its samples, as ours).
+emitters of radiant intensity I (irradiance I cos / r^2, as ours), and a box pixel filter of one
+pixel (a pixel is the mean of its samples, as ours). Triangles whose three corners name vertex
+normals (`vn`) are smooth-shaded with them, the others use their face normal, as ours. A
+material's diffuse texture (`map_Kd`, PNG or JPEG) on triangles whose corners name texture
+coordinates becomes a `bitmap` texture (bilinear, repeat) of Kd times the texels decoded from
+sRGB to linear, as ours (OBJ's v runs up the image: Mitsuba's texture v runs down, so v is
+flipped, as Mitsuba's own OBJ loader does).
 
 Writes into OUT_DIR:
 - `{scene}.pfm`: the reference, linear RGB, 32-bit PFM (rows bottom to top, as `hort` writes),
@@ -47,7 +52,7 @@ def fail(msg):
 
 
 def parse_mtl(path, where):
-    """Diffuse colours by material name."""
+    """Diffuse colour and texture file (or None) by material name."""
     kd, name = {}, None
     try:
         lines = open(path).read().splitlines()
@@ -59,17 +64,25 @@ def parse_mtl(path, where):
             continue
         if parts[0] == "newmtl":
             name = parts[1]
-            kd.setdefault(name, [0.7, 0.7, 0.7])
+            kd.setdefault(name, {"kd": [0.7, 0.7, 0.7], "map": None})
         elif parts[0] == "Kd":
             if name is None:
                 fail(f"{path}:{n}: Kd before any newmtl")
-            kd[name] = [float(v) for v in parts[1:4]]
+            values = [float(v) for v in parts[1:4]]
+            kd[name]["kd"] = values * 3 if len(values) == 1 else values
+        elif parts[0] == "map_Kd":
+            if name is None:
+                fail(f"{path}:{n}: map_Kd before any newmtl")
+            # Options come first; the file is the last word, relative to the library's folder.
+            if kd[name]["map"] is None:
+                kd[name]["map"] = os.path.join(os.path.dirname(path), parts[-1])
     return kd
 
 
 def parse_obj(path):
-    """Positions (float64) and triangles grouped by material name (None: no material)."""
-    positions, groups, kd, material = [], {}, {}, None
+    """Positions (float64), normals, texture coordinates, and triangles grouped by material name
+    (None: no material), each triangle three (position, texcoord or -1, normal or -1) corners."""
+    positions, normals, texcoords, groups, kd, material = [], [], [], {}, {}, None
     try:
         lines = open(path).read().splitlines()
     except OSError as e:
@@ -82,19 +95,28 @@ def parse_obj(path):
         if key == "v":
             positions.append([float(v) for v in parts[1:4]])
         elif key == "vn":
-            fail(f"{path}:{n}: vertex normals are not supported here (the references use face normals)")
+            normals.append([float(v) for v in parts[1:4]])
+        elif key == "vt":
+            texcoords.append([float(v) for v in (parts[1:3] + ["0"])[:2]])
         elif key == "f":
+            def index(word, count):
+                if not word:
+                    return -1
+                i = int(word)
+                return i - 1 if i > 0 else count + i
             idx = []
             for token in parts[1:]:
-                i = int(token.split("/")[0])
-                idx.append(i - 1 if i > 0 else len(positions) + i)
+                words = (token.split("/") + ["", ""])[:3]
+                idx.append((index(words[0], len(positions)), index(words[1], len(texcoords)),
+                            index(words[2], len(normals))))
             for i in range(1, len(idx) - 1):  # fan triangulation (0, i, i+1), as ours
                 groups.setdefault(material, []).append([idx[0], idx[i], idx[i + 1]])
         elif key == "usemtl":
             material = parts[1]
         elif key == "mtllib":
             kd.update(parse_mtl(os.path.join(os.path.dirname(path), parts[1]), f"{path}:{n}"))
-    return np.array(positions, dtype=np.float64), groups, kd
+    return (np.array(positions, dtype=np.float64), np.array(normals, dtype=np.float32).reshape(-1, 3),
+            np.array(texcoords, dtype=np.float32).reshape(-1, 2), groups, kd)
 
 
 def grey(value, where):
@@ -122,9 +144,25 @@ def load_manifest(path):
     return name, meshes, m["camera"], m["lights"], overrides
 
 
+def reflectance(mi, colour, texture, cache):
+    """Kd, or Kd times the texture (linear, bilinear, repeat) when there is one."""
+    if texture is None:
+        return {"type": "rgb", "value": colour}
+    key = (texture, tuple(colour))
+    if key not in cache:
+        if not os.path.isfile(texture):
+            fail(f"{texture}: texture file not found")
+        linear = mi.Bitmap(texture).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32,
+                                             srgb_gamma=False)
+        data = np.array(linear, dtype=np.float32) * np.array(colour, dtype=np.float32)
+        cache[key] = mi.Bitmap(np.ascontiguousarray(data))
+    return {"type": "bitmap", "bitmap": cache[key], "raw": True,
+            "filter_type": "bilinear", "wrap_mode": "repeat"}
+
+
 def build_scene(mi, manifest, width, height, sampler, spp, seed):
     _, meshes, camera, lights, overrides = manifest
-    all_pos = np.concatenate([p for p, _, _ in meshes])
+    all_pos = np.concatenate([m[0] for m in meshes])
     # Everything is moved by the bounding box centre (in float64) before rounding to float32,
     # as our loader does, so both renderers see the same float32 geometry.
     lo, hi = all_pos.min(axis=0), all_pos.max(axis=0)
@@ -145,25 +183,47 @@ def build_scene(mi, manifest, width, height, sampler, spp, seed):
             "sampler": {"type": sampler, "sample_count": spp, "seed": seed},
         },
     }
-    count = 0
-    for positions, groups, kd in meshes:
+    count, textures = 0, {}
+    for positions, normals, texcoords, groups, library in meshes:
         for material, tris in groups.items():
-            colour = overrides.get(material if material is not None else "default",
-                                   kd.get(material, [0.7, 0.7, 0.7]))
-            tris = np.array(tris, dtype=np.uint32)
-            used = np.unique(tris)
-            remap = np.zeros(len(positions), dtype=np.uint32)
-            remap[used] = np.arange(len(used), dtype=np.uint32)
-            props = mi.Properties()
-            props["bsdf"] = mi.load_dict({"type": "twosided", "material": {
-                "type": "diffuse", "reflectance": {"type": "rgb", "value": colour}}})
-            mesh = mi.Mesh(f"m{count}", len(used), len(tris), props, has_vertex_normals=False)
-            params = mi.traverse(mesh)
-            params["vertex_positions"] = mi.Float((positions[used] - origin).astype(np.float32).ravel())
-            params["faces"] = mi.UInt32(remap[tris].ravel())
-            params.update()
-            d[f"mesh{count}"] = mesh
-            count += 1
+            entry = library.get(material, {"kd": [0.7, 0.7, 0.7], "map": None})
+            colour = overrides.get(material if material is not None else "default", entry["kd"])
+            # As our loader: normals only where all three corners name one, texture coordinates
+            # only where all three do and the material has a texture.
+            classes = {}
+            for tri in tris:
+                smooth = all(c[2] >= 0 for c in tri)
+                textured = entry["map"] is not None and all(c[1] >= 0 for c in tri)
+                classes.setdefault((smooth, textured), []).append(tri)
+            for (smooth, textured), group in sorted(classes.items()):
+                # One Mitsuba vertex per distinct corner (position, texcoord, normal) used.
+                corners, faces = {}, []
+                for tri in group:
+                    face = []
+                    for p, t, n in tri:
+                        key = (p, t if textured else -1, n if smooth else -1)
+                        face.append(corners.setdefault(key, len(corners)))
+                    faces.append(face)
+                keys = list(corners)
+                props = mi.Properties()
+                props["bsdf"] = mi.load_dict({"type": "twosided", "material": {
+                    "type": "diffuse",
+                    "reflectance": reflectance(mi, colour, entry["map"] if textured else None, textures)}})
+                mesh = mi.Mesh(f"m{count}", len(keys), len(faces), props,
+                               has_vertex_normals=smooth, has_vertex_texcoords=textured)
+                params = mi.traverse(mesh)
+                at = np.array([k[0] for k in keys])
+                params["vertex_positions"] = mi.Float((positions[at] - origin).astype(np.float32).ravel())
+                params["faces"] = mi.UInt32(np.array(faces, dtype=np.uint32).ravel())
+                if smooth:
+                    params["vertex_normals"] = mi.Float(normals[[k[2] for k in keys]].ravel())
+                if textured:
+                    uv = texcoords[[k[1] for k in keys]].copy()
+                    uv[:, 1] = 1.0 - uv[:, 1]
+                    params["vertex_texcoords"] = mi.Float(uv.ravel())
+                params.update()
+                d[f"mesh{count}"] = mesh
+                count += 1
     for i, light in enumerate(lights):
         kind = light.get("kind")
         if kind == "point":
@@ -298,7 +358,9 @@ def main():
         "bsdf": "twosided(diffuse), reflectance = Kd (manifest override, else MTL, else 0.7)",
         "emitters": "point (intensity = manifest W/sr), directional (irradiance)",
         "rfilter": "box (radius 0.5 px)", "sensor": "perspective, fov_axis y, look_at(eye, look_at, up)",
-        "normals": "face normals", "origin": "geometry moved by its bounding box centre (float64) before float32",
+        "normals": "vertex normals where a triangle's three corners name one, else face normals",
+        "textures": "map_Kd as a bitmap (bilinear, repeat, raw) of Kd times the sRGB-decoded texels",
+        "origin": "geometry moved by its bounding box centre (float64) before float32",
         "width": a.width, "height": a.height,
         "reference": {"sampler": "multijitter", "spp": a.ref_spp, "halves_seeds": list(REF_SEEDS),
                       "spp_taken": 2 * ref_taken,

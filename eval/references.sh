@@ -13,4 +13,5 @@ export HORT_MITSUBA_HOME="$venv/home"
 mkdir -p "$HORT_MITSUBA_HOME"
 cd "$root"
 exec "$venv/bin/python" eval/mitsuba_refs.py eval/references \
-    scenes/bunny/bunny.json scenes/cornell/cornell.json scenes/teapot/teapot.json "$@"
+    scenes/bunny/bunny.json scenes/cornell/cornell.json scenes/teapot/teapot.json \
+    scenes/globe/globe.json "$@"
