@@ -15,6 +15,30 @@ use hort_tests::{hit_bits, pixel_bits, stored};
 /// image's small spans), far under what a 2048 MB one does.
 const TRIANGLES: u64 = 120_000;
 
+/// A 1-spp request with `spans` spans, the split count and mode left to the plan.
+fn automatic(width: u32, height: u32, spans: u32, memory_mb: u32) -> PlanRequest {
+    PlanRequest {
+        width,
+        height,
+        spp: 1,
+        splits: None,
+        spans: Some(spans),
+        mode: SplitMode::Spatial,
+        execution: None,
+        memory_mb,
+        adaptive: None,
+        outputs: StoredOutputs::ALL,
+    }
+}
+
+fn options(job: &str, workers: usize) -> PipelineOptions {
+    PipelineOptions {
+        job: JobId::new(job).unwrap(),
+        workers,
+        split_cache_bytes: 0,
+    }
+}
+
 #[test]
 fn a_tiny_budget_runs_staged_with_the_fewest_splits_and_a_large_one_fused() {
     let dir = std::env::temp_dir().join(format!("hort-mode-choice-{}", std::process::id()));
@@ -41,23 +65,8 @@ fn a_tiny_budget_runs_staged_with_the_fewest_splits_and_a_large_one_fused() {
         (2048, ExecutionMode::Fused, 1),
         (128, ExecutionMode::Staged, 2),
     ] {
-        let request = PlanRequest {
-            width,
-            height,
-            spp: 1,
-            splits: None,
-            spans: Some(4),
-            mode: SplitMode::Spatial,
-            execution: None,
-            memory_mb,
-            adaptive: None,
-            outputs: StoredOutputs::ALL,
-        };
-        let options = PipelineOptions {
-            job: JobId::new("choice").unwrap(),
-            workers: 2,
-            split_cache_bytes: 0,
-        };
+        let request = automatic(width, height, 4, memory_mb);
+        let options = options("choice", 2);
         let run = run_pipeline(&MemoryStore::new(), &scene, request, &options).unwrap();
         let what = format!("{memory_mb} MB: {}", run.plan.mode_reason);
         assert_eq!((run.plan.mode, run.plan.k()), (mode, splits), "{what}");
@@ -102,23 +111,8 @@ fn a_texture_too_large_for_the_budget_is_refused_before_any_work_naming_it() {
         texels: vec![128; 3 * 4096 * 4096],
     });
     scene.mesh.textures[0] = big;
-    let request = |memory_mb| PlanRequest {
-        width: 32,
-        height: 24,
-        spp: 1,
-        splits: None,
-        spans: Some(2),
-        mode: SplitMode::Spatial,
-        execution: None,
-        memory_mb,
-        adaptive: None,
-        outputs: StoredOutputs::ALL,
-    };
-    let options = PipelineOptions {
-        job: JobId::new("tex").unwrap(),
-        workers: 1,
-        split_cache_bytes: 0,
-    };
+    let request = |memory_mb| automatic(32, 24, 2, memory_mb);
+    let options = options("tex", 1);
     let store = MemoryStore::new();
     let err = run_pipeline(&store, &scene, request(128), &options).unwrap_err();
     assert_eq!(

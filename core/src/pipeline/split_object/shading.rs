@@ -130,25 +130,9 @@ impl FromIterator<TriangleShading> for ShadingTable {
         let mut texture_slots = Vec::new();
         let mut textured = Vec::new();
         for (i, s) in shading.enumerate() {
-            if let Some(t) = s.texture {
-                if texture_slots.is_empty() {
-                    texture_slots.resize(i, NO_SLOT);
-                }
-                texture_slots.push(textured.len() as u32);
-                textured.push(t);
-            } else if !texture_slots.is_empty() {
-                texture_slots.push(NO_SLOT);
-            }
             kd.push(s.kd);
-            if let Some(n) = s.normals {
-                if normal_slots.is_empty() {
-                    normal_slots.resize(i, NO_SLOT);
-                }
-                normal_slots.push(normals.len() as u32);
-                normals.push(n);
-            } else if !normal_slots.is_empty() {
-                normal_slots.push(NO_SLOT);
-            }
+            push_sparse(&mut normal_slots, &mut normals, i, s.normals);
+            push_sparse(&mut texture_slots, &mut textured, i, s.texture);
         }
         ShadingTable {
             kd_values: kd.values,
@@ -158,6 +142,22 @@ impl FromIterator<TriangleShading> for ShadingTable {
             texture_slots,
             textured,
         }
+    }
+}
+
+/// Records triangle `i`'s optional `value`: its slot in `values`, or [`NO_SLOT`]; `slots` stays
+/// empty until some triangle has a value (then it is filled for the triangles before).
+fn push_sparse<T>(slots: &mut Vec<u32>, values: &mut Vec<T>, i: usize, value: Option<T>) {
+    match value {
+        Some(v) => {
+            if slots.is_empty() {
+                slots.resize(i, NO_SLOT);
+            }
+            slots.push(values.len() as u32);
+            values.push(v);
+        }
+        None if !slots.is_empty() => slots.push(NO_SLOT),
+        None => {}
     }
 }
 
