@@ -73,6 +73,18 @@ fn is_png(out: &Path) -> bool {
         .is_some_and(|e| e.eq_ignore_ascii_case("png"))
 }
 
+/// What to add to the error of `--adaptive MAX_SPP` over a first pass of `spp` samples too
+/// small for an error estimate (the default `--spp 1`): the `--spp` that makes it run.
+fn first_pass_hint(spp: u32, max_spp: u32) -> String {
+    if spp >= 2 || max_spp <= 2 {
+        return String::new();
+    }
+    let suggested = (max_spp - 1).min(4);
+    format!(
+        "; add --spp {suggested} (--adaptive {max_spp} --spp {suggested}: {suggested} samples in every pixel, then {max_spp} where needed)"
+    )
+}
+
 /// The default of `--adaptive-threshold`.
 const DEFAULT_ADAPTIVE_THRESHOLD: f64 = 0.002;
 
@@ -132,9 +144,12 @@ pub fn run(args: RenderArgs) -> Result<()> {
                     .adaptive_threshold
                     .unwrap_or(DEFAULT_ADAPTIVE_THRESHOLD),
             };
-            settings
-                .check()
-                .context("--spp, --adaptive and --adaptive-threshold")?;
+            settings.check().map_err(|e| {
+                anyhow!(
+                    "--spp, --adaptive and --adaptive-threshold: {e}{}",
+                    first_pass_hint(spp, max_spp)
+                )
+            })?;
             check_image_size(width, height, max_spp).context("--adaptive")?;
             Some(settings)
         }
