@@ -24,13 +24,13 @@ pub const MAX_SPANS: u32 = 10_000;
 /// Samples per span when the span count is chosen automatically.
 const AUTO_SAMPLES_PER_SPAN: u64 = 65_536;
 
-/// Shortest per-task timeout a plan gives, seconds.
-const MIN_TIMEOUT_SECONDS: u64 = 2;
+/// Shortest per-task timeout a plan gives, seconds (`hort render --help` and the README say it).
+pub const MIN_TIMEOUT_SECONDS: u64 = 2;
 /// Longest per-task timeout a plan gives, seconds: the five timed-out attempts the state
 /// machine allows, with their backoff, must fit an EXPRESS child's 5 minutes.
-const MAX_TIMEOUT_SECONDS: u64 = 40;
+pub const MAX_TIMEOUT_SECONDS: u64 = 40;
 /// A task's timeout is this many times its predicted time.
-const TIMEOUT_MULTIPLE: u64 = 3;
+pub const TIMEOUT_MULTIPLE: u64 = 3;
 /// Predicted start-up of any task (invocation, first storage round trips), microseconds.
 const STARTUP_MICROS: u64 = 500_000;
 /// Rays (in the stage's unit, see [`JobPlan::task_timeout_seconds`]) one function is
