@@ -15,6 +15,37 @@ fn readme() -> String {
     text.split_whitespace().collect::<Vec<_>>().join(" ")
 }
 
+/// The command that installs `hort` names the folder of a package whose binary is `hort`.
+#[test]
+fn the_readme_says_how_to_install_hort() {
+    let readme = readme();
+    let command = "cargo install --locked --path ";
+    let at = readme
+        .find(command)
+        .unwrap_or_else(|| panic!("README.md never says `{command}...`"));
+    let folder = readme[at + command.len()..]
+        .split([' ', '`'])
+        .next()
+        .unwrap();
+    let manifest = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join(folder)
+        .join("Cargo.toml");
+    let toml = std::fs::read_to_string(&manifest).unwrap_or_else(|e| {
+        panic!(
+            "README.md installs from {folder}: {}: {e}",
+            manifest.display()
+        )
+    });
+    assert!(
+        toml.contains("[[bin]]\nname = \"hort\"\n"),
+        "{} builds no binary named hort",
+        manifest.display()
+    );
+    // Every later example calls the binary by that name.
+    assert!(readme.contains("```sh hort "), "examples call `hort`");
+}
+
 /// `--task-timeout`'s default range, in `hort render --help` and the README, is the plan's.
 #[test]
 fn task_timeout_help_and_readme_give_the_plans_bounds() {
