@@ -46,6 +46,33 @@ fn the_readme_says_how_to_install_hort() {
     assert!(readme.contains("```sh hort "), "examples call `hort`");
 }
 
+/// `hort bench --help`'s subcommands, each named in the README as `hort bench NAME`.
+#[test]
+fn every_bench_subcommand_is_in_the_readme() {
+    let o = hort(&["bench", "--help"]);
+    assert!(o.status.success(), "{o:?}");
+    let help = String::from_utf8(o.stdout).unwrap();
+    let commands: Vec<&str> = help
+        .split_once("Commands:\n")
+        .expect("a Commands section")
+        .1
+        .lines()
+        .take_while(|line| line.starts_with("  "))
+        .filter_map(|line| line.split_whitespace().next())
+        .filter(|name| *name != "help")
+        .collect();
+    assert!(
+        commands.len() >= 6 && commands.contains(&"faults"),
+        "subcommands read from the help: {commands:?}"
+    );
+    let readme = readme();
+    let missing: Vec<&&str> = commands
+        .iter()
+        .filter(|name| !readme.contains(&format!("`hort bench {name}")))
+        .collect();
+    assert!(missing.is_empty(), "not in README.md: {missing:?}");
+}
+
 /// `--task-timeout`'s default range, in `hort render --help` and the README, is the plan's.
 #[test]
 fn task_timeout_help_and_readme_give_the_plans_bounds() {
