@@ -32,7 +32,13 @@ pub struct StorageArgs {
     #[arg(long, requires = "bucket")]
     pub region: Option<String>,
     /// Access key for --s3-endpoint (else AWS_ACCESS_KEY_ID and the default chain).
-    #[arg(long, requires = "secret_key", env = "HORT_S3_ACCESS_KEY")]
+    // `--help` names the variable, never its value (as for the secret key).
+    #[arg(
+        long,
+        requires = "secret_key",
+        env = "HORT_S3_ACCESS_KEY",
+        hide_env_values = true
+    )]
     pub access_key: Option<String>,
     /// Secret key for --s3-endpoint.
     #[arg(
