@@ -469,13 +469,13 @@ fn render_emulated(
     let storage = args.storage.target();
     let cancel = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&cancel);
-    // A second Ctrl-C (or a failure to install the handler) leaves the default behaviour.
-    let _ = ctrlc::set_handler(move || {
+    // A second signal quits at once; a failure to watch them leaves the default behaviour.
+    let _ = crate::stop_signals::on_stop_signals(move |signal| {
         if flag.swap(true, Ordering::Relaxed) {
             // Destructors do not run: remove the temporary folders first.
-            hort::emulator::exit_now(130);
+            hort::emulator::exit_now(signal.exit_code());
         }
-        eprintln!("\nstopping: no new tasks start; press Ctrl-C again to quit at once");
+        eprintln!("\nstopping: no new tasks start; {}", signal.quit_at_once());
     });
     let config = EmulatorConfig {
         storage,

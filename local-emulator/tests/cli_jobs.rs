@@ -215,6 +215,16 @@ fn interrupted_render_leaves_nothing(signal: &str) {
         log.contains("error: cancelled"),
         "stopped through the cancel path: {log}"
     );
+    let again = match signal {
+        "INT" => "press Ctrl-C again to quit at once",
+        "TERM" => "send SIGTERM again or press Ctrl-C to quit at once",
+        other => panic!("no message known for SIG{other}"),
+    };
+    assert!(
+        log.lines()
+            .any(|line| line == format!("stopping: no new tasks start; {again}")),
+        "the stop message names what to send again: {log}"
+    );
     assert_eq!(temp_folders_of(&tmp, pid), Vec::<String>::new(), "{log}");
     assert!(!out.exists(), "no output after {signal}");
     let left: Vec<String> = std::fs::read_dir(&dir)

@@ -74,13 +74,13 @@ fn serve_over(
     let backend = Arc::new(EmulatorBackend::open(data_dir, workers, max_jobs)?);
     let (stop_tx, stop_rx) = oneshot::channel();
     let stop_tx = Mutex::new(Some(stop_tx));
-    let _ = ctrlc::set_handler(move || {
+    let _ = crate::stop_signals::on_stop_signals(move |signal| {
         match stop_tx.lock().unwrap_or_else(|e| e.into_inner()).take() {
             Some(tx) => {
-                eprintln!("hort serve: stopping; press Ctrl-C again to quit at once");
+                eprintln!("hort serve: stopping; {}", signal.quit_at_once());
                 let _ = tx.send(());
             }
-            None => hort::emulator::exit_now(130),
+            None => hort::emulator::exit_now(signal.exit_code()),
         }
     });
     let jobs = backend.job_count();
