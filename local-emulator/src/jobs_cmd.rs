@@ -5,12 +5,14 @@ use anyhow::{Result, bail};
 use clap::{Args, Subcommand};
 use hort::emulator::{EmulatorRun, Storage, StorageTarget, delete_job, list_jobs};
 use hort_core::ids::JobId;
+use hort_functions::api::JobState;
 use hort_functions::{S3Config, S3Credentials};
 use std::path::{Path, PathBuf};
 
 #[derive(Subcommand)]
 pub enum JobsCommand {
-    /// List the jobs: id, status (finished or unfinished), objects and bytes, on standard output.
+    /// List the jobs: id, status (finished, cancelled or unfinished), objects and bytes, on
+    /// standard output.
     List(ListArgs),
     /// Delete every object of one job (--job ID) or of all jobs (--all).
     Clean(CleanArgs),
@@ -164,6 +166,10 @@ fn list(args: &StorageArgs) -> Result<()> {
     for job in &jobs {
         let status = if job.finished {
             "finished"
+        } else if crate::serve::recorded_state(storage.s3(), &job.job)? == Some(JobState::Cancelled)
+        {
+            // Cancelled through `hort serve`'s API: its intermediates are gone, it cannot resume.
+            "cancelled"
         } else {
             "unfinished"
         };

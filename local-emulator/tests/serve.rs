@@ -3,7 +3,7 @@
 mod common;
 
 use common::server::{Reply, Serve, call, cornell, scenes};
-use common::{HORT, scratch};
+use common::{HORT, hort, scratch, stderr};
 use hort_functions::api::usd;
 use serde_json::{Value, json};
 use std::io::Write;
@@ -596,8 +596,8 @@ fn delete_cancels_a_running_job_and_removes_its_intermediates() {
         .post("/renders", &small, &[("Idempotency-Key", "gone")])
         .json();
     assert_eq!(replay["replayed"], true, "{replay}");
-    let job = replay["job"].as_str().unwrap();
-    let done = server.wait_done(job, Duration::from_secs(120));
+    let finished = replay["job"].as_str().unwrap();
+    let done = server.wait_done(finished, Duration::from_secs(120));
     assert_eq!(done["status"], "SUCCEEDED", "{done}");
     drop(server);
     // Over the server's whole life after the cancel (another job ran meanwhile), nothing of the
@@ -607,6 +607,34 @@ fn delete_cancels_a_running_job_and_removes_its_intermediates() {
         ["manifest.json~obj"],
         "nothing of the job's is written after the cancel"
     );
+    // `hort jobs list` over the server's folder: the cancelled job says so (its one object left,
+    // the job request), the other finished.
+    let listed = hort(&["jobs", "list", "--data-dir", data.to_str().unwrap()]);
+    assert!(listed.status.success(), "{}", stderr(&listed));
+    let listed = String::from_utf8(listed.stdout).unwrap();
+    let row = |id: &str| -> Vec<String> {
+        listed
+            .lines()
+            .find(|line| line.starts_with(id))
+            .unwrap_or_else(|| panic!("no row of {id}: {listed}"))
+            .split_whitespace()
+            .map(str::to_owned)
+            .collect()
+    };
+    let manifest_bytes = std::fs::metadata(job_dir.join("manifest.json~obj"))
+        .unwrap()
+        .len();
+    assert_eq!(
+        row(&job),
+        [
+            job.clone(),
+            "cancelled".into(),
+            "1".into(),
+            manifest_bytes.to_string()
+        ],
+        "{listed}"
+    );
+    assert_eq!(row(finished)[1], "finished", "{listed}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -14,7 +14,7 @@ use clap::Args;
 use hort_core::render::available_cores;
 use tokio::sync::oneshot;
 
-pub use backend::EmulatorBackend;
+pub use backend::{EmulatorBackend, recorded_state};
 
 /// The flags of `hort serve`.
 #[derive(Args)]
