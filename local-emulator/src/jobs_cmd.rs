@@ -5,6 +5,7 @@ use anyhow::{Result, bail};
 use clap::{Args, Subcommand};
 use hort::emulator::{EmulatorRun, Storage, StorageTarget, delete_job, list_jobs};
 use hort_core::ids::JobId;
+use hort_core::plural::count;
 use hort_functions::api::JobState;
 use hort_functions::{S3Config, S3Credentials};
 use std::path::{Path, PathBuf};
@@ -196,8 +197,9 @@ fn clean(args: &CleanArgs) -> Result<()> {
         if deleted.objects > 0 {
             any = true;
             eprintln!(
-                "deleted job {job}: {} objects, {} bytes",
-                deleted.objects, deleted.bytes
+                "deleted job {job}: {}, {}",
+                count(deleted.objects, "object"),
+                count(deleted.bytes, "byte")
             );
         } else if args.job.is_some() {
             eprintln!(
@@ -221,15 +223,16 @@ pub fn print_job_objects(run: &EmulatorRun) {
     let job = &run.job;
     if run.skipped_tasks > 0 {
         eprintln!(
-            "resumed job {job}: {} finished tasks skipped",
-            run.skipped_tasks
+            "resumed job {job}: {} skipped",
+            count(run.skipped_tasks, "finished task")
         );
     }
     match &run.deleted_intermediates {
         Some(Ok(deleted)) => eprintln!(
-            "deleted {} intermediate objects ({} bytes) of job {job}; kept jobs/{job}/manifest.json, \
-             plan.json and out/ (--keep-intermediates keeps everything)",
-            deleted.objects, deleted.bytes
+            "deleted {} ({}) of job {job}; kept jobs/{job}/manifest.json, plan.json and out/ \
+             (--keep-intermediates keeps everything)",
+            count(deleted.objects, "intermediate object"),
+            count(deleted.bytes, "byte")
         ),
         Some(Err(e)) => eprintln!(
             "warning: the intermediate objects of job {job} were not deleted: {e}; `hort jobs \

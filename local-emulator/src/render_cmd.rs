@@ -21,6 +21,7 @@ use hort_core::image::{Image, write_image};
 use hort_core::pipeline::{
     ExecutionMode, PipelineOptions, PlanRequest, StoredOutputs, resolve_counts, run_pipeline,
 };
+use hort_core::plural::count;
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
 use hort_core::report::{AdaptiveReport, Outputs, RayReport, Report, Seconds, StageReport};
 use hort_core::scene::{Scene, check_image_size, load_scene, scene_image_settings};
@@ -531,18 +532,18 @@ fn render_emulated(
     }
     if run.recomputed() > 0 {
         eprintln!(
-            "{} lost or corrupt blocks recomputed from lineage",
-            run.recomputed()
+            "{} recomputed from lineage",
+            count(run.recomputed(), "lost or corrupt block")
         );
     }
     eprintln!(
-        "job {} on {} ({}: {}; {} splits, {} spans); estimated AWS cost ${:.6}",
+        "job {} on {} ({}: {}; {}, {}); estimated AWS cost ${:.6}",
         run.job,
         run.endpoint,
         run.plan.mode,
         run.plan.mode_reason,
-        run.plan.k(),
-        run.plan.spans.len(),
+        count(u64::from(run.plan.k()), "split"),
+        count(run.plan.spans.len() as u64, "span"),
         run.cost.total
     );
     crate::jobs_cmd::print_job_objects(&run);

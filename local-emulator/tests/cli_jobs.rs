@@ -110,7 +110,10 @@ impl Bucket {
 fn skipped_tasks(err: &str, job: &str) -> u64 {
     err.lines()
         .find_map(|l| l.strip_prefix(&format!("resumed job {job}: ")))
-        .and_then(|l| l.strip_suffix(" finished tasks skipped"))
+        .and_then(|l| {
+            l.strip_suffix(" finished tasks skipped")
+                .or_else(|| l.strip_suffix(" finished task skipped"))
+        })
         .expect("a resume line")
         .parse()
         .unwrap()

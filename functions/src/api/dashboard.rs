@@ -233,8 +233,9 @@ fn write_progress(out: &mut String, j: &JobStatus) -> std::fmt::Result {
         let stage = escape_html(stage);
         write!(
             out,
-            "<div class=\"bar\" title=\"{stage}: {done} of {total} tasks\"><label>{stage}</label>\
+            "<div class=\"bar\" title=\"{stage}: {done} of {}\"><label>{stage}</label>\
              <progress max=\"{}\" value=\"{done}\"></progress><span>{done}/{total}</span></div>",
+            hort_core::plural::count(*total, "task"),
             (*total).max(1)
         )?;
     }

@@ -11,6 +11,7 @@ use std::sync::{Arc, Mutex};
 
 use anyhow::{Result, bail};
 use clap::Args;
+use hort_core::plural::count;
 use hort_core::render::available_cores;
 use tokio::sync::oneshot;
 
@@ -110,9 +111,11 @@ fn serve_over(
             };
             eprintln!(
                 "hort serve: listening on http://{addr} ({reach}; dashboard at http://{addr}/; \
-                 {workers} function slots per job, at most {max_jobs} jobs at once, data in \
-                 {}{kept}, {jobs} jobs known)",
-                data_dir.display()
+                 {} per job, at most {} at once, data in {}{kept}, {} known)",
+                count(workers as u64, "function slot"),
+                count(max_jobs as u64, "job"),
+                data_dir.display(),
+                count(jobs as u64, "job"),
             );
         },
         stop_rx,
