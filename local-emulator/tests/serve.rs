@@ -228,6 +228,17 @@ fn a_render_asking_for_the_png_alone_stores_and_serves_only_it() {
     let job = posted.json()["job"].as_str().unwrap().to_owned();
     let status = server.wait_done(&job, Duration::from_secs(120));
     assert_eq!(status["status"], "SUCCEEDED", "{status}");
+    // The status says what the job stored, and the dashboard links only that.
+    assert_eq!(status["outputs"], json!({"linear": false, "hits": false}));
+    let page = server.get("/").text();
+    assert!(
+        page.contains(&format!("<a href=\"renders/{job}/report\">report</a>")),
+        "{page}"
+    );
+    assert!(
+        !page.contains("format=pfm") && !page.contains("format=exr"),
+        "{page}"
+    );
 
     // The PNG is the monolithic render's, byte for byte; nothing else is stored under out/.
     let png = server.get(&format!("/renders/{job}/image"));

@@ -209,6 +209,7 @@ impl Job {
                 r.stages
             },
             scene: Some(r.scene),
+            outputs: r.request.outputs,
         }
     }
 
