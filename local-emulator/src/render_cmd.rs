@@ -537,7 +537,9 @@ fn render_emulated(
         );
     }
     eprintln!(
-        "job {} on {} ({}: {}; {}, {}); estimated AWS cost ${:.6}",
+        "job {} on {} ({}: {}; {}, {}); measured AWS cost ${:.6} (AWS prices for this run's \
+         task times on this machine and its requests; `hort plan` predicts a cost from its model \
+         instead, so the two differ)",
         run.job,
         run.endpoint,
         run.plan.mode,

@@ -76,6 +76,11 @@ pub fn render(o: &PlanOutput) -> String {
         );
     }
     let _ = writeln!(t, "total: {}", summary(&o.chosen));
+    let _ = writeln!(
+        t,
+        "cost: predicted from the model above, not measured (`hort render` prices a run's task \
+         times on this machine and its requests, so the two differ)"
+    );
     let _ = writeln!(t, "\nsweep:");
     let _ = writeln!(
         t,
