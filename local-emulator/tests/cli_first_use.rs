@@ -453,3 +453,16 @@ fn help_never_shows_the_s3_keys_from_the_environment() {
         );
     }
 }
+
+/// The tests' scratch folders remove themselves, with what is in them, when dropped.
+#[test]
+fn scratch_folders_are_gone_after_drop() {
+    let dir = scratch("drop-check");
+    let path = dir.to_path_buf();
+    assert!(path.starts_with(std::env::temp_dir()), "{}", path.display());
+    std::fs::create_dir_all(path.join("a/b")).unwrap();
+    std::fs::write(path.join("a/b/file"), b"x").unwrap();
+    assert_eq!(files_in(&dir), ["a"]);
+    drop(dir);
+    assert!(!path.exists(), "{} is left", path.display());
+}

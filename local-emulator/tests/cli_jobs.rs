@@ -3,11 +3,14 @@
 //! `hort jobs list|clean`, resuming a stopped job, and the storage messages that say what to
 //! do (missing credentials, missing bucket, existing job).
 
+mod common;
+
+use common::scratch;
 use embedded_s3::EmbeddedS3;
 use hort_core::store::BlobStore;
 use hort_functions::{S3Config, S3Store};
 use std::io::{BufRead, BufReader};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
@@ -22,14 +25,6 @@ fn scene(rel: &str) -> String {
         .join(rel)
         .to_string_lossy()
         .into_owned()
-}
-
-/// A fresh folder for one test.
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("hort-cli-jobs-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
 }
 
 /// `hort` with `args`, its temporary folders in `tmp`.
