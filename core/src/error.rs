@@ -58,7 +58,7 @@ pub enum SceneError {
     /// A face refers to a vertex or normal that does not exist.
     #[error(
         "{p}:{line}: face refers to {what} {index}, but only {count} {plural} are defined so far",
-        plural = plural_of(what),
+        plural = crate::plural::plural(what),
         p = shown(path)
     )]
     IndexOutOfRange {
@@ -152,12 +152,4 @@ pub enum SceneError {
         /// Which of the two it is.
         detail: String,
     },
-}
-
-/// The plural of an OBJ element name (`vertex` -> `vertices`, `normal` -> `normals`).
-fn plural_of(what: &str) -> String {
-    match what {
-        "vertex" => "vertices".into(),
-        other => format!("{other}s"),
-    }
 }

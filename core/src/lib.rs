@@ -6,6 +6,7 @@
 
 pub mod error;
 mod error_type;
+pub mod plural;
 pub use error_type::ErrorType;
 
 // Scene input and the renderer.

@@ -2,25 +2,24 @@
 
 use std::cell::OnceCell;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
-
-static NEXT: AtomicU64 = AtomicU64::new(0);
 
 thread_local! {
-    static DIR: OnceCell<PathBuf> = const { OnceCell::new() };
+    static DIR: OnceCell<tempfile::TempDir> = const { OnceCell::new() };
 }
 
-/// This thread's scratch folder (created on first use, under the system temp folder; unique per
-/// process and thread, so parallel tests and fuzzer instances never share one).
+/// This thread's scratch folder (created on first use, under the system temp folder as
+/// `hort-fuzz-XXXXXX`; unique per thread, so parallel tests and fuzzer instances never share
+/// one), removed with its files when the thread ends.
 pub fn dir() -> PathBuf {
     DIR.with(|d| {
         d.get_or_init(|| {
-            let n = NEXT.fetch_add(1, Ordering::Relaxed);
-            let dir = std::env::temp_dir().join(format!("hort-fuzz-{}-{n}", std::process::id()));
-            std::fs::create_dir_all(&dir).expect("cannot create the scratch folder");
-            dir
+            tempfile::Builder::new()
+                .prefix("hort-fuzz-")
+                .tempdir()
+                .expect("cannot create the scratch folder")
         })
-        .clone()
+        .path()
+        .to_path_buf()
     })
 }
 
@@ -44,4 +43,20 @@ pub fn is_plain(name: &str) -> bool {
     let path = Path::new(name);
     path.components()
         .all(|c| matches!(c, std::path::Component::Normal(_)))
+}
+
+#[cfg(test)]
+mod tests {
+    /// A thread's scratch folder, and what was written in it, is gone once the thread ended.
+    #[test]
+    fn a_threads_folder_is_gone_when_the_thread_ends() {
+        let dir = std::thread::spawn(|| {
+            let file = super::write("f", b"x");
+            assert!(file.exists());
+            super::dir()
+        })
+        .join()
+        .unwrap();
+        assert!(!dir.exists(), "{} is left", dir.display());
+    }
 }

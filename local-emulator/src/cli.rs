@@ -147,9 +147,8 @@ pub struct RenderArgs {
     /// Seed of fault injection and retry jitter.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Per-task timeout in seconds, 1 to 300 (default: derived from each task's work, 10 to
-    /// 90 s); a Map item's attempts must fit an EXPRESS child's 5 minutes.
-    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=300))]
+    // The help text is `task_timeout_help`: its default range comes from the plan's constants.
+    #[arg(long, help = task_timeout_help(), allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=300))]
     pub task_timeout: Option<u32>,
     /// Multiplies every wait and timeout of the state machine (1 = real time).
     #[arg(long, default_value_t = 1.0, hide = true)]
@@ -194,6 +193,17 @@ pub struct GenerateArgs {
     /// Overwrite the .obj and .json if they exist.
     #[arg(long)]
     pub force: bool,
+}
+
+/// `--task-timeout`'s help, with the bounds the plan clamps its default timeouts to.
+fn task_timeout_help() -> String {
+    use hort_core::pipeline::{MAX_TIMEOUT_SECONDS, MIN_TIMEOUT_SECONDS, TIMEOUT_MULTIPLE};
+    format!(
+        "Per-task timeout in seconds, 1 to 300 (default: {TIMEOUT_MULTIPLE} times each task's \
+         predicted time, {MIN_TIMEOUT_SECONDS} to {MAX_TIMEOUT_SECONDS} s; partition and build tasks get \
+         longer ones, from their bytes and triangles); a Map item's attempts must fit an \
+         EXPRESS child's 5 minutes."
+    )
 }
 
 /// `--missing-textures`: see [`hort_core::scene::TextureFallback`].

@@ -5,12 +5,15 @@ use anyhow::{Result, bail};
 use clap::{Args, Subcommand};
 use hort::emulator::{EmulatorRun, Storage, StorageTarget, delete_job, list_jobs};
 use hort_core::ids::JobId;
+use hort_core::plural::count;
+use hort_functions::api::JobState;
 use hort_functions::{S3Config, S3Credentials};
 use std::path::{Path, PathBuf};
 
 #[derive(Subcommand)]
 pub enum JobsCommand {
-    /// List the jobs: id, status (finished or unfinished), objects and bytes, on standard output.
+    /// List the jobs: id, status (finished, cancelled or unfinished), objects and bytes, on
+    /// standard output.
     List(ListArgs),
     /// Delete every object of one job (--job ID) or of all jobs (--all).
     Clean(CleanArgs),
@@ -32,7 +35,13 @@ pub struct StorageArgs {
     #[arg(long, requires = "bucket")]
     pub region: Option<String>,
     /// Access key for --s3-endpoint (else AWS_ACCESS_KEY_ID and the default chain).
-    #[arg(long, requires = "secret_key", env = "HORT_S3_ACCESS_KEY")]
+    // `--help` names the variable, never its value (as for the secret key).
+    #[arg(
+        long,
+        requires = "secret_key",
+        env = "HORT_S3_ACCESS_KEY",
+        hide_env_values = true
+    )]
     pub access_key: Option<String>,
     /// Secret key for --s3-endpoint.
     #[arg(
@@ -158,6 +167,10 @@ fn list(args: &StorageArgs) -> Result<()> {
     for job in &jobs {
         let status = if job.finished {
             "finished"
+        } else if crate::serve::recorded_state(storage.s3(), &job.job)? == Some(JobState::Cancelled)
+        {
+            // Cancelled through `hort serve`'s API: its intermediates are gone, it cannot resume.
+            "cancelled"
         } else {
             "unfinished"
         };
@@ -184,8 +197,9 @@ fn clean(args: &CleanArgs) -> Result<()> {
         if deleted.objects > 0 {
             any = true;
             eprintln!(
-                "deleted job {job}: {} objects, {} bytes",
-                deleted.objects, deleted.bytes
+                "deleted job {job}: {}, {}",
+                count(deleted.objects, "object"),
+                count(deleted.bytes, "byte")
             );
         } else if args.job.is_some() {
             eprintln!(
@@ -209,15 +223,16 @@ pub fn print_job_objects(run: &EmulatorRun) {
     let job = &run.job;
     if run.skipped_tasks > 0 {
         eprintln!(
-            "resumed job {job}: {} finished tasks skipped",
-            run.skipped_tasks
+            "resumed job {job}: {} skipped",
+            count(run.skipped_tasks, "finished task")
         );
     }
     match &run.deleted_intermediates {
         Some(Ok(deleted)) => eprintln!(
-            "deleted {} intermediate objects ({} bytes) of job {job}; kept jobs/{job}/manifest.json, \
-             plan.json and out/ (--keep-intermediates keeps everything)",
-            deleted.objects, deleted.bytes
+            "deleted {} ({}) of job {job}; kept jobs/{job}/manifest.json, plan.json and out/ \
+             (--keep-intermediates keeps everything)",
+            count(deleted.objects, "intermediate object"),
+            count(deleted.bytes, "byte")
         ),
         Some(Err(e)) => eprintln!(
             "warning: the intermediate objects of job {job} were not deleted: {e}; `hort jobs \

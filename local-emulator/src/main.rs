@@ -12,6 +12,7 @@ mod plan_flags;
 mod render_cmd;
 mod scene_cmd;
 mod serve;
+mod stop_signals;
 
 use clap::Parser;
 use hort_task_memory::{TaskAlloc, process_live_bytes, process_peak_bytes, reset_process_peak};

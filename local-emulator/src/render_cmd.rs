@@ -22,6 +22,7 @@ use hort_core::pipeline::{
     ExecutionMode, PipelineOptions, PlanRequest, StoredOutputs, planned_textures,
     resolve_counts_with, run_pipeline,
 };
+use hort_core::plural::count;
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
 use hort_core::report::{AdaptiveReport, Outputs, RayReport, Report, Seconds, StageReport};
 use hort_core::scene::{Scene, check_image_size, load_scene_with, scene_image_settings};
@@ -72,6 +73,18 @@ struct Rendered {
 fn is_png(out: &Path) -> bool {
     out.extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+}
+
+/// What to add to the error of `--adaptive MAX_SPP` over a first pass of `spp` samples too
+/// small for an error estimate (the default `--spp 1`): the `--spp` that makes it run.
+fn first_pass_hint(spp: u32, max_spp: u32) -> String {
+    if spp >= 2 || max_spp <= 2 {
+        return String::new();
+    }
+    let suggested = (max_spp - 1).min(4);
+    format!(
+        "; add --spp {suggested} (--adaptive {max_spp} --spp {suggested}: {suggested} samples in every pixel, then {max_spp} where needed)"
+    )
 }
 
 /// The default of `--adaptive-threshold`.
@@ -133,9 +146,12 @@ pub fn run(args: RenderArgs) -> Result<()> {
                     .adaptive_threshold
                     .unwrap_or(DEFAULT_ADAPTIVE_THRESHOLD),
             };
-            settings
-                .check()
-                .context("--spp, --adaptive and --adaptive-threshold")?;
+            settings.check().map_err(|e| {
+                anyhow!(
+                    "--spp, --adaptive and --adaptive-threshold: {e}{}",
+                    first_pass_hint(spp, max_spp)
+                )
+            })?;
             check_image_size(width, height, max_spp).context("--adaptive")?;
             Some(settings)
         }
@@ -455,13 +471,13 @@ fn render_emulated(
     let storage = args.storage.target();
     let cancel = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&cancel);
-    // A second Ctrl-C (or a failure to install the handler) leaves the default behaviour.
-    let _ = ctrlc::set_handler(move || {
+    // A second signal quits at once; a failure to watch them leaves the default behaviour.
+    let _ = crate::stop_signals::on_stop_signals(move |signal| {
         if flag.swap(true, Ordering::Relaxed) {
             // Destructors do not run: remove the temporary folders first.
-            hort::emulator::exit_now(130);
+            hort::emulator::exit_now(signal.exit_code());
         }
-        eprintln!("\nstopping: no new tasks start; press Ctrl-C again to quit at once");
+        eprintln!("\nstopping: no new tasks start; {}", signal.quit_at_once());
     });
     let config = EmulatorConfig {
         storage,
@@ -517,18 +533,20 @@ fn render_emulated(
     }
     if run.recomputed() > 0 {
         eprintln!(
-            "{} lost or corrupt blocks recomputed from lineage",
-            run.recomputed()
+            "{} recomputed from lineage",
+            count(run.recomputed(), "lost or corrupt block")
         );
     }
     eprintln!(
-        "job {} on {} ({}: {}; {} splits, {} spans); estimated AWS cost ${:.6}",
+        "job {} on {} ({}: {}; {}, {}); measured AWS cost ${:.6} (AWS prices for this run's \
+         task times on this machine and its requests; `hort plan` predicts a cost from its model \
+         instead, so the two differ)",
         run.job,
         run.endpoint,
         run.plan.mode,
         run.plan.mode_reason,
-        run.plan.k(),
-        run.plan.spans.len(),
+        count(u64::from(run.plan.k()), "split"),
+        count(run.plan.spans.len() as u64, "span"),
         run.cost.total
     );
     crate::jobs_cmd::print_job_objects(&run);

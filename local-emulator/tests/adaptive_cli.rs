@@ -171,7 +171,15 @@ fn bad_adaptive_settings_get_one_error_line() {
         (
             &["--monolithic", "--spp", "1", "--adaptive", "16"][..],
             "error: --spp, --adaptive and --adaptive-threshold: adaptive base spp = 1 is out of \
-             range: must be from 2 (a pixel's error estimate needs two samples) to 65535\n",
+             range: must be from 2 (a pixel's error estimate needs two samples) to 65535; add \
+             --spp 4 (--adaptive 16 --spp 4: 4 samples in every pixel, then 16 where needed)\n",
+        ),
+        (
+            // The default --spp 1 (no --spp given), and a MAX_SPP that leaves room for only 2.
+            &["--monolithic", "--adaptive", "3"][..],
+            "error: --spp, --adaptive and --adaptive-threshold: adaptive base spp = 1 is out of \
+             range: must be from 2 (a pixel's error estimate needs two samples) to 65535; add \
+             --spp 2 (--adaptive 3 --spp 2: 2 samples in every pixel, then 3 where needed)\n",
         ),
         (
             &["--monolithic", "--spp", "4", "--adaptive", "4"][..],

@@ -19,7 +19,9 @@
 //! Edits: `delete`, `truncate N` (keep N bytes), `flip N` (invert byte N), `append N` (N zero
 //! bytes), `as KIND` (read as another record kind).
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use std::path::Path;
 use std::process::Command;
 
 use hort::emulator::binary_scene;
@@ -134,16 +136,9 @@ fn unescape(text: &str) -> Vec<u8> {
     out
 }
 
-/// A fresh folder for one row.
-fn folder(row: &Row) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!(
-        "hort-bad-input-{}-{}",
-        std::process::id(),
-        row.line
-    ));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A fresh folder for one row, removed when dropped.
+fn folder(row: &Row) -> common::Scratch {
+    common::scratch(&format!("bad-input-{}", row.line))
 }
 
 /// Runs `hort` in `dir`; returns standard error.

@@ -341,6 +341,20 @@ fn emulator_render_equals_monolithic_and_reports_cost() {
         stderr.contains("stage") && stderr.contains("compression"),
         "summary table: {stderr}"
     );
+    // The cost is the report's, measured from this run, and says so (`hort plan`'s is predicted).
+    let job_line = stderr
+        .lines()
+        .find(|l| l.starts_with("job cli-test on "))
+        .expect("the job line");
+    assert!(
+        job_line.ends_with(&format!(
+            "; 3 splits, 4 spans); measured AWS cost ${:.6} (AWS prices for this run's task \
+             times on this machine and its requests; `hort plan` predicts a cost from its model \
+             instead, so the two differ)",
+            r["cost_usd"].as_f64().unwrap()
+        )),
+        "{job_line}"
+    );
     // A PNG is written as the job's Combine task stored it (emulator and in-process runs):
     // the bytes a monolithic render encodes.
     let cornell = scene("cornell/cornell.json");

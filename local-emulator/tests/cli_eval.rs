@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{hort, scene, scratch, stderr};
+use common::{files_in, hort, scene, scratch, stderr};
 use std::path::{Path, PathBuf};
 
 fn fixtures() -> PathBuf {
@@ -145,4 +145,27 @@ fn a_missing_reference_and_a_wrong_size_are_refused_by_name() {
         )
     );
     assert!(!out.join("eval.csv").exists());
+}
+
+/// Without `--out`, `hort eval` writes to `out/eval/` of the current folder, never over the
+/// committed `docs/eval/`.
+#[test]
+fn the_default_output_folder_is_out_eval() {
+    let cwd = scratch("eval-default-out");
+    let cornell = scene("cornell/cornell.json");
+    let o = std::process::Command::new(common::HORT)
+        .current_dir(&cwd)
+        .args(["eval", cornell.to_str().unwrap(), "--references"])
+        .arg(fixtures())
+        .args([
+            "--width", "16", "--height", "12", "--spp", "1", "--runs", "1",
+        ])
+        .arg("--skip-distributed")
+        .output()
+        .expect("hort runs");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(files_in(&cwd), ["out"]);
+    assert_eq!(files_in(&cwd.join("out")), ["eval"]);
+    assert_eq!(files_in(&cwd.join("out/eval")), ["eval.csv", "eval.png"]);
+    std::fs::remove_dir_all(&cwd).unwrap();
 }

@@ -422,3 +422,47 @@ fn scene_generate_never_destroys_files() {
     );
     assert_eq!(files_in(&dir), ["keep.json", "keep.obj", "victim.json"]);
 }
+
+/// `--help` of every command with the S3 key flags names their variables but never shows the
+/// values set in the environment.
+#[test]
+fn help_never_shows_the_s3_keys_from_the_environment() {
+    for command in [&["render"][..], &["jobs", "list"], &["jobs", "clean"]] {
+        let o = std::process::Command::new(common::HORT)
+            .args(command)
+            .arg("--help")
+            .env("HORT_S3_ACCESS_KEY", "access-from-env")
+            .env("HORT_S3_SECRET_KEY", "secret-from-env")
+            .output()
+            .expect("hort runs");
+        assert!(o.status.success(), "{command:?}: {o:?}");
+        let help = String::from_utf8(o.stdout).unwrap();
+        for variable in ["HORT_S3_ACCESS_KEY", "HORT_S3_SECRET_KEY"] {
+            assert!(
+                help.contains(&format!("[env: {variable}]")),
+                "{command:?}: {help}"
+            );
+            assert!(
+                !help.contains(&format!("{variable}=")),
+                "{command:?}: {help}"
+            );
+        }
+        assert!(
+            !help.contains("access-from-env") && !help.contains("secret-from-env"),
+            "{command:?}: {help}"
+        );
+    }
+}
+
+/// The tests' scratch folders remove themselves, with what is in them, when dropped.
+#[test]
+fn scratch_folders_are_gone_after_drop() {
+    let dir = scratch("drop-check");
+    let path = dir.to_path_buf();
+    assert!(path.starts_with(std::env::temp_dir()), "{}", path.display());
+    std::fs::create_dir_all(path.join("a/b")).unwrap();
+    std::fs::write(path.join("a/b/file"), b"x").unwrap();
+    assert_eq!(files_in(&dir), ["a"]);
+    drop(dir);
+    assert!(!path.exists(), "{} is left", path.display());
+}

@@ -3,11 +3,14 @@
 //! `hort jobs list|clean`, resuming a stopped job, and the storage messages that say what to
 //! do (missing credentials, missing bucket, existing job).
 
+mod common;
+
+use common::scratch;
 use embedded_s3::EmbeddedS3;
 use hort_core::store::BlobStore;
 use hort_functions::{S3Config, S3Store};
 use std::io::{BufRead, BufReader};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
@@ -22,14 +25,6 @@ fn scene(rel: &str) -> String {
         .join(rel)
         .to_string_lossy()
         .into_owned()
-}
-
-/// A fresh folder for one test.
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("hort-cli-jobs-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
 }
 
 /// `hort` with `args`, its temporary folders in `tmp`.
@@ -110,7 +105,10 @@ impl Bucket {
 fn skipped_tasks(err: &str, job: &str) -> u64 {
     err.lines()
         .find_map(|l| l.strip_prefix(&format!("resumed job {job}: ")))
-        .and_then(|l| l.strip_suffix(" finished tasks skipped"))
+        .and_then(|l| {
+            l.strip_suffix(" finished tasks skipped")
+                .or_else(|| l.strip_suffix(" finished task skipped"))
+        })
         .expect("a resume line")
         .parse()
         .unwrap()
@@ -214,6 +212,16 @@ fn interrupted_render_leaves_nothing(signal: &str) {
     assert!(
         log.contains("error: cancelled"),
         "stopped through the cancel path: {log}"
+    );
+    let again = match signal {
+        "INT" => "press Ctrl-C again to quit at once",
+        "TERM" => "send SIGTERM again or press Ctrl-C to quit at once",
+        other => panic!("no message known for SIG{other}"),
+    };
+    assert!(
+        log.lines()
+            .any(|line| line == format!("stopping: no new tasks start; {again}")),
+        "the stop message names what to send again: {log}"
     );
     assert_eq!(temp_folders_of(&tmp, pid), Vec::<String>::new(), "{log}");
     assert!(!out.exists(), "no output after {signal}");

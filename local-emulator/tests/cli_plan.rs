@@ -263,6 +263,13 @@ fn text_output_states_the_plan() {
         "{text}"
     );
     assert!(text.contains("\nstages at 10 functions:\n"), "{text}");
+    // The cost is a prediction, and says so (`hort render`'s is measured).
+    let total = lines.iter().position(|l| l.starts_with("total: ")).unwrap();
+    assert_eq!(
+        lines[total + 1],
+        "cost: predicted from the model above, not measured (`hort render` prices a run's task \
+         times on this machine and its requests, so the two differ)"
+    );
 }
 
 #[test]

@@ -3,7 +3,7 @@
 mod common;
 
 use common::server::{Reply, Serve, call, cornell, scenes};
-use common::{HORT, scratch};
+use common::{HORT, hort, scratch, stderr};
 use hort_functions::api::usd;
 use serde_json::{Value, json};
 use std::io::Write;
@@ -228,6 +228,17 @@ fn a_render_asking_for_the_png_alone_stores_and_serves_only_it() {
     let job = posted.json()["job"].as_str().unwrap().to_owned();
     let status = server.wait_done(&job, Duration::from_secs(120));
     assert_eq!(status["status"], "SUCCEEDED", "{status}");
+    // The status says what the job stored, and the dashboard links only that.
+    assert_eq!(status["outputs"], json!({"linear": false, "hits": false}));
+    let page = server.get("/").text();
+    assert!(
+        page.contains(&format!("<a href=\"renders/{job}/report\">report</a>")),
+        "{page}"
+    );
+    assert!(
+        !page.contains("format=pfm") && !page.contains("format=exr"),
+        "{page}"
+    );
 
     // The PNG is the monolithic render's, byte for byte; nothing else is stored under out/.
     let png = server.get(&format!("/renders/{job}/image"));
@@ -596,8 +607,8 @@ fn delete_cancels_a_running_job_and_removes_its_intermediates() {
         .post("/renders", &small, &[("Idempotency-Key", "gone")])
         .json();
     assert_eq!(replay["replayed"], true, "{replay}");
-    let job = replay["job"].as_str().unwrap();
-    let done = server.wait_done(job, Duration::from_secs(120));
+    let finished = replay["job"].as_str().unwrap();
+    let done = server.wait_done(finished, Duration::from_secs(120));
     assert_eq!(done["status"], "SUCCEEDED", "{done}");
     drop(server);
     // Over the server's whole life after the cancel (another job ran meanwhile), nothing of the
@@ -607,6 +618,34 @@ fn delete_cancels_a_running_job_and_removes_its_intermediates() {
         ["manifest.json~obj"],
         "nothing of the job's is written after the cancel"
     );
+    // `hort jobs list` over the server's folder: the cancelled job says so (its one object left,
+    // the job request), the other finished.
+    let listed = hort(&["jobs", "list", "--data-dir", data.to_str().unwrap()]);
+    assert!(listed.status.success(), "{}", stderr(&listed));
+    let listed = String::from_utf8(listed.stdout).unwrap();
+    let row = |id: &str| -> Vec<String> {
+        listed
+            .lines()
+            .find(|line| line.starts_with(id))
+            .unwrap_or_else(|| panic!("no row of {id}: {listed}"))
+            .split_whitespace()
+            .map(str::to_owned)
+            .collect()
+    };
+    let manifest_bytes = std::fs::metadata(job_dir.join("manifest.json~obj"))
+        .unwrap()
+        .len();
+    assert_eq!(
+        row(&job),
+        [
+            job.clone(),
+            "cancelled".into(),
+            "1".into(),
+            manifest_bytes.to_string()
+        ],
+        "{listed}"
+    );
+    assert_eq!(row(finished)[1], "finished", "{listed}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

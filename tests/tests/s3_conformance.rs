@@ -133,3 +133,77 @@ fn delete_all_takes_more_keys_than_one_request(store: &hort_functions::S3Store, 
     assert_eq!(store.get(&kept).expect("get"), b"k");
     store.delete(&kept).expect("delete");
 }
+
+/// Every file and folder under `dir`, relative to it, sorted.
+fn tree(dir: &std::path::Path) -> Vec<String> {
+    let mut found = Vec::new();
+    let mut pending = vec![dir.to_path_buf()];
+    while let Some(next) = pending.pop() {
+        for entry in std::fs::read_dir(&next).expect("read_dir") {
+            let path = entry.expect("entry").path();
+            found.push(
+                path.strip_prefix(dir)
+                    .expect("under dir")
+                    .display()
+                    .to_string(),
+            );
+            if path.is_dir() {
+                pending.push(path);
+            }
+        }
+    }
+    found.sort();
+    found
+}
+
+/// Deletes leave nothing on disk: no object file, no metadata file of `s3s-fs` in the data
+/// directory, no folder of a key (the bucket's folder stays), by one `DeleteObject` and by
+/// `DeleteObjects`; a folder still holding another key stays until that key goes too.
+#[test]
+fn embedded_s3_deletes_leave_no_files_or_folders_behind() {
+    let embedded = Embedded::start(Some("tidy"));
+    let store = embedded.store("tidy");
+    let data_dir = embedded.server.data_dir();
+    let keys = ["top", "jobs/j/a/b/c.bin", "jobs/j/a/d.bin", "jobs/k/e"];
+    for key in keys {
+        store.put(key, b"bytes").expect("put");
+    }
+    assert_eq!(
+        tree(&data_dir.join("tidy")),
+        [
+            "jobs",
+            "jobs/j",
+            "jobs/j/a",
+            "jobs/j/a/b",
+            "jobs/j/a/b/c.bin~obj",
+            "jobs/j/a/d.bin~obj",
+            "jobs/k",
+            "jobs/k/e~obj",
+            "top~obj",
+        ]
+    );
+    assert!(
+        tree(data_dir).len() > tree(&data_dir.join("tidy")).len() + 1,
+        "s3s-fs keeps metadata files beside the bucket: {:?}",
+        tree(data_dir)
+    );
+
+    store.delete("jobs/j/a/b/c.bin").expect("delete");
+    assert_eq!(
+        tree(&data_dir.join("tidy")),
+        [
+            "jobs",
+            "jobs/j",
+            "jobs/j/a",
+            "jobs/j/a/d.bin~obj",
+            "jobs/k",
+            "jobs/k/e~obj",
+            "top~obj"
+        ]
+    );
+    store.delete("top").expect("delete");
+    let rest: Vec<String> = ["jobs/j/a/d.bin", "jobs/k/e"].map(str::to_owned).into();
+    store.delete_all(&rest).expect("delete_all");
+    assert_eq!(tree(&data_dir.join("tidy")), Vec::<String>::new());
+    assert_eq!(tree(data_dir), ["tidy"]);
+}

@@ -16,6 +16,7 @@
 //! (candidate hits, shadow queries, occlusion keys and their encodings).
 
 use super::PipelineError;
+use crate::plural::count;
 use crate::stage::Stage;
 use serde::{Deserialize, Serialize};
 
@@ -216,7 +217,10 @@ pub fn choose_shape(
             (
                 ExecutionMode::Fused,
                 k,
-                format!("forced by --mode fused ({k} split(s) per task)"),
+                format!(
+                    "forced by --mode fused ({} per task)",
+                    count(u64::from(k), "split")
+                ),
             )
         }
         (Some(ExecutionMode::Staged), Some(k)) => (
@@ -227,7 +231,8 @@ pub fn choose_shape(
         (Some(ExecutionMode::Staged), None) => {
             let k = fewest().ok_or_else(|| too_big(triangles, memory_mb, max_splits))?;
             let reason = format!(
-                "forced by --mode staged; {k} split(s) is the fewest whose tasks fit {memory_mb} MB"
+                "forced by --mode staged; {} is the fewest whose tasks fit {memory_mb} MB",
+                count(u64::from(k), "split")
             );
             (ExecutionMode::Staged, k, reason)
         }
@@ -239,13 +244,17 @@ pub fn choose_shape(
         (None, Some(k)) => (
             ExecutionMode::Staged,
             k,
-            format!("--splits {k}: HORT's staged shuffle over {k} splits"),
+            format!(
+                "--splits {k}: HORT's staged shuffle over {}",
+                count(u64::from(k), "split")
+            ),
         ),
         (None, None) if fits(1) => (
             ExecutionMode::Fused,
             1,
             format!(
-                "one task holds the whole scene ({triangles} triangles, about {} MB of {memory_mb} MB)",
+                "one task holds the whole scene ({}, about {} MB of {memory_mb} MB)",
+                count(triangles, "triangle"),
                 mib(whole)
             ),
         ),
@@ -265,8 +274,9 @@ pub fn choose_shape(
     let need = task_bytes(held, span_samples);
     if need > budget {
         return Err(PipelineError::BadInput(format!(
-            "a {mode} task of this job would need about {} MB ({held} triangles, {span_samples} samples per span), over --memory-mb {memory_mb}: raise --memory-mb or use more splits",
-            mib(need)
+            "a {mode} task of this job would need about {} MB ({}, {span_samples} samples per span), over --memory-mb {memory_mb}: raise --memory-mb or use more splits",
+            mib(need),
+            count(held, "triangle")
         )));
     }
     Ok(JobShape {
@@ -278,7 +288,8 @@ pub fn choose_shape(
 
 fn too_big(triangles: u64, memory_mb: u32, max_splits: u32) -> PipelineError {
     PipelineError::BadInput(format!(
-        "the scene's {triangles} triangles do not fit --memory-mb {memory_mb} even in {max_splits} splits: raise --memory-mb"
+        "the scene's {} do not fit --memory-mb {memory_mb} even in {max_splits} splits: raise --memory-mb",
+        count(triangles, "triangle")
     ))
 }
 
@@ -352,7 +363,7 @@ mod tests {
         );
         assert_eq!(
             reason(None, Some(Staged)),
-            "forced by --mode staged; 2 split(s) is the fewest whose tasks fit 128 MB"
+            "forced by --mode staged; 2 splits is the fewest whose tasks fit 128 MB"
         );
         assert_eq!(
             reason(Some(2), None),

@@ -9,6 +9,7 @@ use super::split::SplitMode;
 use crate::adaptive::AdaptiveSettings;
 use crate::bvh::Aabb;
 use crate::camera::Camera;
+use crate::plural::count;
 use crate::scene::{CameraSpec, Light, Scene, check_image_size};
 use crate::stage::Stage;
 use crate::unoccludable::unoccludable_lights;
@@ -24,13 +25,13 @@ pub const MAX_SPANS: u32 = 10_000;
 /// Samples per span when the span count is chosen automatically.
 const AUTO_SAMPLES_PER_SPAN: u64 = 65_536;
 
-/// Shortest per-task timeout a plan gives, seconds.
-const MIN_TIMEOUT_SECONDS: u64 = 2;
+/// Shortest per-task timeout a plan gives, seconds (`hort render --help` and the README say it).
+pub const MIN_TIMEOUT_SECONDS: u64 = 2;
 /// Longest per-task timeout a plan gives, seconds: the five timed-out attempts the state
 /// machine allows, with their backoff, must fit an EXPRESS child's 5 minutes.
-const MAX_TIMEOUT_SECONDS: u64 = 40;
+pub const MAX_TIMEOUT_SECONDS: u64 = 40;
 /// A task's timeout is this many times its predicted time.
-const TIMEOUT_MULTIPLE: u64 = 3;
+pub const TIMEOUT_MULTIPLE: u64 = 3;
 /// Predicted start-up of any task (invocation, first storage round trips), microseconds.
 const STARTUP_MICROS: u64 = 500_000;
 /// Rays (in the stage's unit, see [`JobPlan::task_timeout_seconds`]) one function is
@@ -408,13 +409,15 @@ pub fn resolve_counts_with(
         && (k == 0 || k > max_k)
     {
         return Err(PipelineError::BadInput(format!(
-            "--splits {k} is out of range: the scene has {triangles} triangles, so use 1 to {max_k}"
+            "--splits {k} is out of range: the scene has {}, so use 1 to {max_k}",
+            count(triangles, "triangle")
         )));
     }
     let s = match request.spans {
         Some(s) if s == 0 || s > max_s => {
             return Err(PipelineError::BadInput(format!(
-                "--spans {s} is out of range: the image has {pixels} pixels, so use 1 to {max_s}"
+                "--spans {s} is out of range: the image has {}, so use 1 to {max_s}",
+                count(pixels, "pixel")
             )));
         }
         Some(s) => s,
@@ -586,6 +589,52 @@ mod tests {
                 .to_string(),
             "--spans 10001 is out of range: the image has 3072 pixels, so use 1 to 3072"
         );
+    }
+
+    /// One triangle, one pixel: singular; two of each: plural.
+    #[test]
+    fn counts_of_one_are_singular() {
+        assert_eq!(
+            counts(&req(Some(2), None), 1).unwrap_err().to_string(),
+            "--splits 2 is out of range: the scene has 1 triangle, so use 1 to 1"
+        );
+        assert_eq!(
+            counts(&req(Some(3), None), 2).unwrap_err().to_string(),
+            "--splits 3 is out of range: the scene has 2 triangles, so use 1 to 2"
+        );
+        let pixels = |width, height| PlanRequest {
+            width,
+            height,
+            ..req(None, Some(3))
+        };
+        assert_eq!(
+            counts(&pixels(1, 1), 100).unwrap_err().to_string(),
+            "--spans 3 is out of range: the image has 1 pixel, so use 1 to 1"
+        );
+        assert_eq!(
+            counts(&pixels(2, 1), 100).unwrap_err().to_string(),
+            "--spans 3 is out of range: the image has 2 pixels, so use 1 to 2"
+        );
+        let staged = choose_shape(
+            100,
+            1,
+            DEFAULT_MEMORY_MB,
+            None,
+            Some(ExecutionMode::Staged),
+            MAX_SPLITS,
+            0,
+        )
+        .unwrap();
+        assert_eq!(
+            staged.reason,
+            format!(
+                "forced by --mode staged; 1 split is the fewest whose tasks fit {DEFAULT_MEMORY_MB} MB"
+            )
+        );
+        let reason = choose_shape(100, 1, DEFAULT_MEMORY_MB, Some(2), None, MAX_SPLITS, 0)
+            .unwrap()
+            .reason;
+        assert_eq!(reason, "--splits 2: HORT's staged shuffle over 2 splits");
     }
 
     #[test]

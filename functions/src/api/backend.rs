@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 use std::ops::Range;
 
-use hort_core::pipeline::PlanRequest;
+use hort_core::pipeline::{PlanRequest, StoredOutputs};
 use hort_core::store::{BlobStore, StoreError};
 use serde::{Deserialize, Serialize};
 
@@ -89,6 +89,11 @@ pub struct JobStatus {
     /// Tasks done per stage, in stage order (empty if the backend does not count them).
     #[serde(default)]
     pub stages: Vec<StageProgress>,
+    /// What the job stores besides its PNG (the request's `outputs`): `GET .../image` serves
+    /// `format=pfm` and `format=exr` only if `linear`. Both for a job of a record that does not
+    /// say (as for a request that does not).
+    #[serde(default)]
+    pub outputs: StoredOutputs,
 }
 
 /// One stage's progress in a [`JobStatus`].

@@ -200,10 +200,17 @@ fn write_row(out: &mut String, j: &JobStatus) -> std::fmt::Result {
         write!(
             out,
             "<a href=\"renders/{id}/image\"><img class=\"result\" alt=\"image of {id}\" \
-             src=\"renders/{id}/image\"></a><br><a href=\"renders/{id}/image?format=pfm\">PFM</a> \
-             <a href=\"renders/{id}/image?format=exr\">EXR</a> \
-             <a href=\"renders/{id}/report\">report</a>"
+             src=\"renders/{id}/image\"></a><br>"
         )?;
+        // The linear formats only of a job that stored its linear image (others answer 404).
+        if j.outputs.linear {
+            write!(
+                out,
+                "<a href=\"renders/{id}/image?format=pfm\">PFM</a> \
+                 <a href=\"renders/{id}/image?format=exr\">EXR</a> "
+            )?;
+        }
+        write!(out, "<a href=\"renders/{id}/report\">report</a>")?;
     }
     if !j.status.is_final() {
         write!(
@@ -233,10 +240,61 @@ fn write_progress(out: &mut String, j: &JobStatus) -> std::fmt::Result {
         let stage = escape_html(stage);
         write!(
             out,
-            "<div class=\"bar\" title=\"{stage}: {done} of {total} tasks\"><label>{stage}</label>\
+            "<div class=\"bar\" title=\"{stage}: {done} of {}\"><label>{stage}</label>\
              <progress max=\"{}\" value=\"{done}\"></progress><span>{done}/{total}</span></div>",
+            hort_core::plural::count(*total, "task"),
             (*total).max(1)
         )?;
     }
     writeln!(out, "</td>")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hort_core::pipeline::StoredOutputs;
+
+    fn succeeded(outputs: StoredOutputs) -> JobStatus {
+        JobStatus {
+            job: "j1".into(),
+            status: JobState::Succeeded,
+            stage: Some("combine".into()),
+            tasks_done: 2,
+            tasks_total: 2,
+            retried_attempts: 0,
+            elapsed_seconds: 1.0,
+            cost_usd: Some(0.001),
+            predicted_cost_usd: 0.001,
+            max_cost_usd: None,
+            error: None,
+            image_url: None,
+            scene: Some("s.obj".into()),
+            stages: Vec::new(),
+            outputs,
+        }
+    }
+
+    /// The links of a succeeded job: the linear formats only if it stored its linear image.
+    #[test]
+    fn a_job_links_only_the_formats_it_stored() {
+        let links = |outputs| {
+            let table = jobs_table(&[succeeded(outputs)]);
+            let cell = table.split("<td class=\"out\">").nth(1).unwrap();
+            cell[..cell.find("</td>").unwrap()].to_owned()
+        };
+        let image = "<a href=\"renders/j1/image\"><img class=\"result\" alt=\"image of j1\" \
+                     src=\"renders/j1/image\"></a><br>";
+        assert_eq!(
+            links(StoredOutputs::PNG),
+            format!("{image}<a href=\"renders/j1/report\">report</a>")
+        );
+        assert_eq!(
+            links(StoredOutputs::ALL),
+            format!(
+                "{image}<a href=\"renders/j1/image?format=pfm\">PFM</a> <a \
+                 href=\"renders/j1/image?format=exr\">EXR</a> <a \
+                 href=\"renders/j1/report\">report</a>"
+            )
+        );
+    }
 }

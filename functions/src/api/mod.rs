@@ -62,6 +62,7 @@ use hort_core::error::SceneError;
 use hort_core::ids::JobId;
 use hort_core::pipeline::estimate::estimated_plan;
 use hort_core::pipeline::{MAX_SPANS, MAX_SPLITS, PlanRequest, SplitMode, StoredOutputs};
+use hort_core::plural::count;
 use hort_core::scene::{
     DEFAULT_HEIGHT, DEFAULT_WIDTH, MAX_IMAGE_SIDE, MAX_SPP, Scene, check_image_size,
 };
@@ -559,7 +560,8 @@ fn post_renders(
         return Err(ApiError::invalid_field(
             "splits",
             format!(
-                "splits: {k} is out of range: the scene has {triangles} triangles, so use 1 to {max_k}"
+                "splits: {k} is out of range: the scene has {}, so use 1 to {max_k}",
+                count(triangles, "triangle")
             ),
         ));
     }
@@ -569,7 +571,8 @@ fn post_renders(
         return Err(ApiError::invalid_field(
             "spans",
             format!(
-                "spans: {s} is out of range: the image has {pixels} pixels, so use 1 to {max_s}"
+                "spans: {s} is out of range: the image has {}, so use 1 to {max_s}",
+                count(pixels, "pixel")
             ),
         ));
     }
@@ -593,11 +596,11 @@ fn post_renders(
         && prediction.predicted_cost_usd > budget
     {
         return Err(ApiError::over_budget(format!(
-            "the predicted cost {} is over the budget max_cost_usd = {} ({} tasks, about {:.1} s); \
+            "the predicted cost {} is over the budget max_cost_usd = {} ({}, about {:.1} s); \
              raise the budget or render fewer pixels or samples",
             usd(prediction.predicted_cost_usd),
             usd(budget),
-            prediction.tasks_total,
+            count(prediction.tasks_total, "task"),
             prediction.predicted_seconds,
         )));
     }

@@ -103,6 +103,7 @@ impl RenderBackend for Fake {
                     total: s.tasks,
                 })
                 .collect(),
+            outputs: jobs[i].request.outputs,
         })
     }
     fn list(&self, limit: usize) -> Result<Vec<JobStatus>, ApiError> {

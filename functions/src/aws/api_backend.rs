@@ -23,6 +23,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 use hort_core::cost::Arch;
 use hort_core::ids::{JobId, Stage};
 use hort_core::keys::{manifest_key, scene_binary_key};
+use hort_core::pipeline::StoredOutputs;
 use hort_core::store::{BlobStore, PutOutcome, StoreError};
 use serde::{Deserialize, Serialize};
 use tokio::runtime::Handle;
@@ -63,6 +64,9 @@ struct JobRecord {
     /// The request body's fingerprint (records of older versions have none: any body matches).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     request_fingerprint: Option<String>,
+    /// What the job stores besides its PNG (records of older versions: everything).
+    #[serde(default)]
+    outputs: StoredOutputs,
 }
 
 fn record_key(job: &JobId) -> String {
@@ -260,6 +264,7 @@ impl AwsBackend {
             image_url: None,
             scene: Some(record.scene.clone()),
             stages: Vec::new(),
+            outputs: record.outputs,
         })
     }
 
@@ -360,6 +365,7 @@ impl RenderBackend for AwsBackend {
             idempotency_key: spec.idempotency_key.clone(),
             max_cost_usd: spec.max_cost_usd,
             request_fingerprint: Some(spec.request_fingerprint.clone()),
+            outputs: spec.request.outputs,
         };
         let json = serde_json::to_vec(&record)
             .map_err(|e| ApiError::internal(format!("cannot encode the job's record: {e}")))?;

@@ -6,6 +6,7 @@
 use super::HandlerError;
 use super::events::JobRequest;
 use hort_core::pipeline::JobPlan;
+use hort_core::plural::count;
 use hort_core::predict::{predict, usd};
 
 /// `Hort.BadInput` when the cost predicted for `plan` (with the model the API predicted with)
@@ -19,12 +20,12 @@ pub(super) fn check_budget(request: &JobRequest, plan: &JobPlan) -> Result<(), H
         return Ok(());
     }
     Err(HandlerError::bad_input(format!(
-        "the predicted cost {} of the scene as loaded ({} triangles, {} tasks, about {:.1} s) is \
+        "the predicted cost {} of the scene as loaded ({}, {}, about {:.1} s) is \
          over the budget max_cost_usd = {}: the job was accepted on an estimate from the \
          scene's file sizes; raise the budget or render fewer pixels or samples",
         usd(prediction.predicted_cost_usd),
-        plan.triangles,
-        prediction.tasks_total,
+        count(plan.triangles, "triangle"),
+        count(prediction.tasks_total, "task"),
         prediction.predicted_seconds,
         usd(budget.max_cost_usd),
     )))

@@ -6,6 +6,8 @@
 //! - stores key `k` in the file named `k` + [`OBJECT_SUFFIX`] (a `~` in `k` is doubled first),
 //!   so no object file is ever a directory of another key;
 //! - serialises conditional puts against all other puts, so exactly one racer creates the object;
+//! - removes on delete what `s3s-fs` leaves behind: the object's metadata files and the
+//!   folders of its key left empty, so a data directory does not grow with deleted objects;
 //! - lists by itself (sorted by key bytes, with prefix, delimiter, start-after, continuation token
 //!   and max-keys as S3 defines them), since the stored names sort differently from the keys.
 //!
@@ -42,7 +44,8 @@ pub(crate) struct ObjectFiles {
     files: s3s_fs::FileSystem,
     /// The data directory `files` serves; bucket `b` is its subdirectory `b`.
     root: PathBuf,
-    /// Plain puts share it; conditional puts hold it alone, so check-then-write is atomic.
+    /// Plain puts share it; conditional puts hold it alone, so check-then-write is atomic;
+    /// deletes hold it alone, so pruning an emptied folder never races a put into it.
     puts: RwLock<()>,
 }
 
@@ -96,6 +99,41 @@ impl ObjectFiles {
             .collect();
         objects.sort_by(|a, b| a.key.cmp(&b.key));
         Ok(objects)
+    }
+
+    /// Removes what `s3s-fs` leaves behind when it deletes the object stored as `file` (the
+    /// encoded key, see [`file_of_key`]) in `bucket`: its metadata and checksum files in the
+    /// data directory (`.bucket-B.object-K.metadata.json` and `.internal.json`, B and K in
+    /// URL-safe base64), and the folders of the key left empty, up to the bucket's folder
+    /// (kept). Without this, a data directory grows by two files per object ever deleted.
+    /// Callers hold `puts` alone, so no put is between creating a folder and filling it.
+    fn remove_leftovers(&self, bucket: &str, file: &str) -> S3Result<()> {
+        let encode = |s: &str| base64_simd::URL_SAFE_NO_PAD.encode_to_string(s);
+        let stem = format!(".bucket-{}.object-{}", encode(bucket), encode(file));
+        for suffix in [".metadata.json", ".internal.json"] {
+            let path = self.root.join(format!("{stem}{suffix}"));
+            match std::fs::remove_file(&path) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                    return Err(s3_error!(
+                        InternalError,
+                        "cannot remove {}: {e}",
+                        path.display()
+                    ));
+                }
+                _ => {}
+            }
+        }
+        let bucket_dir = self.root.join(bucket);
+        let mut dir = bucket_dir.join(file);
+        while dir.pop() && dir.starts_with(&bucket_dir) && dir != bucket_dir {
+            match std::fs::remove_dir(&dir) {
+                Ok(()) => {}
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+                // Not empty (another key lives there) or not removable: the folders above stay.
+                Err(_) => break,
+            }
+        }
+        Ok(())
     }
 }
 
@@ -306,7 +344,12 @@ impl S3 for ObjectFiles {
     ) -> S3Result<S3Response<DeleteObjectOutput>> {
         self.require_bucket(&req.input.bucket)?;
         req.input.key = file_of_key(&req.input.key);
-        self.files.delete_object(req).await
+        let bucket = req.input.bucket.clone();
+        let file = req.input.key.clone();
+        let _alone = self.puts.write().await;
+        let response = self.files.delete_object(req).await?;
+        self.remove_leftovers(&bucket, &file)?;
+        Ok(response)
     }
 
     async fn delete_objects(
@@ -328,8 +371,13 @@ impl S3 for ObjectFiles {
         for object in objects.iter_mut() {
             object.key = file_of_key(&object.key);
         }
-        let _shared = self.puts.read().await;
+        let bucket = req.input.bucket.clone();
+        let files: Vec<String> = objects.iter().map(|o| o.key.clone()).collect();
+        let _alone = self.puts.write().await;
         let mut response = self.files.delete_objects(req).await?;
+        for file in &files {
+            self.remove_leftovers(&bucket, file)?;
+        }
         for deleted in response.output.deleted.iter_mut().flatten() {
             deleted.key = deleted.key.as_deref().and_then(key_of_file);
         }

@@ -200,6 +200,29 @@ pub(crate) fn tick(v: f64) -> String {
     }
 }
 
+/// The ticks of a log axis over `range`: every value 1, 2 or 5 times a power of ten in it
+/// (ends included), each of which [`tick`] labels. Over whole decades (as the charts' axes
+/// are) that is at least 4 ticks (1, 2, 5, 10 of the one decade).
+pub(crate) fn ticks_125(range: std::ops::Range<f64>) -> Vec<f64> {
+    let (lo, hi) = (range.start, range.end);
+    if !(lo > 0.0 && hi >= lo && hi.is_finite()) {
+        return Vec::new();
+    }
+    let slack = 1e-9;
+    let mut ticks = Vec::new();
+    for decade in (lo.log10().floor() as i32)..=(hi.log10().ceil() as i32) {
+        for m in [1.0, 2.0, 5.0] {
+            // Decimal text back to a number, so 2e-3 is the double nearest 0.002 and `tick`
+            // labels it.
+            let v: f64 = format!("{m}e{decade}").parse().unwrap_or(f64::NAN);
+            if v >= lo * (1.0 - slack) && v <= hi * (1.0 + slack) {
+                ticks.push(v);
+            }
+        }
+    }
+    ticks
+}
+
 /// An 8-bit RGB PNG of `rgb` (row-major, top row first), deterministic (fixed filter and
 /// compressor).
 pub(crate) fn encode_png(rgb: &[u8], width: u32, height: u32) -> Result<Vec<u8>> {
@@ -218,7 +241,7 @@ pub(crate) fn encode_png(rgb: &[u8], width: u32, height: u32) -> Result<Vec<u8>>
 
 #[cfg(test)]
 mod tests {
-    use super::tick;
+    use super::{tick, ticks_125};
 
     #[test]
     fn ticks_label_1_2_5_only() {
@@ -228,5 +251,24 @@ mod tests {
         assert_eq!(tick(5.0), "5");
         assert_eq!(tick(10.0), "10");
         assert_eq!(tick(0.0), "");
+    }
+
+    /// The axes of `hort plan --chart` as drawn for docs/plan/projection.png (whole decades
+    /// around $0.0040 to $0.047, and 1.2 to 600 s): every 1-2-5 value is a labelled tick.
+    #[test]
+    fn log_axes_get_a_labelled_tick_at_every_1_2_5_value() {
+        let labels = |lo, hi| -> Vec<String> { ticks_125(lo..hi).into_iter().map(tick).collect() };
+        assert_eq!(
+            labels(0.001, 0.1),
+            ["0.001", "0.002", "0.005", "0.01", "0.02", "0.05", "0.1"]
+        );
+        assert_eq!(labels(0.001, 0.01), ["0.001", "0.002", "0.005", "0.01"]);
+        assert_eq!(
+            labels(1.0, 1000.0),
+            ["1", "2", "5", "10", "20", "50", "100", "200", "500", "1000"]
+        );
+        // Not on whole decades: the 1-2-5 values inside.
+        assert_eq!(labels(0.003, 0.03), ["0.005", "0.01", "0.02"]);
+        assert_eq!(labels(0.0, 1.0), Vec::<String>::new());
     }
 }

@@ -27,8 +27,9 @@ pub struct EvalArgs {
     /// The folder with one `{scene}.pfm` per scene and `mitsuba.csv` (eval/references).
     #[arg(long)]
     pub references: PathBuf,
-    /// Output folder for `eval.csv`, `eval.png` and `eval-distributed.png`.
-    #[arg(long, default_value = ".")]
+    /// Output folder for `eval.csv`, `eval.png` and `eval-distributed.png` (default out/eval,
+    /// beside the committed results; `--out docs/eval` replaces those).
+    #[arg(long, default_value = "out/eval")]
     pub out: PathBuf,
     /// Image size; must be the references' size.
     #[arg(long, default_value_t = 320, value_parser = clap::value_parser!(u32).range(1..=65536))]

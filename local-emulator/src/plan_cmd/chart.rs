@@ -2,7 +2,7 @@
 //! per scene, on log-log axes (two panels side by side), drawn like `hort eval`'s charts (the
 //! same embedded font and palette). The same projections give the same bytes.
 
-use crate::eval::chart::{FAMILY, PALETTE, encode_png, plot_err, register_font, tick};
+use crate::eval::chart::{FAMILY, PALETTE, encode_png, plot_err, register_font, tick, ticks_125};
 use anyhow::{Result, bail};
 use hort_core::predict::Projection;
 use plotters::prelude::*;
@@ -81,8 +81,10 @@ fn panel(
         .filter(|v| *v > 0.0);
     let lo = values.clone().fold(f64::INFINITY, f64::min);
     let hi = values.fold(0.0, f64::max);
-    // Whole decades, so the axis has at least two labelled ticks.
+    // Whole decades, ticked at every 1-2-5 value (plotters' own log ticks fall between them,
+    // so one decade had a single label): at least 4 labelled ticks.
     let y = 10f64.powf(lo.log10().floor())..10f64.powf(hi.log10().ceil());
+    let y_ticks = ticks_125(y.clone());
     let x = 1.0..f64::from(CHART_SWEEP[CHART_SWEEP.len() - 1]);
     let mut chart = ChartBuilder::on(area)
         .caption(
@@ -92,7 +94,7 @@ fn panel(
         .margin(12)
         .x_label_area_size(42)
         .y_label_area_size(70)
-        .build_cartesian_2d(x.log_scale(), y.log_scale())
+        .build_cartesian_2d(x.log_scale(), y.log_scale().with_key_points(y_ticks))
         .map_err(plot_err)?;
     chart
         .configure_mesh()

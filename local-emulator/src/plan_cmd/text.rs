@@ -2,6 +2,7 @@
 //! the sweep, and the notes, in fixed-width tables.
 
 use super::PlanOutput;
+use hort_core::plural::count;
 use hort_core::predict::{Projection, Target, usd};
 use std::fmt::Write;
 
@@ -10,14 +11,13 @@ pub fn render(o: &PlanOutput) -> String {
     let mut t = String::new();
     let _ = writeln!(
         t,
-        "plan: {}, {}x{}, {} spp, {} triangles, {} light{}",
+        "plan: {}, {}x{}, {} spp, {}, {}",
         o.scene,
         o.width,
         o.height,
         o.spp,
-        o.triangles,
-        o.lights,
-        if o.lights == 1 { "" } else { "s" }
+        count(o.triangles, "triangle"),
+        count(o.lights, "light"),
     );
     let _ = writeln!(t, "mode: {} ({})", o.mode, o.mode_reason);
     let _ = writeln!(
@@ -76,6 +76,11 @@ pub fn render(o: &PlanOutput) -> String {
         );
     }
     let _ = writeln!(t, "total: {}", summary(&o.chosen));
+    let _ = writeln!(
+        t,
+        "cost: predicted from the model above, not measured (`hort render` prices a run's task \
+         times on this machine and its requests, so the two differ)"
+    );
     let _ = writeln!(t, "\nsweep:");
     let _ = writeln!(
         t,

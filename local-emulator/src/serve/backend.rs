@@ -47,6 +47,20 @@ fn status_key(job: &str) -> String {
     format!("{API_PREFIX}{job}/status.json")
 }
 
+/// The state `hort serve` recorded for `job` in `store` (its `status.json`), or `None` if it
+/// served no job of that id. `hort jobs list` shows it.
+pub fn recorded_state(store: &dyn BlobStore, job: &str) -> Result<Option<JobState>> {
+    let key = status_key(job);
+    let bytes = match store.get(&key) {
+        Ok(bytes) => bytes,
+        Err(e) if e.is_not_found() => return Ok(None),
+        Err(e) => return Err(e).with_context(|| format!("cannot read {key}")),
+    };
+    let record: JobRecord =
+        serde_json::from_slice(&bytes).with_context(|| format!("cannot decode {key}"))?;
+    Ok(Some(record.status))
+}
+
 fn report_key(job: &str) -> String {
     format!("{API_PREFIX}{job}/report.json")
 }
@@ -195,6 +209,7 @@ impl Job {
                 r.stages
             },
             scene: Some(r.scene),
+            outputs: r.request.outputs,
         }
     }
 

@@ -11,10 +11,11 @@ use std::sync::{Arc, Mutex};
 
 use anyhow::{Result, bail};
 use clap::Args;
+use hort_core::plural::count;
 use hort_core::render::available_cores;
 use tokio::sync::oneshot;
 
-pub use backend::EmulatorBackend;
+pub use backend::{EmulatorBackend, recorded_state};
 
 /// The flags of `hort serve`.
 #[derive(Args)]
@@ -74,13 +75,13 @@ fn serve_over(
     let backend = Arc::new(EmulatorBackend::open(data_dir, workers, max_jobs)?);
     let (stop_tx, stop_rx) = oneshot::channel();
     let stop_tx = Mutex::new(Some(stop_tx));
-    let _ = ctrlc::set_handler(move || {
+    let _ = crate::stop_signals::on_stop_signals(move |signal| {
         match stop_tx.lock().unwrap_or_else(|e| e.into_inner()).take() {
             Some(tx) => {
-                eprintln!("hort serve: stopping; press Ctrl-C again to quit at once");
+                eprintln!("hort serve: stopping; {}", signal.quit_at_once());
                 let _ = tx.send(());
             }
-            None => hort::emulator::exit_now(130),
+            None => hort::emulator::exit_now(signal.exit_code()),
         }
     });
     let jobs = backend.job_count();
@@ -110,9 +111,11 @@ fn serve_over(
             };
             eprintln!(
                 "hort serve: listening on http://{addr} ({reach}; dashboard at http://{addr}/; \
-                 {workers} function slots per job, at most {max_jobs} jobs at once, data in \
-                 {}{kept}, {jobs} jobs known)",
-                data_dir.display()
+                 {} per job, at most {} at once, data in {}{kept}, {} known)",
+                count(workers as u64, "function slot"),
+                count(max_jobs as u64, "job"),
+                data_dir.display(),
+                count(jobs as u64, "job"),
             );
         },
         stop_rx,

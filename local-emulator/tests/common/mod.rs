@@ -14,12 +14,30 @@ pub fn scene(rel: &str) -> PathBuf {
         .join(rel)
 }
 
-/// An empty folder of this test process, named after the test.
-pub fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("hort-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// An empty folder under the system temporary folder, named after the test, removed with
+/// everything in it when dropped (a failed test leaves nothing behind either). Used as a `Path`.
+pub struct Scratch(tempfile::TempDir);
+
+impl std::ops::Deref for Scratch {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        self.0.path()
+    }
+}
+
+impl AsRef<Path> for Scratch {
+    fn as_ref(&self) -> &Path {
+        self.0.path()
+    }
+}
+
+/// A fresh [`Scratch`] folder, `hort-cli-{name}-XXXXXX`.
+pub fn scratch(name: &str) -> Scratch {
+    let dir = tempfile::Builder::new()
+        .prefix(&format!("hort-cli-{name}-"))
+        .tempdir()
+        .unwrap_or_else(|e| panic!("cannot create a scratch folder for {name}: {e}"));
+    Scratch(dir)
 }
 
 /// Runs `hort` with `args` and waits for it.
@@ -32,9 +50,9 @@ pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
-/// The files in `dir`, sorted.
 pub mod server;
 
+/// The files in `dir`, sorted.
 pub fn files_in(dir: &Path) -> Vec<String> {
     let mut names: Vec<String> = std::fs::read_dir(dir)
         .unwrap()

@@ -58,7 +58,9 @@ pub fn cut_splits(
     let n: u64 = indexes.iter().map(|i| i.records).sum();
     if k == 0 || u64::from(k) > n {
         return Err(PipelineError::BadInput(format!(
-            "cannot cut {n} triangles into {k} splits"
+            "cannot cut {} into {}",
+            crate::plural::count(n, "triangle"),
+            crate::plural::count(u64::from(k), "split")
         )));
     }
     let mut used: Option<(DVec3, DVec3)> = None;

@@ -70,12 +70,12 @@ fn run_all(store: &dyn BlobStore, job: &JobId, plan: &JobPlan) -> crate::pipelin
     read_outputs(store, job, plan).unwrap()
 }
 
-/// A fresh scratch folder for one test.
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("hort-parts-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A fresh scratch folder for one test, `hort-parts-{name}-XXXXXX`, removed when dropped.
+fn scratch(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix(&format!("hort-parts-{name}-"))
+        .tempdir()
+        .unwrap()
 }
 
 fn bits(image: &crate::image::Image) -> Vec<u32> {
@@ -138,8 +138,9 @@ fn tricky_scene(dir: &Path) -> PathBuf {
 
 #[test]
 fn one_split_built_by_tasks_is_byte_for_byte_the_in_memory_split() {
-    let dir = scratch("one-split");
-    let tricky = tricky_scene(&dir);
+    let tmp = scratch("one-split");
+    let dir = tmp.path();
+    let tricky = tricky_scene(dir);
     // One line per range, and a few ranges, for the small scene; larger ranges for the rest.
     let cases = [
         (tricky, vec![1, 200, 1 << 30]),
@@ -183,8 +184,9 @@ fn one_split_built_by_tasks_is_byte_for_byte_the_in_memory_split() {
 
 #[test]
 fn staged_jobs_split_by_tasks_render_the_monolithic_image() {
-    let dir = scratch("staged");
-    let tricky = tricky_scene(&dir);
+    let tmp = scratch("staged");
+    let dir = tmp.path();
+    let tricky = tricky_scene(dir);
     for (main, k) in [
         (tricky, 3),
         (repo("scenes/bunny/bunny.json"), 4),
@@ -221,13 +223,14 @@ fn staged_jobs_split_by_tasks_render_the_monolithic_image() {
 
 #[test]
 fn a_bad_scene_is_refused_by_the_scan_with_the_whole_load_error() {
-    let dir = scratch("bad");
+    let tmp = scratch("bad");
+    let dir = tmp.path();
     let main = dir.join("bad.obj");
     std::fs::write(&main, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 7\n").unwrap();
     let whole = load_scene(&main).unwrap_err().to_string();
     let store = MemoryStore::new();
     let job = JobId::new("j").unwrap();
-    let scan = scan_scene(&store, &job, &dir, &main, 8)
+    let scan = scan_scene(&store, &job, dir, &main, 8)
         .unwrap_err()
         .to_string();
     assert_eq!(scan, whole);
@@ -263,15 +266,16 @@ fn cuts_take_equal_runs_of_bucket_then_id_order() {
 
 #[test]
 fn a_build_task_recomputes_lost_or_damaged_partitions_from_their_lineage() {
-    let dir = scratch("lineage");
-    let main = tricky_scene(&dir);
+    let tmp = scratch("lineage");
+    let dir = tmp.path();
+    let main = tricky_scene(dir);
     let req = request(2, Some(ExecutionMode::Staged));
     let job = JobId::new("j").unwrap();
     let clean = MemoryStore::new();
     plan_by_parts(&clean, &job, &main, 200, &req);
     let damaged = MemoryStore::new();
     upload(&damaged, &job, &main);
-    let table = scan_scene(&damaged, &job, &dir, &main, 200).unwrap();
+    let table = scan_scene(&damaged, &job, dir, &main, 200).unwrap();
     assert!(table.ranges.len() > 3, "{} ranges", table.ranges.len());
     for range in 0..table.ranges.len() as u32 {
         partition_range(&damaged, &job, range).unwrap();
