@@ -164,8 +164,9 @@ fn a_manifest_without_light_warns_that_the_image_will_be_black() {
     assert!(pfm[header..].iter().all(|&b| b == 0), "the image is black");
 }
 
-/// An exported OBJ with a texture, a shiny bright material, skin weights and normals it never
-/// defines: rendered, with one warning per thing that is not drawn as the file asks.
+/// An exported OBJ with a texture that did not come with it, a shiny bright material, skin
+/// weights and normals it never defines: rendered with `--missing-textures flat`, with one
+/// warning per thing that is not drawn as the file asks.
 #[test]
 fn an_obj_from_the_wild_renders_with_warnings() {
     let dir = scratch("wild");
@@ -180,7 +181,13 @@ fn an_obj_from_the_wild_renders_with_warnings() {
         b"mtllib wild.mtl\nv 0 0 0\nvw 1 0 1\nv 1 0 0\nvw 2 0 1\nv 0 1 0\nvw 3 0 1\nv 1 1 0.5\n\
           usemtl body\nf 1//1 2//1 3//1\nusemtl eyes\nf 2//1 4//1 3//1\n",
     );
-    let (_, hits, err) = render(&obj, &dir, 32, 24, &["--monolithic"]);
+    let (_, hits, err) = render(
+        &obj,
+        &dir,
+        32,
+        24,
+        &["--monolithic", "--missing-textures", "flat"],
+    );
     let hits = decode_hits(&hits, 32, 24).unwrap();
     assert!(hits.iter().any(|h| !h.is_miss()));
     let (o, m) = (obj.display(), dir.join("wild.mtl"));
@@ -189,10 +196,6 @@ fn an_obj_from_the_wild_renders_with_warnings() {
         warnings(&err),
         vec![
             format!(
-                "{m}:3: material \"body\" uses a texture (map_Kd body.png); textures are not \
-                 rendered, so the surface shows its flat Kd colour instead (grey 0.7 without Kd)"
-            ),
-            format!(
                 "{m}:6: material \"eyes\" has a specular colour (Ks 1 1 1); highlights and \
                  reflections are not rendered, the surface is purely diffuse (Kd only)"
             ),
@@ -200,6 +203,11 @@ fn an_obj_from_the_wild_renders_with_warnings() {
                 "{m}:5: material \"eyes\" has a diffuse colour above 1 (Kd 1.5 1.5 1.5); a surface \
                  that reflects more light than it receives is not physically plausible; it is \
                  rendered as given (use Kd values from 0 to 1)"
+            ),
+            format!(
+                "{}: texture of {m}:3 material \"body\": the file does not exist; the surface \
+                 shows its flat Kd colour instead (--missing-textures flat)",
+                dir.join("body.png").display()
             ),
             format!("{o}:3: unknown statement \"vw\" skipped"),
             format!(

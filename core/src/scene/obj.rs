@@ -302,8 +302,12 @@ impl<'a> ObjParser<'a> {
         }
     }
 
-    /// End of file: report what was skipped as a whole.
+    /// End of file: report what was skipped as a whole. Texture coordinates no textured
+    /// triangle uses are dropped (the binary scene does not carry them).
     fn finish(&mut self) {
+        if self.mesh.triangle_texcoords.is_empty() {
+            self.mesh.texcoords = Vec::new();
+        }
         let path = self.path.display();
         if let Some((line, _)) = self.normal_without_vn {
             self.warnings.push(format!(
@@ -314,7 +318,7 @@ impl<'a> ObjParser<'a> {
         if let Some((line, _)) = self.texcoord_without_vt {
             self.warnings.push(format!(
                 "{path}:{line}: faces name texture coordinates, but the file defines none (no \
-                 \"vt\" statements); they are ignored (texture coordinates are not used)"
+                 \"vt\" statements); they are ignored (their materials show no texture)"
             ));
         }
         if let Some((keyword, line, more)) = self.unknown_unreported.take() {

@@ -557,3 +557,64 @@ fn names_with_control_characters_stay_on_one_line() {
         "{e}"
     );
 }
+
+/// A 2 x 1 PNG: red then blue.
+fn tiny_png() -> Vec<u8> {
+    let mut png = Vec::new();
+    image::RgbImage::from_fn(2, 1, |x, _| {
+        image::Rgb(if x == 0 { [255, 0, 0] } else { [0, 0, 255] })
+    })
+    .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+    .unwrap();
+    png
+}
+
+/// Faces of a textured material keep their texture coordinates (a polygon's fan triangles
+/// each theirs); faces without `vt`, or of an untextured material, have none; one file named
+/// by two materials is one texture.
+#[test]
+fn textured_faces_keep_their_coordinates_and_a_texture_is_loaded_once() {
+    let dir = scratch();
+    write(&dir, "t.png", &tiny_png());
+    write(
+        &dir,
+        "m.mtl",
+        b"newmtl a\nmap_Kd t.png\nnewmtl b\nKd 0.5 0.5 0.5\nmap_Kd -s 2 2 1 t.png\nnewmtl c\n",
+    );
+    let obj = write(
+        &dir,
+        "s.obj",
+        b"mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
+          usemtl a\nf 1/1 2/2 3/3 4/4\nf 1 2 3\nusemtl b\nf 1/4 2/3 3/2\nusemtl c\nf 1/1 2/2 3/3\n",
+    );
+    let mesh = load_scene(&obj).unwrap().mesh;
+    assert_eq!(mesh.textures.len(), 1);
+    assert_eq!((mesh.textures[0].width, mesh.textures[0].height), (2, 1));
+    assert_eq!(
+        mesh.triangle_texcoords,
+        vec![
+            [0, 1, 2],
+            [0, 2, 3],
+            [NO_TEXCOORD; 3],
+            [3, 2, 1],
+            [NO_TEXCOORD; 3]
+        ]
+    );
+    assert_eq!(mesh.texture_of(1).map(|(t, _)| t), Some(0));
+    assert_eq!(mesh.texture_of(2), None);
+    assert_eq!(
+        mesh.texture_of(3),
+        Some((0, [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0]]))
+    );
+    assert_eq!(mesh.texture_of(4), None);
+
+    // Without a textured material, texture coordinates are not kept at all.
+    let plain = write(
+        &dir,
+        "p.obj",
+        b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/1\n",
+    );
+    let mesh = load_scene(&plain).unwrap().mesh;
+    assert!(mesh.texcoords.is_empty() && mesh.triangle_texcoords.is_empty());
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -358,7 +358,7 @@ fn faces_naming_normals_of_a_file_without_normals_are_flat() {
             ),
             format!(
                 "{}:7: faces name texture coordinates, but the file defines none (no \"vt\" \
-                 statements); they are ignored (texture coordinates are not used)",
+                 statements); they are ignored (their materials show no texture)",
                 p.display()
             ),
         ]
