@@ -57,8 +57,8 @@ pub enum SceneError {
     },
     /// A face refers to a vertex or normal that does not exist.
     #[error(
-        "{p}:{line}: face refers to {what} {index}, but only {count} {plural} are defined so far",
-        plural = crate::plural::plural(what),
+        "{p}:{line}: face refers to {what} {index}, but only {defined} defined so far",
+        defined = crate::plural::count_is(*count as u64, what),
         p = shown(path)
     )]
     IndexOutOfRange {

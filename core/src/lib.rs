@@ -18,6 +18,8 @@ pub mod phase_timer;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+#[cfg(test)]
+mod scratch;
 pub mod shading;
 pub mod terminator;
 pub mod texture;

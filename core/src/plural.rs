@@ -19,6 +19,11 @@ pub fn count(n: u64, noun: &str) -> String {
     }
 }
 
+/// [`count`] with its verb: `1 vertex is`, `2 vertices are`.
+pub fn count_is(n: u64, noun: &str) -> String {
+    format!("{} {}", count(n, noun), if n == 1 { "is" } else { "are" })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -32,5 +37,7 @@ mod tests {
         assert_eq!(count(2, "vertex"), "2 vertices");
         assert_eq!(count(1, "finished task"), "1 finished task");
         assert_eq!(count(1_000, "span"), "1000 spans");
+        assert_eq!(count_is(1, "vertex"), "1 vertex is");
+        assert_eq!(count_is(0, "normal"), "0 normals are");
     }
 }

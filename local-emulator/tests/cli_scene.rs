@@ -238,7 +238,7 @@ fn files_that_are_not_obj_are_refused() {
         (
             "normals.obj",
             b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//2 3//1\n",
-            "5: face refers to normal 2, but only 1 normals are defined so far",
+            "5: face refers to normal 2, but only 1 normal is defined so far",
         ),
     ];
     for (name, bytes, tail) in cases {

@@ -1,18 +1,10 @@
 //! Every bad scene gets one clear message naming the file and line or JSON field.
 
 use super::*;
-use std::sync::atomic::{AtomicU32, Ordering};
 
-/// A fresh scratch folder per call.
-fn scratch() -> PathBuf {
-    static N: AtomicU32 = AtomicU32::new(0);
-    let dir = std::env::temp_dir().join(format!(
-        "hort-scene-tests-{}-{}",
-        std::process::id(),
-        N.fetch_add(1, Ordering::Relaxed)
-    ));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A fresh scratch folder per call, removed when dropped.
+fn scratch() -> crate::scratch::Scratch {
+    crate::scratch::Scratch::new("hort-scene-tests-")
 }
 
 fn write(dir: &Path, name: &str, text: &[u8]) -> PathBuf {
@@ -93,7 +85,7 @@ fn face_index_out_of_range_names_line_and_counts() {
     assert_eq!(
         e,
         format!(
-            "{}:5: face refers to normal 2, but only 1 normals are defined so far",
+            "{}:5: face refers to normal 2, but only 1 normal is defined so far",
             p.display()
         )
     );

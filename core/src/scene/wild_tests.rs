@@ -3,18 +3,10 @@
 
 use super::*;
 use crate::render::{RenderSettings, build_scene_bvh, render};
-use std::sync::atomic::{AtomicU32, Ordering};
 
-/// A fresh scratch folder per call.
-fn scratch() -> PathBuf {
-    static N: AtomicU32 = AtomicU32::new(0);
-    let dir = std::env::temp_dir().join(format!(
-        "hort-scene-wild-{}-{}",
-        std::process::id(),
-        N.fetch_add(1, Ordering::Relaxed)
-    ));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A fresh scratch folder per call, removed when dropped.
+fn scratch() -> crate::scratch::Scratch {
+    crate::scratch::Scratch::new("hort-scene-wild-")
 }
 
 fn write(dir: &Path, name: &str, text: &[u8]) -> PathBuf {
@@ -380,11 +372,11 @@ fn bad_normal_and_texture_references_are_still_refused() {
     let cases = [
         (
             "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//2 3//1\n",
-            "5: face refers to normal 2, but only 1 normals are defined so far",
+            "5: face refers to normal 2, but only 1 normal is defined so far",
         ),
         (
             "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/2 3/1\n",
-            "5: face refers to texture coordinate 2, but only 1 texture coordinates are defined \
+            "5: face refers to texture coordinate 2, but only 1 texture coordinate is defined \
              so far",
         ),
         (

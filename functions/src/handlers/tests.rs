@@ -344,13 +344,13 @@ fn a_missing_corrupt_or_newer_binary_scene_is_bad_input_naming_the_key() {
         ))
     );
     let mut newer = good.clone();
-    newer[8] = 2;
+    newer[8] = 3;
     store.put("jobs/jb/scene/scene.bin", &newer).unwrap();
     assert_eq!(
         plan(&store),
         HandlerError::bad_input(
-            "jobs/jb/scene/scene.bin: format version 2 at byte 8 is not supported: this build \
-             reads version 1 only"
+            "jobs/jb/scene/scene.bin: format version 3 at byte 8 is not supported: this build \
+             reads version 2 only"
         )
     );
     let mut flipped = good.clone();
@@ -388,8 +388,8 @@ fn a_missing_corrupt_or_newer_binary_scene_is_bad_input_naming_the_key() {
     assert_eq!(
         e,
         HandlerError::bad_input(
-            "jobs/jb/scene/scene.bin: format version 2 at byte 8 is not supported: this build \
-             reads version 1 only"
+            "jobs/jb/scene/scene.bin: format version 3 at byte 8 is not supported: this build \
+             reads version 2 only"
         )
     );
 }
