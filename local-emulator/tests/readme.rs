@@ -1,4 +1,4 @@
-//! The README against the code: what it tells a new user to run must exist, and the numbers
+//! The README (and .gitignore) against the code: what it tells a new user to run must exist, and the numbers
 //! and commands it states must be the code's.
 
 mod common;
@@ -104,4 +104,19 @@ fn task_timeout_help_and_readme_give_the_plans_bounds() {
         )),
         "{row}"
     );
+}
+
+/// What builds write is ignored by git: cargo's `target/` and `sam build`'s `.aws-sam/` (which
+/// `infra/build-lambdas.sh` leaves wherever `sam` runs).
+#[test]
+fn the_gitignore_ignores_what_builds_write() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../.gitignore");
+    let text = std::fs::read_to_string(&path).expect(".gitignore");
+    let lines: Vec<&str> = text.lines().map(str::trim).collect();
+    for pattern in ["/target", ".aws-sam/"] {
+        assert!(
+            lines.contains(&pattern),
+            ".gitignore has no line {pattern:?}: {lines:?}"
+        );
+    }
 }
