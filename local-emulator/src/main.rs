@@ -4,6 +4,8 @@
 
 mod bench;
 mod cli;
+#[cfg(test)]
+mod cli_reference;
 mod eval;
 mod jobs_cmd;
 mod outputs;
