@@ -89,7 +89,7 @@ pub struct RenderArgs {
     /// Adaptive sampling up to MAX_SPP samples per pixel (above --spp): first --spp samples
     /// (at least 2) in every pixel, then MAX_SPP in the pixels whose standard error is above
     /// --adaptive-threshold. Monolithic, fused or staged.
-    #[arg(long, value_name = "MAX_SPP", allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    #[arg(long, value_name = "MAX_SPP", allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=i64::from(hort_core::scene::MAX_SPP)))]
     pub adaptive: Option<u32>,
     /// The adaptive sampler's threshold on a pixel's standard error (linear radiance, the
     /// largest over R, G, B) after the first pass (default 0.002).

@@ -12,13 +12,13 @@ use hort_core::scene::{DEFAULT_HEIGHT, DEFAULT_WIDTH, ImageSettings, check_image
 #[derive(Args, Clone, Debug)]
 pub struct PlanFlags {
     /// Image width in pixels, 1 to 65536 (default: manifest, else 960).
-    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=i64::from(hort_core::scene::MAX_IMAGE_SIDE)))]
     pub width: Option<u32>,
     /// Image height in pixels, 1 to 65536 (default: manifest, else 540).
-    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=i64::from(hort_core::scene::MAX_IMAGE_SIDE)))]
     pub height: Option<u32>,
     /// Samples per pixel, 1 to 65536 (default: manifest, else 1).
-    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=i64::from(hort_core::scene::MAX_SPP)))]
     pub spp: Option<u32>,
     /// Scene splits k. 1 runs fused (one task renders a span against the whole scene), K > 1
     /// runs HORT's staged shuffle over K splits (default: fused when one function holds the
