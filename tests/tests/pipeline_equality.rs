@@ -246,3 +246,68 @@ fn lost_and_corrupt_blocks_are_recomputed_from_lineage() {
         "every block and the outputs are identical again"
     );
 }
+
+/// A task that reads textures gets them from their objects, checked against the plan's content
+/// key: rerun cold it stores the same bytes; a damaged texture object is an error naming its
+/// key, and one whose texels were replaced (a valid block with other contents) is refused too.
+#[test]
+fn tasks_read_textures_from_their_objects_checked_against_the_plan() {
+    let (store, run, job) = run_in_memory("globe/globe.json", 1, 2, 3);
+    assert_eq!(run.plan.textures.len(), 2);
+    let before = snapshot(&store);
+    let texture = before
+        .iter()
+        .map(|(k, _)| k.clone())
+        .find(|k| k.contains("/textures/"))
+        .expect("a texture object");
+    for span in 0..3 {
+        hort_core::pipeline::run_task(&store, &job, &run.plan, Stage::CastMap, span).unwrap();
+    }
+    assert_eq!(
+        snapshot(&store),
+        before,
+        "a cold rerun stores the same bytes"
+    );
+
+    let mut damaged = store.get(&texture).unwrap();
+    let mid = damaged.len() / 2;
+    damaged[mid] ^= 0x10;
+    store.put(&texture, &damaged).unwrap();
+    let tasks = 0..run.plan.cast_tasks.len() as u32;
+    let errors: Vec<String> = tasks
+        .clone()
+        .filter_map(|t| {
+            hort_core::pipeline::run_task(&store, &job, &run.plan, Stage::CastMap, t).err()
+        })
+        .map(|e| e.to_string())
+        .collect();
+    assert!(
+        !errors.is_empty(),
+        "some cast task reads the damaged texture"
+    );
+    assert!(errors.iter().all(|e| e.contains(&texture)), "{errors:?}");
+
+    let other = hort_core::texture::Texture {
+        name: "other.png".into(),
+        width: 1,
+        height: 1,
+        texels: vec![1, 2, 3],
+    };
+    store
+        .put(&texture, &hort_core::texture::encode_texture(&other))
+        .unwrap();
+    let err = tasks
+        .filter_map(|t| {
+            hort_core::pipeline::run_task(&store, &job, &run.plan, Stage::CastMap, t).err()
+        })
+        .map(|e| e.to_string())
+        .next()
+        .expect("a replaced texture is refused");
+    assert!(
+        err.ends_with(&format!(
+            "texture object {texture}: its texels do not match its content key (the object is \
+             damaged or was replaced)"
+        )),
+        "{err}"
+    );
+}
