@@ -37,7 +37,8 @@ impl PlannedTexture {
 
     /// Bytes the texture holds decoded.
     pub fn memory_bytes(&self) -> u64 {
-        3 * u64::from(self.width) * u64::from(self.height)
+        3u64.saturating_mul(u64::from(self.width))
+            .saturating_mul(u64::from(self.height))
     }
 }
 

@@ -41,8 +41,9 @@ pub fn decode_texture(key: &str, bytes: &[u8]) -> Result<Texture, String> {
         .map_err(|_| bad("its name is not UTF-8"))?
         .to_string();
     let texels = raw[name_end..].to_vec();
-    let expected = 3 * u64::from(width) * u64::from(height);
-    if width == 0 || height == 0 || texels.len() as u64 != expected {
+    // u128: three times two u32 sides can exceed u64 (a hostile header).
+    let expected = 3 * u128::from(width) * u128::from(height);
+    if width == 0 || height == 0 || texels.len() as u128 != expected {
         return Err(bad(&format!(
             "{width}x{height} texels need {expected} bytes, it holds {}",
             texels.len()

@@ -119,3 +119,19 @@ fn an_absurd_size_is_refused_before_it_is_allocated() {
         "{err}"
     );
 }
+
+/// Found by fuzzing (target `shuffle_block`): a header whose sides multiply past u64 panicked
+/// while its length was checked. It is an error naming the key.
+#[test]
+fn a_header_with_absurd_sides_is_an_error_not_a_panic() {
+    let mut raw = Vec::new();
+    raw.extend_from_slice(&u32::MAX.to_le_bytes());
+    raw.extend_from_slice(&u32::MAX.to_le_bytes());
+    raw.extend_from_slice(&0u32.to_le_bytes());
+    raw.extend_from_slice(&[1, 2, 3]);
+    let block = crate::shuffle::encode_block(crate::shuffle::RecordKind::Texture, 1, &raw);
+    assert_eq!(
+        decode_texture("t", &block).unwrap_err(),
+        "texture object t: 4294967295x4294967295 texels need 55340232195358851075 bytes, it holds 3"
+    );
+}
