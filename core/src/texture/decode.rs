@@ -42,11 +42,27 @@ pub fn decode_texture_image(bytes: &[u8], name: &str) -> Result<Texture, String>
     })
 }
 
-/// Reads and decodes the image file at `path`, calling the texture `name`.
+/// The largest texture file read: 1 GiB (a PNG or JPEG of the largest texture accepted is far
+/// smaller; this keeps a path to a device or a huge file from being read at all).
+pub const MAX_TEXTURE_FILE_BYTES: u64 = 1 << 30;
+
+/// Reads and decodes the image file at `path`, calling the texture `name`. Only a regular file
+/// of at most [`MAX_TEXTURE_FILE_BYTES`] is read.
 pub fn decode_texture_file(path: &Path, name: &str) -> Result<Texture, String> {
-    let bytes = std::fs::read(path).map_err(|e| match e.kind() {
+    let unreadable = |e: std::io::Error| match e.kind() {
         std::io::ErrorKind::NotFound => "the file does not exist".to_string(),
         _ => format!("cannot be read: {e}"),
-    })?;
+    };
+    let meta = std::fs::metadata(path).map_err(unreadable)?;
+    if !meta.is_file() {
+        return Err("not a regular file".into());
+    }
+    if meta.len() > MAX_TEXTURE_FILE_BYTES {
+        return Err(format!(
+            "{} bytes, over the {MAX_TEXTURE_FILE_BYTES} a texture file may have",
+            meta.len()
+        ));
+    }
+    let bytes = std::fs::read(path).map_err(unreadable)?;
     decode_texture_image(&bytes, name)
 }

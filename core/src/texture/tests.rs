@@ -135,3 +135,21 @@ fn a_header_with_absurd_sides_is_an_error_not_a_panic() {
         "texture object t: 4294967295x4294967295 texels need 55340232195358851075 bytes, it holds 3"
     );
 }
+
+/// A texture path that is a folder or a device is refused before anything is read.
+#[test]
+fn only_regular_files_are_read() {
+    let dir = crate::scratch::Scratch::new("hort-texture-");
+    assert_eq!(
+        decode_texture_file(&dir, "d").unwrap_err(),
+        "not a regular file"
+    );
+    assert_eq!(
+        decode_texture_file(std::path::Path::new("/dev/zero"), "z").unwrap_err(),
+        "not a regular file"
+    );
+    assert_eq!(
+        decode_texture_file(&dir.join("gone.png"), "g").unwrap_err(),
+        "the file does not exist"
+    );
+}
