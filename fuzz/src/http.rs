@@ -1,10 +1,8 @@
 //! The HTTP target: one request through the API router, over a backend that accepts every job
 //! and knows one scene object.
 
-use hort_functions::api::{
-    ApiError, ImageAnswer, ImageFormat, JobSpec, JobStatus, PredictionModel, RenderBackend,
-    Submission, check_head, handle,
-};
+use hort_functions::api::fake::Fake;
+use hort_functions::api::{check_head, handle};
 use http::{Method, Request, StatusCode};
 
 use crate::assert_one_line;
@@ -12,39 +10,6 @@ use crate::assert_one_line;
 /// The object a request may name by key (`{"scene": {"key": "scenes/tri.obj"}}`).
 const SCENE_KEY: &str = "scenes/tri.obj";
 const SCENE_OBJ: &[u8] = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
-
-/// Accepts every job; knows no job afterwards; one scene object.
-struct Backend;
-
-impl RenderBackend for Backend {
-    fn read_object(&self, key: &str) -> Result<Option<Vec<u8>>, ApiError> {
-        Ok((key == SCENE_KEY).then(|| SCENE_OBJ.to_vec()))
-    }
-    fn prediction_model(&self) -> PredictionModel {
-        PredictionModel::reference(4)
-    }
-    fn submit(&self, _job: JobSpec) -> Result<Submission, ApiError> {
-        Ok(Submission {
-            job: "job-0".into(),
-            replayed: false,
-        })
-    }
-    fn status(&self, job: &str) -> Result<JobStatus, ApiError> {
-        Err(ApiError::not_found(format!("no render {job:?}")))
-    }
-    fn list(&self, _limit: usize) -> Result<Vec<JobStatus>, ApiError> {
-        Ok(Vec::new())
-    }
-    fn image(&self, job: &str, _format: ImageFormat) -> Result<ImageAnswer, ApiError> {
-        Err(ApiError::not_found(format!("no render {job:?}")))
-    }
-    fn report(&self, job: &str) -> Result<Vec<u8>, ApiError> {
-        Err(ApiError::not_found(format!("no render {job:?}")))
-    }
-    fn cancel(&self, job: &str) -> Result<JobStatus, ApiError> {
-        Err(ApiError::not_found(format!("no render {job:?}")))
-    }
-}
 
 /// HTTP target: the input is a request as text, `METHOD URI\n`, then `Name: value` header lines
 /// up to an empty line, then the body (bytes). Requests `http` cannot represent are skipped.
@@ -58,7 +23,12 @@ pub fn http(data: &[u8]) {
     if let Err(e) = &head {
         assert_one_line("HTTP head", &e.to_string());
     }
-    let response = handle(&Backend, request);
+    // Accepts every job; knows one scene object.
+    let backend = Fake {
+        objects: [(SCENE_KEY.to_owned(), SCENE_OBJ.to_vec())].into(),
+        ..Fake::default()
+    };
+    let response = handle(&backend, request);
     let status = response.status();
     let documented = [
         StatusCode::OK,

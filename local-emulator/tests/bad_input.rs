@@ -375,42 +375,10 @@ fn hit() -> SurfaceHit {
     }
 }
 
-/// The API router's answer to a request, as `STATUS body`.
+/// The API router's answer to a request, as `STATUS body`, over a fresh fake backend (no job,
+/// no object).
 fn http(input: &[u8]) -> String {
-    use hort_functions::api::{
-        ApiError, ImageAnswer, ImageFormat, JobSpec, JobStatus, PredictionModel, RenderBackend,
-        Submission, handle,
-    };
-    struct Backend;
-    impl RenderBackend for Backend {
-        fn read_object(&self, _key: &str) -> Result<Option<Vec<u8>>, ApiError> {
-            Ok(None)
-        }
-        fn prediction_model(&self) -> PredictionModel {
-            PredictionModel::reference(4)
-        }
-        fn submit(&self, _job: JobSpec) -> Result<Submission, ApiError> {
-            Ok(Submission {
-                job: "job-0".into(),
-                replayed: false,
-            })
-        }
-        fn status(&self, job: &str) -> Result<JobStatus, ApiError> {
-            Err(ApiError::not_found(format!("no render {job:?}")))
-        }
-        fn list(&self, _limit: usize) -> Result<Vec<JobStatus>, ApiError> {
-            Ok(Vec::new())
-        }
-        fn image(&self, job: &str, _format: ImageFormat) -> Result<ImageAnswer, ApiError> {
-            Err(ApiError::not_found(format!("no render {job:?}")))
-        }
-        fn report(&self, job: &str) -> Result<Vec<u8>, ApiError> {
-            Err(ApiError::not_found(format!("no render {job:?}")))
-        }
-        fn cancel(&self, job: &str) -> Result<JobStatus, ApiError> {
-            Err(ApiError::not_found(format!("no render {job:?}")))
-        }
-    }
+    use hort_functions::api::{fake::Fake, handle};
     let split = input.windows(2).position(|w| w == b"\n\n");
     let (head, body) = match split {
         Some(i) => (&input[..i], input[i + 2..].to_vec()),
@@ -424,7 +392,7 @@ fn http(input: &[u8]) -> String {
         let (name, value) = line.split_once(':').unwrap();
         builder = builder.header(name.trim(), value.trim());
     }
-    let response = handle(&Backend, builder.body(body).unwrap());
+    let response = handle(&Fake::default(), builder.body(body).unwrap());
     let body = String::from_utf8_lossy(response.body());
     format!("{} {}", response.status().as_u16(), body.trim_end())
 }

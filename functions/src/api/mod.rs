@@ -27,6 +27,8 @@
 mod backend;
 mod dashboard;
 mod error;
+#[cfg(any(test, feature = "test-support"))]
+pub mod fake;
 #[cfg(test)]
 mod hostile_tests;
 mod image;

@@ -213,41 +213,8 @@ fn api_gateway_500(why: &str) -> Response<Vec<u8>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use hort_functions::api::{
-        ImageAnswer, ImageFormat, JobSpec, JobStatus, PredictionModel, Submission,
-    };
+    use hort_functions::api::fake::Fake;
     use std::io::{Read, Write};
-
-    /// Lists slowly (past the timeout); knows no job, at once.
-    struct Slow;
-
-    impl RenderBackend for Slow {
-        fn read_object(&self, _: &str) -> Result<Option<Vec<u8>>, ApiError> {
-            Ok(None)
-        }
-        fn prediction_model(&self) -> PredictionModel {
-            PredictionModel::reference(1)
-        }
-        fn submit(&self, _: JobSpec) -> Result<Submission, ApiError> {
-            Err(ApiError::internal("not here"))
-        }
-        fn status(&self, job: &str) -> Result<JobStatus, ApiError> {
-            Err(ApiError::not_found(format!("no render {job:?}")))
-        }
-        fn list(&self, _: usize) -> Result<Vec<JobStatus>, ApiError> {
-            std::thread::sleep(Duration::from_secs(2));
-            Ok(Vec::new())
-        }
-        fn image(&self, job: &str, _: ImageFormat) -> Result<ImageAnswer, ApiError> {
-            self.status(job).map(|_| unreachable!())
-        }
-        fn report(&self, job: &str) -> Result<Vec<u8>, ApiError> {
-            self.status(job).map(|_| unreachable!())
-        }
-        fn cancel(&self, job: &str) -> Result<JobStatus, ApiError> {
-            self.status(job)
-        }
-    }
 
     fn get(addr: SocketAddr, path: &str) -> String {
         let mut stream = std::net::TcpStream::connect(addr).unwrap();
@@ -261,14 +228,18 @@ mod tests {
         answer
     }
 
-    /// [`serve`] of [`Slow`] as the API function `api`, on a free port of 127.0.0.1: its
-    /// address, and a closure that stops it and waits for it.
+    /// [`serve`] of a backend that lists slowly (2 s, past the timeout) and knows no job, as
+    /// the API function `api`, on a free port of 127.0.0.1: its address, and a closure that
+    /// stops it and waits for it.
     fn start(api: ApiFunction) -> (SocketAddr, impl FnOnce()) {
         let (addr_tx, addr_rx) = std::sync::mpsc::channel();
         let (stop_tx, stop_rx) = oneshot::channel();
         let server = std::thread::spawn(move || {
             serve(
-                Arc::new(Slow),
+                Arc::new(Fake {
+                    list_delay: Duration::from_secs(2),
+                    ..Fake::default()
+                }),
                 api,
                 "127.0.0.1:0".parse().unwrap(),
                 |addr| addr_tx.send(addr).unwrap(),
