@@ -310,17 +310,7 @@ fn run_job_of(
     let finished = Arc::new(AtomicBool::new(false));
     let functions = functions_for(config, &storage, &store)?;
     let (invoker, fault_counts) = with_faults(config, &functions, &store, &finished);
-    let skipper = (submitted == Submitted::Resumed).then(|| {
-        Arc::new(SkipFinishedTasks::new(
-            Arc::clone(&invoker),
-            Arc::clone(&store),
-            job.clone(),
-        ))
-    });
-    let invoker: Arc<dyn TaskInvoker> = match &skipper {
-        Some(skipper) => skipper.clone(),
-        None => invoker,
-    };
+    let (invoker, skipper) = skipping_finished_tasks(invoker, submitted, &store, &job);
     let orchestrator = orchestrator_for(config)?;
     let accounting = Accounting::new(Arc::clone(&storage.store));
     let fan_out = FanOut(vec![&accounting, observer]);
@@ -486,6 +476,25 @@ fn with_faults(
         Functions::InProcess(in_process) => (in_process.clone(), None),
         Functions::Lambda(lambda) => (lambda.clone(), None),
     }
+}
+
+/// `invoker` behind a [`SkipFinishedTasks`] when the job was resumed (`submitted`), which skips
+/// the tasks of `job` whose outputs are all in `store`; the skipper too, for its count.
+fn skipping_finished_tasks(
+    invoker: Arc<dyn TaskInvoker>,
+    submitted: Submitted,
+    store: &Arc<dyn BlobStore>,
+    job: &JobId,
+) -> (Arc<dyn TaskInvoker>, Option<Arc<SkipFinishedTasks>>) {
+    if submitted != Submitted::Resumed {
+        return (invoker, None);
+    }
+    let skipper = Arc::new(SkipFinishedTasks::new(
+        invoker,
+        Arc::clone(store),
+        job.clone(),
+    ));
+    (skipper.clone(), Some(skipper))
 }
 
 /// The state machine of `infra/statemachine.asl.json` with the run's slots, time scale, fault
