@@ -9,7 +9,8 @@ use crate::plan_flags::ImageSize;
 use anyhow::{Context, Result, anyhow, bail};
 use hort::deployment::Deployment;
 use hort::emulator::{
-    EmulatorConfig, FaultSettings, JobOptions, LambdaTarget, run_job_loaded, splits_by_tasks,
+    EmulatorConfig, EmulatorRun, FaultSettings, JobOptions, LambdaTarget, StorageTarget,
+    run_job_loaded, splits_by_tasks,
 };
 use hort::progress::{ProgressMode, ProgressObserver, print_breakdown, print_summary};
 use hort_core::adaptive::{AdaptiveCounts, AdaptiveSettings, render_adaptive};
@@ -93,13 +94,72 @@ const DEFAULT_ADAPTIVE_THRESHOLD: f64 = 0.002;
 pub fn run(args: RenderArgs) -> Result<()> {
     let started = Instant::now();
     // Every output is checked before any work, so a bad path never costs a render.
+    let targets = check_outputs(&args)?;
+    let scene = load_unless_split_by_tasks(&args)?;
+    let load_seconds = started.elapsed().as_secs_f64();
+    let image = match &scene {
+        Some(scene) => scene.image,
+        None => scene_image_settings(&args.scene)?,
+    };
+    let size = args.plan.image_size(&image)?;
+    let ImageSize { width, height, .. } = size;
+    // A camera that cannot be built is the scene's fault: say so before any upload or render.
+    if let Some(scene) = &scene {
+        Camera::new(&scene.camera_for(width, height), width, height)
+            .map_err(|e| anyhow!("{}: {e}", args.scene.display()))?;
+    }
+    let adaptive = adaptive_settings(&args, size)?;
+    let request = args.plan.request(
+        size,
+        adaptive,
+        // A job stores the large outputs only when this command writes them.
+        StoredOutputs {
+            linear: !is_png(&targets.out),
+            hits: args.hits.is_some(),
+        },
+    );
+    if let Some(scene) = scene.as_ref().filter(|_| !args.monolithic) {
+        // Refuse impossible partitionings here, with the scene at hand, before any upload.
+        let triangles = scene.mesh.triangle_count() as u64;
+        let (shape, s) = resolve_counts_with(&request, triangles, &planned_textures(scene))?;
+        warn_if_oversplit(triangles, shape.splits, s);
+    }
+    let rendered = match &scene {
+        Some(scene) if args.monolithic => {
+            render_monolithic(scene, width, height, size.spp, args.threads, adaptive)?
+        }
+        Some(scene) if args.in_process => render_pipeline(scene, request, &args)?,
+        _ => render_emulated(scene.as_ref(), &args, request)?,
+    };
+    write_image_and_hits(&rendered, &targets)?;
+    let render_seconds = rendered.render_seconds;
+    let report = run_report(&args, &targets.out, size, rendered, started, load_seconds);
+    for skip in &report.skips {
+        eprintln!("skipped: {skip}");
+    }
+    if let Some(target) = &targets.report {
+        write_output(target, (report.to_json() + "\n").as_bytes())?;
+    }
+    print_run_summary(&report, render_seconds, &targets.out)
+}
+
+/// Where `hort render` writes: the image (`--out`, by default the scene's name as a PNG), the
+/// hit buffer and the report (when asked for).
+struct OutputTargets {
+    out: PathBuf,
+    hits: Option<OutputTarget>,
+    report: Option<OutputTarget>,
+}
+
+/// The outputs of `args`, each path checked (writable, of a known kind) and all distinct.
+fn check_outputs(args: &RenderArgs) -> Result<OutputTargets> {
     let out = args.out.clone().unwrap_or_else(|| default_out(&args.scene));
     check_image_path("--out", &out)?;
-    let hits_target = match &args.hits {
+    let hits = match &args.hits {
         Some(path) => Some(check_output_path("--hits", path, false)?),
         None => None,
     };
-    let report_target = match &args.report {
+    let report = match &args.report {
         Some(path) => Some(check_output_path("--report", path, true)?),
         None => None,
     };
@@ -107,9 +167,13 @@ pub fn run(args: RenderArgs) -> Result<()> {
     paths.extend(args.hits.as_deref().map(|p| ("--hits", p)));
     paths.extend(args.report.as_deref().map(|p| ("--report", p)));
     check_distinct(&paths)?;
+    Ok(OutputTargets { out, hits, report })
+}
 
-    // A scene the emulator splits by tasks goes up as its files: this process does not load it
-    // (it may not fit here either); the Plan function checks it.
+/// The scene of `args`, loaded with its warnings printed; `None` for a scene the emulator
+/// splits by tasks, which goes up as its files: this process does not load it (it may not fit
+/// here either); the Plan function checks it.
+fn load_unless_split_by_tasks(args: &RenderArgs) -> Result<Option<Scene>> {
     let by_tasks = !args.monolithic
         && !args.in_process
         && splits_by_tasks(
@@ -125,85 +189,77 @@ pub fn run(args: RenderArgs) -> Result<()> {
     for w in scene.iter().flat_map(|s| &s.warnings) {
         eprintln!("warning: {w}");
     }
-    let load_seconds = started.elapsed().as_secs_f64();
-    let image = match &scene {
-        Some(scene) => scene.image,
-        None => scene_image_settings(&args.scene)?,
-    };
-    let size = args.plan.image_size(&image)?;
+    Ok(scene)
+}
+
+/// The adaptive sampler's settings of `--adaptive` over the first pass of `size.spp` samples,
+/// checked (with a hint when the first pass is too small for an error estimate) and within the
+/// image size limits; `None` without `--adaptive`.
+fn adaptive_settings(args: &RenderArgs, size: ImageSize) -> Result<Option<AdaptiveSettings>> {
     let ImageSize { width, height, spp } = size;
-    // A camera that cannot be built is the scene's fault: say so before any upload or render.
-    if let Some(scene) = &scene {
-        Camera::new(&scene.camera_for(width, height), width, height)
-            .map_err(|e| anyhow!("{}: {e}", args.scene.display()))?;
-    }
-    let adaptive = match args.adaptive {
-        Some(max_spp) => {
-            let settings = AdaptiveSettings {
-                base_spp: spp,
-                max_spp,
-                threshold: args
-                    .adaptive_threshold
-                    .unwrap_or(DEFAULT_ADAPTIVE_THRESHOLD),
-            };
-            settings.check().map_err(|e| {
-                anyhow!(
-                    "--spp, --adaptive and --adaptive-threshold: {e}{}",
-                    first_pass_hint(spp, max_spp)
-                )
-            })?;
-            check_image_size(width, height, max_spp).context("--adaptive")?;
-            Some(settings)
-        }
-        None => None,
+    let Some(max_spp) = args.adaptive else {
+        return Ok(None);
     };
-    let request = args.plan.request(
-        size,
-        adaptive,
-        // A job stores the large outputs only when this command writes them.
-        StoredOutputs {
-            linear: !is_png(&out),
-            hits: args.hits.is_some(),
-        },
-    );
-    if let Some(scene) = scene.as_ref().filter(|_| !args.monolithic) {
-        // Refuse impossible partitionings here, with the scene at hand, before any upload.
-        let triangles = scene.mesh.triangle_count() as u64;
-        let (shape, s) = resolve_counts_with(&request, triangles, &planned_textures(scene))?;
-        warn_if_oversplit(triangles, shape.splits, s);
-    }
-    let rendered = match &scene {
-        Some(scene) if args.monolithic => {
-            render_monolithic(scene, width, height, spp, args.threads, adaptive)?
-        }
-        Some(scene) if args.in_process => render_pipeline(scene, request, &args)?,
-        _ => render_emulated(scene.as_ref(), &args, request)?,
+    let settings = AdaptiveSettings {
+        base_spp: spp,
+        max_spp,
+        threshold: args
+            .adaptive_threshold
+            .unwrap_or(DEFAULT_ADAPTIVE_THRESHOLD),
     };
-    let outputs = Outputs {
-        image: Some(out.display().to_string()),
-        hits: args.hits.as_ref().map(|p| p.display().to_string()),
-        report: args.report.as_ref().map(|p| p.display().to_string()),
-    };
+    settings.check().map_err(|e| {
+        anyhow!(
+            "--spp, --adaptive and --adaptive-threshold: {e}{}",
+            first_pass_hint(spp, max_spp)
+        )
+    })?;
+    check_image_size(width, height, max_spp).context("--adaptive")?;
+    Ok(Some(settings))
+}
+
+/// Writes the image to `--out` (the PNG the job stored as it is, when `--out` is a PNG) and the
+/// hit buffer to `--hits` if asked for; an error if the run has no image or hits to write.
+fn write_image_and_hits(rendered: &Rendered, targets: &OutputTargets) -> Result<()> {
+    let out = &targets.out;
     match (rendered.png.as_deref(), &rendered.image) {
         // The job stored this very encoding of the image: no need to encode it again.
-        (Some(png), _) if is_png(&out) => write_output(&OutputTarget::File(out.clone()), png)?,
-        (_, Some(image)) => write_image(&out, image)?,
+        (Some(png), _) if is_png(out) => write_output(&OutputTarget::File(out.clone()), png)?,
+        (_, Some(image)) => write_image(out, image)?,
         (_, None) => bail!("the job stored no linear image to write {}", out.display()),
     }
-    if let Some(target) = &hits_target {
+    if let Some(target) = &targets.hits {
         let hits = rendered
             .hits
             .as_deref()
             .ok_or_else(|| anyhow!("the job stored no hit buffer to write --hits"))?;
         write_output(target, &encode_hits(hits))?;
     }
+    Ok(())
+}
+
+/// The report of the run: what `args` asked for, what `rendered` did and its times (the total
+/// up to now, from `started`).
+fn run_report(
+    args: &RenderArgs,
+    out: &Path,
+    size: ImageSize,
+    rendered: Rendered,
+    started: Instant,
+    load_seconds: f64,
+) -> Report {
+    let ImageSize { width, height, spp } = size;
+    let outputs = Outputs {
+        image: Some(out.display().to_string()),
+        hits: args.hits.as_ref().map(|p| p.display().to_string()),
+        report: args.report.as_ref().map(|p| p.display().to_string()),
+    };
     let skipped = skips(
         rendered.lights,
         rendered.execution.as_ref().map(|(mode, _)| *mode),
         &rendered.unoccludable_lights,
         rendered.adaptive.as_ref(),
     );
-    let report = Report {
+    Report {
         mode: if args.monolithic {
             "monolithic"
         } else if args.in_process {
@@ -239,14 +295,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         outputs,
         skips: skipped,
         adaptive: rendered.adaptive,
-    };
-    for skip in &report.skips {
-        eprintln!("skipped: {skip}");
     }
-    if let Some(target) = &report_target {
-        write_output(target, (report.to_json() + "\n").as_bytes())?;
-    }
-    print_run_summary(&report, rendered.render_seconds, &out)
 }
 
 /// The adaptive part of a pipeline run's report: the request's settings and the Render
@@ -456,6 +505,26 @@ fn render_emulated(
     request: PlanRequest,
 ) -> Result<Rendered> {
     let workers = args.workers.unwrap_or_else(available_cores);
+    check_fault_flags(args)?;
+    let storage = args.storage.target();
+    let cancel = stop_on_signals();
+    let config = emulator_config(args, storage, workers, cancel);
+    let progress = ProgressObserver::new(ProgressMode::detect());
+    let options = JobOptions {
+        keep_intermediates: args.keep_intermediates,
+        resume: args.resume,
+        scene_range_bytes: args.plan.scene_range_bytes,
+    };
+    // The scene loaded above goes up parsed: no function parses it again (a scene split by
+    // tasks, not loaded, goes up as its files).
+    let run = run_job_loaded(&config, options, &args.scene, scene, request, &progress)?;
+    print_job_notes(&run, workers);
+    Ok(emulated_rendered(run, request, workers))
+}
+
+/// Refuses fault rates that are not probabilities and a time scale that is not a positive
+/// number.
+fn check_fault_flags(args: &RenderArgs) -> Result<()> {
     for (name, p) in [
         ("--fail-rate", args.fail_rate),
         ("--duplicate-rate", args.duplicate_rate),
@@ -468,10 +537,14 @@ fn render_emulated(
     if !(args.time_scale > 0.0 && args.time_scale.is_finite()) {
         bail!("--time-scale must be a positive number");
     }
-    let storage = args.storage.target();
+    Ok(())
+}
+
+/// The cancel flag of the run, set by the first stop signal (no new tasks start); a second
+/// signal quits at once. A failure to watch the signals leaves the default behaviour.
+fn stop_on_signals() -> Arc<AtomicBool> {
     let cancel = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&cancel);
-    // A second signal quits at once; a failure to watch them leaves the default behaviour.
     let _ = crate::stop_signals::on_stop_signals(move |signal| {
         if flag.swap(true, Ordering::Relaxed) {
             // Destructors do not run: remove the temporary folders first.
@@ -479,7 +552,19 @@ fn render_emulated(
         }
         eprintln!("\nstopping: no new tasks start; {}", signal.quit_at_once());
     });
-    let config = EmulatorConfig {
+    cancel
+}
+
+/// How the emulator runs the job of `args` on `storage` with `workers` function slots: the
+/// faults and time scale asked for, 1 GiB of split cache, arm64 functions of `--memory-mb`
+/// (or the Lambda functions named), the bundled deployment's limits.
+fn emulator_config(
+    args: &RenderArgs,
+    storage: StorageTarget,
+    workers: usize,
+    cancel: Arc<AtomicBool>,
+) -> EmulatorConfig {
+    EmulatorConfig {
         storage,
         job: args.job.clone(),
         workers,
@@ -502,16 +587,13 @@ fn render_emulated(
             worker: args.worker_function.clone(),
         }),
         functions: Deployment::bundled().function_limits(),
-    };
-    let progress = ProgressObserver::new(ProgressMode::detect());
-    let options = JobOptions {
-        keep_intermediates: args.keep_intermediates,
-        resume: args.resume,
-        scene_range_bytes: args.plan.scene_range_bytes,
-    };
-    // The scene loaded above goes up parsed: no function parses it again (a scene split by
-    // tasks, not loaded, goes up as its files).
-    let run = run_job_loaded(&config, options, &args.scene, scene, request, &progress)?;
+    }
+}
+
+/// Prints what the emulator's run of a job on `workers` slots met, to standard error: the
+/// scan's warnings, the faults injected, the blocks recomputed, the job's line with its
+/// measured cost, and its objects.
+fn print_job_notes(run: &EmulatorRun, workers: usize) {
     for w in &run.scan_warnings {
         eprintln!("warning: {w}");
     }
@@ -549,7 +631,14 @@ fn render_emulated(
         count(run.plan.spans.len() as u64, "span"),
         run.cost.total
     );
-    crate::jobs_cmd::print_job_objects(&run);
+    crate::jobs_cmd::print_job_objects(run);
+}
+
+/// What the emulator's `run` of `request` on `workers` slots hands back for writing: its
+/// outputs, rays (the adaptive sampler's samples, or every pixel's `spp`), the task stages'
+/// seconds (the plan's left out) and the plan's shape.
+fn emulated_rendered(run: EmulatorRun, request: PlanRequest, workers: usize) -> Rendered {
+    let retries = run.failed_attempts();
     let split_read = run.ledger.total().split_bytes_read;
     let recomputed = run.recomputed();
     let render_seconds = run
@@ -560,7 +649,7 @@ fn render_emulated(
         .sum();
     let counts = run.ledger.total().adaptive;
     let adaptive = adaptive_report(request, counts);
-    Ok(Rendered {
+    Rendered {
         image: run.image,
         png: Some(run.png),
         hits: run.hits,
@@ -587,7 +676,7 @@ fn render_emulated(
         stages: run.stages,
         cost_usd: Some(run.cost.total),
         adaptive,
-    })
+    }
 }
 
 fn default_out(scene: &Path) -> PathBuf {

@@ -18,7 +18,8 @@ use super::adaptive_rounds::{
     second_round_samples,
 };
 use super::adaptive_span::render_span_adaptive;
-use super::plan::{JobPlan, Span};
+use super::plan::{CastTask, JobPlan, Span};
+use super::records::{Occluded, SurfaceHit};
 use super::records::{
     PixelBlock, decode_occluded, decode_pixels, decode_queries, decode_surface_hits,
     encode_occluded, encode_pixels, encode_queries, encode_surface_hits,
@@ -28,11 +29,11 @@ use super::split_cache::SplitCache;
 use super::split_object::{SplitObject, decode_split};
 use super::stages;
 use super::textures::decode_planned_texture;
-use crate::adaptive::AdaptiveCounts;
+use crate::adaptive::{AdaptiveCounts, AdaptiveSettings};
 use crate::camera::Camera;
-use crate::hits::encode_hits;
+use crate::hits::{Hit, encode_hits};
 use crate::ids::{JobId, PartitionId, SplitId, Stage, TaskId};
-use crate::image::{encode_pfm, encode_png};
+use crate::image::{Image, encode_pfm, encode_png};
 use crate::keys::{
     hits_key, image_key, parse_partition_key, partition_key, split_key, texture_key,
 };
@@ -298,7 +299,8 @@ impl Task<'_> {
         self.write(&self.key(stage, task, 0), bytes, n)
     }
 
-    /// CastMap: a span's camera samples (or a round's) against one split; candidate hits by reducer.
+    /// CastMap: a span's camera samples (or a round's) against one split; candidate hits by
+    /// reducer.
     fn cast_map(&mut self, task: u32) -> Result<(), PipelineError> {
         let plan = self.plan;
         let stage = Stage::CastMap;
@@ -309,30 +311,48 @@ impl Task<'_> {
         let span = plan.spans[t.span as usize];
         let reduce = plan.round_task(Stage::CastReduce, t.span, round);
         let hits = match plan.adaptive {
-            Some(a) => {
-                let samples = match round {
-                    1 => first_round_samples(&span, &a),
-                    _ => second_round_samples(&self.read_refine_list(t.span)?, &a),
-                };
-                if samples.is_empty() {
-                    self.metrics.skipped_tasks += 1;
-                    Vec::new()
-                } else {
-                    let split = self.read_split(t.split)?;
-                    let camera = Camera::new(&plan.camera, plan.width, plan.height)?;
-                    timed(&mut self.metrics.compute_us, || {
-                        cast_samples(&camera, &split, &samples, a.max_spp)
-                    })
-                }
-            }
-            None => {
-                let split = self.read_split(t.split)?;
-                timed(&mut self.metrics.compute_us, || {
-                    stages::cast_map(plan, &span, &split)
-                })?
-            }
+            Some(a) => self.cast_round(t, &span, round, a)?,
+            None => self.cast_uniform(t, &span)?,
         };
         self.write_hits(stage, task, reduce, RecordKind::CastCandidate, &hits)
+    }
+
+    /// The candidate hits of an adaptive job's CastMap task `t` in `round`: round 1 casts the
+    /// first `base_spp` samples of every pixel of `span`, round 2 the further samples of the
+    /// pixels round 1 listed for refining. With no samples the split is not read and the task
+    /// counts as skipped.
+    fn cast_round(
+        &mut self,
+        t: CastTask,
+        span: &Span,
+        round: u32,
+        a: AdaptiveSettings,
+    ) -> Result<Vec<SurfaceHit>, PipelineError> {
+        let samples = match round {
+            1 => first_round_samples(span, &a),
+            _ => second_round_samples(&self.read_refine_list(t.span)?, &a),
+        };
+        if samples.is_empty() {
+            self.metrics.skipped_tasks += 1;
+            return Ok(Vec::new());
+        }
+        let split = self.read_split(t.split)?;
+        let plan = self.plan;
+        let camera = Camera::new(&plan.camera, plan.width, plan.height)?;
+        Ok(timed(&mut self.metrics.compute_us, || {
+            cast_samples(&camera, &split, &samples, a.max_spp)
+        }))
+    }
+
+    /// The candidate hits of a uniform job's CastMap task `t`: every sample of `span` against
+    /// its split.
+    fn cast_uniform(&mut self, t: CastTask, span: &Span) -> Result<Vec<SurfaceHit>, PipelineError> {
+        let split = self.read_split(t.split)?;
+        let plan = self.plan;
+        let hits = timed(&mut self.metrics.compute_us, || {
+            stages::cast_map(plan, span, &split)
+        })?;
+        Ok(hits)
     }
 
     /// CastReduce: the nearest candidate per sample of a span (one input is passed through).
@@ -417,7 +437,8 @@ impl Task<'_> {
         self.write(&self.key(stage, task, reduce), bytes, occluded.len())
     }
 
-    /// TraceReduce: a span's samples shaded from its hits and the occluded queries (with the adaptive sampler, round 1 also writes the refine list and round 2 refines).
+    /// TraceReduce: a span's samples shaded from its hits and the occluded queries (with the
+    /// adaptive sampler, round 1 also writes the refine list and round 2 refines).
     fn trace_reduce(&mut self, task: u32) -> Result<(), PipelineError> {
         let plan = self.plan;
         let stage = Stage::TraceReduce;
@@ -426,9 +447,27 @@ impl Task<'_> {
             .ok_or_else(|| missing(stage, task, "spans"))?;
         let span = plan.spans[index as usize];
         let hits = self.read_span_hits(task)?;
-        // Without shadow rays (no light a surface can occlude) there are no TraceMap tasks.
+        let keys = self.occluded_keys(index, round, task);
+        let occluded = self.read_all(&keys, decode_occluded)?;
+        self.metrics.shadow_rays += hits.len() as u64 * plan.lights.len() as u64;
+        let Some(a) = plan.adaptive else {
+            return self.shade_uniform(task, &span, &hits, occluded);
+        };
+        let blocked = stages::merge_occluded(occluded);
+        if round == 1 {
+            self.shade_first_round(task, &span, a, &hits, &blocked)
+        } else {
+            self.shade_second_round(task, index, &span, a, &hits, &blocked)
+        }
+    }
+
+    /// The keys of the occluded-query blocks TraceReduce task `task` (span `index`, `round`)
+    /// reads: one per split's TraceMap task, none without shadow rays (no light a surface can
+    /// occlude, so no TraceMap tasks).
+    fn occluded_keys(&self, index: u32, round: u32, task: u32) -> Vec<String> {
+        let plan = self.plan;
         let shadow_splits = if plan.has_shadows() { plan.k() } else { 0 };
-        let keys: Vec<String> = (0..shadow_splits)
+        (0..shadow_splits)
             .map(|split| {
                 let map = plan.trace_task_id(index, split);
                 self.key(
@@ -437,34 +476,72 @@ impl Task<'_> {
                     task,
                 )
             })
-            .collect();
-        let occluded = self.read_all(&keys, decode_occluded)?;
-        self.metrics.shadow_rays += hits.len() as u64 * plan.lights.len() as u64;
-        let Some(a) = plan.adaptive else {
-            let block = timed(&mut self.metrics.compute_us, || {
-                stages::trace_reduce(plan, &span, &hits, occluded)
-            });
-            return self.write_pixels(task, &block);
-        };
-        let blocked = stages::merge_occluded(occluded);
-        if round == 1 {
-            let samples = first_round_samples(&span, &a);
-            let (block, list, counts) = timed(&mut self.metrics.compute_us, || {
-                let (colours, sample_hits) = sample_colours(plan, &samples, &hits, &blocked);
-                first_round_pixels(&span, &a, &colours, &sample_hits)
-            });
-            self.metrics.adaptive += counts;
-            let bytes = timed(&mut self.metrics.encode_us, || encode_refine_list(&list));
-            self.write(&self.key(stage, task, 1), bytes, list.pixels.len())?;
-            return self.write_pixels(task, &block);
-        }
+            .collect()
+    }
+
+    /// A uniform job's TraceReduce task: every sample of `span` shaded from its hits and the
+    /// TraceMap tasks' `occluded` queries, written as the span's pixels.
+    fn shade_uniform(
+        &mut self,
+        task: u32,
+        span: &Span,
+        hits: &[SurfaceHit],
+        occluded: Vec<Vec<Occluded>>,
+    ) -> Result<(), PipelineError> {
+        let plan = self.plan;
+        let block = timed(&mut self.metrics.compute_us, || {
+            stages::trace_reduce(plan, span, hits, occluded)
+        });
+        self.write_pixels(task, &block)
+    }
+
+    /// Round 1 of an adaptive TraceReduce task: the first `base_spp` samples of every pixel of
+    /// `span` shaded, the refine list (partition 1) written, then the round's pixels
+    /// (partition 0).
+    fn shade_first_round(
+        &mut self,
+        task: u32,
+        span: &Span,
+        a: AdaptiveSettings,
+        hits: &[SurfaceHit],
+        blocked: &[Occluded],
+    ) -> Result<(), PipelineError> {
+        let plan = self.plan;
+        let samples = first_round_samples(span, &a);
+        let (block, list, counts) = timed(&mut self.metrics.compute_us, || {
+            let (colours, sample_hits) = sample_colours(plan, &samples, hits, blocked);
+            first_round_pixels(span, &a, &colours, &sample_hits)
+        });
+        self.metrics.adaptive += counts;
+        let bytes = timed(&mut self.metrics.encode_us, || encode_refine_list(&list));
+        self.write(
+            &self.key(Stage::TraceReduce, task, 1),
+            bytes,
+            list.pixels.len(),
+        )?;
+        self.write_pixels(task, &block)
+    }
+
+    /// Round 2 of an adaptive TraceReduce task for span `index`: the further samples of the
+    /// pixels round 1 listed shaded and folded into round 1's pixels of the span (read and
+    /// checked against it), which are written as the span's final pixels.
+    fn shade_second_round(
+        &mut self,
+        task: u32,
+        index: u32,
+        span: &Span,
+        a: AdaptiveSettings,
+        hits: &[SurfaceHit],
+        blocked: &[Occluded],
+    ) -> Result<(), PipelineError> {
+        let plan = self.plan;
         let list = self.read_refine_list(index)?;
-        let first_key = self.key(stage, index, 0);
+        let first_key = self.key(Stage::TraceReduce, index, 0);
         let first = self.read(&first_key, decode_pixels)?;
-        check_block(&first_key, &first, &span)?;
+        check_block(&first_key, &first, span)?;
         let block = timed(&mut self.metrics.compute_us, || {
             let samples = second_round_samples(&list, &a);
-            let (colours, _) = sample_colours(plan, &samples, &hits, &blocked);
+            let (colours, _) = sample_colours(plan, &samples, hits, blocked);
             second_round_pixels(first, &list, &a, &colours)
         });
         self.write_pixels(task, &block)
@@ -473,9 +550,25 @@ impl Task<'_> {
     /// Combine: every span's pixels assembled into the image and the outputs the plan asks for.
     fn combine(&mut self) -> Result<(), PipelineError> {
         let plan = self.plan;
+        let keys = self.final_pixel_keys()?;
+        let blocks = self.read_all(&keys, decode_pixels)?;
+        for ((key, block), span) in keys.iter().zip(&blocks).zip(&plan.spans) {
+            check_block(key, block, span)?;
+        }
+        let (image, hits) = timed(&mut self.metrics.compute_us, || {
+            stages::combine(plan, &blocks)
+        });
+        self.write_job_outputs(&image, &hits)?;
+        self.metrics.records += hits.len() as u64;
+        Ok(())
+    }
+
+    /// The key of every span's final pixel block, in span order: round 2's for a span with
+    /// pixels to refine, round 1's (the only round of other jobs) for the rest.
+    fn final_pixel_keys(&mut self) -> Result<Vec<String>, PipelineError> {
+        let plan = self.plan;
         let mut keys = Vec::with_capacity(plan.spans.len());
         for i in 0..plan.spans.len() as u32 {
-            // A span with pixels to refine has its final pixels from round 2.
             let round = if plan.has_second_round() && !self.read_refine_list(i)?.pixels.is_empty() {
                 2
             } else {
@@ -484,34 +577,29 @@ impl Task<'_> {
             let stage = plan.mode.pixel_stage();
             keys.push(self.key(stage, plan.round_task(stage, i, round), 0));
         }
-        let blocks = self.read_all(&keys, decode_pixels)?;
-        for ((key, block), span) in keys.iter().zip(&blocks).zip(&plan.spans) {
-            check_block(key, block, span)?;
-        }
-        let (image, hits) = timed(&mut self.metrics.compute_us, || {
-            stages::combine(plan, &blocks)
-        });
-        // The outputs the plan asks for besides the PNG, stored at once
-        // (`BlobStore::put_many`), then the PNG: a job whose PNG exists has every
-        // output it asked for.
-        let outputs = plan.outputs;
+        Ok(keys)
+    }
+
+    /// Stores the job's outputs: those the plan asks for besides the PNG at once
+    /// ([`BlobStore::put_many`]), then the PNG, so a job whose PNG exists has every output it
+    /// asked for.
+    fn write_job_outputs(&mut self, image: &Image, hits: &[Hit]) -> Result<(), PipelineError> {
+        let outputs = self.plan.outputs;
         let (png, others) = timed(&mut self.metrics.encode_us, || {
             let mut others = Vec::new();
             if outputs.linear {
-                others.push((image_key(self.job, "pfm"), encode_pfm(&image)));
+                others.push((image_key(self.job, "pfm"), encode_pfm(image)));
             }
             if outputs.hits {
-                others.push((hits_key(self.job), encode_hits(&hits)));
+                others.push((hits_key(self.job), encode_hits(hits)));
             }
-            (encode_png(&image), others)
+            (encode_png(image), others)
         });
         let png = png.map_err(|e| PipelineError::BadInput(e.to_string()))?;
         if !others.is_empty() {
             self.write_plain_all(&others)?;
         }
-        self.write_plain_all(&[(image_key(self.job, "png"), png)])?;
-        self.metrics.records += hits.len() as u64;
-        Ok(())
+        self.write_plain_all(&[(image_key(self.job, "png"), png)])
     }
 
     fn key(&self, stage: Stage, task: u32, partition: u32) -> String {

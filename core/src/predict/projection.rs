@@ -184,202 +184,393 @@ pub struct Projection {
 
 /// Projects `plan` on `functions` functions under `settings` (see the module documentation).
 pub fn project(plan: &JobPlan, functions: u32, settings: &ProjectionSettings) -> Projection {
-    let f = &LAMBDA_FACTS;
-    let speed = if settings.speed > 0.0 {
-        settings.speed
-    } else {
-        1.0
-    };
-    let p = settings.fail_rate.clamp(0.0, 0.99);
-    let attempts = 1.0 / (1.0 - p);
-    let functions = functions.max(1);
-    let (memory_mb, arch, aws) = match settings.target {
-        Target::Aws { memory_mb, arch } => (memory_mb, arch, true),
-        Target::Emulator {
-            memory_mb, arch, ..
-        } => (memory_mb, arch, false),
-    };
-    let concurrency = if aws {
-        functions.min(f.map_max_children)
-    } else {
-        functions
-    };
-    // The work alone: the same rates with the fixed overheads left out.
-    let work_rates = Rates {
-        task_overhead_ms: 0.0,
-        plan_overhead_ms: 0.0,
-        ..settings.rates
-    };
-    let vcpu = if aws {
-        (f.vcpu_memory_mb / f64::from(memory_mb)).max(1.0)
-    } else {
-        1.0
-    };
-    let mut notes = Vec::new();
-    let mut stages = Vec::new();
-    let mut seconds = 0.0;
-    let mut function_seconds = 0.0;
-    let (mut gets, mut puts) = (0.0f64, CLIENT_PUTS as f64);
-    let mut cost = CostBreakdown::default();
-    let mut children = 0u64;
+    let a = Assumptions::new(functions, settings);
+    let mut totals = Totals::new();
     let mut first_worker_stage = true;
     for step in job_steps(plan) {
-        let tasks = step_tasks(plan, step);
-        let (g, pu) = stage_requests(plan, step);
-        let bytes = stage_bytes(plan, step);
-        let per_task = |n: u64| n as f64 / tasks.max(1) as f64;
-        let work_ms = task_milliseconds(plan, step, &work_rates, speed) * vcpu;
-        let fixed_ms = if step.is_plan_function() {
-            settings.rates.plan_overhead_ms
-        } else {
-            settings.rates.task_overhead_ms
-        };
-        let round_trips = per_task(g) + per_task(pu);
-        // Requests a task waits for one after another (several inputs are fetched at once).
-        let waits = task_waits(plan, step);
-        let (task_ms, seconds_of_stage, bound) = match settings.target {
-            Target::Aws { .. } => {
-                let moved = bytes + stage_bytes_read(plan, step);
-                let task_ms = f.invoke_ms
-                    + waits * f.s3_first_byte_ms
-                    + per_task(moved) / (f.s3_mb_per_s * 1e3)
-                    + work_ms;
-                let c = u64::from(concurrency).min(tasks.max(1));
-                let waves = (tasks as f64 * attempts / c as f64).ceil().max(1.0);
-                // Each function's first read of a split: fetch and decode, in parallel; a warm
-                // function keeps it, and reads at most one per task.
-                let largest_bytes = plan.splits.iter().map(|s| s.bytes).max().unwrap_or(0);
-                let decode_ms = split_load_ms(plan, step, &settings.rates, speed);
-                let load_ms = if decode_ms > 0.0 {
-                    decode_ms * vcpu + largest_bytes as f64 / (f.s3_mb_per_s * 1e3)
-                } else {
-                    0.0
-                };
-                let loads = f64::from(plan.k()).min(waves);
-                let mut wave_s = (waves * task_ms + loads * load_ms) / 1e3;
-                if !step.is_plan_function() && first_worker_stage {
-                    // New environments: init plus a first S3 connection, once; beyond 1,000
-                    // at once Lambda adds 1,000 environments per 10 s.
-                    let cold = match arch {
-                        Arch::Arm64 => f.cold_start_ms_arm64,
-                        Arch::X86_64 => f.cold_start_ms_x86_64,
-                    };
-                    wave_s += (cold + f.s3_first_byte_ms) / 1e3;
-                    let ramps = ((c as f64 / f.scale_per_10s).ceil() - 1.0).max(0.0);
-                    wave_s += ramps * 10.0;
-                    first_worker_stage = false;
-                }
-                let s3_s = (g as f64 * attempts / f.s3_gets_per_s)
-                    .max(pu as f64 * attempts / f.s3_puts_per_s);
-                let starts_s = if step.is_map() {
-                    tasks as f64 * attempts / f.map_starts_per_s
-                } else {
-                    0.0
-                };
-                let (s, bound) = [(wave_s, "waves"), (s3_s, "s3"), (starts_s, "map-starts")]
-                    .into_iter()
-                    .fold((0.0, "waves"), |a, b| if b.0 > a.0 { b } else { a });
-                (task_ms, s, bound)
-            }
+        let work = StepWork::new(plan, step, &a);
+        let time = match settings.target {
+            Target::Aws { .. } => aws_step_time(plan, &work, &a, settings, &mut first_worker_stage),
             Target::Emulator {
                 cores,
                 s3_latency_ms,
                 ..
-            } => {
-                // The fixed overhead covers a task's first few requests; the rest cost the
-                // embedded server's own time each.
-                let extra = (round_trips - EMULATOR_REQUESTS_IN_OVERHEAD).max(0.0);
-                let bytes_ms = if step == JobStep::Stage(Stage::Combine) {
-                    per_task(bytes) * EMULATOR_OUTPUT_BYTE_US / 1e3 / speed
-                } else {
-                    0.0
-                };
-                let cpu_ms = fixed_ms + work_ms + extra * EMULATOR_REQUEST_MS + bytes_ms;
-                let runs = (tasks as f64 * attempts).ceil().max(1.0);
-                let w = f64::from(concurrency).min(runs);
-                // A warm slot keeps the plan and the splits it read: only each slot's first
-                // task reads them (the steps that split a scene by tasks read no plan).
-                let cached = match step {
-                    JobStep::Stage(
-                        Stage::Render
-                        | Stage::CastMap
-                        | Stage::CastReduce
-                        | Stage::Expand
-                        | Stage::TraceMap
-                        | Stage::TraceReduce,
-                    ) => {
-                        let splits = match step {
-                            JobStep::Stage(Stage::Render) => f64::from(plan.k()),
-                            JobStep::Stage(Stage::CastMap | Stage::TraceMap) => 1.0,
-                            _ => 0.0,
-                        };
-                        (1.0 + splits) * (1.0 - w / runs)
-                    }
-                    _ => 0.0,
-                };
-                let wait_ms = (waits - cached).max(0.0) * s3_latency_ms;
-                let task_ms = cpu_ms + wait_ms;
-                let c = f64::from(cores.max(1));
-                // Slots beyond the cores overlap their waits with others' compute, but the
-                // compute of a wave of n tasks takes at least n / cores task computes.
-                let full = (runs / w).floor();
-                let rest = runs - full * w;
-                let wave = |n: f64| {
-                    if n <= 0.0 {
-                        0.0
-                    } else {
-                        task_ms.max(n * cpu_ms / c)
-                    }
-                };
-                // Each slot's first read of each split it needs (a warm slot keeps them),
-                // the slots loading at once sharing the cores.
-                let loads = f64::from(plan.k()).min((runs / w).ceil());
-                let load_ms =
-                    loads * split_load_ms(plan, step, &settings.rates, speed) * (w / c).max(1.0);
-                let s = (full * wave(w) + wave(rest) + load_ms) / 1e3;
-                let bound = if w > c && wave(w) > task_ms {
-                    "cores"
-                } else {
-                    "waves"
-                };
-                (task_ms, s, bound)
-            }
+            } => emulator_step_time(plan, &work, &a, settings, cores, s3_latency_ms),
         };
-        let tail_s = (1.0 - (1.0 - p).powf(tasks as f64)) * (task_ms / 1e3 + f.retry_interval_s);
-        let stage_s = settings.rates.stage_overhead_ms / 1e3 + seconds_of_stage + tail_s;
-        seconds += stage_s;
-        let is_map = step.is_map();
+        totals.add_step(&work, &time, &a, settings);
+    }
+    let Totals {
+        stages,
+        mut seconds,
+        function_seconds,
+        gets,
+        puts,
+        mut cost,
+        children,
+    } = totals;
+    let bytes: u64 = stages.iter().map(|s| s.bytes).sum();
+    seconds += client_seconds(plan, settings, a.speed);
+    let transitions = standard_transitions(plan, children);
+    let rest = estimate(&CostInputs {
+        arch: a.arch,
+        memory_mb: a.memory_mb,
+        s3_put_like: puts.round() as u64,
+        s3_get_like: gets.round() as u64,
+        s3_byte_seconds: bytes as f64 * seconds,
+        standard_transitions: transitions,
+        ..CostInputs::default()
+    });
+    add(&mut cost, &rest, 1.0);
+    let notes = if a.aws {
+        aws_notes(&a, &stages)
+    } else {
+        Vec::new()
+    };
+    Projection {
+        functions: a.functions,
+        concurrency: a.concurrency,
+        seconds,
+        function_seconds,
+        s3_gets: gets.round() as u64,
+        s3_puts: puts.round() as u64,
+        transitions,
+        dollars: cost.total,
+        cost,
+        stages,
+        notes,
+    }
+}
+
+/// What [`project`] derives from its settings once, for every step.
+struct Assumptions {
+    /// The settings' speed, 1 unless positive.
+    speed: f64,
+    /// The failure rate, clamped to 0..=0.99.
+    p: f64,
+    /// Attempts per task on average: 1 / (1 - p).
+    attempts: f64,
+    /// The functions asked for, at least 1.
+    functions: u32,
+    /// Tasks at once: `functions`, on AWS capped by the Map's children.
+    concurrency: u32,
+    /// The target's function memory and architecture (the cost estimate's).
+    memory_mb: u32,
+    arch: Arch,
+    /// True on AWS, false on the emulator.
+    aws: bool,
+    /// The settings' rates with the fixed overheads left out: the work alone.
+    work_rates: Rates,
+    /// How much a function's compute stretches for want of a full vCPU (1 on the emulator).
+    vcpu: f64,
+}
+
+impl Assumptions {
+    fn new(functions: u32, settings: &ProjectionSettings) -> Assumptions {
+        let f = &LAMBDA_FACTS;
+        let speed = if settings.speed > 0.0 {
+            settings.speed
+        } else {
+            1.0
+        };
+        let p = settings.fail_rate.clamp(0.0, 0.99);
+        let functions = functions.max(1);
+        let (memory_mb, arch, aws) = match settings.target {
+            Target::Aws { memory_mb, arch } => (memory_mb, arch, true),
+            Target::Emulator {
+                memory_mb, arch, ..
+            } => (memory_mb, arch, false),
+        };
+        Assumptions {
+            speed,
+            p,
+            attempts: 1.0 / (1.0 - p),
+            functions,
+            concurrency: if aws {
+                functions.min(f.map_max_children)
+            } else {
+                functions
+            },
+            memory_mb,
+            arch,
+            aws,
+            work_rates: Rates {
+                task_overhead_ms: 0.0,
+                plan_overhead_ms: 0.0,
+                ..settings.rates
+            },
+            vcpu: if aws {
+                (f.vcpu_memory_mb / f64::from(memory_mb)).max(1.0)
+            } else {
+                1.0
+            },
+        }
+    }
+}
+
+/// One step's tasks, requests, bytes and per-task work, as the model counts them.
+struct StepWork {
+    step: JobStep,
+    tasks: u64,
+    /// S3 GET-like and PUT-like requests of one attempt of every task.
+    gets: u64,
+    puts: u64,
+    /// Estimated bytes the step writes.
+    bytes: u64,
+    /// A task's compute, ms, without the fixed overheads (stretched by the vCPU share).
+    work_ms: f64,
+    /// Requests a task waits for one after another (several inputs are fetched at once).
+    waits: f64,
+}
+
+impl StepWork {
+    fn new(plan: &JobPlan, step: JobStep, a: &Assumptions) -> StepWork {
+        let (gets, puts) = stage_requests(plan, step);
+        StepWork {
+            step,
+            tasks: step_tasks(plan, step),
+            gets,
+            puts,
+            bytes: stage_bytes(plan, step),
+            work_ms: task_milliseconds(plan, step, &a.work_rates, a.speed) * a.vcpu,
+            waits: task_waits(plan, step),
+        }
+    }
+
+    /// `n` spread over the step's tasks.
+    fn per_task(&self, n: u64) -> f64 {
+        n as f64 / self.tasks.max(1) as f64
+    }
+}
+
+/// One step's projected time, before its overhead and retry tail.
+struct StepTime {
+    /// Milliseconds of one attempt of one task.
+    task_ms: f64,
+    /// Seconds of the step's waves (or of the floor that bounds it).
+    seconds: f64,
+    /// What bounds it (see [`StageProjection::bound`]).
+    bound: &'static str,
+}
+
+/// A step on AWS Lambda: the longest of its waves of tasks (with the split loads and, for the
+/// first worker stage, the cold start and scaling ramp), its S3 requests at the prefix's rate
+/// and its Map children's starts. Clears `first_worker_stage` once it counted the cold start.
+fn aws_step_time(
+    plan: &JobPlan,
+    work: &StepWork,
+    a: &Assumptions,
+    settings: &ProjectionSettings,
+    first_worker_stage: &mut bool,
+) -> StepTime {
+    let f = &LAMBDA_FACTS;
+    let (step, tasks, attempts) = (work.step, work.tasks, a.attempts);
+    let moved = work.bytes + stage_bytes_read(plan, step);
+    let task_ms = f.invoke_ms
+        + work.waits * f.s3_first_byte_ms
+        + work.per_task(moved) / (f.s3_mb_per_s * 1e3)
+        + work.work_ms;
+    let c = u64::from(a.concurrency).min(tasks.max(1));
+    let waves = (tasks as f64 * attempts / c as f64).ceil().max(1.0);
+    // Each function's first read of a split: fetch and decode, in parallel; a warm
+    // function keeps it, and reads at most one per task.
+    let largest_bytes = plan.splits.iter().map(|s| s.bytes).max().unwrap_or(0);
+    let decode_ms = split_load_ms(plan, step, &settings.rates, a.speed);
+    let load_ms = if decode_ms > 0.0 {
+        decode_ms * a.vcpu + largest_bytes as f64 / (f.s3_mb_per_s * 1e3)
+    } else {
+        0.0
+    };
+    let loads = f64::from(plan.k()).min(waves);
+    let mut wave_s = (waves * task_ms + loads * load_ms) / 1e3;
+    if !step.is_plan_function() && *first_worker_stage {
+        // New environments: init plus a first S3 connection, once; beyond 1,000
+        // at once Lambda adds 1,000 environments per 10 s.
+        let cold = match a.arch {
+            Arch::Arm64 => f.cold_start_ms_arm64,
+            Arch::X86_64 => f.cold_start_ms_x86_64,
+        };
+        wave_s += (cold + f.s3_first_byte_ms) / 1e3;
+        let ramps = ((c as f64 / f.scale_per_10s).ceil() - 1.0).max(0.0);
+        wave_s += ramps * 10.0;
+        *first_worker_stage = false;
+    }
+    let s3_s = (work.gets as f64 * attempts / f.s3_gets_per_s)
+        .max(work.puts as f64 * attempts / f.s3_puts_per_s);
+    let starts_s = if step.is_map() {
+        tasks as f64 * attempts / f.map_starts_per_s
+    } else {
+        0.0
+    };
+    let (seconds, bound) = [(wave_s, "waves"), (s3_s, "s3"), (starts_s, "map-starts")]
+        .into_iter()
+        .fold((0.0, "waves"), |max, b| if b.0 > max.0 { b } else { max });
+    StepTime {
+        task_ms,
+        seconds,
+        bound,
+    }
+}
+
+/// A step on the local emulator with `cores` cores and `s3_latency_ms` per request: waves of
+/// slots whose waits overlap others' compute but whose compute shares the cores, plus each
+/// slot's first split loads.
+fn emulator_step_time(
+    plan: &JobPlan,
+    work: &StepWork,
+    a: &Assumptions,
+    settings: &ProjectionSettings,
+    cores: u32,
+    s3_latency_ms: f64,
+) -> StepTime {
+    let (step, speed) = (work.step, a.speed);
+    let fixed_ms = if step.is_plan_function() {
+        settings.rates.plan_overhead_ms
+    } else {
+        settings.rates.task_overhead_ms
+    };
+    let round_trips = work.per_task(work.gets) + work.per_task(work.puts);
+    // The fixed overhead covers a task's first few requests; the rest cost the
+    // embedded server's own time each.
+    let extra = (round_trips - EMULATOR_REQUESTS_IN_OVERHEAD).max(0.0);
+    let bytes_ms = if step == JobStep::Stage(Stage::Combine) {
+        work.per_task(work.bytes) * EMULATOR_OUTPUT_BYTE_US / 1e3 / speed
+    } else {
+        0.0
+    };
+    let cpu_ms = fixed_ms + work.work_ms + extra * EMULATOR_REQUEST_MS + bytes_ms;
+    let runs = (work.tasks as f64 * a.attempts).ceil().max(1.0);
+    let w = f64::from(a.concurrency).min(runs);
+    let cached = warm_reads(plan, step) * (1.0 - w / runs);
+    let wait_ms = (work.waits - cached).max(0.0) * s3_latency_ms;
+    let task_ms = cpu_ms + wait_ms;
+    let c = f64::from(cores.max(1));
+    // Slots beyond the cores overlap their waits with others' compute, but the
+    // compute of a wave of n tasks takes at least n / cores task computes.
+    let full = (runs / w).floor();
+    let rest = runs - full * w;
+    let wave = |n: f64| {
+        if n <= 0.0 {
+            0.0
+        } else {
+            task_ms.max(n * cpu_ms / c)
+        }
+    };
+    // Each slot's first read of each split it needs (a warm slot keeps them),
+    // the slots loading at once sharing the cores.
+    let loads = f64::from(plan.k()).min((runs / w).ceil());
+    let load_ms = loads * split_load_ms(plan, step, &settings.rates, speed) * (w / c).max(1.0);
+    let seconds = (full * wave(w) + wave(rest) + load_ms) / 1e3;
+    let bound = if w > c && wave(w) > task_ms {
+        "cores"
+    } else {
+        "waves"
+    };
+    StepTime {
+        task_ms,
+        seconds,
+        bound,
+    }
+}
+
+/// The reads of one task of `step` a warm emulator slot keeps from its first task (the plan
+/// and the splits it read), 0 for the steps that split a scene by tasks (they read no plan).
+fn warm_reads(plan: &JobPlan, step: JobStep) -> f64 {
+    match step {
+        JobStep::Stage(
+            Stage::Render
+            | Stage::CastMap
+            | Stage::CastReduce
+            | Stage::Expand
+            | Stage::TraceMap
+            | Stage::TraceReduce,
+        ) => {
+            let splits = match step {
+                JobStep::Stage(Stage::Render) => f64::from(plan.k()),
+                JobStep::Stage(Stage::CastMap | Stage::TraceMap) => 1.0,
+                _ => 0.0,
+            };
+            1.0 + splits
+        }
+        _ => 0.0,
+    }
+}
+
+/// The sums over a projection's steps.
+struct Totals {
+    stages: Vec<StageProjection>,
+    seconds: f64,
+    function_seconds: f64,
+    gets: f64,
+    puts: f64,
+    cost: CostBreakdown,
+    /// Map children started (for the state transitions).
+    children: u64,
+}
+
+impl Totals {
+    /// Nothing run yet but the client's upload PUTs.
+    fn new() -> Totals {
+        Totals {
+            stages: Vec::new(),
+            seconds: 0.0,
+            function_seconds: 0.0,
+            gets: 0.0,
+            puts: CLIENT_PUTS as f64,
+            cost: CostBreakdown::default(),
+            children: 0,
+        }
+    }
+
+    /// Adds a step that takes `time`: its overhead and retry tail, every attempt's
+    /// function-seconds, requests and cost, and its row.
+    fn add_step(
+        &mut self,
+        work: &StepWork,
+        time: &StepTime,
+        a: &Assumptions,
+        settings: &ProjectionSettings,
+    ) {
+        let (tasks, attempts, task_ms) = (work.tasks, a.attempts, time.task_ms);
+        let tail_s = (1.0 - (1.0 - a.p).powf(tasks as f64))
+            * (task_ms / 1e3 + LAMBDA_FACTS.retry_interval_s);
+        let stage_s = settings.rates.stage_overhead_ms / 1e3 + time.seconds + tail_s;
+        self.seconds += stage_s;
+        let is_map = work.step.is_map();
         if is_map {
-            children += tasks;
+            self.children += tasks;
         }
         let runs = tasks as f64 * attempts;
-        function_seconds += runs * task_ms / 1e3;
-        gets += g as f64 * attempts;
-        puts += pu as f64 * attempts;
+        self.function_seconds += runs * task_ms / 1e3;
+        self.gets += work.gets as f64 * attempts;
+        self.puts += work.puts as f64 * attempts;
         let one = estimate(&CostInputs {
-            arch,
-            memory_mb,
+            arch: a.arch,
+            memory_mb: a.memory_mb,
             invocation_ms: vec![task_ms],
             express_ms: if is_map { vec![task_ms] } else { Vec::new() },
             ..CostInputs::default()
         });
-        add(&mut cost, &one, runs);
-        stages.push(StageProjection {
-            name: step.name().to_owned(),
+        add(&mut self.cost, &one, runs);
+        self.stages.push(StageProjection {
+            name: work.step.name().to_owned(),
             tasks,
-            bytes,
+            bytes: work.bytes,
             task_seconds: task_ms / 1e3,
             seconds: stage_s,
-            bound: bound.to_owned(),
-            s3_gets: (g as f64 * attempts).round() as u64,
-            s3_puts: (pu as f64 * attempts).round() as u64,
+            bound: time.bound.to_owned(),
+            s3_gets: (work.gets as f64 * attempts).round() as u64,
+            s3_puts: (work.puts as f64 * attempts).round() as u64,
         });
     }
-    let bytes: u64 = stages.iter().map(|s| s.bytes).sum();
-    seconds += match settings.target {
+}
+
+/// Seconds of the client's part of a job: on AWS, upload the scene (its files, for a scene split
+/// by tasks), start the execution and read the outputs back; on the emulator, its fixed job
+/// overhead, the upload (at `speed`) and the client's requests' latency.
+fn client_seconds(plan: &JobPlan, settings: &ProjectionSettings, speed: f64) -> f64 {
+    let f = &LAMBDA_FACTS;
+    match settings.target {
         Target::Aws { .. } => {
-            // Upload the scene (its files, for a scene split by tasks), start the execution,
-            // read the outputs back.
             let uploaded = plan
                 .scene_parts
                 .map_or(plan.scene_bytes(), |parts| parts.scene_bytes);
@@ -392,56 +583,39 @@ pub fn project(plan: &JobPlan, functions: u32, settings: &ProjectionSettings) ->
                 + (CLIENT_PUTS as f64 + 3.0) * s3_latency_ms)
                 / 1e3
         }
-    };
-    let transitions = standard_transitions(plan, children);
-    let rest = estimate(&CostInputs {
-        arch,
-        memory_mb,
-        s3_put_like: puts.round() as u64,
-        s3_get_like: gets.round() as u64,
-        s3_byte_seconds: bytes as f64 * seconds,
-        standard_transitions: transitions,
-        ..CostInputs::default()
-    });
-    add(&mut cost, &rest, 1.0);
+    }
+}
+
+/// The AWS limits a projection on AWS meets, one sentence each: the default concurrency, the
+/// Map's children, S3's requests per prefix.
+fn aws_notes(a: &Assumptions, stages: &[StageProjection]) -> Vec<String> {
+    let f = &LAMBDA_FACTS;
+    let functions = a.functions;
+    let mut notes = Vec::new();
     let widest = stages.iter().map(|s| s.tasks).max().unwrap_or(1);
-    if aws {
-        let used = u64::from(concurrency).min(widest);
-        if used > u64::from(f.default_concurrency) {
-            notes.push(format!(
-                "{used} functions at once exceed the default Lambda concurrency of {} per \
-                 Region: ask for a quota raise",
-                f.default_concurrency
-            ));
-        }
-        if functions > f.map_max_children {
-            notes.push(format!(
-                "a Distributed Map runs at most {} children at once: {functions} functions \
-                 run as {}",
-                f.map_max_children, f.map_max_children
-            ));
-        }
-        if stages.iter().any(|s| s.bound == "s3") {
-            notes.push(
-                "every key shares the prefix jobs/{job}/ (core/src/keys.rs): S3's 3,500 PUT \
-                 and 5,500 GET per second per prefix bound a stage"
-                    .to_owned(),
-            );
-        }
+    let used = u64::from(a.concurrency).min(widest);
+    if used > u64::from(f.default_concurrency) {
+        notes.push(format!(
+            "{used} functions at once exceed the default Lambda concurrency of {} per \
+             Region: ask for a quota raise",
+            f.default_concurrency
+        ));
     }
-    Projection {
-        functions,
-        concurrency,
-        seconds,
-        function_seconds,
-        s3_gets: gets.round() as u64,
-        s3_puts: puts.round() as u64,
-        transitions,
-        dollars: cost.total,
-        cost,
-        stages,
-        notes,
+    if functions > f.map_max_children {
+        notes.push(format!(
+            "a Distributed Map runs at most {} children at once: {functions} functions \
+             run as {}",
+            f.map_max_children, f.map_max_children
+        ));
     }
+    if stages.iter().any(|s| s.bound == "s3") {
+        notes.push(
+            "every key shares the prefix jobs/{job}/ (core/src/keys.rs): S3's 3,500 PUT \
+             and 5,500 GET per second per prefix bound a stage"
+                .to_owned(),
+        );
+    }
+    notes
 }
 
 /// The index of the best projection: the fewest functions whose time is within 5% of the

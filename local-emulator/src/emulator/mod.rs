@@ -30,7 +30,9 @@ pub use upload::{
 use crate::deployment::Deployment;
 use crate::state_machine::{StoreItems, hort_orchestrator};
 use anyhow::{Context, Result, anyhow};
-use asl_interpreter::{FunctionLimits, Observer, OrchestratorOptions, TaskInvoker};
+use asl_interpreter::{
+    ExecutionFailure, FunctionLimits, Observer, Orchestrator, OrchestratorOptions, TaskInvoker,
+};
 use hort_core::breakdown::{StageBreakdown, uncovered};
 use hort_core::cost::{Arch, CostBreakdown, CostInputs, estimate, standard_transitions_for};
 use hort_core::hits::Hit;
@@ -279,54 +281,14 @@ fn run_job_of(
     observer: &dyn Observer,
 ) -> Result<EmulatorRun> {
     let started = Instant::now();
-    let reserved = config
-        .functions
-        .limit(hort_core::stage::WORKER_FUNCTION)
-        .reserved_concurrency;
-    if let Some(reserved) = reserved.filter(|&r| config.workers > r) {
-        return Err(anyhow!(
-            "--workers {} is more than the Worker function's reserved concurrency ({reserved}, \
-             WorkerConcurrency in infra/template.yaml): Lambda would throttle every task past \
-             it; give --workers {reserved} or fewer",
-            config.workers
-        ));
-    }
+    check_reserved_concurrency(config)?;
     let storage = Storage::open_scaled(&config.storage, config.time_scale)?;
     let job = JobId::new(config.job.clone().unwrap_or_else(fresh_job_id))?;
     let (scene, loaded) = match &input {
         SceneInput::File { path, loaded } => (*path, *loaded),
         SceneInput::Key { key, .. } => (Path::new(*key), None),
     };
-    let request = JobRequest {
-        scene: scene
-            .file_name()
-            .context("the scene path names no file")?
-            .to_string_lossy()
-            .into_owned(),
-        render: settings,
-        max_concurrency: config.workers as u32,
-        task_timeout_seconds: config.task_timeout_seconds,
-        // A scene split by tasks goes up as its files (the partition tasks read byte ranges
-        // of them); any other goes up parsed, so no function parses it again. A scene by key
-        // is copied as its files.
-        scene_format: match input {
-            SceneInput::File { path, .. }
-                if !splits_by_tasks(path, settings.memory_mb, options.scene_range_bytes) =>
-            {
-                SceneFormat::Binary
-            }
-            _ => SceneFormat::Files,
-        },
-        scene_range_bytes: options.scene_range_bytes,
-        scene_key: match input {
-            SceneInput::Key { key, .. } => Some(key.to_owned()),
-            SceneInput::File { .. } => None,
-        },
-        budget: match input {
-            SceneInput::Key { budget, .. } => budget,
-            SceneInput::File { .. } => None,
-        },
-    };
+    let request = job_request(config, options, input, scene, settings)?;
     let store = storage.blob_store();
     // The client's own requests (upload, items, outputs) have no state machine to retry them:
     // a few more tries than the SDK's own keep one unlucky request from failing the run.
@@ -346,65 +308,10 @@ fn run_job_of(
     )?;
 
     let finished = Arc::new(AtomicBool::new(false));
-    let functions = match &config.lambda {
-        Some(target) => {
-            if config.faults.any() {
-                return Err(anyhow!(
-                    "fault injection needs the functions in process: it cannot be combined with \
-                     --lambda-endpoint"
-                ));
-            }
-            Functions::Lambda(Arc::new(LambdaInvoker::new(target.clone())?))
-        }
-        None => Functions::InProcess(Arc::new(
-            InProcessInvoker::new(
-                Arc::clone(&store),
-                &storage.bucket,
-                storage.work_dir(),
-                // The budget is for the whole emulator: each warm worker gets its share, at most
-                // half its memory (as `HORT_SPLIT_CACHE_MB` is capped in the Worker function).
-                (config.split_cache_bytes / config.workers.max(1) as u64)
-                    .min(u64::from(config.memory_mb) << 19),
-            )
-            .with_memory_budget(MemoryBudget {
-                mb: config.memory_mb,
-            }),
-        )),
-    };
-    let (invoker, fault_counts): (Arc<dyn TaskInvoker>, _) = match &functions {
-        Functions::InProcess(in_process) if config.faults.any() => {
-            let mut faulty = FaultyInvoker::new(
-                Arc::clone(in_process),
-                Arc::clone(&store),
-                config.faults,
-                config.time_scale,
-            );
-            faulty.finished = Arc::clone(&finished);
-            let counts = Arc::clone(&faulty.counts);
-            (Arc::new(faulty), Some(counts))
-        }
-        Functions::InProcess(in_process) => (in_process.clone(), None),
-        Functions::Lambda(lambda) => (lambda.clone(), None),
-    };
-    let skipper = (submitted == Submitted::Resumed).then(|| {
-        Arc::new(SkipFinishedTasks::new(
-            Arc::clone(&invoker),
-            Arc::clone(&store),
-            job.clone(),
-        ))
-    });
-    let invoker: Arc<dyn TaskInvoker> = match &skipper {
-        Some(skipper) => skipper.clone(),
-        None => invoker,
-    };
-    let orchestrator = hort_orchestrator(OrchestratorOptions {
-        slots: config.workers.max(1),
-        time_scale: config.time_scale,
-        seed: config.faults.seed,
-        cancel: Arc::clone(&config.cancel),
-        functions: config.functions.clone(),
-    })
-    .map_err(|e| anyhow!("the state machine definition: {e}"))?;
+    let functions = functions_for(config, &storage, &store)?;
+    let (invoker, fault_counts) = with_faults(config, &functions, &store, &finished);
+    let (invoker, skipper) = skipping_finished_tasks(invoker, submitted, &store, &job);
+    let orchestrator = orchestrator_for(config)?;
     let accounting = Accounting::new(Arc::clone(&storage.store));
     let fan_out = FanOut(vec![&accounting, observer]);
     let input = serde_json::json!({"job": job.as_str(), "bucket": storage.bucket});
@@ -412,49 +319,11 @@ fn run_job_of(
     finished.store(true, Ordering::Relaxed);
     let usage = accounting.finish();
     if let Err(failure) = outcome {
-        if config.cancel.load(Ordering::Relaxed) {
-            // Attempts the cancel abandoned may still be writing: let them end, so that a
-            // caller deleting the job's objects next finds nothing landing after.
-            if let Functions::InProcess(functions) = &functions {
-                functions.wait_idle(std::time::Duration::from_secs(60));
-            }
-            // A temporary embedded store is removed on exit: promise nothing then.
-            let kept = !matches!(config.storage, StorageTarget::Embedded { data_dir: None });
-            return Err(if kept {
-                anyhow!(
-                    "cancelled; objects so far are kept under jobs/{job}/: continue with --job \
-                     {job} --resume"
-                )
-            } else {
-                anyhow!("cancelled")
-            });
-        }
-        let detail = match &failure.item {
-            Some(item) => format!(
-                "{} task {}: {}: {}",
-                stage_name(&item.map_state),
-                item.index,
-                item.error,
-                item.cause
-            ),
-            None => format!(
-                "{}: {}: {}",
-                stage_name(&failure.state),
-                failure.error,
-                failure.cause
-            ),
-        };
-        return Err(anyhow!("job {job} failed in {detail}"));
+        return Err(run_error(config, &functions, &job, &failure));
     }
 
     // Read before the intermediates go.
-    let scan_warnings = match client.get(&parts_table_key(&job)) {
-        Ok(bytes) => serde_json::from_slice::<PartsTable>(&bytes)
-            .map(|table| table.warnings)
-            .with_context(|| parts_table_key(&job))?,
-        Err(StoreError::NotFound { .. }) => Vec::new(),
-        Err(e) => return Err(e.into()),
-    };
+    let scan_warnings = read_scan_warnings(&client, &job)?;
     let plan_bytes = client.get(&plan_key(&job))?;
     let plan = JobPlan::from_json(&plan_key(&job), &plan_bytes)?;
     let JobOutputs { image, hits, png } = read_outputs(&client, &job, &plan)?;
@@ -487,6 +356,214 @@ fn run_job_of(
         deleted_intermediates,
         scan_warnings,
     })
+}
+
+/// Refuses more function slots than the Worker function's reserved concurrency: Lambda would
+/// throttle every task past it.
+fn check_reserved_concurrency(config: &EmulatorConfig) -> Result<()> {
+    let reserved = config
+        .functions
+        .limit(hort_core::stage::WORKER_FUNCTION)
+        .reserved_concurrency;
+    if let Some(reserved) = reserved.filter(|&r| config.workers > r) {
+        return Err(anyhow!(
+            "--workers {} is more than the Worker function's reserved concurrency ({reserved}, \
+             WorkerConcurrency in infra/template.yaml): Lambda would throttle every task past \
+             it; give --workers {reserved} or fewer",
+            config.workers
+        ));
+    }
+    Ok(())
+}
+
+/// The request the client submits for the scene of `input` (at `scene`, or named by its key):
+/// how it goes up, the render settings and the run's concurrency and timeouts.
+fn job_request(
+    config: &EmulatorConfig,
+    options: JobOptions,
+    input: SceneInput<'_>,
+    scene: &Path,
+    settings: PlanRequest,
+) -> Result<JobRequest> {
+    Ok(JobRequest {
+        scene: scene
+            .file_name()
+            .context("the scene path names no file")?
+            .to_string_lossy()
+            .into_owned(),
+        render: settings,
+        max_concurrency: config.workers as u32,
+        task_timeout_seconds: config.task_timeout_seconds,
+        // A scene split by tasks goes up as its files (the partition tasks read byte ranges
+        // of them); any other goes up parsed, so no function parses it again. A scene by key
+        // is copied as its files.
+        scene_format: match input {
+            SceneInput::File { path, .. }
+                if !splits_by_tasks(path, settings.memory_mb, options.scene_range_bytes) =>
+            {
+                SceneFormat::Binary
+            }
+            _ => SceneFormat::Files,
+        },
+        scene_range_bytes: options.scene_range_bytes,
+        scene_key: match input {
+            SceneInput::Key { key, .. } => Some(key.to_owned()),
+            SceneInput::File { .. } => None,
+        },
+        budget: match input {
+            SceneInput::Key { budget, .. } => budget,
+            SceneInput::File { .. } => None,
+        },
+    })
+}
+
+/// The Plan and Worker functions of the run: behind the Lambda Invoke API
+/// (`config.lambda`, which refuses fault injection), or in this process over `store`, each
+/// warm worker with its share of the split cache and held to the functions' memory.
+fn functions_for(
+    config: &EmulatorConfig,
+    storage: &Storage,
+    store: &Arc<dyn BlobStore>,
+) -> Result<Functions> {
+    Ok(match &config.lambda {
+        Some(target) => {
+            if config.faults.any() {
+                return Err(anyhow!(
+                    "fault injection needs the functions in process: it cannot be combined with \
+                     --lambda-endpoint"
+                ));
+            }
+            Functions::Lambda(Arc::new(LambdaInvoker::new(target.clone())?))
+        }
+        None => Functions::InProcess(Arc::new(
+            InProcessInvoker::new(
+                Arc::clone(store),
+                &storage.bucket,
+                storage.work_dir(),
+                // The budget is for the whole emulator: each warm worker gets its share, at most
+                // half its memory (as `HORT_SPLIT_CACHE_MB` is capped in the Worker function).
+                (config.split_cache_bytes / config.workers.max(1) as u64)
+                    .min(u64::from(config.memory_mb) << 19),
+            )
+            .with_memory_budget(MemoryBudget {
+                mb: config.memory_mb,
+            }),
+        )),
+    })
+}
+
+/// The invoker of `functions`, behind seeded fault injection when `config.faults` asks for any
+/// (in-process functions only; its faults stop once `finished` is set), with the count of the
+/// faults it injects.
+fn with_faults(
+    config: &EmulatorConfig,
+    functions: &Functions,
+    store: &Arc<dyn BlobStore>,
+    finished: &Arc<AtomicBool>,
+) -> (Arc<dyn TaskInvoker>, Option<Arc<FaultCounts>>) {
+    match functions {
+        Functions::InProcess(in_process) if config.faults.any() => {
+            let mut faulty = FaultyInvoker::new(
+                Arc::clone(in_process),
+                Arc::clone(store),
+                config.faults,
+                config.time_scale,
+            );
+            faulty.finished = Arc::clone(finished);
+            let counts = Arc::clone(&faulty.counts);
+            (Arc::new(faulty), Some(counts))
+        }
+        Functions::InProcess(in_process) => (in_process.clone(), None),
+        Functions::Lambda(lambda) => (lambda.clone(), None),
+    }
+}
+
+/// `invoker` behind a [`SkipFinishedTasks`] when the job was resumed (`submitted`), which skips
+/// the tasks of `job` whose outputs are all in `store`; the skipper too, for its count.
+fn skipping_finished_tasks(
+    invoker: Arc<dyn TaskInvoker>,
+    submitted: Submitted,
+    store: &Arc<dyn BlobStore>,
+    job: &JobId,
+) -> (Arc<dyn TaskInvoker>, Option<Arc<SkipFinishedTasks>>) {
+    if submitted != Submitted::Resumed {
+        return (invoker, None);
+    }
+    let skipper = Arc::new(SkipFinishedTasks::new(
+        invoker,
+        Arc::clone(store),
+        job.clone(),
+    ));
+    (skipper.clone(), Some(skipper))
+}
+
+/// The state machine of `infra/statemachine.asl.json` with the run's slots, time scale, fault
+/// seed, cancel flag and function limits.
+fn orchestrator_for(config: &EmulatorConfig) -> Result<Orchestrator> {
+    hort_orchestrator(OrchestratorOptions {
+        slots: config.workers.max(1),
+        time_scale: config.time_scale,
+        seed: config.faults.seed,
+        cancel: Arc::clone(&config.cancel),
+        functions: config.functions.clone(),
+    })
+    .map_err(|e| anyhow!("the state machine definition: {e}"))
+}
+
+/// The error of job `job`, whose state machine stopped with `failure`: cancelled (once the
+/// in-process attempts the cancel abandoned have ended, saying how to resume when the objects
+/// are kept), or failed in the stage and task that failed it.
+fn run_error(
+    config: &EmulatorConfig,
+    functions: &Functions,
+    job: &JobId,
+    failure: &ExecutionFailure,
+) -> anyhow::Error {
+    if config.cancel.load(Ordering::Relaxed) {
+        // Attempts the cancel abandoned may still be writing: let them end, so that a
+        // caller deleting the job's objects next finds nothing landing after.
+        if let Functions::InProcess(functions) = functions {
+            functions.wait_idle(std::time::Duration::from_secs(60));
+        }
+        // A temporary embedded store is removed on exit: promise nothing then.
+        let kept = !matches!(config.storage, StorageTarget::Embedded { data_dir: None });
+        return if kept {
+            anyhow!(
+                "cancelled; objects so far are kept under jobs/{job}/: continue with --job \
+                 {job} --resume"
+            )
+        } else {
+            anyhow!("cancelled")
+        };
+    }
+    let detail = match &failure.item {
+        Some(item) => format!(
+            "{} task {}: {}: {}",
+            stage_name(&item.map_state),
+            item.index,
+            item.error,
+            item.cause
+        ),
+        None => format!(
+            "{}: {}: {}",
+            stage_name(&failure.state),
+            failure.error,
+            failure.cause
+        ),
+    };
+    anyhow!("job {job} failed in {detail}")
+}
+
+/// What the Plan function's scan of a scene split by tasks warned of (its parts table); empty
+/// for a job without one.
+fn read_scan_warnings(client: &dyn BlobStore, job: &JobId) -> Result<Vec<String>> {
+    match client.get(&parts_table_key(job)) {
+        Ok(bytes) => Ok(serde_json::from_slice::<PartsTable>(&bytes)
+            .map(|table| table.warnings)
+            .with_context(|| parts_table_key(job))?),
+        Err(StoreError::NotFound { .. }) => Ok(Vec::new()),
+        Err(e) => Err(e.into()),
+    }
 }
 
 /// Whether the Plan function will split the scene at `main` by tasks for functions of
