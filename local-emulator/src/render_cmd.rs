@@ -20,8 +20,7 @@ use hort_core::hits::{Hit, encode_hits};
 use hort_core::ids::JobId;
 use hort_core::image::{Image, write_image};
 use hort_core::pipeline::{
-    ExecutionMode, PipelineOptions, PlanRequest, StoredOutputs, planned_textures,
-    resolve_counts_with, run_pipeline,
+    ExecutionMode, PipelineOptions, PlanRequest, StoredOutputs, resolve_counts_with, run_pipeline,
 };
 use hort_core::plural::count;
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
@@ -121,7 +120,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if let Some(scene) = scene.as_ref().filter(|_| !args.monolithic) {
         // Refuse impossible partitionings here, with the scene at hand, before any upload.
         let triangles = scene.mesh.triangle_count() as u64;
-        let (shape, s) = resolve_counts_with(&request, triangles, &planned_textures(scene))?;
+        let (shape, s) = resolve_counts_with(&request, triangles, &scene.mesh.textures)?;
         warn_if_oversplit(triangles, shape.splits, s);
     }
     let rendered = match &scene {

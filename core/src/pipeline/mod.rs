@@ -73,9 +73,7 @@ pub use split_cache::SplitCache;
 pub use split_object::{SPLIT_FORMAT_VERSION, SplitObject, decode_split, encode_split};
 pub use split_object::{ShadingTable, TriangleShading};
 pub use stages::{cast_map, cast_reduce, combine, expand, render_span, trace_map, trace_reduce};
-pub use textures::{
-    PlannedTexture, check_texture_memory, decode_planned_texture, planned_textures, texture_objects,
-};
+pub use textures::{PlannedTexture, check_texture_memory, decode_planned_texture, texture_objects};
 
 use crate::ErrorType;
 use crate::store::StoreError;

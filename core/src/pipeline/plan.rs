@@ -383,7 +383,7 @@ pub fn resolve_counts(
 pub fn resolve_counts_with(
     request: &PlanRequest,
     triangles: u64,
-    textures: &[super::PlannedTexture],
+    textures: &[std::sync::Arc<crate::texture::Texture>],
 ) -> Result<(JobShape, u32), PipelineError> {
     let texture_bytes = super::check_texture_memory(textures, request.memory_mb)?;
     check_image_size(request.width, request.height, request.spp)?;
@@ -525,7 +525,13 @@ pub fn plan_job(
         scene_parts: None,
         camera_hit_estimate: None,
         outputs: request.outputs,
-        textures: super::planned_textures(scene),
+        // The one place a job's textures are hashed for their content keys.
+        textures: scene
+            .mesh
+            .textures
+            .iter()
+            .map(|t| super::PlannedTexture::of(t))
+            .collect(),
     })
 }
 

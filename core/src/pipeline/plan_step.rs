@@ -6,7 +6,7 @@ use super::PipelineError;
 use super::plan::{JobPlan, PlanRequest, plan_job, resolve_counts_with};
 use super::split::split_scene_objects;
 use super::split_object::SplitObject;
-use super::textures::{planned_textures, texture_objects};
+use super::textures::texture_objects;
 use crate::ids::{JobId, SplitId};
 use crate::keys::{plan_key, split_key};
 use crate::scene::Scene;
@@ -54,11 +54,8 @@ pub fn plan_into_store_keeping(
     let started = Instant::now();
     let store = TimedStore::new(store);
     let mut encode_us = 0;
-    let textures = planned_textures(scene);
-    let (shape, s) = resolve_counts_with(request, scene.mesh.triangle_count() as u64, &textures)?;
-    for (key, bytes) in texture_objects(job, &scene.mesh.textures) {
-        store.put(&key, &bytes)?;
-    }
+    let textures = &scene.mesh.textures;
+    let (shape, s) = resolve_counts_with(request, scene.mesh.triangle_count() as u64, textures)?;
     let infos = split_scene_objects(
         &scene.mesh,
         shape.splits as usize,
@@ -74,6 +71,10 @@ pub fn plan_into_store_keeping(
         },
     )?;
     let plan = plan_job(scene, request, infos, &shape, s)?;
+    // Before the plan, which is what makes a job's tasks run.
+    for (key, bytes) in texture_objects(job, textures, &plan.textures) {
+        store.put(&key, &bytes)?;
+    }
     let plan_json = serde_json::to_vec_pretty(&plan)
         .map_err(|e| PipelineError::BadInput(format!("cannot encode the plan: {e}")))?;
     store.put(&plan_key(job), &plan_json)?;

@@ -34,30 +34,20 @@ impl PlannedTexture {
             height: texture.height,
         }
     }
-
-    /// Bytes the texture holds decoded.
-    pub fn memory_bytes(&self) -> u64 {
-        3u64.saturating_mul(u64::from(self.width))
-            .saturating_mul(u64::from(self.height))
-    }
 }
 
-/// The plan's list of `scene`'s textures, in the scene's order.
-pub fn planned_textures(scene: &crate::scene::Scene) -> Vec<PlannedTexture> {
-    scene
-        .mesh
-        .textures
-        .iter()
-        .map(|t| PlannedTexture::of(t))
-        .collect()
-}
-
-/// The objects the plan step stores for `textures`: (key, bytes), one per texture (the mesh
-/// holds each content once).
-pub fn texture_objects(job: &JobId, textures: &[Arc<Texture>]) -> Vec<(String, Vec<u8>)> {
+/// The objects the plan step stores for `textures`, listed in the plan as `planned` (same
+/// order): (key, bytes), one per texture (the mesh holds each content once). The keys are the
+/// plan's, so no texture is hashed again.
+pub fn texture_objects(
+    job: &JobId,
+    textures: &[Arc<Texture>],
+    planned: &[PlannedTexture],
+) -> Vec<(String, Vec<u8>)> {
     textures
         .iter()
-        .map(|t| (texture_key(job, &t.content_key()), encode_texture(t)))
+        .zip(planned)
+        .map(|(t, p)| (texture_key(job, &p.key), encode_texture(t)))
         .collect()
 }
 
@@ -82,10 +72,10 @@ pub fn decode_planned_texture(
 /// all of them, beside the runtime. The error names the largest texture and its size. Returns
 /// the bytes they hold.
 pub fn check_texture_memory(
-    textures: &[PlannedTexture],
+    textures: &[Arc<Texture>],
     memory_mb: u32,
 ) -> Result<u64, PipelineError> {
-    let bytes: u64 = textures.iter().map(PlannedTexture::memory_bytes).sum();
+    let bytes: u64 = textures.iter().map(|t| t.memory_bytes()).sum();
     let budget = u64::from(memory_mb) << 20;
     if RUNTIME_BYTES.saturating_add(bytes) <= budget {
         return Ok(bytes);

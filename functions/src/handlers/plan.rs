@@ -9,7 +9,7 @@ use super::{HandlerError, check_bucket};
 use hort_core::ids::{JobId, TaskId};
 use hort_core::keys::{items_key, manifest_key, plan_key, round_two_items_key, scene_binary_key};
 use hort_core::pipeline::{
-    JobPlan, SplitCache, TaskMetrics, micros, plan_into_store, planned_textures, refined_spans,
+    JobPlan, SplitCache, TaskMetrics, micros, plan_into_store, refined_spans,
 };
 use hort_core::scene::{Scene, decode_scene, load_scene};
 use hort_core::store::{BlobStore, StoreError, TimedStore};
@@ -85,7 +85,7 @@ pub fn handle_plan_measured(
         let (shape, s) = hort_core::pipeline::resolve_counts_with(
             &request.render,
             scene.mesh.triangle_count() as u64,
-            &planned_textures(&scene),
+            &scene.mesh.textures,
         )?;
         let preview = hort_core::predict::preview_plan(&scene, &request.render, &shape, s)
             .map_err(|e| HandlerError::bad_input(e.to_string()))?;

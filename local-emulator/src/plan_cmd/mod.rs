@@ -15,8 +15,7 @@ use hort_core::camera::Camera;
 use hort_core::cost::Arch;
 use hort_core::pipeline::partition::{preview_plan_from_table, scan_table};
 use hort_core::pipeline::{
-    ExecutionMode, JobPlan, PlanRequest, SplitMode, StoredOutputs, planned_textures,
-    resolve_counts_with,
+    ExecutionMode, JobPlan, PlanRequest, SplitMode, StoredOutputs, resolve_counts_with,
 };
 use hort_core::predict::{
     Projection, ProjectionSettings, RATES, SPLIT_BYTES_PER_TRIANGLE,
@@ -260,7 +259,7 @@ fn preview_loaded(args: &PlanArgs, scene_path: &Path) -> Result<JobPlan> {
     let (shape, s) = resolve_counts_with(
         &request,
         scene.mesh.triangle_count() as u64,
-        &planned_textures(&scene),
+        &scene.mesh.textures,
     )?;
     preview_plan(&scene, &request, &shape, s)
         .map_err(|e| anyhow!("{}: {}", scene_path.display(), e))
