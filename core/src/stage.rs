@@ -24,8 +24,8 @@
 //! [`crate::pipeline::partition`]); the plan itself does not list those stages.
 //! A job runs either the fused path (Plan, Render, Combine) or HORT's staged path (Plan,
 //! CastMap to TraceReduce, Combine); [`crate::pipeline::ExecutionMode::stages`] lists each.
-//! The task count and timeout of each stage for a given job are [`crate::pipeline::JobPlan`]'s
-//! (`task_count`, `task_timeout_seconds`). `infra/statemachine.asl.json` spells the same table
+//! The task count of each stage for a given job is [`crate::pipeline::JobPlan::task_count`],
+//! its timeout [`crate::predict::task_timeout_seconds`]. `infra/statemachine.asl.json` spells the same table
 //! out for Step Functions; a test of the emulator checks the two agree.
 
 use std::fmt;

@@ -197,7 +197,7 @@ pub struct GenerateArgs {
 
 /// `--task-timeout`'s help, with the bounds the plan clamps its default timeouts to.
 fn task_timeout_help() -> String {
-    use hort_core::pipeline::{MAX_TIMEOUT_SECONDS, MIN_TIMEOUT_SECONDS, TIMEOUT_MULTIPLE};
+    use hort_core::predict::{MAX_TIMEOUT_SECONDS, MIN_TIMEOUT_SECONDS, TIMEOUT_MULTIPLE};
     format!(
         "Per-task timeout in seconds, 1 to 300 (default: {TIMEOUT_MULTIPLE} times each task's \
          predicted time, {MIN_TIMEOUT_SECONDS} to {MAX_TIMEOUT_SECONDS} s; partition and build tasks get \

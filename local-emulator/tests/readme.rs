@@ -76,7 +76,7 @@ fn every_bench_subcommand_is_in_the_readme() {
 /// `--task-timeout`'s default range, in `hort render --help` and the README, is the plan's.
 #[test]
 fn task_timeout_help_and_readme_give_the_plans_bounds() {
-    use hort_core::pipeline::{MAX_TIMEOUT_SECONDS, MIN_TIMEOUT_SECONDS, TIMEOUT_MULTIPLE};
+    use hort_core::predict::{MAX_TIMEOUT_SECONDS, MIN_TIMEOUT_SECONDS, TIMEOUT_MULTIPLE};
     let bounds = format!("{MIN_TIMEOUT_SECONDS} to {MAX_TIMEOUT_SECONDS} s");
     let o = hort(&["render", "--help"]);
     assert!(o.status.success(), "{o:?}");

@@ -51,10 +51,8 @@ pub use mode::{
 };
 pub use outputs::{JobOutputs, StoredOutputs, read_outputs};
 pub use plan::{
-    CastTask, JobPlan, MAX_SPANS, MAX_SPLITS, MAX_TIMEOUT_SECONDS, MIN_TIMEOUT_SECONDS,
-    PLAN_FORMAT_VERSION, PlanRequest, ScenePartsShape, Span, SplitInfo, TIMEOUT_MULTIPLE,
-    TraceTask, build_timeout_seconds, partition_timeout_seconds, plan_job, resolve_counts,
-    resolve_counts_with,
+    CastTask, JobPlan, MAX_SPANS, MAX_SPLITS, PLAN_FORMAT_VERSION, PlanRequest, ScenePartsShape,
+    Span, SplitInfo, TraceTask, plan_job, resolve_counts, resolve_counts_with,
 };
 pub use plan_step::{PlannedJob, plan_into_store, plan_into_store_keeping};
 pub use records::{Occluded, PixelBlock, ShadowQuery, SurfaceHit};

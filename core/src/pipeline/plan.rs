@@ -25,21 +25,6 @@ pub const MAX_SPANS: u32 = 10_000;
 /// Samples per span when the span count is chosen automatically.
 const AUTO_SAMPLES_PER_SPAN: u64 = 65_536;
 
-/// Shortest per-task timeout a plan gives, seconds (`hort render --help` and the README say it).
-pub const MIN_TIMEOUT_SECONDS: u64 = 2;
-/// Longest per-task timeout a plan gives, seconds: the five timed-out attempts the state
-/// machine allows, with their backoff, must fit an EXPRESS child's 5 minutes.
-pub const MAX_TIMEOUT_SECONDS: u64 = 40;
-/// A task's timeout is this many times its predicted time.
-pub const TIMEOUT_MULTIPLE: u64 = 3;
-/// Predicted start-up of any task (invocation, first storage round trips), microseconds.
-const STARTUP_MICROS: u64 = 500_000;
-/// Rays (in the stage's unit, see [`JobPlan::task_timeout_seconds`]) one function is
-/// predicted to process per second.
-const RAYS_PER_SECOND: u64 = 1_000_000;
-/// Triangles of a split object one function is predicted to fetch and decode per second.
-const SPLIT_TRIANGLES_PER_SECOND: u64 = 2_000_000;
-
 /// What the user asked for; `None` means choose automatically. Stored inside the job request,
 /// so its JSON field names are part of the job request's format.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -280,51 +265,6 @@ impl JobPlan {
         self.adaptive.map_or(self.spp, |a| a.max_spp)
     }
 
-    /// The timeout of task `task` of `stage`, seconds: a few times its predicted time.
-    ///
-    /// The prediction is 0.5 s of start-up, plus R rays at 1,000,000 per second, plus (for
-    /// CastMap and TraceMap) the split's triangles at 2,000,000 per second (fetching and
-    /// decoding the split object), where R is the span's samples (pixels x spp) for CastMap,
-    /// samples x lights for TraceMap, samples x (1 + lights) for Render (which also loads every
-    /// split), samples x (1 + lights) / 4 for the reduce stages and
-    /// Expand, and width x height / 4 for Plan and Combine. The timeout is 3 times that,
-    /// rounded up to whole seconds, at least 2 s and at most 40 s (integer arithmetic in
-    /// microseconds). A task that does not exist gets the 2 s floor; a round-2 task
-    /// ([`JobPlan::round_of`]) that of its round-1 task.
-    pub fn task_timeout_seconds(&self, stage: Stage, task: u32) -> u32 {
-        // A round-2 task does the work of its round-1 task at most.
-        let task = self.round_of(stage, task).map_or(task, |(_, index)| index);
-        let spp = self.max_spp();
-        let span_samples = |span: u32| {
-            self.spans
-                .get(span as usize)
-                .map_or(0, |s| (s.end - s.start) * u64::from(spp))
-        };
-        let split_triangles =
-            |split: u32| self.splits.get(split as usize).map_or(0, |s| s.triangles);
-        let lights = self.lights.len() as u64;
-        let (rays, triangles) = match stage {
-            Stage::Render => (span_samples(task) * (1 + lights), self.triangles),
-            Stage::CastMap => self
-                .cast_tasks
-                .get(task as usize)
-                .map_or((0, 0), |t| (span_samples(t.span), split_triangles(t.split))),
-            Stage::TraceMap => self.trace_tasks.get(task as usize).map_or((0, 0), |t| {
-                (span_samples(t.span) * lights, split_triangles(t.split))
-            }),
-            Stage::CastReduce | Stage::Expand | Stage::TraceReduce => {
-                (span_samples(task) * (1 + lights) / 4, 0)
-            }
-            Stage::Combine | Stage::Plan => (u64::from(self.width) * u64::from(self.height) / 4, 0),
-            Stage::Partition | Stage::Build => (0, 0),
-        };
-        let micros = STARTUP_MICROS
-            .saturating_add(rays.saturating_mul(1_000_000) / RAYS_PER_SECOND)
-            .saturating_add(triangles.saturating_mul(1_000_000) / SPLIT_TRIANGLES_PER_SECOND);
-        let seconds = micros.saturating_mul(TIMEOUT_MULTIPLE).div_ceil(1_000_000);
-        seconds.clamp(MIN_TIMEOUT_SECONDS, MAX_TIMEOUT_SECONDS) as u32
-    }
-
     /// Total bytes of all split objects (the scene as stored).
     pub fn scene_bytes(&self) -> u64 {
         self.splits.iter().map(|s| s.bytes).sum()
@@ -535,24 +475,6 @@ pub fn plan_job(
     })
 }
 
-/// The timeout of a Partition task over a byte range of `range_bytes`, seconds: a fixed 30 s
-/// plus a second per 4 MiB of its range, three times over (a few times the time it takes on a
-/// slow function), at most 900 s (Lambda's longest; the Worker's own timeout bounds it further,
-/// `docs/AWS-LIMITS.md`). Beside [`JobPlan::task_timeout_seconds`]: one home for the timeouts.
-pub fn partition_timeout_seconds(range_bytes: u64) -> u32 {
-    parts_timeout_seconds(range_bytes >> 22)
-}
-
-/// The timeout of a Build task whose split holds `triangles`, seconds: as
-/// [`partition_timeout_seconds`], with a second per 50,000 triangles.
-pub fn build_timeout_seconds(triangles: u64) -> u32 {
-    parts_timeout_seconds(triangles / 50_000)
-}
-
-fn parts_timeout_seconds(units: u64) -> u32 {
-    (3 * (30 + units)).min(900) as u32
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -671,21 +593,6 @@ mod tests {
         assert_eq!(counts, [1, 0, 0, 0, plan.cast_tasks.len(), 7, 7, 21, 7, 1]);
         // 64x48 over 7 spans: span 0 holds 438 pixels; cornell has one light.
         assert_eq!(plan.spans[0].end - plan.spans[0].start, 438);
-        // 438 shadow rays and a few triangles: 3 x 0.5 s of start-up, rounded up to the floor.
-        assert_eq!(plan.task_timeout_seconds(Stage::TraceMap, 0), 2);
-        assert_eq!(plan.task_timeout_seconds(Stage::TraceMap, 999), 2);
-        let mut dense = plan.clone();
-        dense.spp = 1000; // 438,000 camera rays in span 0: 3 x (0.5 + 0.438 + ~0) s = 2.8 s
-        assert_eq!(dense.cast_tasks[0].span, 0);
-        assert_eq!(dense.task_timeout_seconds(Stage::CastMap, 0), 3);
-        // 876,000 samples x (1 + 1 light) / 4 = 438,000 units: the same 3 s.
-        assert_eq!(dense.task_timeout_seconds(Stage::CastReduce, 0), 3);
-        // A split of 4 million triangles adds 2 s of loading: 3 x 2.938 s = 8.8 s.
-        let split = dense.cast_tasks[0].split as usize;
-        dense.splits[split].triangles = 4_000_000;
-        assert_eq!(dense.task_timeout_seconds(Stage::CastMap, 0), 9);
-        dense.spp = 100_000; // 43.8 million rays: 132 s predicted x 3, capped
-        assert_eq!(dense.task_timeout_seconds(Stage::CastMap, 0), 40);
         let e = JobPlan::from_json("jobs/x/plan.json", b"{")
             .unwrap_err()
             .to_string();

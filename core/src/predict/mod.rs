@@ -33,10 +33,17 @@
 //! read once per task, the Map states' item files).
 
 mod projection;
+mod timeouts;
 
 pub use projection::{
     LAMBDA_FACTS, LambdaFacts, Projection, ProjectionSettings, SWEEP, StageProjection, Target,
     best_of, project,
+};
+use timeouts::Bound;
+pub use timeouts::{
+    MAX_PARTS_TIMEOUT_SECONDS, MAX_TIMEOUT_SECONDS, MIN_PARTS_TIMEOUT_SECONDS, MIN_TIMEOUT_SECONDS,
+    TIMEOUT_MULTIPLE, TIMEOUT_SLOWDOWN, build_timeout_seconds, partition_timeout_seconds,
+    task_timeout_seconds,
 };
 
 use crate::camera::Camera;
@@ -424,12 +431,21 @@ pub fn predict(plan: &JobPlan, model: &PredictionModel) -> Prediction {
 /// triangles or the objects the cut reads) at `rates`, the work divided by `speed` (1: the
 /// reference machine).
 pub fn task_milliseconds(plan: &JobPlan, step: JobStep, r: &Rates, speed: f64) -> f64 {
+    task_ms(plan, step, r, speed, Bound::Expected)
+}
+
+/// [`task_milliseconds`] under the assumptions of `bound`.
+fn task_ms(plan: &JobPlan, step: JobStep, r: &Rates, speed: f64, bound: Bound) -> f64 {
     let speed = if speed > 0.0 { speed } else { 1.0 };
     let s = plan.spans.len() as u64;
     let pixels = u64::from(plan.width) * u64::from(plan.height);
+    let (spp, hit_fraction) = match bound {
+        Bound::Expected => (plan.spp, hit_fraction(plan)),
+        Bound::Upper => (plan.max_spp(), 1.0),
+    };
     // The largest span's samples: spans differ by at most one pixel.
-    let span_samples = pixels.div_ceil(s.max(1)) as f64 * f64::from(plan.spp);
-    let hits = span_samples * hit_fraction(plan);
+    let span_samples = pixels.div_ceil(s.max(1)) as f64 * f64::from(spp);
+    let hits = span_samples * hit_fraction;
     let queries = hits * traced_lights(plan);
     let ms = |fixed: f64, units: f64, us: f64| fixed + units * us / 1000.0 / speed;
     let largest_split = plan.splits.iter().map(|s| s.triangles).max().unwrap_or(0) as f64;
@@ -469,7 +485,7 @@ pub fn task_milliseconds(plan: &JobPlan, step: JobStep, r: &Rates, speed: f64) -
             1.0,
             (span_samples + queries)
                 * (r.render_us_per_ray
-                    + r.render_us_per_ray_log2 * (plan.triangles.max(2) as f64).log2()),
+                    + r.render_us_per_ray_log2 * libm::log2(plan.triangles.max(2) as f64)),
         ),
         (Stage::CastMap, _) => ms(r.task_overhead_ms, span_samples, r.cast_us_per_sample),
         (Stage::CastReduce, _) => ms(r.task_overhead_ms, hits, r.cast_reduce_us_per_sample),

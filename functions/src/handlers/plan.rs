@@ -11,6 +11,7 @@ use hort_core::keys::{items_key, manifest_key, plan_key, round_two_items_key, sc
 use hort_core::pipeline::{
     JobPlan, SplitCache, TaskMetrics, micros, plan_into_store, refined_spans,
 };
+use hort_core::predict::task_timeout_seconds;
 use hort_core::scene::{Scene, decode_scene, load_scene};
 use hort_core::store::{BlobStore, StoreError, TimedStore};
 use std::path::{Component, Path, PathBuf};
@@ -130,9 +131,8 @@ pub(super) fn write_round(
             continue;
         };
         let tasks = plan.dispatch_order(stage, tasks);
-        write_items(store, &key, request, tasks, |task| {
-            plan.task_timeout_seconds(stage, task)
-        })?;
+        let timeout = task_timeout_seconds(&plan, stage);
+        write_items(store, &key, request, tasks, |_| timeout)?;
         items.insert(field.to_owned(), key);
     }
     Ok(PlanOutput {

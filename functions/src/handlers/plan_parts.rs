@@ -13,9 +13,8 @@ use super::plan::{
 use hort_core::ids::{JobId, Stage};
 use hort_core::keys::{items_key, parts_table_key, scene_prefix};
 use hort_core::pipeline::partition::{cut_scene, plan_from_parts, scan_scene, scene_range_bytes};
-use hort_core::pipeline::{
-    JobPlan, TaskMetrics, build_timeout_seconds, micros, partition_timeout_seconds, resolve_counts,
-};
+use hort_core::pipeline::{JobPlan, TaskMetrics, micros, resolve_counts};
+use hort_core::predict::{build_timeout_seconds, partition_timeout_seconds};
 use hort_core::scene::{Scene, load_scene};
 use hort_core::store::{BlobStore, StoreError, TimedStore};
 use std::path::Path;
