@@ -166,13 +166,9 @@ pub struct RenderArgs {
     /// The Worker function's name at --lambda-endpoint.
     #[arg(long, default_value = "worker", requires = "lambda_endpoint")]
     pub worker_function: String,
-    /// Output image: .png or .jpg (8-bit sRGB), .pfm or .exr (linear). Default: the scene file's name
-    /// with .png, in the current folder. Checked before any work; written atomically.
-    #[arg(long)]
-    pub out: Option<PathBuf>,
-    /// Write the hit buffer: per pixel a little-endian {u32 triangle, f32 t}.
-    #[arg(long)]
-    pub hits: Option<PathBuf>,
+    /// The image and hit buffer to write.
+    #[command(flatten)]
+    pub outputs: crate::plan_flags::OutputFlags,
     /// Write the JSON report to this file, or to standard output with `-`.
     #[arg(long)]
     pub report: Option<PathBuf>,

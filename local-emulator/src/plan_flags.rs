@@ -1,12 +1,15 @@
 //! The flags that shape a job's plan, shared by `hort render` and `hort plan` (the same names,
 //! ranges and defaults, so a plan previewed is the plan rendered), and the one builder of the
-//! [`PlanRequest`] from them.
+//! [`PlanRequest`] from them. The output flags are among them: a job stores the linear image
+//! and the hit buffer only when the command writes them, which changes its Combine task and
+//! its storage.
 
 use anyhow::Result;
 use clap::Args;
 use hort_core::adaptive::AdaptiveSettings;
 use hort_core::pipeline::{ExecutionMode, PlanRequest, SplitMode, StoredOutputs};
 use hort_core::scene::{DEFAULT_HEIGHT, DEFAULT_WIDTH, ImageSettings, check_image_size};
+use std::path::{Path, PathBuf};
 
 /// The plan-shaping flags of `hort render` and `hort plan`.
 #[derive(Args, Clone, Debug)]
@@ -94,4 +97,36 @@ impl PlanFlags {
             outputs,
         }
     }
+}
+
+/// The output flags of `hort render`, which `hort plan` takes too: what they name decides the
+/// outputs the job stores.
+#[derive(Args, Clone, Debug, Default)]
+pub struct OutputFlags {
+    /// Output image: .png or .jpg (8-bit sRGB), .pfm or .exr (linear). Default: the scene file's
+    /// name with .png, in the current folder. `hort render` checks it before any work and writes
+    /// it atomically; `hort plan` writes nothing and plans the job that stores it.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Write the hit buffer: per pixel a little-endian {u32 triangle, f32 t} (`hort plan`: plan
+    /// the job that stores it).
+    #[arg(long)]
+    pub hits: Option<PathBuf>,
+}
+
+impl OutputFlags {
+    /// What a job writing these outputs stores besides its PNG: the linear image unless the
+    /// image is a PNG (the default), and the hit buffer when asked for.
+    pub fn stored(&self) -> StoredOutputs {
+        StoredOutputs {
+            linear: self.out.as_deref().is_some_and(|out| !is_png(out)),
+            hits: self.hits.is_some(),
+        }
+    }
+}
+
+/// Whether `out` names a PNG file (the one image a job stores ready to write).
+pub fn is_png(out: &Path) -> bool {
+    out.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
 }

@@ -5,7 +5,7 @@ use crate::cli::RenderArgs;
 use crate::outputs::{
     OutputTarget, check_distinct, check_image_path, check_output_path, write_output,
 };
-use crate::plan_flags::ImageSize;
+use crate::plan_flags::{ImageSize, is_png};
 use anyhow::{Context, Result, anyhow, bail};
 use hort::deployment::Deployment;
 use hort::emulator::{
@@ -20,7 +20,7 @@ use hort_core::hits::{Hit, encode_hits};
 use hort_core::ids::JobId;
 use hort_core::image::{Image, write_image};
 use hort_core::pipeline::{
-    ExecutionMode, PipelineOptions, PlanRequest, StoredOutputs, resolve_counts_with, run_pipeline,
+    ExecutionMode, PipelineOptions, PlanRequest, resolve_counts_with, run_pipeline,
 };
 use hort_core::plural::count;
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
@@ -70,11 +70,6 @@ struct Rendered {
 }
 
 /// True if `out` names a PNG (the one output a job always stores).
-fn is_png(out: &Path) -> bool {
-    out.extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
-}
-
 /// What to add to the error of `--adaptive MAX_SPP` over a first pass of `spp` samples too
 /// small for an error estimate (the default `--spp 1`): the `--spp` that makes it run.
 fn first_pass_hint(spp: u32, max_spp: u32) -> String {
@@ -112,10 +107,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         size,
         adaptive,
         // A job stores the large outputs only when this command writes them.
-        StoredOutputs {
-            linear: !is_png(&targets.out),
-            hits: args.hits.is_some(),
-        },
+        args.outputs.stored(),
     );
     if let Some(scene) = scene.as_ref().filter(|_| !args.monolithic) {
         // Refuse impossible partitionings here, with the scene at hand, before any upload.
@@ -152,9 +144,13 @@ struct OutputTargets {
 
 /// The outputs of `args`, each path checked (writable, of a known kind) and all distinct.
 fn check_outputs(args: &RenderArgs) -> Result<OutputTargets> {
-    let out = args.out.clone().unwrap_or_else(|| default_out(&args.scene));
+    let out = args
+        .outputs
+        .out
+        .clone()
+        .unwrap_or_else(|| default_out(&args.scene));
     check_image_path("--out", &out)?;
-    let hits = match &args.hits {
+    let hits = match &args.outputs.hits {
         Some(path) => Some(check_output_path("--hits", path, false)?),
         None => None,
     };
@@ -163,7 +159,7 @@ fn check_outputs(args: &RenderArgs) -> Result<OutputTargets> {
         None => None,
     };
     let mut paths = vec![("--out", out.as_path())];
-    paths.extend(args.hits.as_deref().map(|p| ("--hits", p)));
+    paths.extend(args.outputs.hits.as_deref().map(|p| ("--hits", p)));
     paths.extend(args.report.as_deref().map(|p| ("--report", p)));
     check_distinct(&paths)?;
     Ok(OutputTargets { out, hits, report })
@@ -249,7 +245,7 @@ fn run_report(
     let ImageSize { width, height, spp } = size;
     let outputs = Outputs {
         image: Some(out.display().to_string()),
-        hits: args.hits.as_ref().map(|p| p.display().to_string()),
+        hits: args.outputs.hits.as_ref().map(|p| p.display().to_string()),
         report: args.report.as_ref().map(|p| p.display().to_string()),
     };
     let skipped = skips(

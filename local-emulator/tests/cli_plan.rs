@@ -85,9 +85,10 @@ fn json_has_the_contract_fields_and_they_agree() {
     assert!((1..=6).contains(&tasks("cast-map")));
     let sum: u64 = stages.iter().map(|s| u(&s["tasks"])).sum();
     assert_eq!(u(&o["tasks"]), sum);
-    // The Combine stage writes PNG, PFM and hit buffer: 24 bytes per pixel.
+    // The Combine stage of `hort render`'s default output stores the PNG only: 4 bytes per pixel
+    // before compression.
     let combine = stages.iter().find(|s| s["name"] == "combine").unwrap();
-    assert_eq!(u(&combine["bytes"]), 64 * 48 * 24);
+    assert_eq!(u(&combine["bytes"]), 64 * 48 * 4);
     let sweep: Vec<u64> = o["projection"]
         .as_array()
         .unwrap()
@@ -376,4 +377,27 @@ fn a_chart_draws_every_scene_and_several_scenes_need_it() {
         "error: several scenes are planned together only for a chart: add --chart FILE.png\n"
     );
     std::fs::remove_dir_all(dir).unwrap();
+}
+
+#[test]
+fn the_output_flags_decide_what_the_planned_job_stores() {
+    let combine_bytes = |extra: &[&str]| {
+        let o = cornell(extra);
+        let stages = o["stages"].as_array().unwrap();
+        u(&stages.iter().find(|s| s["name"] == "combine").unwrap()["bytes"])
+    };
+    // As `hort render` stores them: the PNG (4 bytes a pixel before compression), the linear
+    // image unless --out is a PNG (12), the hit buffer with --hits (8). Nothing is written.
+    let dir = std::env::temp_dir().join(format!("hort-plan-outputs-{}", std::process::id()));
+    let at = |name: &str| dir.join(name).display().to_string();
+    let pixels = 64 * 48;
+    assert_eq!(combine_bytes(&[]), pixels * 4);
+    assert_eq!(combine_bytes(&["--out", &at("x.png")]), pixels * 4);
+    assert_eq!(combine_bytes(&["--out", &at("x.pfm")]), pixels * 16);
+    assert_eq!(combine_bytes(&["--hits", &at("h.bin")]), pixels * 12);
+    assert_eq!(
+        combine_bytes(&["--out", &at("x.exr"), "--hits", &at("h.bin")]),
+        pixels * 24
+    );
+    assert!(!dir.exists(), "hort plan wrote {}", dir.display());
 }

@@ -6,7 +6,7 @@
 
 use super::table::{Table, f3};
 use crate::plan_cmd::{ArchArg, PlanArgs, TargetArg, calibrate, plan_with};
-use crate::plan_flags::PlanFlags;
+use crate::plan_flags::{OutputFlags, PlanFlags};
 use anyhow::{Context, Result, bail};
 use hort::emulator::S3_FAULTS_VAR;
 use hort_core::pipeline::{ExecutionMode, SplitMode};
@@ -104,6 +104,11 @@ pub fn run_plan_bench(args: &PlanBenchArgs) -> Result<()> {
                             mode: args.mode,
                             memory_mb: 2048,
                             scene_range_bytes: args.scene_range_bytes,
+                        },
+                        // What `measure` writes: the PNG only.
+                        outputs: OutputFlags {
+                            out: Some(dir.join("image.png")),
+                            hits: None,
                         },
                     },
                     calibration,

@@ -14,9 +14,7 @@ use hort::emulator::scene_range_for;
 use hort_core::camera::Camera;
 use hort_core::cost::Arch;
 use hort_core::pipeline::partition::{preview_plan_from_table, scan_table};
-use hort_core::pipeline::{
-    ExecutionMode, JobPlan, PlanRequest, SplitMode, StoredOutputs, resolve_counts_with,
-};
+use hort_core::pipeline::{ExecutionMode, JobPlan, PlanRequest, SplitMode, resolve_counts_with};
 use hort_core::predict::{
     Projection, ProjectionSettings, RATES, SPLIT_BYTES_PER_TRIANGLE,
     SPLIT_NORMAL_BYTES_PER_TRIANGLE, SWEEP, Target, best_of, preview_plan, project,
@@ -65,6 +63,9 @@ pub struct PlanArgs {
     /// The image and the plan's shape: `hort render`'s flags, with its names and defaults.
     #[command(flatten)]
     pub plan: crate::plan_flags::PlanFlags,
+    /// The outputs `hort render` would write, which decide what the job stores.
+    #[command(flatten)]
+    pub outputs: crate::plan_flags::OutputFlags,
 }
 
 /// `--arch`.
@@ -246,7 +247,7 @@ pub fn plan_with(args: &PlanArgs, calibration: Calibration) -> Result<PlanOutput
 /// The request `hort render` would send for a scene whose manifest fixes `image`.
 fn plan_request(args: &PlanArgs, image: &ImageSettings) -> Result<PlanRequest> {
     let size = args.plan.image_size(image)?;
-    Ok(args.plan.request(size, None, StoredOutputs::ALL))
+    Ok(args.plan.request(size, None, args.outputs.stored()))
 }
 
 /// The plan of a scene loaded whole, with its camera samples' hit fraction estimated.
