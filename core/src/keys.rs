@@ -16,6 +16,9 @@
 //! jobs/{job}/parts/split-{split:05}.json         the summary of a split a build task stored
 //! jobs/{job}/out/image.{ext}                     the final image (png, pfm)
 //! jobs/{job}/out/hits.bin                        the hit buffer
+//! jobs/{job}/api.json                            the HTTP API's record of the job, created once
+//! jobs/{job}/execution.json                      hort serve's record of the job's run
+//! jobs/{job}/report.json                         the report of a job hort serve ran
 //! ```
 //!
 //! Indices are zero-padded to five digits so that, below 100 000, listing a prefix returns tasks
@@ -63,6 +66,46 @@ pub fn parts_split_info_key(job: &JobId, split: u32) -> String {
 /// `jobs/{job}/manifest.json`: the job request, written once with a conditional put.
 pub fn manifest_key(job: &JobId) -> String {
     format!("jobs/{job}/manifest.json")
+}
+
+/// `jobs/{job}/api.json`: the HTTP API's record of a job it accepted (what was asked, predicted
+/// and when), created once with a conditional put, by the deployment's API function and by
+/// `hort serve` alike.
+pub fn api_record_key(job: &JobId) -> String {
+    format!("jobs/{job}/api.json")
+}
+
+/// `jobs/{job}/execution.json`: `hort serve`'s record of a job's run (state, progress, times,
+/// cost, error), which a deployment's Step Functions execution keeps instead.
+pub fn execution_record_key(job: &JobId) -> String {
+    format!("jobs/{job}/execution.json")
+}
+
+/// `jobs/{job}/report.json`: the report (`hort render --report`'s JSON) of a job `hort serve`
+/// ran.
+pub fn report_key(job: &JobId) -> String {
+    format!("jobs/{job}/report.json")
+}
+
+/// Whether a job that succeeded keeps `key` when its intermediates are deleted: the job
+/// request, the plan, the outputs, and the API's records and report.
+pub fn kept_after_success(job: &JobId, key: &str) -> bool {
+    let Some(rel) = key.strip_prefix(&format!("jobs/{job}/")) else {
+        return true;
+    };
+    matches!(
+        rel,
+        "manifest.json" | "plan.json" | "api.json" | "execution.json" | "report.json"
+    ) || rel.starts_with("out/")
+}
+
+/// Whether a cancelled job keeps `key`: its request, its scene and the API's records stay (the
+/// id stays taken, and the job can be inspected); everything it made goes.
+pub fn kept_on_cancel(job: &JobId, key: &str) -> bool {
+    let Some(rel) = key.strip_prefix(&format!("jobs/{job}/")) else {
+        return true;
+    };
+    matches!(rel, "manifest.json" | "api.json" | "execution.json") || rel.starts_with("scene/")
 }
 
 /// `jobs/{job}/plan.json`: the job plan.
@@ -229,6 +272,58 @@ mod tests {
             items_key(&j, Stage::TraceMap),
             "jobs/job-42/items/trace-map.json"
         );
+        assert_eq!(api_record_key(&j), "jobs/job-42/api.json");
+        assert_eq!(execution_record_key(&j), "jobs/job-42/execution.json");
+        assert_eq!(report_key(&j), "jobs/job-42/report.json");
+    }
+
+    #[test]
+    fn a_job_that_succeeded_keeps_its_request_plan_outputs_and_records_only() {
+        let j = job();
+        for kept in [
+            manifest_key(&j),
+            plan_key(&j),
+            image_key(&j, "png"),
+            hits_key(&j),
+            api_record_key(&j),
+            execution_record_key(&j),
+            report_key(&j),
+        ] {
+            assert!(kept_after_success(&j, &kept), "{kept}");
+        }
+        for gone in [
+            scene_binary_key(&j),
+            split_key(&j, SplitId(0)),
+            items_key(&j, Stage::Render),
+            partition_key(&j, Stage::Render, TaskId(0), PartitionId(0)),
+        ] {
+            assert!(!kept_after_success(&j, &gone), "{gone}");
+        }
+    }
+
+    #[test]
+    fn a_cancelled_job_keeps_its_request_scene_and_records_only() {
+        let j = job();
+        for kept in [
+            manifest_key(&j),
+            api_record_key(&j),
+            execution_record_key(&j),
+            scene_binary_key(&j),
+            format!("{}teapot.obj", scene_prefix(&j)),
+            "jobs/job-421/plan.json".into(),
+        ] {
+            assert!(kept_on_cancel(&j, &kept), "{kept}");
+        }
+        for gone in [
+            plan_key(&j),
+            report_key(&j),
+            split_key(&j, SplitId(0)),
+            image_key(&j, "png"),
+            items_key(&j, Stage::CastMap),
+            partition_key(&j, Stage::CastMap, TaskId(0), PartitionId(0)),
+        ] {
+            assert!(!kept_on_cancel(&j, &gone), "{gone}");
+        }
     }
 
     #[test]

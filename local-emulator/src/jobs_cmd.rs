@@ -167,8 +167,7 @@ fn list(args: &StorageArgs) -> Result<()> {
     for job in &jobs {
         let status = if job.finished {
             "finished"
-        } else if crate::serve::recorded_state(storage.s3(), &job.job)? == Some(JobState::Cancelled)
-        {
+        } else if served_and_cancelled(storage.s3(), &job.job)? {
             // Cancelled through `hort serve`'s API: its intermediates are gone, it cannot resume.
             "cancelled"
         } else {
@@ -240,4 +239,12 @@ pub fn print_job_objects(run: &EmulatorRun) {
         ),
         None => {}
     }
+}
+
+/// Whether `hort serve` ran job `job` (a job folder's name) and it was cancelled.
+fn served_and_cancelled(store: &dyn hort_core::store::BlobStore, job: &str) -> Result<bool> {
+    let Ok(id) = hort_core::ids::JobId::new(job) else {
+        return Ok(false);
+    };
+    Ok(crate::serve::recorded_state(store, &id)? == Some(JobState::Cancelled))
 }

@@ -124,10 +124,21 @@ fn a_render_equals_the_monolithic_one_and_outlives_the_server() {
     assert_eq!(status["retried_attempts"], 0);
     assert!(status["cost_usd"].as_f64().unwrap() > 0.0);
     assert_eq!(status["image_url"], format!("/renders/{job}/image"));
-    let renders = std::fs::read_dir(data.join("hort/api/renders"))
-        .unwrap()
-        .count();
-    assert_eq!(renders, 1, "two posts with one key made one job");
+    // The API's records, at the deployment's keys: one per job.
+    let stored = files_under(&data.join("hort/jobs"));
+    let records: Vec<&String> = stored
+        .iter()
+        .filter(|f| f.ends_with("/api.json~obj"))
+        .collect();
+    assert_eq!(
+        records,
+        [&format!("{job}/api.json~obj")],
+        "two posts with one key made one job: {stored:?}"
+    );
+    assert!(
+        job.starts_with("key-"),
+        "an idempotency key names its job: {job}"
+    );
 
     let pfm = server.get(&format!("/renders/{job}/image?format=pfm"));
     assert_eq!(pfm.status, 200);
@@ -562,7 +573,16 @@ fn delete_cancels_a_running_job_and_removes_its_intermediates() {
     eprintln!("DELETE answered in {:.2} s", t1.elapsed().as_secs_f64());
     assert_eq!(deleted["status"], "CANCELLED", "{deleted}");
     assert!(deleted["tasks_done"].as_u64() < deleted["tasks_total"].as_u64());
-    assert_eq!(files_under(&job_dir), ["manifest.json~obj"]);
+    // What the deployment keeps of a cancelled job too: the request, the scene, the records.
+    assert_eq!(
+        files_under(&job_dir),
+        [
+            "api.json~obj",
+            "execution.json~obj",
+            "manifest.json~obj",
+            "scene/scene.bin~obj"
+        ]
+    );
     let status = server.get(&format!("/renders/{job}")).json();
     assert_eq!(status["status"], "CANCELLED");
     let image = server.get(&format!("/renders/{job}/image"));
@@ -615,11 +635,16 @@ fn delete_cancels_a_running_job_and_removes_its_intermediates() {
     // cancelled job's was written.
     assert_eq!(
         files_under(&job_dir),
-        ["manifest.json~obj"],
+        [
+            "api.json~obj",
+            "execution.json~obj",
+            "manifest.json~obj",
+            "scene/scene.bin~obj"
+        ],
         "nothing of the job's is written after the cancel"
     );
-    // `hort jobs list` over the server's folder: the cancelled job says so (its one object left,
-    // the job request), the other finished.
+    // `hort jobs list` over the server's folder: the cancelled job says so (the four objects it
+    // keeps), the other finished.
     let listed = hort(&["jobs", "list", "--data-dir", data.to_str().unwrap()]);
     assert!(listed.status.success(), "{}", stderr(&listed));
     let listed = String::from_utf8(listed.stdout).unwrap();
@@ -632,16 +657,17 @@ fn delete_cancels_a_running_job_and_removes_its_intermediates() {
             .map(str::to_owned)
             .collect()
     };
-    let manifest_bytes = std::fs::metadata(job_dir.join("manifest.json~obj"))
-        .unwrap()
-        .len();
+    let kept_bytes: u64 = files_under(&job_dir)
+        .iter()
+        .map(|f| std::fs::metadata(job_dir.join(f)).unwrap().len())
+        .sum();
     assert_eq!(
         row(&job),
         [
             job.clone(),
             "cancelled".into(),
-            "1".into(),
-            manifest_bytes.to_string()
+            "4".into(),
+            kept_bytes.to_string()
         ],
         "{listed}"
     );

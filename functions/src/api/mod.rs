@@ -32,6 +32,7 @@ pub mod fake;
 #[cfg(test)]
 mod hostile_tests;
 mod image;
+mod job_record;
 mod request;
 mod scene;
 mod scene_by_key;
@@ -53,6 +54,7 @@ pub use image::{
     ImageAnswer, ImageBucket, MAX_INLINE_BODY_BYTES, PRESIGNED_URL_SECONDS, check_response_size,
     stored_image,
 };
+pub use job_record::{JobRecord, fresh_id, job_for, keyed_id, now_unix_us};
 pub use request::{MAX_JSON_DEPTH, RenderRequest, SceneSpec, parse_render_request};
 pub use scene::{LoadedScene, MAX_SCENE_FILES, SceneFiles, check_relative, material_libraries};
 pub use scene_by_key::{ESTIMATE_BOUNDS, SceneEstimate, SizedScene, size_scene};

@@ -17,15 +17,10 @@
 //! Every method blocks: S3 through the store, SQS and Step Functions on the runtime `handle`.
 //! Call them from a blocking thread (`tokio::task::spawn_blocking`), never from an async task.
 
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::time::{SystemTime, UNIX_EPOCH};
-
 use hort_core::cost::Arch;
 use hort_core::ids::{JobId, Stage};
-use hort_core::keys::{manifest_key, scene_binary_key};
-use hort_core::pipeline::StoredOutputs;
+use hort_core::keys::{api_record_key, kept_on_cancel, manifest_key, scene_binary_key};
 use hort_core::store::{BlobStore, PutOutcome, StoreError};
-use serde::{Deserialize, Serialize};
 use tokio::runtime::Handle;
 
 use super::error::AwsErrorKind;
@@ -33,9 +28,10 @@ use super::sfn::{ExecutionInput, ExecutionStatus, Executions, Listed, MapRun};
 use super::sqs::JobQueue;
 use crate::S3Store;
 use crate::api::{
-    ApiError, ImageAnswer, ImageFormat, JobScene, JobSpec, JobState, JobStatus, PredictionModel,
-    RATES, RenderBackend, Submission, idempotency_key_expired, idempotency_key_reused, object_in,
-    object_range_in, object_size_in, stored_image,
+    ApiError, ImageAnswer, ImageFormat, JobRecord, JobScene, JobSpec, JobState, JobStatus,
+    PredictionModel, RATES, RenderBackend, Submission, idempotency_key_expired,
+    idempotency_key_reused, job_for, now_unix_us, object_in, object_range_in, object_size_in,
+    stored_image,
 };
 use crate::handlers::{BudgetCheck, JobRequest};
 
@@ -47,51 +43,6 @@ pub struct DeploymentLimits {
     pub max_concurrency: u32,
     /// The Worker's memory in MB.
     pub worker_memory_mb: u32,
-}
-
-/// The API's record of a job, at `jobs/{job}/api.json` (created once, with `put_if_absent`).
-#[derive(Debug, Clone, Serialize, Deserialize)]
-struct JobRecord {
-    job: String,
-    scene: String,
-    tasks_total: u64,
-    predicted_cost_usd: f64,
-    predicted_seconds: f64,
-    /// When the job was accepted: microseconds since the Unix epoch.
-    created_unix_us: u64,
-    idempotency_key: Option<String>,
-    max_cost_usd: Option<f64>,
-    /// The request body's fingerprint (records of older versions have none: any body matches).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    request_fingerprint: Option<String>,
-    /// What the job stores besides its PNG (records of older versions: everything).
-    #[serde(default)]
-    outputs: StoredOutputs,
-}
-
-fn record_key(job: &JobId) -> String {
-    format!("jobs/{job}/api.json")
-}
-
-fn now_unix_us() -> u64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0, |d| d.as_micros() as u64)
-}
-
-/// The job id an idempotency key always names: `key-` and a 64-bit FNV-1a hash of the key.
-fn keyed_id(key: &str) -> JobId {
-    let hash = hort_core::digest::fnv1a64(key.as_bytes());
-    JobId::new(format!("key-{hash:016x}")).expect("a valid job id")
-}
-
-/// A job id not used before: `r-`, the time in microseconds, and a per-process counter mixed
-/// with the process id.
-fn fresh_id() -> JobId {
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-    let salt = (u64::from(std::process::id()) << 20) ^ n;
-    JobId::new(format!("r-{}-{salt:x}", now_unix_us())).expect("a valid job id")
 }
 
 /// The render API's backend over S3, the intake queue and the state machine.
@@ -132,13 +83,7 @@ impl AwsBackend {
     }
 
     fn record(&self, job: &JobId) -> Result<JobRecord, ApiError> {
-        let key = record_key(job);
-        let bytes = self.store.get(&key).map_err(|e| match e {
-            StoreError::NotFound { .. } => ApiError::not_found(format!("no render {job}")),
-            e => Self::storage_error("cannot read the job's record", e),
-        })?;
-        serde_json::from_slice(&bytes)
-            .map_err(|e| ApiError::internal(format!("the record {key} is malformed: {e}")))
+        JobRecord::read(&self.store, job)
     }
 
     /// Stores the scene and the job request of `spec` as job `job`: the binary scene the API
@@ -351,28 +296,8 @@ impl RenderBackend for AwsBackend {
     }
 
     fn submit(&self, spec: JobSpec) -> Result<Submission, ApiError> {
-        let job = match &spec.idempotency_key {
-            Some(key) => keyed_id(key),
-            None => fresh_id(),
-        };
-        let record = JobRecord {
-            job: job.to_string(),
-            scene: spec.scene_name.clone(),
-            tasks_total: spec.prediction.tasks_total,
-            predicted_cost_usd: spec.prediction.predicted_cost_usd,
-            predicted_seconds: spec.prediction.predicted_seconds,
-            created_unix_us: now_unix_us(),
-            idempotency_key: spec.idempotency_key.clone(),
-            max_cost_usd: spec.max_cost_usd,
-            request_fingerprint: Some(spec.request_fingerprint.clone()),
-            outputs: spec.request.outputs,
-        };
-        let json = serde_json::to_vec(&record)
-            .map_err(|e| ApiError::internal(format!("cannot encode the job's record: {e}")))?;
-        let outcome = self
-            .store
-            .put_if_absent(&record_key(&job), &json)
-            .map_err(|e| Self::storage_error("cannot store the job's record", e))?;
+        let job = job_for(spec.idempotency_key.as_deref());
+        let outcome = JobRecord::accepted(&job, &spec).create(&self.store)?;
         let replayed = match outcome {
             PutOutcome::Created
                 if spec.idempotency_key.is_some() && self.execution(&job)?.is_some() =>
@@ -380,7 +305,7 @@ impl RenderBackend for AwsBackend {
                 // The key's earlier job expired (S3 deletes jobs/ after JobExpirationDays) while
                 // Step Functions keeps its execution's name for 90 days: a new execution under
                 // that name could never start, so the job would never run.
-                let _ = self.store.delete(&record_key(&job));
+                let _ = self.store.delete(&api_record_key(&job));
                 return Err(idempotency_key_expired(
                     spec.idempotency_key.as_deref().unwrap_or_default(),
                     job.as_str(),
@@ -395,10 +320,7 @@ impl RenderBackend for AwsBackend {
             }
         };
         if replayed {
-            let first: Option<JobRecord> = self
-                .read_object(&record_key(&job))?
-                .and_then(|bytes| serde_json::from_slice(&bytes).ok());
-            let first_fingerprint = first.and_then(|r| r.request_fingerprint);
+            let first_fingerprint = self.record(&job).ok().and_then(|r| r.request_fingerprint);
             if let (Some(key), Some(first)) = (&spec.idempotency_key, first_fingerprint)
                 && first != spec.request_fingerprint
             {
@@ -446,7 +368,7 @@ impl RenderBackend for AwsBackend {
             .filter_map(|f| f.strip_prefix("jobs/")?.strip_suffix('/'))
             .filter_map(|id| JobId::new(id).ok())
             .collect();
-        let keys: Vec<String> = jobs.iter().map(record_key).collect();
+        let keys: Vec<String> = jobs.iter().map(api_record_key).collect();
         let mut records = Vec::new();
         for ((job, key), bytes) in jobs.into_iter().zip(&keys).zip(self.store.get_many(&keys)) {
             let bytes = match bytes {
@@ -455,8 +377,7 @@ impl RenderBackend for AwsBackend {
                 Err(StoreError::NotFound { .. }) => continue,
                 Err(e) => return Err(Self::storage_error("cannot read a job's record", e)),
             };
-            let record: JobRecord = serde_json::from_slice(&bytes)
-                .map_err(|e| ApiError::internal(format!("the record {key} is malformed: {e}")))?;
+            let record = JobRecord::decode(key, &bytes)?;
             records.push((record, job));
         }
         records.sort_by(|(a, _), (b, _)| {
@@ -529,16 +450,12 @@ impl RenderBackend for AwsBackend {
             )
             .map_err(aws)?;
         // Intermediate objects go; the request, the scene and the record stay.
-        let keep = |key: &str| {
-            let rel = key.strip_prefix(&format!("jobs/{job}/")).unwrap_or(key);
-            rel == "manifest.json" || rel == "api.json" || rel.starts_with("scene/")
-        };
         let keys: Vec<String> = self
             .store
             .list(&format!("jobs/{job}/"))
             .map_err(|e| Self::storage_error("cannot list the job's objects", e))?
             .into_iter()
-            .filter(|k| !keep(k))
+            .filter(|k| !kept_on_cancel(&job, k))
             .collect();
         self.store
             .delete_all(&keys)
@@ -568,14 +485,5 @@ mod tests {
         ];
         assert_eq!(progress_of(&runs), (108, Some(Stage::CastReduce)));
         assert_eq!(progress_of(&runs[..2]), (101, Some(Stage::CastMap)));
-    }
-
-    #[test]
-    fn ids_are_valid_and_keys_name_one_job() {
-        assert_eq!(keyed_id("k1"), keyed_id("k1"));
-        assert_ne!(keyed_id("k1"), keyed_id("k2"));
-        assert!(keyed_id(&"x".repeat(255)).as_str().len() <= 64);
-        assert_ne!(fresh_id(), fresh_id());
-        assert!(fresh_id().as_str().len() <= 64);
     }
 }

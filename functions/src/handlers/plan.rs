@@ -131,7 +131,7 @@ pub(super) fn write_round(
             continue;
         };
         let tasks = plan.dispatch_order(stage, tasks);
-        let timeout = task_timeout_seconds(&plan, stage);
+        let timeout = task_timeout_seconds(plan, stage);
         write_items(store, &key, request, tasks, |_| timeout)?;
         items.insert(field.to_owned(), key);
     }

@@ -24,7 +24,7 @@ pub use storage::{
 };
 pub use upload::{
     Deleted, JobSummary, SkipFinishedTasks, Submitted, binary_scene, delete_intermediates,
-    delete_job, is_kept_after_success, list_jobs, scene_files, submit_job, submit_or_resume,
+    delete_job, list_jobs, scene_files, submit_job, submit_or_resume,
 };
 
 use crate::deployment::Deployment;
@@ -156,7 +156,7 @@ pub struct EmulatorRun {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct JobOptions {
     /// Keep every object after success; by default the intermediates are deleted from a
-    /// bucket or data folder (see [`is_kept_after_success`]).
+    /// bucket or data folder (see [`hort_core::keys::kept_after_success`]).
     pub keep_intermediates: bool,
     /// Continue a stopped job of the same id, request and scene, skipping the tasks whose
     /// outputs exist (see [`submit_or_resume`]).

@@ -26,8 +26,8 @@ use anyhow::{Context, Result, bail};
 use asl_interpreter::{TaskFailure, TaskInvoker};
 use hort_core::ids::{JobId, PartitionId, Stage, TaskId};
 use hort_core::keys::{
-    image_key, manifest_key, partition_key, parts_index_key, parts_split_info_key, plan_key,
-    scene_binary_key, scene_prefix,
+    image_key, kept_after_success, manifest_key, partition_key, parts_index_key,
+    parts_split_info_key, plan_key, scene_binary_key, scene_prefix,
 };
 use hort_core::pipeline::{JobPlan, PlanRequest, StoredOutputs, TaskMetrics};
 use hort_core::scene::{Scene, diffuse_map_files, encode_scene_named, parse_manifest};
@@ -353,11 +353,6 @@ fn is_finished(keys: &[String], job: &JobId) -> bool {
     keys.contains(&image_key(job, "png"))
 }
 
-/// True if `key` of `job` stays after the job succeeded: the job request, the plan, outputs.
-pub fn is_kept_after_success(job: &JobId, key: &str) -> bool {
-    key == manifest_key(job) || key == plan_key(job) || key.starts_with(&format!("jobs/{job}/out/"))
-}
-
 /// Objects deleted.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Deleted {
@@ -367,13 +362,13 @@ pub struct Deleted {
     pub bytes: u64,
 }
 
-/// Deletes the intermediate objects of `job` (everything but what
-/// [`is_kept_after_success`] keeps).
+/// Deletes the intermediate objects of `job` (everything but what [`kept_after_success`]
+/// keeps).
 pub fn delete_intermediates(store: &S3Store, job: &JobId) -> Result<Deleted> {
     let objects = store.list_sizes(&format!("jobs/{job}/"))?;
     let doomed: Vec<_> = objects
         .into_iter()
-        .filter(|o| !is_kept_after_success(job, &o.key))
+        .filter(|o| !kept_after_success(job, &o.key))
         .collect();
     delete_objects(store, doomed)
 }

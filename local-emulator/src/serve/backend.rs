@@ -1,20 +1,19 @@
 //! The emulator behind `hort serve`: a [`RenderBackend`] that runs every job on a background
 //! thread through the emulator's `run_job_with` (the state machine interpreted, the function
-//! handlers in process, an embedded S3 server over the data folder), keeps each job's record in
+//! handlers in process, an embedded S3 server over the data folder), keeps each job's records in
 //! the bucket so a restarted server still answers for it, and cancels jobs on request.
 //!
-//! Objects of the API (beside the jobs' own `jobs/{job}/...`):
-//!
-//! ```text
-//! api/renders/{job}/status.json   the job's record (state, progress, times, cost, request)
-//! api/renders/{job}/report.json   the report of a succeeded job (hort render --report's JSON)
-//! ```
+//! The bucket's layout is the deployment's (`hort_core::keys`): the API's record of each job at
+//! `jobs/{job}/api.json` ([`JobRecord`], the same as the deployment's API function writes, with
+//! the same job ids), and, where a deployment asks Step Functions, the record of the job's run
+//! at `jobs/{job}/execution.json` ([`ExecutionRecord`]) and its report at
+//! `jobs/{job}/report.json`.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::time::Duration;
 
 use anyhow::{Context, Result};
 use asl_interpreter::{Event, FunctionLimits, Observer};
@@ -25,83 +24,22 @@ use hort::emulator::{
 };
 use hort_core::cost::Arch;
 use hort_core::ids::{JobId, Stage};
-use hort_core::keys::manifest_key;
+use hort_core::keys::{api_record_key, kept_on_cancel, report_key};
 use hort_core::pipeline::PlanRequest;
 use hort_core::report::{Outputs, RayReport, Report, Seconds};
-use hort_core::store::{BlobStore, CountingStore};
+use hort_core::store::{BlobStore, CountingStore, PutOutcome};
 use hort_functions::api::{
-    ApiError, ImageAnswer, ImageFormat, JobScene, JobSpec, JobState, JobStatus, PredictionModel,
-    RenderBackend, StageProgress, Submission, idempotency_key_reused, object_in, object_range_in,
-    object_size_in, stored_image,
+    ApiError, ImageAnswer, ImageFormat, JobRecord, JobScene, JobSpec, JobState, JobStatus,
+    PredictionModel, RenderBackend, StageProgress, Submission, idempotency_key_reused, job_for,
+    now_unix_us, object_in, object_range_in, object_size_in, stored_image,
 };
 use hort_functions::handlers::BudgetCheck;
 use hort_functions::{S3Config, S3Store};
-use serde::{Deserialize, Serialize};
 
-/// Where the API keeps its own objects.
-const API_PREFIX: &str = "api/renders/";
+use super::execution::{ExecutionRecord, migrate_legacy_records};
+
 /// How long `DELETE` waits for a job to stop before answering with its state so far.
 const CANCEL_WAIT: Duration = Duration::from_secs(60);
-
-fn status_key(job: &str) -> String {
-    format!("{API_PREFIX}{job}/status.json")
-}
-
-/// The state `hort serve` recorded for `job` in `store` (its `status.json`), or `None` if it
-/// served no job of that id. `hort jobs list` shows it.
-pub fn recorded_state(store: &dyn BlobStore, job: &str) -> Result<Option<JobState>> {
-    let key = status_key(job);
-    let bytes = match store.get(&key) {
-        Ok(bytes) => bytes,
-        Err(e) if e.is_not_found() => return Ok(None),
-        Err(e) => return Err(e).with_context(|| format!("cannot read {key}")),
-    };
-    let record: JobRecord =
-        serde_json::from_slice(&bytes).with_context(|| format!("cannot decode {key}"))?;
-    Ok(Some(record.status))
-}
-
-fn report_key(job: &str) -> String {
-    format!("{API_PREFIX}{job}/report.json")
-}
-
-/// Microseconds since the Unix epoch: integers, so a record read back gives the same elapsed
-/// time to the bit (JSON floats need not parse back exactly).
-fn now_unix_us() -> u64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0, |d| d.as_micros() as u64)
-}
-
-/// A job's record, as stored at `api/renders/{job}/status.json`.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-struct JobRecord {
-    job: String,
-    status: JobState,
-    stage: Option<String>,
-    tasks_done: u64,
-    tasks_total: u64,
-    retried_attempts: u64,
-    /// When the job was accepted, started, ended: microseconds since the Unix epoch.
-    created_unix_us: u64,
-    started_unix_us: Option<u64>,
-    finished_unix_us: Option<u64>,
-    cost_usd: Option<f64>,
-    predicted_cost_usd: f64,
-    predicted_seconds: f64,
-    error: Option<String>,
-    idempotency_key: Option<String>,
-    scene: String,
-    triangles: u64,
-    request: PlanRequest,
-    max_cost_usd: Option<f64>,
-    /// Tasks done of each stage's tasks, in stage order (records of older servers have none).
-    #[serde(default)]
-    stages: Vec<StageProgress>,
-    /// The request body's fingerprint (records of older servers have none: any body matches).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    request_fingerprint: Option<String>,
-}
 
 /// Live progress of a running job, from the orchestrator's events.
 #[derive(Default)]
@@ -151,7 +89,12 @@ impl Observer for Live {
 
 /// One job of this server.
 struct Job {
-    record: Mutex<JobRecord>,
+    /// The API's record: what was accepted.
+    record: JobRecord,
+    /// The job id, checked.
+    id: JobId,
+    /// Where its run stands, as last stored.
+    run: Mutex<ExecutionRecord>,
     live: Live,
     cancel: Arc<AtomicBool>,
     /// Set when the job's thread has ended (or the job was loaded already ended).
@@ -160,10 +103,12 @@ struct Job {
 }
 
 impl Job {
-    fn new(record: JobRecord) -> Job {
-        let ended = record.status.is_final();
+    fn new(id: JobId, record: JobRecord, run: ExecutionRecord) -> Job {
+        let ended = run.status.is_final();
         Job {
-            record: Mutex::new(record),
+            record,
+            id,
+            run: Mutex::new(run),
             live: Live::default(),
             cancel: Arc::new(AtomicBool::new(false)),
             ended: Mutex::new(ended),
@@ -172,14 +117,15 @@ impl Job {
     }
 
     fn status(&self) -> JobStatus {
-        let r = lock(&self.record).clone();
-        let running = r.status == JobState::Running;
-        let end = r.finished_unix_us.unwrap_or_else(now_unix_us);
+        let r = &self.record;
+        let run = lock(&self.run).clone();
+        let running = run.status == JobState::Running;
+        let end = run.finished_unix_us.unwrap_or_else(now_unix_us);
         JobStatus {
             stage: if running {
-                lock(&self.live.stage).clone().or(r.stage)
+                lock(&self.live.stage).clone().or(run.stage)
             } else {
-                r.stage
+                run.stage
             },
             tasks_done: if running {
                 self.live
@@ -187,29 +133,29 @@ impl Job {
                     .load(Ordering::Relaxed)
                     .min(r.tasks_total)
             } else {
-                r.tasks_done
+                run.tasks_done
             },
             retried_attempts: if running {
                 self.live.retried.load(Ordering::Relaxed)
             } else {
-                r.retried_attempts
+                run.retried_attempts
             },
             elapsed_seconds: end.saturating_sub(r.created_unix_us) as f64 / 1e6,
-            job: r.job,
-            status: r.status,
+            job: r.job.clone(),
+            status: run.status,
             tasks_total: r.tasks_total,
-            cost_usd: r.cost_usd,
+            cost_usd: run.cost_usd,
             predicted_cost_usd: r.predicted_cost_usd,
             max_cost_usd: r.max_cost_usd,
-            error: r.error,
+            error: run.error,
             image_url: None,
             stages: if running {
-                self.live.stages(&r.stages)
+                self.live.stages(&run.stages)
             } else {
-                r.stages
+                run.stages
             },
-            scene: Some(r.scene),
-            outputs: r.request.outputs,
+            scene: Some(r.scene.clone()),
+            outputs: r.outputs,
         }
     }
 
@@ -230,11 +176,10 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-/// The jobs, and the job each idempotency key started.
+/// The jobs, by id (an idempotency key names its job: [`job_for`]).
 #[derive(Default)]
 struct Registry {
     jobs: BTreeMap<String, Arc<Job>>,
-    by_key: HashMap<String, String>,
 }
 
 /// What job threads share with the server.
@@ -256,17 +201,10 @@ struct Shared {
 }
 
 impl Shared {
-    /// Stores `record`, and replaces it with the record as read back, so what this server
-    /// answers is exactly what a restarted one would (JSON numbers need not parse back to the
-    /// same bits).
-    fn save(&self, record: &mut JobRecord) -> Result<(), ApiError> {
-        let json = serde_json::to_vec_pretty(record)
-            .map_err(|e| ApiError::internal(format!("cannot encode the job record: {e}")))?;
-        *record = serde_json::from_slice(&json)
-            .map_err(|e| ApiError::internal(format!("cannot decode the job record: {e}")))?;
-        self.store
-            .put(&status_key(&record.job), &json)
-            .map_err(|e| ApiError::internal(format!("cannot store the job record: {e}")))
+    /// Stores the record of `job`'s run (as [`ExecutionRecord::save`]).
+    fn save(&self, job: &JobId, run: &mut ExecutionRecord) -> Result<(), ApiError> {
+        run.save(self.store.as_ref(), job)
+            .map_err(|e| ApiError::internal(format!("{e:#}")))
     }
 
     /// What the jobs' costs are predicted with: the reference rates at this server's workers.
@@ -281,7 +219,6 @@ pub struct EmulatorBackend {
     registry: Mutex<Registry>,
     /// Keeps the embedded S3 server of `shared.store` alive.
     _storage: Storage,
-    next_id: AtomicU64,
     /// Most jobs queued or running at once; a submission past it is refused (429).
     max_jobs: usize,
 }
@@ -303,38 +240,46 @@ impl EmulatorBackend {
             scratch,
             stopping: AtomicBool::new(false),
         });
+        migrate_legacy_records(shared.store.as_ref())?;
         let mut registry = Registry::default();
-        let keys = shared
+        let folders = shared
             .store
-            .list(API_PREFIX)
-            .context("cannot list the job records")?;
-        for key in keys.iter().filter(|k| k.ends_with("/status.json")) {
-            let bytes = shared.store.get(key)?;
-            let mut record: JobRecord =
-                serde_json::from_slice(&bytes).with_context(|| format!("the job record {key}"))?;
-            if !record.status.is_final() {
-                record.error = Some(format!(
+            .inner()
+            .list_folders("jobs/")
+            .context("cannot list the jobs")?;
+        let ids = folders
+            .iter()
+            .filter_map(|f| f.strip_prefix("jobs/")?.strip_suffix('/'))
+            .filter_map(|id| JobId::new(id).ok());
+        for id in ids {
+            let record = match shared.store.get(&api_record_key(&id)) {
+                Ok(bytes) => JobRecord::decode(&api_record_key(&id), &bytes)
+                    .map_err(|e| anyhow::anyhow!("{}", e.message))?,
+                // A job `hort render` ran in this bucket, not one of the API's.
+                Err(e) if e.is_not_found() => continue,
+                Err(e) => return Err(e).context("cannot read a job's record"),
+            };
+            let mut run = ExecutionRecord::read(shared.store.as_ref(), &id)?
+                .unwrap_or_else(|| ExecutionRecord::queued(record.stages.clone()));
+            if !run.status.is_final() {
+                run.error = Some(format!(
                     "interrupted: hort serve stopped while the job was {}; submit it again",
-                    record.status.as_str()
+                    run.status.as_str()
                 ));
-                record.status = JobState::Failed;
-                record.finished_unix_us = Some(now_unix_us());
+                run.status = JobState::Failed;
+                run.finished_unix_us = Some(now_unix_us());
                 shared
-                    .save(&mut record)
+                    .save(&id, &mut run)
                     .map_err(|e| anyhow::anyhow!("{}", e.message))?;
-            }
-            if let Some(k) = &record.idempotency_key {
-                registry.by_key.insert(k.clone(), record.job.clone());
             }
             registry
                 .jobs
-                .insert(record.job.clone(), Arc::new(Job::new(record)));
+                .insert(id.to_string(), Arc::new(Job::new(id, record, run)));
         }
         Ok(EmulatorBackend {
             shared,
             registry: Mutex::new(registry),
             _storage: storage,
-            next_id: AtomicU64::new(0),
             max_jobs,
         })
     }
@@ -363,20 +308,6 @@ impl EmulatorBackend {
             .get(id)
             .cloned()
             .ok_or_else(|| ApiError::not_found(format!("no render {id:?}")))
-    }
-
-    /// A fresh job id: `r-{unix milliseconds}-{n}`, unused in the registry.
-    fn fresh_id(&self, registry: &Registry) -> String {
-        let millis = SystemTime::now()
-            .duration_since(UNIX_EPOCH)
-            .map_or(0, |d| d.as_millis());
-        loop {
-            let n = self.next_id.fetch_add(1, Ordering::Relaxed);
-            let id = format!("r-{millis}-{n}");
-            if !registry.jobs.contains_key(&id) {
-                return id;
-            }
-        }
     }
 
     /// The finished output of a job, or why there is none.
@@ -426,25 +357,30 @@ impl RenderBackend for EmulatorBackend {
 
     fn submit(&self, spec: JobSpec) -> Result<Submission, ApiError> {
         let mut registry = lock(&self.registry);
-        if let Some(key) = &spec.idempotency_key
-            && let Some(job) = registry.by_key.get(key)
-        {
-            let first = registry
-                .jobs
-                .get(job)
-                .and_then(|j| lock(&j.record).request_fingerprint.clone());
-            if first.is_some_and(|f| f != spec.request_fingerprint) {
-                return Err(idempotency_key_reused(key, job));
+        let id = job_for(spec.idempotency_key.as_deref());
+        if let Some(job) = registry.jobs.get(id.as_str()) {
+            let Some(key) = &spec.idempotency_key else {
+                return Err(ApiError::internal(format!(
+                    "job id {id} is taken; try again"
+                )));
+            };
+            if job
+                .record
+                .request_fingerprint
+                .as_ref()
+                .is_some_and(|f| *f != spec.request_fingerprint)
+            {
+                return Err(idempotency_key_reused(key, id.as_str()));
             }
             return Ok(Submission {
-                job: job.clone(),
+                job: id.to_string(),
                 replayed: true,
             });
         }
         let active = registry
             .jobs
             .values()
-            .filter(|j| !lock(&j.record).status.is_final())
+            .filter(|j| !lock(&j.run).status.is_final())
             .count();
         if active >= self.max_jobs {
             return Err(ApiError::too_many_jobs(format!(
@@ -453,62 +389,33 @@ impl RenderBackend for EmulatorBackend {
                 self.max_jobs
             )));
         }
-        let id = self.fresh_id(&registry);
-        let record = JobRecord {
-            job: id.clone(),
-            status: JobState::Queued,
-            stage: None,
-            tasks_done: 0,
-            tasks_total: spec.prediction.tasks_total,
-            retried_attempts: 0,
-            created_unix_us: now_unix_us(),
-            started_unix_us: None,
-            finished_unix_us: None,
-            cost_usd: None,
-            predicted_cost_usd: spec.prediction.predicted_cost_usd,
-            predicted_seconds: spec.prediction.predicted_seconds,
-            error: None,
-            idempotency_key: spec.idempotency_key.clone(),
-            scene: spec.scene_name.clone(),
-            triangles: spec.prediction.triangles,
-            request: spec.request,
-            max_cost_usd: spec.max_cost_usd,
-            request_fingerprint: Some(spec.request_fingerprint.clone()),
-            stages: spec
-                .prediction
-                .stages
-                .iter()
-                .map(|s| StageProgress {
-                    stage: s.stage.clone(),
-                    done: 0,
-                    total: s.tasks,
-                })
-                .collect(),
-        };
-        let mut record = record;
-        self.shared.save(&mut record)?;
-        let job = Arc::new(Job::new(record));
-        registry.jobs.insert(id.clone(), Arc::clone(&job));
-        if let Some(key) = &spec.idempotency_key {
-            registry.by_key.insert(key.clone(), id.clone());
+        let record = JobRecord::accepted(&id, &spec);
+        if record.create(self.shared.store.as_ref())? == PutOutcome::AlreadyExists {
+            return Err(ApiError::internal(format!(
+                "job {id} has a record this server did not load; try again"
+            )));
         }
+        let mut run = ExecutionRecord::queued(record.stages.clone());
+        self.shared.save(&id, &mut run)?;
+        let job = Arc::new(Job::new(id.clone(), record, run));
+        registry.jobs.insert(id.to_string(), Arc::clone(&job));
         drop(registry);
         let shared = Arc::clone(&self.shared);
         let thread_job = Arc::clone(&job);
         let spawned = std::thread::Builder::new()
             .name(format!("hort-serve {id}"))
-            .spawn(move || run(&shared, &thread_job, &spec));
+            .spawn(move || run_job(&shared, &thread_job, &spec));
         if let Err(e) = spawned {
-            let mut r = lock(&job.record);
-            r.status = JobState::Failed;
-            r.error = Some(format!("cannot start the job's thread: {e}"));
-            r.finished_unix_us = Some(now_unix_us());
-            let _ = self.shared.save(&mut r);
-            drop(r);
+            let mut run = lock(&job.run);
+            run.status = JobState::Failed;
+            run.error = Some(format!("cannot start the job's thread: {e}"));
+            run.finished_unix_us = Some(now_unix_us());
+            let _ = self.shared.save(&id, &mut run);
+            drop(run);
             job.mark_ended();
         }
         Ok(Submission {
-            job: id,
+            job: id.to_string(),
             replayed: false,
         })
     }
@@ -523,7 +430,7 @@ impl RenderBackend for EmulatorBackend {
             .iter()
             .map(|j| {
                 // The record's lock is released before `status` takes it again.
-                let created = lock(&j.record).created_unix_us;
+                let created = j.record.created_unix_us;
                 (created, j.status())
             })
             .collect();
@@ -539,7 +446,7 @@ impl RenderBackend for EmulatorBackend {
 
     fn report(&self, id: &str) -> Result<Vec<u8>, ApiError> {
         self.require_succeeded(id, "report")?;
-        self.get(&report_key(id))
+        self.get(&report_key(&self.job(id)?.id))
     }
 
     fn cancel(&self, id: &str) -> Result<JobStatus, ApiError> {
@@ -554,17 +461,17 @@ impl RenderBackend for EmulatorBackend {
 
 /// A job's thread: write the scene files where the emulator reads them, run the job, record
 /// how it ended.
-fn run(shared: &Shared, job: &Job, spec: &JobSpec) {
-    let id = lock(&job.record).job.clone();
+fn run_job(shared: &Shared, job: &Job, spec: &JobSpec) {
+    let id = job.record.job.clone();
     let folder = shared.scratch.join(&id);
     let outcome = if job.cancel.load(Ordering::SeqCst) {
         None
     } else {
         {
-            let mut r = lock(&job.record);
-            r.status = JobState::Running;
-            r.started_unix_us = Some(now_unix_us());
-            let _ = shared.save(&mut r);
+            let mut run = lock(&job.run);
+            run.status = JobState::Running;
+            run.started_unix_us = Some(now_unix_us());
+            let _ = shared.save(&job.id, &mut run);
         }
         Some({
             let config = EmulatorConfig {
@@ -609,20 +516,20 @@ fn run(shared: &Shared, job: &Job, spec: &JobSpec) {
     };
     let _ = std::fs::remove_dir_all(&folder);
     let cancelled = job.cancel.load(Ordering::SeqCst);
-    let mut r = lock(&job.record);
+    let mut r = lock(&job.run);
     r.stage = lock(&job.live.stage).clone();
     r.tasks_done = job
         .live
         .tasks_done
         .load(Ordering::Relaxed)
-        .min(r.tasks_total);
+        .min(job.record.tasks_total);
     r.retried_attempts = job.live.retried.load(Ordering::Relaxed);
     r.stages = job.live.stages(&r.stages);
     match outcome {
-        Some(Ok(run)) => match store_report(shared, &r, &run) {
+        Some(Ok(run)) => match store_report(shared, job, spec.request, &run) {
             Ok(()) => {
                 r.status = JobState::Succeeded;
-                r.tasks_done = r.tasks_total;
+                r.tasks_done = job.record.tasks_total;
                 for s in &mut r.stages {
                     s.done = s.total;
                 }
@@ -642,7 +549,7 @@ fn run(shared: &Shared, job: &Job, spec: &JobSpec) {
         }
         _ if cancelled => {
             r.status = JobState::Cancelled;
-            if let Err(e) = delete_intermediates(&shared.store, &id) {
+            if let Err(e) = delete_intermediates(&shared.store, &job.id) {
                 r.error = Some(format!(
                     "cancelled, but its intermediate objects were not all deleted: {e:#}"
                 ));
@@ -659,7 +566,7 @@ fn run(shared: &Shared, job: &Job, spec: &JobSpec) {
         }
     }
     r.finished_unix_us = Some(now_unix_us());
-    if let Err(e) = shared.save(&mut r) {
+    if let Err(e) = shared.save(&job.id, &mut r) {
         eprintln!("hort serve: job {id}: {}", e.message);
     }
     drop(r);
@@ -679,25 +586,28 @@ fn write_scene(folder: &Path, main: &str, files: &BTreeMap<String, Vec<u8>>) -> 
     Ok(folder.join(main))
 }
 
-/// Deletes every object of a cancelled job but its job request (`manifest.json`, the job's
-/// identity: the id stays taken).
-fn delete_intermediates(store: &CountingStore<S3Store>, id: &str) -> Result<()> {
-    let job = JobId::new(id)?;
+/// Deletes every object of a cancelled job but those it keeps ([`kept_on_cancel`]: its request,
+/// scene and records; the id stays taken).
+fn delete_intermediates(store: &CountingStore<S3Store>, job: &JobId) -> Result<()> {
     let s3 = store.inner();
-    let keep = manifest_key(&job);
     let doomed: Vec<String> = s3
-        .list_sizes(&format!("jobs/{id}/"))?
+        .list_sizes(&format!("jobs/{job}/"))?
         .into_iter()
         .map(|o| o.key)
-        .filter(|k| *k != keep)
+        .filter(|k| !kept_on_cancel(job, k))
         .collect();
     s3.delete_all(&doomed)?;
     Ok(())
 }
 
 /// The report of `hort render --report` for a job run by the server, stored beside its record.
-fn store_report(shared: &Shared, r: &JobRecord, run: &EmulatorRun) -> Result<(), ApiError> {
-    let request = r.request;
+fn store_report(
+    shared: &Shared,
+    job: &Job,
+    request: PlanRequest,
+    run: &EmulatorRun,
+) -> Result<(), ApiError> {
+    let r = &job.record;
     let render_seconds = run
         .stages
         .iter()
@@ -746,6 +656,6 @@ fn store_report(shared: &Shared, r: &JobRecord, run: &EmulatorRun) -> Result<(),
     };
     shared
         .store
-        .put(&report_key(&r.job), (report.to_json() + "\n").as_bytes())
+        .put(&report_key(&job.id), (report.to_json() + "\n").as_bytes())
         .map_err(|e| ApiError::internal(format!("cannot store the report: {e}")))
 }

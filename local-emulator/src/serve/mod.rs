@@ -4,6 +4,7 @@
 //! in an embedded S3 server over `--data-dir`, so a restarted server answers for finished jobs.
 
 mod backend;
+mod execution;
 mod server;
 
 use std::path::PathBuf;
@@ -15,7 +16,8 @@ use hort_core::plural::count;
 use hort_core::render::available_cores;
 use tokio::sync::oneshot;
 
-pub use backend::{EmulatorBackend, recorded_state};
+pub use backend::EmulatorBackend;
+pub use execution::recorded_state;
 
 /// The flags of `hort serve`.
 #[derive(Args)]
