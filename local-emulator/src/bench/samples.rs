@@ -32,7 +32,7 @@ pub struct SamplesBenchArgs {
     #[arg(long)]
     pub references: Option<PathBuf>,
     /// Samples per pixel; `mitsuba.csv` must have a `multijitter` row at this count.
-    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..=i64::from(hort_core::scene::MAX_SPP)))]
     pub spp: u32,
     /// Timed renders per scene; the best counts.
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=100))]
@@ -166,12 +166,13 @@ fn reference_size(path: &Path) -> Result<(u32, u32)> {
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
     let json: serde_json::Value =
         serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
+    let max = hort_core::scene::MAX_IMAGE_SIDE;
     let size = |key: &str| -> Result<u32> {
         json.get(key)
             .and_then(serde_json::Value::as_u64)
             .and_then(|v| u32::try_from(v).ok())
-            .filter(|v| (1..=65536).contains(v))
-            .with_context(|| format!("{}: `{key}` is not an integer in 1..=65536", path.display()))
+            .filter(|v| (1..=max).contains(v))
+            .with_context(|| format!("{}: `{key}` is not an integer in 1..={max}", path.display()))
     };
     Ok((size("width")?, size("height")?))
 }

@@ -32,10 +32,10 @@ pub struct EvalArgs {
     #[arg(long, default_value = "out/eval")]
     pub out: PathBuf,
     /// Image size; must be the references' size.
-    #[arg(long, default_value_t = 320, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    #[arg(long, default_value_t = 320, value_parser = clap::value_parser!(u32).range(1..=i64::from(hort_core::scene::MAX_IMAGE_SIDE)))]
     pub width: u32,
     /// Image size; must be the references' size.
-    #[arg(long, default_value_t = 180, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    #[arg(long, default_value_t = 180, value_parser = clap::value_parser!(u32).range(1..=i64::from(hort_core::scene::MAX_IMAGE_SIDE)))]
     pub height: u32,
     /// Samples per pixel of the single-core sweep, comma-separated.
     #[arg(
@@ -130,8 +130,9 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         ("--spp", &args.spp),
         ("--distributed-spp", &args.distributed_spp),
     ] {
-        if let Some(bad) = list.iter().find(|&&s| s == 0 || s > 65536) {
-            bail!("{what}: {bad} is not in 1..=65536");
+        let max = hort_core::scene::MAX_SPP;
+        if let Some(bad) = list.iter().find(|&&s| s == 0 || s > max) {
+            bail!("{what}: {bad} is not in 1..={max}");
         }
     }
     let levels = |maxes: &[u32]| -> Vec<(u32, u32)> {
