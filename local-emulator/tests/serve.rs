@@ -28,6 +28,15 @@ fn monolithic(dir: &Path, file: &str, args: &[&str]) -> Vec<u8> {
 }
 
 /// Files under `dir`, relative, sorted.
+/// What a cancelled job keeps (the embedded S3 server's files): the request, the scene and
+/// the API's records, as a deployment's cancel keeps them.
+const KEPT_ON_CANCEL: [&str; 4] = [
+    "api.json~obj",
+    "execution.json~obj",
+    "manifest.json~obj",
+    "scene/scene.bin~obj",
+];
+
 fn files_under(dir: &Path) -> Vec<String> {
     fn walk(root: &Path, dir: &Path, out: &mut Vec<String>) {
         let Ok(entries) = std::fs::read_dir(dir) else {
@@ -573,16 +582,7 @@ fn delete_cancels_a_running_job_and_removes_its_intermediates() {
     eprintln!("DELETE answered in {:.2} s", t1.elapsed().as_secs_f64());
     assert_eq!(deleted["status"], "CANCELLED", "{deleted}");
     assert!(deleted["tasks_done"].as_u64() < deleted["tasks_total"].as_u64());
-    // What the deployment keeps of a cancelled job too: the request, the scene, the records.
-    assert_eq!(
-        files_under(&job_dir),
-        [
-            "api.json~obj",
-            "execution.json~obj",
-            "manifest.json~obj",
-            "scene/scene.bin~obj"
-        ]
-    );
+    assert_eq!(files_under(&job_dir), KEPT_ON_CANCEL);
     let status = server.get(&format!("/renders/{job}")).json();
     assert_eq!(status["status"], "CANCELLED");
     let image = server.get(&format!("/renders/{job}/image"));
@@ -635,12 +635,7 @@ fn delete_cancels_a_running_job_and_removes_its_intermediates() {
     // cancelled job's was written.
     assert_eq!(
         files_under(&job_dir),
-        [
-            "api.json~obj",
-            "execution.json~obj",
-            "manifest.json~obj",
-            "scene/scene.bin~obj"
-        ],
+        KEPT_ON_CANCEL,
         "nothing of the job's is written after the cancel"
     );
     // `hort jobs list` over the server's folder: the cancelled job says so (the four objects it

@@ -83,8 +83,13 @@ pub struct Rates {
     pub trace_us_per_query: f64,
     /// TraceReduce: per camera sample and per (hit, traced light) of the span.
     pub trace_reduce_us_per_query: f64,
-    /// Combine: per pixel (PNG, PFM and hit buffer encoding, upload).
+    /// Combine: per pixel (reading the spans' pixels, the PNG's encoding and upload).
     pub combine_us_per_pixel: f64,
+    /// Combine: per byte of the outputs a job stores besides its PNG (the linear image, 12
+    /// bytes a pixel, and the hit buffer, 8), encoded and uploaded. Absent from the JSON of
+    /// older requests: 0.
+    #[serde(default)]
+    pub combine_us_per_extra_byte: f64,
     /// Render (fused): per ray (camera sample or (hit, traced light) of the span) against the
     /// whole scene, without a shuffle (shading, hit buffer, the span's pixels encoded and
     /// uploaded): this plus [`Rates::render_us_per_ray_log2`] times log2 of the triangles.
@@ -128,6 +133,7 @@ pub const RATES: Rates = Rates {
     trace_us_per_query: 0.07,
     trace_reduce_us_per_query: 0.09,
     combine_us_per_pixel: 0.3,
+    combine_us_per_extra_byte: 0.0,
     render_us_per_ray: 0.057,
     render_us_per_ray_log2: 0.013,
     split_load_us_per_triangle: 0.15,
@@ -496,7 +502,12 @@ fn task_ms(plan: &JobPlan, step: JobStep, r: &Rates, speed: f64, bound: Bound) -
             span_samples + queries,
             r.trace_reduce_us_per_query,
         ),
-        (Stage::Combine, _) => ms(r.task_overhead_ms, pixels as f64, r.combine_us_per_pixel),
+        (Stage::Combine, _) => ms(
+            r.task_overhead_ms,
+            1.0,
+            pixels as f64 * r.combine_us_per_pixel
+                + extra_output_bytes(plan) as f64 * r.combine_us_per_extra_byte,
+        ),
     }
 }
 
@@ -642,15 +653,17 @@ pub fn stage_bytes(plan: &JobPlan, step: JobStep) -> u64 {
         (Stage::TraceReduce, _) => samples * RECORD_BYTES,
         (Stage::Expand | Stage::TraceMap, _) => queries * RECORD_BYTES,
         // The PNG (3 bytes and a filter byte per pixel before compression), and the linear
-        // image (12) and the hit buffer (8) when the job stores them.
-        (Stage::Combine, _) => {
-            let per_pixel = 4.0
-                + if plan.outputs.linear { 12.0 } else { 0.0 }
-                + if plan.outputs.hits { 8.0 } else { 0.0 };
-            pixels as f64 * per_pixel
-        }
+        // image and the hit buffer when the job stores them.
+        (Stage::Combine, _) => (pixels * 4 + extra_output_bytes(plan)) as f64,
     };
     bytes as u64
+}
+
+/// Bytes of the outputs `plan`'s job stores besides its PNG: the linear image (12 bytes a pixel)
+/// and the hit buffer (8), when it stores them.
+fn extra_output_bytes(plan: &JobPlan) -> u64 {
+    let pixels = u64::from(plan.width) * u64::from(plan.height);
+    pixels * (12 * u64::from(plan.outputs.linear) + 8 * u64::from(plan.outputs.hits))
 }
 
 /// The fraction of camera samples the models count as hits: the plan's estimate, else all.

@@ -1,8 +1,9 @@
 //! `hort bench plan`: `hort plan --target emulator` against the emulator runs it predicts. For
-//! every scene, slot count and injected S3 latency it projects the job, then runs
+//! every scene, image size, slot count and injected S3 latency it projects the job, then runs
 //! `hort render SCENE --workers W` (this same binary, in a child process, the latency injected
 //! through `HORT_S3_FAULTS`) and prints predicted seconds, measured seconds (the report's total
-//! less the scene's load, which `hort plan` does not predict) and their ratio.
+//! less the scene's load, which `hort plan` does not predict) and their ratio; with `--stages`,
+//! the same for every stage (the rows the model's rates are fitted from).
 
 use super::table::{Table, f3};
 use crate::plan_cmd::{ArchArg, PlanArgs, TargetArg, calibrate, plan_with};
@@ -24,12 +25,12 @@ pub struct PlanBenchArgs {
     /// Injected S3 latencies, ms, comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "0,20")]
     pub latency_ms: Vec<f64>,
-    /// Image width (default: the scene's, else 960).
+    /// Image sizes, WIDTHxHEIGHT, comma-separated (default: the scene's, else 960x540).
+    #[arg(long, value_delimiter = ',', value_parser = parse_size)]
+    pub sizes: Vec<(u32, u32)>,
+    /// Also print each stage's predicted and measured seconds.
     #[arg(long)]
-    pub width: Option<u32>,
-    /// Image height (default: the scene's, else 540).
-    #[arg(long)]
-    pub height: Option<u32>,
+    pub stages: bool,
     /// Samples per pixel (default: the scene's, else 1).
     #[arg(long)]
     pub spp: Option<u32>,
@@ -65,6 +66,7 @@ pub fn run_plan_bench(args: &PlanBenchArgs) -> Result<()> {
         "hort plan --target emulator against hort render --workers W (seconds)",
         &[
             "scene",
+            "size",
             "triangles",
             "workers",
             "latency ms",
@@ -73,6 +75,29 @@ pub fn run_plan_bench(args: &PlanBenchArgs) -> Result<()> {
             "measured/predicted",
         ],
     );
+    let mut stage_table = Table::new(
+        "each stage of the runs above: predicted and measured seconds",
+        &[
+            "scene",
+            "size",
+            "workers",
+            "latency ms",
+            "stage",
+            "tasks",
+            "predicted",
+            "measured",
+            "measured/predicted",
+        ],
+    );
+    let sizes: Vec<(Option<u32>, Option<u32>)> = if args.sizes.is_empty() {
+        vec![(None, None)]
+    } else {
+        args.sizes
+            .iter()
+            .map(|&(w, h)| (Some(w), Some(h)))
+            .collect()
+    };
+    let (mut within, mut runs) = (0, 0);
     // One calibration for every prediction of the table.
     let calibration = calibrate()?;
     println!(
@@ -81,76 +106,128 @@ pub fn run_plan_bench(args: &PlanBenchArgs) -> Result<()> {
     );
     let mut worst: f64 = 1.0;
     for scene in &scenes {
-        for &latency in &args.latency_ms {
-            for &workers in &args.workers {
-                let planned = plan_with(
-                    &PlanArgs {
-                        scene: scene.clone(),
-                        more_scenes: Vec::new(),
-                        chart: None,
-                        functions: Some(workers),
-                        arch: ArchArg::Arm64,
-                        target: TargetArg::Emulator,
-                        json: true,
-                        fail_rate: 0.0,
-                        s3_latency_ms: latency,
-                        plan: PlanFlags {
-                            width: args.width,
-                            height: args.height,
-                            spp: args.spp,
-                            splits: args.splits,
-                            spans: None,
-                            split_mode: SplitMode::Spatial,
-                            mode: args.mode,
-                            memory_mb: 2048,
-                            scene_range_bytes: args.scene_range_bytes,
+        for &(width, height) in &sizes {
+            for &latency in &args.latency_ms {
+                for &workers in &args.workers {
+                    let planned = plan_with(
+                        &PlanArgs {
+                            scene: scene.clone(),
+                            more_scenes: Vec::new(),
+                            chart: None,
+                            functions: Some(workers),
+                            arch: ArchArg::Arm64,
+                            target: TargetArg::Emulator,
+                            json: true,
+                            fail_rate: 0.0,
+                            s3_latency_ms: latency,
+                            plan: PlanFlags {
+                                width,
+                                height,
+                                spp: args.spp,
+                                splits: args.splits,
+                                spans: None,
+                                split_mode: SplitMode::Spatial,
+                                mode: args.mode,
+                                memory_mb: 2048,
+                                scene_range_bytes: args.scene_range_bytes,
+                            },
+                            // What `measure` writes: the PNG only.
+                            outputs: OutputFlags {
+                                out: Some(dir.join("image.png")),
+                                hits: None,
+                            },
                         },
-                        // What `measure` writes: the PNG only.
-                        outputs: OutputFlags {
-                            out: Some(dir.join("image.png")),
-                            hits: None,
-                        },
-                    },
-                    calibration,
-                )?;
-                let measured = measure(&exe, &dir, scene, workers, latency, args)?;
-                let predicted = planned.chosen.seconds;
-                let ratio = measured / predicted;
-                worst = if (ratio - 1.0).abs() > (worst - 1.0).abs() {
-                    ratio
-                } else {
-                    worst
-                };
-                table.push(vec![
-                    scene.display().to_string(),
-                    planned.triangles.to_string(),
-                    workers.to_string(),
-                    format!("{latency}"),
-                    f3(predicted),
-                    f3(measured),
-                    format!("{ratio:.2}"),
-                ]);
+                        calibration,
+                    )?;
+                    let run = measure(&exe, &dir, scene, (width, height), workers, latency, args)?;
+                    let measured = run.seconds;
+                    let predicted = planned.chosen.seconds;
+                    let ratio = measured / predicted;
+                    runs += 1;
+                    within += usize::from((ratio - 1.0).abs() <= 0.2);
+                    let size = format!("{}x{}", planned.width, planned.height);
+                    for stage in &planned.chosen.stages {
+                        let measured = run.stage_seconds(&stage.name);
+                        stage_table.push(vec![
+                            scene.display().to_string(),
+                            size.clone(),
+                            workers.to_string(),
+                            format!("{latency}"),
+                            stage.name.clone(),
+                            stage.tasks.to_string(),
+                            f3(stage.seconds),
+                            f3(measured),
+                            format!("{:.2}", measured / stage.seconds),
+                        ]);
+                    }
+                    worst = if (ratio - 1.0).abs() > (worst - 1.0).abs() {
+                        ratio
+                    } else {
+                        worst
+                    };
+                    table.push(vec![
+                        scene.display().to_string(),
+                        size,
+                        planned.triangles.to_string(),
+                        workers.to_string(),
+                        format!("{latency}"),
+                        f3(predicted),
+                        f3(measured),
+                        format!("{ratio:.2}"),
+                    ]);
+                }
             }
         }
     }
     let _ = std::fs::remove_dir_all(&dir);
     table.print();
-    println!("furthest from 1: {worst:.2}");
+    if args.stages {
+        stage_table.print();
+    }
+    println!("within 20%: {within} of {runs}; furthest from 1: {worst:.2}");
     if let Some(csv) = &args.csv {
         table.append_csv(csv)?;
     }
     Ok(())
 }
 
-/// Seconds of one emulator run: its report's total less the scene's load.
+/// `--sizes`' `WIDTHxHEIGHT`.
+fn parse_size(text: &str) -> Result<(u32, u32), String> {
+    let max = hort_core::scene::MAX_IMAGE_SIDE;
+    let side = |s: &str| s.parse::<u32>().ok().filter(|v| (1..=max).contains(v));
+    text.split_once('x')
+        .and_then(|(w, h)| Some((side(w)?, side(h)?)))
+        .ok_or_else(|| format!("{text:?} is not WIDTHxHEIGHT with sides 1 to {max}"))
+}
+
+/// What one measured run took.
+struct Measured {
+    /// The report's total less the scene's load.
+    seconds: f64,
+    /// The report's stages: name and seconds (a stage run more than once counts each time).
+    stages: Vec<(String, f64)>,
+}
+
+impl Measured {
+    fn stage_seconds(&self, name: &str) -> f64 {
+        self.stages
+            .iter()
+            .filter(|(n, _)| n == name)
+            .map(|(_, s)| s)
+            .sum()
+    }
+}
+
+/// One emulator run: its report's total less the scene's load, and its stages.
 fn measure(
     exe: &std::path::Path,
     dir: &std::path::Path,
     scene: &std::path::Path,
+    (width, height): (Option<u32>, Option<u32>),
     workers: u32,
     latency_ms: f64,
     args: &PlanBenchArgs,
-) -> Result<f64> {
+) -> Result<Measured> {
     let report = dir.join("report.json");
     let mut cmd = Command::new(exe);
     cmd.arg("render")
@@ -162,8 +239,8 @@ fn measure(
         .arg("--report")
         .arg(&report);
     for (flag, value) in [
-        ("--width", args.width),
-        ("--height", args.height),
+        ("--width", width),
+        ("--height", height),
         ("--spp", args.spp),
     ] {
         if let Some(v) = value {
@@ -198,5 +275,20 @@ fn measure(
     let text = std::fs::read_to_string(&report).context("the render's report")?;
     let json: serde_json::Value = serde_json::from_str(&text).context("the render's report")?;
     let seconds = |field: &str| json["seconds"][field].as_f64().unwrap_or(0.0);
-    Ok(seconds("total") - seconds("load"))
+    let stages = json["stages"]
+        .as_array()
+        .map(|stages| {
+            stages
+                .iter()
+                .map(|s| {
+                    let name = s["name"].as_str().unwrap_or_default().to_owned();
+                    (name, s["seconds"].as_f64().unwrap_or(0.0))
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    Ok(Measured {
+        seconds: seconds("total") - seconds("load"),
+        stages,
+    })
 }
