@@ -83,13 +83,9 @@ pub struct Rates {
     pub trace_us_per_query: f64,
     /// TraceReduce: per camera sample and per (hit, traced light) of the span.
     pub trace_reduce_us_per_query: f64,
-    /// Combine: per pixel (reading the spans' pixels, the PNG's encoding and upload).
+    /// Combine: per pixel (reading the spans' pixels, encoding the outputs; the emulator's
+    /// projection adds its storage's time per stored byte).
     pub combine_us_per_pixel: f64,
-    /// Combine: per byte of the outputs a job stores besides its PNG (the linear image, 12
-    /// bytes a pixel, and the hit buffer, 8), encoded and uploaded. Absent from the JSON of
-    /// older requests: 0.
-    #[serde(default)]
-    pub combine_us_per_extra_byte: f64,
     /// Render (fused): per ray (camera sample or (hit, traced light) of the span) against the
     /// whole scene, without a shuffle (shading, hit buffer, the span's pixels encoded and
     /// uploaded): this plus [`Rates::render_us_per_ray_log2`] times log2 of the triangles.
@@ -116,28 +112,28 @@ pub struct Rates {
     pub build_us_per_triangle: f64,
 }
 
-/// The reference rates: `hort render` through the emulator (embedded S3 server, debug build of
-/// everything but `hort-core`) on a 2-core x86-64 machine, refitted 2026-12-02 from the stage
-/// times of the bundled Cornell box and teapot and a generated 300,000-triangle scene (960x540,
-/// 1 spp, fused; the Cornell box at 16 spp staged with 2 splits), after storage stopped hashing
-/// every PUT body (docs/ARCHITECTURE.md section 13, `hort plan`). See the module documentation.
+/// The reference rates: `hort render` through the emulator (embedded S3 server) built with
+/// `cargo build --release`, on a 2-core x86-64 machine; fitted from the stage times of
+/// `hort bench plan --stages` on the bundled teapot, Cornell box and globe and a generated
+/// 300,000-triangle scene at 320x180, 960x540 and 1920x1080, fused and staged over 2 splits
+/// (`docs/perf/plan-validation.md` has the tables and the command). See the module
+/// documentation.
 pub const RATES: Rates = Rates {
-    job_overhead_ms: 100.0,
-    task_overhead_ms: 10.0,
-    stage_overhead_ms: 20.0,
-    plan_overhead_ms: 20.0,
-    plan_us_per_triangle: 1.5,
-    cast_us_per_sample: 0.24,
-    cast_reduce_us_per_sample: 0.6,
-    expand_us_per_query: 0.42,
-    trace_us_per_query: 0.07,
-    trace_reduce_us_per_query: 0.09,
-    combine_us_per_pixel: 0.3,
-    combine_us_per_extra_byte: 0.0,
+    job_overhead_ms: 15.0,
+    task_overhead_ms: 4.0,
+    stage_overhead_ms: 5.0,
+    plan_overhead_ms: 5.0,
+    plan_us_per_triangle: 1.0,
+    cast_us_per_sample: 0.2,
+    cast_reduce_us_per_sample: 0.45,
+    expand_us_per_query: 0.28,
+    trace_us_per_query: 0.045,
+    trace_reduce_us_per_query: 0.07,
+    combine_us_per_pixel: 0.05,
     render_us_per_ray: 0.057,
     render_us_per_ray_log2: 0.013,
     split_load_us_per_triangle: 0.15,
-    upload_us_per_triangle: 0.9,
+    upload_us_per_triangle: 0.2,
     file_upload_us_per_byte: 0.004,
     scan_us_per_byte: 0.010,
     partition_us_per_byte: 0.034,
@@ -502,12 +498,7 @@ fn task_ms(plan: &JobPlan, step: JobStep, r: &Rates, speed: f64, bound: Bound) -
             span_samples + queries,
             r.trace_reduce_us_per_query,
         ),
-        (Stage::Combine, _) => ms(
-            r.task_overhead_ms,
-            1.0,
-            pixels as f64 * r.combine_us_per_pixel
-                + extra_output_bytes(plan) as f64 * r.combine_us_per_extra_byte,
-        ),
+        (Stage::Combine, _) => ms(r.task_overhead_ms, pixels as f64, r.combine_us_per_pixel),
     }
 }
 

@@ -82,16 +82,16 @@ pub const LAMBDA_FACTS: LambdaFacts = LambdaFacts {
 
 /// Requests of one task the emulator's fixed task overhead (`Rates::task_overhead_ms`) covers.
 pub const EMULATOR_REQUESTS_IN_OVERHEAD: f64 = 3.0;
-/// The embedded S3 server's time per further request, ms (`hort bench emulator`'s fixed-cost
-/// table: about 0.004 s per request on the reference machine).
-pub const EMULATOR_REQUEST_MS: f64 = 4.0;
-/// The embedded S3 server's time per byte of the job's outputs (Combine's PNG, PFM and hit
-/// buffer, stored uncompressed, at once), us at speed 1, beyond Combine's per-pixel rate:
-/// fitted 2026-12-02 to the Combine stage of the teapot, the Cornell box and a generated
-/// 300,000-triangle scene at 960x540 (storage 0.14 to 0.26 s for 12.4 MB at speed 0.8) and
-/// `hort bench plan`. The shuffle blocks of the other stages are compressed and small beside
+/// The embedded S3 server's time per further request, ms, in a release build on the reference
+/// machine (fitted with [`super::RATES`]).
+pub const EMULATOR_REQUEST_MS: f64 = 1.0;
+/// The embedded S3 server's time per byte of the job's outputs (Combine's PNG, and the PFM and
+/// hit buffer when the job stores them, uncompressed, at once), us at speed 1, beyond
+/// Combine's per-pixel rate: fitted with [`super::RATES`] from the Combine stage of the teapot
+/// at 1920x1080 storing the PNG only and the PNG, PFM and hit buffer (41.5 MB more: 0.23 s
+/// more at speed 0.7). The shuffle blocks of the other stages are compressed and small beside
 /// their work.
-pub const EMULATOR_OUTPUT_BYTE_US: f64 = 0.012;
+pub const EMULATOR_OUTPUT_BYTE_US: f64 = 0.004;
 
 /// Where the job would run.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
