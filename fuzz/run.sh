@@ -24,7 +24,8 @@ inputs=${FUZZ_IN:-fuzz/corpus/$target}
 
 command -v cargo-afl >/dev/null || cargo install cargo-afl --locked --version 0.18.2
 export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-target}/afl
-# Only the http target needs the API router (and so the AWS SDK): the others build without it.
+# Only the http target needs the API router (hort-functions without its AWS SDK): the others
+# build without it.
 features=(--no-default-features --features afl)
 [ "$target" = http ] && features=(--features afl)
 # FUZZ_NO_BUILD=1: use the binary as built (while another build holds the target folder).

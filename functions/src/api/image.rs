@@ -9,16 +9,12 @@
 //! as before. An EXR is converted from the stored PFM; a large one is stored once
 //! (`jobs/{job}/out/image.exr`) and redirected to like the others.
 
-use std::time::Duration;
-
 use hort_core::ids::JobId;
 use hort_core::image::{decode_pfm, encode_exr};
 use hort_core::keys::image_key;
-use hort_core::store::{BlobStore, StoreError};
 
 use super::backend::ImageFormat;
 use super::error::ApiError;
-use crate::S3Store;
 
 /// The largest body the API answers inline: 4 MiB, whose base64 (5.6 MB) leaves room within
 /// Lambda's 6 MB response ([`hort_aws_quotas::LAMBDA_SYNC_PAYLOAD_BYTES`]) for the headers and
@@ -42,7 +38,8 @@ pub enum ImageAnswer {
     },
 }
 
-/// What [`stored_image`] needs of the bucket a backend keeps finished images in.
+/// What [`stored_image`] needs of the bucket a backend keeps finished images in. `S3Store`
+/// implements it (`src/s3_image_bucket.rs`, feature `aws`).
 pub trait ImageBucket {
     /// The object's size, `None` if there is none.
     fn object_size(&self, key: &str) -> Result<Option<u64>, ApiError>;
@@ -52,34 +49,6 @@ pub trait ImageBucket {
     fn store(&self, key: &str, bytes: &[u8]) -> Result<(), ApiError>;
     /// A presigned GET of the object, valid for [`PRESIGNED_URL_SECONDS`].
     fn presigned_get(&self, key: &str) -> Result<String, ApiError>;
-}
-
-impl ImageBucket for S3Store {
-    fn object_size(&self, key: &str) -> Result<Option<u64>, ApiError> {
-        match self.size(key) {
-            Ok(n) => Ok(Some(n)),
-            Err(StoreError::NotFound { .. }) => Ok(None),
-            Err(e) => Err(ApiError::internal(format!("cannot read {key}: {e}"))),
-        }
-    }
-
-    fn object(&self, key: &str) -> Result<Option<Vec<u8>>, ApiError> {
-        match self.get(key) {
-            Ok(bytes) => Ok(Some(bytes)),
-            Err(StoreError::NotFound { .. }) => Ok(None),
-            Err(e) => Err(ApiError::internal(format!("cannot read {key}: {e}"))),
-        }
-    }
-
-    fn store(&self, key: &str, bytes: &[u8]) -> Result<(), ApiError> {
-        self.put(key, bytes)
-            .map_err(|e| ApiError::internal(format!("cannot store {key}: {e}")))
-    }
-
-    fn presigned_get(&self, key: &str) -> Result<String, ApiError> {
-        S3Store::presigned_get(self, key, Duration::from_secs(PRESIGNED_URL_SECONDS))
-            .map_err(|e| ApiError::internal(format!("cannot presign {key}: {e}")))
-    }
 }
 
 /// The image of the finished render `id` (job `job`) in `format`, from the outputs its Combine

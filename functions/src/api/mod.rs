@@ -1,7 +1,7 @@
 //! The HTTP API of HORT-serverless as a plain function: an [`http::Request`] in, an
 //! [`http::Response`] out, over a [`RenderBackend`] that runs the jobs. The same router serves
-//! `hort serve` (hyper, on 127.0.0.1) and API Gateway through `lambda_http`; it needs no async
-//! runtime and no AWS crate.
+//! `hort serve` (hyper, on 127.0.0.1) and API Gateway through `lambda_http` (`src/bin/api.rs`);
+//! it needs no async runtime and no AWS crate, and builds without feature `aws`.
 //!
 //! | route | answer |
 //! |---|---|
