@@ -5,7 +5,7 @@
 //! Every figure is a measurement: it differs from run to run, and nothing that must be
 //! byte-identical (images, hit buffers, stored objects) depends on it.
 
-use crate::pipeline::TaskMetrics;
+use crate::task_metrics::TaskMetrics;
 use serde::{Deserialize, Serialize};
 use std::time::{Duration, Instant};
 

@@ -28,7 +28,8 @@
 //! under `jobs/{job}/scene/`. Keys do not contain the attempt: every attempt of a task writes the
 //! same bytes to the same keys.
 
-use crate::ids::{JobId, PartitionId, SplitId, Stage, TaskId};
+use crate::ids::{JobId, PartitionId, SplitId, TaskId};
+use crate::stage::Stage;
 
 /// `jobs/{job}/parts/table.json`: the scene's files and byte ranges, as the Plan function's
 /// scan found them (a scene split by partition and build tasks).

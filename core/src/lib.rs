@@ -45,6 +45,7 @@ pub mod predict;
 pub mod shuffle;
 pub mod stage;
 pub mod store;
+pub mod task_metrics;
 
 // Shared machinery.
 pub mod worker_pool;

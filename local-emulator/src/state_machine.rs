@@ -28,8 +28,8 @@ impl Bucket for StoreItems<'_> {
 #[cfg(test)]
 mod tests {
     use super::HORT_DEFINITION;
-    use hort_core::ids::Stage;
     use hort_core::pipeline::ExecutionMode;
+    use hort_core::stage::Stage;
     use serde_json::Value;
 
     /// The stage of one top-level state as the definition spells it: the state's name, the

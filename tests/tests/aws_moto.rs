@@ -572,7 +572,7 @@ fn the_deployment_api_backend_queues_starts_reports_and_cancels_jobs() {
     // Cancelling stops the execution and deletes intermediate objects, keeping the request.
     let block = hort_core::keys::partition_key(
         &job_id,
-        hort_core::ids::Stage::CastMap,
+        hort_core::stage::Stage::CastMap,
         hort_core::ids::TaskId(0),
         hort_core::ids::PartitionId(0),
     );

@@ -1,12 +1,13 @@
 //! The distributed image equals the monolithic one bit for bit, for every split count, span
 //! count, split mode, sample count and worker count.
 
-use hort_core::ids::{JobId, Stage};
+use hort_core::ids::JobId;
 use hort_core::pipeline::{
     ExecutionMode, PipelineOptions, PipelineRun, PlanRequest, SplitMode, StoredOutputs,
     run_pipeline,
 };
 use hort_core::scene::{Scene, load_scene};
+use hort_core::stage::Stage;
 use hort_core::store::{BlobStore, MemoryStore};
 use hort_tests::{hit_bits, pixel_bits, scene_path, stored};
 
@@ -189,7 +190,7 @@ fn run_in_memory(rel: &str, spp: u32, k: u32, s: u32) -> (MemoryStore, PipelineR
 fn every_task_run_twice_writes_identical_bytes() {
     let (store, run, job) = run_in_memory("cornell/cornell.json", 2, 3, 5);
     let before = snapshot(&store);
-    for &stage in hort_core::ids::Stage::TASKS {
+    for &stage in hort_core::stage::Stage::TASKS {
         for task in 0..run.plan.task_count(stage) {
             hort_core::pipeline::run_task(&store, &job, &run.plan, stage, task as u32).unwrap();
         }

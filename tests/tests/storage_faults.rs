@@ -391,12 +391,12 @@ fn objects_lost_or_corrupted_before_every_stage_are_recomputed() {
         "no attempt failed: lineage, not retries"
     );
     let per_stage: Vec<(String, u64)> = [
-        hort_core::ids::Stage::CastMap,
-        hort_core::ids::Stage::CastReduce,
-        hort_core::ids::Stage::Expand,
-        hort_core::ids::Stage::TraceMap,
-        hort_core::ids::Stage::TraceReduce,
-        hort_core::ids::Stage::Combine,
+        hort_core::stage::Stage::CastMap,
+        hort_core::stage::Stage::CastReduce,
+        hort_core::stage::Stage::Expand,
+        hort_core::stage::Stage::TraceMap,
+        hort_core::stage::Stage::TraceReduce,
+        hort_core::stage::Stage::Combine,
     ]
     .into_iter()
     .map(|s| (s.to_string(), run.ledger.stage(s).recomputed))

@@ -5,9 +5,9 @@
 
 use asl_interpreter::{Event, FunctionLimits, NoObserver, Observer};
 use hort::emulator::{EmulatorConfig, run_job};
-use hort_core::ids::Stage;
 use hort_core::pipeline::{PlanRequest, SplitMode, StoredOutputs, decode_split, rebuild_split};
 use hort_core::scene::load_scene;
+use hort_core::stage::Stage;
 use hort_task_memory::TaskAlloc;
 use hort_tests::{hit_bits, pixel_bits, scene_path, stored};
 use std::sync::Mutex;

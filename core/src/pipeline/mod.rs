@@ -42,6 +42,7 @@ mod split_object;
 mod stages;
 mod textures;
 
+pub use crate::task_metrics::{TaskMetrics, micros, timed};
 pub use adaptive_span::render_span_adaptive;
 pub use driver::{PipelineOptions, PipelineRun, run_pipeline};
 pub use frustum::span_may_meet_box;
@@ -63,8 +64,7 @@ pub use records::{
 };
 pub use refine_list::{RefineList, decode_refine_list, encode_refine_list};
 pub use runner::{
-    RebuildSplit, TaskMetrics, micros, producer_of, refined_spans, run_task, run_task_cached,
-    run_task_with, timed,
+    RebuildSplit, producer_of, refined_spans, run_task, run_task_cached, run_task_with,
 };
 pub use split::{SplitMode, assign_splits, rebuild_split, split_scene, split_scene_objects};
 pub use split_cache::SplitCache;

@@ -51,11 +51,11 @@ use crate::cost::{
     Arch, CostBreakdown, CostInputs, clean_path_states, estimate, standard_transitions_for,
 };
 use crate::coverage::camera_hit_fraction;
-use crate::ids::Stage;
 use crate::pipeline::{
     JobPlan, JobShape, PipelineError, PlanRequest, SplitInfo, assign_splits, plan_job,
 };
 use crate::scene::{NO_NORMAL, Scene};
+use crate::stage::Stage;
 use crate::store::PARALLEL_REQUESTS;
 use serde::{Deserialize, Serialize};
 

@@ -16,8 +16,8 @@
 //!   machine's 1 s retry interval with probability 1 - (1 - P)^T (the straggler tail).
 
 use crate::cost::{Arch, CostBreakdown, CostInputs, estimate};
-use crate::ids::Stage;
 use crate::pipeline::JobPlan;
+use crate::stage::Stage;
 use serde::Serialize;
 
 use super::{

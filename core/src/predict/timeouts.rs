@@ -12,8 +12,8 @@
 //! every machine: the arithmetic is IEEE f64 without platform maths (`libm` for the logarithm).
 
 use super::{JobStep, RATES, split_load_ms, task_ms};
-use crate::ids::Stage;
 use crate::pipeline::JobPlan;
+use crate::stage::Stage;
 
 /// Shortest per-task timeout of a stage task, seconds (`hort render --help` says it).
 pub const MIN_TIMEOUT_SECONDS: u64 = 2;

@@ -18,8 +18,9 @@
 //! Call them from a blocking thread (`tokio::task::spawn_blocking`), never from an async task.
 
 use hort_core::cost::Arch;
-use hort_core::ids::{JobId, Stage};
+use hort_core::ids::JobId;
 use hort_core::keys::{api_record_key, kept_on_cancel, manifest_key, scene_binary_key};
+use hort_core::stage::Stage;
 use hort_core::store::{BlobStore, PutOutcome, StoreError};
 use tokio::runtime::Handle;
 

@@ -25,8 +25,8 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use aws_lambda_events::event::sqs::SqsEvent;
-use hort_core::ids::Stage;
 use hort_core::pipeline::SplitCache;
+use hort_core::stage::Stage;
 use lambda_runtime::{Diagnostic, LambdaEvent, service_fn};
 use serde_json::Value;
 

@@ -4,8 +4,9 @@
 
 use super::Tmp;
 
-use hort_core::ids::{Stage, TaskId};
+use hort_core::ids::TaskId;
 use hort_core::pipeline::{SplitCache, TaskMetrics};
+use hort_core::stage::Stage;
 use hort_core::stage::{PLAN_FUNCTION, WORKER_FUNCTION};
 use serde_json::Value;
 

@@ -4,8 +4,9 @@
 
 use std::collections::BTreeMap;
 
-use hort_core::ids::{JobId, Stage, TaskId};
+use hort_core::ids::{JobId, TaskId};
 use hort_core::pipeline::{ExecutionMode, PlanRequest};
+use hort_core::stage::Stage;
 use serde::{Deserialize, Serialize};
 
 /// What the client stores at `jobs/{job}/manifest.json` (created once, with `put_if_absent`).

@@ -14,8 +14,9 @@
 //! item ends in `{Map}TaskLost` with `{"lost": {"item", "error", "cause"}}`; one that succeeded
 //! ends with `{}`.
 
-use hort_core::ids::{JobId, Stage, TaskId};
+use hort_core::ids::{JobId, TaskId};
 use hort_core::keys::lost_items_key;
+use hort_core::stage::Stage;
 use hort_core::store::BlobStore;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;

@@ -304,7 +304,7 @@ pub(super) fn check_plan_memory(
     event: &super::events::WorkerEvent,
     own_mb: u32,
 ) -> Result<(), HandlerError> {
-    use hort_core::ids::Stage;
+    use hort_core::stage::Stage;
     if matches!(event.stage, Stage::Partition | Stage::Build) {
         return Ok(());
     }

@@ -10,12 +10,13 @@ use super::plan::{
     download_object, load_requested_scene, read_request, scratch_dir, with_scene_files,
     write_items, write_round,
 };
-use hort_core::ids::{JobId, Stage};
+use hort_core::ids::JobId;
 use hort_core::keys::{items_key, parts_table_key, scene_prefix};
 use hort_core::pipeline::partition::{cut_scene, plan_from_parts, scan_scene, scene_range_bytes};
 use hort_core::pipeline::{JobPlan, TaskMetrics, micros, resolve_counts};
 use hort_core::predict::{build_timeout_seconds, partition_timeout_seconds};
 use hort_core::scene::{Scene, load_scene};
+use hort_core::stage::Stage;
 use hort_core::store::{BlobStore, StoreError, TimedStore};
 use std::path::Path;
 use std::time::Instant;

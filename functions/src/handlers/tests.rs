@@ -1,10 +1,11 @@
 //! The handlers called directly over an in-memory store, as the Lambda runtime would call them.
 
 use super::*;
+use hort_core::ids::JobId;
 use hort_core::ids::TaskId;
-use hort_core::ids::{JobId, Stage};
 use hort_core::keys::{hits_key, items_key, manifest_key, scene_binary_key, scene_prefix};
 use hort_core::pipeline::{PlanRequest, SplitCache, SplitMode, StoredOutputs};
+use hort_core::stage::Stage;
 use hort_core::store::{BlobStore, MemoryStore};
 
 pub(super) fn request(scene: &str) -> JobRequest {

@@ -6,13 +6,14 @@ use super::plan::{load_job_scene, read_request};
 use super::plan_parts::{plan_from_stored_parts, split_by_tasks};
 use super::{HandlerError, check_bucket};
 use hort_core::ErrorType;
-use hort_core::ids::{JobId, SplitId, Stage};
+use hort_core::ids::{JobId, SplitId};
 use hort_core::keys::{plan_key, split_key};
 use hort_core::pipeline::partition::{build_split_from_parts, partition_range};
 use hort_core::pipeline::{
     ExecutionMode, JobPlan, PipelineError, SplitCache, TaskMetrics, micros, plan_into_store,
     rebuild_split, run_task_with, task_bytes, timed,
 };
+use hort_core::stage::Stage;
 use hort_core::store::BlobStore;
 use std::sync::Arc;
 use std::time::Instant;

@@ -15,6 +15,7 @@
 
 use super::scenes::{bundled, generated};
 use super::table::{Table, f3};
+use super::timing::best_of;
 use anyhow::{Context, Result, bail};
 use hort_core::bvh::Bvh;
 use hort_core::camera::Camera;
@@ -219,19 +220,6 @@ pub(super) fn compile_harness(dir: &Path) -> Result<PathBuf> {
 
 fn mrays(rays: usize, seconds: f64) -> f64 {
     rays as f64 / seconds.max(1e-12) / 1e6
-}
-
-/// Best wall time of `repeats` runs of `f`, and the last run's result.
-pub(super) fn best_of<T>(repeats: u32, mut f: impl FnMut() -> T) -> (f64, T) {
-    let mut best = f64::INFINITY;
-    let mut last = None;
-    for _ in 0..repeats.max(1) {
-        let start = Instant::now();
-        let r = f();
-        best = best.min(start.elapsed().as_secs_f64());
-        last = Some(r);
-    }
-    (best, last.expect("at least one run"))
 }
 
 fn bench_scene(

@@ -13,6 +13,7 @@ mod plan;
 mod samples;
 mod scenes;
 mod table;
+mod timing;
 
 pub use emulator::{EmulatorBenchArgs, run_emulator_bench};
 pub use faults::{FaultsBenchArgs, run_faults_bench};

@@ -14,8 +14,8 @@
 //! primitive is one input triangle, so `primitive_indices` maps back to the scene's triangle
 //! index, which is our `ClosestHit::id`.
 
-use super::kernel::best_of;
 use super::table::f3;
+use super::timing::best_of;
 use hort_core::bvh::ClosestHit;
 use hort_core::scene::Scene;
 use hort_core::triangle::Ray;

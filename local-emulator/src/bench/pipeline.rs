@@ -6,7 +6,7 @@ use super::scenes::{bundled, generated};
 use super::table::{Table, f3};
 use super::{BenchCommon, MemoryMeter};
 use anyhow::{Result, ensure};
-use hort_core::ids::{JobId, SplitId, Stage};
+use hort_core::ids::{JobId, SplitId};
 use hort_core::keys::split_key;
 use hort_core::pipeline::{
     ExecutionMode, PipelineOptions, PipelineRun, PlanRequest, SplitMode, StoredOutputs, plan_job,
@@ -14,6 +14,7 @@ use hort_core::pipeline::{
 };
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
 use hort_core::scene::{Scene, load_scene};
+use hort_core::stage::Stage;
 use hort_core::store::{BlobStore, MemoryStore};
 use std::time::Instant;
 

@@ -3,7 +3,7 @@
 //! after another, so the traffic in between is the stage's).
 
 use asl_interpreter::{Event, Observer};
-use hort_core::ids::Stage;
+use hort_core::stage::Stage;
 use hort_core::stage::is_lost_step;
 use hort_core::store::{CountingStore, StoreStats};
 use hort_functions::S3Store;

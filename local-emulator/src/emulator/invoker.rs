@@ -6,8 +6,9 @@
 use super::memory::MemoryBudget;
 use asl_interpreter::{TaskFailure, TaskInvoker};
 use hort_core::breakdown::StageBreakdown;
-use hort_core::ids::{Stage, TaskId};
+use hort_core::ids::TaskId;
 use hort_core::pipeline::{SplitCache, TaskMetrics, micros};
+use hort_core::stage::Stage;
 use hort_core::store::BlobStore;
 use hort_functions::handlers::{Function, FunctionEnv, Invoked, TaskDone, Tmp, dispatch};
 use serde_json::Value;

@@ -4,8 +4,8 @@
 //! task would use the same memory again). See docs/ARCHITECTURE.md, "Task memory".
 
 use asl_interpreter::TaskFailure;
-use hort_core::ids::Stage;
 use hort_core::pipeline::RUNTIME_BYTES;
+use hort_core::stage::Stage;
 
 /// The error name of an attempt over its memory budget: Lambda's for a function that ran out of
 /// memory. No `Retry` of `infra/statemachine.asl.json` names it, and the Map children do not

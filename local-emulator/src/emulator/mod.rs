@@ -36,13 +36,14 @@ use asl_interpreter::{
 use hort_core::breakdown::{StageBreakdown, uncovered};
 use hort_core::cost::{Arch, CostBreakdown, CostInputs, estimate, standard_transitions_for};
 use hort_core::hits::Hit;
-use hort_core::ids::{JobId, Stage, TaskId};
+use hort_core::ids::{JobId, TaskId};
 use hort_core::image::Image;
 use hort_core::keys::{parts_table_key, plan_key};
 use hort_core::pipeline::partition::{PartsTable, scene_range_bytes};
 use hort_core::pipeline::{JobOutputs, JobPlan, PlanRequest, read_outputs};
 use hort_core::report::StageReport;
 use hort_core::scene::{Scene, load_scene};
+use hort_core::stage::Stage;
 use hort_core::store::{BlobStore, PatientStore, StoreError};
 use hort_functions::handlers::{BudgetCheck, JobRequest, SceneFormat};
 use std::path::Path;

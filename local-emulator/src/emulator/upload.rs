@@ -24,13 +24,14 @@
 
 use anyhow::{Context, Result, bail};
 use asl_interpreter::{TaskFailure, TaskInvoker};
-use hort_core::ids::{JobId, PartitionId, Stage, TaskId};
+use hort_core::ids::{JobId, PartitionId, TaskId};
 use hort_core::keys::{
     image_key, kept_after_success, manifest_key, partition_key, parts_index_key,
     parts_split_info_key, plan_key, scene_binary_key, scene_prefix,
 };
 use hort_core::pipeline::{JobPlan, PlanRequest, StoredOutputs, TaskMetrics};
 use hort_core::scene::{Scene, diffuse_map_files, encode_scene_named, parse_manifest};
+use hort_core::stage::Stage;
 use hort_core::store::{BlobStore, PutOutcome, StoreError};
 use hort_functions::S3Store;
 use hort_functions::handlers::{JobRequest, SceneFormat, WorkerEvent};

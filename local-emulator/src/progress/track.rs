@@ -227,10 +227,10 @@ impl Inner {
         if let Some(i) = self.find(top) {
             return i;
         }
-        let rank = hort_core::ids::Stage::ALL
+        let rank = hort_core::stage::Stage::ALL
             .iter()
             .position(|s| s.state_name() == top)
-            .unwrap_or(hort_core::ids::Stage::ALL.len() + self.stages.len());
+            .unwrap_or(hort_core::stage::Stage::ALL.len() + self.stages.len());
         self.stages.push(Stage {
             state: top.to_owned(),
             stats: StageStats {

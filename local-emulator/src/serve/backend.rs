@@ -23,10 +23,11 @@ use hort::emulator::{
     run_job_with, stage_name,
 };
 use hort_core::cost::Arch;
-use hort_core::ids::{JobId, Stage};
+use hort_core::ids::JobId;
 use hort_core::keys::{api_record_key, kept_on_cancel, report_key};
 use hort_core::pipeline::PlanRequest;
 use hort_core::report::{Outputs, RayReport, Report, Seconds};
+use hort_core::stage::Stage;
 use hort_core::store::{BlobStore, CountingStore, PutOutcome};
 use hort_functions::api::{
     ApiError, ImageAnswer, ImageFormat, JobRecord, JobScene, JobSpec, JobState, JobStatus,
