@@ -33,7 +33,7 @@ use std::str::FromStr;
 
 use serde::{Deserialize, Serialize};
 
-use crate::ids::{IdError, JobId};
+use crate::ids::IdError;
 
 /// One stage of the HORT dataflow, in pipeline order (the derived `Ord` follows that order).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
@@ -212,12 +212,6 @@ impl Stage {
         }
     }
 
-    /// The key of the stage's items file, for Map stages (see [`Stage::items_field`]).
-    pub fn items_key(self, job: &JobId) -> Option<String> {
-        self.items_field()
-            .map(|_| crate::keys::items_key(job, self))
-    }
-
     /// The state machine's name of the function that runs the stage's tasks.
     pub const fn function(self) -> &'static str {
         match self {
@@ -372,11 +366,5 @@ mod tests {
             Some(Stage::TraceMap)
         );
         assert_eq!(Stage::of_state("Done"), None);
-        let job = JobId::new("j").unwrap();
-        assert_eq!(
-            Stage::Expand.items_key(&job).as_deref(),
-            Some("jobs/j/items/expand.json")
-        );
-        assert_eq!(Stage::Combine.items_key(&job), None);
     }
 }

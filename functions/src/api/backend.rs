@@ -10,7 +10,7 @@ use hort_core::store::{BlobStore, StoreError};
 use serde::{Deserialize, Serialize};
 
 use super::error::ApiError;
-use super::image::ImageAnswer;
+use super::image::{ImageAnswer, ImageFormat};
 use hort_core::pipeline::JobPlan;
 use hort_core::predict::{Prediction, PredictionModel, predict};
 
@@ -179,47 +179,6 @@ pub struct Submission {
     pub job: String,
     /// True if the idempotency key named an existing job, so nothing new was started.
     pub replayed: bool,
-}
-
-/// Image formats the API serves.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ImageFormat {
-    /// 8-bit sRGB PNG (the default).
-    Png,
-    /// Linear RGB Portable FloatMap, bit-exact.
-    Pfm,
-    /// Linear RGB OpenEXR, bit-exact.
-    Exr,
-}
-
-impl ImageFormat {
-    /// The format named by `?format=`.
-    pub fn parse(name: &str) -> Option<ImageFormat> {
-        match name {
-            "png" => Some(ImageFormat::Png),
-            "pfm" => Some(ImageFormat::Pfm),
-            "exr" => Some(ImageFormat::Exr),
-            _ => None,
-        }
-    }
-
-    /// The file extension (`png`).
-    pub fn extension(self) -> &'static str {
-        match self {
-            ImageFormat::Png => "png",
-            ImageFormat::Pfm => "pfm",
-            ImageFormat::Exr => "exr",
-        }
-    }
-
-    /// The `Content-Type` of the format.
-    pub fn content_type(self) -> &'static str {
-        match self {
-            ImageFormat::Png => "image/png",
-            ImageFormat::Pfm => "image/x-portable-floatmap",
-            ImageFormat::Exr => "image/x-exr",
-        }
-    }
 }
 
 /// [`RenderBackend::read_object`] over a bucket's `store`.

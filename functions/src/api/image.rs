@@ -13,8 +13,48 @@ use hort_core::ids::JobId;
 use hort_core::image::{decode_pfm, encode_exr};
 use hort_core::keys::image_key;
 
-use super::backend::ImageFormat;
 use super::error::ApiError;
+
+/// Image formats the API serves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImageFormat {
+    /// 8-bit sRGB PNG (the default).
+    Png,
+    /// Linear RGB Portable FloatMap, bit-exact.
+    Pfm,
+    /// Linear RGB OpenEXR, bit-exact.
+    Exr,
+}
+
+impl ImageFormat {
+    /// The format named by `?format=`.
+    pub fn parse(name: &str) -> Option<ImageFormat> {
+        match name {
+            "png" => Some(ImageFormat::Png),
+            "pfm" => Some(ImageFormat::Pfm),
+            "exr" => Some(ImageFormat::Exr),
+            _ => None,
+        }
+    }
+
+    /// The file extension (`png`).
+    pub fn extension(self) -> &'static str {
+        match self {
+            ImageFormat::Png => "png",
+            ImageFormat::Pfm => "pfm",
+            ImageFormat::Exr => "exr",
+        }
+    }
+
+    /// The `Content-Type` of the format.
+    pub fn content_type(self) -> &'static str {
+        match self {
+            ImageFormat::Png => "image/png",
+            ImageFormat::Pfm => "image/x-portable-floatmap",
+            ImageFormat::Exr => "image/x-exr",
+        }
+    }
+}
 
 /// The largest body the API answers inline: 4 MiB, whose base64 (5.6 MB) leaves room within
 /// Lambda's 6 MB response ([`hort_aws_quotas::LAMBDA_SYNC_PAYLOAD_BYTES`]) for the headers and

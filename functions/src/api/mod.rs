@@ -40,7 +40,7 @@ mod scene_by_key;
 mod tests;
 
 pub use backend::{
-    ImageFormat, JobScene, JobSpec, JobState, JobStatus, RenderBackend, StageProgress, Submission,
+    JobScene, JobSpec, JobState, JobStatus, RenderBackend, StageProgress, Submission,
     idempotency_key_expired, idempotency_key_reused, object_in, object_range_in, object_size_in,
     request_fingerprint,
 };
@@ -51,8 +51,8 @@ pub use hort_core::predict::{
     SPLIT_NORMAL_BYTES_PER_TRIANGLE, StagePrediction, predict, preview_plan, usd,
 };
 pub use image::{
-    ImageAnswer, ImageBucket, MAX_INLINE_BODY_BYTES, PRESIGNED_URL_SECONDS, check_response_size,
-    stored_image,
+    ImageAnswer, ImageBucket, ImageFormat, MAX_INLINE_BODY_BYTES, PRESIGNED_URL_SECONDS,
+    check_response_size, stored_image,
 };
 pub use job_record::{JobRecord, fresh_id, job_for, keyed_id, now_unix_us};
 pub use request::{MAX_JSON_DEPTH, RenderRequest, SceneSpec, parse_render_request};
