@@ -1,6 +1,6 @@
 //! The store conformance suite against `S3Store` over HTTP: always against the embedded S3
 //! server, and against an external S3-compatible server when `HORT_TEST_S3_ENDPOINT` is set
-//! (`bash tests/s3-servers/with-moto.sh cargo test -p hort-tests --test s3_conformance`).
+//! (`bash tests/s3-servers/with-moto.sh cargo test -p hort-tests --test it s3_conformance::`).
 
 use crate::s3_support;
 
