@@ -11,7 +11,7 @@
 //! - what loads is usable: finite vertices, in-range indices, a ray query on a decoded BVH
 //!   returns.
 //!
-//! The AFL++ binaries in `src/bin/` call these functions; `tests/replay.rs` runs them over the
+//! The AFL++ binaries in `src/bin/` call these functions; `tests/it/replay.rs` runs them over the
 //! kept corpora in `corpus/<target>/` on the stable toolchain.
 
 #![forbid(unsafe_code)]

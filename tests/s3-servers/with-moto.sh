@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Runs a command against a fresh moto server (S3, SQS, Step Functions) on 127.0.0.1.
 #
-#   bash tests/s3-servers/with-moto.sh cargo test -p hort-tests --test s3_conformance
+#   bash tests/s3-servers/with-moto.sh cargo test -p hort-tests --test it s3_conformance::
 #
 # Installs moto[server] 5.x from PyPI into ${HORT_TOOLS_DIR:-$HOME/.cache/hort-tools}/moto-venv
 # the first time, starts `moto_server` on a free port, waits until it answers, exports
@@ -9,7 +9,8 @@
 #   HORT_TEST_S3_BUCKET    hort-test (not created here: tests call S3Store::create_bucket_if_missing)
 #   HORT_TEST_S3_ACCESS_KEY / HORT_TEST_S3_SECRET_KEY  (moto accepts any credentials)
 #   HORT_TEST_AWS_ENDPOINT the same URL: the one moto server also speaks SQS and Step Functions
-#                          (tests/tests/aws_moto.rs; moto records executions, it does not run them)
+#                          (tests/tests/it/aws_moto.rs; moto records executions, it does not run
+#                          them)
 # runs the command, stops the server on exit, and exits with the command's status.
 # The server log goes to $TOOLS/moto-server.log.
 set -euo pipefail

@@ -1,4 +1,4 @@
-//! Shared helpers of the end-to-end tests in `tests/tests/`: bundled scenes, the monolithic
+//! Shared helpers of the end-to-end tests in `tests/tests/it/`: bundled scenes, the monolithic
 //! reference render, and bit-exact views of images and hit buffers.
 
 use hort_core::hits::Hit;

@@ -252,8 +252,8 @@ fn escape_html_escapes_the_five_characters() {
 }
 
 /// The router passes `limit` on and adds each job's image URL; the order is the backend's (the
-/// real backends' newest-first listings are tested in `local-emulator/tests/serve.rs`,
-/// `a_full_server_...`, and `tests/tests/aws_moto.rs`, `the_deployment_api_lists_...`).
+/// real backends' newest-first listings are tested in `local-emulator/tests/it/serve.rs`,
+/// `a_full_server_...`, and `tests/tests/it/aws_moto.rs`, `the_deployment_api_lists_...`).
 #[test]
 fn the_listing_passes_the_limit_and_adds_image_urls() {
     let fake = Fake::default();

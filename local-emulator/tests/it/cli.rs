@@ -1,6 +1,6 @@
 //! The `hort` command as users and scripts call it: files it writes and errors it prints.
 
-mod common;
+use crate::common;
 
 use common::{hort, scene, scratch};
 use hort_core::hits::decode_hits;

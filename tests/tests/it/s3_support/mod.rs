@@ -1,7 +1,5 @@
 //! Shared setup of the S3 tests: an embedded S3 server in a temporary directory, and the
 //! external server named by `HORT_TEST_S3_*` variables (see `tests/s3-servers/with-moto.sh`).
-// Each test binary that includes this module uses only part of it.
-#![allow(dead_code)]
 
 use embedded_s3::EmbeddedS3;
 use hort_functions::{S3Config, S3Store};

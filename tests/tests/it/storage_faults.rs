@@ -4,7 +4,7 @@
 //! taken for the object; objects deleted or corrupted between stages (split objects, and every
 //! stage's input blocks, Combine's included) are recomputed from lineage.
 
-mod s3_support;
+use crate::s3_support;
 
 use asl_interpreter::{Event, FunctionLimits, NoObserver, Observer};
 use embedded_s3::{FaultKind, PersistentFault, StorageFaults};

@@ -2,7 +2,7 @@
 //! logic against a real server: moto, started by `tests/s3-servers/with-moto.sh`, which sets
 //! `HORT_TEST_AWS_ENDPOINT`:
 //!
-//!     bash tests/s3-servers/with-moto.sh cargo test -p hort-tests --test aws_moto -- --nocapture
+//!     bash tests/s3-servers/with-moto.sh cargo test -p hort-tests --test it aws_moto:: -- --nocapture
 //!
 //! The API's deployment backend is driven through the router (`hort_functions::api::handle`).
 //! Without that variable the moto tests say they are skipped and pass, unless

@@ -3,7 +3,7 @@
 //! surface can occlude, background pixels; staged jobs without shadow rays run no expand or
 //! trace-map stage), and one-line errors.
 
-mod common;
+use crate::common;
 
 use common::{hort, scene, scratch, stderr};
 

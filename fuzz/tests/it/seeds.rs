@@ -1,7 +1,7 @@
 //! Writes the binary seed inputs of the `split_object` and `shuffle_block` targets (valid
 //! objects of every kind, stored and unwrapped; see `src/shuffle.rs` for the input layout).
-//! Run once by hand: `cargo test -p hort-fuzz --test seeds -- --ignored`; the fuzzers grew the
-//! kept corpora from these.
+//! Run once by hand: `cargo test -p hort-fuzz --test it seeds:: -- --ignored`; the fuzzers grew
+//! the kept corpora from these.
 
 use glam::Vec3;
 use hort_core::bvh::Bvh;

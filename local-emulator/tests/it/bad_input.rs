@@ -19,7 +19,7 @@
 //! Edits: `delete`, `truncate N` (keep N bytes), `flip N` (invert byte N), `append N` (N zero
 //! bytes), `as KIND` (read as another record kind).
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::process::Command;

@@ -2,7 +2,7 @@
 //! Build, PlanFromParts) renders the monolithic image's bytes, fused and staged, under injected
 //! faults, and its report has a row for each of those steps, as `hort plan` counts them.
 
-mod common;
+use crate::common;
 
 use common::{hort, scene, scratch, stderr};
 

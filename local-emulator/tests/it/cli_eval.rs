@@ -2,7 +2,7 @@
 //! (`tests/fixtures/eval`, written by `eval/mitsuba_refs.py` at 16x12, 2 x 528 spp): the CSV's
 //! columns and rows, the error falling with spp, the chart, and bad inputs.
 
-mod common;
+use crate::common;
 
 use common::{files_in, hort, scene, scratch, stderr};
 use std::path::{Path, PathBuf};

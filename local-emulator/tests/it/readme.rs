@@ -1,7 +1,7 @@
 //! The README (and .gitignore) against the code: what it tells a new user to run must exist, and the numbers
 //! and commands it states must be the code's.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

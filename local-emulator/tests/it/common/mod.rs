@@ -1,5 +1,4 @@
 //! What the CLI test files share: the built `hort` binary, bundled scenes, scratch folders.
-#![allow(dead_code)] // each test file uses a different part
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

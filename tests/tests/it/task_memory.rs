@@ -1,19 +1,16 @@
-//! Per-task memory in the emulator, with the counting allocator installed as in `hort`: each
-//! stage reports the most memory one of its tasks held (at least the split objects it used), the
-//! image stays the monolithic render's, and a task over the functions' memory fails the job at
-//! once with `Runtime.OutOfMemory`, naming the task, what it used and the budget.
+//! Per-task memory in the emulator, with the counting allocator installed as in `hort` (for the
+//! whole test binary, in `main.rs`): each stage reports the most memory one of its tasks held (at
+//! least the split objects it used), the image stays the monolithic render's, and a task over the
+//! functions' memory fails the job at once with `Runtime.OutOfMemory`, naming the task, what it
+//! used and the budget.
 
 use asl_interpreter::{Event, FunctionLimits, NoObserver, Observer};
 use hort::emulator::{EmulatorConfig, run_job};
 use hort_core::pipeline::{PlanRequest, SplitMode, StoredOutputs, decode_split, rebuild_split};
 use hort_core::scene::load_scene;
 use hort_core::stage::Stage;
-use hort_task_memory::TaskAlloc;
 use hort_tests::{hit_bits, pixel_bits, scene_path, stored};
 use std::sync::Mutex;
-
-#[global_allocator]
-static ALLOCATOR: TaskAlloc = TaskAlloc;
 
 const SCENE: &str = "bunny/bunny.json";
 const W: u32 = 64;

@@ -2,7 +2,7 @@
 //! stage's `breakdown` is there, its parts are consistent with each other and with the stage's
 //! time, and storage latency injected into the embedded S3 server shows up as storage time.
 
-mod common;
+use crate::common;
 
 use common::{HORT, scene, scratch};
 use serde_json::Value;

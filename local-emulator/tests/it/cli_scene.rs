@@ -1,7 +1,7 @@
 //! `hort render` on scenes as new users bring them: a bare OBJ in a portrait image, manifests
 //! without light, MTL features that are not rendered, OBJ files from the wild.
 
-mod common;
+use crate::common;
 
 use common::{hort, scene, scratch};
 use hort_core::hits::{Hit, decode_hits};

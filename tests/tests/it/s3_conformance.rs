@@ -1,8 +1,8 @@
 //! The store conformance suite against `S3Store` over HTTP: always against the embedded S3
 //! server, and against an external S3-compatible server when `HORT_TEST_S3_ENDPOINT` is set
-//! (`bash tests/s3-servers/with-moto.sh cargo test -p hort-tests --test s3_conformance`).
+//! (`bash tests/s3-servers/with-moto.sh cargo test -p hort-tests --test it s3_conformance::`).
 
-mod s3_support;
+use crate::s3_support;
 
 use hort_core::store::{BlobStore, PutOutcome, conformance};
 use s3_support::{Embedded, external_config, unique_prefix};

@@ -2,7 +2,7 @@
 //! written, flags that do not apply refused, values checked where they are given, messages that
 //! say what to do, and a report that says how the render ran.
 
-mod common;
+use crate::common;
 
 use common::{files_in, hort, scene, scratch, stderr};
 

@@ -3,7 +3,7 @@
 //! job renders the same bytes, and the server's memory stays bounded. The latency of
 //! `POST /renders` is printed (a measurement, not an assertion).
 
-mod common;
+use crate::common;
 
 use common::scratch;
 use common::server::{Serve, cornell};

@@ -1,6 +1,6 @@
 //! `hort serve` over loopback, as a client sees it (the harness: `common/server.rs`).
 
-mod common;
+use crate::common;
 
 use common::server::{Reply, Serve, call, cornell, scenes};
 use common::{HORT, hort, scratch, stderr};

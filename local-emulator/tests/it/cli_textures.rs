@@ -2,7 +2,7 @@
 //! and the material, or with `--missing-textures flat` a warning and the material's flat Kd
 //! (the same image as without the `map_Kd`).
 
-mod common;
+use crate::common;
 
 use common::{hort, scene, scratch, stderr};
 use std::path::Path;

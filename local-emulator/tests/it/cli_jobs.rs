@@ -3,7 +3,7 @@
 //! `hort jobs list|clean`, resuming a stopped job, and the storage messages that say what to
 //! do (missing credentials, missing bucket, existing job).
 
-mod common;
+use crate::common;
 
 use common::scratch;
 use embedded_s3::EmbeddedS3;

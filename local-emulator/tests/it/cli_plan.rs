@@ -2,7 +2,7 @@
 //! constants, the model's monotonic behaviour, the errors for bad flags, and that the plan is
 //! the one `hort render` runs.
 
-mod common;
+use crate::common;
 
 use common::{hort, scene, stderr};
 use hort_core::cost::{

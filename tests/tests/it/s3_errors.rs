@@ -2,7 +2,7 @@
 //! retryable, a missing bucket, missing credentials or refused credentials are not; a missing
 //! bucket and missing credentials are not called "access denied".
 
-mod s3_support;
+use crate::s3_support;
 
 use hort_core::store::{BlobStore, StoreError};
 use hort_functions::s3_store::BucketProblem;
@@ -181,10 +181,14 @@ fn missing_credentials_say_where_to_set_them() {
     // The default credential chain reads the environment and the home folder: look at them in a
     // child process with neither (and no EC2 metadata service), so this process stays as it is.
     let home = tempfile::tempdir().expect("temporary directory");
+    // The child test's full name in this binary: its module path without the crate's name.
+    let (_, module) = module_path!()
+        .split_once("::")
+        .expect("a module of the test binary");
     let child = std::process::Command::new(std::env::current_exe().expect("test binary"))
         .args([
             "--exact",
-            "no_credentials_child",
+            &format!("{module}::no_credentials_child"),
             "--nocapture",
             "--test-threads",
             "1",

@@ -2,7 +2,7 @@
 //! monolithic render's for several partitionings and worker counts, under injected faults, and
 //! when a block is corrupted in storage between stages.
 
-mod s3_support;
+use crate::s3_support;
 
 use asl_interpreter::{Event, FunctionLimits, NoObserver, Observer};
 use hort::emulator::{EmulatorConfig, EmulatorRun, FaultSettings, StorageTarget, run_job};
