@@ -12,6 +12,7 @@ pub use error_type::ErrorType;
 // Scene input and the renderer.
 pub mod adaptive;
 pub mod bvh;
+pub mod animation;
 pub mod camera;
 pub mod coverage;
 pub mod phase_timer;
