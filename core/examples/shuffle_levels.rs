@@ -55,6 +55,7 @@ fn main() {
         memory_mb: 10_240,
         adaptive: None,
         outputs: StoredOutputs::ALL,
+        frame: Default::default(),
     };
     let options = PipelineOptions {
         job: JobId::new("levels").expect("a valid job id"),

@@ -87,6 +87,7 @@ fn main() {
         memory_mb: 10_240,
         adaptive: None,
         outputs: StoredOutputs::ALL,
+        frame: Default::default(),
     };
     let options = PipelineOptions {
         job: JobId::new("columns").expect("a valid job id"),

@@ -7,7 +7,7 @@
 //! both take their rays from it, so they trace the same rays bit for bit.
 
 use crate::error::SceneError;
-use crate::sampling::{PixelSamples, sample_offset};
+use crate::sampling::PixelSamples;
 use crate::scene::CameraSpec;
 use crate::triangle::Ray;
 use glam::{DVec3, Vec3};
@@ -25,6 +25,8 @@ pub struct Camera {
     height: f64,
     /// The image width in pixels, to split row-major pixel indices into (x, y).
     columns: u64,
+    /// The animation frame whose sample streams the rays follow (0 for a still image).
+    frame: u32,
 }
 
 impl Camera {
@@ -55,7 +57,14 @@ impl Camera {
             width: f64::from(width),
             height: f64::from(height),
             columns: u64::from(width),
+            frame: 0,
         })
+    }
+
+    /// This camera with the sample streams of animation frame `frame`
+    /// ([`PixelSamples::of_frame`]); frame 0's are a still image's.
+    pub fn with_frame(self, frame: u32) -> Camera {
+        Camera { frame, ..self }
     }
 
     /// The eye position.
@@ -100,11 +109,12 @@ impl Camera {
 
     /// The ray of sample `sample` of `spp` in pixel `pixel` (row-major index from the top-left,
     /// x = pixel % width, y = pixel / width): [`Camera::ray`] through (x + ox, y + oy), where
-    /// (ox, oy) is [`sample_offset`]`(pixel, sample, spp)`. A pure function of its arguments and
-    /// the camera. Panics if the camera was made for an image of width 0 (it has no pixels).
+    /// (ox, oy) is [`crate::sampling::sample_offset`]`(pixel, sample, spp)` (in frame 0; the camera's frame's
+    /// [`PixelSamples::of_frame`] offset otherwise). A pure function of its arguments and the
+    /// camera. Panics if the camera was made for an image of width 0 (it has no pixels).
     #[inline]
     pub fn sample_ray(&self, pixel: u64, sample: u32, spp: u32) -> Ray {
-        let (ox, oy) = sample_offset(pixel, sample, spp);
+        let (ox, oy) = PixelSamples::of_frame(pixel, spp, self.frame).offset(sample);
         // x < 2^32 and, for a pixel of the image, y < height: both convert to f64 exactly.
         let x = (pixel % self.columns) as f64;
         let y = (pixel / self.columns) as f64;
@@ -117,7 +127,7 @@ impl Camera {
     /// samples at a time in SIMD lanes ([`Camera::rays4`]).
     #[inline]
     pub fn pixel_rays(&self, pixel: u64, spp: u32, out: &mut Vec<Ray>) {
-        let samples = PixelSamples::new(pixel, spp);
+        let samples = PixelSamples::of_frame(pixel, spp, self.frame);
         let x = (pixel % self.columns) as f64;
         let y = (pixel / self.columns) as f64;
         out.reserve(spp as usize);
@@ -166,6 +176,7 @@ impl Camera {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sampling::sample_offset;
 
     #[test]
     fn centre_ray_looks_at_target_and_rows_go_down() {
@@ -233,6 +244,49 @@ mod tests {
                     let expected = cam.sample_ray(pixel, sample as u32, spp);
                     assert_eq!(bits(ray), bits(&expected), "pixel {pixel} sample {sample}");
                 }
+            }
+        }
+    }
+
+    /// Frame 0's rays are a still camera's; another frame keeps the pixel centre at one sample
+    /// and scrambles the samples differently above, each still inside its pixel, and a frame's
+    /// batch of rays is its sample rays one by one.
+    #[test]
+    fn each_frame_has_its_own_sample_streams() {
+        let spec = CameraSpec {
+            eye: DVec3::new(0.5, 1.0, 5.0),
+            look_at: DVec3::ZERO,
+            up: DVec3::Y,
+            vfov_degrees: 40.0,
+        };
+        let still = Camera::new(&spec, 8, 6).unwrap();
+        let bits = |r: Ray| r.dir.to_array().map(f32::to_bits);
+        let frame0 = still.with_frame(0);
+        let frame3 = still.with_frame(3);
+        for pixel in [0u64, 9, 47] {
+            assert_eq!(
+                bits(frame3.sample_ray(pixel, 0, 1)),
+                bits(still.sample_ray(pixel, 0, 1))
+            );
+            let mut differ = 0;
+            for sample in 0..16 {
+                assert_eq!(
+                    bits(frame0.sample_ray(pixel, sample, 16)),
+                    bits(still.sample_ray(pixel, sample, 16))
+                );
+                let other = frame3.sample_ray(pixel, sample, 16);
+                differ += usize::from(bits(other) != bits(still.sample_ray(pixel, sample, 16)));
+                let (ox, oy) = PixelSamples::of_frame(pixel, 16, 3).offset(sample);
+                assert!((0.0..1.0).contains(&ox) && (0.0..1.0).contains(&oy));
+            }
+            assert!(
+                differ >= 15,
+                "pixel {pixel}: only {differ} of 16 samples moved"
+            );
+            let mut batch = Vec::new();
+            frame3.pixel_rays(pixel, 16, &mut batch);
+            for (sample, ray) in batch.into_iter().enumerate() {
+                assert_eq!(bits(ray), bits(frame3.sample_ray(pixel, sample as u32, 16)));
             }
         }
     }

@@ -16,6 +16,8 @@
 //! jobs/{job}/parts/split-{split:05}.json         the summary of a split a build task stored
 //! jobs/{job}/out/image.{ext}                     the final image (png, pfm)
 //! jobs/{job}/out/hits.bin                        the hit buffer
+//! jobs/{job}/frames/{frame:05}/...               one frame's partitions and out/ (a job of
+//!                                                several frames; see [`FrameKeys`])
 //! jobs/{job}/api.json                            the HTTP API's record of the job, created once
 //! jobs/{job}/execution.json                      hort serve's record of the job's run
 //! jobs/{job}/report.json                         the report of a job hort serve ran
@@ -30,6 +32,28 @@
 
 use crate::ids::{JobId, PartitionId, SplitId, TaskId};
 use crate::stage::Stage;
+use std::fmt;
+
+/// Where one frame's own objects live (its shuffle partitions and its `out/`), as the `{job}`
+/// of [`partition_key`], [`image_key`] and [`hits_key`]: the job's own folder for a job of one
+/// frame (`frame` `None`), else `jobs/{job}/frames/{frame:05}/`. What the frames share (the
+/// request, scene, plan, splits, textures and items) keeps the job's keys.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameKeys<'a> {
+    /// The job.
+    pub job: &'a JobId,
+    /// The frame, in a job of several frames.
+    pub frame: Option<u32>,
+}
+
+impl fmt::Display for FrameKeys<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.frame {
+            None => write!(f, "{}", self.job),
+            Some(frame) => write!(f, "{}/frames/{frame:05}", self.job),
+        }
+    }
+}
 
 /// `jobs/{job}/parts/table.json`: the scene's files and byte ranges, as the Plan function's
 /// scan found them (a scene split by partition and build tasks).
@@ -89,15 +113,20 @@ pub fn report_key(job: &JobId) -> String {
 }
 
 /// Whether a job that succeeded keeps `key` when its intermediates are deleted: the job
-/// request, the plan, the outputs, and the API's records and report.
+/// request, the plan, the outputs (each frame's too), and the API's records and report.
 pub fn kept_after_success(job: &JobId, key: &str) -> bool {
     let Some(rel) = key.strip_prefix(&format!("jobs/{job}/")) else {
         return true;
     };
+    let frame_output = rel
+        .strip_prefix("frames/")
+        .and_then(|r| r.split_once('/'))
+        .is_some_and(|(frame, r)| parse_index(frame).is_some() && r.starts_with("out/"));
     matches!(
         rel,
         "manifest.json" | "plan.json" | "api.json" | "execution.json" | "report.json"
     ) || rel.starts_with("out/")
+        || frame_output
 }
 
 /// Whether a cancelled job keeps `key`: its request, its scene and the API's records stay (the
@@ -125,15 +154,21 @@ pub fn texture_key(job: &JobId, content_key: &str) -> String {
     format!("jobs/{job}/textures/{content_key}.tex")
 }
 
-/// `jobs/{job}/{stage}/{task:05}/part-{p:05}`: partition `p` of the output of one task.
-/// [`parse_partition_key`] inverts it exactly.
-pub fn partition_key(job: &JobId, stage: Stage, task: TaskId, partition: PartitionId) -> String {
+/// `jobs/{job}/{stage}/{task:05}/part-{p:05}`: partition `p` of the output of one task (`job`
+/// a [`JobId`], or a [`FrameKeys`] for one frame's). [`parse_partition_key`] inverts it
+/// exactly.
+pub fn partition_key(
+    job: &impl fmt::Display,
+    stage: Stage,
+    task: TaskId,
+    partition: PartitionId,
+) -> String {
     format!("jobs/{job}/{stage}/{:05}/part-{:05}", task.0, partition.0)
 }
 
 /// `jobs/{job}/out/image.{ext}`: the final image in another format; `ext` is given without the
 /// dot (`"pfm"`, `"exr"`). A leading dot, if present, is dropped so `".pfm"` gives the same key.
-pub fn image_key(job: &JobId, ext: &str) -> String {
+pub fn image_key(job: &impl fmt::Display, ext: &str) -> String {
     let ext = ext.strip_prefix('.').unwrap_or(ext);
     format!("jobs/{job}/out/image.{ext}")
 }
@@ -153,8 +188,9 @@ pub fn scene_binary_key(job: &JobId) -> String {
     format!("jobs/{job}/scene/scene.bin")
 }
 
-/// `jobs/{job}/out/hits.bin`: the hit buffer of the command-line contract.
-pub fn hits_key(job: &JobId) -> String {
+/// `jobs/{job}/out/hits.bin`: the hit buffer of the command-line contract (`job` a
+/// [`JobId`], or a [`FrameKeys`] for one frame's).
+pub fn hits_key(job: &impl fmt::Display) -> String {
     format!("jobs/{job}/out/hits.bin")
 }
 
@@ -190,27 +226,45 @@ pub fn lost_items_key(job: &JobId, manifest_key: &str) -> Option<String> {
     safe.then(|| format!("{prefix}/{run}/lost.json"))
 }
 
-/// Parses a key made by [`partition_key`]; `None` for any other string.
+/// A shuffle partition's key, parsed ([`parse_partition_key`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PartitionKey {
+    /// The job.
+    pub job: JobId,
+    /// The frame, for a key under [`FrameKeys`] of a frame.
+    pub frame: Option<u32>,
+    /// The producing task's stage.
+    pub stage: Stage,
+    /// The producing task.
+    pub task: TaskId,
+    /// The partition.
+    pub partition: PartitionId,
+}
+
+/// Parses a key made by [`partition_key`] (of a job, or of one of its frames); `None` for any
+/// other string.
 ///
 /// Guarantee: `parse_partition_key(k) == Some(x)` exactly when `partition_key(x) == k`, so a
 /// listed key is accepted only in its canonical spelling (five or more digits, no extra zeros).
-pub fn parse_partition_key(key: &str) -> Option<(JobId, Stage, TaskId, PartitionId)> {
-    let mut parts = key.split('/');
-    let (jobs, job, stage, task, part) = (
-        parts.next()?,
-        parts.next()?,
-        parts.next()?,
-        parts.next()?,
-        parts.next()?,
-    );
-    if jobs != "jobs" || parts.next().is_some() {
+pub fn parse_partition_key(key: &str) -> Option<PartitionKey> {
+    let parts: Vec<&str> = key.split('/').collect();
+    let (job, frame, rest) = match parts.as_slice() {
+        ["jobs", job, rest @ ..] if rest.len() == 3 => (job, None, rest),
+        ["jobs", job, "frames", frame, rest @ ..] if rest.len() == 3 => {
+            (job, Some(parse_index(frame)?), rest)
+        }
+        _ => return None,
+    };
+    let [stage, task, part] = rest else {
         return None;
-    }
-    let job = JobId::new(job).ok()?;
-    let stage = stage.parse::<Stage>().ok()?;
-    let task = parse_index(task)?;
-    let partition = parse_index(part.strip_prefix("part-")?)?;
-    Some((job, stage, TaskId(task), PartitionId(partition)))
+    };
+    Some(PartitionKey {
+        job: JobId::new(*job).ok()?,
+        frame,
+        stage: stage.parse::<Stage>().ok()?,
+        task: TaskId(parse_index(task)?),
+        partition: PartitionId(parse_index(part.strip_prefix("part-")?)?),
+    })
 }
 
 /// A decimal index in the canonical `{:05}` spelling, else `None`.
@@ -267,6 +321,24 @@ mod tests {
         assert_eq!(image_key(&j, "pfm"), "jobs/job-42/out/image.pfm");
         assert_eq!(image_key(&j, ".exr"), "jobs/job-42/out/image.exr");
         assert_eq!(hits_key(&j), "jobs/job-42/out/hits.bin");
+        let frame = FrameKeys {
+            job: &j,
+            frame: Some(3),
+        };
+        assert_eq!(
+            image_key(&frame, "png"),
+            "jobs/job-42/frames/00003/out/image.png"
+        );
+        assert_eq!(hits_key(&frame), "jobs/job-42/frames/00003/out/hits.bin");
+        assert_eq!(
+            partition_key(&frame, Stage::CastMap, TaskId(3), PartitionId(12)),
+            "jobs/job-42/frames/00003/cast-map/00003/part-00012"
+        );
+        let alone = FrameKeys {
+            job: &j,
+            frame: None,
+        };
+        assert_eq!(image_key(&alone, "png"), image_key(&j, "png"));
         assert_eq!(scene_prefix(&j), "jobs/job-42/scene/");
         assert_eq!(scene_binary_key(&j), "jobs/job-42/scene/scene.bin");
         assert_eq!(
@@ -281,6 +353,10 @@ mod tests {
     #[test]
     fn a_job_that_succeeded_keeps_its_request_plan_outputs_and_records_only() {
         let j = job();
+        let frame = FrameKeys {
+            job: &j,
+            frame: Some(12),
+        };
         for kept in [
             manifest_key(&j),
             plan_key(&j),
@@ -289,6 +365,8 @@ mod tests {
             api_record_key(&j),
             execution_record_key(&j),
             report_key(&j),
+            image_key(&frame, "png"),
+            hits_key(&frame),
         ] {
             assert!(kept_after_success(&j, &kept), "{kept}");
         }
@@ -297,6 +375,7 @@ mod tests {
             split_key(&j, SplitId(0)),
             items_key(&j, Stage::Render),
             partition_key(&j, Stage::Render, TaskId(0), PartitionId(0)),
+            partition_key(&frame, Stage::Render, TaskId(0), PartitionId(0)),
         ] {
             assert!(!kept_after_success(&j, &gone), "{gone}");
         }
@@ -338,7 +417,7 @@ mod tests {
         let order: Vec<u32> = keys
             .iter()
             .filter_map(|k| parse_partition_key(k))
-            .map(|(_, _, _, p)| p.0)
+            .map(|k| k.partition.0)
             .collect();
         assert_eq!(order, [0, 9, 10, 100, 99_999]);
     }
@@ -348,9 +427,18 @@ mod tests {
         let j = job();
         for stage in Stage::ALL {
             for (t, p) in [(0, 0), (1, 99_999), (100_000, 7), (u32::MAX, u32::MAX)] {
-                let key = partition_key(&j, stage, TaskId(t), PartitionId(p));
-                let parsed = parse_partition_key(&key);
-                assert_eq!(parsed, Some((j.clone(), stage, TaskId(t), PartitionId(p))));
+                for frame in [None, Some(0), Some(7), Some(123_456)] {
+                    let scope = FrameKeys { job: &j, frame };
+                    let key = partition_key(&scope, stage, TaskId(t), PartitionId(p));
+                    let expected = PartitionKey {
+                        job: j.clone(),
+                        frame,
+                        stage,
+                        task: TaskId(t),
+                        partition: PartitionId(p),
+                    };
+                    assert_eq!(parse_partition_key(&key), Some(expected), "{key}");
+                }
             }
         }
     }
@@ -373,6 +461,10 @@ mod tests {
             "jobs/job-42/cast-map/4294967296/part-00012",
             "jobs/job-42/splits/00001.bin",
             "jobs/job-42/manifest.json",
+            "jobs/job-42/frames/0003/cast-map/00003/part-00012",
+            "jobs/job-42/frame/00003/cast-map/00003/part-00012",
+            "jobs/job-42/frames/00003/cast-map/00003/part-00012/x",
+            "jobs/job-42/frames/00003/out/image.png",
         ] {
             assert_eq!(parse_partition_key(bad), None, "{bad}");
         }

@@ -10,6 +10,7 @@ use crate::error::SceneError;
 use crate::hits::Hit;
 use crate::image::Image;
 use crate::phase_timer::{NoTimer, Phase, PhaseTimer, PhaseTimes};
+use crate::pipeline::FrameChoice;
 use crate::sampling::PixelSum;
 use crate::scene::{Mesh, NO_NORMAL, Scene, TriangleShading, check_image_size};
 use crate::shading::{SurfacePoint, combine, shadow_test, surface_point};
@@ -20,8 +21,8 @@ use crate::worker_pool::run_indexed;
 use std::convert::Infallible;
 use std::time::Instant;
 
-/// Image size, samples per pixel and worker threads of one render.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Image size, samples per pixel, frame and worker threads of one render.
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderSettings {
     /// Image width in pixels; [`render`] accepts 1 to 65536.
     pub width: u32,
@@ -31,6 +32,18 @@ pub struct RenderSettings {
     pub spp: u32,
     /// Worker threads; 0 means one per available core.
     pub threads: usize,
+    /// Which frame of which camera path ([`FrameChoice::STILL`]: the scene's camera).
+    pub frame: FrameChoice,
+}
+
+impl RenderSettings {
+    /// The camera of this render of `scene`: the frame's camera for the image size
+    /// ([`FrameChoice::camera`]), with the frame's sample streams, as a planned job's tasks
+    /// trace it ([`crate::pipeline::JobPlan::ray_camera`]).
+    pub fn camera(&self, scene: &Scene) -> Result<Camera, SceneError> {
+        let spec = self.frame.camera(scene, self.width, self.height)?;
+        Ok(Camera::new(&spec, self.width, self.height)?.with_frame(self.frame.index))
+    }
 }
 
 /// Everything a render produces.
@@ -161,7 +174,7 @@ pub fn render_phases(
 /// no surface can occlude.
 fn prepare(scene: &Scene, s: RenderSettings) -> Result<(Camera, Vec<bool>), SceneError> {
     check_image_size(s.width, s.height, s.spp)?;
-    let camera = Camera::new(&scene.camera_for(s.width, s.height), s.width, s.height)?;
+    let camera = s.camera(scene)?;
     Ok((camera, unoccludable_lights(&scene.mesh, &scene.lights)))
 }
 
@@ -398,6 +411,7 @@ mod tests {
             height: 30,
             spp: 12,
             threads: 3,
+            frame: Default::default(),
         };
         let plain = render(&scene, &bvh, settings).unwrap();
         let (timed, times) = render_phases(&scene, &bvh, settings).unwrap();
@@ -441,6 +455,7 @@ mod tests {
             height: 6,
             spp: 64,
             threads: 2,
+            frame: Default::default(),
         };
         assert!(settings.width as usize * settings.spp as usize > 2 * BATCH_SAMPLES);
         let out = render(&scene, &bvh, settings).expect("render");

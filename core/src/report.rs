@@ -71,6 +71,19 @@ pub struct Report {
     /// standard error as `skipped: ...`).
     #[serde(default)]
     pub skips: Vec<String>,
+    /// A run of several frames: each frame and the image file written for it, in order
+    /// (the totals above cover them all). Absent for a run of one image.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub frames: Vec<FrameReport>,
+}
+
+/// One frame of a run of several frames.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FrameReport {
+    /// The frame's number.
+    pub frame: u32,
+    /// The image file written for it (the animated GIF's, for all frames of one).
+    pub image: String,
 }
 
 /// The adaptive sampler in a report: its settings and, where the run counts them, its
@@ -256,6 +269,7 @@ mod tests {
                 }),
             }),
             skips: vec!["no lights: no shadow rays".into()],
+            frames: Vec::new(),
         }
     }
 

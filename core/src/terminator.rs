@@ -137,6 +137,7 @@ pub fn measure(stacks: u32, slices: u32, size: u32) -> TerminatorFigures {
         height: size,
         spp: 1,
         threads: 1,
+        frame: Default::default(),
     };
     let out = render(&scene, &bvh, settings).expect("the sphere renders");
     let camera = crate::camera::Camera::new(&scene.camera, size, size).expect("camera");
@@ -304,6 +305,7 @@ mod tests {
             height: h,
             spp,
             threads: 2,
+            frame: Default::default(),
         };
         let mono = render(&scene, &bvh, settings).unwrap();
         let bits =
@@ -325,6 +327,7 @@ mod tests {
                 memory_mb: crate::pipeline::DEFAULT_MEMORY_MB,
                 adaptive: None,
                 outputs: StoredOutputs::ALL,
+                frame: Default::default(),
             };
             let options = PipelineOptions {
                 job: JobId::new("smooth").unwrap(),

@@ -105,6 +105,7 @@ fn bundled_scenes_render_to_the_pinned_digests() {
             height: g.height,
             spp: g.spp,
             threads: 2,
+            frame: Default::default(),
         };
         let out = render(&scene, &bvh, settings).unwrap_or_else(|e| panic!("{}: {e}", g.scene));
         assert!(

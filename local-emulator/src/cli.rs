@@ -86,6 +86,9 @@ pub struct RenderArgs {
     /// The image and the plan's shape (the flags of `hort plan` too).
     #[command(flatten)]
     pub plan: crate::plan_flags::PlanFlags,
+    /// Which frames of which camera path.
+    #[command(flatten)]
+    pub animation: crate::frame_flags::FrameFlags,
     /// Adaptive sampling up to MAX_SPP samples per pixel (above --spp): first --spp samples
     /// (at least 2) in every pixel, then MAX_SPP in the pixels whose standard error is above
     /// --adaptive-threshold. Monolithic, fused or staged.

@@ -7,6 +7,8 @@ mod cli;
 #[cfg(test)]
 mod cli_reference;
 mod eval;
+mod frame_flags;
+mod frame_paths;
 mod jobs_cmd;
 mod outputs;
 mod plan_cmd;

@@ -95,6 +95,7 @@ impl PlanFlags {
             memory_mb: self.memory_mb,
             adaptive,
             outputs,
+            frame: Default::default(),
         }
     }
 }

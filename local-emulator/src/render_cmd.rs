@@ -2,6 +2,8 @@
 //! buffer and report.
 
 use crate::cli::RenderArgs;
+use crate::frame_flags::FramePlan;
+use crate::frame_paths::{check_frame_pattern, frame_path};
 use crate::outputs::{
     OutputTarget, check_distinct, check_image_path, check_output_path, write_output,
 };
@@ -14,17 +16,20 @@ use hort::emulator::{
 };
 use hort::progress::{ProgressMode, ProgressObserver, print_breakdown, print_summary};
 use hort_core::adaptive::{AdaptiveCounts, AdaptiveSettings, render_adaptive};
-use hort_core::camera::Camera;
+use hort_core::bvh::Bvh;
 use hort_core::cost::Arch;
 use hort_core::hits::{Hit, encode_hits};
 use hort_core::ids::JobId;
-use hort_core::image::{Image, write_image};
+use hort_core::image::{Image, encode_gif, write_image as encode_and_write};
 use hort_core::pipeline::{
-    ExecutionMode, PipelineOptions, PlanRequest, resolve_counts_with, run_pipeline,
+    ExecutionMode, FrameChoice, JobOutputs, PipelineOptions, PlanRequest, resolve_counts_with,
+    run_pipeline,
 };
 use hort_core::plural::count;
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
-use hort_core::report::{AdaptiveReport, Outputs, RayReport, Report, Seconds, StageReport};
+use hort_core::report::{
+    AdaptiveReport, FrameReport, Outputs, RayReport, Report, Seconds, StageReport,
+};
 use hort_core::scene::{Scene, check_image_size, load_scene_with, scene_image_settings};
 use hort_core::store::MemoryStore;
 use hort_core::unoccludable::unoccludable_lights;
@@ -42,6 +47,8 @@ struct Rendered {
     png: Option<Vec<u8>>,
     /// The hit buffer: always from a monolithic render, from a job only with `--hits`.
     hits: Option<Vec<Hit>>,
+    /// A job of several frames: each frame's outputs (the fields above are the first frame's).
+    frames: Vec<(u32, JobOutputs)>,
     rays: RayReport,
     build_seconds: f64,
     render_seconds: f64,
@@ -96,11 +103,23 @@ pub fn run(args: RenderArgs) -> Result<()> {
         None => scene_image_settings(&args.scene)?,
     };
     let size = args.plan.image_size(&image)?;
-    let ImageSize { width, height, .. } = size;
-    // A camera that cannot be built is the scene's fault: say so before any upload or render.
+    let frames = args.animation.plan(scene.as_ref())?;
+    check_frame_outputs(&targets, &frames)?;
+    // A camera that cannot be built is the scene's fault: say so before any upload or render,
+    // for every frame.
     if let Some(scene) = &scene {
-        Camera::new(&scene.camera_for(width, height), width, height)
-            .map_err(|e| anyhow!("{}: {e}", args.scene.display()))?;
+        for k in frames.frames.clone() {
+            let settings = RenderSettings {
+                width: size.width,
+                height: size.height,
+                spp: size.spp,
+                threads: 1,
+                frame: frames.choice(k),
+            };
+            settings
+                .camera(scene)
+                .map_err(|e| anyhow!("{}: {e}", args.scene.display()))?;
+        }
     }
     let adaptive = adaptive_settings(&args, size)?;
     let request = args.plan.request(
@@ -115,16 +134,30 @@ pub fn run(args: RenderArgs) -> Result<()> {
         let (shape, s) = resolve_counts_with(&request, triangles, &scene.mesh.textures)?;
         warn_if_oversplit(triangles, shape.splits, s);
     }
-    let rendered = match &scene {
+    let (rendered, images) = match &scene {
         Some(scene) if args.monolithic => {
-            render_monolithic(scene, width, height, size.spp, args.threads, adaptive)?
+            render_monolithic_frames(scene, request, &frames, args.threads, adaptive)?
         }
-        Some(scene) if args.in_process => render_pipeline(scene, request, &args)?,
-        _ => render_emulated(scene.as_ref(), &args, request)?,
+        _ => {
+            // One job renders every frame: the scene is uploaded, planned and split once.
+            let request = PlanRequest {
+                frame: FrameChoice::range(frames.frames.clone(), frames.orbit),
+                ..request
+            };
+            let rendered = match &scene {
+                Some(scene) if args.in_process => render_pipeline(scene, request, &args)?,
+                _ => render_emulated(scene.as_ref(), &args, request)?,
+            };
+            let images = frame_images_of(&rendered, frames.frames.start);
+            (rendered, images)
+        }
     };
-    write_image_and_hits(&rendered, &targets)?;
+    let written = write_frames(&images, &targets)?;
     let render_seconds = rendered.render_seconds;
-    let report = run_report(&args, &targets.out, size, rendered, started, load_seconds);
+    let mut report = run_report(&args, &targets.out, size, rendered, started, load_seconds);
+    if frames.len() > 1 {
+        report.frames = written;
+    }
     for skip in &report.skips {
         eprintln!("skipped: {skip}");
     }
@@ -132,6 +165,129 @@ pub fn run(args: RenderArgs) -> Result<()> {
         write_output(target, (report.to_json() + "\n").as_bytes())?;
     }
     print_run_summary(&report, render_seconds, &targets.out)
+}
+
+/// What one frame of a run hands over for writing.
+struct FrameImages {
+    frame: u32,
+    /// The linear image (monolithic renders; jobs that store it).
+    image: Option<Image>,
+    /// The PNG a job stored.
+    png: Option<Vec<u8>>,
+    /// The hit buffer (monolithic renders; jobs that store it).
+    hits: Option<Vec<Hit>>,
+}
+
+/// The frames of a job's run, numbered from `first` (a job of one frame: its outputs).
+fn frame_images_of(rendered: &Rendered, first: u32) -> Vec<FrameImages> {
+    if rendered.frames.is_empty() {
+        return vec![FrameImages {
+            frame: first,
+            image: rendered.image.clone(),
+            png: rendered.png.clone(),
+            hits: rendered.hits.clone(),
+        }];
+    }
+    rendered
+        .frames
+        .iter()
+        .map(|(frame, outputs)| FrameImages {
+            frame: *frame,
+            image: outputs.image.clone(),
+            png: Some(outputs.png.clone()),
+            hits: outputs.hits.clone(),
+        })
+        .collect()
+}
+
+/// Writes each frame's image and hit buffer to its files (an animated GIF `--out` gathers the
+/// frames into one file, written after the last), and says which file holds which frame.
+fn write_frames(images: &[FrameImages], targets: &OutputTargets) -> Result<Vec<FrameReport>> {
+    let mut written = Vec::new();
+    let mut gif_frames = Vec::new();
+    for frame in images {
+        let targets = targets.of_frame(frame.frame);
+        if is_gif(&targets.out) {
+            let image = frame.image.clone();
+            gif_frames.push(image.ok_or_else(|| anyhow!("the job stored no linear image"))?);
+        } else {
+            write_image(frame, &targets.out)?;
+        }
+        write_hits(frame, &targets)?;
+        written.push(FrameReport {
+            frame: frame.frame,
+            image: targets.out.display().to_string(),
+        });
+    }
+    if !gif_frames.is_empty() {
+        let gif = encode_gif(&gif_frames, GIF_FRAME_MS)?;
+        write_output(&OutputTarget::File(targets.out.clone()), &gif)?;
+    }
+    Ok(written)
+}
+
+/// How long an animated GIF (`--out x.gif`) shows each frame: 25 frames a second.
+const GIF_FRAME_MS: u32 = 40;
+
+/// Whether `out` names an animated GIF preview.
+fn is_gif(out: &Path) -> bool {
+    out.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("gif"))
+}
+
+/// With several frames, each frame's image and hit buffer need their own files: `--out`
+/// (unless an animated GIF) and `--hits` must name them with a `#` run. The report is one, for
+/// the whole run.
+fn check_frame_outputs(targets: &OutputTargets, frames: &FramePlan) -> Result<()> {
+    let n = frames.len();
+    if !is_gif(&targets.out) {
+        check_frame_pattern("--out", &targets.out, n)?;
+    }
+    if let Some(OutputTarget::File(path)) = &targets.hits {
+        check_frame_pattern("--hits", path, n)?;
+    }
+    Ok(())
+}
+
+/// The monolithic renders of `request`'s image of each of `frames`, over one BVH of `scene`:
+/// the run's totals (rays and render seconds summed, the BVH built once) and each frame.
+fn render_monolithic_frames(
+    scene: &Scene,
+    request: PlanRequest,
+    frames: &FramePlan,
+    threads: Option<usize>,
+    adaptive: Option<AdaptiveSettings>,
+) -> Result<(Rendered, Vec<FrameImages>)> {
+    let build_start = Instant::now();
+    let bvh = build_scene_bvh(&scene.mesh);
+    let build_seconds = build_start.elapsed().as_secs_f64();
+    let mut total: Option<Rendered> = None;
+    let mut images = Vec::new();
+    for frame in frames.frames.clone() {
+        let request = PlanRequest {
+            frame: frames.choice(frame),
+            ..request
+        };
+        let mut rendered =
+            render_monolithic(scene, (&bvh, build_seconds), request, threads, adaptive)?;
+        images.push(FrameImages {
+            frame,
+            image: rendered.image.take(),
+            png: None,
+            hits: rendered.hits.take(),
+        });
+        total = Some(match total {
+            None => rendered,
+            Some(mut sum) => {
+                sum.rays.primary += rendered.rays.primary;
+                sum.rays.shadow += rendered.rays.shadow;
+                sum.render_seconds += rendered.render_seconds;
+                sum
+            }
+        });
+    }
+    let total = total.ok_or_else(|| anyhow!("no frame to render"))?;
+    Ok((total, images))
 }
 
 /// Where `hort render` writes: the image (`--out`, by default the scene's name as a PNG), the
@@ -142,6 +298,21 @@ struct OutputTargets {
     report: Option<OutputTarget>,
 }
 
+impl OutputTargets {
+    /// Frame `frame`'s files: each path's `#` run replaced by the frame number.
+    fn of_frame(&self, frame: u32) -> OutputTargets {
+        let file = |t: &OutputTarget| match t {
+            OutputTarget::File(path) => OutputTarget::File(frame_path(path, frame)),
+            OutputTarget::Stdout => OutputTarget::Stdout,
+        };
+        OutputTargets {
+            out: frame_path(&self.out, frame),
+            hits: self.hits.as_ref().map(file),
+            report: self.report.as_ref().map(file),
+        }
+    }
+}
+
 /// The outputs of `args`, each path checked (writable, of a known kind) and all distinct.
 fn check_outputs(args: &RenderArgs) -> Result<OutputTargets> {
     let out = args
@@ -149,7 +320,11 @@ fn check_outputs(args: &RenderArgs) -> Result<OutputTargets> {
         .out
         .clone()
         .unwrap_or_else(|| default_out(&args.scene));
-    check_image_path("--out", &out)?;
+    if is_gif(&out) {
+        check_output_path("--out", &out, false)?;
+    } else {
+        check_image_path("--out", &out)?;
+    }
     let hits = match &args.outputs.hits {
         Some(path) => Some(check_output_path("--hits", path, false)?),
         None => None,
@@ -212,16 +387,19 @@ fn adaptive_settings(args: &RenderArgs, size: ImageSize) -> Result<Option<Adapti
     Ok(Some(settings))
 }
 
-/// Writes the image to `--out` (the PNG the job stored as it is, when `--out` is a PNG) and the
-/// hit buffer to `--hits` if asked for; an error if the run has no image or hits to write.
-fn write_image_and_hits(rendered: &Rendered, targets: &OutputTargets) -> Result<()> {
-    let out = &targets.out;
+/// Writes a frame's image to `out` (the PNG the job stored as it is, when `out` is a PNG); an
+/// error if the run has no image to write.
+fn write_image(rendered: &FrameImages, out: &Path) -> Result<()> {
     match (rendered.png.as_deref(), &rendered.image) {
         // The job stored this very encoding of the image: no need to encode it again.
-        (Some(png), _) if is_png(out) => write_output(&OutputTarget::File(out.clone()), png)?,
-        (_, Some(image)) => write_image(out, image)?,
+        (Some(png), _) if is_png(out) => write_output(&OutputTarget::File(out.to_path_buf()), png),
+        (_, Some(image)) => Ok(encode_and_write(out, image)?),
         (_, None) => bail!("the job stored no linear image to write {}", out.display()),
     }
+}
+
+/// Writes the hit buffer to `--hits` if asked for; an error if the run has no hits to write.
+fn write_hits(rendered: &FrameImages, targets: &OutputTargets) -> Result<()> {
     if let Some(target) = &targets.hits {
         let hits = rendered
             .hits
@@ -290,6 +468,7 @@ fn run_report(
         outputs,
         skips: skipped,
         adaptive: rendered.adaptive,
+        frames: Vec::new(),
     }
 }
 
@@ -389,39 +568,39 @@ fn print_run_summary(report: &Report, render_seconds: f64, out: &Path) -> Result
     Ok(())
 }
 
+/// The monolithic render of `request`'s frame of `scene` with its BVH (built in
+/// `build_seconds`).
 fn render_monolithic(
     scene: &Scene,
-    width: u32,
-    height: u32,
-    spp: u32,
+    (bvh, build_seconds): (&Bvh, f64),
+    request: PlanRequest,
     threads: Option<usize>,
     adaptive: Option<AdaptiveSettings>,
 ) -> Result<Rendered> {
     let threads = threads.unwrap_or_else(available_cores);
-    let build_start = Instant::now();
-    let bvh = build_scene_bvh(&scene.mesh);
-    let build_seconds = build_start.elapsed().as_secs_f64();
     let settings = RenderSettings {
-        width,
-        height,
-        spp,
+        width: request.width,
+        height: request.height,
+        spp: request.spp,
         threads,
+        frame: request.frame,
     };
     let (output, adaptive) = match adaptive {
         Some(a) => {
-            let (output, counts) = render_adaptive(scene, &bvh, settings, a)?;
+            let (output, counts) = render_adaptive(scene, bvh, settings, a)?;
             let report = AdaptiveReport {
                 settings: a,
                 counts: Some(counts),
             };
             (output, Some(report))
         }
-        None => (render(scene, &bvh, settings)?, None),
+        None => (render(scene, bvh, settings)?, None),
     };
     Ok(Rendered {
         image: Some(output.image),
         png: None,
         hits: Some(output.hits),
+        frames: Vec::new(),
         rays: RayReport {
             primary: output.rays.primary,
             shadow: output.rays.shadow,
@@ -471,6 +650,7 @@ fn render_pipeline(scene: &Scene, request: PlanRequest, args: &RenderArgs) -> Re
         image: run.image,
         png: Some(run.png),
         hits: run.hits,
+        frames: run.frames,
         rays: RayReport {
             primary: run.primary_rays,
             shadow: run.shadow_rays,
@@ -644,13 +824,18 @@ fn emulated_rendered(run: EmulatorRun, request: PlanRequest, workers: usize) -> 
         .sum();
     let counts = run.ledger.total().adaptive;
     let adaptive = adaptive_report(request, counts);
+    let frames = run.plan.frame_numbers().len() as u64;
     Rendered {
         image: run.image,
         png: Some(run.png),
         hits: run.hits,
+        frames: run.frames,
         rays: RayReport {
             primary: adaptive.as_ref().map_or(
-                u64::from(request.width) * u64::from(request.height) * u64::from(request.spp),
+                u64::from(request.width)
+                    * u64::from(request.height)
+                    * u64::from(request.spp)
+                    * frames,
                 |_| counts.samples,
             ),
             shadow: run.ledger.total().shadow_rays,

@@ -43,6 +43,7 @@ pub fn monolithic(rel: &str, width: u32, height: u32, spp: u32) -> RenderOutput 
         height,
         spp,
         threads: 2,
+        frame: Default::default(),
     };
     render(&scene, &bvh, settings).expect("monolithic render")
 }

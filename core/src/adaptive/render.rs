@@ -32,7 +32,7 @@ pub fn render_adaptive(
     } = settings;
     adaptive.check()?;
     check_image_size(width, height, adaptive.max_spp)?;
-    let camera = Camera::new(&scene.camera_for(width, height), width, height)?;
+    let camera = settings.camera(scene)?;
     let threads = if threads == 0 {
         crate::render::available_cores()
     } else {

@@ -51,11 +51,66 @@ pub struct Animation {
 }
 
 impl Animation {
+    /// Checks what can be checked before any frame is rendered.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        if self.frames == 0 || self.frames > MAX_FRAMES {
+            return Err(SceneError::Camera {
+                detail: format!(
+                    "an animation has 1 to {MAX_FRAMES} frames, not {}",
+                    self.frames
+                ),
+            });
+        }
+        match &self.path {
+            CameraPath::Orbit { degrees } if !degrees.is_finite() => Err(SceneError::Camera {
+                detail: format!("an orbit of {degrees} degrees"),
+            }),
+            _ => Ok(()),
+        }
+    }
+
     /// Frame `frame`'s camera. `base` is the scene's camera for the image size
     /// ([`crate::scene::Scene::camera_for`]): what an orbit turns. Errors when `frame` is not
     /// below `frames`, or when the frame's camera cannot form a view (naming the frame).
     pub fn camera(&self, base: &CameraSpec, frame: u32) -> Result<CameraSpec, SceneError> {
-        let _ = (base, frame, DVec3::ZERO);
-        todo!("animation camera")
+        if frame >= self.frames {
+            return Err(SceneError::Camera {
+                detail: format!(
+                    "frame {frame} is outside the animation's {} frames (0 to {})",
+                    self.frames,
+                    self.frames.saturating_sub(1)
+                ),
+            });
+        }
+        match &self.path {
+            CameraPath::Orbit { degrees } => Ok(orbit(
+                base,
+                degrees * f64::from(frame) / f64::from(self.frames),
+            )),
+            CameraPath::Keyframes { .. } => Err(SceneError::Camera {
+                detail: "keyframed camera paths are not rendered yet".into(),
+            }),
+        }
+    }
+}
+
+/// `base` with its eye turned by `degrees` about the vertical axis (+y) through its `look_at`,
+/// counter-clockwise seen from above; `base` itself, bit for bit, at 0 degrees.
+fn orbit(base: &CameraSpec, degrees: f64) -> CameraSpec {
+    if degrees == 0.0 {
+        return *base;
+    }
+    let angle = degrees * (std::f64::consts::PI / 180.0);
+    let (sin, cos) = (libm::sin(angle), libm::cos(angle));
+    let offset = base.eye - base.look_at;
+    // Counter-clockwise from above (+y): x' = x cos + z sin, z' = -x sin + z cos.
+    let turned = DVec3::new(
+        offset.x * cos + offset.z * sin,
+        offset.y,
+        offset.z * cos - offset.x * sin,
+    );
+    CameraSpec {
+        eye: base.look_at + turned,
+        ..*base
     }
 }

@@ -7,6 +7,7 @@
 //! OpenEXR by the `exr` crate, at the versions pinned by `Cargo.lock`.
 
 mod exr;
+mod gif;
 mod jpeg;
 mod pfm;
 mod png8;
@@ -15,6 +16,7 @@ use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 
 pub use exr::encode_exr;
+pub use gif::encode_gif;
 pub use jpeg::{JPEG_QUALITY, encode_jpeg};
 pub use pfm::{decode_pfm, encode_pfm};
 pub use png8::{encode_png, linear_to_srgb8};

@@ -16,7 +16,6 @@ use super::records::{PixelBlock, SurfaceHit};
 use super::split_object::SplitObject;
 use super::stages::{cast_reduce, expand, merge_occluded, trace_in_memory};
 use crate::adaptive::{AdaptiveCounts, AdaptiveSettings};
-use crate::camera::Camera;
 use crate::hits::Hit;
 
 /// The span's pixels with the adaptive sampler `a`, the logical shadow rays (hit samples x
@@ -55,7 +54,7 @@ fn pass(
     samples: &[(u64, u32)],
     max_spp: u32,
 ) -> Result<Pass, PipelineError> {
-    let camera = Camera::new(&plan.camera, plan.width, plan.height)?;
+    let camera = plan.ray_camera()?;
     let candidates: Vec<Vec<SurfaceHit>> = splits
         .iter()
         .map(|split| cast_samples(&camera, split, samples, max_spp))

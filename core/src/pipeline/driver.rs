@@ -2,10 +2,10 @@
 //! any [`BlobStore`], stage after stage, and collects the per-stage metrics of the report.
 
 use super::PipelineError;
-use super::outputs::read_outputs;
+use super::outputs::{JobOutputs, read_frame_outputs, read_outputs};
 use super::plan::{JobPlan, PlanRequest};
 use super::plan_step::plan_into_store_keeping;
-use super::runner::{refined_spans, run_task_cached};
+use super::runner::{refined_spans, run_frame_task};
 use super::split_cache::SplitCache;
 use crate::breakdown::{StageBreakdown, uncovered};
 use crate::hits::Hit;
@@ -44,8 +44,11 @@ pub struct PipelineRun {
     /// The hit buffer (sample 0 of each pixel), row-major from the top-left; `None` unless the
     /// plan's `outputs.hits` asked for it.
     pub hits: Option<Vec<Hit>>,
-    /// The PNG the Combine task stored: `encode_png` of the linear image, byte for byte.
+    /// The PNG the Combine task stored: `encode_png` of the linear image, byte for byte (in
+    /// a job of several frames, the image, hits and PNG are the first frame's).
     pub png: Vec<u8>,
+    /// Each frame's number and outputs, in a job of several frames; empty otherwise.
+    pub frames: Vec<(u32, JobOutputs)>,
     /// Per stage: `plan` then the task stages of the plan's mode, in order.
     pub stages: Vec<StageReport>,
     /// Summed task metrics per stage, same order as `stages`.
@@ -119,8 +122,11 @@ pub fn run_pipeline(
             ));
             metrics.push(m);
             for (row, &round_stage) in plan.task_stages().iter().enumerate() {
-                let tasks =
-                    plan.dispatch_order(round_stage, plan.round_two_tasks(round_stage, &spans));
+                let tasks: Vec<(Option<u32>, u32)> = plan
+                    .dispatch_order(round_stage, plan.round_two_tasks(round_stage, &spans))
+                    .into_iter()
+                    .map(|task| (None, task))
+                    .collect();
                 if tasks.is_empty() {
                     continue;
                 }
@@ -139,7 +145,7 @@ pub fn run_pipeline(
             }
         }
         let stage_start = Instant::now();
-        let tasks = plan.dispatch_order(stage, (0..plan.task_count(stage) as u32).collect());
+        let tasks = plan.frame_tasks(stage)?;
         let (m, busy) = run_stage(store, job, &plan, stage, &tasks, &caches)?;
         stages.push(stage_report(
             stage.as_str(),
@@ -153,12 +159,16 @@ pub fn run_pipeline(
     }
     let render_seconds = render_start.elapsed().as_secs_f64();
     let outputs = read_outputs(store, job, &plan)?;
+    let frames = read_frame_outputs(store, job, &plan)?;
     let split_bytes = plan.scene_bytes();
     let split_read: u64 = metrics.iter().map(|m| m.split_bytes_read).sum();
     Ok(PipelineRun {
         primary_rays: match plan.adaptive {
             Some(_) => metrics.iter().map(|m| m.adaptive.samples).sum(),
-            None => u64::from(plan.width) * u64::from(plan.height) * u64::from(plan.spp),
+            None => {
+                let frames = plan.frame_numbers().len() as u64;
+                u64::from(plan.width) * u64::from(plan.height) * u64::from(plan.spp) * frames
+            }
         },
         shadow_rays: metrics.iter().map(|m| m.shadow_rays).sum(),
         replication: split_read as f64 / split_bytes.max(1) as f64,
@@ -166,6 +176,7 @@ pub fn run_pipeline(
         image: outputs.image,
         hits: outputs.hits,
         png: outputs.png,
+        frames,
         stages,
         metrics,
         render_seconds,
@@ -208,7 +219,7 @@ fn run_stage(
     job: &JobId,
     plan: &JobPlan,
     stage: Stage,
-    tasks: &[u32],
+    tasks: &[(Option<u32>, u32)],
     caches: &[SplitCache],
 ) -> Result<(TaskMetrics, Vec<(Instant, Instant)>), PipelineError> {
     let mut total = TaskMetrics::default();
@@ -218,7 +229,8 @@ fn run_stage(
         tasks.len(),
         |cache, i| {
             let started = Instant::now();
-            let result = run_task_cached(store, job, plan, stage, tasks[i], cache);
+            let (frame, task) = tasks[i];
+            let result = run_frame_task(store, job, plan, frame, stage, task, cache, None);
             busy.lock()
                 .unwrap_or_else(|e| e.into_inner())
                 .push((started, Instant::now()));

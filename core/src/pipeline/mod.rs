@@ -26,6 +26,8 @@ mod adaptive_rounds;
 mod adaptive_span;
 mod driver;
 pub mod estimate;
+mod frame_choice;
+mod frames;
 mod frustum;
 mod mode;
 mod outputs;
@@ -45,12 +47,14 @@ mod textures;
 pub use crate::task_metrics::{TaskMetrics, micros, timed};
 pub use adaptive_span::render_span_adaptive;
 pub use driver::{PipelineOptions, PipelineRun, run_pipeline};
+pub use frame_choice::{FrameChoice, Orbit};
+pub use frames::PlannedFrame;
 pub use frustum::span_may_meet_box;
 pub use mode::{
     DEFAULT_MEMORY_MB, ExecutionMode, JobShape, RUNTIME_BYTES, SAMPLE_BYTES, TRIANGLE_BYTES,
     choose_shape, task_bytes,
 };
-pub use outputs::{JobOutputs, StoredOutputs, read_outputs};
+pub use outputs::{JobOutputs, StoredOutputs, read_frame_outputs, read_outputs};
 pub use plan::{
     CastTask, JobPlan, MAX_SPANS, MAX_SPLITS, PLAN_FORMAT_VERSION, PlanRequest, ScenePartsShape,
     Span, SplitInfo, TraceTask, plan_job, resolve_counts, resolve_counts_with,
@@ -64,7 +68,8 @@ pub use records::{
 };
 pub use refine_list::{RefineList, decode_refine_list, encode_refine_list};
 pub use runner::{
-    RebuildSplit, producer_of, refined_spans, run_task, run_task_cached, run_task_with,
+    RebuildSplit, producer_of, refined_spans, run_frame_task, run_task, run_task_cached,
+    run_task_with,
 };
 pub use split::{SplitMode, assign_splits, rebuild_split, split_scene, split_scene_objects};
 pub use split_cache::SplitCache;

@@ -6,7 +6,7 @@ use super::plan::JobPlan;
 use crate::hits::{Hit, decode_hits};
 use crate::ids::JobId;
 use crate::image::{Image, decode_pfm};
-use crate::keys::{hits_key, image_key};
+use crate::keys::{FrameKeys, hits_key, image_key};
 use crate::store::BlobStore;
 use serde::{Deserialize, Serialize};
 
@@ -64,7 +64,8 @@ pub struct JobOutputs {
     pub png: Vec<u8>,
 }
 
-/// Reads the PNG of `job` and the outputs `plan.outputs` asks for with one
+/// Reads the PNG of `job` (of its first frame, in a job of several frames) and the outputs
+/// `plan.outputs` asks for with one
 /// [`BlobStore::get_many`] (at once where the store can) and decodes the linear image and the
 /// hit buffer; a missing object is a storage error, a malformed one a
 /// [`PipelineError::Corrupt`] naming its key (in the order linear image, hits, PNG when
@@ -72,6 +73,38 @@ pub struct JobOutputs {
 pub fn read_outputs(
     store: &dyn BlobStore,
     job: &JobId,
+    plan: &JobPlan,
+) -> Result<JobOutputs, PipelineError> {
+    let first = FrameKeys {
+        job,
+        frame: plan.frames.first().map(|f| f.frame),
+    };
+    read_outputs_of(store, &first, plan)
+}
+
+/// [`read_outputs`] of every frame of a job of several frames, in frame order: each frame's
+/// number and outputs ([`crate::keys::FrameKeys`]); empty for a job of one frame.
+pub fn read_frame_outputs(
+    store: &dyn BlobStore,
+    job: &JobId,
+    plan: &JobPlan,
+) -> Result<Vec<(u32, JobOutputs)>, PipelineError> {
+    plan.frames
+        .iter()
+        .map(|f| {
+            let scope = FrameKeys {
+                job,
+                frame: Some(f.frame),
+            };
+            Ok((f.frame, read_outputs_of(store, &scope, plan)?))
+        })
+        .collect()
+}
+
+/// [`read_outputs`] under `job`'s keys (a job's, or one frame's).
+fn read_outputs_of(
+    store: &dyn BlobStore,
+    job: &impl std::fmt::Display,
     plan: &JobPlan,
 ) -> Result<JobOutputs, PipelineError> {
     let (pfm_key, hits_key, png_key) =
@@ -141,6 +174,7 @@ mod tests {
             memory_mb: crate::pipeline::DEFAULT_MEMORY_MB,
             adaptive: None,
             outputs,
+            frame: Default::default(),
         };
         let run = run_pipeline(&store, &scene, request, &options).unwrap();
         let mut keys = store.list("jobs/outputs/out/").unwrap();

@@ -2,7 +2,8 @@
 //! stored at `jobs/{job}/plan.json` and read by the orchestrator and every function.
 
 use super::PipelineError;
-use super::frustum::span_may_meet_box;
+use super::frame_choice::FrameChoice;
+use super::frames::{PlannedFrame, cast_pairs, planned_frames};
 use super::mode::{DEFAULT_MEMORY_MB, ExecutionMode, JobShape, check_combine_memory, choose_shape};
 use super::outputs::StoredOutputs;
 use super::split::SplitMode;
@@ -27,7 +28,7 @@ const AUTO_SAMPLES_PER_SPAN: u64 = 65_536;
 
 /// What the user asked for; `None` means choose automatically. Stored inside the job request,
 /// so its JSON field names are part of the job request's format.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PlanRequest {
     /// Image width in pixels, 1 to 65536.
@@ -58,10 +59,18 @@ pub struct PlanRequest {
     /// (and then left out of it).
     #[serde(default, skip_serializing_if = "StoredOutputs::is_all")]
     pub outputs: StoredOutputs,
+    /// Which frame of which camera path the job renders; absent from the JSON for a still
+    /// image.
+    #[serde(default, skip_serializing_if = "FrameChoice::is_still")]
+    pub frame: FrameChoice,
 }
 
 fn default_memory_mb() -> u32 {
     DEFAULT_MEMORY_MB
+}
+
+fn is_zero(v: &u32) -> bool {
+    *v == 0
 }
 
 /// A contiguous row-major range of pixels `[start, end)`; one reduce task each.
@@ -137,9 +146,13 @@ pub struct JobPlan {
     pub height: u32,
     /// Samples per pixel, 1 to 65536.
     pub spp: u32,
-    /// The camera for this image size ([`Scene::camera_for`]); every task rebuilds the same
-    /// camera rays from it.
+    /// The camera of the job's frame for this image size ([`FrameChoice::camera`]); every task
+    /// rebuilds the same camera rays from it and `frame` ([`JobPlan::ray_camera`]).
     pub camera: CameraSpec,
+    /// The animation frame whose sample streams the camera follows; absent from the JSON for
+    /// frame 0, so still images keep their plans' bytes.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub frame: u32,
     /// The scene's lights, in scene order; a record's `light` indexes this list.
     pub lights: Vec<Light>,
     /// Constant ambient radiance factor per channel: adds `kd * ambient` to every hit.
@@ -189,6 +202,11 @@ pub struct JobPlan {
     /// their index here). Absent from the JSON when none, so other plans keep their bytes.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub textures: Vec<super::PlannedTexture>,
+    /// A job of several frames: each frame's number and camera, in order (`camera`, `frame`
+    /// and `cast_tasks` above are then the first frame's); its tasks run against
+    /// [`JobPlan::frame_view`]. Empty, and absent from the JSON, for a job of one frame.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub frames: Vec<PlannedFrame>,
 }
 
 /// What the scan of a scene split by tasks found, as the prediction models need it.
@@ -258,6 +276,12 @@ impl JobPlan {
     /// Whether no surface can occlude light `light` (its shadow rays are not traced).
     pub fn is_unoccludable(&self, light: u32) -> bool {
         self.unoccludable_lights.binary_search(&light).is_ok()
+    }
+
+    /// The camera the job's tasks trace: `camera` for this image size, with the sample
+    /// streams of `frame`.
+    pub fn ray_camera(&self) -> Result<Camera, crate::error::SceneError> {
+        Ok(Camera::new(&self.camera, self.width, self.height)?.with_frame(self.frame))
     }
 
     /// The most samples a pixel may get: `spp`, or the adaptive sampler's `max_spp`.
@@ -398,7 +422,7 @@ pub fn plan_job(
     s: u32,
 ) -> Result<JobPlan, PipelineError> {
     let triangles: u64 = splits.iter().map(|split| split.triangles).sum();
-    let camera_spec = scene.camera_for(request.width, request.height);
+    let camera_spec = request.frame.camera(scene, request.width, request.height)?;
     let camera = Camera::new(&camera_spec, request.width, request.height)?;
     let pixels = u64::from(request.width) * u64::from(request.height);
     let spans: Vec<Span> = (0..u64::from(s))
@@ -407,31 +431,29 @@ pub fn plan_job(
             end: (i + 1) * pixels / u64::from(s),
         })
         .collect();
-    let mut cast_tasks = Vec::new();
-    let mut trace_tasks = Vec::new();
-    let pairs = if shape.mode == ExecutionMode::Staged {
-        spans.as_slice()
-    } else {
-        &[]
-    };
-    for (span_index, span) in pairs.iter().enumerate() {
-        for split in &splits {
-            let visible = request.mode == SplitMode::Naive
-                || span_may_meet_box(&camera, request.width, span, &split.bounds());
-            if visible {
-                cast_tasks.push(CastTask {
-                    task: cast_tasks.len() as u32,
-                    span: span_index as u32,
-                    split: split.id,
-                });
-            }
-            trace_tasks.push(TraceTask {
-                task: trace_tasks.len() as u32,
-                span: span_index as u32,
-                split: split.id,
-            });
-        }
+    let frames = planned_frames(scene, &request.frame, request.width, request.height)?;
+    if !frames.is_empty() && request.adaptive.is_some() {
+        return Err(PipelineError::BadInput(format!(
+            "adaptive sampling renders one frame per job; render the {} frames one --frame at a \
+             time",
+            frames.len()
+        )));
     }
+    let (cast_tasks, trace_tasks) = match shape.mode {
+        ExecutionMode::Fused => (Vec::new(), Vec::new()),
+        ExecutionMode::Staged => (
+            cast_pairs(&camera, request.width, request.mode, &spans, &splits),
+            (0..spans.len() as u32)
+                .flat_map(|span| splits.iter().map(move |split| (span, split.id)))
+                .enumerate()
+                .map(|(task, (span, split))| TraceTask {
+                    task: task as u32,
+                    span,
+                    split,
+                })
+                .collect(),
+        ),
+    };
     Ok(JobPlan {
         format: PLAN_FORMAT_VERSION,
         mode: shape.mode,
@@ -441,6 +463,7 @@ pub fn plan_job(
         height: request.height,
         spp: request.spp,
         camera: camera_spec,
+        frame: request.frame.index,
         lights: scene.lights.clone(),
         // A scene planned from its splits (its mesh left empty) has no geometry to test.
         unoccludable_lights: if scene.mesh.triangle_count() as u64 == triangles {
@@ -465,6 +488,7 @@ pub fn plan_job(
         scene_parts: None,
         camera_hit_estimate: None,
         outputs: request.outputs,
+        frames,
         // The one place a job's textures are hashed for their content keys.
         textures: scene
             .mesh
@@ -491,6 +515,7 @@ mod tests {
             memory_mb: DEFAULT_MEMORY_MB,
             adaptive: None,
             outputs: StoredOutputs::ALL,
+            frame: Default::default(),
         }
     }
 

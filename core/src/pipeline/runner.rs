@@ -30,12 +30,11 @@ use super::split_object::{SplitObject, decode_split};
 use super::stages;
 use super::textures::decode_planned_texture;
 use crate::adaptive::{AdaptiveCounts, AdaptiveSettings};
-use crate::camera::Camera;
 use crate::hits::{Hit, encode_hits};
 use crate::ids::{JobId, PartitionId, SplitId, TaskId};
 use crate::image::{Image, encode_pfm, encode_png};
 use crate::keys::{
-    hits_key, image_key, parse_partition_key, partition_key, split_key, texture_key,
+    FrameKeys, hits_key, image_key, parse_partition_key, partition_key, split_key, texture_key,
 };
 use crate::shuffle::{RecordKind, relabel_block};
 use crate::stage::Stage;
@@ -65,7 +64,7 @@ pub type RebuildSplit<'a> = &'a dyn Fn(u32) -> Result<Vec<u8>, PipelineError>;
 
 /// The task that writes partition `key`, if it is a shuffle partition of this job.
 pub fn producer_of(key: &str) -> Option<(Stage, u32)> {
-    parse_partition_key(key).map(|(_, stage, task, _)| (stage, task.0))
+    parse_partition_key(key).map(|k| (k.stage, k.task.0))
 }
 
 /// Runs task `task` of `stage` for `job` and writes its outputs.
@@ -101,10 +100,38 @@ pub fn run_task_with(
     cache: &SplitCache,
     rebuild: Option<RebuildSplit<'_>>,
 ) -> Result<TaskMetrics, PipelineError> {
+    run_frame_task(store, job, plan, None, stage, task, cache, rebuild)
+}
+
+/// [`run_task_with`] for frame `frame` of a job of several frames (`None` in a job of one):
+/// the task of that frame alone ([`JobPlan::frame_view`]), its partitions and outputs under the
+/// frame's keys ([`FrameKeys`]), the splits and textures the job's. The Combine task of a job
+/// of several frames, named without a frame, combines every frame in turn.
+#[allow(clippy::too_many_arguments)]
+pub fn run_frame_task(
+    store: &dyn BlobStore,
+    job: &JobId,
+    plan: &JobPlan,
+    frame: Option<u32>,
+    stage: Stage,
+    task: u32,
+    cache: &SplitCache,
+    rebuild: Option<RebuildSplit<'_>>,
+) -> Result<TaskMetrics, PipelineError> {
+    if stage == Stage::Combine && frame.is_none() && !plan.frames.is_empty() {
+        let mut metrics = TaskMetrics::default();
+        for frame in plan.frame_numbers() {
+            metrics += run_frame_task(store, job, plan, frame, stage, task, cache, rebuild)?;
+        }
+        metrics += write_poster(store, job, plan)?;
+        return Ok(metrics);
+    }
+    let view = plan.frame_view(frame)?;
     let mut ctx = Task {
         store,
         job,
-        plan,
+        frame,
+        plan: &view,
         cache,
         rebuild,
         metrics: TaskMetrics::default(),
@@ -114,6 +141,30 @@ pub fn run_task_with(
     ctx.run(stage, task)?;
     ctx.metrics.task_us = micros(started.elapsed());
     Ok(ctx.metrics)
+}
+
+/// The last object the Combine task of a job of several frames writes: the first frame's PNG
+/// as the job's own `out/image.png` (its poster), so a job whose PNG exists has every frame.
+fn write_poster(
+    store: &dyn BlobStore,
+    job: &JobId,
+    plan: &JobPlan,
+) -> Result<TaskMetrics, PipelineError> {
+    let mut metrics = TaskMetrics::default();
+    let first = FrameKeys {
+        job,
+        frame: plan.frames.first().map(|f| f.frame),
+    };
+    let png = timed(&mut metrics.storage_us, || {
+        store.get(&image_key(&first, "png"))
+    })?;
+    timed(&mut metrics.storage_us, || {
+        store.put(&image_key(job, "png"), &png)
+    })?;
+    metrics.bytes_read += png.len() as u64;
+    metrics.bytes_written += png.len() as u64;
+    metrics.bytes_written_raw += png.len() as u64;
+    Ok(metrics)
 }
 
 /// The spans whose pixels round 1 of a staged adaptive job left to refine (those with a
@@ -128,6 +179,7 @@ pub fn refined_spans(
     let mut ctx = Task {
         store,
         job,
+        frame: None,
         plan,
         cache,
         rebuild: None,
@@ -157,6 +209,9 @@ fn missing(stage: Stage, task: u32, what: &str) -> PipelineError {
 struct Task<'a> {
     store: &'a dyn BlobStore,
     job: &'a JobId,
+    /// The frame, in a job of several frames: its partitions and outputs have its keys.
+    frame: Option<u32>,
+    /// The plan of the task's frame ([`JobPlan::frame_view`]).
     plan: &'a JobPlan,
     cache: &'a SplitCache,
     rebuild: Option<RebuildSplit<'a>>,
@@ -250,7 +305,7 @@ impl Task<'_> {
         }
         let split = self.read_split(t.split)?;
         let plan = self.plan;
-        let camera = Camera::new(&plan.camera, plan.width, plan.height)?;
+        let camera = plan.ray_camera()?;
         Ok(timed(&mut self.metrics.compute_us, || {
             cast_samples(&camera, &split, &samples, a.max_spp)
         }))
@@ -497,13 +552,15 @@ impl Task<'_> {
     /// asked for.
     fn write_job_outputs(&mut self, image: &Image, hits: &[Hit]) -> Result<(), PipelineError> {
         let outputs = self.plan.outputs;
+        let (job, frame) = (self.job, self.frame);
+        let scope = FrameKeys { job, frame };
         let (png, others) = timed(&mut self.metrics.encode_us, || {
             let mut others = Vec::new();
             if outputs.linear {
-                others.push((image_key(self.job, "pfm"), encode_pfm(image)));
+                others.push((image_key(&scope, "pfm"), encode_pfm(image)));
             }
             if outputs.hits {
-                others.push((hits_key(self.job), encode_hits(hits)));
+                others.push((hits_key(&scope), encode_hits(hits)));
             }
             (encode_png(image), others)
         });
@@ -511,11 +568,19 @@ impl Task<'_> {
         if !others.is_empty() {
             self.write_plain_all(&others)?;
         }
-        self.write_plain_all(&[(image_key(self.job, "png"), png)])
+        self.write_plain_all(&[(image_key(&scope, "png"), png)])
+    }
+
+    /// The keys of the task's frame's own objects.
+    fn scope(&self) -> FrameKeys<'_> {
+        FrameKeys {
+            job: self.job,
+            frame: self.frame,
+        }
     }
 
     fn key(&self, stage: Stage, task: u32, partition: u32) -> String {
-        partition_key(self.job, stage, TaskId(task), PartitionId(partition))
+        partition_key(&self.scope(), stage, TaskId(task), PartitionId(partition))
     }
 
     fn read_split(&mut self, split: u32) -> Result<Arc<SplitObject>, PipelineError> {
@@ -799,6 +864,7 @@ mod tests {
             memory_mb: crate::pipeline::DEFAULT_MEMORY_MB,
             adaptive: None,
             outputs: StoredOutputs::ALL,
+            frame: Default::default(),
         };
         let plan = plan_into_store(&store, &job, &scene, &request)
             .unwrap()
@@ -868,6 +934,7 @@ mod tests {
             memory_mb: crate::pipeline::DEFAULT_MEMORY_MB,
             adaptive: None,
             outputs: StoredOutputs::ALL,
+            frame: Default::default(),
         };
         let plan = plan_into_store(&store, &job, &scene, &request)
             .unwrap()
@@ -966,6 +1033,7 @@ mod tests {
                 memory_mb: crate::pipeline::DEFAULT_MEMORY_MB,
                 adaptive: None,
                 outputs: StoredOutputs::ALL,
+                frame: Default::default(),
             };
             let plan = plan_into_store(&store, &job, &scene, &request)
                 .unwrap()

@@ -7,7 +7,6 @@ use super::records::{Occluded, PixelBlock, ShadowQuery, SurfaceHit};
 use super::split::SplitMode;
 use super::split_object::SplitObject;
 use crate::bvh::{ClosestHit, segment_may_hit};
-use crate::camera::Camera;
 use crate::error::SceneError;
 use crate::hits::Hit;
 use crate::image::Image;
@@ -22,7 +21,7 @@ pub fn cast_map(
     span: &Span,
     split: &SplitObject,
 ) -> Result<Vec<SurfaceHit>, SceneError> {
-    let camera = Camera::new(&plan.camera, plan.width, plan.height)?;
+    let camera = plan.ray_camera()?;
     // Samples in (pixel, sample) order, traced in batches of neighbouring camera rays (coherent,
     // so `closest_hits` runs them as packets).
     let samples = (span.start..span.end).flat_map(|pixel| (0..plan.spp).map(move |s| (pixel, s)));

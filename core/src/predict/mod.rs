@@ -46,7 +46,6 @@ pub use timeouts::{
     task_timeout_seconds,
 };
 
-use crate::camera::Camera;
 use crate::cost::{
     Arch, CostBreakdown, CostInputs, clean_path_states, estimate, standard_transitions_for,
 };
@@ -343,7 +342,7 @@ pub fn preview_plan(
         })
         .collect();
     let mut plan = plan_job(scene, request, infos, shape, s)?;
-    let camera = Camera::new(&plan.camera, plan.width, plan.height)?;
+    let camera = plan.ray_camera()?;
     plan.camera_hit_estimate = Some(camera_hit_fraction(
         &scene.mesh,
         &camera,
@@ -731,6 +730,7 @@ mod tests {
             memory_mb: 2048,
             adaptive: None,
             outputs: crate::pipeline::StoredOutputs::ALL,
+            frame: Default::default(),
         };
         let (shape, s) = crate::pipeline::resolve_counts(&request, 36).unwrap();
         preview_plan(&scene, &request, &shape, s).unwrap()

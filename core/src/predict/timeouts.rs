@@ -106,6 +106,7 @@ mod tests {
             memory_mb: DEFAULT_MEMORY_MB,
             adaptive: None,
             outputs: StoredOutputs::ALL,
+            frame: Default::default(),
         };
         let infos =
             split_scene(&scene.mesh, 3, SplitMode::Spatial, |_, _| Ok::<(), ()>(())).unwrap();

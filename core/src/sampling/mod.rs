@@ -37,10 +37,19 @@ pub struct PixelSamples {
 }
 
 impl PixelSamples {
-    /// The sample pattern of pixel `pixel` (row-major index) at `spp` samples.
+    /// The sample pattern of pixel `pixel` (row-major index) at `spp` samples: frame 0's
+    /// ([`PixelSamples::of_frame`]).
     #[inline]
     pub fn new(pixel: u64, spp: u32) -> Self {
-        let seed = hash64(pixel);
+        Self::of_frame(pixel, spp, 0)
+    }
+
+    /// The sample pattern of pixel `pixel` at `spp` samples in frame `frame` of an animation.
+    /// Each frame scrambles the sequence with its own seeds, so noise does not stick to the
+    /// screen from frame to frame; frame 0's seeds are those of a still image.
+    #[inline]
+    pub fn of_frame(pixel: u64, spp: u32, frame: u32) -> Self {
+        let seed = hash64(pixel) ^ frame_salt(frame);
         PixelSamples {
             centre: spp <= 1,
             seed_x: seed as u32,
@@ -74,6 +83,17 @@ impl PixelSamples {
         };
         let (x, y) = (unit(x), unit(y));
         [0, 1, 2, 3].map(|k| (x[k], y[k]))
+    }
+}
+
+/// What frame `frame` mixes into each pixel's seed: 0 for frame 0, so a still image and frame 0
+/// of an animation have the same samples.
+#[inline]
+fn frame_salt(frame: u32) -> u64 {
+    if frame == 0 {
+        0
+    } else {
+        hash64(0xf4a3_e5ee_d000_0000 ^ u64::from(frame))
     }
 }
 

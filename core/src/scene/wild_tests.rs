@@ -122,6 +122,7 @@ fn portrait_render_keeps_the_bunny_off_the_border() {
             height: h,
             spp: 1,
             threads: 1,
+            frame: Default::default(),
         };
         let out = render(s, &bvh, settings).unwrap();
         let on_border = |i: usize| {

@@ -60,6 +60,7 @@ pub fn monolithic(scene: &Scene, width: u32, height: u32) -> RenderOutput {
         height,
         spp: 1,
         threads: 2,
+        frame: Default::default(),
     };
     render(scene, &bvh, settings).expect("monolithic render")
 }
@@ -86,6 +87,7 @@ pub fn distributed(
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
         adaptive: None,
         outputs: StoredOutputs::ALL,
+        frame: Default::default(),
     };
     let options = PipelineOptions {
         job: JobId::new("stability").unwrap(),

@@ -529,6 +529,7 @@ fn post_renders(
         memory_mb: request.memory_mb.unwrap_or(worker_memory_mb),
         adaptive: None,
         outputs: request.outputs.unwrap_or(StoredOutputs::ALL),
+        frame: Default::default(),
     };
     if let Some(mb) = request.memory_mb {
         let lambda = hort_aws_quotas::LAMBDA_MEMORY_MB;

@@ -83,7 +83,9 @@ impl Invoked {
 pub struct TaskDone {
     /// The task's stage.
     pub stage: Stage,
-    /// The task's index within its stage.
+    /// The task's frame, in a job of several frames.
+    pub frame: Option<u32>,
+    /// The task's index within its stage (and frame).
     pub task: TaskId,
     /// What the task read, wrote and computed.
     pub metrics: TaskMetrics,
@@ -125,6 +127,7 @@ pub fn dispatch(
                 // Round 2 (the `Refine` state) is no task of the plan stage.
                 task: (event.round == 1).then_some(TaskDone {
                     stage: Stage::Plan,
+                    frame: None,
                     task: TaskId(0),
                     metrics,
                 }),
@@ -141,6 +144,7 @@ pub fn dispatch(
                 output: serde_json::to_value(metrics).map_err(encode)?,
                 task: Some(TaskDone {
                     stage: event.stage,
+                    frame: event.item.frame,
                     task: event.item.task,
                     metrics,
                 }),

@@ -125,8 +125,13 @@ fn first_round() -> u32 {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TaskItem {
-    /// The task's index within its stage.
+    /// The task's index within its stage (within its frame's tasks, in a job of several
+    /// frames).
     pub task: TaskId,
+    /// The task's frame, in a job of several frames ([`hort_core::pipeline::JobPlan::frames`]);
+    /// absent for a job of one frame.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frame: Option<u32>,
     /// The task's timeout (the Map's `TimeoutSecondsPath`); `None` leaves the state's default.
     #[serde(default)]
     pub timeout_seconds: Option<u32>,

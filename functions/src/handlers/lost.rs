@@ -133,8 +133,8 @@ pub fn handle_lost(
             }
         }
     }
-    lost.sort_by_key(|r| r.item.task);
-    lost.dedup_by_key(|r| r.item.task);
+    lost.sort_by_key(|r| (r.item.frame, r.item.task));
+    lost.dedup_by_key(|r| (r.item.frame, r.item.task));
     let Some(first) = lost.first() else {
         return Ok(LostOutput {
             lost: 0,

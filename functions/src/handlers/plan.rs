@@ -117,12 +117,12 @@ pub(super) fn write_round(
     let mut items = std::collections::BTreeMap::new();
     for &stage in plan.stages() {
         let (tasks, key) = match refined {
-            None => (
-                (0..plan.task_count(stage) as u32).collect(),
-                items_key(job, stage),
-            ),
+            None => (plan.frame_tasks(stage)?, items_key(job, stage)),
             Some(spans) => (
-                plan.round_two_tasks(stage, spans),
+                plan.dispatch_order(stage, plan.round_two_tasks(stage, spans))
+                    .into_iter()
+                    .map(|task| (None, task))
+                    .collect(),
                 round_two_items_key(job, stage),
             ),
         };
@@ -130,7 +130,6 @@ pub(super) fn write_round(
         let Some(field) = stage.items_field().filter(|_| wanted) else {
             continue;
         };
-        let tasks = plan.dispatch_order(stage, tasks);
         let timeout = task_timeout_seconds(plan, stage);
         write_items(store, &key, request, tasks, |_| timeout)?;
         items.insert(field.to_owned(), key);
@@ -145,19 +144,20 @@ pub(super) fn write_round(
     })
 }
 
-/// Writes the items file `key` of a Map state: one item per task of `tasks`, in that order,
-/// with its timeout (the request's override, else `timeout` of the task).
+/// Writes the items file `key` of a Map state: one item per (frame, task) of `tasks`, in that
+/// order, with its timeout (the request's override, else `timeout` of the task).
 pub(super) fn write_items(
     store: &dyn BlobStore,
     key: &str,
     request: &JobRequest,
-    tasks: impl IntoIterator<Item = u32>,
+    tasks: impl IntoIterator<Item = (Option<u32>, u32)>,
     timeout: impl Fn(u32) -> u32,
 ) -> Result<(), HandlerError> {
     let items: Vec<TaskItem> = tasks
         .into_iter()
-        .map(|task| TaskItem {
+        .map(|(frame, task)| TaskItem {
             task: TaskId(task),
+            frame,
             timeout_seconds: Some(
                 request
                     .task_timeout_seconds

@@ -198,7 +198,9 @@ fn parts_output(
     timeout: u32,
 ) -> Result<PlanOutput, HandlerError> {
     let key = items_key(job, stage);
-    write_items(store, &key, request, 0..tasks, |_| timeout)?;
+    write_items(store, &key, request, (0..tasks).map(|t| (None, t)), |_| {
+        timeout
+    })?;
     let field = stage.items_field().expect("a Map stage");
     Ok(PlanOutput {
         mode,

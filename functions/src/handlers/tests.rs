@@ -22,6 +22,7 @@ pub(super) fn request(scene: &str) -> JobRequest {
             memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
             adaptive: None,
             outputs: StoredOutputs::ALL,
+            frame: Default::default(),
         },
         max_concurrency: 4,
         task_timeout_seconds: None,
@@ -144,6 +145,7 @@ fn plan_then_every_worker_task_produces_the_outputs() {
         item: TaskItem {
             task: TaskId(0),
             timeout_seconds: None,
+            frame: None,
         },
         attempt: 0,
     };
@@ -167,6 +169,7 @@ fn cast_map_event(job: &str, task: u32) -> WorkerEvent {
         item: TaskItem {
             task: TaskId(task),
             timeout_seconds: None,
+            frame: None,
         },
         attempt: 0,
     }
@@ -183,6 +186,7 @@ fn run_job(store: &MemoryStore, job: &str) {
             None => vec![TaskItem {
                 task: TaskId(0),
                 timeout_seconds: None,
+                frame: None,
             }],
         };
         for item in items {
@@ -375,6 +379,7 @@ fn a_missing_corrupt_or_newer_binary_scene_is_bad_input_naming_the_key() {
         item: TaskItem {
             task: TaskId(0),
             timeout_seconds: None,
+            frame: None,
         },
         attempt: 0,
     };
@@ -511,6 +516,7 @@ fn a_missing_plan_is_rebuilt_and_a_missing_request_or_bad_scene_is_not_retried()
         item: TaskItem {
             task: TaskId(0),
             timeout_seconds: None,
+            frame: None,
         },
         attempt: 0,
     };
@@ -615,6 +621,7 @@ fn a_measured_peak_goes_into_the_metrics_and_the_answer_of_a_task_only() {
             stage: Stage::CastMap,
             task: TaskId(3),
             metrics,
+            frame: None,
         }),
     };
     invoked.set_peak_memory(123_456);
@@ -638,6 +645,7 @@ fn a_measured_peak_goes_into_the_metrics_and_the_answer_of_a_task_only() {
             stage: Stage::Plan,
             task: TaskId(0),
             metrics,
+            frame: None,
         }),
     };
     measured_plan.set_peak_memory(1);
@@ -685,6 +693,7 @@ fn run_job_from(store: &MemoryStore, job: &JobId, out: &PlanOutput) -> Vec<u8> {
                     item: TaskItem {
                         task: TaskId(0),
                         timeout_seconds: None,
+                        frame: None,
                     },
                     attempt: 0,
                 };

@@ -11,7 +11,7 @@ use hort_core::keys::{plan_key, split_key};
 use hort_core::pipeline::partition::{build_split_from_parts, partition_range};
 use hort_core::pipeline::{
     ExecutionMode, JobPlan, PipelineError, SplitCache, TaskMetrics, micros, plan_into_store,
-    rebuild_split, run_task_with, task_bytes, timed,
+    rebuild_split, run_frame_task, task_bytes, timed,
 };
 use hort_core::stage::Stage;
 use hort_core::store::BlobStore;
@@ -94,7 +94,14 @@ pub fn handle_worker(
     // A warm container's cached splits share its memory with the task: keep only what leaves
     // the plan's largest task its predicted need within the job's memory.
     // The splits this task reads are part of its own predicted memory: they stay.
-    let reads = splits_read(&event.job, &plan, event.stage, event.item.task.0);
+    // Combine reads no split (and, in a job of several frames, combines them all).
+    let reads = match event.stage {
+        Stage::Combine => Vec::new(),
+        stage => {
+            let view = plan.frame_view(event.item.frame)?;
+            splits_read(&event.job, &view, stage, event.item.task.0)
+        }
+    };
     cache.trim_to_keeping(
         (u64::from(plan.memory_mb) << 20).saturating_sub(largest_task_bytes(&plan)),
         &|key| reads.iter().any(|k| k == key),
@@ -109,10 +116,11 @@ pub fn handle_worker(
             PipelineError::BadInput(format!("split {split} is not in the plan {key}"))
         })
     };
-    let mut metrics = run_task_with(
+    let mut metrics = run_frame_task(
         store,
         &event.job,
         &plan,
+        event.item.frame,
         event.stage,
         event.item.task.0,
         cache,

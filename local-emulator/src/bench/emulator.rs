@@ -97,6 +97,7 @@ pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
         height: args.common.height,
         spp: 1,
         threads,
+        frame: Default::default(),
     };
     let mono = render(&scene, &bvh, settings)?;
     let mono_png = encode_png(&mono.image)?;
@@ -130,6 +131,7 @@ pub fn run_emulator_bench(args: &EmulatorBenchArgs) -> Result<()> {
             memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
             adaptive: None,
             outputs: StoredOutputs::PNG,
+            frame: Default::default(),
         };
         let options = PipelineOptions {
             job: JobId::new("bench")?,
@@ -219,6 +221,7 @@ fn fault_table(
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
         adaptive: None,
         outputs: StoredOutputs::PNG,
+        frame: Default::default(),
     };
     let t = Instant::now();
     let clean = run_job(

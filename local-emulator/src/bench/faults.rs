@@ -170,6 +170,7 @@ fn timed(
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
         adaptive: None,
         outputs: StoredOutputs::ALL,
+        frame: Default::default(),
     };
     let reruns = Reruns::default();
     let t = Instant::now();

@@ -64,6 +64,7 @@ pub fn overhead_table(config: &EmulatorConfig, scene: &Path) -> Result<Table> {
             memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
             adaptive: None,
             outputs: StoredOutputs::ALL,
+            frame: Default::default(),
         };
         runs.push(run_job(&config, scene, request, &NoObserver)?);
     }

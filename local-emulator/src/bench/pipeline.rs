@@ -80,6 +80,7 @@ fn request(
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
         adaptive: None,
         outputs: StoredOutputs::ALL,
+        frame: Default::default(),
     }
 }
 
@@ -128,6 +129,7 @@ fn time_table(scene: &Scene, args: &PipelineBenchArgs, threads: usize) -> Result
         height: args.common.height,
         spp: 1,
         threads,
+        frame: Default::default(),
     };
     let mono = render(scene, &bvh, settings)?;
     let mono_total = start.elapsed().as_secs_f64();
@@ -290,6 +292,7 @@ fn memory_table(
         height: args.common.height,
         spp: 1,
         threads,
+        frame: Default::default(),
     };
     let mono = render(&scene, &bvh, settings)?;
     let mono_peak = meter.peak() - base;

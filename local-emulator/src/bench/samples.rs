@@ -87,6 +87,7 @@ pub fn run_samples_bench(args: &SamplesBenchArgs) -> Result<()> {
         height,
         spp: args.spp,
         threads: 1,
+        frame: Default::default(),
     };
     let samples = f64::from(width) * f64::from(height) * f64::from(args.spp);
     let mut table = Table::new(

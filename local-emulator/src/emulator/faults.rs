@@ -60,8 +60,8 @@ pub struct FaultCounts {
     pub slots_killed: AtomicU64,
 }
 
-/// (stage, task, attempt) of an invocation.
-type AttemptKey = (String, Option<u64>, u64);
+/// (stage, frame, task, attempt) of an invocation.
+type AttemptKey = (String, Option<u64>, Option<u64>, u64);
 
 /// Wraps the functions with seeded faults.
 pub struct FaultyInvoker {
@@ -122,6 +122,10 @@ impl FaultyInvoker {
                 .to_owned(),
             input
                 .get("item")
+                .and_then(|i| i.get("frame"))
+                .and_then(Value::as_u64),
+            input
+                .get("item")
                 .and_then(|i| i.get("task"))
                 .and_then(Value::as_u64),
             input.get("attempt").and_then(Value::as_u64).unwrap_or(0),
@@ -143,6 +147,15 @@ impl FaultyInvoker {
             .and_then(Value::as_u64)
             .map(|t| t as usize);
         let attempt = input.get("attempt").and_then(Value::as_u64).unwrap_or(0);
+        // A frame's tasks draw apart from other frames'; a job of one frame as always.
+        let stage = match input
+            .get("item")
+            .and_then(|i| i.get("frame"))
+            .and_then(Value::as_u64)
+        {
+            Some(frame) => format!("{stage}/frame-{frame}"),
+            None => stage.to_owned(),
+        };
         let label = match round {
             0 => format!("fault-{salt}/{stage}"),
             r => format!("fault-{salt}/{stage}/round-{r}"),

@@ -17,19 +17,27 @@ use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
+/// A task: its stage, frame (in a job of several frames) and index.
+pub type TaskKey = (Stage, Option<u32>, TaskId);
+
+/// Every [`TaskKey`] of `stage`.
+fn stage_range(stage: Stage) -> std::ops::RangeInclusive<TaskKey> {
+    (stage, None, TaskId(0))..=(stage, Some(u32::MAX), TaskId(u32::MAX))
+}
+
 /// What the invocations did.
 #[derive(Clone, Debug, Default)]
 pub struct Ledger {
     /// Metrics of each task's successful attempt (the last one, when a retry or a duplicate
     /// delivery also succeeded: every successful attempt writes the same bytes), by stage and
     /// task. Failed attempts are not here: their traffic is in the per-state accounting.
-    pub tasks: BTreeMap<(Stage, TaskId), TaskMetrics>,
+    pub tasks: BTreeMap<TaskKey, TaskMetrics>,
     /// Duration of every invocation (successful or not), milliseconds.
     pub invocation_ms: Vec<f64>,
     /// Wall-clock interval of every invocation (successful or not), as its invoker saw it.
     pub busy: Vec<(Instant, Instant)>,
     /// Microseconds the invoker measured around the attempt whose metrics are in `tasks`.
-    pub wall_us: BTreeMap<(Stage, TaskId), u64>,
+    pub wall_us: BTreeMap<TaskKey, u64>,
     /// The most memory a successful Plan invocation held, bytes (0 where not measured). The
     /// Plan function reports no task metrics, so it is kept here; it is not held to the
     /// functions' memory budget (see docs/ARCHITECTURE.md, "Task memory").
@@ -45,8 +53,9 @@ impl Ledger {
         self.invocation_ms.push(took.as_secs_f64() * 1e3);
         self.busy.push((started, ended));
         if let Some(done) = done {
-            self.tasks.insert((done.stage, done.task), done.metrics);
-            self.wall_us.insert((done.stage, done.task), micros(took));
+            let key = (done.stage, done.frame, done.task);
+            self.tasks.insert(key, done.metrics);
+            self.wall_us.insert(key, micros(took));
         }
     }
 
@@ -55,7 +64,7 @@ impl Ledger {
     /// measured more, as a function on another clock might). `orchestration` is left at 0:
     /// it needs the stage's wall-clock window (see `uncovered`).
     pub fn stage_breakdown(&self, stage: Stage) -> StageBreakdown {
-        let range = (stage, TaskId(0))..=(stage, TaskId(u32::MAX));
+        let range = stage_range(stage);
         let overhead_us: u64 = self
             .wall_us
             .range(range.clone())
@@ -73,10 +82,7 @@ impl Ledger {
     /// The summed metrics of one successful attempt per task of `stage`.
     pub fn stage(&self, stage: Stage) -> TaskMetrics {
         let mut total = TaskMetrics::default();
-        for (_, m) in self
-            .tasks
-            .range((stage, TaskId(0))..=(stage, TaskId(u32::MAX)))
-        {
+        for (_, m) in self.tasks.range(stage_range(stage)) {
             total += *m;
         }
         total

@@ -112,6 +112,7 @@ impl TaskInvoker for LambdaInvoker {
                 })?;
                 Some(TaskDone {
                     stage: event.stage,
+                    frame: event.item.frame,
                     task: event.item.task,
                     metrics,
                 })

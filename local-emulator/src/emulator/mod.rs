@@ -40,7 +40,7 @@ use hort_core::ids::{JobId, TaskId};
 use hort_core::image::Image;
 use hort_core::keys::{parts_table_key, plan_key};
 use hort_core::pipeline::partition::{PartsTable, scene_range_bytes};
-use hort_core::pipeline::{JobOutputs, JobPlan, PlanRequest, read_outputs};
+use hort_core::pipeline::{JobOutputs, JobPlan, PlanRequest, read_frame_outputs, read_outputs};
 use hort_core::report::StageReport;
 use hort_core::scene::{Scene, load_scene};
 use hort_core::stage::Stage;
@@ -129,8 +129,11 @@ pub struct EmulatorRun {
     /// The PNG the Combine function stored.
     pub png: Vec<u8>,
     /// The hit buffer the Combine function stored; `None` unless the request's
-    /// `outputs.hits` asked for it.
+    /// `outputs.hits` asked for it. (In a job of several frames, the image, PNG and hits are
+    /// the first frame's.)
     pub hits: Option<Vec<Hit>>,
+    /// Each frame's number and outputs, in a job of several frames; empty otherwise.
+    pub frames: Vec<(u32, JobOutputs)>,
     /// `plan`, then the task stages of the plan's mode, `combine` last.
     pub stages: Vec<StageReport>,
     /// What each top-level state used (time, attempts, storage traffic), in order entered.
@@ -328,6 +331,7 @@ fn run_job_of(
     let plan_bytes = client.get(&plan_key(&job))?;
     let plan = JobPlan::from_json(&plan_key(&job), &plan_bytes)?;
     let JobOutputs { image, hits, png } = read_outputs(&client, &job, &plan)?;
+    let frames = read_frame_outputs(&client, &job, &plan)?;
     let deleted_intermediates = (config.storage.is_persistent() && !options.keep_intermediates)
         .then(|| delete_intermediates(storage.s3(), &job).map_err(|e| format!("{e:#}")));
     let ledger = functions.ledger();
@@ -347,6 +351,7 @@ fn run_job_of(
         image,
         png,
         hits,
+        frames,
         stages,
         usage,
         ledger,
@@ -657,10 +662,10 @@ fn stage_report(plan: &JobPlan, u: &StageUsage, ledger: &Ledger) -> StageReport 
     let stage = Stage::of_state(&u.state);
     // Round 1's tasks, plus the round-2 tasks that ran (ids past round 1's).
     let tasks = stage.map_or(1, |stage| {
-        let first = plan.task_count(stage) as u32;
+        let first = plan.job_task_count(stage) as u32;
         let later = ledger
             .tasks
-            .range((stage, TaskId(first))..=(stage, TaskId(u32::MAX)))
+            .range((stage, None, TaskId(first))..=(stage, None, TaskId(u32::MAX)))
             .count();
         u64::from(first) + later as u64
     });

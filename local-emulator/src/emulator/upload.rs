@@ -26,7 +26,7 @@ use anyhow::{Context, Result, bail};
 use asl_interpreter::{TaskFailure, TaskInvoker};
 use hort_core::ids::{JobId, PartitionId, TaskId};
 use hort_core::keys::{
-    image_key, kept_after_success, manifest_key, partition_key, parts_index_key,
+    FrameKeys, image_key, kept_after_success, manifest_key, partition_key, parts_index_key,
     parts_split_info_key, plan_key, scene_binary_key, scene_prefix,
 };
 use hort_core::pipeline::{JobPlan, PlanRequest, StoredOutputs, TaskMetrics};
@@ -468,8 +468,9 @@ impl SkipFinishedTasks {
 
     /// The partitions task `task` of `stage` writes; `None` for Plan and Combine (never
     /// skipped) and for tasks the plan does not have.
-    fn outputs(&self, stage: Stage, task: u32) -> Option<Vec<String>> {
-        let plan = self.plan()?;
+    fn outputs(&self, stage: Stage, frame: Option<u32>, task: u32) -> Option<Vec<String>> {
+        let job_plan = self.plan()?;
+        let plan = job_plan.frame_view(frame).ok()?;
         // Round 2 of a staged adaptive job has its own task ids (`JobPlan::round_of`).
         let (round, index) = plan.round_of(stage, task)?;
         let parts: Vec<u32> = match stage {
@@ -487,10 +488,14 @@ impl SkipFinishedTasks {
             Stage::Expand => (0..plan.k()).collect(),
             _ => return None,
         };
+        let scope = FrameKeys {
+            job: &self.job,
+            frame,
+        };
         Some(
             parts
                 .into_iter()
-                .map(|p| partition_key(&self.job, stage, TaskId(task), PartitionId(p)))
+                .map(|p| partition_key(&scope, stage, TaskId(task), PartitionId(p)))
                 .collect(),
         )
     }
@@ -498,7 +503,7 @@ impl SkipFinishedTasks {
     /// True if every output partition of the task exists; for the partition and build tasks of
     /// a scene split by tasks, if the object each writes last exists (its index, its split's
     /// summary).
-    fn finished(&self, stage: Stage, task: u32) -> bool {
+    fn finished(&self, stage: Stage, frame: Option<u32>, task: u32) -> bool {
         let last = match stage {
             Stage::Partition => Some(parts_index_key(&self.job, task)),
             Stage::Build => Some(parts_split_info_key(&self.job, task)),
@@ -507,10 +512,14 @@ impl SkipFinishedTasks {
         if let Some(key) = last {
             return self.store.get_range(&key, 0..1).is_ok();
         }
-        let Some(outputs) = self.outputs(stage, task) else {
+        let Some(outputs) = self.outputs(stage, frame, task) else {
             return false;
         };
-        let prefix = format!("jobs/{}/{stage}/{:05}/", self.job, task);
+        let scope = FrameKeys {
+            job: &self.job,
+            frame,
+        };
+        let prefix = format!("jobs/{scope}/{stage}/{task:05}/");
         match self.store.list(&prefix) {
             Ok(keys) => outputs.iter().all(|k| keys.binary_search(k).is_ok()),
             Err(_) => false,
@@ -522,7 +531,7 @@ impl TaskInvoker for SkipFinishedTasks {
     fn invoke(&self, resource: &str, input: Value) -> Result<Value, TaskFailure> {
         if let Ok(event) = serde_json::from_value::<WorkerEvent>(input.clone())
             && event.job == self.job
-            && self.finished(event.stage, event.item.task.0)
+            && self.finished(event.stage, event.item.frame, event.item.task.0)
         {
             self.skipped.fetch_add(1, Ordering::Relaxed);
             return Ok(serde_json::to_value(TaskMetrics::default()).unwrap_or_default());

@@ -35,6 +35,7 @@ fn request(format: SceneFormat) -> JobRequest {
             memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
             adaptive: None,
             outputs: StoredOutputs::ALL,
+            frame: Default::default(),
         },
         max_concurrency: 2,
         task_timeout_seconds: None,

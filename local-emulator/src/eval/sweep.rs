@@ -85,6 +85,7 @@ pub fn monolithic(scene: &SceneUnderTest, spp: &[u32], runs: u32) -> Result<Vec<
             height: scene.height,
             spp: n,
             threads: 1,
+            frame: Default::default(),
         };
         let mut best = f64::INFINITY;
         let mut image = None;
@@ -120,6 +121,7 @@ pub fn adaptive(
             height: scene.height,
             spp: base_spp,
             threads: 1,
+            frame: Default::default(),
         };
         let adaptive = AdaptiveSettings {
             base_spp,
@@ -193,6 +195,7 @@ pub fn distributed(
                 memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
                 adaptive: settings,
                 outputs: StoredOutputs::ALL,
+                frame: Default::default(),
             };
             let start = Instant::now();
             let run = run_job(&config, &scene.path, request, &NoObserver)

@@ -71,6 +71,7 @@ pub fn calibrate() -> Result<Calibration> {
         height: SIDE,
         spp: 1,
         threads: 1,
+        frame: Default::default(),
     };
     let mut build_ms = f64::INFINITY;
     let mut trace_ms = f64::INFINITY;

@@ -654,6 +654,7 @@ fn store_report(
         },
         adaptive: None,
         skips: Vec::new(),
+        frames: Vec::new(),
     };
     shared
         .store

@@ -202,6 +202,7 @@ fn planned_job(dir: &Path, obj: &str) -> (MemoryStore, JobId, hort_core::pipelin
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
         adaptive: None,
         outputs: StoredOutputs::ALL,
+        frame: Default::default(),
     };
     let planned = plan_into_store(&store, &job, &scene, &request).unwrap();
     (store, job, planned.plan)
@@ -331,6 +332,7 @@ fn binary_scene_error(dir: &Path, op: &str) -> String {
             memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
             adaptive: None,
             outputs: StoredOutputs::ALL,
+            frame: Default::default(),
         },
         max_concurrency: 1,
         task_timeout_seconds: None,

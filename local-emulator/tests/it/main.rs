@@ -21,6 +21,7 @@ mod cli_plan;
 mod cli_scene;
 mod cli_textures;
 mod common;
+mod frames;
 mod readme;
 mod scene_by_tasks;
 mod serve;

@@ -33,6 +33,7 @@ fn request(
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
         adaptive: Some(adaptive),
         outputs: StoredOutputs::ALL,
+        frame: Default::default(),
     }
 }
 
@@ -56,6 +57,7 @@ fn adaptive_jobs_equal_the_monolithic_adaptive_render() {
             height: H,
             spp: base_spp,
             threads: 2,
+            frame: Default::default(),
         };
         let (mono, counts) = render_adaptive(&scene, &bvh, settings, adaptive).unwrap();
         assert!(
@@ -145,6 +147,7 @@ fn a_staged_adaptive_job_with_nothing_to_refine_runs_one_round() {
         height: H,
         spp: 4,
         threads: 2,
+        frame: Default::default(),
     };
     let (mono, counts) = render_adaptive(&scene, &bvh, settings, adaptive).unwrap();
     assert_eq!(counts.refined_pixels, 0);

@@ -63,6 +63,7 @@ fn settings(spp: u32, k: u32, s: u32, mode: SplitMode) -> PlanRequest {
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
         adaptive: None,
         outputs: StoredOutputs::ALL,
+        frame: Default::default(),
     }
 }
 

@@ -28,6 +28,7 @@ fn automatic(width: u32, height: u32, spans: u32, memory_mb: u32) -> PlanRequest
         memory_mb,
         adaptive: None,
         outputs: StoredOutputs::ALL,
+        frame: Default::default(),
     }
 }
 
@@ -58,6 +59,7 @@ fn a_tiny_budget_runs_staged_with_the_fewest_splits_and_a_large_one_fused() {
             height,
             spp: 1,
             threads: 2,
+            frame: Default::default(),
         },
     )
     .unwrap();

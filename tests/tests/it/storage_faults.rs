@@ -67,6 +67,7 @@ fn settings() -> PlanRequest {
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
         adaptive: None,
         outputs: StoredOutputs::ALL,
+        frame: Default::default(),
     }
 }
 

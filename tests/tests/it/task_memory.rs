@@ -42,6 +42,7 @@ fn request(k: u32, spans: u32, mode: SplitMode, spp: u32) -> PlanRequest {
         memory_mb: hort_core::pipeline::DEFAULT_MEMORY_MB,
         adaptive: None,
         outputs: StoredOutputs::ALL,
+        frame: Default::default(),
     }
 }
 
@@ -86,7 +87,7 @@ fn every_task_reports_its_peak_and_the_image_stays_the_same() {
         assert_eq!(hit_bits(stored(&run.hits).as_slice()), hit_bits(&mono.hits));
         // Every task of every stage after the plan was measured, within the budget.
         assert!(!run.ledger.tasks.is_empty());
-        for ((stage, task), m) in &run.ledger.tasks {
+        for ((stage, _, task), m) in &run.ledger.tasks {
             assert!(
                 m.peak_memory_bytes > 0 && m.peak_memory_bytes < (2048 - 96) << 20,
                 "k = {k}: {stage} task {} peak {}",
@@ -108,7 +109,7 @@ fn every_task_reports_its_peak_and_the_image_stays_the_same() {
                 .ledger
                 .tasks
                 .iter()
-                .filter(|((stage, _), _)| stage.to_string() == s.name)
+                .filter(|((stage, _, _), _)| stage.to_string() == s.name)
                 .map(|(_, m)| m.peak_memory_bytes)
                 .max();
             assert_eq!(Some(s.peak_memory_bytes), largest, "k = {k}: {}", s.name);
@@ -192,7 +193,7 @@ fn a_warm_workers_cached_splits_count_for_every_task_it_runs() {
     );
     let both: u64 = split_memory(k, mode).into_iter().sum();
     let mut later = 0;
-    for ((stage, task), m) in &run.ledger.tasks {
+    for ((stage, _, task), m) in &run.ledger.tasks {
         // The plan (building the splits one at a time) and cast-map (decoding them) run
         // before the cache holds both.
         if ![Stage::Plan, Stage::CastMap].contains(stage) {

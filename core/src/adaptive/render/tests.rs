@@ -13,6 +13,7 @@ fn settings(threads: usize) -> RenderSettings {
         height: 24,
         spp: 1,
         threads,
+        frame: Default::default(),
     }
 }
 

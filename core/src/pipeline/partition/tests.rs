@@ -25,6 +25,7 @@ fn request(splits: u32, execution: Option<ExecutionMode>) -> PlanRequest {
         memory_mb: crate::pipeline::DEFAULT_MEMORY_MB,
         adaptive: None,
         outputs: StoredOutputs::ALL,
+        frame: Default::default(),
     }
 }
 
