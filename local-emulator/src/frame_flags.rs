@@ -1,10 +1,11 @@
 //! The animation flags of `hort render` (`--frames`, `--frame`, `--orbit`): which frames of
 //! which camera path a run renders, resolved against the scene before any work.
 
-use anyhow::{Result, bail};
+use anyhow::{Result, anyhow, bail};
 use clap::Args;
 use hort_core::animation::MAX_FRAMES;
 use hort_core::pipeline::{FrameChoice, Orbit};
+use hort_core::predict::check_combine_time;
 use hort_core::scene::Scene;
 use std::ops::Range;
 use std::str::FromStr;
@@ -151,5 +152,14 @@ impl FrameFlags {
             orbit,
             animated,
         })
+    }
+}
+
+impl FramePlan {
+    /// Checks that one job can render these frames at `width` x `height` (its Combine task
+    /// assembles them all within the state machine's timeout), before any work. A monolithic
+    /// run has no such limit.
+    pub fn check_one_job(&self, width: u32, height: u32) -> Result<()> {
+        check_combine_time(width, height, self.len()).map_err(|e| anyhow!("--frames: {e}"))
     }
 }

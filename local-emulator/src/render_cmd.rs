@@ -105,6 +105,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let size = args.plan.image_size(&image)?;
     let frames = args.animation.plan(scene.as_ref())?;
     check_frame_outputs(&targets, &frames)?;
+    if !args.monolithic {
+        frames.check_one_job(size.width, size.height)?;
+    }
     // A camera that cannot be built is the scene's fault: say so before any upload or render,
     // for every frame.
     if let Some(scene) = &scene {

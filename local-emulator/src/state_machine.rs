@@ -281,6 +281,19 @@ mod tests {
         assert!(Stage::ALL.iter().all(|s| all.contains(s)));
     }
 
+    /// The Combine state's timeout is the one a job of several frames is checked against
+    /// before it starts ([`hort_core::predict::check_combine_time`]).
+    #[test]
+    fn the_combine_state_times_out_where_the_frame_limit_says() {
+        let machine: Value = serde_json::from_str(HORT_DEFINITION).unwrap();
+        let combine = &machine["States"]["Combine"];
+        assert_eq!(combine["Type"], "Task");
+        assert_eq!(
+            combine["TimeoutSeconds"].as_u64(),
+            Some(hort_core::predict::COMBINE_TIMEOUT_SECONDS)
+        );
+    }
+
     /// The Plan function's `cut` and `finish` steps are the Plan state's call plus `step`, with
     /// its answer stored at `$.plan` again, and its failure state.
     #[test]

@@ -41,9 +41,9 @@ pub use projection::{
 };
 use timeouts::Bound;
 pub use timeouts::{
-    MAX_PARTS_TIMEOUT_SECONDS, MAX_TIMEOUT_SECONDS, MIN_PARTS_TIMEOUT_SECONDS, MIN_TIMEOUT_SECONDS,
-    TIMEOUT_MULTIPLE, TIMEOUT_SLOWDOWN, build_timeout_seconds, partition_timeout_seconds,
-    task_timeout_seconds,
+    COMBINE_TIMEOUT_SECONDS, MAX_PARTS_TIMEOUT_SECONDS, MAX_TIMEOUT_SECONDS,
+    MIN_PARTS_TIMEOUT_SECONDS, MIN_TIMEOUT_SECONDS, TIMEOUT_MULTIPLE, TIMEOUT_SLOWDOWN,
+    build_timeout_seconds, check_combine_time, partition_timeout_seconds, task_timeout_seconds,
 };
 
 use crate::cost::{
@@ -278,7 +278,7 @@ pub fn step_tasks(plan: &JobPlan, step: JobStep) -> u64 {
         (JobStep::Stage(Stage::Partition), Some(parts)) => u64::from(parts.ranges),
         (JobStep::Stage(Stage::Build), Some(_)) => u64::from(plan.k()),
         (JobStep::Cut | JobStep::PlanFromParts, Some(_)) => 1,
-        (JobStep::Stage(stage), _) => plan.task_count(stage) as u64,
+        (JobStep::Stage(stage), _) => plan.job_task_count(stage) as u64,
         (JobStep::Cut | JobStep::PlanFromParts, None) => 0,
     }
 }
@@ -497,7 +497,12 @@ fn task_ms(plan: &JobPlan, step: JobStep, r: &Rates, speed: f64, bound: Bound) -
             span_samples + queries,
             r.trace_reduce_us_per_query,
         ),
-        (Stage::Combine, _) => ms(r.task_overhead_ms, pixels as f64, r.combine_us_per_pixel),
+        // One Combine task combines every frame.
+        (Stage::Combine, _) => ms(
+            r.task_overhead_ms,
+            (pixels * plan.frame_numbers().len() as u64) as f64,
+            r.combine_us_per_pixel,
+        ),
     }
 }
 

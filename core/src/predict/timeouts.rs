@@ -45,6 +45,31 @@ pub fn task_timeout_seconds(plan: &JobPlan, stage: Stage) -> u32 {
     timeout_of(ms, MIN_TIMEOUT_SECONDS, MAX_TIMEOUT_SECONDS)
 }
 
+/// The Combine state's timeout in the state machine, seconds: Lambda's longest.
+pub const COMBINE_TIMEOUT_SECONDS: u64 = 900;
+
+/// Whether one Combine task can assemble `frames` images of `width` x `height` within
+/// [`COMBINE_TIMEOUT_SECONDS`], as a timeout reckons (on a function [`TIMEOUT_SLOWDOWN`] times
+/// slower than the reference, [`TIMEOUT_MULTIPLE`] times over): else the error, naming the
+/// most frames that fit. Checked before a job of several frames starts.
+pub fn check_combine_time(width: u32, height: u32, frames: u32) -> Result<(), String> {
+    let r = &RATES;
+    let frame_ms = f64::from(width) * f64::from(height) * r.combine_us_per_pixel / 1000.0;
+    let budget_ms =
+        COMBINE_TIMEOUT_SECONDS as f64 * 1000.0 / TIMEOUT_MULTIPLE as f64 / TIMEOUT_SLOWDOWN
+            - COLD_START_MS
+            - r.task_overhead_ms;
+    let most = (budget_ms / frame_ms).floor().max(1.0) as u64;
+    if u64::from(frames) <= most {
+        return Ok(());
+    }
+    Err(format!(
+        "{frames} frames of {width}x{height}: one Combine task assembles every frame within the \
+         state machine's {COMBINE_TIMEOUT_SECONDS} s, which holds at most {most} frames of that \
+         size; render them in runs of {most} (--frames A..B)"
+    ))
+}
+
 /// The timeout of a Partition task over a byte range of `range_bytes`, seconds.
 pub fn partition_timeout_seconds(range_bytes: u64) -> u32 {
     let r = &RATES;

@@ -11,7 +11,7 @@ use hort_core::keys::{items_key, manifest_key, plan_key, round_two_items_key, sc
 use hort_core::pipeline::{
     JobPlan, SplitCache, TaskMetrics, micros, plan_into_store, refined_spans,
 };
-use hort_core::predict::task_timeout_seconds;
+use hort_core::predict::{check_combine_time, task_timeout_seconds};
 use hort_core::scene::{Scene, decode_scene, load_scene};
 use hort_core::store::{BlobStore, StoreError, TimedStore};
 use std::path::{Component, Path, PathBuf};
@@ -92,7 +92,10 @@ pub fn handle_plan_measured(
             .map_err(|e| HandlerError::bad_input(e.to_string()))?;
         super::budget::check_budget(&request, &preview)?;
     }
-    let planned = plan_into_store(&store, job, &scene, &request.render)?;
+    let render = &request.render;
+    check_combine_time(render.width, render.height, render.frame.count)
+        .map_err(HandlerError::bad_input)?;
+    let planned = plan_into_store(&store, job, &scene, render)?;
     let plan = planned.plan;
     let output = write_round(&store, job, &plan, &request, None)?;
     let metrics = TaskMetrics {

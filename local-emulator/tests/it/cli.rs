@@ -142,16 +142,16 @@ fn bad_input_prints_one_error_line_and_fails() {
         scene("bunny/bunny.obj").to_str().unwrap(),
         "--monolithic",
         "--out",
-        dir.join("x.gif").to_str().unwrap(),
+        dir.join("x.bmp").to_str().unwrap(),
     ]);
     assert_eq!(o.status.code(), Some(1));
     let err = String::from_utf8(o.stderr).unwrap();
-    let gif = dir.join("x.gif");
+    let bmp = dir.join("x.bmp");
     assert!(
         err.starts_with(&format!(
-            "error: --out {}: unsupported image extension \"gif\" for {}",
-            gif.display(),
-            gif.display()
+            "error: --out {}: unsupported image extension \"bmp\" for {}",
+            bmp.display(),
+            bmp.display()
         )),
         "{err}"
     );
