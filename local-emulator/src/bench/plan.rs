@@ -136,6 +136,7 @@ pub fn run_plan_bench(args: &PlanBenchArgs) -> Result<()> {
                                 out: Some(dir.join("image.png")),
                                 hits: None,
                             },
+                            animation: Default::default(),
                         },
                         calibration,
                     )?;

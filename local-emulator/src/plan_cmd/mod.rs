@@ -14,7 +14,9 @@ use hort::emulator::scene_range_for;
 use hort_core::camera::Camera;
 use hort_core::cost::Arch;
 use hort_core::pipeline::partition::{preview_plan_from_table, scan_table};
-use hort_core::pipeline::{ExecutionMode, JobPlan, PlanRequest, SplitMode, resolve_counts_with};
+use hort_core::pipeline::{
+    ExecutionMode, FrameChoice, JobPlan, PlanRequest, SplitMode, resolve_counts_with,
+};
 use hort_core::predict::{
     Projection, ProjectionSettings, RATES, SPLIT_BYTES_PER_TRIANGLE,
     SPLIT_NORMAL_BYTES_PER_TRIANGLE, SWEEP, Target, best_of, preview_plan, project,
@@ -66,6 +68,9 @@ pub struct PlanArgs {
     /// The outputs `hort render` would write, which decide what the job stores.
     #[command(flatten)]
     pub outputs: crate::plan_flags::OutputFlags,
+    /// The frames `hort render` would render in one job (`--frames`, `--frame`, `--orbit`).
+    #[command(flatten)]
+    pub animation: crate::frame_flags::FrameFlags,
 }
 
 /// `--arch`.
@@ -114,6 +119,8 @@ pub struct PlanOutput {
     pub spans: u32,
     /// Tasks over all stages.
     pub tasks: u64,
+    /// Frames the job renders (1 for a still image); the projection covers them all.
+    pub frames: u32,
     /// The stages at the chosen function count.
     pub stages: Vec<hort_core::predict::StageProjection>,
     /// Where the projection runs.
@@ -244,16 +251,26 @@ pub fn plan_with(args: &PlanArgs, calibration: Calibration) -> Result<PlanOutput
     plan_prepared(args, &args.scene, &prepared, calibration)
 }
 
-/// The request `hort render` would send for a scene whose manifest fixes `image`.
-fn plan_request(args: &PlanArgs, image: &ImageSettings) -> Result<PlanRequest> {
+/// The request `hort render` would send for `scene` (`None`: not loaded here) whose manifest
+/// fixes `image`: its frames one job's.
+fn plan_request(
+    args: &PlanArgs,
+    scene: Option<&hort_core::scene::Scene>,
+    image: &ImageSettings,
+) -> Result<PlanRequest> {
     let size = args.plan.image_size(image)?;
-    Ok(args.plan.request(size, None, args.outputs.stored()))
+    let frames = args.animation.plan(scene)?;
+    frames.check_one_job(size.width, size.height)?;
+    Ok(PlanRequest {
+        frame: FrameChoice::range(frames.frames.clone(), frames.orbit),
+        ..args.plan.request(size, None, args.outputs.stored())
+    })
 }
 
 /// The plan of a scene loaded whole, with its camera samples' hit fraction estimated.
 fn preview_loaded(args: &PlanArgs, scene_path: &Path) -> Result<JobPlan> {
     let scene = load_scene(scene_path)?;
-    let request = plan_request(args, &scene.image)?;
+    let request = plan_request(args, Some(&scene), &scene.image)?;
     let (width, height) = (request.width, request.height);
     Camera::new(&scene.camera_for(width, height), width, height)
         .map_err(|e| anyhow!("{}: {e}", scene_path.display()))?;
@@ -270,7 +287,7 @@ fn preview_loaded(args: &PlanArgs, scene_path: &Path) -> Result<JobPlan> {
 /// pages dropped as each range closes): the Partition and Build tasks counted, every sample
 /// assumed to hit (no mesh is held to estimate it).
 fn preview_scanned(args: &PlanArgs, scene_path: &Path, range: u64) -> Result<JobPlan> {
-    let request = plan_request(args, &scene_image_settings(scene_path)?)?;
+    let request = plan_request(args, None, &scene_image_settings(scene_path)?)?;
     let dir = scene_path.parent().unwrap_or(Path::new(""));
     // A scene split by tasks is large: say what the wait is for.
     eprintln!(
@@ -393,6 +410,7 @@ fn plan_prepared(
         splits: job.k(),
         spans: job.spans.len() as u32,
         tasks: chosen.stages.iter().map(|s| s.tasks).sum(),
+        frames: job.frame_numbers().len() as u32,
         stages: chosen.stages.clone(),
         target: settings.target,
         calibration,

@@ -76,6 +76,16 @@ pub fn render(o: &PlanOutput) -> String {
         );
     }
     let _ = writeln!(t, "total: {}", summary(&o.chosen));
+    if o.frames > 1 {
+        let n = f64::from(o.frames);
+        let _ = writeln!(
+            t,
+            "per frame: {:.2} s, {} ({} frames in one job, the scene prepared once)",
+            o.chosen.seconds / n,
+            usd(o.chosen.dollars / n),
+            o.frames
+        );
+    }
     let _ = writeln!(
         t,
         "cost: predicted from the model above, not measured (`hort render` prices a run's task \
