@@ -38,6 +38,7 @@ routes = {
     "/renders": {"get", "post"},
     "/renders/{id}": {"get", "delete"},
     "/renders/{id}/image": {"get"},
+    "/renders/{id}/frames/{k}/image": {"get"},
     "/renders/{id}/report": {"get"},
 }
 methods = {"get", "put", "post", "delete", "patch", "head", "options", "trace"}
@@ -53,6 +54,7 @@ expected = {
     ("/renders/{id}", "get"): {"200", "404", "405"},
     ("/renders/{id}", "delete"): {"200", "404", "405"},
     ("/renders/{id}/image", "get"): {"200", "400", "404", "405"},
+    ("/renders/{id}/frames/{k}/image", "get"): {"200", "400", "404", "405"},
     ("/renders/{id}/report", "get"): {"200", "404", "405"},
 }
 for (path, method), statuses in expected.items():

@@ -254,10 +254,15 @@ pub trait RenderBackend: Send + Sync {
     /// The jobs this backend knows, newest first, at most `limit` of them.
     fn list(&self, limit: usize) -> Result<Vec<JobStatus>, ApiError>;
 
-    /// The finished job's image, or where to fetch it when it is too large for a Lambda
-    /// response ([`stored_image`](super::stored_image)); [`ApiError::not_found`] until it
-    /// succeeded.
-    fn image(&self, job: &str, format: ImageFormat) -> Result<ImageAnswer, ApiError>;
+    /// The finished job's image (frame `frame`'s, in a job of several frames), or where to
+    /// fetch it when it is too large for a Lambda response
+    /// ([`stored_image`](super::stored_image)); [`ApiError::not_found`] until it succeeded.
+    fn image(
+        &self,
+        job: &str,
+        format: ImageFormat,
+        frame: Option<u32>,
+    ) -> Result<ImageAnswer, ApiError>;
 
     /// The finished job's report (the JSON of `hort render --report`); not found until it
     /// succeeded.

@@ -122,9 +122,18 @@ impl RenderBackend for Fake {
             .map(|i| self.status(&format!("job-{i}")))
             .collect()
     }
-    fn image(&self, job: &str, format: ImageFormat) -> Result<ImageAnswer, ApiError> {
+    fn image(
+        &self,
+        job: &str,
+        format: ImageFormat,
+        frame: Option<u32>,
+    ) -> Result<ImageAnswer, ApiError> {
         self.status(job)?;
-        Ok(ImageAnswer::Bytes(format.extension().as_bytes().to_vec()))
+        let name = match frame {
+            Some(k) => format!("frame {k} {}", format.extension()),
+            None => format.extension().to_owned(),
+        };
+        Ok(ImageAnswer::Bytes(name.into_bytes()))
     }
     fn report(&self, job: &str) -> Result<Vec<u8>, ApiError> {
         self.status(job)?;

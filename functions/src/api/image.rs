@@ -11,7 +11,7 @@
 
 use hort_core::ids::JobId;
 use hort_core::image::{decode_pfm, encode_exr};
-use hort_core::keys::image_key;
+use hort_core::keys::{FrameKeys, image_key};
 
 use super::error::ApiError;
 
@@ -91,7 +91,8 @@ pub trait ImageBucket {
     fn presigned_get(&self, key: &str) -> Result<String, ApiError>;
 }
 
-/// The image of the finished render `id` (job `job`) in `format`, from the outputs its Combine
+/// The image of the finished render `id` (job `job`; frame `frame`'s in a job of several
+/// frames, 404 for a frame the job did not render) in `format`, from the outputs its Combine
 /// task stored in `bucket`: the PNG or the PFM as stored, an EXR converted from the PFM; inline
 /// up to [`MAX_INLINE_BODY_BYTES`], else a redirect to a presigned GET. A job whose request
 /// asked for no linear image (`outputs.linear` false) has no PFM: then `pfm` and `exr` are 404
@@ -99,9 +100,16 @@ pub trait ImageBucket {
 pub fn stored_image(
     id: &str,
     job: &JobId,
+    frame: Option<u32>,
     format: ImageFormat,
     bucket: &dyn ImageBucket,
 ) -> Result<ImageAnswer, ApiError> {
+    let job = &FrameKeys { job, frame };
+    if let Some(k) = frame
+        && bucket.object_size(&image_key(job, "png"))?.is_none()
+    {
+        return Err(ApiError::not_found(format!("render {id} has no frame {k}")));
+    }
     let missing = |extension: &str| match extension {
         "pfm" => ApiError::not_found(format!(
             "render {id} stored no linear image (its request's outputs.linear was false): \

@@ -9,7 +9,8 @@
 //! | `GET /renders[?limit=N]` | 200 `{"renders": [...]}`: the newest jobs' statuses, newest first (default 50) |
 //! | `POST /renders` | 202 `{"job", "status_url", ...}` once the request and the scene are valid; `?dry_run=true`: 200 with the plan and the prediction, nothing started |
 //! | `GET /renders/{id}` | 200 the job's status ([`JobStatus`]) |
-//! | `GET /renders/{id}/image[?format=png\|pfm\|exr]` | 200 the image; 404 until the job succeeded |
+//! | `GET /renders/{id}/image[?format=png\|pfm\|exr]` | 200 the image (a job of several frames: its first frame's); 404 until the job succeeded |
+//! | `GET /renders/{id}/frames/{k}/image[?format=...]` | 200 frame k's image, as above; 404 for a frame the job did not render |
 //! | `GET /renders/{id}/report` | 200 the report JSON of `hort render --report`; 404 until the job succeeded |
 //! | `DELETE /renders/{id}` | 200 the status after cancelling (a finished job is left as it is) |
 //!
@@ -29,6 +30,7 @@ mod dashboard;
 mod error;
 #[cfg(any(test, feature = "test-support"))]
 pub mod fake;
+mod frames;
 #[cfg(test)]
 mod hostile_tests;
 mod image;
@@ -86,7 +88,8 @@ enum Route<'a> {
     Dashboard,
     Renders,
     Render(&'a str),
-    Image(&'a str),
+    /// A render's image, or one frame's (`/renders/{id}/frames/{k}/image`).
+    Image(&'a str, Option<&'a str>),
     Report(&'a str),
 }
 
@@ -109,9 +112,12 @@ impl Route<'_> {
         }
         match tail {
             None => Some(Route::Render(id)),
-            Some("image") => Some(Route::Image(id)),
+            Some("image") => Some(Route::Image(id, None)),
             Some("report") => Some(Route::Report(id)),
-            Some(_) => None,
+            Some(tail) => {
+                let frame = tail.strip_prefix("frames/")?.strip_suffix("/image")?;
+                (!frame.is_empty() && !frame.contains('/')).then_some(Route::Image(id, Some(frame)))
+            }
         }
     }
 
@@ -121,7 +127,7 @@ impl Route<'_> {
             Route::Dashboard => "GET",
             Route::Renders => "GET, POST",
             Route::Render(_) => "GET, DELETE",
-            Route::Image(_) | Route::Report(_) => "GET",
+            Route::Image(..) | Route::Report(_) => "GET",
         }
     }
 
@@ -130,7 +136,7 @@ impl Route<'_> {
             Route::Dashboard => method == Method::GET,
             Route::Renders => method == Method::GET || method == Method::POST,
             Route::Render(_) => method == Method::GET || method == Method::DELETE,
-            Route::Image(_) | Route::Report(_) => method == Method::GET,
+            Route::Image(..) | Route::Report(_) => method == Method::GET,
         }
     }
 }
@@ -143,7 +149,8 @@ pub fn check_head(method: &Method, uri: &http::Uri, headers: &HeaderMap) -> Resu
     let Some(route) = Route::parse(path) else {
         return Err(ApiError::not_found(format!(
             "no route {method} {path}: the API has /renders, /renders/{{id}}, \
-             /renders/{{id}}/image and /renders/{{id}}/report, and the dashboard at /"
+             /renders/{{id}}/image, /renders/{{id}}/frames/{{k}}/image and \
+             /renders/{{id}}/report, and the dashboard at /"
         )));
     };
     if !route.takes(method) {
@@ -313,9 +320,16 @@ fn route<B: AsRef<[u8]>>(
             };
             json(StatusCode::OK, &with_image_url(status))
         }
-        Route::Image(id) => {
+        Route::Image(id, frame) => {
             only_params(&query, &["format"])?;
             let id = job_id(id)?;
+            let frame = frame
+                .map(|k| {
+                    k.parse::<u32>().map_err(|_| {
+                        ApiError::not_found(format!("render {id} has no frame \"{k}\""))
+                    })
+                })
+                .transpose()?;
             let format = match query.get("format") {
                 None => ImageFormat::Png,
                 Some(name) => ImageFormat::parse(name).ok_or_else(|| {
@@ -325,7 +339,7 @@ fn route<B: AsRef<[u8]>>(
                     )
                 })?,
             };
-            match backend.image(&id, format)? {
+            match backend.image(&id, format, frame)? {
                 ImageAnswer::Bytes(bytes) => bytes_response(format.content_type(), bytes),
                 ImageAnswer::Redirect { url, bytes } => {
                     let body = serde_json::json!({"image_url": url, "bytes": bytes});
@@ -529,7 +543,7 @@ fn post_renders(
         memory_mb: request.memory_mb.unwrap_or(worker_memory_mb),
         adaptive: None,
         outputs: request.outputs.unwrap_or(StoredOutputs::ALL),
-        frame: Default::default(),
+        frame: frames::frame_choice(&request, scene, width, height)?,
     };
     if let Some(mb) = request.memory_mb {
         let lambda = hort_aws_quotas::LAMBDA_MEMORY_MB;

@@ -45,6 +45,17 @@ pub struct RenderRequest {
     /// (default: both). A job without its linear image serves no `pfm` or `exr` (404).
     #[serde(default)]
     pub outputs: Option<StoredOutputs>,
+    /// Frames of the scene's animation, or of the `orbit` turntable, one job renders: frames
+    /// 0 to `frames` - 1 (default: a still image).
+    #[serde(default)]
+    pub frames: Option<u32>,
+    /// Render frame `frame` (of the `frames`) alone.
+    #[serde(default)]
+    pub frame: Option<u32>,
+    /// A turntable: the eye turns this many degrees about the vertical axis through the
+    /// framed target over the `frames` (which it needs).
+    #[serde(default)]
+    pub orbit: Option<f64>,
 }
 
 /// Where the scene comes from: `{"main", "files"}` inline, or `{"key"}` in the bucket.

@@ -406,7 +406,12 @@ impl RenderBackend for AwsBackend {
             .collect()
     }
 
-    fn image(&self, id: &str, format: ImageFormat) -> Result<ImageAnswer, ApiError> {
+    fn image(
+        &self,
+        id: &str,
+        format: ImageFormat,
+        frame: Option<u32>,
+    ) -> Result<ImageAnswer, ApiError> {
         let status = self.status(id)?;
         if status.status != JobState::Succeeded {
             return Err(ApiError::not_found(format!(
@@ -415,7 +420,7 @@ impl RenderBackend for AwsBackend {
             )));
         }
         let job = Self::job_id(id)?;
-        stored_image(id, &job, format, &self.store)
+        stored_image(id, &job, frame, format, &self.store)
     }
 
     fn report(&self, id: &str) -> Result<Vec<u8>, ApiError> {

@@ -439,10 +439,15 @@ impl RenderBackend for EmulatorBackend {
         Ok(statuses.into_iter().take(limit).map(|(_, s)| s).collect())
     }
 
-    fn image(&self, id: &str, format: ImageFormat) -> Result<ImageAnswer, ApiError> {
+    fn image(
+        &self,
+        id: &str,
+        format: ImageFormat,
+        frame: Option<u32>,
+    ) -> Result<ImageAnswer, ApiError> {
         self.require_succeeded(id, "image")?;
         let job = JobId::new(id).map_err(|_| ApiError::not_found(format!("no render {id:?}")))?;
-        stored_image(id, &job, format, self.shared.store.inner())
+        stored_image(id, &job, frame, format, self.shared.store.inner())
     }
 
     fn report(&self, id: &str) -> Result<Vec<u8>, ApiError> {

@@ -157,3 +157,67 @@ fn malformed_frame_requests_are_refused_before_any_work() {
         );
     }
 }
+
+/// `POST /renders` with `orbit` and `frames` renders the turntable in one job: each frame's
+/// PNG (`GET /renders/{id}/frames/{k}/image`) is `hort render --frame k` of the same turntable,
+/// byte for byte; a frame the job did not render is 404, and frames of a scene without an
+/// animation are refused naming the field.
+#[test]
+fn the_api_renders_a_turntable_in_one_job_and_serves_each_frame() {
+    use common::server::{Serve, cornell};
+    use serde_json::json;
+    let dir = scratch("frames-api");
+    let server = Serve::start(&dir.join("data"));
+    let body = json!({"scene": cornell(), "width": 32, "height": 24, "spp": 2,
+                      "orbit": 90, "frames": 3});
+    let accepted = server.post("/renders", &body, &[]);
+    assert_eq!(accepted.status, 202, "{}", accepted.text());
+    let job = accepted.json()["job"].as_str().unwrap().to_owned();
+    let status = server.wait_done(&job, std::time::Duration::from_secs(120));
+    assert_eq!(status["status"], "SUCCEEDED", "{status}");
+    let cornell_json = scene("cornell/cornell.json");
+    for k in 0..3u32 {
+        let reply = server.get(&format!("/renders/{job}/frames/{k}/image"));
+        assert_eq!(reply.status, 200, "frame {k}: {}", reply.text());
+        let out = dir.join(format!("cli_{k}.png"));
+        let args = [
+            "render",
+            cornell_json.to_str().unwrap(),
+            "--monolithic",
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "--spp",
+            "2",
+            "--orbit",
+            "90",
+            "--frames",
+            "3",
+            "--frame",
+            &k.to_string(),
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        let o = hort(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(
+            reply.body == read(&out),
+            "frame {k} differs from hort render --frame {k}"
+        );
+    }
+    let missing = server.get(&format!("/renders/{job}/frames/3/image"));
+    assert_eq!(missing.status, 404);
+    assert_eq!(
+        missing.json()["error"]["message"],
+        format!("render {job} has no frame 3")
+    );
+    let still = json!({"scene": cornell(), "width": 32, "height": 24, "frames": 3});
+    let refused = server.post("/renders", &still, &[]);
+    assert_eq!(refused.status, 400, "{}", refused.text());
+    assert_eq!(
+        refused.json()["error"],
+        json!({"code": "invalid_request", "field": "frames",
+               "message": "frames: the scene has no animation; give orbit, or an \"animation\" in its manifest"})
+    );
+}

@@ -331,7 +331,7 @@ fn bad_requests_get_their_status_and_exact_message() {
             400,
             "invalid_request",
             "colour: unknown field `colour`, expected one of `scene`, `width`, `height`, `spp`, \
-             `splits`, `spans`, `split_mode`, `mode`, `memory_mb`, `max_cost_usd`, `outputs`"
+             `splits`, `spans`, `split_mode`, `mode`, `memory_mb`, `max_cost_usd`, `outputs`, `frames`, `frame`, `orbit`"
                 .into(),
             Some("colour"),
         ),
@@ -408,8 +408,8 @@ fn bad_requests_get_their_status_and_exact_message() {
             server.get("/jobs"),
             404,
             "not_found",
-            "no route GET /jobs: the API has /renders, /renders/{id}, /renders/{id}/image and \
-             /renders/{id}/report, and the dashboard at /"
+            "no route GET /jobs: the API has /renders, /renders/{id}, /renders/{id}/image, \
+             /renders/{id}/frames/{k}/image and /renders/{id}/report, and the dashboard at /"
                 .into(),
             None,
         ),

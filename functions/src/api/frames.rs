@@ -1,0 +1,91 @@
+//! The frames of `POST /renders` (`frames`, `frame`, `orbit`): which frames of which camera
+//! path one job renders, checked against the scene before anything is started, with the rules
+//! and limits of `hort render --frames/--frame/--orbit`.
+
+use super::error::ApiError;
+use super::request::RenderRequest;
+use hort_core::animation::MAX_FRAMES;
+use hort_core::camera::Camera;
+use hort_core::pipeline::{FrameChoice, Orbit};
+use hort_core::predict::check_combine_time;
+use hort_core::scene::Scene;
+
+/// The frames `request` asks of `scene` at `width` x `height`: every frame on its path, every
+/// frame's camera able to form a view, and all within what one job's Combine task assembles.
+/// Errors name the field at fault.
+pub(super) fn frame_choice(
+    request: &RenderRequest,
+    scene: &Scene,
+    width: u32,
+    height: u32,
+) -> Result<FrameChoice, ApiError> {
+    if let Some(n) = request.frames
+        && !(1..=MAX_FRAMES).contains(&n)
+    {
+        return Err(ApiError::invalid_field(
+            "frames",
+            format!("frames: {n} is out of range: must be 1 to {MAX_FRAMES}"),
+        ));
+    }
+    let orbit = match request.orbit {
+        None => None,
+        Some(degrees) if !degrees.is_finite() => {
+            return Err(ApiError::invalid_field(
+                "orbit",
+                format!("orbit: {degrees} is not a finite number of degrees"),
+            ));
+        }
+        Some(degrees) => {
+            let frames = request.frames.ok_or_else(|| {
+                ApiError::invalid_field("frames", "frames: an orbit needs its number of frames")
+            })?;
+            Some(Orbit { degrees, frames })
+        }
+    };
+    let asked = request.frames.is_some() || request.frame.is_some();
+    let total = match orbit {
+        Some(o) => Some(o.frames),
+        None => FrameChoice::STILL.animation(scene).map(|a| a.frames),
+    };
+    let frames = match (request.frame, request.frames) {
+        (Some(k), _) => k..k.saturating_add(1),
+        (None, Some(n)) => 0..n,
+        (None, None) => 0..1,
+    };
+    match total {
+        None if asked => {
+            return Err(ApiError::invalid_field(
+                "frames",
+                "frames: the scene has no animation; give orbit, or an \"animation\" in its \
+                 manifest",
+            ));
+        }
+        Some(total) if frames.end > total => {
+            let field = if request.frame.is_some() {
+                "frame"
+            } else {
+                "frames"
+            };
+            return Err(ApiError::invalid_field(
+                field,
+                format!(
+                    "{field}: frame {} is outside the animation's {total} frames (0 to {})",
+                    frames.end - 1,
+                    total - 1
+                ),
+            ));
+        }
+        _ => {}
+    }
+    check_combine_time(width, height, frames.end - frames.start)
+        .map_err(|e| ApiError::invalid_field("frames", format!("frames: {e}")))?;
+    let choice = FrameChoice::range(frames, orbit);
+    for frame in choice.frames() {
+        choice
+            .at(frame)
+            .camera(scene, width, height)
+            .and_then(|camera| Camera::new(&camera, width, height))
+            .map_err(|e| ApiError::invalid_scene(format!("frame {frame}: {e}")))?;
+    }
+    Ok(choice)
+}
