@@ -5,9 +5,12 @@ use super::{Image, ImageError};
 use ::image::codecs::gif::{GifEncoder, Repeat};
 use ::image::{Delay, Frame, RgbaImage};
 
+/// The palette quantiser's speed, 1 (best, slowest) to 30: the encoder's default balance.
+const GIF_QUANTIZER_SPEED: i32 = 10;
+
 /// Encodes `frames` (at least one, all of one size) as a looping animated GIF showing each for
 /// `delay_ms` milliseconds: the PNG's 8-bit sRGB values, each frame quantised to its own
-/// palette of 256 colours (NeuQuant at the encoder's best quality).
+/// palette of 256 colours (NeuQuant at [`GIF_QUANTIZER_SPEED`]).
 ///
 /// A preview, not a lossless output: use PNG frames for the exact pixels. The bytes are
 /// deterministic (integer quantisation, no threads). Fails if a frame is inconsistent
@@ -21,7 +24,7 @@ pub fn encode_gif(frames: &[Image], delay_ms: u32) -> Result<Vec<u8>, ImageError
     };
     let mut out = Vec::new();
     {
-        let mut encoder = GifEncoder::new_with_speed(&mut out, 1);
+        let mut encoder = GifEncoder::new_with_speed(&mut out, GIF_QUANTIZER_SPEED);
         encoder
             .set_repeat(Repeat::Infinite)
             .map_err(|e| ImageError::InvalidImage(format!("GIF: {e}")))?;
