@@ -94,6 +94,18 @@ pub struct JobStatus {
     /// say (as for a request that does not).
     #[serde(default)]
     pub outputs: StoredOutputs,
+    /// A job of several frames: its frames' numbers, each served at
+    /// `GET /renders/{id}/frames/{k}/image` once the job succeeded; absent for one image.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub frames: Vec<u32>,
+}
+
+/// The frames a job of `request` renders, for [`JobStatus::frames`]: none for one image.
+pub fn frames_of(request: Option<&hort_core::pipeline::PlanRequest>) -> Vec<u32> {
+    match request {
+        Some(r) if r.frame.count > 1 => r.frame.frames().collect(),
+        _ => Vec::new(),
+    }
 }
 
 /// One stage's progress in a [`JobStatus`].

@@ -202,6 +202,7 @@ fn write_row(out: &mut String, j: &JobStatus) -> std::fmt::Result {
             "<a href=\"renders/{id}/image\"><img class=\"result\" alt=\"image of {id}\" \
              src=\"renders/{id}/image\"></a><br>"
         )?;
+        write_frame_strip(out, &id, &j.frames)?;
         // The linear formats only of a job that stored its linear image (others answer 404).
         if j.outputs.linear {
             write!(
@@ -219,6 +220,33 @@ fn write_row(out: &mut String, j: &JobStatus) -> std::fmt::Result {
         )?;
     }
     writeln!(out, "</td>\n</tr>")
+}
+
+/// Most frames a job's row shows as thumbnails.
+const STRIP_FRAMES: usize = 12;
+
+/// A job of several frames: a strip of its first frames' thumbnails, each linking its image,
+/// and a button that plays every frame in the job's image (the page's script).
+fn write_frame_strip(out: &mut String, id: &str, frames: &[u32]) -> std::fmt::Result {
+    if frames.is_empty() {
+        return Ok(());
+    }
+    let list: Vec<String> = frames.iter().map(u32::to_string).collect();
+    write!(out, "<div class=\"strip\">")?;
+    for k in frames.iter().take(STRIP_FRAMES) {
+        write!(
+            out,
+            "<a href=\"renders/{id}/frames/{k}/image\"><img alt=\"frame {k}\" \
+             src=\"renders/{id}/frames/{k}/image\"></a>"
+        )?;
+    }
+    write!(
+        out,
+        "</div><button type=\"button\" class=\"play\" data-play=\"{id}\" \
+         data-frames=\"{}\">Play {} frames</button><br>",
+        list.join(","),
+        frames.len()
+    )
 }
 
 /// One bar per stage (tasks done of the stage's tasks), or one bar over all tasks when the
@@ -271,7 +299,29 @@ mod tests {
             scene: Some("s.obj".into()),
             stages: Vec::new(),
             outputs,
+            frames: Vec::new(),
         }
+    }
+
+    /// A job of several frames shows its first frames as a strip of links and a button that
+    /// plays them all; a job of one frame shows neither.
+    #[test]
+    fn a_job_of_frames_shows_a_strip_and_a_player() {
+        let mut job = succeeded(StoredOutputs::PNG);
+        assert!(!jobs_table(std::slice::from_ref(&job)).contains("strip"));
+        job.frames = (0..20).collect();
+        let table = jobs_table(&[job]);
+        assert_eq!(
+            table.matches("src=\"renders/j1/frames/").count(),
+            STRIP_FRAMES
+        );
+        assert!(table.contains("<a href=\"renders/j1/frames/11/image\">"));
+        assert!(!table.contains("renders/j1/frames/12/image"));
+        let all: Vec<String> = (0..20).map(|k| k.to_string()).collect();
+        assert!(table.contains(&format!(
+            "data-play=\"j1\" data-frames=\"{}\">Play 20 frames</button>",
+            all.join(",")
+        )));
     }
 
     /// The links of a succeeded job: the linear formats only if it stored its linear image.

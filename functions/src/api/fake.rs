@@ -111,6 +111,7 @@ impl RenderBackend for Fake {
                 })
                 .collect(),
             outputs: jobs[i].request.outputs,
+            frames: Vec::new(),
         })
     }
     fn list(&self, limit: usize) -> Result<Vec<JobStatus>, ApiError> {

@@ -42,7 +42,7 @@ mod scene_by_key;
 mod tests;
 
 pub use backend::{
-    JobScene, JobSpec, JobState, JobStatus, RenderBackend, StageProgress, Submission,
+    JobScene, JobSpec, JobState, JobStatus, RenderBackend, StageProgress, Submission, frames_of,
     idempotency_key_expired, idempotency_key_reused, object_in, object_range_in, object_size_in,
     request_fingerprint,
 };

@@ -30,7 +30,7 @@ use super::sqs::JobQueue;
 use crate::S3Store;
 use crate::api::{
     ApiError, ImageAnswer, ImageFormat, JobRecord, JobScene, JobSpec, JobState, JobStatus,
-    PredictionModel, RATES, RenderBackend, Submission, idempotency_key_expired,
+    PredictionModel, RATES, RenderBackend, Submission, frames_of, idempotency_key_expired,
     idempotency_key_reused, job_for, now_unix_us, object_in, object_range_in, object_size_in,
     stored_image,
 };
@@ -211,6 +211,7 @@ impl AwsBackend {
             scene: Some(record.scene.clone()),
             stages: Vec::new(),
             outputs: record.outputs,
+            frames: frames_of(record.request.as_ref()),
         })
     }
 

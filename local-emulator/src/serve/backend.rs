@@ -31,8 +31,8 @@ use hort_core::stage::Stage;
 use hort_core::store::{BlobStore, CountingStore, PutOutcome};
 use hort_functions::api::{
     ApiError, ImageAnswer, ImageFormat, JobRecord, JobScene, JobSpec, JobState, JobStatus,
-    PredictionModel, RenderBackend, StageProgress, Submission, idempotency_key_reused, job_for,
-    now_unix_us, object_in, object_range_in, object_size_in, stored_image,
+    PredictionModel, RenderBackend, StageProgress, Submission, frames_of, idempotency_key_reused,
+    job_for, now_unix_us, object_in, object_range_in, object_size_in, stored_image,
 };
 use hort_functions::handlers::BudgetCheck;
 use hort_functions::{S3Config, S3Store};
@@ -157,6 +157,7 @@ impl Job {
             },
             scene: Some(r.scene.clone()),
             outputs: r.outputs,
+            frames: frames_of(r.request.as_ref()),
         }
     }
 
