@@ -11,8 +11,8 @@ pub use error_type::ErrorType;
 
 // Scene input and the renderer.
 pub mod adaptive;
-pub mod bvh;
 pub mod animation;
+pub mod bvh;
 pub mod camera;
 pub mod coverage;
 pub mod phase_timer;
