@@ -3,6 +3,8 @@
 
 use super::spline::unclamped_segment;
 use super::*;
+use crate::scene::load_scene;
+use std::path::PathBuf;
 
 fn spec(eye: [f64; 3], look_at: [f64; 3]) -> CameraSpec {
     CameraSpec {
@@ -374,4 +376,133 @@ fn each_invalid_animation_has_its_own_message() {
             .validate()
             .is_ok()
     );
+}
+
+const TRIANGLE: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+
+/// The manifest `json` beside a one-triangle `t.obj` in a scratch folder, loaded.
+fn load_manifest(json: &str) -> (Result<crate::scene::Scene, String>, PathBuf) {
+    let dir = crate::scratch::Scratch::new("hort-animation-tests-");
+    std::fs::write(dir.join("t.obj"), TRIANGLE).unwrap();
+    let p = dir.join("s.json");
+    std::fs::write(&p, json).unwrap();
+    (load_scene(&p).map_err(|e| e.to_string()), p)
+}
+
+fn manifest_error(json: &str) -> String {
+    let (scene, p) = load_manifest(json);
+    let e = scene.expect_err("must fail");
+    let prefix = format!("{}: ", p.display());
+    e.strip_prefix(&prefix)
+        .unwrap_or_else(|| panic!("{e} does not start with {prefix}"))
+        .to_string()
+}
+
+/// A manifest's keyframes are in world coordinates: they move into the scene's local frame
+/// (origin at the triangle's centre, (0.5, 0.5, 0)) as its camera does; up and vfov default.
+#[test]
+fn a_manifest_animation_loads_into_the_local_frame() {
+    let (scene, _) = load_manifest(
+        r#"{"meshes": ["t.obj"], "camera": {"eye": [0.5, 0.5, 9], "look_at": [0.5, 0.5, 0]},
+            "animation": {"frames": 48, "keyframes": [
+              {"frame": 0, "eye": [0.5, 0.5, 5], "look_at": [0.5, 0.5, 0]},
+              {"frame": 24, "eye": [5.5, 0.5, 0], "look_at": [0.5, 1.5, 0], "up": [0, 0, 2],
+               "vfov": 30}]}}"#,
+    );
+    let scene = scene.unwrap();
+    assert_eq!(scene.camera.eye, DVec3::new(0.0, 0.0, 9.0));
+    let expected = keyed(
+        48,
+        &[
+            (0, spec([0.0, 0.0, 5.0], [0.0; 3])),
+            (
+                24,
+                CameraSpec {
+                    up: DVec3::new(0.0, 0.0, 2.0),
+                    vfov_degrees: 30.0,
+                    ..spec([5.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+                },
+            ),
+        ],
+    );
+    let animation = scene.animation.clone().expect("an animation");
+    assert_eq!(animation, expected);
+    let base = scene.camera_for(64, 48);
+    assert_eq!(
+        bits(&animation.camera(&base, 47).unwrap()),
+        bits(&animation.camera(&base, 24).unwrap())
+    );
+    // A manifest without one has none.
+    let (scene, _) = load_manifest(r#"{"meshes": ["t.obj"]}"#);
+    assert_eq!(scene.unwrap().animation, None);
+}
+
+#[test]
+fn a_malformed_manifest_animation_names_the_keyframe() {
+    let key = |frame: u32, eye: &str| {
+        format!(r#"{{"frame": {frame}, "eye": {eye}, "look_at": [0.5, 0.5, 0]}}"#)
+    };
+    let manifest = |frames: u32, keys: &[String]| {
+        format!(
+            r#"{{"meshes": ["t.obj"], "animation": {{"frames": {frames}, "keyframes": [{}]}}}}"#,
+            keys.join(", ")
+        )
+    };
+    let good = |frame| key(frame, "[0.5, 0.5, 5]");
+    assert_eq!(
+        manifest_error(&manifest(
+            48,
+            &[good(0), good(12), key(24, "[0.5, 0.5, 0]")]
+        )),
+        "manifest field `animation.keyframes[2]`: eye and look_at are the same point"
+    );
+    assert_eq!(
+        manifest_error(&manifest(48, &[good(0), good(12), good(12)])),
+        "manifest field `animation.keyframes[2]`: frames must increase strictly, but keyframe 1 \
+         is at frame 12"
+    );
+    assert_eq!(
+        manifest_error(&manifest(48, &[good(0), good(48)])),
+        "manifest field `animation.keyframes[1]`: frame 48 is outside the animation's 48 frames \
+         (0 to 47)"
+    );
+    assert_eq!(
+        manifest_error(&manifest(0, &[good(0)])),
+        "manifest field `animation.frames`: 0 is not between 1 and 100000"
+    );
+    assert_eq!(
+        manifest_error(&manifest(48, &[])),
+        "manifest field `animation.keyframes`: lists no keyframes (at least one is needed)"
+    );
+    assert_eq!(
+        manifest_error(&manifest(
+            48,
+            &[
+                good(0),
+                r#"{"frame": 5, "eye": [0,0,1], "look_at": [0,0,0], "vfov": 180}"#.into()
+            ]
+        )),
+        "manifest field `animation.keyframes[1]`: vfov 180 is not between 0 and 180 degrees"
+    );
+    let e = manifest_error(&manifest(
+        48,
+        &[
+            good(0),
+            r#"{"frame": 5, "eye": [0,0,1], "look_at": [0,0,0], "fov": 30}"#.into(),
+        ],
+    ));
+    assert!(
+        e.starts_with("manifest field `animation.keyframes[1].fov`: unknown field `fov`"),
+        "{e}"
+    );
+    let e = manifest_error(r#"{"meshes": ["t.obj"], "animation": {"frames": 4}}"#);
+    assert!(
+        e.starts_with("manifest field `animation`: missing field `keyframes`"),
+        "{e}"
+    );
+}
+
+#[test]
+fn the_schema_shows_the_animation_field() {
+    assert!(crate::scene::MANIFEST_SCHEMA.contains(r#""animation": {"frames": 48,"#));
 }
