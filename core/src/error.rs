@@ -152,4 +152,12 @@ pub enum SceneError {
         /// Which of the two it is.
         detail: String,
     },
+    /// A camera animation is invalid, or a frame is outside it or its camera cannot form a
+    /// view ([`crate::animation::Animation`]). The detail is the whole message, naming the
+    /// keyframe (`animation keyframe 2 (frame 24): ...`) or the frame.
+    #[error("{detail}")]
+    Animation {
+        /// What is wrong, and where.
+        detail: String,
+    },
 }

@@ -96,6 +96,7 @@ pub fn sphere_scene(stacks: u32, slices: u32) -> Scene {
         background: [0.0; 3],
         image: ImageSettings::default(),
         warnings: Vec::new(),
+        animation: None,
     }
 }
 

@@ -101,7 +101,7 @@ impl FrameChoice {
                 animation.camera(&base, self.index)
             }
             None if self.index == 0 => Ok(base),
-            None => Err(SceneError::Camera {
+            None => Err(SceneError::Animation {
                 detail: format!(
                     "frame {} asked of a scene without an animation (give an orbit, or a \
                      manifest \"animation\")",
@@ -128,6 +128,5 @@ fn is_one(v: &u32) -> bool {
 
 /// The scene's own camera path (a manifest's `animation`).
 fn scene_animation(scene: &Scene) -> Option<Animation> {
-    let _ = scene;
-    None
+    scene.animation.clone()
 }

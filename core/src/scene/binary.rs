@@ -24,9 +24,12 @@
 //! section (`textures.rs`: texture coordinates, each material's texture, the textures). A
 //! string is a u32 byte length and UTF-8 bytes. Nothing follows the last field.
 //!
+//! A scene's `animation` (a manifest's camera keyframes) is not stored: the format holds what
+//! a frame's render needs besides its camera, and a decoded scene's `animation` is `None`.
+//!
 //! Guarantees: [`encode_scene`] is deterministic (the same scene gives the same bytes on every
-//! platform), and `decode_scene(encode_scene(s))` equals `s` exactly, floats bit for bit (a
-//! `source` path that is not UTF-8 is stored lossily). [`decode_scene`] never panics and
+//! platform), and `decode_scene(encode_scene(s))` equals `s` exactly but for `animation` (not
+//! stored), floats bit for bit (a `source` path that is not UTF-8 is stored lossily). [`decode_scene`] never panics and
 //! accepts only what a loader could have produced: every check of the header, the checksum,
 //! each count against the bytes left, every index in range, every float finite and at least
 //! one triangle; each failure is one line naming the object, the field and its byte offset.
@@ -342,6 +345,8 @@ fn decode(bytes: &[u8]) -> Result<Scene, String> {
         background,
         image,
         warnings,
+        // Not stored (see the module documentation).
+        animation: None,
     })
 }
 

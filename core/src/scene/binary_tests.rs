@@ -98,6 +98,7 @@ fn tiny() -> Scene {
             spp: Some(4),
         },
         warnings: vec!["t.obj:3: unknown statement".into()],
+        animation: None,
     }
 }
 

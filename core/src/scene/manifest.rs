@@ -6,6 +6,7 @@ use super::mesh::Mesh;
 use super::obj::TextureFallback;
 use super::world::WorldMesh;
 use super::{CameraSpec, ImageSettings, Light, MAX_IMAGE_SIDE, MAX_SPP, Scene, obj};
+use crate::animation::{Animation, CameraKey, CameraPath, Problem, Where};
 use crate::error::{SceneError, printable};
 use glam::DVec3;
 use serde::Deserialize;
@@ -20,7 +21,10 @@ pub const MANIFEST_SCHEMA: &str = r#"{
              {"kind": "directional", "direction": [x,y,z], "irradiance": [r,g,b] | n}],
   "ambient": n | [r,g,b],  "background": [r,g,b],
   "materials": {"mtl name or \"default\"": {"kd": [r,g,b]}},
-  "width": 960, "height": 540, "spp": 1
+  "width": 960, "height": 540, "spp": 1,
+  "animation": {"frames": 48,                 // frames 0 to 47; keyframe frames increase
+                "keyframes": [{"frame": 0, "eye": [x,y,z], "look_at": [x,y,z],
+                               "up": [0,1,0], "vfov": 45.0}, ...]}
 }"#;
 
 /// A parsed manifest before its meshes are loaded.
@@ -46,6 +50,27 @@ pub struct Manifest {
     pub height: Option<u32>,
     /// Samples per pixel; flags override it.
     pub spp: Option<u32>,
+    /// A keyframed camera path over the frames of an animation; none when absent.
+    pub animation: Option<ManifestAnimation>,
+}
+
+/// An animation: its frame count and camera keyframes (world coordinates, as `camera`).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ManifestAnimation {
+    pub frames: u32,
+    pub keyframes: Vec<ManifestKeyframe>,
+}
+
+/// A camera keyframe: the camera fields (same defaults) at frame `frame`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ManifestKeyframe {
+    pub frame: u32,
+    pub eye: [f64; 3],
+    pub look_at: [f64; 3],
+    pub up: Option<[f64; 3]>,
+    pub vfov: Option<f64>,
 }
 
 /// Camera fields; `up` defaults to +y and `vfov` (vertical, degrees) to 45.
@@ -138,6 +163,10 @@ pub(super) fn manifest_scene(
             .collect::<Result<Vec<_>, _>>()?,
         None => vec![default_light(lo, hi)],
     };
+    let animation = match &manifest.animation {
+        Some(a) => Some(animation_from(a, origin, path)?),
+        None => None,
+    };
     let ambient = colour(manifest.ambient.map(Rgb::to_array), "ambient", path)?;
     let background = colour(manifest.background, "background", path)?;
     let image = image_settings(manifest, path)?;
@@ -159,6 +188,7 @@ pub(super) fn manifest_scene(
         background,
         image,
         warnings,
+        animation,
     })
 }
 
@@ -311,6 +341,49 @@ fn camera_from(c: &ManifestCamera, origin: DVec3, path: &Path) -> Result<CameraS
         up: finite_vec(c.up.unwrap_or([0.0, 1.0, 0.0]), "camera.up", path)?,
         vfov_degrees: vfov,
     })
+}
+
+/// The manifest animation, its keyframes moved into the local frame whose origin is `origin`
+/// (as [`camera_from`] moves the camera) and checked ([`Animation::validate`]): an error names
+/// the field, `animation.keyframes[2]` for a keyframe.
+fn animation_from(
+    a: &ManifestAnimation,
+    origin: DVec3,
+    path: &Path,
+) -> Result<Animation, SceneError> {
+    let keys = a
+        .keyframes
+        .iter()
+        .enumerate()
+        .map(|(i, k)| {
+            let field = |name: &str| format!("animation.keyframes[{i}].{name}");
+            Ok(CameraKey {
+                frame: k.frame,
+                camera: CameraSpec {
+                    eye: finite_vec(k.eye, &field("eye"), path)? - origin,
+                    look_at: finite_vec(k.look_at, &field("look_at"), path)? - origin,
+                    up: finite_vec(k.up.unwrap_or([0.0, 1.0, 0.0]), &field("up"), path)?,
+                    vfov_degrees: k.vfov.unwrap_or(45.0),
+                },
+            })
+        })
+        .collect::<Result<Vec<_>, SceneError>>()?;
+    let animation = Animation {
+        frames: a.frames,
+        path: CameraPath::Keyframes { keys },
+    };
+    match animation.problem() {
+        None => Ok(animation),
+        Some(Problem { at, detail }) => Err(SceneError::Manifest {
+            path: path.to_path_buf(),
+            field: match at {
+                Where::Frames => "animation.frames".into(),
+                Where::Keys | Where::Degrees => "animation.keyframes".into(),
+                Where::Key { index, .. } => format!("animation.keyframes[{index}]"),
+            },
+            detail,
+        }),
+    }
 }
 
 /// The manifest light, moved into the local frame whose origin is `origin`.

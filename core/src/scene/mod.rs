@@ -29,6 +29,7 @@ pub use ranged::{
     scene_without_geometry,
 };
 
+use crate::animation::Animation;
 use crate::error::SceneError;
 use glam::DVec3;
 use std::path::{Path, PathBuf};
@@ -125,6 +126,9 @@ pub struct Scene {
     /// Things that were accepted but deserve a look (unknown material, missing MTL file, MTL
     /// features that are not rendered, unknown OBJ statements, no light), each naming its file.
     pub warnings: Vec<String>,
+    /// The manifest's camera animation (keyframes in the local frame, checked), if it has one;
+    /// `None` for an OBJ file. Not stored in the binary scene format: a decoded scene has none.
+    pub animation: Option<Animation>,
 }
 
 impl Scene {

@@ -101,5 +101,6 @@ pub fn scene_of_manifest_without_geometry(
         background: [0.0; 3],
         image: ImageSettings::default(),
         warnings,
+        animation: None,
     })
 }

@@ -65,6 +65,7 @@ pub fn calibrate() -> Result<Calibration> {
         image: ImageSettings::default(),
         warnings,
         mesh,
+        animation: None,
     };
     let settings = RenderSettings {
         width: SIDE,
