@@ -24,12 +24,13 @@
 //! section (`textures.rs`: texture coordinates, each material's texture, the textures). A
 //! string is a u32 byte length and UTF-8 bytes. Nothing follows the last field.
 //!
-//! A scene's `animation` (a manifest's camera keyframes) is not stored: the format holds what
-//! a frame's render needs besides its camera, and a decoded scene's `animation` is `None`.
+//! A scene with an `animation` (a manifest's camera keyframes, in the local frame) has one more
+//! field after the texture section: the animation as a JSON string (serde_json writes and reads
+//! every f64 exactly), checked again when read. A scene without one ends with the textures, so
+//! its bytes are those of a scene from before animations.
 //!
 //! Guarantees: [`encode_scene`] is deterministic (the same scene gives the same bytes on every
-//! platform), and `decode_scene(encode_scene(s))` equals `s` exactly but for `animation` (not
-//! stored), floats bit for bit (a `source` path that is not UTF-8 is stored lossily). [`decode_scene`] never panics and
+//! platform), and `decode_scene(encode_scene(s))` equals `s` exactly, floats bit for bit (a `source` path that is not UTF-8 is stored lossily). [`decode_scene`] never panics and
 //! accepts only what a loader could have produced: every check of the header, the checksum,
 //! each count against the bytes left, every index in range, every float finite and at least
 //! one triangle; each failure is one line naming the object, the field and its byte offset.
@@ -39,6 +40,7 @@ mod textures;
 
 use super::mesh::{Material, Mesh, NO_NORMAL};
 use super::{CameraSpec, ImageSettings, Light, Scene};
+use crate::animation::Animation;
 use glam::{DVec3, Vec3};
 use std::path::PathBuf;
 
@@ -142,6 +144,12 @@ fn encode_as(scene: &Scene, source: &str, warnings: &[String]) -> Vec<u8> {
     put_u32(&mut out, warnings.len() as u32);
     warnings.iter().for_each(|w| put_str(&mut out, w));
     textures::put_textures(&mut out, mesh);
+    if let Some(animation) = &scene.animation {
+        put_str(
+            &mut out,
+            &serde_json::to_string(animation).expect("an animation encodes"),
+        );
+    }
 
     let body_len = (out.len() - SCENE_BINARY_HEADER_LEN) as u64;
     out[..8].copy_from_slice(&SCENE_BINARY_MAGIC);
@@ -327,9 +335,21 @@ fn decode(bytes: &[u8]) -> Result<Scene, String> {
         ..Mesh::default()
     };
     textures::read_textures(&mut r, &mut mesh)?;
+    let animation = if r.at == bytes.len() {
+        None
+    } else {
+        let at = r.at;
+        let text = r.string("animation")?;
+        let animation: Animation = serde_json::from_str(&text)
+            .map_err(|e| format!("byte {at}: animation is not an animation: {e}"))?;
+        animation
+            .validate()
+            .map_err(|e| format!("byte {at}: {e}"))?;
+        Some(animation)
+    };
     if r.at != bytes.len() {
         return Err(format!(
-            "byte {}: {} bytes follow the last field (textures)",
+            "byte {}: {} bytes follow the last field (animation)",
             r.at,
             bytes.len() - r.at
         ));
@@ -345,8 +365,7 @@ fn decode(bytes: &[u8]) -> Result<Scene, String> {
         background,
         image,
         warnings,
-        // Not stored (see the module documentation).
-        animation: None,
+        animation,
     })
 }
 

@@ -117,6 +117,42 @@ fn every_field_round_trips_and_encoding_is_deterministic() {
     scene.warnings.clear();
     let bytes = encode_scene(&scene);
     assert_same(&scene, &decode_scene("t", &bytes).unwrap());
+    // A scene with camera keyframes stores them after the textures, every f64 bit for bit.
+    let key = |frame: u32, eye: [f64; 3]| crate::animation::CameraKey {
+        frame,
+        camera: crate::scene::CameraSpec {
+            eye: DVec3::from_array(eye),
+            look_at: DVec3::new(0.1, 1.0 / 3.0, -2e-300),
+            up: DVec3::Y,
+            vfov_degrees: 47.123_456_789_012_34,
+        },
+    };
+    let animation = crate::animation::Animation {
+        frames: 30,
+        path: crate::animation::CameraPath::Keyframes {
+            keys: vec![key(0, [5.0, 2.5, 0.1 + 0.2]), key(29, [-5.0, 1e-17, 7.0])],
+        },
+    };
+    scene.animation = Some(animation.clone());
+    let with = encode_scene(&scene);
+    assert!(with.len() > bytes.len());
+    let decoded = decode_scene("t", &with).unwrap();
+    assert_same(&scene, &decoded);
+    let bits = |a: &crate::animation::Animation| match &a.path {
+        crate::animation::CameraPath::Keyframes { keys } => keys
+            .iter()
+            .flat_map(|k| {
+                let c = k.camera;
+                [c.eye, c.look_at, c.up]
+                    .into_iter()
+                    .flat_map(|v| v.to_array())
+                    .chain([c.vfov_degrees])
+                    .map(f64::to_bits)
+            })
+            .collect::<Vec<u64>>(),
+        _ => Vec::new(),
+    };
+    assert_eq!(bits(decoded.animation.as_ref().unwrap()), bits(&animation));
 }
 
 /// `tiny()` without the directional light, warnings, image settings and textures: the offsets
@@ -349,7 +385,26 @@ fn body_errors_name_the_field_and_its_byte() {
     longer.extend_from_slice(&[0, 0]);
     assert_eq!(
         error(&reseal(longer)),
-        format!("{name}: byte 352: 2 bytes follow the last field (textures)")
+        format!("{name}: byte 352: animation length needs 4 bytes, but only 2 are left")
+    );
+    let mut garbage = small();
+    garbage.extend_from_slice(&2u32.to_le_bytes());
+    garbage.extend_from_slice(b"{}");
+    assert_eq!(
+        error(&reseal(garbage)),
+        format!(
+            "{name}: byte 352: animation is not an animation: missing field `frames` at line 1 \
+             column 2"
+        )
+    );
+    let mut trailing = small();
+    trailing.extend_from_slice(&2u32.to_le_bytes());
+    trailing
+        .extend_from_slice(b"{\"frames\": 3, \"path\": {\"kind\": \"orbit\", \"degrees\": 90}}x");
+    trailing.splice(352..356, 55u32.to_le_bytes());
+    assert_eq!(
+        error(&reseal(trailing)),
+        format!("{name}: byte 411: 1 bytes follow the last field (animation)")
     );
     let mut shorter = small();
     shorter.pop();

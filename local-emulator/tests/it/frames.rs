@@ -221,3 +221,85 @@ fn the_api_renders_a_turntable_in_one_job_and_serves_each_frame() {
                "message": "frames: the scene has no animation; give orbit, or an \"animation\" in its manifest"})
     );
 }
+
+/// A manifest's camera keyframes: a run of frames 0 to 5 in one emulator job (staged over two
+/// splits, the scene uploaded parsed, keyframes and all) writes the monolithic renderer's
+/// frames byte for byte, and frame 3 alone in a fused job is frame 3 again; a keyframe whose
+/// eye is its target is refused naming the keyframe.
+#[test]
+fn a_keyframed_camera_path_renders_the_same_frames_in_every_mode() {
+    let dir = scratch("frames-keys");
+    for file in ["teapot.obj", "ground.obj", "ground.mtl"] {
+        std::fs::copy(scene(&format!("teapot/{file}")), dir.join(file)).unwrap();
+    }
+    let manifest = |third_eye: &str| {
+        format!(
+            r#"{{"meshes": ["ground.obj", "teapot.obj"],
+               "camera": {{"eye": [8, 18, 45], "look_at": [3, -2, 0]}},
+               "animation": {{"frames": 6, "keyframes": [
+                 {{"frame": 0, "eye": [8, 18, 45], "look_at": [3, -2, 0]}},
+                 {{"frame": 2, "eye": [30, 12, 30], "look_at": [3, 0, 0], "vfov": 40}},
+                 {{"frame": 5, "eye": {third_eye}, "look_at": [0, 2, 0]}}]}}}}"#
+        )
+    };
+    let path = dir.join("keys.json");
+    std::fs::write(&path, manifest("[-20, 25, 35]")).unwrap();
+    let run = |name: &str, extra: &[&str]| {
+        let mut args = vec![
+            "render",
+            path.to_str().unwrap(),
+            "--width",
+            "40",
+            "--height",
+            "30",
+            "--spp",
+            "2",
+        ];
+        let (out, hits) = (
+            dir.join(format!("{name}_#.pfm")),
+            dir.join(format!("{name}_#.bin")),
+        );
+        let (out, hits) = (
+            out.to_str().unwrap().to_owned(),
+            hits.to_str().unwrap().to_owned(),
+        );
+        args.extend(["--out", &out, "--hits", &hits]);
+        args.extend_from_slice(extra);
+        let o = hort(&args);
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+    };
+    run("mono", &["--monolithic", "--frames", "6"]);
+    run(
+        "staged",
+        &["--frames", "0..6", "--mode", "staged", "--splits", "2"],
+    );
+    run("alone", &["--frame", "3", "--mode", "fused"]);
+    for k in 0..6 {
+        for ext in ["pfm", "bin"] {
+            let reference = read(&dir.join(format!("mono_{k}.{ext}")));
+            assert!(
+                read(&dir.join(format!("staged_{k}.{ext}"))) == reference,
+                "frame {k} {ext}"
+            );
+        }
+    }
+    assert!(read(&dir.join("alone_3.pfm")) == read(&dir.join("mono_3.pfm")));
+    assert!(read(&dir.join("mono_1.pfm")) != read(&dir.join("mono_2.pfm")));
+    std::fs::write(&path, manifest("[0, 2, 0]")).unwrap();
+    let o = hort(&[
+        "render",
+        path.to_str().unwrap(),
+        "--monolithic",
+        "--frames",
+        "6",
+    ]);
+    assert!(!o.status.success());
+    assert_eq!(
+        stderr(&o),
+        format!(
+            "error: {}: manifest field `animation.keyframes[2]`: eye and look_at are the same \
+             point\n",
+            path.display()
+        )
+    );
+}
