@@ -33,8 +33,8 @@ fn read(path: &Path) -> Vec<u8> {
     std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
-/// A 4-frame turntable rendered as one job (in-process, and in the emulator fused and staged
-/// over two splits) writes every frame's PFM and hit buffer with the bytes of the monolithic
+/// A 4-frame turntable rendered as one job (in-process, and in the emulator fused, staged over
+/// two splits, and staged under injected failures and duplicate deliveries) writes every frame's PFM and hit buffer with the bytes of the monolithic
 /// renderer's frames; frame 2 rendered alone (`--frame 2`) in the emulator is frame 2 again;
 /// frame 0 is the still image, and the frames differ from one another. The job's report lists
 /// the frames and counts the rays of all four.
@@ -64,6 +64,21 @@ fn a_turntable_frame_is_the_same_image_alone_and_in_a_run_in_every_mode() {
             "staged",
             &["--mode", "staged", "--splits", "2", "--workers", "2"][..],
         ),
+        (
+            "faults",
+            &[
+                "--mode",
+                "staged",
+                "--splits",
+                "2",
+                "--fail-rate",
+                "0.2",
+                "--duplicate-rate",
+                "0.2",
+                "--seed",
+                "7",
+            ][..],
+        ),
     ] {
         let report = dir.join(format!("{name}.json"));
         let mut args = vec!["--report", report.to_str().unwrap()];
@@ -81,6 +96,10 @@ fn a_turntable_frame_is_the_same_image_alone_and_in_a_run_in_every_mode() {
             .collect();
         assert_eq!(listed, [0, 1, 2, 3], "{name}");
         assert_eq!(report["rays"]["primary"], 4 * 40 * 30 * 4, "{name}");
+        if name == "faults" {
+            let retried = report["retried_attempts"].as_u64().unwrap();
+            assert!(retried > 0, "no fault was injected");
+        }
     }
     let (out, hit) = (dir.join("alone.pfm"), dir.join("alone.bin"));
     let mut alone = vec!["--frame", "2", "--mode", "staged", "--splits", "2"];
