@@ -555,6 +555,24 @@ pub const CLIENT_PUTS: u64 = 5;
 /// state's item file, and its outputs. [`predict`]'s totals are [`CLIENT_PUTS`] plus the sum
 /// over the job's steps ([`job_steps`]).
 pub fn stage_requests(plan: &JobPlan, step: JobStep) -> (u64, u64) {
+    let (gets, puts) = frame_stage_requests(plan, step);
+    let frames = per_frame_multiple(step, plan);
+    (gets * frames, puts * frames)
+}
+
+/// How many times a job's frames repeat `step`: every frame's tasks for the stages after the
+/// plan (their requests and bytes; the first frame's stand for all), once for the rest.
+fn per_frame_multiple(step: JobStep, plan: &JobPlan) -> u64 {
+    match step {
+        JobStep::Stage(Stage::Plan | Stage::Partition | Stage::Build)
+        | JobStep::Cut
+        | JobStep::PlanFromParts => 1,
+        JobStep::Stage(_) => plan.frame_numbers().len() as u64,
+    }
+}
+
+/// [`stage_requests`] of one frame.
+fn frame_stage_requests(plan: &JobPlan, step: JobStep) -> (u64, u64) {
     let s = plan.spans.len() as u64;
     let k = u64::from(plan.k());
     let cast = plan.cast_tasks.len() as u64;
@@ -621,7 +639,12 @@ pub fn task_waits(plan: &JobPlan, step: JobStep) -> f64 {
     if several <= 1.0 {
         return requests;
     }
-    requests - several + waves(several)
+    // The one Combine task reads frame after frame: each frame's spans several at a time.
+    let frames = match step {
+        JobStep::Stage(Stage::Combine) => plan.frame_numbers().len() as f64,
+        _ => 1.0,
+    };
+    frames * (requests / frames - several + waves(several))
 }
 
 /// Estimated bytes `step` of `plan` writes over all its tasks: the split objects (plan, or
@@ -651,7 +674,7 @@ pub fn stage_bytes(plan: &JobPlan, step: JobStep) -> u64 {
         // image and the hit buffer when the job stores them.
         (Stage::Combine, _) => (pixels * 4 + extra_output_bytes(plan)) as f64,
     };
-    bytes as u64
+    bytes as u64 * per_frame_multiple(step, plan)
 }
 
 /// Bytes of the outputs `plan`'s job stores besides its PNG: the linear image (12 bytes a pixel)
@@ -739,6 +762,66 @@ mod tests {
         };
         let (shape, s) = crate::pipeline::resolve_counts(&request, 36).unwrap();
         preview_plan(&scene, &request, &shape, s).unwrap()
+    }
+
+    /// A job of 6 frames counts 6 times each stage's tasks after the plan (one Combine, which
+    /// reads 6 frames in turn), their requests and bytes, and one plan.
+    #[test]
+    fn a_job_of_frames_counts_every_frames_tasks_and_one_plan() {
+        let one = cornell_plan_of(2, 4, SplitMode::Spatial);
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell/cornell.json");
+        let scene = crate::scene::load_scene(&path).expect("the bundled Cornell box");
+        let orbit = crate::pipeline::Orbit {
+            degrees: 360.0,
+            frames: 6,
+        };
+        let request = PlanRequest {
+            width: 64,
+            height: 48,
+            spp: 2,
+            splits: Some(2),
+            spans: Some(4),
+            mode: SplitMode::Spatial,
+            execution: None,
+            memory_mb: 2048,
+            adaptive: None,
+            outputs: crate::pipeline::StoredOutputs::ALL,
+            frame: crate::pipeline::FrameChoice::range(0..6, Some(orbit)),
+        };
+        let (shape, s) = crate::pipeline::resolve_counts(&request, 36).unwrap();
+        let six = preview_plan(&scene, &request, &shape, s).unwrap();
+        assert_eq!(six.frames.len(), 6);
+        for stage in [
+            Stage::CastReduce,
+            Stage::Expand,
+            Stage::TraceMap,
+            Stage::TraceReduce,
+        ] {
+            let step = JobStep::Stage(stage);
+            assert_eq!(
+                step_tasks(&six, step),
+                6 * step_tasks(&one, step),
+                "{stage}"
+            );
+            let (g1, p1) = stage_requests(&one, step);
+            assert_eq!(stage_requests(&six, step), (6 * g1, 6 * p1), "{stage}");
+            assert_eq!(
+                stage_bytes(&six, step),
+                6 * stage_bytes(&one, step),
+                "{stage}"
+            );
+        }
+        for stage in [Stage::Plan, Stage::Combine] {
+            assert_eq!(step_tasks(&six, JobStep::Stage(stage)), 1, "{stage}");
+        }
+        let plan_step = JobStep::Stage(Stage::Plan);
+        assert_eq!(
+            stage_requests(&six, plan_step),
+            stage_requests(&one, plan_step)
+        );
+        let combine = JobStep::Stage(Stage::Combine);
+        assert_eq!(task_waits(&six, combine), 6.0 * task_waits(&one, combine));
     }
 
     #[test]
