@@ -84,6 +84,10 @@ pub struct FrameReport {
     pub frame: u32,
     /// The image file written for it (the animated GIF's, for all frames of one).
     pub image: String,
+    /// When the frame was ready, seconds after the run started: its render ended
+    /// (monolithic), or the task that finished it assembled it (emulator); null where the run
+    /// does not time frames (in-process).
+    pub ready_seconds: Option<f64>,
 }
 
 /// The adaptive sampler in a report: its settings and, where the run counts them, its

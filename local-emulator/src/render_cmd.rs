@@ -49,6 +49,9 @@ struct Rendered {
     hits: Option<Vec<Hit>>,
     /// A job of several frames: each frame's outputs (the fields above are the first frame's).
     frames: Vec<(u32, JobOutputs)>,
+    /// Each frame's number and when it was ready, seconds after the run started (where the
+    /// run times frames).
+    frames_ready: Vec<(u32, f64)>,
     rays: RayReport,
     build_seconds: f64,
     render_seconds: f64,
@@ -125,6 +128,13 @@ pub fn run(args: RenderArgs) -> Result<()> {
         }
     }
     let adaptive = adaptive_settings(&args, size)?;
+    if adaptive.is_some() && !args.monolithic && frames.len() > 1 {
+        bail!(
+            "--adaptive renders one frame per job: give --frame K, or --monolithic for the {} \
+             frames",
+            frames.len()
+        );
+    }
     let request = args.plan.request(
         size,
         adaptive,
@@ -139,7 +149,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     }
     let (rendered, images) = match &scene {
         Some(scene) if args.monolithic => {
-            render_monolithic_frames(scene, request, &frames, args.threads, adaptive)?
+            render_monolithic_frames(scene, request, &frames, (args.threads, started), adaptive)?
         }
         _ => {
             // One job renders every frame: the scene is uploaded, planned and split once.
@@ -155,7 +165,14 @@ pub fn run(args: RenderArgs) -> Result<()> {
             (rendered, images)
         }
     };
-    let written = write_frames(&images, &targets)?;
+    let mut written = write_frames(&images, &targets)?;
+    for frame in &mut written {
+        frame.ready_seconds = rendered
+            .frames_ready
+            .iter()
+            .find(|(k, _)| *k == frame.frame)
+            .map(|(_, at)| *at);
+    }
     let render_seconds = rendered.render_seconds;
     let mut report = run_report(&args, &targets.out, size, rendered, started, load_seconds);
     if frames.len() > 1 {
@@ -220,6 +237,7 @@ fn write_frames(images: &[FrameImages], targets: &OutputTargets) -> Result<Vec<F
         written.push(FrameReport {
             frame: frame.frame,
             image: targets.out.display().to_string(),
+            ready_seconds: None,
         });
     }
     if !gif_frames.is_empty() {
@@ -258,7 +276,7 @@ fn render_monolithic_frames(
     scene: &Scene,
     request: PlanRequest,
     frames: &FramePlan,
-    threads: Option<usize>,
+    (threads, started): (Option<usize>, Instant),
     adaptive: Option<AdaptiveSettings>,
 ) -> Result<(Rendered, Vec<FrameImages>)> {
     let build_start = Instant::now();
@@ -266,6 +284,7 @@ fn render_monolithic_frames(
     let build_seconds = build_start.elapsed().as_secs_f64();
     let mut total: Option<Rendered> = None;
     let mut images = Vec::new();
+    let mut ready = Vec::new();
     for frame in frames.frames.clone() {
         let request = PlanRequest {
             frame: frames.choice(frame),
@@ -279,6 +298,7 @@ fn render_monolithic_frames(
             png: None,
             hits: rendered.hits.take(),
         });
+        ready.push((frame, started.elapsed().as_secs_f64()));
         total = Some(match total {
             None => rendered,
             Some(mut sum) => {
@@ -289,7 +309,10 @@ fn render_monolithic_frames(
             }
         });
     }
-    let total = total.ok_or_else(|| anyhow!("no frame to render"))?;
+    let mut total = total.ok_or_else(|| anyhow!("no frame to render"))?;
+    if frames.len() > 1 {
+        total.frames_ready = ready;
+    }
     Ok((total, images))
 }
 
@@ -604,6 +627,7 @@ fn render_monolithic(
         png: None,
         hits: Some(output.hits),
         frames: Vec::new(),
+        frames_ready: Vec::new(),
         rays: RayReport {
             primary: output.rays.primary,
             shadow: output.rays.shadow,
@@ -654,6 +678,7 @@ fn render_pipeline(scene: &Scene, request: PlanRequest, args: &RenderArgs) -> Re
         png: Some(run.png),
         hits: run.hits,
         frames: run.frames,
+        frames_ready: Vec::new(),
         rays: RayReport {
             primary: run.primary_rays,
             shadow: run.shadow_rays,
@@ -833,6 +858,7 @@ fn emulated_rendered(run: EmulatorRun, request: PlanRequest, workers: usize) -> 
         png: Some(run.png),
         hits: run.hits,
         frames: run.frames,
+        frames_ready: run.frames_ready,
         rays: RayReport {
             primary: adaptive.as_ref().map_or(
                 u64::from(request.width)

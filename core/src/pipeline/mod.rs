@@ -27,6 +27,8 @@ mod adaptive_span;
 mod driver;
 pub mod estimate;
 mod frame_choice;
+#[cfg(test)]
+mod frame_tests;
 mod frames;
 mod frustum;
 mod mode;

@@ -119,9 +119,13 @@ pub fn run_frame_task(
     rebuild: Option<RebuildSplit<'_>>,
 ) -> Result<TaskMetrics, PipelineError> {
     if stage == Stage::Combine && frame.is_none() && !plan.frames.is_empty() {
+        // Most frames were assembled by the task that finished them: assemble the rest.
         let mut metrics = TaskMetrics::default();
+        let assembled = assembled_frames(store, job, &mut metrics)?;
         for frame in plan.frame_numbers() {
-            metrics += run_frame_task(store, job, plan, frame, stage, task, cache, rebuild)?;
+            if !frame.is_some_and(|f| assembled.contains(&f)) {
+                metrics += run_frame_task(store, job, plan, frame, stage, task, cache, rebuild)?;
+            }
         }
         metrics += write_poster(store, job, plan)?;
         return Ok(metrics);
@@ -139,8 +143,29 @@ pub fn run_frame_task(
     };
     let started = Instant::now();
     ctx.run(stage, task)?;
+    if frame.is_some() && stage == view.mode.pixel_stage() {
+        ctx.assemble_frame_when_done()?;
+    }
     ctx.metrics.task_us = micros(started.elapsed());
     Ok(ctx.metrics)
+}
+
+/// The frames of `job` whose PNG is stored (their outputs are complete: the PNG is written
+/// last), from one listing of the job's frames.
+fn assembled_frames(
+    store: &dyn BlobStore,
+    job: &JobId,
+    metrics: &mut TaskMetrics,
+) -> Result<std::collections::BTreeSet<u32>, PipelineError> {
+    let prefix = format!("jobs/{job}/frames/");
+    let listed = timed(&mut metrics.storage_us, || store.list(&prefix))?;
+    Ok(listed
+        .iter()
+        .filter_map(|key| {
+            let (frame, rest) = key.strip_prefix(&prefix)?.split_once('/')?;
+            (rest == "out/image.png").then(|| frame.parse().ok())?
+        })
+        .collect())
 }
 
 /// The last object the Combine task of a job of several frames writes: the first frame's PNG
@@ -528,6 +553,31 @@ impl Task<'_> {
         self.write_job_outputs(&image, &hits)?;
         self.metrics.records += hits.len() as u64;
         Ok(())
+    }
+
+    /// In a job of several frames, after a task of the frame's last pixel stage: once every
+    /// span's pixel block of the frame is stored, assemble the frame's outputs now, so frames
+    /// arrive as they finish rather than when the job ends. Of the tasks that finish a frame at
+    /// about the same time, the one that lists last sees every block (listings are strongly
+    /// consistent), so the frame is always assembled by one of them; two that both see every
+    /// block write the same bytes. A frame whose PNG is stored is left as it is.
+    fn assemble_frame_when_done(&mut self) -> Result<(), PipelineError> {
+        let stage = self.plan.mode.pixel_stage();
+        let prefix = format!("jobs/{}/{stage}/", self.scope());
+        let store = self.store;
+        let listed: std::collections::HashSet<String> =
+            timed(&mut self.metrics.storage_us, || store.list(&prefix))?
+                .into_iter()
+                .collect();
+        let spans = self.plan.spans.len() as u32;
+        if !(0..spans).all(|span| listed.contains(&self.key(stage, span, 0))) {
+            return Ok(());
+        }
+        let png = image_key(&self.scope(), "png");
+        if timed(&mut self.metrics.storage_us, || store.size(&png)).is_ok() {
+            return Ok(());
+        }
+        self.combine()
     }
 
     /// The key of every span's final pixel block, in span order: round 2's for a span with

@@ -464,7 +464,7 @@ fn task_ms(plan: &JobPlan, step: JobStep, r: &Rates, speed: f64, bound: Bound) -
             );
         }
     };
-    match (stage, plan.scene_parts) {
+    let work = match (stage, plan.scene_parts) {
         (Stage::Plan, Some(parts)) => ms(
             r.plan_overhead_ms,
             parts.scene_bytes as f64,
@@ -497,13 +497,20 @@ fn task_ms(plan: &JobPlan, step: JobStep, r: &Rates, speed: f64, bound: Bound) -
             span_samples + queries,
             r.trace_reduce_us_per_query,
         ),
-        // One Combine task combines every frame.
-        (Stage::Combine, _) => ms(
-            r.task_overhead_ms,
-            (pixels * plan.frame_numbers().len() as u64) as f64,
-            r.combine_us_per_pixel,
-        ),
+        // A job of several frames: the frames are assembled by the tasks that finish them
+        // (below); the Combine task assembles what is left, about one frame.
+        (Stage::Combine, _) => ms(r.task_overhead_ms, pixels as f64, r.combine_us_per_pixel),
+    };
+    // In a job of several frames the last of a frame's pixel-stage tasks assembles the frame:
+    // one task in s does, each on average a share of it (a timeout allows a whole frame).
+    if plan.frames.is_empty() || stage != plan.mode.pixel_stage() {
+        return work;
     }
+    let assembled = match bound {
+        Bound::Expected => pixels as f64 / s.max(1) as f64,
+        Bound::Upper => pixels as f64,
+    };
+    work + ms(0.0, assembled, r.combine_us_per_pixel)
 }
 
 /// Milliseconds a function spends on its first read of the largest split `step` reads (0 for
@@ -557,14 +564,30 @@ pub const CLIENT_PUTS: u64 = 5;
 pub fn stage_requests(plan: &JobPlan, step: JobStep) -> (u64, u64) {
     let (gets, puts) = frame_stage_requests(plan, step);
     let frames = per_frame_multiple(step, plan);
-    (gets * frames, puts * frames)
+    let (gets, puts) = (gets * frames, puts * frames);
+    if plan.frames.is_empty() {
+        return (gets, puts);
+    }
+    // A job of several frames: each pixel-stage task lists its frame's blocks, the one that
+    // finishes a frame assembles it (Combine's reads and writes, once per frame), and Combine
+    // lists the frames and copies the poster.
+    let n = plan.frames.len() as u64;
+    let (combine_gets, combine_puts) = frame_stage_requests(plan, JobStep::Stage(Stage::Combine));
+    match step {
+        JobStep::Stage(stage) if stage == plan.mode.pixel_stage() => (
+            gets + step_tasks(plan, step) + n * combine_gets,
+            puts + n * combine_puts,
+        ),
+        JobStep::Stage(Stage::Combine) => (n.div_ceil(1000) + 1, 1),
+        _ => (gets, puts),
+    }
 }
 
 /// How many times a job's frames repeat `step`: every frame's tasks for the stages after the
 /// plan (their requests and bytes; the first frame's stand for all), once for the rest.
 fn per_frame_multiple(step: JobStep, plan: &JobPlan) -> u64 {
     match step {
-        JobStep::Stage(Stage::Plan | Stage::Partition | Stage::Build)
+        JobStep::Stage(Stage::Plan | Stage::Partition | Stage::Build | Stage::Combine)
         | JobStep::Cut
         | JobStep::PlanFromParts => 1,
         JobStep::Stage(_) => plan.frame_numbers().len() as u64,
@@ -633,18 +656,14 @@ pub fn task_waits(plan: &JobPlan, step: JobStep) -> f64 {
         JobStep::Stage(Stage::CastReduce) => plan.cast_tasks.len() as f64 / s,
         JobStep::Stage(Stage::TraceReduce) if plan.has_shadows() => k,
         JobStep::Stage(Stage::Expand) => k,
-        JobStep::Stage(Stage::Combine) => s,
+        // A job of several frames: its frames were assembled by the tasks that finished them.
+        JobStep::Stage(Stage::Combine) if plan.frames.is_empty() => s,
         _ => 0.0,
     };
     if several <= 1.0 {
         return requests;
     }
-    // The one Combine task reads frame after frame: each frame's spans several at a time.
-    let frames = match step {
-        JobStep::Stage(Stage::Combine) => plan.frame_numbers().len() as f64,
-        _ => 1.0,
-    };
-    frames * (requests / frames - several + waves(several))
+    requests - several + waves(several)
 }
 
 /// Estimated bytes `step` of `plan` writes over all its tasks: the split objects (plan, or
@@ -672,9 +691,19 @@ pub fn stage_bytes(plan: &JobPlan, step: JobStep) -> u64 {
         (Stage::Expand | Stage::TraceMap, _) => queries * RECORD_BYTES,
         // The PNG (3 bytes and a filter byte per pixel before compression), and the linear
         // image and the hit buffer when the job stores them.
-        (Stage::Combine, _) => (pixels * 4 + extra_output_bytes(plan)) as f64,
+        (Stage::Combine, _) if plan.frames.is_empty() => {
+            (pixels * 4 + extra_output_bytes(plan)) as f64
+        }
+        // A job of several frames: the poster (the frames are the pixel stage's, below).
+        (Stage::Combine, _) => (pixels * 4) as f64,
     };
-    bytes as u64 * per_frame_multiple(step, plan)
+    let frames = plan.frames.len() as u64;
+    let assembled = if frames > 0 && stage == plan.mode.pixel_stage() {
+        frames * (pixels * 4 + extra_output_bytes(plan))
+    } else {
+        0
+    };
+    bytes as u64 * per_frame_multiple(step, plan) + assembled
 }
 
 /// Bytes of the outputs `plan`'s job stores besides its PNG: the linear image (12 bytes a pixel)
@@ -764,8 +793,9 @@ mod tests {
         preview_plan(&scene, &request, &shape, s).unwrap()
     }
 
-    /// A job of 6 frames counts 6 times each stage's tasks after the plan (one Combine, which
-    /// reads 6 frames in turn), their requests and bytes, and one plan.
+    /// A job of 6 frames counts 6 times each stage's tasks after the plan, their requests and
+    /// bytes, and one plan and one Combine task; its frames are assembled by the tasks that
+    /// finish them.
     #[test]
     fn a_job_of_frames_counts_every_frames_tasks_and_one_plan() {
         let one = cornell_plan_of(2, 4, SplitMode::Spatial);
@@ -792,12 +822,7 @@ mod tests {
         let (shape, s) = crate::pipeline::resolve_counts(&request, 36).unwrap();
         let six = preview_plan(&scene, &request, &shape, s).unwrap();
         assert_eq!(six.frames.len(), 6);
-        for stage in [
-            Stage::CastReduce,
-            Stage::Expand,
-            Stage::TraceMap,
-            Stage::TraceReduce,
-        ] {
+        for stage in [Stage::CastReduce, Stage::Expand, Stage::TraceMap] {
             let step = JobStep::Stage(stage);
             assert_eq!(
                 step_tasks(&six, step),
@@ -820,8 +845,23 @@ mod tests {
             stage_requests(&six, plan_step),
             stage_requests(&one, plan_step)
         );
+        // The frames are assembled by the tasks that finish them: the last pixel stage's
+        // tasks list their frame's blocks, and Combine only lists the frames and copies one.
+        let last = JobStep::Stage(Stage::TraceReduce);
+        let (g1, p1) = stage_requests(&one, last);
+        let (cg, cp) = stage_requests(&one, JobStep::Stage(Stage::Combine));
+        let tasks = step_tasks(&six, last);
+        assert_eq!(
+            stage_requests(&six, last),
+            (6 * g1 + tasks + 6 * cg, 6 * p1 + 6 * cp)
+        );
+        assert_eq!(stage_requests(&six, JobStep::Stage(Stage::Combine)), (2, 1));
         let combine = JobStep::Stage(Stage::Combine);
-        assert_eq!(task_waits(&six, combine), 6.0 * task_waits(&one, combine));
+        assert_eq!(
+            stage_bytes(&six, last),
+            6 * stage_bytes(&one, last) + 6 * stage_bytes(&one, combine)
+        );
+        assert_eq!(stage_bytes(&six, combine), 64 * 48 * 4);
     }
 
     #[test]

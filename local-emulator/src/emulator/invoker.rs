@@ -38,6 +38,8 @@ pub struct Ledger {
     pub busy: Vec<(Instant, Instant)>,
     /// Microseconds the invoker measured around the attempt whose metrics are in `tasks`.
     pub wall_us: BTreeMap<TaskKey, u64>,
+    /// When the attempt whose metrics are in `tasks` ended, as its invoker saw it.
+    pub ended: BTreeMap<TaskKey, Instant>,
     /// The most memory a successful Plan invocation held, bytes (0 where not measured). The
     /// Plan function reports no task metrics, so it is kept here; it is not held to the
     /// functions' memory budget (see docs/ARCHITECTURE.md, "Task memory").
@@ -56,6 +58,7 @@ impl Ledger {
             let key = (done.stage, done.frame, done.task);
             self.tasks.insert(key, done.metrics);
             self.wall_us.insert(key, micros(took));
+            self.ended.insert(key, ended);
         }
     }
 
@@ -86,6 +89,23 @@ impl Ledger {
             total += *m;
         }
         total
+    }
+
+    /// When each frame of a job of several frames was ready, after `started`: the end of the
+    /// last of its `stage` tasks (the frame's last pixel stage, whose last task assembles
+    /// it), in frame order. Empty for a job of one frame.
+    pub fn frames_ready(&self, stage: Stage, started: Instant) -> Vec<(u32, f64)> {
+        let mut ready: BTreeMap<u32, Instant> = BTreeMap::new();
+        for ((_, frame, _), ended) in self.ended.range(stage_range(stage)) {
+            if let Some(frame) = frame {
+                let at = ready.entry(*frame).or_insert(*ended);
+                *at = (*at).max(*ended);
+            }
+        }
+        ready
+            .into_iter()
+            .map(|(frame, at)| (frame, at.saturating_duration_since(started).as_secs_f64()))
+            .collect()
     }
 
     /// The summed metrics of one successful attempt per task, over all stages.
