@@ -96,6 +96,14 @@ fn a_turntable_frame_is_the_same_image_alone_and_in_a_run_in_every_mode() {
             .collect();
         assert_eq!(listed, [0, 1, 2, 3], "{name}");
         assert_eq!(report["rays"]["primary"], 4 * 40 * 30 * 4, "{name}");
+        // The emulator times each frame: ready when the task that finished it assembled it.
+        if name != "inproc" {
+            let total = report["seconds"]["total"].as_f64().unwrap();
+            for frame in report["frames"].as_array().unwrap() {
+                let ready = frame["ready_seconds"].as_f64().expect("a ready time");
+                assert!(ready > 0.0 && ready <= total, "{name}: {frame}");
+            }
+        }
         if name == "faults" {
             let retried = report["retried_attempts"].as_u64().unwrap();
             assert!(retried > 0, "no fault was injected");
