@@ -75,6 +75,9 @@ pub struct Report {
     /// (the totals above cover them all). Absent for a run of one image.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub frames: Vec<FrameReport>,
+    /// A run of several frames: what its frames share, done once. Absent otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub preparation: Option<Preparation>,
 }
 
 /// One frame of a run of several frames.
@@ -88,6 +91,25 @@ pub struct FrameReport {
     /// (monolithic), or the task that finished it assembled it (emulator); null where the run
     /// does not time frames (in-process).
     pub ready_seconds: Option<f64>,
+    /// The frame's logical rays; null where the run does not count them per frame.
+    pub rays: Option<RayReport>,
+    /// The frame's own seconds: its render (monolithic), or its tasks' function time
+    /// (emulator); null where not measured.
+    pub seconds: Option<f64>,
+    /// The frame's share of the run's cost, by its tasks' function time (emulator); null
+    /// elsewhere.
+    pub cost_usd: Option<f64>,
+}
+
+/// The one-time part of a run of several frames: loading the scene and building its BVH
+/// (monolithic), or the plan step (emulator: the scene parsed, split and built), with its
+/// share of the cost.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Preparation {
+    /// Seconds.
+    pub seconds: f64,
+    /// Its share of the run's cost, by function time (emulator); null elsewhere.
+    pub cost_usd: Option<f64>,
 }
 
 /// The adaptive sampler in a report: its settings and, where the run counts them, its
@@ -274,6 +296,7 @@ mod tests {
             }),
             skips: vec!["no lights: no shadow rays".into()],
             frames: Vec::new(),
+            preparation: None,
         }
     }
 

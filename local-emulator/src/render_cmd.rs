@@ -28,9 +28,10 @@ use hort_core::pipeline::{
 use hort_core::plural::count;
 use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
 use hort_core::report::{
-    AdaptiveReport, FrameReport, Outputs, RayReport, Report, Seconds, StageReport,
+    AdaptiveReport, FrameReport, Outputs, Preparation, RayReport, Report, Seconds, StageReport,
 };
 use hort_core::scene::{Scene, check_image_size, load_scene_with, scene_image_settings};
+use hort_core::stage::Stage;
 use hort_core::store::MemoryStore;
 use hort_core::unoccludable::unoccludable_lights;
 use std::path::{Path, PathBuf};
@@ -49,9 +50,11 @@ struct Rendered {
     hits: Option<Vec<Hit>>,
     /// A job of several frames: each frame's outputs (the fields above are the first frame's).
     frames: Vec<(u32, JobOutputs)>,
-    /// Each frame's number and when it was ready, seconds after the run started (where the
-    /// run times frames).
-    frames_ready: Vec<(u32, f64)>,
+    /// A run of several frames: each frame's figures where the run measures them (the image
+    /// file is filled in when written).
+    frame_reports: Vec<FrameReport>,
+    /// A run of several frames: the one-time part.
+    preparation: Option<Preparation>,
     rays: RayReport,
     build_seconds: f64,
     render_seconds: f64,
@@ -167,16 +170,27 @@ pub fn run(args: RenderArgs) -> Result<()> {
     };
     let mut written = write_frames(&images, &targets)?;
     for frame in &mut written {
-        frame.ready_seconds = rendered
-            .frames_ready
+        if let Some(figures) = rendered
+            .frame_reports
             .iter()
-            .find(|(k, _)| *k == frame.frame)
-            .map(|(_, at)| *at);
+            .find(|f| f.frame == frame.frame)
+        {
+            *frame = FrameReport {
+                image: std::mem::take(&mut frame.image),
+                ..figures.clone()
+            };
+        }
     }
+    let preparation = rendered.preparation.clone().map(|p| Preparation {
+        // The monolithic preparation is the BVH build after the load.
+        seconds: p.seconds + if args.monolithic { load_seconds } else { 0.0 },
+        ..p
+    });
     let render_seconds = rendered.render_seconds;
     let mut report = run_report(&args, &targets.out, size, rendered, started, load_seconds);
     if frames.len() > 1 {
         report.frames = written;
+        report.preparation = preparation;
     }
     for skip in &report.skips {
         eprintln!("skipped: {skip}");
@@ -238,6 +252,9 @@ fn write_frames(images: &[FrameImages], targets: &OutputTargets) -> Result<Vec<F
             frame: frame.frame,
             image: targets.out.display().to_string(),
             ready_seconds: None,
+            rays: None,
+            seconds: None,
+            cost_usd: None,
         });
     }
     if !gif_frames.is_empty() {
@@ -298,7 +315,14 @@ fn render_monolithic_frames(
             png: None,
             hits: rendered.hits.take(),
         });
-        ready.push((frame, started.elapsed().as_secs_f64()));
+        ready.push(FrameReport {
+            frame,
+            image: String::new(),
+            ready_seconds: Some(started.elapsed().as_secs_f64()),
+            rays: Some(rendered.rays),
+            seconds: Some(rendered.render_seconds),
+            cost_usd: None,
+        });
         total = Some(match total {
             None => rendered,
             Some(mut sum) => {
@@ -311,7 +335,11 @@ fn render_monolithic_frames(
     }
     let mut total = total.ok_or_else(|| anyhow!("no frame to render"))?;
     if frames.len() > 1 {
-        total.frames_ready = ready;
+        total.frame_reports = ready;
+        total.preparation = Some(Preparation {
+            seconds: build_seconds,
+            cost_usd: None,
+        });
     }
     Ok((total, images))
 }
@@ -495,6 +523,7 @@ fn run_report(
         skips: skipped,
         adaptive: rendered.adaptive,
         frames: Vec::new(),
+        preparation: None,
     }
 }
 
@@ -627,7 +656,8 @@ fn render_monolithic(
         png: None,
         hits: Some(output.hits),
         frames: Vec::new(),
-        frames_ready: Vec::new(),
+        frame_reports: Vec::new(),
+        preparation: None,
         rays: RayReport {
             primary: output.rays.primary,
             shadow: output.rays.shadow,
@@ -678,7 +708,8 @@ fn render_pipeline(scene: &Scene, request: PlanRequest, args: &RenderArgs) -> Re
         png: Some(run.png),
         hits: run.hits,
         frames: run.frames,
-        frames_ready: Vec::new(),
+        frame_reports: Vec::new(),
+        preparation: None,
         rays: RayReport {
             primary: run.primary_rays,
             shadow: run.shadow_rays,
@@ -853,12 +884,14 @@ fn emulated_rendered(run: EmulatorRun, request: PlanRequest, workers: usize) -> 
     let counts = run.ledger.total().adaptive;
     let adaptive = adaptive_report(request, counts);
     let frames = run.plan.frame_numbers().len() as u64;
+    let (frame_reports, preparation) = emulated_frames(&run, request);
     Rendered {
         image: run.image,
         png: Some(run.png),
         hits: run.hits,
+        frame_reports,
+        preparation,
         frames: run.frames,
-        frames_ready: run.frames_ready,
         rays: RayReport {
             primary: adaptive.as_ref().map_or(
                 u64::from(request.width)
@@ -886,6 +919,41 @@ fn emulated_rendered(run: EmulatorRun, request: PlanRequest, workers: usize) -> 
         cost_usd: Some(run.cost.total),
         adaptive,
     }
+}
+
+/// A job of several frames' figures per frame (rays, its tasks' seconds, its share of the
+/// cost by function time, when it was ready) and its plan step's; none for one frame.
+fn emulated_frames(
+    run: &EmulatorRun,
+    request: PlanRequest,
+) -> (Vec<FrameReport>, Option<Preparation>) {
+    if run.frame_figures.is_empty() {
+        return (Vec::new(), None);
+    }
+    let total_seconds = run.ledger.total().task_us as f64 / 1e6;
+    let share = |seconds: f64| run.cost.total * seconds / total_seconds.max(1e-9);
+    let primary = u64::from(request.width) * u64::from(request.height) * u64::from(request.spp);
+    let frames = run
+        .frame_figures
+        .iter()
+        .map(|f| FrameReport {
+            frame: f.frame,
+            image: String::new(),
+            ready_seconds: Some(f.ready_seconds),
+            rays: Some(RayReport {
+                primary,
+                shadow: f.shadow_rays,
+            }),
+            seconds: Some(f.task_seconds),
+            cost_usd: Some(share(f.task_seconds)),
+        })
+        .collect();
+    let plan_seconds = run.ledger.stage(Stage::Plan).task_us as f64 / 1e6;
+    let preparation = Preparation {
+        seconds: run.stages.first().map_or(plan_seconds, |s| s.seconds),
+        cost_usd: Some(share(plan_seconds)),
+    };
+    (frames, Some(preparation))
 }
 
 fn default_out(scene: &Path) -> PathBuf {

@@ -17,6 +17,19 @@ use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
+/// What one frame of a job of several frames took ([`Ledger::frames`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameFigures {
+    /// The frame's number.
+    pub frame: u32,
+    /// When it was ready, seconds after the job started.
+    pub ready_seconds: f64,
+    /// Its shadow rays (one per hit sample and light).
+    pub shadow_rays: u64,
+    /// Its tasks' own seconds, over every stage.
+    pub task_seconds: f64,
+}
+
 /// A task: its stage, frame (in a job of several frames) and index.
 pub type TaskKey = (Stage, Option<u32>, TaskId);
 
@@ -91,21 +104,31 @@ impl Ledger {
         total
     }
 
-    /// When each frame of a job of several frames was ready, after `started`: the end of the
-    /// last of its `stage` tasks (the frame's last pixel stage, whose last task assembles
-    /// it), in frame order. Empty for a job of one frame.
-    pub fn frames_ready(&self, stage: Stage, started: Instant) -> Vec<(u32, f64)> {
-        let mut ready: BTreeMap<u32, Instant> = BTreeMap::new();
-        for ((_, frame, _), ended) in self.ended.range(stage_range(stage)) {
-            if let Some(frame) = frame {
-                let at = ready.entry(*frame).or_insert(*ended);
-                *at = (*at).max(*ended);
+    /// Each frame of a job of several frames, in frame order (empty for a job of one frame):
+    /// when it was ready after `started` (the end of the last of its `stage` tasks, the frame's
+    /// last pixel stage, whose last task assembles it), its shadow rays and its tasks' own
+    /// seconds over every stage.
+    pub fn frames(&self, stage: Stage, started: Instant) -> Vec<FrameFigures> {
+        let mut frames: BTreeMap<u32, FrameFigures> = BTreeMap::new();
+        for ((_, frame, _), m) in &self.tasks {
+            if let Some(frame) = *frame {
+                let f = frames.entry(frame).or_insert(FrameFigures {
+                    frame,
+                    ready_seconds: 0.0,
+                    shadow_rays: 0,
+                    task_seconds: 0.0,
+                });
+                f.shadow_rays += m.shadow_rays;
+                f.task_seconds += m.task_us as f64 / 1e6;
             }
         }
-        ready
-            .into_iter()
-            .map(|(frame, at)| (frame, at.saturating_duration_since(started).as_secs_f64()))
-            .collect()
+        for ((_, frame, _), ended) in self.ended.range(stage_range(stage)) {
+            if let Some(f) = frame.and_then(|k| frames.get_mut(&k)) {
+                let at = ended.saturating_duration_since(started).as_secs_f64();
+                f.ready_seconds = f.ready_seconds.max(at);
+            }
+        }
+        frames.into_values().collect()
     }
 
     /// The summed metrics of one successful attempt per task, over all stages.

@@ -15,7 +15,7 @@ mod upload_tests;
 
 pub use accounting::{Accounting, FanOut, StageUsage};
 pub use faults::{FaultCounts, FaultSettings, FaultyInvoker};
-pub use invoker::{InProcessInvoker, Ledger};
+pub use invoker::{FrameFigures, InProcessInvoker, Ledger};
 pub use lambda_invoker::{LambdaInvoker, LambdaTarget};
 pub use memory::{MemoryBudget, OUT_OF_MEMORY};
 pub use storage::{
@@ -134,9 +134,9 @@ pub struct EmulatorRun {
     pub hits: Option<Vec<Hit>>,
     /// Each frame's number and outputs, in a job of several frames; empty otherwise.
     pub frames: Vec<(u32, JobOutputs)>,
-    /// Each frame's number and when it was ready (assembled by the task that finished it),
-    /// seconds after the job started, in a job of several frames; empty otherwise.
-    pub frames_ready: Vec<(u32, f64)>,
+    /// Each frame's figures in a job of several frames: when it was ready (assembled by the
+    /// task that finished it), its shadow rays and its tasks' seconds; empty otherwise.
+    pub frame_figures: Vec<FrameFigures>,
     /// `plan`, then the task stages of the plan's mode, `combine` last.
     pub stages: Vec<StageReport>,
     /// What each top-level state used (time, attempts, storage traffic), in order entered.
@@ -338,7 +338,7 @@ fn run_job_of(
     let deleted_intermediates = (config.storage.is_persistent() && !options.keep_intermediates)
         .then(|| delete_intermediates(storage.s3(), &job).map_err(|e| format!("{e:#}")));
     let ledger = functions.ledger();
-    let frames_ready = ledger.frames_ready(plan.mode.pixel_stage(), started);
+    let frame_figures = ledger.frames(plan.mode.pixel_stage(), started);
     let stages = stage_reports(&plan, &usage, &ledger);
     let seconds = started.elapsed().as_secs_f64();
     let cost = estimate_cost(
@@ -356,7 +356,7 @@ fn run_job_of(
         png,
         hits,
         frames,
-        frames_ready,
+        frame_figures,
         stages,
         usage,
         ledger,

@@ -661,6 +661,7 @@ fn store_report(
         adaptive: None,
         skips: Vec::new(),
         frames: Vec::new(),
+        preparation: None,
     };
     shared
         .store

@@ -99,10 +99,26 @@ fn a_turntable_frame_is_the_same_image_alone_and_in_a_run_in_every_mode() {
         // The emulator times each frame: ready when the task that finished it assembled it.
         if name != "inproc" {
             let total = report["seconds"]["total"].as_f64().unwrap();
+            let (mut shadow, mut cost) = (0, 0.0);
             for frame in report["frames"].as_array().unwrap() {
                 let ready = frame["ready_seconds"].as_f64().expect("a ready time");
                 assert!(ready > 0.0 && ready <= total, "{name}: {frame}");
+                assert_eq!(frame["rays"]["primary"], 40 * 30 * 4, "{name}: {frame}");
+                assert!(frame["seconds"].as_f64().unwrap() > 0.0, "{name}: {frame}");
+                shadow += frame["rays"]["shadow"].as_u64().unwrap();
+                cost += frame["cost_usd"].as_f64().unwrap();
             }
+            // The frames' shadow rays are the run's; their costs and the preparation's are
+            // shares of the run's cost.
+            assert_eq!(shadow, report["rays"]["shadow"].as_u64().unwrap(), "{name}");
+            let preparation = &report["preparation"];
+            cost += preparation["cost_usd"].as_f64().unwrap();
+            let run_cost = report["cost_usd"].as_f64().unwrap();
+            assert!(
+                cost > 0.0 && cost <= run_cost * (1.0 + 1e-9),
+                "{name}: {cost} of {run_cost}"
+            );
+            assert!(preparation["seconds"].as_f64().unwrap() > 0.0, "{name}");
         }
         if name == "faults" {
             let retried = report["retried_attempts"].as_u64().unwrap();
