@@ -10,8 +10,10 @@ use super::mode::ExecutionMode;
 use super::plan::{CastTask, JobPlan, Span, SplitInfo};
 use super::split::SplitMode;
 use crate::camera::Camera;
+use crate::ids::JobId;
 use crate::scene::{CameraSpec, Scene};
 use crate::stage::Stage;
+use crate::store::{BlobStore, StoreError};
 use serde::{Deserialize, Serialize};
 use std::borrow::Cow;
 
@@ -68,6 +70,23 @@ pub(super) fn cast_pairs(
         }
     }
     tasks
+}
+
+/// The frames of a job of several frames whose PNG is stored (their outputs are complete: the
+/// PNG is written last), from one listing of the job's frames: the frames done so far.
+pub fn assembled_frames(
+    store: &dyn BlobStore,
+    job: &JobId,
+) -> Result<std::collections::BTreeSet<u32>, StoreError> {
+    let prefix = format!("jobs/{job}/frames/");
+    let listed = store.list(&prefix)?;
+    Ok(listed
+        .iter()
+        .filter_map(|key| {
+            let (frame, rest) = key.strip_prefix(&prefix)?.split_once('/')?;
+            (rest == "out/image.png").then(|| frame.parse().ok())?
+        })
+        .collect())
 }
 
 impl JobPlan {

@@ -50,7 +50,7 @@ pub use crate::task_metrics::{TaskMetrics, micros, timed};
 pub use adaptive_span::render_span_adaptive;
 pub use driver::{PipelineOptions, PipelineRun, run_pipeline};
 pub use frame_choice::{FrameChoice, Orbit};
-pub use frames::PlannedFrame;
+pub use frames::{PlannedFrame, assembled_frames};
 pub use frustum::span_may_meet_box;
 pub use mode::{
     DEFAULT_MEMORY_MB, ExecutionMode, JobShape, RUNTIME_BYTES, SAMPLE_BYTES, TRIANGLE_BYTES,

@@ -18,6 +18,7 @@ use super::adaptive_rounds::{
     second_round_samples,
 };
 use super::adaptive_span::render_span_adaptive;
+use super::frames::assembled_frames;
 use super::plan::{CastTask, JobPlan, Span};
 use super::records::{Occluded, SurfaceHit};
 use super::records::{
@@ -121,7 +122,7 @@ pub fn run_frame_task(
     if stage == Stage::Combine && frame.is_none() && !plan.frames.is_empty() {
         // Most frames were assembled by the task that finished them: assemble the rest.
         let mut metrics = TaskMetrics::default();
-        let assembled = assembled_frames(store, job, &mut metrics)?;
+        let assembled = assembled_frames_timed(store, job, &mut metrics)?;
         for frame in plan.frame_numbers() {
             if !frame.is_some_and(|f| assembled.contains(&f)) {
                 metrics += run_frame_task(store, job, plan, frame, stage, task, cache, rebuild)?;
@@ -150,22 +151,15 @@ pub fn run_frame_task(
     Ok(ctx.metrics)
 }
 
-/// The frames of `job` whose PNG is stored (their outputs are complete: the PNG is written
-/// last), from one listing of the job's frames.
-fn assembled_frames(
+/// [`assembled_frames`], timed into `metrics`.
+fn assembled_frames_timed(
     store: &dyn BlobStore,
     job: &JobId,
     metrics: &mut TaskMetrics,
 ) -> Result<std::collections::BTreeSet<u32>, PipelineError> {
-    let prefix = format!("jobs/{job}/frames/");
-    let listed = timed(&mut metrics.storage_us, || store.list(&prefix))?;
-    Ok(listed
-        .iter()
-        .filter_map(|key| {
-            let (frame, rest) = key.strip_prefix(&prefix)?.split_once('/')?;
-            (rest == "out/image.png").then(|| frame.parse().ok())?
-        })
-        .collect())
+    Ok(timed(&mut metrics.storage_us, || {
+        assembled_frames(store, job)
+    })?)
 }
 
 /// The last object the Combine task of a job of several frames writes: the first frame's PNG

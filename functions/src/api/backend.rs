@@ -98,6 +98,31 @@ pub struct JobStatus {
     /// `GET /renders/{id}/frames/{k}/image` once the job succeeded; absent for one image.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub frames: Vec<u32>,
+    /// A job of several frames: how many of `frames` are done (their images stored: each is
+    /// assembled by the task that finishes it); absent for one image, and in a listing.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frames_done: Option<u64>,
+}
+
+/// `status` of `job` with its [`JobStatus::frames_done`]: every frame of a job that succeeded,
+/// else the frames whose image `store` holds (one listing of the job's frames); a job of one
+/// frame, or one the store cannot list now, is left without.
+pub fn with_frames_done(
+    mut status: JobStatus,
+    job: &hort_core::ids::JobId,
+    store: &dyn BlobStore,
+) -> JobStatus {
+    if status.frames.is_empty() {
+        return status;
+    }
+    status.frames_done = if status.status == JobState::Succeeded {
+        Some(status.frames.len() as u64)
+    } else {
+        hort_core::pipeline::assembled_frames(store, job)
+            .ok()
+            .map(|done| done.len() as u64)
+    };
+    status
 }
 
 /// The frames a job of `request` renders, for [`JobStatus::frames`]: none for one image.
@@ -283,4 +308,56 @@ pub trait RenderBackend: Send + Sync {
     /// Stops a queued or running job and deletes its intermediate objects (state
     /// [`JobState::Cancelled`]); a finished job is left as it is. Returns the state after.
     fn cancel(&self, job: &str) -> Result<JobStatus, ApiError>;
+}
+
+#[cfg(test)]
+mod frames_done_tests {
+    use super::*;
+    use hort_core::ids::JobId;
+    use hort_core::store::MemoryStore;
+
+    fn status(state: JobState, frames: Vec<u32>) -> JobStatus {
+        JobStatus {
+            job: "j".into(),
+            status: state,
+            stage: None,
+            tasks_done: 0,
+            tasks_total: 0,
+            retried_attempts: 0,
+            elapsed_seconds: 0.0,
+            cost_usd: None,
+            predicted_cost_usd: 0.0,
+            max_cost_usd: None,
+            error: None,
+            image_url: None,
+            scene: None,
+            stages: Vec::new(),
+            outputs: StoredOutputs::ALL,
+            frames,
+            frames_done: None,
+        }
+    }
+
+    /// A running job's frames done are those whose PNG is stored (a partition or another
+    /// output is not); a succeeded job has them all; a job of one frame has no count.
+    #[test]
+    fn frames_done_count_the_stored_frame_images() {
+        let store = MemoryStore::new();
+        let job = JobId::new("j").unwrap();
+        for key in [
+            "jobs/j/frames/00000/out/image.png",
+            "jobs/j/frames/00001/out/image.pfm",
+            "jobs/j/frames/00001/render/00000/part-00000",
+            "jobs/j/frames/00002/out/image.png",
+            "jobs/j/out/image.png",
+        ] {
+            store.put(key, b"x").unwrap();
+        }
+        let running = with_frames_done(status(JobState::Running, vec![0, 1, 2, 3]), &job, &store);
+        assert_eq!(running.frames_done, Some(2));
+        let done = with_frames_done(status(JobState::Succeeded, vec![0, 1, 2, 3]), &job, &store);
+        assert_eq!(done.frames_done, Some(4));
+        let still = with_frames_done(status(JobState::Running, Vec::new()), &job, &store);
+        assert_eq!(still.frames_done, None);
+    }
 }

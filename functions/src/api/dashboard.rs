@@ -300,6 +300,7 @@ mod tests {
             stages: Vec::new(),
             outputs,
             frames: Vec::new(),
+            frames_done: None,
         }
     }
 

@@ -112,6 +112,7 @@ impl RenderBackend for Fake {
                 .collect(),
             outputs: jobs[i].request.outputs,
             frames: Vec::new(),
+            frames_done: None,
         })
     }
     fn list(&self, limit: usize) -> Result<Vec<JobStatus>, ApiError> {

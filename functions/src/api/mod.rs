@@ -44,7 +44,7 @@ mod tests;
 pub use backend::{
     JobScene, JobSpec, JobState, JobStatus, RenderBackend, StageProgress, Submission, frames_of,
     idempotency_key_expired, idempotency_key_reused, object_in, object_range_in, object_size_in,
-    request_fingerprint,
+    request_fingerprint, with_frames_done,
 };
 pub use dashboard::{DASHBOARD_JOBS, escape_html, jobs_table, page};
 pub use error::ApiError;

@@ -32,7 +32,7 @@ use crate::api::{
     ApiError, ImageAnswer, ImageFormat, JobRecord, JobScene, JobSpec, JobState, JobStatus,
     PredictionModel, RATES, RenderBackend, Submission, frames_of, idempotency_key_expired,
     idempotency_key_reused, job_for, now_unix_us, object_in, object_range_in, object_size_in,
-    stored_image,
+    stored_image, with_frames_done,
 };
 use crate::handlers::{BudgetCheck, JobRequest};
 
@@ -212,6 +212,7 @@ impl AwsBackend {
             stages: Vec::new(),
             outputs: record.outputs,
             frames: frames_of(record.request.as_ref()),
+            frames_done: None,
         })
     }
 
@@ -353,7 +354,11 @@ impl RenderBackend for AwsBackend {
     fn status(&self, id: &str) -> Result<JobStatus, ApiError> {
         let job = Self::job_id(id)?;
         let record = self.record(&job)?;
-        self.full_status(&job, &record)
+        Ok(with_frames_done(
+            self.full_status(&job, &record)?,
+            &job,
+            &self.store,
+        ))
     }
 
     /// The job folders under `jobs/` (a delimited listing: one entry per job, however many

@@ -33,6 +33,7 @@ use hort_functions::api::{
     ApiError, ImageAnswer, ImageFormat, JobRecord, JobScene, JobSpec, JobState, JobStatus,
     PredictionModel, RenderBackend, StageProgress, Submission, frames_of, idempotency_key_reused,
     job_for, now_unix_us, object_in, object_range_in, object_size_in, stored_image,
+    with_frames_done,
 };
 use hort_functions::handlers::BudgetCheck;
 use hort_functions::{S3Config, S3Store};
@@ -158,6 +159,7 @@ impl Job {
             scene: Some(r.scene.clone()),
             outputs: r.outputs,
             frames: frames_of(r.request.as_ref()),
+            frames_done: None,
         }
     }
 
@@ -423,7 +425,12 @@ impl RenderBackend for EmulatorBackend {
     }
 
     fn status(&self, id: &str) -> Result<JobStatus, ApiError> {
-        Ok(self.job(id)?.status())
+        let job = self.job(id)?;
+        Ok(with_frames_done(
+            job.status(),
+            &job.id,
+            self.shared.store.inner(),
+        ))
     }
 
     fn list(&self, limit: usize) -> Result<Vec<JobStatus>, ApiError> {

@@ -201,7 +201,8 @@ fn malformed_frame_requests_are_refused_before_any_work() {
     }
 }
 
-/// `POST /renders` with `orbit` and `frames` renders the turntable in one job: each frame's
+/// `POST /renders` with `orbit` and `frames` renders the turntable in one job (its status lists
+/// the frames, all done): each frame's
 /// PNG (`GET /renders/{id}/frames/{k}/image`) is `hort render --frame k` of the same turntable,
 /// byte for byte; a frame the job did not render is 404, and frames of a scene without an
 /// animation are refused naming the field.
@@ -218,6 +219,8 @@ fn the_api_renders_a_turntable_in_one_job_and_serves_each_frame() {
     let job = accepted.json()["job"].as_str().unwrap().to_owned();
     let status = server.wait_done(&job, std::time::Duration::from_secs(120));
     assert_eq!(status["status"], "SUCCEEDED", "{status}");
+    assert_eq!(status["frames"], json!([0, 1, 2]), "{status}");
+    assert_eq!(status["frames_done"], 3, "{status}");
     let cornell_json = scene("cornell/cornell.json");
     for k in 0..3u32 {
         let reply = server.get(&format!("/renders/{job}/frames/{k}/image"));
