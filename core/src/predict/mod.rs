@@ -212,6 +212,21 @@ pub struct Prediction {
     pub predicted_cost_usd: f64,
     /// The predicted cost per service line.
     pub cost: CostBreakdown,
+    /// A job of several frames: how many, and the time and cost per frame (the whole job's
+    /// divided by them, the one-time preparation shared). Absent for one image.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub per_frame: Option<PerFrame>,
+}
+
+/// The prediction of a job of several frames, per frame.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct PerFrame {
+    /// Frames in the job.
+    pub frames: u32,
+    /// The job's predicted seconds per frame.
+    pub seconds: f64,
+    /// The job's predicted cost per frame, USD.
+    pub cost_usd: f64,
 }
 
 /// One step of a job as the models count it: a stage of its plan, or a step of the Plan
@@ -422,6 +437,14 @@ pub fn predict(plan: &JobPlan, model: &PredictionModel) -> Prediction {
         concurrency: concurrency as u32,
         predicted_seconds: seconds,
         predicted_cost_usd: cost.total,
+        per_frame: (!plan.frames.is_empty()).then(|| {
+            let frames = plan.frames.len() as u32;
+            PerFrame {
+                frames,
+                seconds: seconds / f64::from(frames),
+                cost_usd: cost.total / f64::from(frames),
+            }
+        }),
         cost,
     }
 }
@@ -856,6 +879,15 @@ mod tests {
             (6 * g1 + tasks + 6 * cg, 6 * p1 + 6 * cp)
         );
         assert_eq!(stage_requests(&six, JobStep::Stage(Stage::Combine)), (2, 1));
+        let model = PredictionModel::reference(4);
+        let whole = predict(&six, &model);
+        let per_frame = whole
+            .per_frame
+            .expect("a job of frames is priced per frame");
+        assert_eq!(per_frame.frames, 6);
+        assert_eq!(per_frame.seconds, whole.predicted_seconds / 6.0);
+        assert_eq!(per_frame.cost_usd, whole.predicted_cost_usd / 6.0);
+        assert_eq!(predict(&one, &model).per_frame, None);
         let combine = JobStep::Stage(Stage::Combine);
         assert_eq!(
             stage_bytes(&six, last),
