@@ -90,9 +90,9 @@ impl FrameChoice {
         }
     }
 
-    /// The camera of this choice's (first) frame for a `width` x `height` image of `scene`: the scene's camera
-    /// for that size ([`Scene::camera_for`]) moved along the camera path. Errors when the
-    /// frame is not one of the path's, or, without a path, is not frame 0.
+    /// The camera of this choice's (first) frame for a `width` x `height` image of `scene`:
+    /// the scene's camera for that size ([`Scene::camera_for`]) moved along the camera path.
+    /// Errors when the frame is not one of the path's, or, without a path, is not frame 0.
     pub fn camera(&self, scene: &Scene, width: u32, height: u32) -> Result<CameraSpec, SceneError> {
         let base = scene.camera_for(width, height);
         match self.animation(scene) {

@@ -106,8 +106,10 @@ pub fn run_task_with(
 
 /// [`run_task_with`] for frame `frame` of a job of several frames (`None` in a job of one):
 /// the task of that frame alone ([`JobPlan::frame_view`]), its partitions and outputs under the
-/// frame's keys ([`FrameKeys`]), the splits and textures the job's. The Combine task of a job
-/// of several frames, named without a frame, combines every frame in turn.
+/// frame's keys ([`FrameKeys`]), the splits and textures the job's. The task of a frame's last
+/// pixel stage that finds the frame complete assembles it (`assemble_frame_when_done`); the
+/// Combine task of a job of several frames, named without a frame, assembles the frames no task
+/// did and then writes the poster.
 #[allow(clippy::too_many_arguments)]
 pub fn run_frame_task(
     store: &dyn BlobStore,
