@@ -55,21 +55,28 @@ pub struct Manifest {
 }
 
 /// An animation: its frame count and camera keyframes (world coordinates, as `camera`).
-#[derive(Debug, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ManifestAnimation {
+    /// Frames in the animation, 1 to [`crate::animation::MAX_FRAMES`].
     pub frames: u32,
+    /// The keyframes, frames increasing strictly; at least one.
     pub keyframes: Vec<ManifestKeyframe>,
 }
 
 /// A camera keyframe: the camera fields (same defaults) at frame `frame`.
-#[derive(Debug, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ManifestKeyframe {
+    /// The frame the key holds at.
     pub frame: u32,
+    /// The eye, world units.
     pub eye: [f64; 3],
+    /// The target, world units.
     pub look_at: [f64; 3],
+    /// The up direction (default +y).
     pub up: Option<[f64; 3]>,
+    /// The vertical field of view, degrees (default 45).
     pub vfov: Option<f64>,
 }
 
@@ -345,8 +352,9 @@ fn camera_from(c: &ManifestCamera, origin: DVec3, path: &Path) -> Result<CameraS
 
 /// The manifest animation, its keyframes moved into the local frame whose origin is `origin`
 /// (as [`camera_from`] moves the camera) and checked ([`Animation::validate`]): an error names
-/// the field, `animation.keyframes[2]` for a keyframe.
-fn animation_from(
+/// the field, `animation.keyframes[2]` for a keyframe. Also how the HTTP API takes an
+/// animation given in a request (`path` then names the request's scene).
+pub fn animation_from(
     a: &ManifestAnimation,
     origin: DVec3,
     path: &Path,

@@ -18,7 +18,7 @@ pub use binary::{
     decode_scene, encode_scene, encode_scene_named,
 };
 pub use framing::{default_camera, default_light, framed_camera, scene_bounds};
-pub use manifest::{MANIFEST_SCHEMA, Manifest, parse_manifest};
+pub use manifest::{MANIFEST_SCHEMA, Manifest, ManifestAnimation, animation_from, parse_manifest};
 pub use mesh::{Material, Mesh, NO_NORMAL, NO_TEXCOORD, TriangleShading};
 pub use mtl::diffuse_map_files;
 pub use obj::{

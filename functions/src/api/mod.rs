@@ -519,7 +519,8 @@ fn post_renders(
     check_range("spp", request.spp, 1, MAX_SPP)?;
     check_range("splits", request.splits, 1, MAX_SPLITS)?;
     check_range("spans", request.spans, 1, MAX_SPANS)?;
-    let loaded = load_request_scene(backend, &request.scene)?;
+    let mut loaded = load_request_scene(backend, &request.scene)?;
+    frames::take_request_animation(&request, &mut loaded)?;
     let scene = loaded.scene();
     let image = scene.image;
     let width = request.width.or(image.width).unwrap_or(DEFAULT_WIDTH);

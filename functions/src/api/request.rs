@@ -56,6 +56,10 @@ pub struct RenderRequest {
     /// framed target over the `frames` (which it needs).
     #[serde(default)]
     pub orbit: Option<f64>,
+    /// Camera keyframes, as a manifest's `animation` (world coordinates): they replace the
+    /// scene's own. For a scene given inline.
+    #[serde(default)]
+    pub animation: Option<hort_core::scene::ManifestAnimation>,
 }
 
 /// Where the scene comes from: `{"main", "files"}` inline, or `{"key"}` in the bucket.

@@ -1,5 +1,5 @@
 //! The emulator behind `hort serve`: a [`RenderBackend`] that runs every job on a background
-//! thread through the emulator's `run_job_with` (the state machine interpreted, the function
+//! thread through the emulator's `run_job_loaded` (the state machine interpreted, the function
 //! handlers in process, an embedded S3 server over the data folder), keeps each job's records in
 //! the bucket so a restarted server still answers for it, and cancels jobs on request.
 //!
@@ -20,13 +20,14 @@ use asl_interpreter::{Event, FunctionLimits, Observer};
 use hort::deployment::Deployment;
 use hort::emulator::{
     EmulatorConfig, EmulatorRun, FaultSettings, JobOptions, Storage, StorageTarget, run_job_by_key,
-    run_job_with, stage_name,
+    run_job_loaded, stage_name,
 };
 use hort_core::cost::Arch;
 use hort_core::ids::JobId;
 use hort_core::keys::{api_record_key, kept_on_cancel, report_key};
 use hort_core::pipeline::PlanRequest;
 use hort_core::report::{Outputs, RayReport, Report, Seconds};
+use hort_core::scene::decode_scene;
 use hort_core::stage::Stage;
 use hort_core::store::{BlobStore, CountingStore, PutOutcome};
 use hort_functions::api::{
@@ -504,16 +505,23 @@ fn run_job(shared: &Shared, job: &Job, spec: &JobSpec) {
                 functions: shared.functions.clone(),
             };
             match &spec.scene {
-                JobScene::Uploaded { main, files, .. } => write_scene(&folder, main, files)
-                    .and_then(|main| {
-                        run_job_with(
-                            &config,
-                            JobOptions::default(),
-                            &main,
-                            spec.request,
-                            &job.live,
-                        )
-                    }),
+                // The scene as the API parsed it (with a request's animation, if any): the
+                // binary scene it stored, which the job uploads as it is.
+                JobScene::Uploaded {
+                    main,
+                    files,
+                    scene_bin,
+                } => write_scene(&folder, main, files).and_then(|main| {
+                    let scene = decode_scene(&main.display().to_string(), scene_bin)?;
+                    run_job_loaded(
+                        &config,
+                        JobOptions::default(),
+                        &main,
+                        Some(&scene),
+                        spec.request,
+                        &job.live,
+                    )
+                }),
                 JobScene::Key(key) => run_job_by_key(
                     &config,
                     JobOptions::default(),

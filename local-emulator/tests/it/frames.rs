@@ -349,3 +349,72 @@ fn a_keyframed_camera_path_renders_the_same_frames_in_every_mode() {
         )
     );
 }
+
+/// `POST /renders` with an inline `animation` (world coordinates, as a manifest's) renders the
+/// frames of the same scene with that animation in its manifest, byte for byte; a malformed
+/// keyframe is refused naming its field, and an animation with an orbit is refused.
+#[test]
+fn the_api_takes_camera_keyframes_in_the_request() {
+    use common::server::{Serve, cornell};
+    use serde_json::json;
+    let dir = scratch("frames-api-keys");
+    let animation = json!({"frames": 3, "keyframes": [
+        {"frame": 0, "eye": [2.78, 2.744, -6.0], "look_at": [2.78, 2.4, 5.592]},
+        {"frame": 2, "eye": [4.5, 3.5, -5.0], "look_at": [2.78, 2.4, 5.592], "vfov": 40}]});
+    for file in ["cornell.obj", "cornell.mtl"] {
+        std::fs::copy(scene(&format!("cornell/{file}")), dir.join(file)).unwrap();
+    }
+    let mut manifest: serde_json::Value =
+        serde_json::from_slice(&read(&scene("cornell/cornell.json"))).unwrap();
+    manifest["animation"] = animation.clone();
+    let manifest_path = dir.join("animated.json");
+    std::fs::write(&manifest_path, manifest.to_string()).unwrap();
+    let server = Serve::start(&dir.join("data"));
+    let body = json!({"scene": cornell(), "width": 24, "height": 16, "frames": 3,
+                      "animation": animation});
+    let accepted = server.post("/renders", &body, &[]);
+    assert_eq!(accepted.status, 202, "{}", accepted.text());
+    let job = accepted.json()["job"].as_str().unwrap().to_owned();
+    let status = server.wait_done(&job, std::time::Duration::from_secs(120));
+    assert_eq!(status["status"], "SUCCEEDED", "{status}");
+    let out = dir.join("cli_#.png");
+    let o = hort(&[
+        "render",
+        manifest_path.to_str().unwrap(),
+        "--monolithic",
+        "--width",
+        "24",
+        "--height",
+        "16",
+        "--frames",
+        "3",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for k in 0..3 {
+        let reply = server.get(&format!("/renders/{job}/frames/{k}/image"));
+        assert_eq!(reply.status, 200, "frame {k}");
+        assert!(
+            reply.body == read(&dir.join(format!("cli_{k}.png"))),
+            "frame {k}"
+        );
+    }
+    let mut bad = body.clone();
+    bad["animation"]["keyframes"][1]["eye"] = json!([2.78, 2.4, 5.592]);
+    let refused = server.post("/renders", &bad, &[]);
+    assert_eq!(refused.status, 400, "{}", refused.text());
+    assert_eq!(
+        refused.json()["error"],
+        json!({"code": "invalid_request", "field": "animation.keyframes[1]",
+               "message": "animation.keyframes[1]: eye and look_at are the same point"})
+    );
+    let mut both = body;
+    both["orbit"] = json!(90);
+    let refused = server.post("/renders", &both, &[]);
+    assert_eq!(refused.status, 400, "{}", refused.text());
+    assert_eq!(
+        refused.json()["error"]["message"],
+        "animation: give one camera path, an orbit or keyframes"
+    );
+}

@@ -331,7 +331,7 @@ fn bad_requests_get_their_status_and_exact_message() {
             400,
             "invalid_request",
             "colour: unknown field `colour`, expected one of `scene`, `width`, `height`, `spp`, \
-             `splits`, `spans`, `split_mode`, `mode`, `memory_mb`, `max_cost_usd`, `outputs`, `frames`, `frame`, `orbit`"
+             `splits`, `spans`, `split_mode`, `mode`, `memory_mb`, `max_cost_usd`, `outputs`, `frames`, `frame`, `orbit`, `animation`"
                 .into(),
             Some("colour"),
         ),
