@@ -105,3 +105,36 @@ fn a_frame_is_assembled_by_the_task_that_finishes_it() {
         );
     }
 }
+
+/// A task that finishes a frame also holds the frame while it assembles it: a job of several
+/// frames whose pixel-stage task and frame together would not fit the function's memory is
+/// refused before anything is stored, where the same image as one frame fits.
+#[test]
+fn a_job_of_frames_is_refused_when_a_task_cannot_also_hold_its_frame() {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell/cornell.json");
+    let scene = crate::scene::load_scene(&path).expect("the bundled Cornell box");
+    let wide = |frame: FrameChoice| PlanRequest {
+        width: 3840,
+        height: 1080,
+        spp: 1,
+        splits: None,
+        spans: None,
+        memory_mb: 256,
+        outputs: StoredOutputs::PNG,
+        ..request(frame, ExecutionMode::Fused, 1)
+    };
+    let job = JobId::new("wide").unwrap();
+    let one = FrameChoice::new(1, Some(ORBIT));
+    plan_into_store(&MemoryStore::new(), &job, &scene, &wide(one)).expect("one frame fits");
+    let store = MemoryStore::new();
+    let all = FrameChoice::range(0..3, Some(ORBIT));
+    let error = plan_into_store(&store, &job, &scene, &wide(all)).unwrap_err();
+    assert_eq!(
+        error.to_string(),
+        "a task that finishes a frame also assembles it: rendering and assembling a 3840x1080 \
+         frame would need about 271 MB, over --memory-mb 256: raise --memory-mb, store fewer \
+         outputs, or render fewer pixels"
+    );
+    assert!(store.list("").unwrap().is_empty(), "nothing stored");
+}

@@ -6,7 +6,7 @@
 use super::PipelineError;
 use super::frame_choice::FrameChoice;
 use super::frustum::span_may_meet_box;
-use super::mode::ExecutionMode;
+use super::mode::{ExecutionMode, RUNTIME_BYTES, combine_bytes, task_bytes};
 use super::plan::{CastTask, JobPlan, Span, SplitInfo};
 use super::split::SplitMode;
 use crate::camera::Camera;
@@ -46,6 +46,32 @@ pub(super) fn planned_frames(
             Ok(PlannedFrame { frame, camera })
         })
         .collect()
+}
+
+/// Refuses a job of several frames whose pixel-stage task, which also assembles its frame when
+/// it finishes one, would not fit `memory_mb` as the memory model puts it: the largest such
+/// task ([`task_bytes`] of its triangles and samples) plus Combine's hold of the frame
+/// ([`combine_bytes`], its runtime counted once).
+pub(super) fn check_frame_assembly_memory(
+    request: &super::PlanRequest,
+    task_triangles: u64,
+    span_samples: u64,
+) -> Result<(), PipelineError> {
+    let pixels = u64::from(request.width) * u64::from(request.height);
+    let need = task_bytes(task_triangles, span_samples)
+        .saturating_add(combine_bytes(pixels, request.outputs).saturating_sub(RUNTIME_BYTES));
+    if need <= u64::from(request.memory_mb) << 20 {
+        return Ok(());
+    }
+    Err(PipelineError::BadInput(format!(
+        "a task that finishes a frame also assembles it: rendering and assembling a {}x{} \
+         frame would need about {} MB, over --memory-mb {}: raise --memory-mb, store fewer \
+         outputs, or render fewer pixels",
+        request.width,
+        request.height,
+        need.div_ceil(1 << 20),
+        request.memory_mb
+    )))
 }
 
 /// The CastMap pairs of a staged job seen by `camera`: every (span, split) pair, span-major,

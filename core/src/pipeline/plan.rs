@@ -3,7 +3,7 @@
 
 use super::PipelineError;
 use super::frame_choice::FrameChoice;
-use super::frames::{PlannedFrame, cast_pairs, planned_frames};
+use super::frames::{PlannedFrame, cast_pairs, check_frame_assembly_memory, planned_frames};
 use super::mode::{DEFAULT_MEMORY_MB, ExecutionMode, JobShape, check_combine_memory, choose_shape};
 use super::outputs::StoredOutputs;
 use super::split::SplitMode;
@@ -408,6 +408,14 @@ pub fn resolve_counts_with(
         max_k.max(1),
         texture_bytes,
     )?;
+    if request.frame.count > 1 {
+        // The largest split is about the scene over k (the splits are cut near even).
+        let task_triangles = match shape.mode {
+            ExecutionMode::Fused => triangles,
+            ExecutionMode::Staged => triangles.div_ceil(u64::from(shape.splits.max(1))),
+        };
+        check_frame_assembly_memory(request, task_triangles, span_samples)?;
+    }
     Ok((shape, s))
 }
 
@@ -432,6 +440,7 @@ pub fn plan_job(
         })
         .collect();
     let frames = planned_frames(scene, &request.frame, request.width, request.height)?;
+
     if !frames.is_empty() && request.adaptive.is_some() {
         return Err(PipelineError::BadInput(format!(
             "adaptive sampling renders one frame per job; render the {} frames one --frame at a \
