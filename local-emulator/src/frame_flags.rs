@@ -21,7 +21,7 @@ pub struct FrameFlags {
     pub frames: Option<FrameSpan>,
     /// Render frame K alone (with --orbit, of the --frames N turn): the same image as frame K
     /// of a run of all the frames.
-    #[arg(long, value_name = "K", allow_negative_numbers = true)]
+    #[arg(long, value_name = "K", allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(0..i64::from(MAX_FRAMES)))]
     pub frame: Option<u32>,
     /// A turntable: the eye turns DEGREES about the vertical axis through the framed target
     /// over the frames (needs --frames).
