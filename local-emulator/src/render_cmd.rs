@@ -144,10 +144,15 @@ pub fn run(args: RenderArgs) -> Result<()> {
         // A job stores the large outputs only when this command writes them.
         args.outputs.stored(),
     );
+    // One job renders every frame: the scene is uploaded, planned and split once.
+    let job_request = PlanRequest {
+        frame: FrameChoice::range(frames.frames.clone(), frames.orbit),
+        ..request
+    };
     if let Some(scene) = scene.as_ref().filter(|_| !args.monolithic) {
         // Refuse impossible partitionings here, with the scene at hand, before any upload.
         let triangles = scene.mesh.triangle_count() as u64;
-        let (shape, s) = resolve_counts_with(&request, triangles, &scene.mesh.textures)?;
+        let (shape, s) = resolve_counts_with(&job_request, triangles, &scene.mesh.textures)?;
         warn_if_oversplit(triangles, shape.splits, s);
     }
     let (rendered, images) = match &scene {
@@ -155,11 +160,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
             render_monolithic_frames(scene, request, &frames, (args.threads, started), adaptive)?
         }
         _ => {
-            // One job renders every frame: the scene is uploaded, planned and split once.
-            let request = PlanRequest {
-                frame: FrameChoice::range(frames.frames.clone(), frames.orbit),
-                ..request
-            };
+            let request = job_request;
             let rendered = match &scene {
                 Some(scene) if args.in_process => render_pipeline(scene, request, &args)?,
                 _ => render_emulated(scene.as_ref(), &args, request)?,
