@@ -19,9 +19,14 @@
 //!   [`Bvh::closest_hit`]'s answer.
 //! - [`Bvh::occluded`] is true exactly when some triangle has a hit with `0 < t < t_max`, and
 //!   [`Bvh::occluded_many`] (segment packets) gives every segment exactly its answer.
-//! - Building is deterministic: the same triangles in the same order give the same nodes.
+//! - Building is deterministic: the same triangles in the same order give the same nodes, on
+//!   any number of threads.
 
 mod build;
+#[cfg(test)]
+mod build_reference;
+#[cfg(test)]
+mod build_tests;
 mod node4;
 mod parts;
 mod ray_packet;
@@ -104,10 +109,18 @@ pub struct Bvh {
 
 impl Bvh {
     /// Builds over `triangles`, where `ids[i]` is the scene-wide id of `triangles[i]` (used for
-    /// tie-breaks and reported in hits). Panics if the lengths differ.
+    /// tie-breaks and reported in hits), on as many threads as the process may use. Panics if
+    /// the lengths differ.
     pub fn build(triangles: Vec<[Vec3; 3]>, ids: Vec<u32>) -> Bvh {
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+        Bvh::build_on_threads(triangles, ids, threads)
+    }
+
+    /// [`Bvh::build`] on at most `threads` threads (1 or 0: the calling thread only). The BVH
+    /// is the same for every thread count.
+    pub fn build_on_threads(triangles: Vec<[Vec3; 3]>, ids: Vec<u32>, threads: usize) -> Bvh {
         assert_eq!(triangles.len(), ids.len(), "one id per triangle");
-        build::build(triangles, ids)
+        build::build(triangles, ids, threads)
     }
 
     /// Assembles a BVH from valid binary nodes whose leaves cover the `ids.len()` triangles

@@ -244,7 +244,7 @@ fn closest_hit_equals_brute_force_on_the_bunny() {
 }
 
 /// A closed, subdivided cube: every face is a grid of quads split into two triangles.
-fn closed_cube(n: usize) -> Vec<[Vec3; 3]> {
+pub(crate) fn closed_cube(n: usize) -> Vec<[Vec3; 3]> {
     let mut tris = Vec::new();
     for axis in 0..3 {
         for side in [-1.0f32, 1.0] {

@@ -1,0 +1,166 @@
+//! The builder builds exactly the nodes and leaf order of its specification
+//! (`build_reference.rs`) on inputs chosen to reach every branch: random soups of many sizes,
+//! a real mesh, coincident centroids (the split by index), flat and tiny extents, signed zeros,
+//! huge coordinates and a chain deep enough to meet the depth limit.
+
+use super::tests::{Rng, closed_cube};
+use super::{Node, build, build_reference};
+use glam::Vec3;
+
+/// Every node (box compared with `==`, so a zero's sign does not count) and the leaf order, on
+/// one thread and on two.
+fn check(name: &str, triangles: &[[Vec3; 3]]) {
+    let (want_nodes, want_order) = build_reference::binary_tree(triangles);
+    for threads in [1, 2] {
+        check_against(name, triangles, threads, &want_nodes, &want_order);
+    }
+}
+
+fn check_against(
+    name: &str,
+    triangles: &[[Vec3; 3]],
+    threads: usize,
+    want_nodes: &[Node],
+    want_order: &[u32],
+) {
+    let name = format!("{name}, {threads} threads");
+    let (nodes, order) = build::binary_tree(triangles, threads);
+    assert_eq!(nodes.len(), want_nodes.len(), "{name}: node count");
+    for (i, (got, want)) in nodes.iter().zip(want_nodes).enumerate() {
+        assert_eq!(got, want, "{name}: node {i}");
+    }
+    assert_eq!(order, want_order, "{name}: leaf order");
+    if let Some(root) = nodes.first() {
+        // The root's box is stored, so its bits (zero signs included) must be the same.
+        let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+        assert_eq!(
+            bits(root.bounds.lo),
+            bits(want_nodes[0].bounds.lo),
+            "{name}"
+        );
+        assert_eq!(
+            bits(root.bounds.hi),
+            bits(want_nodes[0].bounds.hi),
+            "{name}"
+        );
+    }
+}
+
+fn soup(rng: &mut Rng, n: usize, spread: f32, size: f32) -> Vec<[Vec3; 3]> {
+    let mut v = |scale: f32| {
+        Vec3::new(rng.unit(), rng.unit(), rng.unit()) * (2.0 * scale) - Vec3::splat(scale)
+    };
+    (0..n)
+        .map(|_| {
+            let c = v(spread);
+            [c + v(size), c + v(size), c + v(size)]
+        })
+        .collect()
+}
+
+#[test]
+fn random_soups_of_every_size_build_the_specified_tree() {
+    let mut rng = Rng(3);
+    for n in [0, 1, 2, 4, 5, 6, 9, 17, 64, 255, 1000, 20_000] {
+        check(&format!("soup of {n}"), &soup(&mut rng, n, 10.0, 1.0));
+    }
+    check("long thin", &soup(&mut rng, 5000, 1e4, 1e-3));
+    check("huge coordinates", &soup(&mut rng, 3000, 1e30, 1e28));
+    check("tiny coordinates", &soup(&mut rng, 3000, 1e-30, 1e-32));
+}
+
+#[test]
+fn every_thread_count_builds_the_specified_tree() {
+    // Large enough for subtrees on other threads (build::FORK_MIN refs) several levels down.
+    let mut rng = Rng(9);
+    let triangles = soup(&mut rng, 150_000, 100.0, 1.0);
+    let (want_nodes, want_order) = build_reference::binary_tree(&triangles);
+    for threads in [1, 2, 3, 4, 7, 16] {
+        check_against(
+            "soup of 150000",
+            &triangles,
+            threads,
+            &want_nodes,
+            &want_order,
+        );
+    }
+}
+
+#[test]
+fn meshes_build_the_specified_tree() {
+    check("closed cube", &closed_cube(30));
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/bunny/bunny.obj");
+    let mesh = crate::scene::parse_obj(
+        std::io::BufReader::new(std::fs::File::open(path).expect("bundled bunny")),
+        std::path::Path::new(path),
+        &mut Vec::new(),
+    )
+    .expect("bunny parses");
+    let bunny: Vec<[Vec3; 3]> = (0..mesh.triangle_count())
+        .map(|i| mesh.corners(i))
+        .collect();
+    check("bunny", &bunny);
+}
+
+#[test]
+fn degenerate_layouts_build_the_specified_tree() {
+    let tri = [Vec3::ZERO, Vec3::X, Vec3::Y];
+    check("one triangle 100 times (split by index)", &vec![tri; 100]);
+    let mut rng = Rng(5);
+    let mut mixed = soup(&mut rng, 300, 5.0, 1.0);
+    for i in 0..300 {
+        // Clusters of coincident centroids among scattered triangles.
+        mixed.insert(
+            i * 2,
+            [Vec3::splat((i % 3) as f32), Vec3::ONE, Vec3::NEG_ONE],
+        );
+    }
+    check("clusters of coincident centroids", &mixed);
+    let flat: Vec<[Vec3; 3]> = soup(&mut rng, 2000, 5.0, 1.0)
+        .into_iter()
+        .map(|t| t.map(|p| Vec3::new(p.x, 0.0, p.z)))
+        .collect();
+    check("flat in y", &flat);
+    let signed_zeros: Vec<[Vec3; 3]> = (0..500)
+        .map(|i| {
+            let z = if i % 2 == 0 { 0.0 } else { -0.0 };
+            let x = (i / 7) as f32;
+            [Vec3::new(z, x, z), Vec3::new(x, z, -z), Vec3::new(-z, z, x)]
+        })
+        .collect();
+    check("signed zeros", &signed_zeros);
+    let subnormal: Vec<[Vec3; 3]> = (0..200)
+        .map(|i| {
+            let d = f32::from_bits(1 + i % 5);
+            [
+                Vec3::splat(d),
+                Vec3::new(d, 0.0, 0.0),
+                Vec3::new(0.0, d, 0.0),
+            ]
+        })
+        .collect();
+    check("subnormal extents", &subnormal);
+}
+
+#[test]
+fn a_chain_deeper_than_the_limit_builds_the_specified_tree() {
+    // Triangle i at 2^i, of size 2^(i-1): each level's top bins hold the few largest, so SAH
+    // peels them off a few per level, past MAX_DEPTH, where the rest becomes one large leaf.
+    let chain: Vec<[Vec3; 3]> = (-125..125)
+        .map(|i| {
+            let x = 2.0f32.powi(i);
+            let s = x * 0.5;
+            [
+                Vec3::new(x, 0.0, 0.0),
+                Vec3::new(x + s, 0.0, 0.0),
+                Vec3::new(x, s, 0.0),
+            ]
+        })
+        .collect();
+    let (nodes, _) = build::binary_tree(&chain, 1);
+    assert!(
+        nodes.iter().any(|n| n.count > 4),
+        "the depth limit makes a large leaf"
+    );
+    check("deep chain", &chain);
+}
