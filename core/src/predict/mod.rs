@@ -122,7 +122,7 @@ pub const RATES: Rates = Rates {
     task_overhead_ms: 4.0,
     stage_overhead_ms: 3.0,
     plan_overhead_ms: 2.0,
-    plan_us_per_triangle: 0.85,
+    plan_us_per_triangle: 0.58,
     cast_us_per_sample: 0.2,
     cast_reduce_us_per_sample: 0.45,
     expand_us_per_query: 0.28,
