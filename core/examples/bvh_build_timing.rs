@@ -8,10 +8,11 @@
 //! box), so that a change to the builder can be timed and shown to build the same tree.
 
 use hort_core::bvh::Bvh;
-use hort_core::generate::generate_scene;
-use hort_core::scene::load_scene;
-use std::path::PathBuf;
 use std::time::Instant;
+
+#[path = "support/scene_arg.rs"]
+mod scene_arg;
+use scene_arg::load_scene_arg;
 
 fn main() {
     let mut args = std::env::args().skip(1);
@@ -21,19 +22,7 @@ fn main() {
     };
     let repeats: usize = args.next().map_or(5, |r| r.parse().expect("REPEATS"));
     let threads: usize = args.next().map_or(1, |t| t.parse().expect("THREADS"));
-    let scene = if let Some(n) = scene_arg.strip_prefix("generated:") {
-        let n: u64 = n.parse().expect("generated:N takes a triangle count");
-        let path =
-            std::env::temp_dir().join(format!("bvh-build-timing-{}-{n}.obj", std::process::id()));
-        let mut file = std::io::BufWriter::new(std::fs::File::create(&path).expect("temp file"));
-        generate_scene(n, 1, &mut file).expect("the scene generates");
-        drop(file);
-        let scene = load_scene(&path).expect("the scene loads");
-        std::fs::remove_file(&path).expect("temp file removed");
-        scene
-    } else {
-        load_scene(&PathBuf::from(&scene_arg)).expect("the scene loads")
-    };
+    let scene = load_scene_arg(&scene_arg);
     let mut seconds = Vec::with_capacity(repeats);
     let mut bvh = None;
     for _ in 0..repeats.max(1) {

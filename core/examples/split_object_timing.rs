@@ -11,12 +11,13 @@
 //! minimum and median times, so that a change of the split object's layout can be judged on any
 //! scene.
 
-use hort_core::generate::generate_scene;
 use hort_core::pipeline::{SplitMode, decode_split, encode_split, split_scene};
-use hort_core::scene::load_scene;
 use hort_core::shuffle::{MAX_TAKE, RecordKind, decode_block, read_block};
-use std::path::PathBuf;
 use std::time::Instant;
+
+#[path = "support/scene_arg.rs"]
+mod scene_arg;
+use scene_arg::load_scene_arg;
 
 /// Runs `f` `repeats` times: the sorted wall times in seconds and the last result.
 fn times<T>(repeats: usize, mut f: impl FnMut() -> T) -> (Vec<f64>, T) {
@@ -44,21 +45,7 @@ fn main() {
         std::process::exit(2);
     };
     let repeats: usize = args.next().map_or(5, |r| r.parse().expect("REPEATS"));
-    let scene = if let Some(n) = scene_arg.strip_prefix("generated:") {
-        let n: u64 = n.parse().expect("generated:N takes a triangle count");
-        let path = std::env::temp_dir().join(format!(
-            "split-object-timing-{}-{n}.obj",
-            std::process::id()
-        ));
-        let mut file = std::io::BufWriter::new(std::fs::File::create(&path).expect("temp file"));
-        generate_scene(n, 1, &mut file).expect("the scene generates");
-        drop(file);
-        let scene = load_scene(&path).expect("the scene loads");
-        std::fs::remove_file(&path).expect("temp file removed");
-        scene
-    } else {
-        load_scene(&PathBuf::from(&scene_arg)).expect("the scene loads")
-    };
+    let scene = load_scene_arg(&scene_arg);
     let mut stored = Vec::new();
     let (build, _) = times(1, || {
         split_scene(&scene.mesh, 1, SplitMode::Spatial, |_, bytes| {

@@ -82,9 +82,14 @@ pub fn available_cores() -> usize {
 
 /// Builds the BVH over the whole scene; triangle ids are scene-order indices.
 pub fn build_scene_bvh(mesh: &Mesh) -> Bvh {
+    build_scene_bvh_on(mesh, available_cores())
+}
+
+/// [`build_scene_bvh`] on at most `threads` threads (the same BVH for any count).
+pub fn build_scene_bvh_on(mesh: &Mesh, threads: usize) -> Bvh {
     let n = mesh.triangle_count();
     let triangles = (0..n).map(|i| mesh.corners(i)).collect();
-    Bvh::build(triangles, (0..n as u32).collect())
+    Bvh::build_on_threads(triangles, (0..n as u32).collect(), threads)
 }
 
 /// The vertex normals (if any), material reflectance and texture (if any) of the scene's

@@ -106,7 +106,7 @@ pub struct RenderArgs {
         "time_scale", "memory_mb", "lambda_endpoint", "mode", "scene_range_bytes",
     ])]
     pub monolithic: bool,
-    /// Worker threads of a monolithic render (default: all cores).
+    /// Worker threads of a monolithic render and its BVH build (default: all cores).
     #[arg(long, requires = "monolithic", allow_negative_numbers = true, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=4096))]
     pub threads: Option<usize>,
     /// Function slots (emulator) or worker threads (--in-process): tasks run concurrently

@@ -1,13 +1,12 @@
 //! The animation flags of `hort render` (`--frames`, `--frame`, `--orbit`): which frames of
 //! which camera path a run renders, resolved against the scene before any work.
 
-use anyhow::{Result, anyhow, bail};
+use anyhow::{Result, anyhow};
 use clap::Args;
 use hort_core::animation::MAX_FRAMES;
-use hort_core::pipeline::{FrameChoice, Orbit};
+use hort_core::pipeline::{FrameRequest, FrameRequestError, FrameSelection};
 use hort_core::predict::check_combine_time;
 use hort_core::scene::Scene;
-use std::ops::Range;
 use std::str::FromStr;
 
 /// The animation flags.
@@ -76,90 +75,40 @@ impl FrameSpan {
     }
 }
 
-/// What a run renders: the frames, and the camera path they follow.
-#[derive(Clone, Debug, PartialEq)]
-pub struct FramePlan {
-    /// The frames, ascending.
-    pub frames: Range<u32>,
-    /// The turntable, if `--orbit`; else the scene's own animation (or none).
-    pub orbit: Option<Orbit>,
-    /// Whether the run names frames at all (any of the flags): a single frame of an animated
-    /// run is still reported as a frame.
-    pub animated: bool,
-}
-
-impl FramePlan {
-    /// The choice of frame `index` along this plan's path.
-    pub fn choice(&self, index: u32) -> FrameChoice {
-        FrameChoice::new(index, self.orbit)
-    }
-
-    /// How many frames the run renders.
-    pub fn len(&self) -> u32 {
-        self.frames.end - self.frames.start
-    }
-}
-
 impl FrameFlags {
     /// The frames these flags ask of `scene` (`None`: a scene not loaded here, which must then
     /// be a still image or an orbit), checked before any work: every frame exists on its path.
-    pub fn plan(&self, scene: Option<&Scene>) -> Result<FramePlan> {
-        let orbit = match self.orbit {
-            Some(degrees) if !degrees.is_finite() => {
-                bail!("--orbit {degrees}: the turn must be a finite number of degrees")
-            }
-            Some(degrees) => {
-                let (_, end) = self
-                    .frames
-                    .expect("clap: --orbit requires --frames")
-                    .bounds();
-                Some(Orbit {
-                    degrees,
-                    frames: end,
-                })
-            }
-            None => None,
-        };
-        let total = match orbit {
-            Some(o) => Some(o.frames),
-            None => scene
-                .and_then(|s| FrameChoice::STILL.animation(s))
-                .map(|a| a.frames),
-        };
-        let animated = self.frames.is_some() || self.frame.is_some() || orbit.is_some();
-        let frames = match (self.frame, self.frames) {
-            (Some(k), _) => k..k + 1,
-            (None, Some(span)) => {
+    pub fn plan(&self, scene: Option<&Scene>) -> Result<FrameSelection> {
+        let request = FrameRequest {
+            frames: self.frames.map(|span| {
                 let (a, b) = span.bounds();
                 a..b
-            }
-            (None, None) => 0..1,
+            }),
+            frame: self.frame,
+            orbit: self.orbit,
         };
-        match total {
-            Some(total) if frames.end > total => bail!(
-                "--frames/--frame: frame {} is outside the animation's {total} frames (0 to {})",
-                frames.end - 1,
-                total - 1
-            ),
-            None if animated && scene.is_some() => bail!(
+        request.resolve(scene).map_err(|e| match e {
+            FrameRequestError::OrbitNotFinite(degrees) => {
+                anyhow!("--orbit {degrees}: the turn must be a finite number of degrees")
+            }
+            FrameRequestError::OrbitWithoutFrames => {
+                anyhow!("--orbit: the turn needs its number of frames (--frames N)")
+            }
+            FrameRequestError::NoAnimation => anyhow!(
                 "--frames/--frame: the scene has no animation; give --orbit DEGREES, or an \
                  \"animation\" in its manifest"
             ),
-            _ => {}
-        }
-        Ok(FramePlan {
-            frames,
-            orbit,
-            animated,
+            FrameRequestError::OutsideAnimation { last, total, .. } => anyhow!(
+                "--frames/--frame: frame {last} is outside the animation's {total} frames (0 to {})",
+                total - 1
+            ),
         })
     }
 }
 
-impl FramePlan {
-    /// Checks that one job can render these frames at `width` x `height` (its Combine task
-    /// assembles them all within the state machine's timeout), before any work. A monolithic
-    /// run has no such limit.
-    pub fn check_one_job(&self, width: u32, height: u32) -> Result<()> {
-        check_combine_time(width, height, self.len()).map_err(|e| anyhow!("--frames: {e}"))
-    }
+/// Checks that one job can render `frames` at `width` x `height` (its Combine task assembles
+/// them all within the state machine's timeout), before any work. A monolithic run has no
+/// such limit.
+pub fn check_one_job(frames: &FrameSelection, width: u32, height: u32) -> Result<()> {
+    check_combine_time(width, height, frames.count()).map_err(|e| anyhow!("--frames: {e}"))
 }

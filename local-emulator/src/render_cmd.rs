@@ -2,7 +2,7 @@
 //! buffer and report.
 
 use crate::cli::RenderArgs;
-use crate::frame_flags::FramePlan;
+use crate::frame_flags::check_one_job;
 use crate::frame_paths::{check_frame_pattern, frame_path};
 use crate::outputs::{
     OutputTarget, check_distinct, check_image_path, check_output_path, write_output,
@@ -21,12 +21,12 @@ use hort_core::cost::Arch;
 use hort_core::hits::{Hit, encode_hits};
 use hort_core::ids::JobId;
 use hort_core::image::{Image, encode_gif, write_image as encode_and_write};
+use hort_core::pipeline::FrameSelection;
 use hort_core::pipeline::{
-    ExecutionMode, FrameChoice, JobOutputs, PipelineOptions, PlanRequest, resolve_counts_with,
-    run_pipeline,
+    ExecutionMode, JobOutputs, PipelineOptions, PlanRequest, resolve_counts_with, run_pipeline,
 };
 use hort_core::plural::count;
-use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
+use hort_core::render::{RenderSettings, available_cores, build_scene_bvh_on, render};
 use hort_core::report::{
     AdaptiveReport, FrameReport, Outputs, Preparation, RayReport, Report, Seconds, StageReport,
 };
@@ -112,7 +112,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let frames = args.animation.plan(scene.as_ref())?;
     check_frame_outputs(&targets, &frames)?;
     if !args.monolithic {
-        frames.check_one_job(size.width, size.height)?;
+        check_one_job(&frames, size.width, size.height)?;
     }
     // A camera that cannot be built is the scene's fault: say so before any upload or render,
     // for every frame.
@@ -131,11 +131,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
         }
     }
     let adaptive = adaptive_settings(&args, size)?;
-    if adaptive.is_some() && !args.monolithic && frames.len() > 1 {
+    if adaptive.is_some() && !args.monolithic && frames.count() > 1 {
         bail!(
             "--adaptive renders one frame per job: give --frame K, or --monolithic for the {} \
              frames",
-            frames.len()
+            frames.count()
         );
     }
     let request = args.plan.request(
@@ -146,7 +146,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     );
     // One job renders every frame: the scene is uploaded, planned and split once.
     let job_request = PlanRequest {
-        frame: FrameChoice::range(frames.frames.clone(), frames.orbit),
+        frame: frames.job_choice(),
         ..request
     };
     if let Some(scene) = scene.as_ref().filter(|_| !args.monolithic) {
@@ -189,7 +189,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     });
     let render_seconds = rendered.render_seconds;
     let mut report = run_report(&args, &targets.out, size, rendered, started, load_seconds);
-    if frames.len() > 1 {
+    if frames.count() > 1 {
         report.frames = written;
         report.preparation = preparation;
     }
@@ -277,8 +277,8 @@ fn is_gif(out: &Path) -> bool {
 /// With several frames, each frame's image and hit buffer need their own files: `--out`
 /// (unless an animated GIF) and `--hits` must name them with a `#` run. The report is one, for
 /// the whole run.
-fn check_frame_outputs(targets: &OutputTargets, frames: &FramePlan) -> Result<()> {
-    let n = frames.len();
+fn check_frame_outputs(targets: &OutputTargets, frames: &FrameSelection) -> Result<()> {
+    let n = frames.count();
     if !is_gif(&targets.out) {
         check_frame_pattern("--out", &targets.out, n)?;
     }
@@ -293,12 +293,12 @@ fn check_frame_outputs(targets: &OutputTargets, frames: &FramePlan) -> Result<()
 fn render_monolithic_frames(
     scene: &Scene,
     request: PlanRequest,
-    frames: &FramePlan,
+    frames: &FrameSelection,
     (threads, started): (Option<usize>, Instant),
     adaptive: Option<AdaptiveSettings>,
 ) -> Result<(Rendered, Vec<FrameImages>)> {
     let build_start = Instant::now();
-    let bvh = build_scene_bvh(&scene.mesh);
+    let bvh = build_scene_bvh_on(&scene.mesh, threads.unwrap_or_else(available_cores));
     let build_seconds = build_start.elapsed().as_secs_f64();
     let mut total: Option<Rendered> = None;
     let mut images = Vec::new();
@@ -335,7 +335,7 @@ fn render_monolithic_frames(
         });
     }
     let mut total = total.ok_or_else(|| anyhow!("no frame to render"))?;
-    if frames.len() > 1 {
+    if frames.count() > 1 {
         total.frame_reports = ready;
         total.preparation = Some(Preparation {
             seconds: build_seconds,

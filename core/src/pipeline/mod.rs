@@ -27,6 +27,7 @@ mod adaptive_span;
 mod driver;
 pub mod estimate;
 mod frame_choice;
+mod frame_request;
 #[cfg(test)]
 mod frame_tests;
 mod frames;
@@ -50,6 +51,7 @@ pub use crate::task_metrics::{TaskMetrics, micros, timed};
 pub use adaptive_span::render_span_adaptive;
 pub use driver::{PipelineOptions, PipelineRun, run_pipeline};
 pub use frame_choice::{FrameChoice, Orbit};
+pub use frame_request::{FrameRequest, FrameRequestError, FrameSelection};
 pub use frames::{PlannedFrame, assembled_frames};
 pub use frustum::span_may_meet_box;
 pub use mode::{

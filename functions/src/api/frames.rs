@@ -8,7 +8,7 @@ use super::request::RenderRequest;
 use hort_core::animation::MAX_FRAMES;
 use hort_core::camera::Camera;
 use hort_core::error::SceneError;
-use hort_core::pipeline::{FrameChoice, Orbit};
+use hort_core::pipeline::{FrameChoice, FrameRequest, FrameRequestError};
 use hort_core::predict::check_combine_time;
 use hort_core::scene::{Scene, animation_from};
 
@@ -29,59 +29,42 @@ pub(super) fn frame_choice(
             format!("frames: {n} is out of range: must be 1 to {MAX_FRAMES}"),
         ));
     }
-    let orbit = match request.orbit {
-        None => None,
-        Some(degrees) if !degrees.is_finite() => {
-            return Err(ApiError::invalid_field(
-                "orbit",
-                format!("orbit: {degrees} is not a finite number of degrees"),
-            ));
+    let asked = FrameRequest {
+        frames: request.frames.map(|n| 0..n),
+        frame: request.frame,
+        orbit: request.orbit,
+    };
+    let frames = asked.resolve(Some(scene)).map_err(|e| match e {
+        FrameRequestError::OrbitNotFinite(degrees) => ApiError::invalid_field(
+            "orbit",
+            format!("orbit: {degrees} is not a finite number of degrees"),
+        ),
+        FrameRequestError::OrbitWithoutFrames => {
+            ApiError::invalid_field("frames", "frames: an orbit needs its number of frames")
         }
-        Some(degrees) => {
-            let frames = request.frames.ok_or_else(|| {
-                ApiError::invalid_field("frames", "frames: an orbit needs its number of frames")
-            })?;
-            Some(Orbit { degrees, frames })
-        }
-    };
-    let asked = request.frames.is_some() || request.frame.is_some();
-    let total = match orbit {
-        Some(o) => Some(o.frames),
-        None => FrameChoice::STILL.animation(scene).map(|a| a.frames),
-    };
-    let frames = match (request.frame, request.frames) {
-        (Some(k), _) => k..k.saturating_add(1),
-        (None, Some(n)) => 0..n,
-        (None, None) => 0..1,
-    };
-    match total {
-        None if asked => {
-            return Err(ApiError::invalid_field(
-                "frames",
-                "frames: the scene has no animation; give orbit, or an \"animation\" in its \
+        FrameRequestError::NoAnimation => ApiError::invalid_field(
+            "frames",
+            "frames: the scene has no animation; give orbit, or an \"animation\" in its \
                  manifest",
-            ));
-        }
-        Some(total) if frames.end > total => {
-            let field = if request.frame.is_some() {
-                "frame"
-            } else {
-                "frames"
-            };
-            return Err(ApiError::invalid_field(
+        ),
+        FrameRequestError::OutsideAnimation {
+            by_frame,
+            last,
+            total,
+        } => {
+            let field = if by_frame { "frame" } else { "frames" };
+            ApiError::invalid_field(
                 field,
                 format!(
-                    "{field}: frame {} is outside the animation's {total} frames (0 to {})",
-                    frames.end - 1,
+                    "{field}: frame {last} is outside the animation's {total} frames (0 to {})",
                     total - 1
                 ),
-            ));
+            )
         }
-        _ => {}
-    }
-    check_combine_time(width, height, frames.end - frames.start)
+    })?;
+    check_combine_time(width, height, frames.count())
         .map_err(|e| ApiError::invalid_field("frames", format!("frames: {e}")))?;
-    let choice = FrameChoice::range(frames, orbit);
+    let choice = frames.job_choice();
     for frame in choice.frames() {
         choice
             .at(frame)

@@ -1,10 +1,10 @@
 //! How fast this machine runs the renderer against the reference machine of `predict::RATES`: a
-//! BVH build and a single-threaded render of a small generated scene, timed at start-up of
+//! single-threaded BVH build and render of a small generated scene, timed at start-up of
 //! `hort plan` (about a third of a second), nothing stored.
 
 use anyhow::{Context, Result};
 use hort_core::generate::generate_scene;
-use hort_core::render::{RenderSettings, build_scene_bvh, render};
+use hort_core::render::{RenderSettings, build_scene_bvh_on, render};
 use hort_core::scene::{
     ImageSettings, Scene, default_camera, default_light, parse_obj, scene_bounds,
 };
@@ -82,7 +82,7 @@ pub fn calibrate() -> Result<Calibration> {
     for _ in 0..REPEATS {
         std::thread::sleep(PAUSE);
         let started = Instant::now();
-        let bvh = build_scene_bvh(&scene.mesh);
+        let bvh = build_scene_bvh_on(&scene.mesh, 1);
         build_ms = build_ms.min(started.elapsed().as_secs_f64() * 1e3);
         let started = Instant::now();
         let out = render(&scene, &bvh, settings).context("calibration render")?;

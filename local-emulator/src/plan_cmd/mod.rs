@@ -8,15 +8,14 @@ mod text;
 
 pub use calibrate::{Calibration, calibrate};
 
+use crate::frame_flags::check_one_job;
 use anyhow::{Result, anyhow, bail};
 use clap::{Args, ValueEnum};
 use hort::emulator::scene_range_for;
 use hort_core::camera::Camera;
 use hort_core::cost::Arch;
 use hort_core::pipeline::partition::{preview_plan_from_table, scan_table};
-use hort_core::pipeline::{
-    ExecutionMode, FrameChoice, JobPlan, PlanRequest, SplitMode, resolve_counts_with,
-};
+use hort_core::pipeline::{ExecutionMode, JobPlan, PlanRequest, SplitMode, resolve_counts_with};
 use hort_core::predict::{
     Projection, ProjectionSettings, RATES, SPLIT_BYTES_PER_TRIANGLE,
     SPLIT_NORMAL_BYTES_PER_TRIANGLE, SWEEP, Target, best_of, preview_plan, project,
@@ -260,9 +259,9 @@ fn plan_request(
 ) -> Result<PlanRequest> {
     let size = args.plan.image_size(image)?;
     let frames = args.animation.plan(scene)?;
-    frames.check_one_job(size.width, size.height)?;
+    check_one_job(&frames, size.width, size.height)?;
     Ok(PlanRequest {
-        frame: FrameChoice::range(frames.frames.clone(), frames.orbit),
+        frame: frames.job_choice(),
         ..args.plan.request(size, None, args.outputs.stored())
     })
 }
