@@ -24,6 +24,7 @@ mod scratch;
 pub mod shading;
 pub mod terminator;
 pub mod texture;
+pub mod tiles;
 pub mod triangle;
 pub mod unoccludable;
 

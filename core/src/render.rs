@@ -1,8 +1,8 @@
 //! The monolithic renderer (the paper's TRAD): one process, one BVH over the whole scene.
 //!
-//! Rows are traced in batches of camera samples (primary rays, then all their shadow rays, as
-//! packets: [`Bvh::closest_hits`], [`Bvh::occluded_many`]); the colours are those of tracing
-//! each sample alone, and the result does not depend on the thread count.
+//! Bands of rows are traced tile by tile, in batches of camera samples (primary rays, then all
+//! their shadow rays, as packets: [`Bvh::closest_hits`], [`Bvh::occluded_many`]); the colours
+//! are those of tracing each sample alone, and the result does not depend on the thread count.
 
 use crate::bvh::{Bvh, ClosestHit};
 use crate::camera::Camera;
@@ -15,6 +15,7 @@ use crate::sampling::PixelSum;
 use crate::scene::{Mesh, NO_NORMAL, Scene, TriangleShading, check_image_size};
 use crate::shading::{SurfacePoint, combine, shadow_test, surface_point};
 use crate::texture::TexturedCorners;
+use crate::tiles::{BAND_ROWS, tile_order};
 use crate::triangle::Ray;
 use crate::unoccludable::unoccludable_lights;
 use crate::worker_pool::run_indexed;
@@ -136,22 +137,23 @@ pub fn render(
     };
     let start = Instant::now();
     let mut frame = Frame::new(settings);
-    // One item per row; each row lands at its own place, so the thread count changes nothing.
+    // One item per band of rows; each band lands at its own place, so the thread count changes
+    // nothing.
     let Ok(()) = run_indexed(
         std::iter::repeat_n((), threads),
-        settings.height as usize,
-        |(), y| {
-            Ok::<Row, Infallible>(render_row(
+        settings.height.div_ceil(BAND_ROWS) as usize,
+        |(), band| {
+            Ok::<Band, Infallible>(render_band(
                 scene,
                 bvh,
                 &unoccludable,
                 &camera,
                 settings,
-                y as u32,
+                band as u32 * BAND_ROWS,
                 &mut NoTimer,
             ))
         },
-        |y, row| frame.place(y, row),
+        |band, rows| frame.place(band * BAND_ROWS as usize, rows),
     );
     Ok(frame.finish(start))
 }
@@ -168,9 +170,9 @@ pub fn render_phases(
     let start = Instant::now();
     let mut frame = Frame::new(settings);
     let mut timer = PhaseTimes::start();
-    for y in 0..settings.height {
-        let row = render_row(scene, bvh, &unoccludable, &camera, settings, y, &mut timer);
-        frame.place(y as usize, row);
+    for y in (0..settings.height).step_by(BAND_ROWS as usize) {
+        let band = render_band(scene, bvh, &unoccludable, &camera, settings, y, &mut timer);
+        frame.place(y as usize, band);
     }
     Ok((frame.finish(start), timer))
 }
@@ -183,7 +185,7 @@ fn prepare(scene: &Scene, s: RenderSettings) -> Result<(Camera, Vec<bool>), Scen
     Ok((camera, unoccludable_lights(&scene.mesh, &scene.lights)))
 }
 
-/// The image, hit buffer and ray counts as rows arrive (in any order).
+/// The image, hit buffer and ray counts as bands of rows arrive (in any order).
 struct Frame {
     width: usize,
     image: Image,
@@ -201,11 +203,12 @@ impl Frame {
         }
     }
 
-    fn place(&mut self, y: usize, row: Row) {
-        let range = y * self.width..(y + 1) * self.width;
-        self.image.pixels[range.clone()].copy_from_slice(&row.colours);
-        self.hits[range].copy_from_slice(&row.hits);
-        self.rays += row.rays;
+    /// Puts `band`, whose first row is `y`, in place.
+    fn place(&mut self, y: usize, band: Band) {
+        let range = y * self.width..y * self.width + band.colours.len();
+        self.image.pixels[range.clone()].copy_from_slice(&band.colours);
+        self.hits[range].copy_from_slice(&band.hits);
+        self.rays += band.rays;
     }
 
     fn finish(self, start: Instant) -> RenderOutput {
@@ -300,40 +303,52 @@ fn shade_batch_timed(
 /// Camera samples traced per `closest_hits` call (rounded to whole pixels).
 pub(crate) const BATCH_SAMPLES: usize = 1024;
 
-struct Row {
+/// A band's pixels, row-major from its first row, and its ray counts.
+struct Band {
     colours: Vec<[f32; 3]>,
     hits: Vec<Hit>,
     rays: RayCounts,
 }
 
-fn render_row(
+/// Renders the band of up to [`BAND_ROWS`] rows from row `y0` (a band of [`crate::tiles`]). Each pixel is the mean of its
+/// samples in sample order, whatever order the pixels are traced in, so the band's bits are
+/// those of rendering its rows one by one.
+fn render_band(
     scene: &Scene,
     bvh: &Bvh,
     unoccludable: &[bool],
     camera: &Camera,
     s: RenderSettings,
-    y: u32,
+    y0: u32,
     timer: &mut impl PhaseTimer,
-) -> Row {
-    let mut row = Row {
-        colours: Vec::with_capacity(s.width as usize),
-        hits: Vec::with_capacity(s.width as usize),
+) -> Band {
+    let rows = BAND_ROWS.min(s.height - y0);
+    let width = s.width as usize;
+    let pixels = width * rows as usize;
+    let mut band = Band {
+        colours: vec![[0.0; 3]; pixels],
+        hits: vec![Hit::MISS; pixels],
         rays: RayCounts::default(),
     };
-    // The row's camera rays, pixel by pixel and sample by sample, in batches of about
-    // `BATCH_SAMPLES` (whole pixels): neighbours are coherent, so they are traced as packets,
-    // and memory stays bounded whatever the width and spp.
-    let first_pixel = u64::from(y) * u64::from(s.width);
+    // The band's pixels tile by tile ([`crate::tiles`]), each pixel's samples together, in
+    // batches of about `BATCH_SAMPLES` samples (whole pixels): memory stays bounded whatever
+    // the width and spp.
+    let first_pixel = u64::from(y0) * u64::from(s.width);
+    let order = tile_order(first_pixel..first_pixel + pixels as u64, s.width)
+        .map(|p| (p - first_pixel) as usize);
     let samples = s.spp as usize;
-    let pixels_per_batch = (BATCH_SAMPLES / samples).max(1) as u32;
+    let pixels_per_batch = (BATCH_SAMPLES / samples).max(1);
+    let mut batch = Vec::with_capacity(pixels_per_batch);
+    let mut order = order.peekable();
     let mut rays = Vec::new();
     let mut hits = Vec::new();
-    for batch_start in (0..s.width).step_by(pixels_per_batch as usize) {
-        let batch_end = (batch_start + pixels_per_batch).min(s.width);
+    while order.peek().is_some() {
         timer.lap(Phase::Loop);
+        batch.clear();
+        batch.extend(order.by_ref().take(pixels_per_batch));
         rays.clear();
-        for x in batch_start..batch_end {
-            camera.pixel_rays(first_pixel + u64::from(x), s.spp, &mut rays);
+        for &i in &batch {
+            camera.pixel_rays(first_pixel + i as u64, s.spp, &mut rays);
         }
         hits.clear();
         hits.resize(rays.len(), None);
@@ -341,12 +356,16 @@ fn render_row(
         bvh.closest_hits(&rays, &mut hits);
         timer.lap(Phase::ClosestHits);
         let colours = shade_batch_timed(scene, bvh, unoccludable, &rays, &hits, timer);
-        for (colours, hits) in colours.chunks(samples).zip(hits.chunks(samples)) {
+        for ((&i, colours), hits) in batch
+            .iter()
+            .zip(colours.chunks(samples))
+            .zip(hits.chunks(samples))
+        {
             let mut sum = PixelSum::default();
             for (colour, hit) in colours.iter().zip(hits) {
                 sum.add(*colour);
                 // One primary ray, and for a hit one shadow ray per light.
-                row.rays += RayCounts {
+                band.rays += RayCounts {
                     primary: 1,
                     shadow: if hit.is_some() {
                         scene.lights.len() as u64
@@ -355,15 +374,15 @@ fn render_row(
                     },
                 };
             }
-            row.colours.push(sum.mean(s.spp));
-            row.hits.push(hits[0].map_or(Hit::MISS, |h| Hit {
+            band.colours[i] = sum.mean(s.spp);
+            band.hits[i] = hits[0].map_or(Hit::MISS, |h| Hit {
                 triangle: h.id,
                 t: h.t,
-            }));
+            });
         }
         timer.lap(Phase::Accumulation);
     }
-    row
+    band
 }
 
 #[cfg(test)]
@@ -442,8 +461,10 @@ mod tests {
         }
     }
 
-    /// Rows traced in packets and batches equal the same samples traced one by one with
-    /// `closest_hit`: 40 pixels x 64 samples per row is three batches of whole pixels.
+    /// Bands traced tile by tile, in packets and batches, equal the same samples traced one by
+    /// one with `closest_hit`: 42 pixels x 64 samples per row is several batches of whole
+    /// pixels; at 1 and 3 spp a batch holds many tiles, and the sizes end in a partial tile and
+    /// a partial band.
     #[test]
     fn batched_packet_rows_equal_sample_by_sample_tracing() {
         let mut scene = teapot();
@@ -455,15 +476,23 @@ mod tests {
         });
         scene.lights.push(first);
         let bvh = build_scene_bvh(&scene.mesh);
+        // 64 spp: rows of several batches; 1 and 3 spp: tiles across batches, and sizes that
+        // end in a partial tile and a partial band.
+        for (width, height, spp) in [(42, 6, 64), (37, 7, 1), (29, 5, 3)] {
+            check_against_single_samples(&scene, &bvh, width, height, spp);
+        }
+    }
+
+    fn check_against_single_samples(scene: &Scene, bvh: &Bvh, width: u32, height: u32, spp: u32) {
         let settings = RenderSettings {
-            width: 40,
-            height: 6,
-            spp: 64,
+            width,
+            height,
+            spp,
             threads: 2,
             frame: Default::default(),
         };
-        assert!(settings.width as usize * settings.spp as usize > 2 * BATCH_SAMPLES);
-        let out = render(&scene, &bvh, settings).expect("render");
+        assert!(spp < 16 || settings.width as usize * settings.spp as usize > 2 * BATCH_SAMPLES);
+        let out = render(scene, bvh, settings).expect("render");
         let camera = Camera::new(&scene.camera, settings.width, settings.height).unwrap();
         let mut hits = 0;
         let mut rays = RayCounts::default();
@@ -487,7 +516,7 @@ mod tests {
                         );
                         hits += usize::from(hit.is_some());
                     }
-                    let (colour, counts) = shade_sample(&scene, &bvh, &ray, hit.as_ref());
+                    let (colour, counts) = shade_sample(scene, bvh, &ray, hit.as_ref());
                     rays += counts;
                     for k in 0..3 {
                         sum[k] += colour[k];
