@@ -310,9 +310,9 @@ struct Band {
     rays: RayCounts,
 }
 
-/// Renders the band of up to [`BAND_ROWS`] rows from row `y0` (a band of [`crate::tiles`]). Each pixel is the mean of its
-/// samples in sample order, whatever order the pixels are traced in, so the band's bits are
-/// those of rendering its rows one by one.
+/// Renders the band of up to [`BAND_ROWS`] rows from row `y0`, tile by tile
+/// ([`crate::tiles`]). Each pixel is the mean of its samples in sample order, whatever order
+/// the pixels are traced in, so the band's bits are those of rendering its rows one by one.
 fn render_band(
     scene: &Scene,
     bvh: &Bvh,
