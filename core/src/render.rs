@@ -18,7 +18,7 @@ use crate::texture::TexturedCorners;
 use crate::tiles::{BAND_ROWS, tile_order};
 use crate::triangle::Ray;
 use crate::unoccludable::unoccludable_lights;
-use crate::worker_pool::run_indexed;
+use crate::worker_pool::{available_cores, run_indexed};
 use std::convert::Infallible;
 use std::time::Instant;
 
@@ -74,11 +74,6 @@ impl std::ops::AddAssign for RayCounts {
         self.primary += o.primary;
         self.shadow += o.shadow;
     }
-}
-
-/// Cores this process may use (at least 1): the default thread and worker count everywhere.
-pub fn available_cores() -> usize {
-    std::thread::available_parallelism().map_or(1, |n| n.get())
 }
 
 /// Builds the BVH over the whole scene; triangle ids are scene-order indices.

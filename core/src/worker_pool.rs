@@ -6,6 +6,11 @@
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Mutex, PoisonError, mpsc};
 
+/// Cores this process may use (at least 1): the default thread and worker count everywhere.
+pub fn available_cores() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
 /// Runs `work(&mut state, item)` for the items `0..items` on one scoped thread per element of
 /// `states` (no more threads than items; extra states are not used) and passes each result to
 /// `collect(item, result)` on the calling thread, in the order the items finish.

@@ -26,7 +26,7 @@ use hort_core::pipeline::{
     ExecutionMode, JobOutputs, PipelineOptions, PlanRequest, resolve_counts_with, run_pipeline,
 };
 use hort_core::plural::count;
-use hort_core::render::{RenderSettings, available_cores, build_scene_bvh_on, render};
+use hort_core::render::{RenderSettings, build_scene_bvh_on, render};
 use hort_core::report::{
     AdaptiveReport, FrameReport, Outputs, Preparation, RayReport, Report, Seconds, StageReport,
 };
@@ -34,6 +34,7 @@ use hort_core::scene::{Scene, check_image_size, load_scene_with, scene_image_set
 use hort_core::stage::Stage;
 use hort_core::store::MemoryStore;
 use hort_core::unoccludable::unoccludable_lights;
+use hort_core::worker_pool::available_cores;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -297,8 +298,9 @@ fn render_monolithic_frames(
     (threads, started): (Option<usize>, Instant),
     adaptive: Option<AdaptiveSettings>,
 ) -> Result<(Rendered, Vec<FrameImages>)> {
+    let threads = threads.unwrap_or_else(available_cores);
     let build_start = Instant::now();
-    let bvh = build_scene_bvh_on(&scene.mesh, threads.unwrap_or_else(available_cores));
+    let bvh = build_scene_bvh_on(&scene.mesh, threads);
     let build_seconds = build_start.elapsed().as_secs_f64();
     let mut total: Option<Rendered> = None;
     let mut images = Vec::new();
@@ -624,16 +626,15 @@ fn print_run_summary(report: &Report, render_seconds: f64, out: &Path) -> Result
     Ok(())
 }
 
-/// The monolithic render of `request`'s frame of `scene` with its BVH (built in
-/// `build_seconds`).
+/// The monolithic render of `request`'s frame of `scene` on `threads` threads with its BVH
+/// (built in `build_seconds`).
 fn render_monolithic(
     scene: &Scene,
     (bvh, build_seconds): (&Bvh, f64),
     request: PlanRequest,
-    threads: Option<usize>,
+    threads: usize,
     adaptive: Option<AdaptiveSettings>,
 ) -> Result<Rendered> {
-    let threads = threads.unwrap_or_else(available_cores);
     let settings = RenderSettings {
         width: request.width,
         height: request.height,

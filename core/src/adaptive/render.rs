@@ -34,7 +34,7 @@ pub fn render_adaptive(
     check_image_size(width, height, adaptive.max_spp)?;
     let camera = settings.camera(scene)?;
     let threads = if threads == 0 {
-        crate::render::available_cores()
+        crate::worker_pool::available_cores()
     } else {
         threads
     };

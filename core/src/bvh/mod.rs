@@ -112,8 +112,7 @@ impl Bvh {
     /// tie-breaks and reported in hits), on as many threads as the process may use. Panics if
     /// the lengths differ.
     pub fn build(triangles: Vec<[Vec3; 3]>, ids: Vec<u32>) -> Bvh {
-        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-        Bvh::build_on_threads(triangles, ids, threads)
+        Bvh::build_on_threads(triangles, ids, crate::worker_pool::available_cores())
     }
 
     /// [`Bvh::build`] on at most `threads` threads (1 or 0: the calling thread only). The BVH

@@ -440,7 +440,6 @@ pub fn plan_job(
         })
         .collect();
     let frames = planned_frames(scene, &request.frame, request.width, request.height)?;
-
     if !frames.is_empty() && request.adaptive.is_some() {
         return Err(PipelineError::BadInput(format!(
             "adaptive sampling renders one frame per job; render the {} frames one --frame at a \

@@ -18,9 +18,10 @@ use hort_core::image::encode_png;
 use hort_core::pipeline::{
     ExecutionMode, PipelineOptions, PlanRequest, SplitMode, StoredOutputs, run_pipeline,
 };
-use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
+use hort_core::render::{RenderSettings, build_scene_bvh, render};
 use hort_core::scene::load_scene;
 use hort_core::store::MemoryStore;
+use hort_core::worker_pool::available_cores;
 use std::time::Instant;
 
 /// Options of `hort bench emulator`.

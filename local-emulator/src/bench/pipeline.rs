@@ -12,10 +12,11 @@ use hort_core::pipeline::{
     ExecutionMode, PipelineOptions, PipelineRun, PlanRequest, SplitMode, StoredOutputs, plan_job,
     resolve_counts, run_pipeline, run_task, split_scene,
 };
-use hort_core::render::{RenderSettings, available_cores, build_scene_bvh, render};
+use hort_core::render::{RenderSettings, build_scene_bvh, render};
 use hort_core::scene::{Scene, load_scene};
 use hort_core::stage::Stage;
 use hort_core::store::{BlobStore, MemoryStore};
+use hort_core::worker_pool::available_cores;
 use std::time::Instant;
 
 /// Options of `hort bench pipeline`.

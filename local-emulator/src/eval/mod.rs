@@ -183,7 +183,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
     };
     let workers = args
         .workers
-        .unwrap_or_else(hort_core::render::available_cores);
+        .unwrap_or_else(hort_core::worker_pool::available_cores);
     let mut single = Vec::new();
     let mut distributed = Vec::new();
     let mut names = Vec::new();
@@ -214,7 +214,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
                 &distributed_levels,
                 args.adaptive_threshold,
                 args.workers
-                    .unwrap_or_else(hort_core::render::available_cores),
+                    .unwrap_or_else(hort_core::worker_pool::available_cores),
             )?);
         }
     }

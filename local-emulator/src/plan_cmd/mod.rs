@@ -20,8 +20,8 @@ use hort_core::predict::{
     Projection, ProjectionSettings, RATES, SPLIT_BYTES_PER_TRIANGLE,
     SPLIT_NORMAL_BYTES_PER_TRIANGLE, SWEEP, Target, best_of, preview_plan, project,
 };
-use hort_core::render::available_cores;
 use hort_core::scene::{ImageSettings, load_scene, scene_image_settings};
+use hort_core::worker_pool::available_cores;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 

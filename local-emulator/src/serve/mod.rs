@@ -13,7 +13,7 @@ use std::sync::{Arc, Mutex};
 use anyhow::{Result, bail};
 use clap::Args;
 use hort_core::plural::count;
-use hort_core::render::available_cores;
+use hort_core::worker_pool::available_cores;
 use tokio::sync::oneshot;
 
 pub use backend::EmulatorBackend;
