@@ -18,8 +18,12 @@
 //! shadow rays are made for hits only: a previewed plan estimates the fraction of camera
 //! samples that hit ([`JobPlan::camera_hit_estimate`], a coarse rasterization); without it
 //! every sample is assumed to hit, an upper bound. A scene split by tasks adds its scan,
-//! Partition, cut, Build and plan-from-parts steps ([`job_steps`]). A fused Render ray costs more
-//! with the scene's size, by log2 of its triangles (the depth of its BVH).
+//! Partition, cut, Build and plan-from-parts steps ([`job_steps`]). A fused Render task pays
+//! per hit and per shadow ray, and each ray costs more with the scene's size: a little by log2
+//! of its triangles (the depth of its BVH), much more by log2(1 + triangles / hitting camera
+//! samples of the frame), the part of the BVH each ray meets cold because few other rays
+//! share it (a ray of a generated 300,000-triangle scene costs twice as much at 320x180 as at
+//! 1920x1080).
 //!
 //! `hort plan` projects the same per-task model onto N functions on Lambda or the emulator
 //! ([`projection`]). The HTTP API (`hort_functions::api`) answers dry runs and checks budgets
@@ -85,12 +89,19 @@ pub struct Rates {
     /// Combine: per pixel (reading the spans' pixels, encoding the outputs; the emulator's
     /// projection adds its storage's time per stored byte).
     pub combine_us_per_pixel: f64,
-    /// Render (fused): per ray (camera sample or (hit, traced light) of the span) against the
-    /// whole scene, without a shuffle (shading, hit buffer, the span's pixels encoded and
-    /// uploaded): this plus [`Rates::render_us_per_ray_log2`] times log2 of the triangles.
-    pub render_us_per_ray: f64,
-    /// Render (fused): per ray, per doubling of the scene's triangles (BVH depth).
+    /// Render (fused): per camera sample that hits (its shading, its hit record, its pixel),
+    /// against the whole scene, without a shuffle. A sample that misses costs about nothing
+    /// beyond the task's overhead at the span sizes the plan chooses.
+    pub render_us_per_hit: f64,
+    /// Render (fused): per shadow ray ((hit, traced light) of the span).
+    pub render_us_per_query: f64,
+    /// Render (fused): per ray (camera sample or shadow ray), per doubling of the scene's
+    /// triangles (the BVH's depth).
     pub render_us_per_ray_log2: f64,
+    /// Render (fused): per ray, per unit of log2(1 + triangles / camera samples that hit in
+    /// the frame): the BVH nodes and triangles a ray visits that its neighbours have not
+    /// brought into the cache, which dominates large scenes at low resolutions.
+    pub render_us_per_ray_cold: f64,
     /// A function's first read of a split: fetch and decode, per triangle of the split (a warm
     /// function keeps it).
     pub split_load_us_per_triangle: f64,
@@ -114,8 +125,10 @@ pub struct Rates {
 /// The reference rates: `hort render` through the emulator (embedded S3 server) built with
 /// `cargo build --release`, on a 2-core x86-64 machine; fitted from the stage times of
 /// `hort bench plan --stages` on the bundled teapot, Cornell box and globe and a generated
-/// 300,000-triangle scene at 320x180, 960x540 and 1920x1080, fused and staged over 2 splits
-/// (`docs/perf/plan-validation.md` has the tables and the command). See the module
+/// 300,000-triangle scene at 320x180, 960x540 and 1920x1080, fused and staged over 2 splits;
+/// the fused Render rates from its tasks' times on the bundled scenes and generated scenes of
+/// 100,000 to 2,000,000 triangles at 320x180 to 1920x1080, 1 to 16 spp and 1 to 3 lights
+/// (`docs/perf/plan-validation.md` has the tables and the commands). See the module
 /// documentation.
 pub const RATES: Rates = Rates {
     job_overhead_ms: 15.0,
@@ -129,8 +142,10 @@ pub const RATES: Rates = Rates {
     trace_us_per_query: 0.045,
     trace_reduce_us_per_query: 0.07,
     combine_us_per_pixel: 0.03,
-    render_us_per_ray: 0.062,
-    render_us_per_ray_log2: 0.013,
+    render_us_per_hit: 0.134,
+    render_us_per_query: 0.139,
+    render_us_per_ray_log2: 0.0016,
+    render_us_per_ray_cold: 0.075,
     split_load_us_per_triangle: 0.15,
     upload_us_per_triangle: 0.2,
     file_upload_us_per_byte: 0.004,
@@ -504,13 +519,19 @@ fn task_ms(plan: &JobPlan, step: JobStep, r: &Rates, speed: f64, bound: Bound) -
             ms(r.task_overhead_ms, range, r.partition_us_per_byte)
         }
         (Stage::Build, _) => ms(r.task_overhead_ms, largest_split, r.build_us_per_triangle),
-        (Stage::Render, _) => ms(
-            r.task_overhead_ms,
-            1.0,
-            (span_samples + queries)
-                * (r.render_us_per_ray
-                    + r.render_us_per_ray_log2 * libm::log2(plan.triangles.max(2) as f64)),
-        ),
+        (Stage::Render, _) => {
+            let frame_hits = (pixels as f64 * f64::from(spp) * hit_fraction).max(1.0);
+            let triangles = plan.triangles.max(2) as f64;
+            let per_ray = r.render_us_per_ray_log2 * libm::log2(triangles)
+                + r.render_us_per_ray_cold * libm::log2(1.0 + triangles / frame_hits);
+            ms(
+                r.task_overhead_ms,
+                1.0,
+                hits * r.render_us_per_hit
+                    + queries * r.render_us_per_query
+                    + (span_samples + queries) * per_ray,
+            )
+        }
         (Stage::CastMap, _) => ms(r.task_overhead_ms, span_samples, r.cast_us_per_sample),
         (Stage::CastReduce, _) => ms(r.task_overhead_ms, hits, r.cast_reduce_us_per_sample),
         (Stage::Expand, _) => ms(r.task_overhead_ms, queries, r.expand_us_per_query),
@@ -955,6 +976,28 @@ mod tests {
         // A job's own plan has no estimate: every sample counts as a hit.
         plan.camera_hit_estimate = None;
         assert_eq!(work(&plan, Stage::Expand), all[2]);
+    }
+
+    /// A fused Render ray of a large scene costs more where few camera rays share its BVH (a
+    /// small image); a small scene's BVH is shared at any size.
+    #[test]
+    fn a_render_ray_costs_more_where_few_rays_share_the_bvh() {
+        let mut plan = cornell_plan();
+        plan.camera_hit_estimate = Some(1.0);
+        let per_sample = |width: u32, height: u32, triangles: u64| {
+            let mut plan = plan.clone();
+            (plan.width, plan.height, plan.triangles) = (width, height, triangles);
+            let r = Rates {
+                task_overhead_ms: 0.0,
+                ..RATES
+            };
+            let ms = task_milliseconds(&plan, JobStep::Stage(Stage::Render), &r, 1.0);
+            ms / f64::from(width * height)
+        };
+        let (low, high) = (per_sample(320, 180, 1_000_000), per_sample(1920, 1080, 1_000_000));
+        assert!(low > 1.5 * high, "{low} vs {high}");
+        let (low, high) = (per_sample(320, 180, 36), per_sample(1920, 1080, 36));
+        assert!((low / high - 1.0).abs() < 0.01, "{low} vs {high}");
     }
 
     #[test]

@@ -84,7 +84,7 @@ pub const LAMBDA_FACTS: LambdaFacts = LambdaFacts {
 pub const EMULATOR_REQUESTS_IN_OVERHEAD: f64 = 3.0;
 /// The embedded S3 server's time per further request, ms, in a release build on the reference
 /// machine (fitted with [`super::RATES`]).
-pub const EMULATOR_REQUEST_MS: f64 = 1.0;
+pub const EMULATOR_REQUEST_MS: f64 = 0.5;
 /// The embedded S3 server's time per byte of the job's outputs (Combine's PNG, and the PFM and
 /// hit buffer when the job stores them, uncompressed, at once), us at speed 1, beyond
 /// Combine's per-pixel rate: fitted with [`super::RATES`] from the Combine stage of the teapot

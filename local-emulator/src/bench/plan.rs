@@ -44,6 +44,10 @@ pub struct PlanBenchArgs {
     /// --scene-range-bytes`).
     #[arg(long, value_name = "BYTES")]
     pub scene_range_bytes: Option<u64>,
+    /// Runs of each case; the median job time and the median of each stage are reported
+    /// (one run of this machine's emulator moves by up to 30%).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=99))]
+    pub repeats: u32,
     /// Append the table to this CSV file.
     #[arg(long)]
     pub csv: Option<PathBuf>,
@@ -140,7 +144,10 @@ pub fn run_plan_bench(args: &PlanBenchArgs) -> Result<()> {
                         },
                         calibration,
                     )?;
-                    let run = measure(&exe, &dir, scene, (width, height), workers, latency, args)?;
+                    let runs_of_case = (0..args.repeats)
+                        .map(|_| measure(&exe, &dir, scene, (width, height), workers, latency, args))
+                        .collect::<Result<Vec<_>>>()?;
+                    let run = Measured::median(&runs_of_case);
                     let measured = run.seconds;
                     let predicted = planned.chosen.seconds;
                     let ratio = measured / predicted;
@@ -210,6 +217,25 @@ struct Measured {
 }
 
 impl Measured {
+    /// The median of `runs` (at least one): of the job's seconds and of each stage's.
+    fn median(runs: &[Measured]) -> Measured {
+        let seconds = median(runs.iter().map(|r| r.seconds).collect());
+        let mut names: Vec<&String> = Vec::new();
+        for (name, _) in &runs[0].stages {
+            if !names.contains(&name) {
+                names.push(name);
+            }
+        }
+        let stages = names
+            .into_iter()
+            .map(|name| {
+                let each = runs.iter().map(|r| r.stage_seconds(name)).collect();
+                (name.clone(), median(each))
+            })
+            .collect();
+        Measured { seconds, stages }
+    }
+
     fn stage_seconds(&self, name: &str) -> f64 {
         self.stages
             .iter()
@@ -217,6 +243,13 @@ impl Measured {
             .map(|(_, s)| s)
             .sum()
     }
+}
+
+/// The median of `values` (at least one; the mean of the middle two for an even count).
+fn median(mut values: Vec<f64>) -> f64 {
+    values.sort_by(f64::total_cmp);
+    let n = values.len();
+    (values[(n - 1) / 2] + values[n / 2]) / 2.0
 }
 
 /// One emulator run: its report's total less the scene's load, and its stages.
