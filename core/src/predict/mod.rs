@@ -149,10 +149,10 @@ pub const RATES: Rates = Rates {
     split_load_us_per_triangle: 0.15,
     upload_us_per_triangle: 0.2,
     file_upload_us_per_byte: 0.004,
-    scan_us_per_byte: 0.010,
-    partition_us_per_byte: 0.034,
+    scan_us_per_byte: 0.0075,
+    partition_us_per_byte: 0.024,
     parts_us_per_object: 200.0,
-    build_us_per_triangle: 1.9,
+    build_us_per_triangle: 0.8,
 };
 
 /// What a backend runs jobs on.
@@ -994,7 +994,10 @@ mod tests {
             let ms = task_milliseconds(&plan, JobStep::Stage(Stage::Render), &r, 1.0);
             ms / f64::from(width * height)
         };
-        let (low, high) = (per_sample(320, 180, 1_000_000), per_sample(1920, 1080, 1_000_000));
+        let (low, high) = (
+            per_sample(320, 180, 1_000_000),
+            per_sample(1920, 1080, 1_000_000),
+        );
         assert!(low > 1.5 * high, "{low} vs {high}");
         let (low, high) = (per_sample(320, 180, 36), per_sample(1920, 1080, 36));
         assert!((low / high - 1.0).abs() < 0.01, "{low} vs {high}");

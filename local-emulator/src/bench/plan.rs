@@ -6,7 +6,9 @@
 //! the same for every stage (the rows the model's rates are fitted from).
 
 use super::table::{Table, f3};
-use crate::plan_cmd::{ArchArg, PlanArgs, TargetArg, calibrate, plan_with};
+use crate::plan_cmd::{
+    ArchArg, Calibration, PlanArgs, PlanOutput, TargetArg, calibrate, plan_with,
+};
 use crate::plan_flags::{OutputFlags, PlanFlags};
 use anyhow::{Context, Result, bail};
 use hort::emulator::S3_FAULTS_VAR;
@@ -101,102 +103,138 @@ pub fn run_plan_bench(args: &PlanBenchArgs) -> Result<()> {
             .map(|&(w, h)| (Some(w), Some(h)))
             .collect()
     };
-    let (mut within, mut runs) = (0, 0);
     // One calibration for every prediction of the table.
     let calibration = calibrate()?;
     println!(
         "calibration: speed {:.2} (BVH {:.2} ms, render {:.2} ms)",
         calibration.speed, calibration.build_ms, calibration.trace_ms
     );
-    let mut worst: f64 = 1.0;
+    let mut cases = Vec::new();
     for scene in &scenes {
-        for &(width, height) in &sizes {
+        for &size in &sizes {
             for &latency in &args.latency_ms {
                 for &workers in &args.workers {
-                    let planned = plan_with(
-                        &PlanArgs {
-                            scene: scene.clone(),
-                            more_scenes: Vec::new(),
-                            chart: None,
-                            functions: Some(workers),
-                            arch: ArchArg::Arm64,
-                            target: TargetArg::Emulator,
-                            json: true,
-                            fail_rate: 0.0,
-                            s3_latency_ms: latency,
-                            plan: PlanFlags {
-                                width,
-                                height,
-                                spp: args.spp,
-                                splits: args.splits,
-                                spans: None,
-                                split_mode: SplitMode::Spatial,
-                                mode: args.mode,
-                                memory_mb: 2048,
-                                scene_range_bytes: args.scene_range_bytes,
-                            },
-                            // What `measure` writes: the PNG only.
-                            outputs: OutputFlags {
-                                out: Some(dir.join("image.png")),
-                                hits: None,
-                            },
-                            animation: Default::default(),
-                        },
-                        calibration,
-                    )?;
-                    let runs_of_case = (0..args.repeats)
-                        .map(|_| measure(&exe, &dir, scene, (width, height), workers, latency, args))
-                        .collect::<Result<Vec<_>>>()?;
-                    let run = Measured::median(&runs_of_case);
-                    let measured = run.seconds;
-                    let predicted = planned.chosen.seconds;
-                    let ratio = measured / predicted;
-                    runs += 1;
-                    within += usize::from((ratio - 1.0).abs() <= 0.2);
-                    let size = format!("{}x{}", planned.width, planned.height);
-                    for stage in &planned.chosen.stages {
-                        let measured = run.stage_seconds(&stage.name);
-                        stage_table.push(vec![
-                            scene.display().to_string(),
-                            size.clone(),
-                            workers.to_string(),
-                            format!("{latency}"),
-                            stage.name.clone(),
-                            stage.tasks.to_string(),
-                            f3(stage.seconds),
-                            f3(measured),
-                            format!("{:.2}", measured / stage.seconds),
-                        ]);
-                    }
-                    worst = if (ratio - 1.0).abs() > (worst - 1.0).abs() {
-                        ratio
-                    } else {
-                        worst
-                    };
-                    table.push(vec![
-                        scene.display().to_string(),
+                    let case = Case {
+                        scene: scene.clone(),
                         size,
-                        planned.triangles.to_string(),
-                        workers.to_string(),
-                        format!("{latency}"),
-                        f3(predicted),
-                        f3(measured),
-                        format!("{ratio:.2}"),
-                    ]);
+                        workers,
+                        latency,
+                    };
+                    let planned = plan_case(&case, args, &dir, calibration)?;
+                    cases.push((case, planned));
                 }
             }
         }
+    }
+    // Round robin: each pass runs every case once, so a slow spell of the machine falls on
+    // one run of many cases rather than on every run of a few.
+    let mut runs: Vec<Vec<Measured>> = cases.iter().map(|_| Vec::new()).collect();
+    for _ in 0..args.repeats {
+        for ((case, _), runs) in cases.iter().zip(&mut runs) {
+            runs.push(measure(&exe, &dir, case, args)?);
+        }
+    }
+    let (mut within, mut worst) = (0, 1.0_f64);
+    for ((case, planned), runs) in cases.iter().zip(&runs) {
+        let run = Measured::median(runs);
+        let (predicted, measured) = (planned.chosen.seconds, run.seconds);
+        let ratio = measured / predicted;
+        within += usize::from((ratio - 1.0).abs() <= 0.2);
+        if (ratio - 1.0).abs() > (worst - 1.0).abs() {
+            worst = ratio;
+        }
+        let (scene, workers) = (case.scene.display().to_string(), case.workers.to_string());
+        let latency = format!("{}", case.latency);
+        let size = format!("{}x{}", planned.width, planned.height);
+        for stage in &planned.chosen.stages {
+            let measured = run.stage_seconds(&stage.name);
+            stage_table.push(vec![
+                scene.clone(),
+                size.clone(),
+                workers.clone(),
+                latency.clone(),
+                stage.name.clone(),
+                stage.tasks.to_string(),
+                f3(stage.seconds),
+                f3(measured),
+                format!("{:.2}", measured / stage.seconds),
+            ]);
+        }
+        table.push(vec![
+            scene,
+            size,
+            planned.triangles.to_string(),
+            workers,
+            latency,
+            f3(predicted),
+            f3(measured),
+            format!("{ratio:.2}"),
+        ]);
     }
     let _ = std::fs::remove_dir_all(&dir);
     table.print();
     if args.stages {
         stage_table.print();
     }
-    println!("within 20%: {within} of {runs}; furthest from 1: {worst:.2}");
+    println!(
+        "within 20%: {within} of {}; furthest from 1: {worst:.2}",
+        cases.len()
+    );
     if let Some(csv) = &args.csv {
         table.append_csv(csv)?;
     }
     Ok(())
+}
+
+/// One row of the table: a scene at an image size, run on `workers` slots with `latency` ms
+/// injected per S3 request.
+struct Case {
+    scene: PathBuf,
+    /// Width and height (`None`: the scene's).
+    size: (Option<u32>, Option<u32>),
+    workers: u32,
+    latency: f64,
+}
+
+/// `hort plan --target emulator --json` of `case`, with the outputs `measure` stores (the PNG
+/// only).
+fn plan_case(
+    case: &Case,
+    args: &PlanBenchArgs,
+    dir: &std::path::Path,
+    calibration: Calibration,
+) -> Result<PlanOutput> {
+    let (width, height) = case.size;
+    plan_with(
+        &PlanArgs {
+            scene: case.scene.clone(),
+            more_scenes: Vec::new(),
+            chart: None,
+            functions: Some(case.workers),
+            arch: ArchArg::Arm64,
+            target: TargetArg::Emulator,
+            json: true,
+            fail_rate: 0.0,
+            s3_latency_ms: case.latency,
+            plan: PlanFlags {
+                width,
+                height,
+                spp: args.spp,
+                splits: args.splits,
+                spans: None,
+                split_mode: SplitMode::Spatial,
+                mode: args.mode,
+                memory_mb: 2048,
+                scene_range_bytes: args.scene_range_bytes,
+            },
+            outputs: OutputFlags {
+                out: Some(dir.join("image.png")),
+                hits: None,
+            },
+            animation: Default::default(),
+        },
+        calibration,
+    )
 }
 
 /// `--sizes`' `WIDTHxHEIGHT`.
@@ -256,12 +294,11 @@ fn median(mut values: Vec<f64>) -> f64 {
 fn measure(
     exe: &std::path::Path,
     dir: &std::path::Path,
-    scene: &std::path::Path,
-    (width, height): (Option<u32>, Option<u32>),
-    workers: u32,
-    latency_ms: f64,
+    case: &Case,
     args: &PlanBenchArgs,
 ) -> Result<Measured> {
+    let (scene, (width, height)) = (&case.scene, case.size);
+    let (workers, latency_ms) = (case.workers, case.latency);
     let report = dir.join("report.json");
     let mut cmd = Command::new(exe);
     cmd.arg("render")
