@@ -13,7 +13,7 @@ const HUGE: u64 = 1_000_000;
 #[test]
 fn a_huge_scene_in_one_split_equals_the_monolithic_render() {
     let scratch = Scratch::new("huge");
-    let path = scratch.0.join("huge.obj");
+    let path = scratch.path().join("huge.obj");
     let mut file = std::io::BufWriter::new(std::fs::File::create(&path).unwrap());
     hort_core::generate::generate_scene(HUGE, 7, &mut file).unwrap();
     drop(file);

@@ -9,7 +9,6 @@ use hort_core::render::{RenderOutput, RenderSettings, build_scene_bvh, render};
 use hort_core::scene::{Scene, load_scene};
 use hort_core::store::MemoryStore;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU32, Ordering};
 
 /// The path of a bundled scene file, e.g. `scene_path("stability/closed_box.obj")`.
 pub fn scene_path(rel: &str) -> PathBuf {
@@ -24,31 +23,28 @@ pub fn bundled(rel: &str) -> Scene {
 }
 
 /// A fresh empty folder under the system temporary folder, removed on drop.
-pub struct Scratch(pub PathBuf);
+pub struct Scratch(tempfile::TempDir);
 
 impl Scratch {
-    /// A new folder named after the test and this process.
+    /// A new folder whose name starts with the test's.
     pub fn new(name: &str) -> Scratch {
-        static NEXT: AtomicU32 = AtomicU32::new(0);
-        let n = NEXT.fetch_add(1, Ordering::Relaxed);
-        let dir =
-            std::env::temp_dir().join(format!("hort-stability-{}-{name}-{n}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("scratch folder");
+        let dir = tempfile::Builder::new()
+            .prefix(&format!("hort-stability-{name}-"))
+            .tempdir()
+            .expect("scratch folder");
         Scratch(dir)
+    }
+
+    /// The folder.
+    pub fn path(&self) -> &Path {
+        self.0.path()
     }
 
     /// Writes `text` to `name` in the folder and returns its path.
     pub fn write(&self, name: &str, text: &str) -> PathBuf {
-        let path = self.0.join(name);
+        let path = self.0.path().join(name);
         std::fs::write(&path, text).expect("scratch file");
         path
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
     }
 }
 

@@ -80,7 +80,7 @@ fn transformed(rel: &str, s: f64, t: [f64; 3], dir: &Path) -> std::path::PathBuf
 
 fn render_transformed(rel: &str, s: f64, t: [f64; 3]) -> RenderOutput {
     let scratch = Scratch::new("transformed");
-    let path = transformed(rel, s, t, &scratch.0);
+    let path = transformed(rel, s, t, scratch.path());
     let scene = load_scene(&path).unwrap_or_else(|e| panic!("{rel} x{s} +{t:?}: {e}"));
     monolithic(&scene, W, H)
 }

@@ -388,8 +388,8 @@ fn the_output_flags_decide_what_the_planned_job_stores() {
     };
     // As `hort render` stores them: the PNG (4 bytes a pixel before compression), the linear
     // image unless --out is a PNG (12), the hit buffer with --hits (8). Nothing is written.
-    let dir = std::env::temp_dir().join(format!("hort-plan-outputs-{}", std::process::id()));
-    let at = |name: &str| dir.join(name).display().to_string();
+    let dir = tempfile::tempdir().unwrap();
+    let at = |name: &str| dir.path().join(name).display().to_string();
     let pixels = 64 * 48;
     assert_eq!(combine_bytes(&[]), pixels * 4);
     assert_eq!(combine_bytes(&["--out", &at("x.png")]), pixels * 4);
@@ -399,5 +399,7 @@ fn the_output_flags_decide_what_the_planned_job_stores() {
         combine_bytes(&["--out", &at("x.exr"), "--hits", &at("h.bin")]),
         pixels * 24
     );
-    assert!(!dir.exists(), "hort plan wrote {}", dir.display());
+    // The folder exists, so nothing kept `hort plan` from writing there.
+    let written: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert!(written.is_empty(), "hort plan wrote {written:?}");
 }

@@ -748,12 +748,12 @@ fn a_scene_by_key_is_sized_by_the_api_and_copied_into_its_job_by_the_plan_functi
         round: 1,
         step: hort_functions::handlers::PlanStep::Start,
     };
-    let tmp = std::env::temp_dir();
+    let tmp = tempfile::tempdir().unwrap();
     hort_functions::handlers::handle_plan(
         &store,
         &bucket,
         &event,
-        hort_functions::handlers::Tmp::unlimited(&tmp),
+        hort_functions::handlers::Tmp::unlimited(tmp.path()),
     )
     .expect("plan");
     assert_eq!(

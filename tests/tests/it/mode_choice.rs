@@ -42,14 +42,13 @@ fn options(job: &str, workers: usize) -> PipelineOptions {
 
 #[test]
 fn a_tiny_budget_runs_staged_with_the_fewest_splits_and_a_large_one_fused() {
-    let dir = std::env::temp_dir().join(format!("hort-mode-choice-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("g.obj");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("g.obj");
     let mut file = std::fs::File::create(&path).unwrap();
     hort_core::generate::generate_scene(TRIANGLES, 3, &mut file).unwrap();
     drop(file);
     let scene = load_scene(&path).unwrap();
-    std::fs::remove_dir_all(&dir).unwrap();
+    drop(dir);
     let (width, height) = (64, 48);
     let mono = render(
         &scene,
