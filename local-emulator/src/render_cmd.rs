@@ -115,21 +115,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if !args.monolithic {
         check_one_job(&frames, size.width, size.height)?;
     }
-    // A camera that cannot be built is the scene's fault: say so before any upload or render,
-    // for every frame.
     if let Some(scene) = &scene {
-        for k in frames.frames.clone() {
-            let settings = RenderSettings {
-                width: size.width,
-                height: size.height,
-                spp: size.spp,
-                threads: 1,
-                frame: frames.choice(k),
-            };
-            settings
-                .camera(scene)
-                .map_err(|e| anyhow!("{}: {e}", args.scene.display()))?;
-        }
+        check_cameras(scene, &args.scene, size, &frames)?;
     }
     let adaptive = adaptive_settings(&args, size)?;
     if adaptive.is_some() && !args.monolithic && frames.count() > 1 {
@@ -171,18 +158,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         }
     };
     let mut written = write_frames(&images, &targets)?;
-    for frame in &mut written {
-        if let Some(figures) = rendered
-            .frame_reports
-            .iter()
-            .find(|f| f.frame == frame.frame)
-        {
-            *frame = FrameReport {
-                image: std::mem::take(&mut frame.image),
-                ..figures.clone()
-            };
-        }
-    }
+    add_frame_figures(&mut written, &rendered.frame_reports);
     let preparation = rendered.preparation.clone().map(|p| Preparation {
         // The monolithic preparation is the BVH build after the load.
         seconds: p.seconds + if args.monolithic { load_seconds } else { 0.0 },
@@ -201,6 +177,41 @@ pub fn run(args: RenderArgs) -> Result<()> {
         write_output(target, (report.to_json() + "\n").as_bytes())?;
     }
     print_run_summary(&report, render_seconds, &targets.out)
+}
+
+/// Refuses, before any upload or render, a frame whose camera cannot be built: the scene's
+/// fault, named by its path.
+fn check_cameras(
+    scene: &Scene,
+    path: &Path,
+    size: ImageSize,
+    frames: &FrameSelection,
+) -> Result<()> {
+    for k in frames.frames.clone() {
+        let settings = RenderSettings {
+            width: size.width,
+            height: size.height,
+            spp: size.spp,
+            threads: 1,
+            frame: frames.choice(k),
+        };
+        settings
+            .camera(scene)
+            .map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    }
+    Ok(())
+}
+
+/// Gives each written frame the figures its render reported (the written image path kept).
+fn add_frame_figures(written: &mut [FrameReport], figures: &[FrameReport]) {
+    for frame in written {
+        if let Some(found) = figures.iter().find(|f| f.frame == frame.frame) {
+            *frame = FrameReport {
+                image: std::mem::take(&mut frame.image),
+                ..found.clone()
+            };
+        }
+    }
 }
 
 /// What one frame of a run hands over for writing.
