@@ -5,6 +5,7 @@
 //! file order, polygons fan-triangulated `(0, i, i + 1)` in place.
 
 mod binary;
+pub mod files;
 mod framing;
 mod manifest;
 mod mesh;

@@ -7,6 +7,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
+use hort_core::scene::files::{SceneFileKind, SceneFileSource, walk_scene_files};
 use hort_core::scene::{Scene, diffuse_map_files, load_scene, parse_manifest};
 
 use super::error::ApiError;
@@ -62,91 +63,110 @@ pub fn check_relative(name: &str, what: &str) -> Result<(), String> {
     }
 }
 
-/// `rel` relative to the folder of `file` (both relative to the scene's folder).
-fn beside(file: &str, rel: &str) -> String {
-    match file.rsplit_once('/') {
-        Some((dir, _)) => format!("{dir}/{rel}"),
-        None => rel.to_owned(),
-    }
-}
-
 /// Reads one file of a scene by its name: `None` if there is no such file.
 pub type Fetch<'a> = dyn FnMut(&str) -> Result<Option<Vec<u8>>, ApiError> + 'a;
 
 /// Gathers the files of the scene whose main file is `main`: `fetch(name)` gives a file's
 /// bytes (`None`: no such file); `shown(name)` is how messages name a file. Meshes must exist;
-/// material libraries are optional (the loader warns about missing ones).
+/// material libraries and textures are optional (the loader warns of a missing library and
+/// names a missing texture). Every name a file gives must pass [`check_relative`].
 pub fn gather(
     main: &str,
     shown: &dyn Fn(&str) -> String,
     fetch: &mut Fetch<'_>,
 ) -> Result<BTreeMap<String, Vec<u8>>, ApiError> {
-    let mut files = BTreeMap::new();
-    let Some(main_bytes) = fetch(main)? else {
-        return Err(ApiError::invalid_scene(format!(
-            "{}: no such file",
-            shown(main)
-        )));
+    let mut gathering = Gathering {
+        main,
+        shown,
+        fetch,
+        files: BTreeMap::new(),
     };
-    let is_json = Path::new(main)
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
-    let meshes: Vec<String> = if is_json {
-        let text = String::from_utf8_lossy(&main_bytes);
-        let manifest = parse_manifest(&text, Path::new(&shown(main)))
-            .map_err(|e| ApiError::invalid_scene(e.to_string()))?;
-        let mut meshes = Vec::new();
-        for mesh in manifest.meshes {
-            check_relative(&mesh, "mesh")
-                .map_err(|m| ApiError::invalid_scene(format!("{}: {m}", shown(main))))?;
-            meshes.push(beside(main, &mesh));
-        }
-        meshes
-    } else {
-        vec![main.to_owned()]
-    };
-    files.insert(main.to_owned(), main_bytes);
-    for mesh in meshes {
-        if !files.contains_key(&mesh) {
-            let Some(bytes) = fetch(&mesh)? else {
-                return Err(ApiError::invalid_scene(format!(
-                    "{}: the mesh {} does not exist",
-                    shown(main),
-                    shown(&mesh)
-                )));
-            };
-            files.insert(mesh.clone(), bytes);
-        }
-        let libraries = material_libraries(&files[&mesh]);
-        for lib in libraries {
-            check_relative(&lib, "material library")
-                .map_err(|m| ApiError::invalid_scene(format!("{}: {m}", shown(&mesh))))?;
-            let lib = beside(&mesh, &lib);
-            if !files.contains_key(&lib)
-                && let Some(bytes) = fetch(&lib)?
-            {
-                // Diffuse textures: a missing one is the loader's error, naming it.
-                for map in diffuse_map_files(&String::from_utf8_lossy(&bytes)) {
-                    check_relative(&map, "texture")
-                        .map_err(|m| ApiError::invalid_scene(format!("{}: {m}", shown(&lib))))?;
-                    let map = beside(&lib, &map);
-                    if !files.contains_key(&map)
-                        && let Some(texture) = fetch(&map)?
-                    {
-                        files.insert(map, texture);
-                    }
-                }
-                files.insert(lib, bytes);
-            }
-        }
-        if files.len() > MAX_SCENE_FILES {
+    walk_scene_files(main, &mut gathering)?;
+    Ok(gathering.files)
+}
+
+/// [`gather`]'s side of the scene walk: the fetched files, by name.
+struct Gathering<'a, 'f> {
+    main: &'a str,
+    shown: &'a dyn Fn(&str) -> String,
+    fetch: &'a mut Fetch<'f>,
+    files: BTreeMap<String, Vec<u8>>,
+}
+
+impl Gathering<'_, '_> {
+    /// Keeps `bytes` as the file `name`, refusing a scene of more than [`MAX_SCENE_FILES`].
+    fn keep(&mut self, name: &str, bytes: Vec<u8>) -> Result<(), ApiError> {
+        self.files.insert(name.to_owned(), bytes);
+        if self.files.len() > MAX_SCENE_FILES {
             return Err(ApiError::invalid_scene(format!(
                 "{}: the scene has more than {MAX_SCENE_FILES} files",
-                shown(main)
+                (self.shown)(self.main)
             )));
         }
+        Ok(())
     }
-    Ok(files)
+}
+
+impl SceneFileSource for Gathering<'_, '_> {
+    type Error = ApiError;
+
+    fn take_main(&mut self, main: &str) -> Result<(), ApiError> {
+        let Some(bytes) = (self.fetch)(main)? else {
+            return Err(ApiError::invalid_scene(format!(
+                "{}: no such file",
+                (self.shown)(main)
+            )));
+        };
+        self.keep(main, bytes)
+    }
+
+    fn manifest_meshes(&mut self, main: &str) -> Result<Vec<String>, ApiError> {
+        let text = String::from_utf8_lossy(&self.files[main]);
+        let manifest = parse_manifest(&text, Path::new(&(self.shown)(main)))
+            .map_err(|e| ApiError::invalid_scene(e.to_string()))?;
+        Ok(manifest.meshes)
+    }
+
+    fn check_name(
+        &mut self,
+        name: &str,
+        kind: SceneFileKind,
+        named_by: &str,
+    ) -> Result<(), ApiError> {
+        check_relative(name, kind.noun())
+            .map_err(|m| ApiError::invalid_scene(format!("{}: {m}", (self.shown)(named_by))))
+    }
+
+    fn take_mesh(&mut self, mesh: &str) -> Result<(), ApiError> {
+        let Some(bytes) = (self.fetch)(mesh)? else {
+            return Err(ApiError::invalid_scene(format!(
+                "{}: the mesh {} does not exist",
+                (self.shown)(self.main),
+                (self.shown)(mesh)
+            )));
+        };
+        self.keep(mesh, bytes)
+    }
+
+    fn mesh_libraries(&mut self, mesh: &str) -> Result<Vec<String>, ApiError> {
+        Ok(material_libraries(&self.files[mesh]))
+    }
+
+    fn take_library(&mut self, library: &str) -> Result<Option<Vec<String>>, ApiError> {
+        let Some(bytes) = (self.fetch)(library)? else {
+            return Ok(None);
+        };
+        let textures = diffuse_map_files(&String::from_utf8_lossy(&bytes));
+        self.keep(library, bytes)?;
+        Ok(Some(textures))
+    }
+
+    fn take_texture(&mut self, texture: &str) -> Result<(), ApiError> {
+        match (self.fetch)(texture)? {
+            Some(bytes) => self.keep(texture, bytes),
+            None => Ok(()),
+        }
+    }
 }
 
 /// The names after `mtllib` in OBJ text.

@@ -14,6 +14,7 @@ use super::events::JobRequest;
 use crate::api::check_relative;
 use hort_core::ids::JobId;
 use hort_core::keys::scene_prefix;
+use hort_core::scene::files::{SceneFileKind, SceneFileSource, is_manifest, walk_scene_files};
 use hort_core::scene::{diffuse_map_files, parse_manifest};
 use hort_core::store::{BlobStore, COPY_MAX_BYTES, StoreError};
 use std::path::Path;
@@ -42,102 +43,146 @@ pub(super) fn stage_in(
         Some((folder, main)) => (format!("{folder}/"), main.to_owned()),
         None => (String::new(), key.clone()),
     };
-    let source = |name: &str| format!("{folder}{name}");
-    let target = scene_prefix(job);
-    let size = |name: &str| -> Result<Option<u64>, HandlerError> {
-        match store.size(&source(name)) {
+    let mut staging = Staging {
+        store,
+        key,
+        folder: &folder,
+        target: scene_prefix(job),
+        sizes: std::collections::BTreeMap::new(),
+        main: None,
+    };
+    walk_scene_files(&main, &mut staging)?;
+    staging.copy_main()
+}
+
+/// [`stage_in`]'s side of the scene walk: each file copied from beside the key into the job.
+struct Staging<'a> {
+    store: &'a dyn BlobStore,
+    /// The scene's key (the main file's).
+    key: &'a str,
+    /// The key's folder, with its `/` (empty for a key at the bucket's top).
+    folder: &'a str,
+    /// `jobs/{job}/scene/`.
+    target: String,
+    /// The sizes of the files copied, by name.
+    sizes: std::collections::BTreeMap<String, u64>,
+    /// The main file and its size, until it is copied: after a manifest's mesh names are
+    /// checked, before the first mesh (nothing is copied for a manifest that is refused).
+    main: Option<(String, u64)>,
+}
+
+impl Staging<'_> {
+    /// The key of the scene's file `name`.
+    fn source(&self, name: &str) -> String {
+        format!("{}{name}", self.folder)
+    }
+
+    /// The size of the scene's file `name`, `None` if there is no such object.
+    fn size(&self, name: &str) -> Result<Option<u64>, HandlerError> {
+        match self.store.size(&self.source(name)) {
             Ok(size) => Ok(Some(size)),
             Err(StoreError::NotFound { .. }) => Ok(None),
             Err(e) => Err(e.into()),
         }
-    };
-    let copy = |name: &str, bytes: u64| -> Result<(), HandlerError> {
+    }
+
+    /// Copies the main file, if it is not copied yet.
+    fn copy_main(&mut self) -> Result<(), HandlerError> {
+        match self.main.take() {
+            Some((main, bytes)) => self.copy(&main, bytes),
+            None => Ok(()),
+        }
+    }
+
+    /// Copies the scene's file `name` of `bytes` bytes into the job.
+    fn copy(&mut self, name: &str, bytes: u64) -> Result<(), HandlerError> {
         if bytes > COPY_MAX_BYTES {
             return Err(HandlerError::bad_input(format!(
                 "{}: {bytes} bytes, over the {COPY_MAX_BYTES} bytes S3 copies in one request; \
                  split the mesh into files of at most 5 GiB and list them in a manifest",
-                source(name)
+                self.source(name)
             )));
         }
-        store.copy(&source(name), &format!("{target}{name}"))?;
+        self.store
+            .copy(&self.source(name), &format!("{}{name}", self.target))?;
+        self.sizes.insert(name.to_owned(), bytes);
         Ok(())
-    };
-    let Some(main_bytes) = size(&main)? else {
-        return Err(HandlerError::bad_input(format!(
-            "scene.key: there is no object {key} in the bucket"
-        )));
-    };
-    let meshes = if is_manifest(&main) {
-        if main_bytes > MAX_MANIFEST_BYTES {
+    }
+}
+
+impl SceneFileSource for Staging<'_> {
+    type Error = HandlerError;
+
+    fn take_main(&mut self, main: &str) -> Result<(), HandlerError> {
+        let Some(bytes) = self.size(main)? else {
             return Err(HandlerError::bad_input(format!(
-                "{key}: {main_bytes} bytes, over the {MAX_MANIFEST_BYTES} bytes a manifest may have"
-            )));
-        }
-        let text = store.get(key)?;
-        let manifest = parse_manifest(&String::from_utf8_lossy(&text), Path::new(key))
-            .map_err(|e| HandlerError::bad_input(e.to_string()))?;
-        let mut meshes = Vec::new();
-        for mesh in manifest.meshes {
-            check_relative(&mesh, "mesh")
-                .map_err(|m| HandlerError::bad_input(format!("{key}: {m}")))?;
-            meshes.push(beside(&main, &mesh));
-        }
-        meshes
-    } else {
-        vec![main.clone()]
-    };
-    copy(&main, main_bytes)?;
-    let mut copied = std::collections::BTreeSet::from([main.clone()]);
-    for mesh in meshes {
-        if !copied.insert(mesh.clone()) {
-            continue;
-        }
-        let Some(bytes) = size(&mesh)? else {
-            return Err(HandlerError::bad_input(format!(
-                "{key}: the mesh {} does not exist",
-                source(&mesh)
+                "scene.key: there is no object {} in the bucket",
+                self.key
             )));
         };
-        copy(&mesh, bytes)?;
-        for library in material_libraries(store, &source(&mesh), bytes)? {
-            check_relative(&library, "material library")
-                .map_err(|m| HandlerError::bad_input(format!("{}: {m}", source(&mesh))))?;
-            let library = beside(&mesh, &library);
-            if copied.insert(library.clone())
-                && let Some(bytes) = size(&library)?
-            {
-                // A missing library is the loader's warning, as for uploaded scenes.
-                copy(&library, bytes)?;
-                // Its diffuse textures; a missing one is the loader's error, naming it.
-                let text = store.get_range(&source(&library), 0..MAX_LIBRARY_BYTES)?;
-                for map in diffuse_map_files(&String::from_utf8_lossy(&text)) {
-                    check_relative(&map, "texture").map_err(|m| {
-                        HandlerError::bad_input(format!("{}: {m}", source(&library)))
-                    })?;
-                    let map = beside(&library, &map);
-                    if copied.insert(map.clone())
-                        && let Some(bytes) = size(&map)?
-                    {
-                        copy(&map, bytes)?;
-                    }
-                }
-            }
+        if is_manifest(main) && bytes > MAX_MANIFEST_BYTES {
+            return Err(HandlerError::bad_input(format!(
+                "{}: {bytes} bytes, over the {MAX_MANIFEST_BYTES} bytes a manifest may have",
+                self.key
+            )));
         }
+        self.main = Some((main.to_owned(), bytes));
+        Ok(())
     }
-    Ok(())
-}
 
-fn is_manifest(name: &str) -> bool {
-    Path::new(name)
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("json"))
-}
+    fn manifest_meshes(&mut self, _main: &str) -> Result<Vec<String>, HandlerError> {
+        let text = self.store.get(self.key)?;
+        let manifest = parse_manifest(&String::from_utf8_lossy(&text), Path::new(self.key))
+            .map_err(|e| HandlerError::bad_input(e.to_string()))?;
+        Ok(manifest.meshes)
+    }
 
-/// `rel` relative to the folder of `file` (both relative to the scene's folder).
-fn beside(file: &str, rel: &str) -> String {
-    match file.rsplit_once('/') {
-        Some((dir, _)) => format!("{dir}/{rel}"),
-        None => rel.to_owned(),
+    fn check_name(
+        &mut self,
+        name: &str,
+        kind: SceneFileKind,
+        named_by: &str,
+    ) -> Result<(), HandlerError> {
+        check_relative(name, kind.noun())
+            .map_err(|m| HandlerError::bad_input(format!("{}: {m}", self.source(named_by))))
+    }
+
+    fn take_mesh(&mut self, mesh: &str) -> Result<(), HandlerError> {
+        self.copy_main()?;
+        let Some(bytes) = self.size(mesh)? else {
+            return Err(HandlerError::bad_input(format!(
+                "{}: the mesh {} does not exist",
+                self.key,
+                self.source(mesh)
+            )));
+        };
+        self.copy(mesh, bytes)
+    }
+
+    fn mesh_libraries(&mut self, mesh: &str) -> Result<Vec<String>, HandlerError> {
+        self.copy_main()?;
+        let bytes = self.sizes[mesh];
+        material_libraries(self.store, &self.source(mesh), bytes)
+    }
+
+    fn take_library(&mut self, library: &str) -> Result<Option<Vec<String>>, HandlerError> {
+        // A missing library is the loader's warning, as for uploaded scenes.
+        let Some(bytes) = self.size(library)? else {
+            return Ok(None);
+        };
+        self.copy(library, bytes)?;
+        let text = self
+            .store
+            .get_range(&self.source(library), 0..MAX_LIBRARY_BYTES)?;
+        Ok(Some(diffuse_map_files(&String::from_utf8_lossy(&text))))
+    }
+
+    fn take_texture(&mut self, texture: &str) -> Result<(), HandlerError> {
+        // A missing texture is the loader's error, naming it.
+        match self.size(texture)? {
+            Some(bytes) => self.copy(texture, bytes),
+            None => Ok(()),
+        }
     }
 }
 
@@ -224,6 +269,50 @@ mod tests {
             store.get("jobs/j1/scene/m/one.obj").unwrap(),
             store.get("scenes/a/m/one.obj").unwrap()
         );
+    }
+
+    /// A key naming an OBJ file is its own mesh: its material libraries and their textures
+    /// come with it (they were left behind before the walk was shared).
+    #[test]
+    fn an_obj_keys_libraries_and_textures_are_copied_into_the_job() {
+        let store = MemoryStore::new();
+        store
+            .put(
+                "s/a.obj",
+                b"mtllib a.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+            )
+            .unwrap();
+        store.put("s/a.mtl", b"newmtl x\nmap_Kd a.png\n").unwrap();
+        store.put("s/a.png", b"png bytes").unwrap();
+        let job = JobId::new("j1").unwrap();
+        stage_in(&store, &job, &request("s/a.obj")).unwrap();
+        assert_eq!(
+            store.list("jobs/j1/scene/").unwrap(),
+            [
+                "jobs/j1/scene/a.mtl",
+                "jobs/j1/scene/a.obj",
+                "jobs/j1/scene/a.png"
+            ]
+        );
+    }
+
+    /// A manifest refused (too large, unparsable, or naming a mesh outside the folder) leaves
+    /// nothing copied.
+    #[test]
+    fn a_refused_manifest_copies_nothing() {
+        let store = MemoryStore::new();
+        store
+            .put("s/scene.json", br#"{"meshes": ["../up.obj"]}"#)
+            .unwrap();
+        let job = JobId::new("j1").unwrap();
+        let e = stage_in(&store, &job, &request("s/scene.json")).unwrap_err();
+        assert!(
+            e.cause
+                .starts_with("s/scene.json: mesh \"../up.obj\" is not a relative path"),
+            "{}",
+            e.cause
+        );
+        assert!(store.list("jobs/j1/").unwrap().is_empty());
     }
 
     #[test]

@@ -30,6 +30,7 @@ use hort_core::keys::{
     parts_split_info_key, plan_key, scene_binary_key, scene_prefix,
 };
 use hort_core::pipeline::{JobPlan, PlanRequest, StoredOutputs, TaskMetrics};
+use hort_core::scene::files::{SceneFileKind, SceneFileSource, walk_scene_files};
 use hort_core::scene::{Scene, diffuse_map_files, encode_scene_named, parse_manifest};
 use hort_core::stage::Stage;
 use hort_core::store::{BlobStore, PutOutcome, StoreError};
@@ -47,47 +48,18 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// libraries name.
 pub fn scene_files(main: &Path) -> Result<Vec<PathBuf>> {
     let base = main.parent().unwrap_or(Path::new("."));
-    let name = PathBuf::from(main.file_name().context("the scene path names no file")?);
-    let mut files = vec![name.clone()];
-    let is_json = main
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
-    let objs: Vec<PathBuf> = if is_json {
-        let text = std::fs::read_to_string(main)
-            .with_context(|| format!("cannot read {}", main.display()))?;
-        parse_manifest(&text, main)?
-            .meshes
-            .into_iter()
-            .map(PathBuf::from)
-            .collect()
-    } else {
-        vec![name]
+    let name = main
+        .file_name()
+        .context("the scene path names no file")?
+        .to_string_lossy()
+        .into_owned();
+    let mut local = LocalScene {
+        main,
+        base,
+        files: Vec::new(),
     };
-    for obj in objs {
-        if !files.contains(&obj) {
-            files.push(obj.clone());
-        }
-        let obj_dir = obj.parent().map(Path::to_path_buf).unwrap_or_default();
-        let path = base.join(&obj);
-        for lib in
-            material_libraries(&path).with_context(|| format!("cannot read {}", path.display()))?
-        {
-            let rel = obj_dir.join(lib);
-            if base.join(&rel).is_file() && !files.contains(&rel) {
-                let text = std::fs::read(base.join(&rel))
-                    .with_context(|| format!("cannot read {}", base.join(&rel).display()))?;
-                let lib_dir = rel.parent().map(Path::to_path_buf).unwrap_or_default();
-                files.push(rel);
-                for map in diffuse_map_files(&String::from_utf8_lossy(&text)) {
-                    let map = lib_dir.join(map);
-                    if base.join(&map).is_file() && !files.contains(&map) {
-                        files.push(map);
-                    }
-                }
-            }
-        }
-    }
-    for f in &files {
+    walk_scene_files(&name, &mut local)?;
+    for f in &local.files {
         if !f.components().all(|c| matches!(c, Component::Normal(_))) {
             bail!(
                 "{}: the scene file {} is outside the scene's folder; the emulator uploads the folder's files only",
@@ -96,7 +68,64 @@ pub fn scene_files(main: &Path) -> Result<Vec<PathBuf>> {
             );
         }
     }
-    Ok(files)
+    Ok(local.files)
+}
+
+/// [`scene_files`]' side of the scene walk: the files found in the main file's folder `base`.
+struct LocalScene<'a> {
+    /// The main file, as given (messages name it so).
+    main: &'a Path,
+    base: &'a Path,
+    /// The files, relative to `base`, in the walk's order.
+    files: Vec<PathBuf>,
+}
+
+impl SceneFileSource for LocalScene<'_> {
+    type Error = anyhow::Error;
+
+    fn take_main(&mut self, main: &str) -> Result<()> {
+        self.files.push(PathBuf::from(main));
+        Ok(())
+    }
+
+    fn manifest_meshes(&mut self, _main: &str) -> Result<Vec<String>> {
+        let text = std::fs::read_to_string(self.main)
+            .with_context(|| format!("cannot read {}", self.main.display()))?;
+        Ok(parse_manifest(&text, self.main)?.meshes)
+    }
+
+    /// Names are checked once the walk is done: every file inside the folder.
+    fn check_name(&mut self, _name: &str, _kind: SceneFileKind, _named_by: &str) -> Result<()> {
+        Ok(())
+    }
+
+    fn take_mesh(&mut self, mesh: &str) -> Result<()> {
+        self.files.push(PathBuf::from(mesh));
+        Ok(())
+    }
+
+    fn mesh_libraries(&mut self, mesh: &str) -> Result<Vec<String>> {
+        let path = self.base.join(mesh);
+        material_libraries(&path).with_context(|| format!("cannot read {}", path.display()))
+    }
+
+    fn take_library(&mut self, library: &str) -> Result<Option<Vec<String>>> {
+        let path = self.base.join(library);
+        if !path.is_file() {
+            return Ok(None);
+        }
+        let text =
+            std::fs::read(&path).with_context(|| format!("cannot read {}", path.display()))?;
+        self.files.push(PathBuf::from(library));
+        Ok(Some(diffuse_map_files(&String::from_utf8_lossy(&text))))
+    }
+
+    fn take_texture(&mut self, texture: &str) -> Result<()> {
+        if self.base.join(texture).is_file() {
+            self.files.push(PathBuf::from(texture));
+        }
+        Ok(())
+    }
 }
 
 /// The names on the `mtllib` lines of the OBJ file at `path`, in order. The file is read in
