@@ -19,7 +19,7 @@
 //! samples that hit ([`JobPlan::camera_hit_estimate`], a coarse rasterization); without it
 //! every sample is assumed to hit, an upper bound. A scene split by tasks adds its scan,
 //! Partition, cut, Build and plan-from-parts steps ([`job_steps`]). A fused Render task pays
-//! per hit and per shadow ray, and each ray costs more with the scene's size: a little by log2
+//! per hit and per shadow ray, and each of these rays costs more with the scene's size: a little by log2
 //! of its triangles (the depth of its BVH), much more by log2(1 + triangles / hitting camera
 //! samples of the frame), the part of the BVH each ray meets cold because few other rays
 //! share it (a ray of a generated 300,000-triangle scene costs twice as much at 320x180 as at
@@ -74,8 +74,13 @@ pub struct Rates {
     pub stage_overhead_ms: f64,
     /// The plan step's fixed cost (ms).
     pub plan_overhead_ms: f64,
-    /// Plan: per triangle (split assignment, BVH build, encoding, upload).
+    /// Plan: per triangle (split assignment, BVH build, encoding, upload), plus
+    /// [`Rates::plan_us_per_triangle_per_million`].
     pub plan_us_per_triangle: f64,
+    /// Plan: per triangle, per million triangles of the scene: the build and encoding slow
+    /// down as their arrays outgrow the caches (0.50 us a triangle at 100,000 triangles, 0.78
+    /// at 2,000,000, on the reference machine).
+    pub plan_us_per_triangle_per_million: f64,
     /// CastMap: per camera sample of the span, against one split.
     pub cast_us_per_sample: f64,
     /// CastReduce: per camera sample of the span that hits (a hit record).
@@ -95,12 +100,14 @@ pub struct Rates {
     pub render_us_per_hit: f64,
     /// Render (fused): per shadow ray ((hit, traced light) of the span).
     pub render_us_per_query: f64,
-    /// Render (fused): per ray (camera sample or shadow ray), per doubling of the scene's
-    /// triangles (the BVH's depth).
+    /// Render (fused): per ray that enters the BVH (a hit or a shadow ray; a miss leaves at
+    /// the root box), per doubling of the scene's triangles (the BVH's depth).
     pub render_us_per_ray_log2: f64,
-    /// Render (fused): per ray, per unit of log2(1 + triangles / camera samples that hit in
-    /// the frame): the BVH nodes and triangles a ray visits that its neighbours have not
-    /// brought into the cache, which dominates large scenes at low resolutions.
+    /// Render (fused): per ray that enters the BVH, per unit of log2(1 + triangles / camera
+    /// samples that hit in the frame): the BVH nodes and triangles a ray visits that its
+    /// neighbours have not brought into the cache, which dominates large scenes at low
+    /// resolutions. Counted for hits only, the term grows with the hit fraction, so the
+    /// timeouts' every-sample-hits bound stays an upper bound.
     pub render_us_per_ray_cold: f64,
     /// A function's first read of a split: fetch and decode, per triangle of the split (a warm
     /// function keeps it).
@@ -135,18 +142,19 @@ pub const RATES: Rates = Rates {
     task_overhead_ms: 4.0,
     stage_overhead_ms: 3.0,
     plan_overhead_ms: 2.0,
-    plan_us_per_triangle: 0.58,
+    plan_us_per_triangle: 0.49,
+    plan_us_per_triangle_per_million: 0.136,
     cast_us_per_sample: 0.2,
     cast_reduce_us_per_sample: 0.45,
     expand_us_per_query: 0.28,
     trace_us_per_query: 0.045,
     trace_reduce_us_per_query: 0.07,
     combine_us_per_pixel: 0.03,
-    render_us_per_hit: 0.134,
-    render_us_per_query: 0.139,
-    render_us_per_ray_log2: 0.0016,
-    render_us_per_ray_cold: 0.075,
-    split_load_us_per_triangle: 0.15,
+    render_us_per_hit: 0.127,
+    render_us_per_query: 0.130,
+    render_us_per_ray_log2: 0.003,
+    render_us_per_ray_cold: 0.083,
+    split_load_us_per_triangle: 0.11,
     upload_us_per_triangle: 0.2,
     file_upload_us_per_byte: 0.004,
     scan_us_per_byte: 0.0075,
@@ -508,11 +516,14 @@ fn task_ms(plan: &JobPlan, step: JobStep, r: &Rates, speed: f64, bound: Bound) -
             parts.scene_bytes as f64,
             r.scan_us_per_byte,
         ),
-        (Stage::Plan, None) => ms(
-            r.plan_overhead_ms,
-            plan.triangles as f64,
-            r.plan_us_per_triangle,
-        ),
+        (Stage::Plan, None) => {
+            let triangles = plan.triangles as f64;
+            ms(
+                r.plan_overhead_ms,
+                triangles,
+                r.plan_us_per_triangle + r.plan_us_per_triangle_per_million * triangles / 1e6,
+            )
+        }
         // The ranges are of one size but the last of each file.
         (Stage::Partition, parts) => {
             let range = parts.map_or(0.0, |p| p.scene_bytes as f64 / f64::from(p.ranges.max(1)));
@@ -524,12 +535,13 @@ fn task_ms(plan: &JobPlan, step: JobStep, r: &Rates, speed: f64, bound: Bound) -
             let triangles = plan.triangles.max(2) as f64;
             let per_ray = r.render_us_per_ray_log2 * libm::log2(triangles)
                 + r.render_us_per_ray_cold * libm::log2(1.0 + triangles / frame_hits);
+            // Rays that enter the BVH: hits and shadow rays (a miss leaves at the root box).
             ms(
                 r.task_overhead_ms,
                 1.0,
                 hits * r.render_us_per_hit
                     + queries * r.render_us_per_query
-                    + (span_samples + queries) * per_ray,
+                    + (hits + queries) * per_ray,
             )
         }
         (Stage::CastMap, _) => ms(r.task_overhead_ms, span_samples, r.cast_us_per_sample),
@@ -1001,6 +1013,21 @@ mod tests {
         assert!(low > 1.5 * high, "{low} vs {high}");
         let (low, high) = (per_sample(320, 180, 36), per_sample(1920, 1080, 36));
         assert!((low / high - 1.0).abs() < 0.01, "{low} vs {high}");
+    }
+
+    /// The timeouts' bound (every sample hits) is above the expected Render time whatever
+    /// the estimated hit fraction, though a rarer hit meets more of a large BVH cold.
+    #[test]
+    fn every_sample_hitting_bounds_the_render_time_at_any_hit_fraction() {
+        let mut plan = cornell_plan();
+        plan.triangles = 20_000_000;
+        let step = JobStep::Stage(Stage::Render);
+        let upper = task_ms(&plan, step, &RATES, 1.0, Bound::Upper);
+        for fraction in [1e-6, 1e-3, 0.01, 0.1, 0.5, 0.9, 1.0] {
+            plan.camera_hit_estimate = Some(fraction);
+            let expected = task_ms(&plan, step, &RATES, 1.0, Bound::Expected);
+            assert!(expected <= upper, "{fraction}: {expected} > {upper}");
+        }
     }
 
     #[test]
