@@ -260,7 +260,10 @@ pub fn run_job_by_key(
     run_job_of(
         config,
         options,
-        SceneInput::Key { key, budget },
+        SceneInput::Key {
+            key,
+            budget: budget.map(Box::new),
+        },
         settings,
         observer,
     )
@@ -273,10 +276,11 @@ enum SceneInput<'a> {
         path: &'a Path,
         loaded: Option<&'a Scene>,
     },
-    /// A key in the bucket, with the budget to check on the exact plan.
+    /// A key in the bucket, with the budget to check on the exact plan (boxed: the check
+    /// carries the whole prediction model).
     Key {
         key: &'a str,
-        budget: Option<BudgetCheck>,
+        budget: Option<Box<BudgetCheck>>,
     },
 }
 
@@ -422,7 +426,7 @@ fn job_request(
             SceneInput::File { .. } => None,
         },
         budget: match input {
-            SceneInput::Key { budget, .. } => budget,
+            SceneInput::Key { budget, .. } => budget.map(|b| *b),
             SceneInput::File { .. } => None,
         },
     })
