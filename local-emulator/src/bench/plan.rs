@@ -3,7 +3,8 @@
 //! `hort render SCENE --workers W` (this same binary, in a child process, the latency injected
 //! through `HORT_S3_FAULTS`) and prints predicted seconds, measured seconds (the report's total
 //! less the scene's load, which `hort plan` does not predict) and their ratio; with `--stages`,
-//! the same for every stage (the rows the model's rates are fitted from).
+//! the same for every stage (the rows the model's rates are fitted from). With `--repeats N`
+//! every case runs N times, round robin, and the medians are printed.
 
 use super::table::{Table, f3};
 use crate::plan_cmd::{
@@ -46,8 +47,8 @@ pub struct PlanBenchArgs {
     /// --scene-range-bytes`).
     #[arg(long, value_name = "BYTES")]
     pub scene_range_bytes: Option<u64>,
-    /// Runs of each case; the median job time and the median of each stage are reported
-    /// (one run of this machine's emulator moves by up to 30%).
+    /// Runs of each case, round robin (every case once per pass); the median job time and
+    /// the median of each stage are reported (one run of an emulator job moves by up to 30%).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=99))]
     pub repeats: u32,
     /// Append the table to this CSV file.
