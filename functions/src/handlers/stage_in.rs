@@ -1,6 +1,7 @@
 //! A scene given by key (`JobRequest::scene_key`), staged into its job: the Plan function copies
-//! the main file, the meshes a manifest names and the material libraries the meshes name from
-//! beside the key into `jobs/{job}/scene/`, inside the store (CopyObject). The function itself
+//! the main file, the meshes a manifest names, the material libraries the meshes name and the
+//! textures those name (the walk of `hort_core::scene::files`) from beside the key into
+//! `jobs/{job}/scene/`, inside the store (CopyObject). The function itself
 //! reads only a manifest and each OBJ file once, in chunks, for its `mtllib` lines. From there
 //! on the job is like any other whose files were uploaded: its later tasks (a Worker rebuilding
 //! a lost split, a rerun) read the job's own copy, whatever happens to the key; a retried Plan
