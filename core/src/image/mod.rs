@@ -186,10 +186,9 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
 mod tests {
     use super::*;
 
-    fn scratch_dir(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("hort-image-{name}-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
+    /// A fresh folder, removed when the value drops.
+    fn scratch_dir() -> tempfile::TempDir {
+        tempfile::tempdir().unwrap()
     }
 
     #[test]
@@ -224,7 +223,8 @@ mod tests {
 
     #[test]
     fn write_image_by_extension_and_atomically() {
-        let dir = scratch_dir("write");
+        let scratch = scratch_dir();
+        let dir = scratch.path();
         let mut img = Image::new(2, 2);
         img.set(0, 0, [0.25, 0.5, 1.0]);
         for name in ["a.png", "b.PFM", "c.Exr", "d.jpg", "e.JPEG"] {
@@ -261,7 +261,6 @@ mod tests {
             assert!(near(back.get_pixel(0, 0).0, [137, 188, 255]), "{back:?}");
             assert!(near(back.get_pixel(1, 1).0, [0, 0, 0]), "{back:?}");
         }
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
@@ -282,7 +281,8 @@ mod tests {
 
     #[test]
     fn the_error_lists_exactly_the_accepted_extensions() {
-        let dir = scratch_dir("extensions");
+        let scratch = scratch_dir();
+        let dir = scratch.path();
         let err = write_image(Path::new("x.tif"), &Image::new(1, 1)).unwrap_err();
         let listed = err.to_string();
         let listed = listed.split(": use ").nth(1).unwrap();
@@ -295,7 +295,6 @@ mod tests {
         for ext in IMAGE_EXTENSIONS {
             write_image(&dir.join(format!("x.{ext}")), &Image::new(3, 2)).unwrap();
         }
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     use crate::digest::fnv1a64;

@@ -84,8 +84,8 @@ fn no_triangles_occlude_nothing() {
 fn skipping_the_shadow_rays_changes_no_pixel() {
     use crate::camera::Camera;
     use crate::render::{build_scene_bvh, shade_batch};
-    let dir = std::env::temp_dir().join(format!("hort-unoccludable-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let scratch = tempfile::tempdir().unwrap();
+    let dir = scratch.path();
     std::fs::write(dir.join("room.obj"), CUBE).unwrap();
     std::fs::write(
         dir.join("room.json"),
@@ -95,7 +95,6 @@ fn skipping_the_shadow_rays_changes_no_pixel() {
     )
     .unwrap();
     let scene = crate::scene::load_scene(&dir.join("room.json")).unwrap();
-    std::fs::remove_dir_all(&dir).unwrap();
     let free = unoccludable_lights(&scene.mesh, &scene.lights);
     // The sun shines through the ceiling from outside: the ceiling occludes it.
     assert_eq!(free, [true, false]);

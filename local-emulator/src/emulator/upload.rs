@@ -94,8 +94,15 @@ impl SceneFileSource for LocalScene<'_> {
         Ok(parse_manifest(&text, self.main)?.meshes)
     }
 
-    /// Names are checked once the walk is done: every file inside the folder.
-    fn check_name(&mut self, _name: &str, _kind: SceneFileKind, _named_by: &str) -> Result<()> {
+    /// An absolute name leaves the folder wherever it is written; the other names are checked
+    /// once the walk is done (every file inside the folder).
+    fn check_name(&mut self, name: &str, _kind: SceneFileKind, _named_by: &str) -> Result<()> {
+        if Path::new(name).is_absolute() {
+            bail!(
+                "{}: the scene file {name} is outside the scene's folder; the emulator uploads the folder's files only",
+                self.main.display()
+            );
+        }
         Ok(())
     }
 

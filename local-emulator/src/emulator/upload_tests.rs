@@ -9,16 +9,16 @@ use hort_core::store::{BlobStore, MemoryStore};
 use hort_functions::handlers::{JobRequest, SceneFormat};
 use std::path::{Path, PathBuf};
 
-/// A fresh copy of the bundled Cornell room in a folder of its own; returns its main file.
-fn cornell_copy(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("hort-upload-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+/// A fresh copy of the bundled Cornell room in a folder of its own (removed when the first
+/// value drops); returns the folder and its main file.
+fn cornell_copy() -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
     let from = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell");
     for file in ["cornell.json", "cornell.obj", "cornell.mtl"] {
-        std::fs::copy(from.join(file), dir.join(file)).unwrap();
+        std::fs::copy(from.join(file), dir.path().join(file)).unwrap();
     }
-    dir.join("cornell.json")
+    let main = dir.path().join("cornell.json");
+    (dir, main)
 }
 
 fn request(format: SceneFormat) -> JobRequest {
@@ -56,7 +56,7 @@ fn load(main: &Path) -> Scene {
 
 #[test]
 fn a_binary_job_stores_only_the_parsed_scene_whatever_folder_it_came_from() {
-    let (a, b) = (cornell_copy("a"), cornell_copy("b"));
+    let ((_a_dir, a), (_b_dir, b)) = (cornell_copy(), cornell_copy());
     let (sa, sb) = (load(&a), load(&b));
     assert_ne!(sa.source, sb.source);
     let store = MemoryStore::new();
@@ -98,14 +98,11 @@ fn a_binary_job_stores_only_the_parsed_scene_whatever_folder_it_came_from() {
     )
     .unwrap();
     assert_eq!(store.get("jobs/j/scene/scene.bin").unwrap(), stored);
-    for main in [a, b] {
-        let _ = std::fs::remove_dir_all(main.parent().unwrap());
-    }
 }
 
 #[test]
 fn a_changed_scene_does_not_resume_and_a_files_job_resumes_with_its_files() {
-    let main = cornell_copy("c");
+    let (_dir, main) = cornell_copy();
     let store = MemoryStore::new();
     submit_job(
         &store,
@@ -139,10 +136,8 @@ fn a_changed_scene_does_not_resume_and_a_files_job_resumes_with_its_files() {
         )
     );
 
-    let _ = std::fs::remove_dir_all(main.parent().unwrap());
-
     // A job started with the files (an older client) is resumed with the files.
-    let main = cornell_copy("d");
+    let (_dir, main) = cornell_copy();
     let store = MemoryStore::new();
     let scene = load(&main);
     submit_job(&store, &job(), &main, &scene, &request(SceneFormat::Files)).unwrap();
@@ -164,14 +159,12 @@ fn a_changed_scene_does_not_resume_and_a_files_job_resumes_with_its_files() {
     );
     assert_eq!(resumed.unwrap(), Submitted::Resumed);
     assert_eq!(store.list("jobs/j/").unwrap(), keys);
-    let _ = std::fs::remove_dir_all(main.parent().unwrap());
 }
 
 #[test]
 fn scene_files_are_the_obj_and_the_libraries_its_mtllib_lines_name() {
-    let dir = std::env::temp_dir().join(format!("hort-upload-{}-libs", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let scratch = tempfile::tempdir().unwrap();
+    let dir = scratch.path();
     for lib in ["a.mtl", "b.mtl", "c.mtl", "d.mtl", "e.mtl"] {
         std::fs::write(dir.join(lib), "newmtl m\nKd 1 1 1\n").unwrap();
     }
@@ -197,7 +190,6 @@ fn scene_files_are_the_obj_and_the_libraries_its_mtllib_lines_name() {
         ["m.obj", "a.mtl", "b.mtl", "e.mtl", "c.mtl"].map(PathBuf::from),
         "{files:?}"
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// A scene's files include the diffuse textures its libraries name (each once, beside the
@@ -215,5 +207,26 @@ fn scene_files_include_the_diffuse_textures_of_the_libraries() {
             "tiles.png"
         ]
         .map(PathBuf::from)
+    );
+}
+
+/// A library or texture named by an absolute path leaves the scene's folder wherever the file
+/// naming it lies: refused, naming it.
+#[test]
+fn an_absolute_library_is_outside_the_scene_folder() {
+    let scratch = tempfile::tempdir().unwrap();
+    let dir = scratch.path();
+    std::fs::create_dir_all(dir.join("m")).unwrap();
+    std::fs::write(dir.join("s.json"), r#"{"meshes": ["m/a.obj"]}"#).unwrap();
+    std::fs::write(dir.join("m/a.obj"), "mtllib /etc/hort-none.mtl\nv 0 0 0\n").unwrap();
+    let main = dir.join("s.json");
+    let e = scene_files(&main).unwrap_err().to_string();
+    assert_eq!(
+        e,
+        format!(
+            "{}: the scene file /etc/hort-none.mtl is outside the scene's folder; the emulator \
+             uploads the folder's files only",
+            main.display()
+        )
     );
 }
