@@ -186,11 +186,6 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
 mod tests {
     use super::*;
 
-    /// A fresh folder, removed when the value drops.
-    fn scratch_dir() -> tempfile::TempDir {
-        tempfile::tempdir().unwrap()
-    }
-
     #[test]
     fn new_get_set() {
         let mut img = Image::new(3, 2);
@@ -223,7 +218,7 @@ mod tests {
 
     #[test]
     fn write_image_by_extension_and_atomically() {
-        let scratch = scratch_dir();
+        let scratch = tempfile::tempdir().unwrap();
         let dir = scratch.path();
         let mut img = Image::new(2, 2);
         img.set(0, 0, [0.25, 0.5, 1.0]);
@@ -281,7 +276,7 @@ mod tests {
 
     #[test]
     fn the_error_lists_exactly_the_accepted_extensions() {
-        let scratch = scratch_dir();
+        let scratch = tempfile::tempdir().unwrap();
         let dir = scratch.path();
         let err = write_image(Path::new("x.tif"), &Image::new(1, 1)).unwrap_err();
         let listed = err.to_string();

@@ -8,7 +8,9 @@
 //! staging a scene given by key (S3 copies). Each reads and takes files its own way, through
 //! a [`SceneFileSource`], and words its own errors.
 
+use super::is_manifest;
 use std::collections::BTreeSet;
+use std::path::Path;
 
 /// What a named file is to the scene.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -67,7 +69,7 @@ pub trait SceneFileSource {
 pub fn walk_scene_files<S: SceneFileSource>(main: &str, source: &mut S) -> Result<(), S::Error> {
     source.take_main(main)?;
     let mut taken = BTreeSet::from([main.to_owned()]);
-    let meshes = if is_manifest(main) {
+    let meshes = if is_manifest(Path::new(main)) {
         let mut meshes = Vec::new();
         for mesh in source.manifest_meshes(main)? {
             source.check_name(&mesh, SceneFileKind::Mesh, main)?;
@@ -104,13 +106,6 @@ pub fn walk_scene_files<S: SceneFileSource>(main: &str, source: &mut S) -> Resul
         }
     }
     Ok(())
-}
-
-/// True if `name` is a scene manifest (`.json`, any case).
-pub fn is_manifest(name: &str) -> bool {
-    std::path::Path::new(name)
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("json"))
 }
 
 /// `rel` relative to the folder of `file` (both relative to the scene's folder, `/` between
@@ -244,7 +239,7 @@ mod tests {
     fn names_resolve_beside_their_file() {
         assert_eq!(beside("a.obj", "a.mtl"), "a.mtl");
         assert_eq!(beside("m/n/a.obj", "t/a.png"), "m/n/t/a.png");
-        assert!(is_manifest("x/S.JSON"));
-        assert!(!is_manifest("x.json.obj"));
+        assert!(is_manifest(Path::new("x/S.JSON")));
+        assert!(!is_manifest(Path::new("x.json.obj")));
     }
 }

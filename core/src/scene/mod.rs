@@ -155,12 +155,15 @@ pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
     load_scene_with(path, TextureFallback::Error)
 }
 
+/// Whether `path` names a JSON scene manifest (`.json`, any case), else an OBJ file.
+pub fn is_manifest(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"))
+}
+
 /// [`load_scene`] with a choice of what a texture that cannot be used does.
 pub fn load_scene_with(path: &Path, fallback: TextureFallback) -> Result<Scene, SceneError> {
-    let is_json = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
-    if is_json {
+    if is_manifest(path) {
         manifest::load_manifest_scene(path, fallback)
     } else {
         load_obj_scene(path, fallback)

@@ -7,16 +7,10 @@ use super::manifest::{
     Manifest, apply_material_overrides, image_settings, manifest_scene, read_manifest,
 };
 use super::mesh::{Material, Mesh};
-use super::{ImageSettings, Scene};
+use super::{ImageSettings, Scene, is_manifest};
 use crate::error::SceneError;
 use glam::DVec3;
 use std::path::{Path, PathBuf};
-
-/// Whether `path` names a JSON manifest (else an OBJ file).
-fn is_manifest(path: &Path) -> bool {
-    path.extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("json"))
-}
 
 /// The OBJ files of the scene at `path`, in scene order: the file itself, or the meshes its
 /// manifest lists (relative to the manifest's folder).

@@ -71,10 +71,7 @@ pub fn size_scene(backend: &dyn RenderBackend, key: &str) -> Result<SizedScene, 
         ));
     };
     let path = Path::new(key);
-    let is_manifest = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
-    let (manifest, meshes) = if is_manifest {
+    let (manifest, meshes) = if hort_core::scene::is_manifest(path) {
         if main_bytes > MAX_MANIFEST_BYTES {
             return Err(ApiError::invalid_scene(format!(
                 "{key}: {main_bytes} bytes, over the {MAX_MANIFEST_BYTES} bytes a manifest may have"

@@ -158,10 +158,7 @@ pub(super) fn plan_from_stored_parts(
     tmp: Tmp<'_>,
 ) -> Result<JobPlan, HandlerError> {
     let main = Path::new(&request.scene);
-    let is_manifest = main
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
-    if !is_manifest {
+    if !hort_core::scene::is_manifest(main) {
         return Ok(plan_from_parts(store, job, main, &request.render)?.plan);
     }
     let dir = scratch_dir(tmp.dir, "finish", job);

@@ -15,8 +15,8 @@ use super::events::JobRequest;
 use crate::api::check_relative;
 use hort_core::ids::JobId;
 use hort_core::keys::scene_prefix;
-use hort_core::scene::files::{SceneFileKind, SceneFileSource, is_manifest, walk_scene_files};
-use hort_core::scene::{diffuse_map_files, parse_manifest};
+use hort_core::scene::files::{SceneFileKind, SceneFileSource, walk_scene_files};
+use hort_core::scene::{diffuse_map_files, is_manifest, parse_manifest};
 use hort_core::store::{BlobStore, COPY_MAX_BYTES, StoreError};
 use std::path::Path;
 
@@ -121,7 +121,7 @@ impl SceneFileSource for Staging<'_> {
                 self.key
             )));
         };
-        if is_manifest(main) && bytes > MAX_MANIFEST_BYTES {
+        if is_manifest(Path::new(main)) && bytes > MAX_MANIFEST_BYTES {
             return Err(HandlerError::bad_input(format!(
                 "{}: {bytes} bytes, over the {MAX_MANIFEST_BYTES} bytes a manifest may have",
                 self.key
