@@ -27,6 +27,10 @@ mod build;
 mod build_reference;
 #[cfg(test)]
 mod build_tests;
+mod dispatch;
+mod lanes;
+#[cfg(target_arch = "x86_64")]
+mod leaf8;
 mod node4;
 mod parts;
 mod ray_packet;
@@ -35,6 +39,9 @@ mod segment_packet;
 mod simd4;
 mod traverse;
 
+pub use dispatch::{
+    KernelWidth, WIDTH_VARIABLE, available_kernel_widths, force_kernel_width, kernel_width,
+};
 pub use parts::{BvhParts, BvhPartsError, NODE_BYTES, PartsLoader};
 pub use ray_packet::RAY_PACKET;
 pub use traverse::{ClosestHit, segment_may_hit};

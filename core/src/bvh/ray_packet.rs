@@ -21,6 +21,10 @@
 //! single-ray best-hit update ([`Bvh::closest_in_leaf`]). The closest hit is unique (smaller t,
 //! then smaller id), so the visiting order cannot change it.
 
+#[cfg(target_arch = "x86_64")]
+use super::dispatch::{KernelWidth, kernel_width};
+#[cfg(target_arch = "x86_64")]
+use super::leaf8::{LANES as EIGHT, RayLanes8, closest_in_leaf8};
 use super::node4::{LEAF, Node4};
 use super::simd4::{BoxTester, each3, each4};
 use super::traverse::{
@@ -331,6 +335,12 @@ impl Bvh {
         let mut depth = 0usize;
         let (mut child, mut triangle4_count) = ROOT;
         let mut active = (1u32 << rays.len()) - 1;
+        #[cfg(target_arch = "x86_64")]
+        let width = kernel_width();
+        // Each group of eight rays in lanes, made when the group first reaches a leaf
+        // (`None` inside: its rays permute the axes differently, so it stays 4-wide).
+        #[cfg(target_arch = "x86_64")]
+        let mut lanes8: [Option<Option<RayLanes8>>; 2] = [None, None];
         loop {
             if active.count_ones() <= 1 {
                 for i in bits(active) {
@@ -348,11 +358,24 @@ impl Bvh {
                     continue;
                 }
             } else {
-                let first = (child & !LEAF) as usize;
-                for i in bits(active) {
+                let leaf = ((child & !LEAF) as usize, triangle4_count as usize);
+                #[cfg(target_arch = "x86_64")]
+                let rest = match width {
+                    KernelWidth::Eight => {
+                        self.leaf_by_eights(leaf, rays, active, &mut searches, &mut lanes8)
+                    }
+                    KernelWidth::Four => active,
+                };
+                #[cfg(not(target_arch = "x86_64"))]
+                let rest = active;
+                for i in bits(rest) {
                     let search = searches[i].get_or_insert_with(|| ClosestSearch::new(&rays[i]));
-                    self.closest_in_leaf(first, triangle4_count as usize, search);
-                    bounds[i / 4][i % 4] = search.bound();
+                    self.closest_in_leaf(leaf.0, leaf.1, search);
+                }
+                for i in bits(active) {
+                    if let Some(search) = &searches[i] {
+                        bounds[i / 4][i % 4] = search.bound();
+                    }
                 }
             }
             // Pop the next child with the rays that may still find a better hit in it: a ray
@@ -378,6 +401,55 @@ impl Bvh {
                 }
             }
         }
+    }
+}
+
+impl Bvh {
+    /// Tests the leaf `(first Triangle4, count)` 8-wide against the groups of eight rays of
+    /// `active` for which that takes fewer tests than the 4-wide path (a test per triangle of
+    /// the leaf instead of one per `Triangle4` per active ray) and whose rays permute the axes
+    /// alike; returns the rays left for the 4-wide path. Only for hosts with AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn leaf_by_eights(
+        &self,
+        (first, count): (usize, usize),
+        rays: &[Ray],
+        active: u32,
+        searches: &mut [Option<ClosestSearch>; RAY_PACKET],
+        lanes8: &mut [Option<Option<RayLanes8>>; 2],
+    ) -> u32 {
+        if count == 0 {
+            return active;
+        }
+        let triangles = 4 * (count - 1) + self.triangles[first + count - 1].lanes as usize;
+        let mut rest = active;
+        for (g, lanes) in lanes8.iter_mut().enumerate() {
+            let from = g * EIGHT;
+            let group = (active >> from) & 0xff;
+            if group.count_ones() as usize * count <= triangles {
+                continue;
+            }
+            let group_rays = &rays[from..rays.len().min(from + EIGHT)];
+            // SAFETY (both calls): `Eight` is the kernel width only on hosts with AVX2
+            // (`dispatch.rs`).
+            #[allow(unsafe_code)]
+            let lanes = lanes.get_or_insert_with(|| unsafe {
+                RayLanes8::new(group_rays.len(), |i| &group_rays[i])
+            });
+            let Some(lanes) = lanes else {
+                continue;
+            };
+            for i in bits(group) {
+                searches[from + i].get_or_insert_with(|| ClosestSearch::new(&group_rays[i]));
+            }
+            #[allow(unsafe_code)]
+            unsafe {
+                closest_in_leaf8(self, (first, count), lanes, group, &mut searches[from..])
+            };
+            rest &= !(group << from);
+        }
+        rest
     }
 }
 

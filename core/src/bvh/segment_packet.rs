@@ -10,6 +10,10 @@
 //! it would claim, and every triangle test is the single-ray leaf test.
 
 use super::Bvh;
+#[cfg(target_arch = "x86_64")]
+use super::dispatch::{KernelWidth, kernel_width};
+#[cfg(target_arch = "x86_64")]
+use super::leaf8::{LANES as EIGHT, RayLanes8, occluded_in_leaf8};
 use super::node4::LEAF;
 use super::ray_packet::{
     GROUPS, RAY_PACKET, RAY_PACKET_STACKS, RayPacketEntry, RayPacketTester, bits, descend,
@@ -52,6 +56,49 @@ impl Bvh {
         });
     }
 
+    /// Tests the leaf `(first Triangle4, count)` 8-wide against the groups of eight segments
+    /// of `active` for which that takes fewer tests than the 4-wide path and whose rays
+    /// permute the axes alike: (the segments left for the 4-wide path, the segments found
+    /// blocked). Only for hosts with AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn segment_leaf_by_eights(
+        &self,
+        (first, count): (usize, usize),
+        segments: &[(Ray, f32)],
+        active: u32,
+        lanes8: &mut [Option<Option<RayLanes8>>; 2],
+    ) -> (u32, u32) {
+        if count == 0 {
+            return (active, 0);
+        }
+        let triangles = 4 * (count - 1) + self.triangles[first + count - 1].lanes as usize;
+        let (mut rest, mut blocked) = (active, 0);
+        for (g, lanes) in lanes8.iter_mut().enumerate() {
+            let from = g * EIGHT;
+            let group = (active >> from) & 0xff;
+            if group.count_ones() as usize * count <= triangles {
+                continue;
+            }
+            let group_segments = &segments[from..segments.len().min(from + EIGHT)];
+            // SAFETY (both calls): `Eight` is the kernel width only on hosts with AVX2
+            // (`dispatch.rs`).
+            #[allow(unsafe_code)]
+            let lanes = lanes.get_or_insert_with(|| unsafe {
+                RayLanes8::new(group_segments.len(), |i| &group_segments[i].0)
+            });
+            let Some(lanes) = lanes else {
+                continue;
+            };
+            #[allow(unsafe_code)]
+            let hit =
+                unsafe { occluded_in_leaf8(self, (first, count), lanes, group, group_segments) };
+            blocked |= hit << from;
+            rest &= !(group << from);
+        }
+        (rest, blocked)
+    }
+
     /// [`Bvh::occluded_many`] of one packet of 1..=[`RAY_PACKET`] segments.
     fn trace_segment_packet(
         &self,
@@ -89,6 +136,12 @@ impl Bvh {
         let mut blocked = 0u32;
         let mut depth = 0usize;
         let (mut child, mut triangle4_count) = ROOT;
+        #[cfg(target_arch = "x86_64")]
+        let width = kernel_width();
+        // Each group of eight segments in lanes, made when the group first reaches a leaf
+        // (`None` inside: its rays permute the axes differently, so it stays 4-wide).
+        #[cfg(target_arch = "x86_64")]
+        let mut lanes8: [Option<Option<RayLanes8>>; 2] = [None, None];
         loop {
             if active.count_ones() <= 1 {
                 for i in bits(active) {
@@ -108,17 +161,21 @@ impl Bvh {
                     continue;
                 }
             } else {
-                let first = (child & !LEAF) as usize;
+                let leaf = ((child & !LEAF) as usize, triangle4_count as usize);
+                #[cfg(target_arch = "x86_64")]
+                let active = match width {
+                    KernelWidth::Eight => {
+                        let (rest, hit) =
+                            self.segment_leaf_by_eights(leaf, segments, active, &mut lanes8);
+                        blocked |= hit;
+                        rest
+                    }
+                    KernelWidth::Four => active,
+                };
                 for i in bits(active) {
                     let (ray, t_max) = &segments[i];
                     let s = searches[i].get_or_insert_with(|| ShadowSearch::new(ray, *t_max));
-                    if self.occluded_in_leaf(
-                        first,
-                        triangle4_count as usize,
-                        &s.prep,
-                        &s.tris,
-                        s.t_max,
-                    ) {
+                    if self.occluded_in_leaf(leaf.0, leaf.1, &s.prep, &s.tris, s.t_max) {
                         blocked |= 1 << i;
                     }
                 }

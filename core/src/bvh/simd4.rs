@@ -3,12 +3,14 @@
 //! operations in the same order as the scalar code (no FMA, comparisons and selects instead of
 //! min/max), so results are the same bits on every machine:
 //! - [`BoxTester::test`] is [`SlabRay::entry`](super::traverse) on each child box;
-//! - [`triangle_candidates`] (shadow rays) rejects only lanes that
-//!   [`crate::triangle::intersect`] rejects; the survivors go through `intersect` itself;
+//! - [`triangle_any_hit`] (shadow rays) claims a hit or a miss only where
+//!   [`crate::triangle::intersect`] computes the same values and decides the same; the rest
+//!   go through `intersect` itself;
 //! - [`triangle_hits`] (closest hit) gives `intersect`'s exact t and barycentrics wherever the
 //!   scalar test takes no other path (no edge function exactly 0, no NaN input), and leaves
 //!   the other lanes to `intersect`.
 
+use super::lanes::Lanes;
 use super::node4::{Node4, Triangle4};
 use crate::triangle::{Ray, RayPrep, gamma};
 use wide::f32x4;
@@ -86,57 +88,62 @@ impl TriangleTester {
     }
 }
 
-/// The watertight test's intermediate values for 4 triangles, computed exactly as
-/// [`crate::triangle::intersect`] computes them (before its f64 fallback).
-struct Edges {
-    x: [f32x4; 3],
-    y: [f32x4; 3],
-    zs: [f32x4; 3],
-    u: f32x4,
-    v: f32x4,
-    w: f32x4,
-    inv_det: f32x4,
-    t: f32x4,
+/// The watertight test's intermediate values for a set of (ray, triangle) pairs, one per lane,
+/// computed exactly as [`crate::triangle::intersect`] computes them (before its f64 fallback).
+pub(super) struct Edges<L> {
+    x: [L; 3],
+    y: [L; 3],
+    zs: [L; 3],
+    pub u: L,
+    pub v: L,
+    pub w: L,
+    pub inv_det: L,
+    pub t: L,
     /// Lanes with an edge function exactly 0 (the scalar test recomputes them in f64).
-    any_zero: f32x4,
+    any_zero: L,
     /// Lanes the scalar test rejects before its error bound: mixed edge signs, zero or
     /// non-finite determinant, t of the wrong sign, NaN or infinite t. Valid where !any_zero.
-    rejected: f32x4,
-    /// Lanes where no input of the error bound is NaN, so 4-wide maxima equal `f32::max`.
-    clean: f32x4,
+    rejected: L,
+    /// Lanes where no input of the error bound is NaN, so lane maxima equal `f32::max`.
+    clean: L,
 }
 
+/// The edge functions of each lane's pair: `origin[k]` and `shear[k]` are the ray's origin on
+/// its permuted axis k (kx, ky, kz) and its shear ([`RayPrep::shear`]), `corners[c][k]` corner
+/// c of the triangle on that axis. Four triangles against one ray ([`Triangle4`]) or one
+/// triangle against a ray per lane (`leaf8.rs`) alike.
+///
+/// No closures here or in what it calls: a closure is compiled on its own, without the SIMD
+/// features of the function it is meant to be inlined into, unless the compiler inlines it.
 #[inline(always)]
-fn edges(r: &TriangleTester, p: &Triangle4) -> Edges {
-    let [kx, ky, kz] = r.axes;
-    let [ox, oy, oz] = r.origin;
-    let [sx, sy, sz] = r.shear;
-    let corner = |c: usize| {
-        let v = &p.v[c];
-        let x = f32x4::from(v[kx]) - ox;
-        let y = f32x4::from(v[ky]) - oy;
-        let z = f32x4::from(v[kz]) - oz;
-        (x - sx * z, y - sy * z, z)
-    };
-    let (ax, ay, az) = corner(0);
-    let (bx, by, bz) = corner(1);
-    let (cx, cy, cz) = corner(2);
+pub(super) fn edges<L: Lanes>(origin: &[L; 3], shear: &[L; 3], corners: &[[L; 3]; 3]) -> Edges<L> {
+    #[inline(always)]
+    fn sheared<L: Lanes>(origin: &[L; 3], shear: &[L; 3], corner: &[L; 3]) -> (L, L, L) {
+        let x = corner[0] - origin[0];
+        let y = corner[1] - origin[1];
+        let z = corner[2] - origin[2];
+        (x - shear[0] * z, y - shear[1] * z, z)
+    }
+    let sz = shear[2];
+    let (ax, ay, az) = sheared(origin, shear, &corners[0]);
+    let (bx, by, bz) = sheared(origin, shear, &corners[1]);
+    let (cx, cy, cz) = sheared(origin, shear, &corners[2]);
     let u = cx * by - cy * bx;
     let v = ax * cy - ay * cx;
     let w = bx * ay - by * ax;
-    let zero = f32x4::ZERO;
-    let any_zero = u.simd_eq(zero) | v.simd_eq(zero) | w.simd_eq(zero);
-    let any_neg = u.simd_lt(zero) | v.simd_lt(zero) | w.simd_lt(zero);
-    let any_pos = u.simd_gt(zero) | v.simd_gt(zero) | w.simd_gt(zero);
+    let zero = L::splat(0.0);
+    let any_zero = u.cmp_eq(zero) | v.cmp_eq(zero) | w.cmp_eq(zero);
+    let any_neg = u.cmp_lt(zero) | v.cmp_lt(zero) | w.cmp_lt(zero);
+    let any_pos = u.cmp_gt(zero) | v.cmp_gt(zero) | w.cmp_gt(zero);
     let det = u + v + w;
     let (zs0, zs1, zs2) = (sz * az, sz * bz, sz * cz);
     let t_scaled = u * zs0 + v * zs1 + w * zs2;
-    let inv_det = f32x4::ONE / det;
+    let inv_det = L::splat(1.0) / det;
     let t = t_scaled * inv_det;
-    let inf = f32x4::splat(f32::INFINITY);
-    let det_bad = det.simd_eq(zero) | !det.abs().simd_lt(inf);
-    let wrong_side = det.simd_lt(zero) ^ t_scaled.simd_lt(zero);
-    let rejected = (any_neg & any_pos) | det_bad | wrong_side | !t.simd_lt(inf);
+    let inf = L::splat(f32::INFINITY);
+    let det_bad = det.cmp_eq(zero) | !det.abs().cmp_lt(inf);
+    let wrong_side = det.cmp_lt(zero) ^ t_scaled.cmp_lt(zero);
+    let rejected = (any_neg & any_pos) | det_bad | wrong_side | !t.cmp_lt(inf);
     let sum = ax + ay + bx + by + cx + cy + zs0 + zs1 + zs2 + u + v + w;
     Edges {
         x: [ax, bx, cx],
@@ -149,7 +156,7 @@ fn edges(r: &TriangleTester, p: &Triangle4) -> Edges {
         t,
         any_zero,
         rejected,
-        clean: sum.simd_eq(sum),
+        clean: sum.cmp_eq(sum),
     }
 }
 
@@ -157,39 +164,81 @@ fn edges(r: &TriangleTester, p: &Triangle4) -> Edges {
 /// its order of operations. Only `clean` lanes are claimed: there the maxima are of
 /// non-negative non-NaN values, where `select(a > b, a, b)` equals `f32::max`.
 #[inline(always)]
-fn too_close(e: &Edges) -> f32x4 {
-    let max = |a: f32x4, b: f32x4| a.simd_gt(b).select(a, b);
-    let max3 = |[a, b, c]: [f32x4; 3]| max(max(a.abs(), b.abs()), c.abs());
+fn too_close<L: Lanes>(e: &Edges<L>) -> L {
+    #[inline(always)]
+    fn max<L: Lanes>(a: L, b: L) -> L {
+        a.cmp_gt(b).select(a, b)
+    }
+    #[inline(always)]
+    fn max3<L: Lanes>([a, b, c]: [L; 3]) -> L {
+        max(max(a.abs(), b.abs()), c.abs())
+    }
     let max_zt = max3(e.zs);
     let max_xt = max3(e.x);
     let max_yt = max3(e.y);
-    let g = |n: f32| f32x4::splat(gamma(n));
-    let delta_z = g(3.0) * max_zt;
-    let delta_x = g(5.0) * (max_xt + max_zt);
-    let delta_y = g(5.0) * (max_yt + max_zt);
-    let delta_e =
-        f32x4::splat(2.0) * (g(2.0) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
+    let (g2, g3, g5) = (
+        L::splat(gamma(2.0)),
+        L::splat(gamma(3.0)),
+        L::splat(gamma(5.0)),
+    );
+    let delta_z = g3 * max_zt;
+    let delta_x = g5 * (max_xt + max_zt);
+    let delta_y = g5 * (max_yt + max_zt);
+    let delta_e = L::splat(2.0) * (g2 * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
     let max_e = max3([e.u, e.v, e.w]);
-    let delta_t = f32x4::splat(3.0)
-        * (g(3.0) * max_e * max_zt + delta_e * max_zt + delta_z * max_e)
+    let delta_t = L::splat(3.0)
+        * (g3 * max_e * max_zt + delta_e * max_zt + delta_z * max_e)
         * e.inv_det.abs();
-    e.t.simd_le(delta_t) & e.clean
+    e.t.cmp_le(delta_t) & e.clean
 }
 
-/// Lanes of `p` (bit i = lane i, only lanes < `p.lanes`) for which `intersect(prep, .., t_max)`
-/// may hit (`t < t_max`). A lane is dropped only when the scalar test computes the same values
-/// and rejects it.
+/// The edges of the 4 triangles of `p` against the ray of `r`.
 #[inline(always)]
-pub(super) fn triangle_candidates(r: &TriangleTester, p: &Triangle4, t_max: f32) -> u32 {
-    let e = edges(r, p);
-    let lanes = (1u32 << p.lanes) - 1;
-    let reject = e.rejected | !e.t.simd_lt(f32x4::splat(t_max));
-    let keep = !(reject & !e.any_zero).to_bitmask() & lanes;
+fn triangle4_edges(r: &TriangleTester, p: &Triangle4) -> Edges<f32x4> {
+    let corners = each3(|c| each3(|k| f32x4::from(p.v[c][r.axes[k]])));
+    edges(&r.origin, &r.shear, &corners)
+}
+
+/// The any-hit verdict of each lane of `e` among the `valid` ones, against
+/// `intersect(prep, .., t_max)` for that lane's pair: (`hit`, `unsure`). `hit` lanes are hits
+/// with `t < t_max` (the scalar test computes the same values and accepts them); `unsure` lanes
+/// are those only the scalar test can decide; every other lane is a miss.
+#[inline(always)]
+pub(super) fn any_hit_verdict<L: Lanes>(e: &Edges<L>, valid: u32, t_max: L) -> (u32, u32) {
+    let reject = e.rejected | !e.t.cmp_lt(t_max);
+    let keep = !(reject & !e.any_zero).bitmask() & valid;
     // Shadow rays meet the triangle they start on, which only the error bound rejects.
     if keep == 0 {
-        return 0;
+        return (0, 0);
     }
-    keep & !(too_close(&e) & !e.any_zero).to_bitmask()
+    let keep = keep & !(too_close(e) & !e.any_zero).bitmask();
+    let unsure = keep & (e.any_zero | !e.clean).bitmask();
+    (keep & !unsure, unsure)
+}
+
+/// [`any_hit_verdict`] of the 4 triangles of `p` (bit i = lane i, only lanes < `p.lanes`)
+/// against the ray of `r`.
+#[inline(always)]
+pub(super) fn triangle_any_hit(r: &TriangleTester, p: &Triangle4, t_max: f32) -> (u32, u32) {
+    let e = triangle4_edges(r, p);
+    any_hit_verdict(&e, (1u32 << p.lanes) - 1, f32x4::splat(t_max))
+}
+
+/// The closest-hit verdict of each lane of `e` among the `valid` ones (bit i = lane i), against
+/// `intersect(prep, .., +inf)` for that lane's pair: (`exact`, `scalar`). `exact` lanes are
+/// hits with exactly `e.t` and barycentrics `e.u, e.v, e.w` times `e.inv_det`, with t <= the
+/// lane's `t_max` (farther hits are left out); `scalar` lanes are those only the scalar test
+/// can decide (an edge function is 0, or a NaN input). Every other lane is a miss or farther.
+#[inline(always)]
+pub(super) fn closest_verdict<L: Lanes>(e: &Edges<L>, valid: u32, t_max: L) -> (u32, u32) {
+    let unsure = e.any_zero | !e.clean;
+    let scalar = unsure.bitmask() & valid;
+    let miss = e.rejected | !e.t.cmp_le(t_max);
+    let mut exact = !(miss | unsure).bitmask() & valid;
+    if exact != 0 {
+        exact &= !too_close(e).bitmask();
+    }
+    (exact, scalar)
 }
 
 /// The 4-wide closest-hit test of one [`Triangle4`] against `intersect(prep, .., +inf)`.
@@ -205,15 +254,8 @@ pub(super) struct Triangle4Hits {
 
 #[inline(always)]
 pub(super) fn triangle_hits(r: &TriangleTester, p: &Triangle4, t_max: f32) -> Triangle4Hits {
-    let e = edges(r, p);
-    let lanes = (1u32 << p.lanes) - 1;
-    let unsure = e.any_zero | !e.clean;
-    let scalar = unsure.to_bitmask() & lanes;
-    let miss = e.rejected | !e.t.simd_le(f32x4::splat(t_max));
-    let mut exact = !(miss | unsure).to_bitmask() & lanes;
-    if exact != 0 {
-        exact &= !too_close(&e).to_bitmask();
-    }
+    let e = triangle4_edges(r, p);
+    let (exact, scalar) = closest_verdict(&e, (1u32 << p.lanes) - 1, f32x4::splat(t_max));
     Triangle4Hits {
         exact,
         scalar,
@@ -227,7 +269,7 @@ pub(super) fn triangle_hits(r: &TriangleTester, p: &Triangle4, t_max: f32) -> Tr
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::triangle::intersect;
     use glam::Vec3;
@@ -235,7 +277,7 @@ mod tests {
     use crate::bvh::tests::Rng;
 
     /// Mostly ordinary values, often exact grid values, zeros of both signs, extremes.
-    fn coord(rng: &mut Rng) -> f32 {
+    pub(in crate::bvh) fn coord(rng: &mut Rng) -> f32 {
         const SPECIAL: [f32; 10] = [0.0, -0.0, 1.0, -1.0, 0.5, 2.0, 1e-30, -1e-30, 1e30, -1e30];
         match rng.next() % 8 {
             0 => SPECIAL[(rng.next() % 10) as usize],
@@ -244,7 +286,7 @@ mod tests {
         }
     }
 
-    fn any_vec(rng: &mut Rng) -> Vec3 {
+    pub(in crate::bvh) fn any_vec(rng: &mut Rng) -> Vec3 {
         Vec3::new(coord(rng), coord(rng), coord(rng))
     }
 
@@ -264,11 +306,11 @@ mod tests {
         }
     }
 
-    /// The 4-wide shadow pre-test never drops a lane the scalar test hits, and the 4-wide
-    /// closest-hit test gives the scalar test's exact bits on every lane it decides: 4 million
-    /// ray/triangle
-    /// pairs, random and degenerate (shared vertices, axis-parallel rays, signed zeros, huge and
-    /// tiny coordinates, origins on vertices and on triangles).
+    /// The 4-wide any-hit test decides every lane it claims (hit or miss) as the scalar test
+    /// does, and the 4-wide closest-hit test gives the scalar test's exact bits on every lane
+    /// it decides: 4 million ray/triangle pairs, random and degenerate (shared vertices,
+    /// axis-parallel rays, signed zeros, huge and tiny coordinates, origins on vertices and on
+    /// triangles).
     #[test]
     fn four_wide_tests_agree_with_the_scalar_test() {
         let mut rng = Rng(42);
@@ -305,15 +347,27 @@ mod tests {
             let tester = TriangleTester::new(&prep);
             let p = triangle4(&tris);
             let t_max = [f32::INFINITY, rng.unit() * 4.0][(rng.next() % 2) as usize];
-            let candidates = triangle_candidates(&tester, &p, t_max);
+            let (any_hit, unsure) = triangle_any_hit(&tester, &p, t_max);
             let exact = triangle_hits(&tester, &p, t_max);
             assert_eq!(exact.exact & exact.scalar, 0);
             exact_hits += exact.exact.count_ones();
             for (lane, [p0, p1, p2]) in tris.iter().enumerate() {
                 let bit = 1 << lane;
-                if intersect(&prep, *p0, *p1, *p2, t_max).is_some() {
-                    hits += 1;
-                    assert!(candidates & bit != 0, "{ray:?} {:?}", tris[lane]);
+                let any = intersect(&prep, *p0, *p1, *p2, t_max).is_some();
+                hits += usize::from(any);
+                assert_eq!(any_hit & unsure, 0);
+                if any_hit & bit != 0 {
+                    assert!(
+                        any,
+                        "a claimed hit the scalar test misses: {ray:?} {:?}",
+                        tris[lane]
+                    );
+                } else if unsure & bit == 0 {
+                    assert!(
+                        !any,
+                        "a claimed miss the scalar test hits: {ray:?} {:?}",
+                        tris[lane]
+                    );
                 }
                 let scalar = intersect(&prep, *p0, *p1, *p2, f32::INFINITY);
                 if exact.scalar & bit != 0 {

@@ -46,7 +46,10 @@ fn bvh_of(tris: &[[Vec3; 3]]) -> Bvh {
 }
 
 /// The bits of a hit, so that equality means the same bits (and -0 != +0).
-fn hit_bits(h: &ClosestHit) -> (u32, u32, [u32; 3], u32, [[u32; 3]; 3]) {
+/// A hit's id, t, barycentrics, leaf-order index and corners, as bits.
+type HitBits = (u32, u32, [u32; 3], u32, [[u32; 3]; 3]);
+
+fn hit_bits(h: &ClosestHit) -> HitBits {
     (
         h.id,
         h.t.to_bits(),
@@ -56,13 +59,49 @@ fn hit_bits(h: &ClosestHit) -> (u32, u32, [u32; 3], u32, [[u32; 3]; 3]) {
     )
 }
 
+/// Runs `check` once at each kernel width this host has, forced for the whole process (the
+/// lock keeps other forcing tests out meanwhile; tests that do not force see some width, and
+/// every width gives the same answers). Returns how many 8-wide leaf tests the checks ran.
+pub(crate) fn at_every_kernel_width(mut check: impl FnMut(KernelWidth)) -> usize {
+    static FORCING: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _only_us = FORCING.lock().unwrap_or_else(|e| e.into_inner());
+    let before = eight_wide_leaf_tests();
+    for width in available_kernel_widths() {
+        force_kernel_width(Some(width));
+        check(width);
+    }
+    force_kernel_width(None);
+    eight_wide_leaf_tests() - before
+}
+
+/// How many 8-wide leaf tests have run in this process (0 where there are none).
+fn eight_wide_leaf_tests() -> usize {
+    #[cfg(target_arch = "x86_64")]
+    {
+        super::leaf8::LEAF_TESTS.load(std::sync::atomic::Ordering::Relaxed)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        0
+    }
+}
+
 /// Closest-hit ray packets give every ray exactly the single-ray answer, for packets cut at
-/// every offset (full, partial and one-ray packets).
-fn check_ray_packets_against_single_rays(bvh: &Bvh, rays: &[Ray]) {
+/// every offset (full, partial and one-ray packets), at every kernel width.
+fn check_ray_packets_against_single_rays(bvh: &Bvh, rays: &[Ray]) -> usize {
     let single: Vec<_> = rays
         .iter()
         .map(|r| bvh.closest_hit(r).as_ref().map(hit_bits))
         .collect();
+    at_every_kernel_width(|width| packets_give_single_ray_hits(bvh, rays, &single, width))
+}
+
+fn packets_give_single_ray_hits(
+    bvh: &Bvh,
+    rays: &[Ray],
+    single: &[Option<HitBits>],
+    width: KernelWidth,
+) {
     for skip in [0, 1, 5, 15] {
         let rays = &rays[skip.min(rays.len())..];
         let mut out = vec![None; rays.len()];
@@ -72,22 +111,34 @@ fn check_ray_packets_against_single_rays(bvh: &Bvh, rays: &[Ray]) {
             .zip(&single[skip.min(single.len())..])
             .enumerate()
         {
-            assert_eq!(&got.as_ref().map(hit_bits), expected, "ray {}", k + skip);
+            assert_eq!(
+                &got.as_ref().map(hit_bits),
+                expected,
+                "ray {} ({width:?})",
+                k + skip
+            );
         }
     }
 }
 
 /// Segment packets give every segment exactly the single-ray answer, for packets cut at every
-/// offset; returns how many segments are blocked.
-fn check_segment_packets_against_single_rays(bvh: &Bvh, segments: &[(Ray, f32)]) -> usize {
+/// offset, at every kernel width; returns how many segments are blocked and how many 8-wide
+/// leaf tests ran.
+fn check_segment_packets_against_single_rays(bvh: &Bvh, segments: &[(Ray, f32)]) -> (usize, usize) {
     let single: Vec<bool> = segments.iter().map(|(r, t)| bvh.occluded(r, *t)).collect();
-    for skip in [0, 1, 5, 15] {
-        let segments = &segments[skip.min(segments.len())..];
-        let mut out = vec![false; segments.len()];
-        bvh.occluded_many(segments, &mut out);
-        assert_eq!(out, single[skip.min(single.len())..], "skip {skip}");
-    }
-    single.iter().filter(|&&b| b).count()
+    let eight_wide = at_every_kernel_width(|width| {
+        for skip in [0, 1, 5, 15] {
+            let segments = &segments[skip.min(segments.len())..];
+            let mut out = vec![false; segments.len()];
+            bvh.occluded_many(segments, &mut out);
+            assert_eq!(
+                out,
+                single[skip.min(single.len())..],
+                "skip {skip} ({width:?})"
+            );
+        }
+    });
+    (single.iter().filter(|&&b| b).count(), eight_wide)
 }
 
 fn check_against_brute_force(tris: &[[Vec3; 3]], rays: &[Ray]) {
@@ -105,7 +156,7 @@ fn check_against_brute_force(tris: &[[Vec3; 3]], rays: &[Ray]) {
             ]
         })
         .collect();
-    let blocked = check_segment_packets_against_single_rays(&bvh, &segments);
+    let (blocked, _) = check_segment_packets_against_single_rays(&bvh, &segments);
     assert!(
         blocked > 0 && blocked < segments.len(),
         "both answers occur ({blocked})"
@@ -200,23 +251,33 @@ fn closest_hit_equals_brute_force_on_the_bunny() {
     let radius = (bounds.hi - bounds.lo).length() * 0.5;
     let rays = random_rays(&mut Rng(3), 2000, centre, radius);
     check_against_brute_force(&tris, &rays);
-    // Coherent camera rays (what ray packets are for): a 64x48 pinhole grid over the bunny, rows of
-    // 64 traced in packets of 16, from an eye outside and from one inside its box.
+    // Coherent camera rays (what ray packets are for): 16 jittered samples of each pixel of a
+    // 32x24 pinhole image of the bunny, in pixel order as the renderer traces them (a packet
+    // is one pixel's samples), from an eye outside and from one inside its box.
     let bvh = bvh_of(&tris);
+    let mut jitter = Rng(11);
     for eye in [centre + Vec3::new(0.1, 0.5, 1.25) * radius * 2.0, centre] {
         let forward = (centre + Vec3::new(0.01, 0.02, 0.0) - eye).normalize_or(Vec3::Z);
         let right = forward.cross(Vec3::Y).normalize();
         let up = right.cross(forward);
-        let rays: Vec<Ray> = (0..48 * 64)
-            .map(|p| {
-                let (x, y) = ((p % 64) as f32 / 32.0 - 1.0, 1.0 - (p / 64) as f32 / 24.0);
+        let rays: Vec<Ray> = (0..24 * 32 * 16)
+            .map(|s| {
+                let p = s / 16;
+                let (px, py) = (
+                    (p % 32) as f32 + jitter.unit(),
+                    (p / 32) as f32 + jitter.unit(),
+                );
+                let (x, y) = (px / 16.0 - 1.0, 1.0 - py / 12.0);
                 Ray {
                     origin: eye,
                     dir: forward + right * x * 0.5 + up * y * 0.4,
                 }
             })
             .collect();
-        check_ray_packets_against_single_rays(&bvh, &rays);
+        let eight_wide = check_ray_packets_against_single_rays(&bvh, &rays);
+        if available_kernel_widths().contains(&KernelWidth::Eight) {
+            assert!(eight_wide > 100, "closest-hit leaves 8-wide ({eight_wide})");
+        }
         let hits = rays.iter().filter(|r| bvh.closest_hit(r).is_some()).count();
         assert!(hits > 200, "camera rays should hit the bunny ({hits})");
         // Coherent shadow segments: from each hit point to a light above the bunny.
@@ -235,11 +296,14 @@ fn closest_hit_equals_brute_force_on_the_bunny() {
                 ))
             })
             .collect();
-        let blocked = check_segment_packets_against_single_rays(&bvh, &segments);
+        let (blocked, eight_wide) = check_segment_packets_against_single_rays(&bvh, &segments);
         assert!(
             blocked > 20 && blocked < segments.len(),
             "some shadows ({blocked})"
         );
+        if available_kernel_widths().contains(&KernelWidth::Eight) {
+            assert!(eight_wide > 100, "segment leaves 8-wide ({eight_wide})");
+        }
     }
 }
 

@@ -2,8 +2,8 @@
 //! far distance scaled by 1 + 2·gamma(3)), and a node is skipped only when its entry distance
 //! exceeds the current bound by a relative margin, so culling never changes the answer.
 
-use super::node4::{LEAF, Node4};
-use super::simd4::{BoxTester, TriangleTester, each3, triangle_candidates, triangle_hits};
+use super::node4::{LEAF, Node4, Triangle4};
+use super::simd4::{BoxTester, TriangleTester, each3, triangle_any_hit, triangle_hits};
 use super::{Aabb, Bvh};
 use crate::triangle::{Ray, RayPrep, TriangleHit, gamma, intersect};
 use glam::Vec3;
@@ -132,6 +132,41 @@ impl ClosestSearch {
         }
     }
 
+    /// Keeps `h`, a hit on triangle `id` (lane `lane` of `Triangle4` `k`), when it beats the
+    /// best hit so far: smaller t, or equal t and smaller id. The winner is unique, so the
+    /// order of the offers cannot change it.
+    #[inline(always)]
+    pub fn offer(&mut self, h: TriangleHit, id: u32, k: usize, lane: usize) {
+        // Hits have finite t, so the first one always wins against +inf.
+        if h.t < self.best_t || (h.t == self.best_t && id < self.best_id) {
+            (self.best_t, self.best_id) = (h.t, id);
+            self.best = Some((h, k, lane));
+        }
+    }
+
+    /// The best hit so far: (hit, triangle id, `Triangle4` index, lane), if any.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    pub fn best(&self) -> Option<(TriangleHit, u32, usize, usize)> {
+        self.best.map(|(h, k, lane)| (h, self.best_id, k, lane))
+    }
+
+    /// Replaces the best hit with one that beats it (the caller has applied [`Self::offer`]'s
+    /// rule).
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    pub fn replace_best(&mut self, h: TriangleHit, id: u32, k: usize, lane: usize) {
+        (self.best_t, self.best_id) = (h.t, id);
+        self.best = Some((h, k, lane));
+    }
+
+    /// The scalar test of lane `lane` of `p`, for the pairs the SIMD tests leave to it.
+    #[cold]
+    pub fn scalar_hit(&self, p: &Triangle4, lane: usize) -> Option<TriangleHit> {
+        let [p0, p1, p2] = p.corners(lane);
+        intersect(&RayPrep::new(&self.ray), p0, p1, p2, f32::INFINITY)
+    }
+
     /// The culling bound: a box entered beyond it cannot hold a better hit.
     #[inline(always)]
     pub fn bound(&self) -> f32 {
@@ -187,24 +222,16 @@ impl Bvh {
             while lanes != 0 {
                 let lane = lanes.trailing_zeros() as usize;
                 lanes &= lanes - 1;
-                let h = if wide.exact & (1 << lane) != 0 {
-                    TriangleHit {
+                let hit = if wide.exact & (1 << lane) != 0 {
+                    Some(TriangleHit {
                         t: wide.t[lane],
                         b: each3(|k| wide.b[k][lane]),
-                    }
+                    })
                 } else {
-                    let [p0, p1, p2] = p.corners(lane);
-                    let prep = RayPrep::new(&s.ray);
-                    let Some(h) = intersect(&prep, p0, p1, p2, f32::INFINITY) else {
-                        continue;
-                    };
-                    h
+                    s.scalar_hit(p, lane)
                 };
-                let id = self.ids[p.first as usize + lane];
-                // Hits have finite t, so the first one always wins against +inf.
-                if h.t < s.best_t || (h.t == s.best_t && id < s.best_id) {
-                    (s.best_t, s.best_id) = (h.t, id);
-                    s.best = Some((h, k, lane));
+                if let Some(h) = hit {
+                    s.offer(h, self.ids[p.first as usize + lane], k, lane);
                 }
             }
         }
@@ -318,10 +345,13 @@ impl Bvh {
         t_max: f32,
     ) -> bool {
         for p in &self.triangles[first..first + count] {
-            let mut lanes = triangle_candidates(tris, p, t_max);
-            while lanes != 0 {
-                let lane = lanes.trailing_zeros() as usize;
-                lanes &= lanes - 1;
+            let (hit, mut unsure) = triangle_any_hit(tris, p, t_max);
+            if hit != 0 {
+                return true;
+            }
+            while unsure != 0 {
+                let lane = unsure.trailing_zeros() as usize;
+                unsure &= unsure - 1;
                 let [p0, p1, p2] = p.corners(lane);
                 if intersect(prep, p0, p1, p2, t_max).is_some() {
                     return true;
