@@ -441,7 +441,7 @@ impl Bvh {
                 continue;
             };
             for i in bits(group) {
-                searches[from + i].get_or_insert_with(|| ClosestSearch::new(&group_rays[i]));
+                searches[from + i].get_or_insert_with(|| ClosestSearch::deferred(&group_rays[i]));
             }
             #[allow(unsafe_code)]
             unsafe {

@@ -2,15 +2,15 @@
 //! neighbouring samples towards one light) traverse the 4-wide BVH together for any-hit
 //! ([`Bvh::occluded_many`]), with the interval hull and per-ray tests of
 //! `RayPacketTester` (`ray_packet.rs`) spanning origins as well as directions. Leaves run
-//! the single-ray any-hit test per ray, a blocked ray leaves its packet, and trees of fewer
-//! than [`SMALL_TREE`] wide nodes are traced ray by ray.
+//! the single-ray any-hit test per ray (or 8 rays per test, `leaf8.rs`), a blocked ray leaves
+//! its packet, and with 4-wide leaves trees of fewer than [`SMALL_TREE`] wide nodes are traced
+//! ray by ray.
 //!
 //! Guarantee: every segment gets exactly [`Bvh::occluded`]'s answer: the root test is
 //! `occluded`'s own, every box test either is the single-ray slab test or can only claim what
 //! it would claim, and every triangle test is the single-ray leaf test.
 
 use super::Bvh;
-#[cfg(target_arch = "x86_64")]
 use super::dispatch::{KernelWidth, kernel_width};
 #[cfg(target_arch = "x86_64")]
 use super::leaf8::{LANES as EIGHT, RayLanes8, occluded_in_leaf8};
@@ -39,9 +39,9 @@ impl Bvh {
             out.fill(false);
             return;
         }
-        if self.wide.len() < SMALL_TREE {
-            // In a tree of a few nodes there is nothing to share: packets would only add setup
-            // (cornell, 36 triangles: 0.7x single rays).
+        if self.wide.len() < SMALL_TREE && kernel_width() == KernelWidth::Four {
+            // In a tree of a few nodes 4-wide packets share nothing: they would only add setup
+            // (cornell, 36 triangles: 0.7x single rays). 8-wide leaves make them pay (1.04x).
             for ((ray, t_max), out) in rays.iter().zip(out) {
                 *out = self.occluded(ray, *t_max);
             }

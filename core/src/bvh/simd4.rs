@@ -78,6 +78,14 @@ pub(super) struct TriangleTester {
 }
 
 impl TriangleTester {
+    /// Placeholder constants, for a search that makes its own later.
+    #[cfg(target_arch = "x86_64")]
+    pub const UNSET: TriangleTester = TriangleTester {
+        axes: [0, 1, 2],
+        origin: [f32x4::ZERO; 3],
+        shear: [f32x4::ZERO; 3],
+    };
+
     pub fn new(prep: &RayPrep) -> Self {
         let (axes, shear) = prep.shear();
         TriangleTester {

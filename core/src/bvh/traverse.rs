@@ -114,7 +114,9 @@ pub(super) struct ClosestSearch {
     /// The ray (the scalar test's constants are rebuilt from it in the rare lanes that need
     /// them: copying them here stalled every ray's setup).
     ray: Ray,
-    pub tris: TriangleTester,
+    /// The 4-wide triangle tests' constants; valid once `tris_ready`.
+    tris: TriangleTester,
+    tris_ready: bool,
     best: Option<(TriangleHit, usize, usize)>,
     pub best_t: f32,
     best_id: u32,
@@ -125,10 +127,35 @@ impl ClosestSearch {
     pub fn new(ray: &Ray) -> Self {
         ClosestSearch {
             tris: TriangleTester::new(&RayPrep::new(ray)),
+            tris_ready: true,
             ray: *ray,
             best: None,
             best_t: f32::INFINITY,
             best_id: u32::MAX,
+        }
+    }
+
+    /// A search whose 4-wide constants are made only if a 4-wide test needs them: for rays
+    /// that the 8-wide leaf tests (`leaf8.rs`) serve, which hold their own.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    pub fn deferred(ray: &Ray) -> Self {
+        ClosestSearch {
+            tris: TriangleTester::UNSET,
+            tris_ready: false,
+            ray: *ray,
+            best: None,
+            best_t: f32::INFINITY,
+            best_id: u32::MAX,
+        }
+    }
+
+    /// Makes the 4-wide triangle tests' constants if they are not made yet.
+    #[inline(always)]
+    fn prepare_tris(&mut self) {
+        if !self.tris_ready {
+            self.tris = TriangleTester::new(&RayPrep::new(&self.ray));
+            self.tris_ready = true;
         }
     }
 
@@ -215,6 +242,7 @@ impl Bvh {
     /// best hit.
     #[inline(always)]
     pub(super) fn closest_in_leaf(&self, first: usize, count: usize, s: &mut ClosestSearch) {
+        s.prepare_tris();
         for k in first..first + count {
             let p = &self.triangles[k];
             let wide = triangle_hits(&s.tris, p, s.best_t);
