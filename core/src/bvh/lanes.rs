@@ -33,6 +33,39 @@ pub(super) trait Lanes:
     fn select(self, if_true: Self, if_false: Self) -> Self;
     /// Bit i set when lane i of the mask is set.
     fn bitmask(self) -> u32;
+    /// Per lane `if self > other { self } else { other }` (so `other` when either is NaN).
+    fn greater(self, other: Self) -> Self;
+    /// Per lane `if self < other { self } else { other }` (so `other` when either is NaN).
+    fn lesser(self, other: Self) -> Self;
+}
+
+/// [`Lanes::greater`] of 4 lanes: on x86-64 one `maxps`, which computes exactly this
+/// (the second operand when either is NaN or both are zeros), elsewhere a compare and select
+/// (NEON's `fmax` propagates NaN instead, so it is not used).
+#[inline(always)]
+pub(super) fn greater4(a: f32x4, b: f32x4) -> f32x4 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        a.fast_max(b)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        a.simd_gt(b).select(a, b)
+    }
+}
+
+/// [`Lanes::lesser`] of 4 lanes: on x86-64 one `minps` (exactly this), elsewhere a compare
+/// and select.
+#[inline(always)]
+pub(super) fn lesser4(a: f32x4, b: f32x4) -> f32x4 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        a.fast_min(b)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        a.simd_lt(b).select(a, b)
+    }
 }
 
 impl Lanes for f32x4 {
@@ -67,6 +100,14 @@ impl Lanes for f32x4 {
     #[inline(always)]
     fn bitmask(self) -> u32 {
         self.to_bitmask()
+    }
+    #[inline(always)]
+    fn greater(self, other: Self) -> Self {
+        greater4(self, other)
+    }
+    #[inline(always)]
+    fn lesser(self, other: Self) -> Self {
+        lesser4(self, other)
     }
 }
 
@@ -222,6 +263,17 @@ mod avx {
         fn bitmask(self) -> u32 {
             // SAFETY: AVX is available (the type's contract).
             unsafe { _mm256_movemask_ps(self.0) as u32 }
+        }
+        #[inline(always)]
+        fn greater(self, other: Self) -> Self {
+            // SAFETY: AVX is available (the type's contract). `maxps` gives the second
+            // operand unless the first is greater: exactly `Lanes::greater`.
+            F32x8(unsafe { _mm256_max_ps(self.0, other.0) })
+        }
+        #[inline(always)]
+        fn lesser(self, other: Self) -> Self {
+            // SAFETY: as `greater`, with `minps`.
+            F32x8(unsafe { _mm256_min_ps(self.0, other.0) })
         }
     }
 }

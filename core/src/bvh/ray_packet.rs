@@ -21,10 +21,10 @@
 //! single-ray best-hit update ([`Bvh::closest_in_leaf`]). The closest hit is unique (smaller t,
 //! then smaller id), so the visiting order cannot change it.
 
-#[cfg(target_arch = "x86_64")]
 use super::dispatch::{KernelWidth, kernel_width};
 #[cfg(target_arch = "x86_64")]
 use super::leaf8::{LANES as EIGHT, RayLanes8, closest_in_leaf8};
+use super::lanes::{greater4, lesser4};
 use super::node4::{LEAF, Node4};
 use super::simd4::{BoxTester, each3, each4};
 use super::traverse::{
@@ -161,8 +161,7 @@ impl RayPacketTester {
             // over the packet are at the extreme origins and inverse directions.
             let low = |x: f32x4| x.simd_ge(zero).select(x * lo, x * hi);
             let high = |x: f32x4| x.simd_ge(zero).select(x * hi, x * lo);
-            let min = |a: f32x4, b: f32x4| a.simd_lt(b).select(a, b);
-            let max = |a: f32x4, b: f32x4| a.simd_gt(b).select(a, b);
+            let (min, max) = (lesser4, greater4);
             let (o_lo, o_hi) = (self.origin_lo[axis], self.origin_hi[axis]);
             let (near_plane, far_plane) = (f32x4::from(near_plane), f32x4::from(far_plane));
             let (near_min, near_max, far_max, far_min) = if self.one_origin {
@@ -179,10 +178,10 @@ impl RayPacketTester {
                     min(low(f_lo), low(f_hi)) * scale,
                 )
             };
-            some0 = near_min.simd_gt(some0).select(near_min, some0);
-            some1 = far_max.simd_lt(some1).select(far_max, some1);
-            all0 = near_max.simd_gt(all0).select(near_max, all0);
-            all1 = far_min.simd_lt(all1).select(far_min, all1);
+            some0 = greater4(near_min, some0);
+            some1 = lesser4(far_max, some1);
+            all0 = greater4(near_max, all0);
+            all1 = lesser4(far_min, all1);
         }
         let some = !some0.simd_gt(some1).to_bitmask() & 0xf;
         let all = if all_axes {
@@ -246,8 +245,8 @@ impl RayPacketTester {
                 let near = (near_hi.select(hi[axis], lo[axis]) - o) * inv;
                 let far = (near_hi.select(lo[axis], hi[axis]) - o) * inv * scale;
                 // As the single-ray test: a NaN never passes, so it changes nothing.
-                t0 = near.simd_gt(t0).select(near, t0);
-                t1 = far.simd_lt(t1).select(far, t1);
+                t0 = greater4(near, t0);
+                t1 = lesser4(far, t1);
             }
             let hit = !t0.simd_gt(t1).to_bitmask() & lanes;
             rays |= hit << (4 * g);
@@ -298,22 +297,57 @@ impl Bvh {
             return;
         }
         RAY_PACKET_STACKS.with_borrow_mut(|stack| {
-            STACKS.with_borrow_mut(|ray_stack| {
-                for (rays, out) in rays.chunks(RAY_PACKET).zip(out.chunks_mut(RAY_PACKET)) {
-                    if rays.iter().all(is_finite) {
-                        self.trace_closest_packet(rays, out, stack, ray_stack);
-                    } else {
-                        for (ray, out) in rays.iter().zip(out) {
-                            *out = self.closest_hit_with(ray, ray_stack);
-                        }
-                    }
-                }
+            STACKS.with_borrow_mut(|ray_stack| match kernel_width() {
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: `Eight` is the kernel width only on hosts with AVX2 (`dispatch.rs`).
+                #[allow(unsafe_code)]
+                KernelWidth::Eight => unsafe {
+                    self.closest_packets_avx2(rays, out, stack, ray_stack)
+                },
+                _ => self.closest_packets::<false>(rays, out, stack, ray_stack),
             })
         });
     }
 
+    /// [`Bvh::closest_packets`] with 8-wide leaves, compiled for AVX2 as a whole (the 4-wide
+    /// tests in it too), so the 8-wide leaf tests inline into the traversal. Call only on
+    /// hosts with AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn closest_packets_avx2(
+        &self,
+        rays: &[Ray],
+        out: &mut [Option<ClosestHit>],
+        stack: &mut [RayPacketEntry; STACK],
+        ray_stack: &mut [Entry; STACK],
+    ) {
+        self.closest_packets::<true>(rays, out, stack, ray_stack)
+    }
+
+    /// [`Bvh::closest_hits`] over a non-empty BVH, packet by packet; `EIGHT`: with 8-wide
+    /// leaves (only inside [`Bvh::closest_packets_avx2`]).
+    #[inline(always)]
+    fn closest_packets<const EIGHT: bool>(
+        &self,
+        rays: &[Ray],
+        out: &mut [Option<ClosestHit>],
+        stack: &mut [RayPacketEntry; STACK],
+        ray_stack: &mut [Entry; STACK],
+    ) {
+        for (rays, out) in rays.chunks(RAY_PACKET).zip(out.chunks_mut(RAY_PACKET)) {
+            if rays.iter().all(is_finite) {
+                self.trace_closest_packet::<EIGHT>(rays, out, stack, ray_stack);
+            } else {
+                for (ray, out) in rays.iter().zip(out) {
+                    *out = self.closest_hit_with(ray, ray_stack);
+                }
+            }
+        }
+    }
+
     /// [`Bvh::closest_hits`] of one packet of 1..=[`RAY_PACKET`] finite rays.
-    fn trace_closest_packet(
+    #[inline(always)]
+    fn trace_closest_packet<const EIGHT: bool>(
         &self,
         rays: &[Ray],
         out: &mut [Option<ClosestHit>],
@@ -335,8 +369,6 @@ impl Bvh {
         let mut depth = 0usize;
         let (mut child, mut triangle4_count) = ROOT;
         let mut active = (1u32 << rays.len()) - 1;
-        #[cfg(target_arch = "x86_64")]
-        let width = kernel_width();
         // Each group of eight rays in lanes, made when the group first reaches a leaf
         // (`None` inside: its rays permute the axes differently, so it stays 4-wide).
         #[cfg(target_arch = "x86_64")]
@@ -360,11 +392,10 @@ impl Bvh {
             } else {
                 let leaf = ((child & !LEAF) as usize, triangle4_count as usize);
                 #[cfg(target_arch = "x86_64")]
-                let rest = match width {
-                    KernelWidth::Eight => {
-                        self.leaf_by_eights(leaf, rays, active, &mut searches, &mut lanes8)
-                    }
-                    KernelWidth::Four => active,
+                let rest = if EIGHT {
+                    self.leaf_by_eights(leaf, rays, active, &mut searches, &mut lanes8)
+                } else {
+                    active
                 };
                 #[cfg(not(target_arch = "x86_64"))]
                 let rest = active;
@@ -431,8 +462,8 @@ impl Bvh {
                 continue;
             }
             let group_rays = &rays[from..rays.len().min(from + EIGHT)];
-            // SAFETY (both calls): `Eight` is the kernel width only on hosts with AVX2
-            // (`dispatch.rs`).
+            // SAFETY (both calls): only `closest_packets_avx2` reaches this, which runs only on
+            // hosts with AVX2.
             #[allow(unsafe_code)]
             let lanes = lanes.get_or_insert_with(|| unsafe {
                 RayLanes8::new(group_rays.len(), |i| &group_rays[i])

@@ -48,12 +48,45 @@ impl Bvh {
             return;
         }
         RAY_PACKET_STACKS.with_borrow_mut(|stack| {
-            STACKS.with_borrow_mut(|ray_stack| {
-                for (rays, out) in rays.chunks(RAY_PACKET).zip(out.chunks_mut(RAY_PACKET)) {
-                    self.trace_segment_packet(rays, out, stack, ray_stack);
-                }
+            STACKS.with_borrow_mut(|ray_stack| match kernel_width() {
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: `Eight` is the kernel width only on hosts with AVX2 (`dispatch.rs`).
+                #[allow(unsafe_code)]
+                KernelWidth::Eight => unsafe {
+                    self.segment_packets_avx2(rays, out, stack, ray_stack)
+                },
+                _ => self.segment_packets::<false>(rays, out, stack, ray_stack),
             })
         });
+    }
+
+    /// [`Bvh::segment_packets`] with 8-wide leaves, compiled for AVX2 as a whole. Call only on
+    /// hosts with AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn segment_packets_avx2(
+        &self,
+        rays: &[(Ray, f32)],
+        out: &mut [bool],
+        stack: &mut [RayPacketEntry; STACK],
+        ray_stack: &mut [Entry; STACK],
+    ) {
+        self.segment_packets::<true>(rays, out, stack, ray_stack)
+    }
+
+    /// [`Bvh::occluded_many`] over a non-empty BVH, packet by packet; `EIGHT`: with 8-wide
+    /// leaves (only inside [`Bvh::segment_packets_avx2`]).
+    #[inline(always)]
+    fn segment_packets<const EIGHT: bool>(
+        &self,
+        rays: &[(Ray, f32)],
+        out: &mut [bool],
+        stack: &mut [RayPacketEntry; STACK],
+        ray_stack: &mut [Entry; STACK],
+    ) {
+        for (rays, out) in rays.chunks(RAY_PACKET).zip(out.chunks_mut(RAY_PACKET)) {
+            self.trace_segment_packet::<EIGHT>(rays, out, stack, ray_stack);
+        }
     }
 
     /// Tests the leaf `(first Triangle4, count)` 8-wide against the groups of eight segments
@@ -81,8 +114,8 @@ impl Bvh {
                 continue;
             }
             let group_segments = &segments[from..segments.len().min(from + EIGHT)];
-            // SAFETY (both calls): `Eight` is the kernel width only on hosts with AVX2
-            // (`dispatch.rs`).
+            // SAFETY (both calls): only `segment_packets_avx2` reaches this, which runs only
+            // on hosts with AVX2.
             #[allow(unsafe_code)]
             let lanes = lanes.get_or_insert_with(|| unsafe {
                 RayLanes8::new(group_segments.len(), |i| &group_segments[i].0)
@@ -100,7 +133,8 @@ impl Bvh {
     }
 
     /// [`Bvh::occluded_many`] of one packet of 1..=[`RAY_PACKET`] segments.
-    fn trace_segment_packet(
+    #[inline(always)]
+    fn trace_segment_packet<const EIGHT: bool>(
         &self,
         segments: &[(Ray, f32)],
         out: &mut [bool],
@@ -136,8 +170,6 @@ impl Bvh {
         let mut blocked = 0u32;
         let mut depth = 0usize;
         let (mut child, mut triangle4_count) = ROOT;
-        #[cfg(target_arch = "x86_64")]
-        let width = kernel_width();
         // Each group of eight segments in lanes, made when the group first reaches a leaf
         // (`None` inside: its rays permute the axes differently, so it stays 4-wide).
         #[cfg(target_arch = "x86_64")]
@@ -163,14 +195,13 @@ impl Bvh {
             } else {
                 let leaf = ((child & !LEAF) as usize, triangle4_count as usize);
                 #[cfg(target_arch = "x86_64")]
-                let active = match width {
-                    KernelWidth::Eight => {
-                        let (rest, hit) =
-                            self.segment_leaf_by_eights(leaf, segments, active, &mut lanes8);
-                        blocked |= hit;
-                        rest
-                    }
-                    KernelWidth::Four => active,
+                let active = if EIGHT {
+                    let (rest, hit) =
+                        self.segment_leaf_by_eights(leaf, segments, active, &mut lanes8);
+                    blocked |= hit;
+                    rest
+                } else {
+                    active
                 };
                 for i in bits(active) {
                     let (ray, t_max) = &segments[i];

@@ -10,7 +10,7 @@
 //!   scalar test takes no other path (no edge function exactly 0, no NaN input), and leaves
 //!   the other lanes to `intersect`.
 
-use super::lanes::Lanes;
+use super::lanes::{Lanes, greater4, lesser4};
 use super::node4::{Node4, Triangle4};
 use crate::triangle::{Ray, RayPrep, gamma};
 use wide::f32x4;
@@ -61,8 +61,8 @@ impl BoxTester {
             let near = (f32x4::from(near_plane) - self.origin[axis]) * self.inv_dir[axis];
             let far = (f32x4::from(far_plane) - self.origin[axis]) * self.inv_dir[axis] * scale;
             // A NaN never passes a comparison, so it leaves the interval unchanged.
-            t0 = near.simd_gt(t0).select(near, t0);
-            t1 = far.simd_lt(t1).select(far, t1);
+            t0 = greater4(near, t0);
+            t1 = lesser4(far, t1);
         }
         let miss = t0.simd_gt(t1).to_bitmask();
         (!miss & 0xf, t0.to_array())
@@ -175,7 +175,7 @@ pub(super) fn edges<L: Lanes>(origin: &[L; 3], shear: &[L; 3], corners: &[[L; 3]
 fn too_close<L: Lanes>(e: &Edges<L>) -> L {
     #[inline(always)]
     fn max<L: Lanes>(a: L, b: L) -> L {
-        a.cmp_gt(b).select(a, b)
+        a.greater(b)
     }
     #[inline(always)]
     fn max3<L: Lanes>([a, b, c]: [L; 3]) -> L {

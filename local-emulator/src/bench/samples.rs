@@ -7,8 +7,11 @@
 //! of `--repeats` (render time only: no loading or BVH build, as Mitsuba's timing). The ratio is
 //! ours in samples per second over Mitsuba's, so above 1 means we are faster per sample. Each
 //! row also prints a digest of our image (FNV-1a 64 of the pixels' f32 bits, row-major, RGB), so
-//! that two builds can be checked to render the same bits. A second table splits our time per
-//! sample into the renderer's phases, beside Embree on the same rays (`breakdown.rs`).
+//! that two builds can be checked to render the same bits. Ours runs once per kernel width the
+//! host has (`x4`, and `x8` with AVX2), so each table holds the narrower width as the baseline
+//! of the wider, measured in the same run; the widths must render the same image. A second
+//! table splits our time per sample into the renderer's phases, beside Embree on the same rays
+//! (`breakdown.rs`).
 
 use super::breakdown;
 use super::kernel::compile_harness;
@@ -17,6 +20,7 @@ use super::table::{Table, f3};
 use crate::eval::mitsuba_csv;
 use anyhow::{Context, Result, bail};
 use hort_core::image::Image;
+use hort_core::bvh::{KernelWidth, available_kernel_widths, force_kernel_width};
 use hort_core::render::{RenderSettings, build_scene_bvh, render};
 use hort_core::scene::load_scene;
 use std::path::{Path, PathBuf};
@@ -119,38 +123,49 @@ pub fn run_samples_bench(args: &SamplesBenchArgs) -> Result<()> {
             })?;
         let scene = load_scene(path).with_context(|| format!("loading {}", path.display()))?;
         let bvh = build_scene_bvh(&scene.mesh);
-        let warm_up = render(&scene, &bvh, settings)?;
-        let digest = image_digest(&warm_up.image);
-        let mut best = f64::INFINITY;
-        for _ in 0..args.repeats {
-            let out = render(&scene, &bvh, settings)?;
-            if image_digest(&out.image) != digest {
-                bail!("{name}: two renders of the same settings differ");
+        // One row per kernel width this host runs: the narrower is the baseline the wider is
+        // measured against, in the same run. Every width must give the same image.
+        let mut first_digest = None;
+        for width in available_kernel_widths() {
+            force_kernel_width(Some(width));
+            let label = format!("{name} {}", width_label(width));
+            let warm_up = render(&scene, &bvh, settings)?;
+            let digest = image_digest(&warm_up.image);
+            if *first_digest.get_or_insert(digest) != digest {
+                bail!("{label}: the image differs from the narrower kernels' image");
             }
-            best = best.min(out.render_seconds);
+            let mut best = f64::INFINITY;
+            for _ in 0..args.repeats {
+                let out = render(&scene, &bvh, settings)?;
+                if image_digest(&out.image) != digest {
+                    bail!("{label}: two renders of the same settings differ");
+                }
+                best = best.min(out.render_seconds);
+            }
+            breakdowns.push(breakdown::measure(
+                &label,
+                &scene,
+                &bvh,
+                settings,
+                args.repeats,
+                best,
+                theirs.seconds,
+                &warm_up.image.pixels,
+                harness.as_deref().map(|h| (h, args.work_dir.as_path())),
+            )?);
+            let ours = samples / best / 1e6;
+            let mitsuba_rate = samples / theirs.seconds / 1e6;
+            table.push(vec![
+                label,
+                format!("{best:.4}"),
+                f3(ours),
+                format!("{:.4}", theirs.seconds),
+                f3(mitsuba_rate),
+                f3(ours / mitsuba_rate),
+                format!("{digest:016x}"),
+            ]);
         }
-        breakdowns.push(breakdown::measure(
-            &name,
-            &scene,
-            &bvh,
-            settings,
-            args.repeats,
-            best,
-            theirs.seconds,
-            &warm_up.image.pixels,
-            harness.as_deref().map(|h| (h, args.work_dir.as_path())),
-        )?);
-        let ours = samples / best / 1e6;
-        let mitsuba_rate = samples / theirs.seconds / 1e6;
-        table.push(vec![
-            name,
-            format!("{best:.4}"),
-            f3(ours),
-            format!("{:.4}", theirs.seconds),
-            f3(mitsuba_rate),
-            f3(ours / mitsuba_rate),
-            format!("{digest:016x}"),
-        ]);
+        force_kernel_width(None);
     }
     for t in [table, breakdown::table(&breakdowns, settings)] {
         t.print();
@@ -159,6 +174,14 @@ pub fn run_samples_bench(args: &SamplesBenchArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// How a table names a kernel width: `x4` (4-wide) or `x8` (8-wide leaves, AVX2).
+fn width_label(width: KernelWidth) -> &'static str {
+    match width {
+        KernelWidth::Four => "x4",
+        KernelWidth::Eight => "x8",
+    }
 }
 
 /// The `width` and `height` of the references' `settings.json`: the size Mitsuba was timed at.
