@@ -30,13 +30,13 @@ pub(super) trait Lanes:
     fn cmp_le(self, other: Self) -> Self;
     fn cmp_gt(self, other: Self) -> Self;
     /// Per lane of the mask `self`: `if_true` where it is set, else `if_false`.
+    // Only the 8-wide leaves (x86-64) select through the trait.
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     fn select(self, if_true: Self, if_false: Self) -> Self;
     /// Bit i set when lane i of the mask is set.
     fn bitmask(self) -> u32;
     /// Per lane `if self > other { self } else { other }` (so `other` when either is NaN).
     fn greater(self, other: Self) -> Self;
-    /// Per lane `if self < other { self } else { other }` (so `other` when either is NaN).
-    fn lesser(self, other: Self) -> Self;
 }
 
 /// [`Lanes::greater`] of 4 lanes: on x86-64 one `maxps`, which computes exactly this
@@ -54,8 +54,8 @@ pub(super) fn greater4(a: f32x4, b: f32x4) -> f32x4 {
     }
 }
 
-/// [`Lanes::lesser`] of 4 lanes: on x86-64 one `minps` (exactly this), elsewhere a compare
-/// and select.
+/// Per lane `if a < b { a } else { b }`: on x86-64 one `minps` (exactly this), elsewhere a
+/// compare and select.
 #[inline(always)]
 pub(super) fn lesser4(a: f32x4, b: f32x4) -> f32x4 {
     #[cfg(target_arch = "x86_64")]
@@ -104,10 +104,6 @@ impl Lanes for f32x4 {
     #[inline(always)]
     fn greater(self, other: Self) -> Self {
         greater4(self, other)
-    }
-    #[inline(always)]
-    fn lesser(self, other: Self) -> Self {
-        lesser4(self, other)
     }
 }
 
@@ -269,11 +265,6 @@ mod avx {
             // SAFETY: AVX is available (the type's contract). `maxps` gives the second
             // operand unless the first is greater: exactly `Lanes::greater`.
             F32x8(unsafe { _mm256_max_ps(self.0, other.0) })
-        }
-        #[inline(always)]
-        fn lesser(self, other: Self) -> Self {
-            // SAFETY: as `greater`, with `minps`.
-            F32x8(unsafe { _mm256_min_ps(self.0, other.0) })
         }
     }
 }

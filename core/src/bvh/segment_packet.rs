@@ -49,33 +49,14 @@ impl Bvh {
         }
         RAY_PACKET_STACKS.with_borrow_mut(|stack| {
             STACKS.with_borrow_mut(|ray_stack| match kernel_width() {
-                #[cfg(target_arch = "x86_64")]
-                // SAFETY: `Eight` is the kernel width only on hosts with AVX2 (`dispatch.rs`).
-                #[allow(unsafe_code)]
-                KernelWidth::Eight => unsafe {
-                    self.segment_packets_avx2(rays, out, stack, ray_stack)
-                },
-                _ => self.segment_packets::<false>(rays, out, stack, ray_stack),
+                KernelWidth::Eight => self.segment_packets::<true>(rays, out, stack, ray_stack),
+                KernelWidth::Four => self.segment_packets::<false>(rays, out, stack, ray_stack),
             })
         });
     }
 
-    /// [`Bvh::segment_packets`] with 8-wide leaves, compiled for AVX2 as a whole. Call only on
-    /// hosts with AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn segment_packets_avx2(
-        &self,
-        rays: &[(Ray, f32)],
-        out: &mut [bool],
-        stack: &mut [RayPacketEntry; STACK],
-        ray_stack: &mut [Entry; STACK],
-    ) {
-        self.segment_packets::<true>(rays, out, stack, ray_stack)
-    }
-
     /// [`Bvh::occluded_many`] over a non-empty BVH, packet by packet; `EIGHT`: with 8-wide
-    /// leaves (only inside [`Bvh::segment_packets_avx2`]).
+    /// leaves (only at kernel width `Eight`, so on hosts with AVX2; see `closest_packets`).
     #[inline(always)]
     fn segment_packets<const EIGHT: bool>(
         &self,
@@ -114,8 +95,8 @@ impl Bvh {
                 continue;
             }
             let group_segments = &segments[from..segments.len().min(from + EIGHT)];
-            // SAFETY (both calls): only `segment_packets_avx2` reaches this, which runs only
-            // on hosts with AVX2.
+            // SAFETY (both calls): only `segment_packets::<true>` reaches this, which runs
+            // only at kernel width `Eight`, so on hosts with AVX2 (`dispatch.rs`).
             #[allow(unsafe_code)]
             let lanes = lanes.get_or_insert_with(|| unsafe {
                 RayLanes8::new(group_segments.len(), |i| &group_segments[i].0)
