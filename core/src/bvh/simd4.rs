@@ -69,12 +69,13 @@ impl BoxTester {
     }
 }
 
-/// Per-ray constants of the 4-wide triangle tests: the permuted origin and the shear.
+/// Per-ray constants of the 4-wide triangle tests: the permuted origin and the shear, kept as
+/// scalars (small to copy into a search; the tests broadcast them to lanes).
 #[derive(Clone, Copy)]
 pub(super) struct TriangleTester {
     axes: [usize; 3],
-    origin: [f32x4; 3],
-    shear: [f32x4; 3],
+    origin: [f32; 3],
+    shear: [f32; 3],
 }
 
 impl TriangleTester {
@@ -82,16 +83,16 @@ impl TriangleTester {
     #[cfg(target_arch = "x86_64")]
     pub const UNSET: TriangleTester = TriangleTester {
         axes: [0, 1, 2],
-        origin: [f32x4::ZERO; 3],
-        shear: [f32x4::ZERO; 3],
+        origin: [0.0; 3],
+        shear: [0.0; 3],
     };
 
     pub fn new(prep: &RayPrep) -> Self {
         let (axes, shear) = prep.shear();
         TriangleTester {
             axes,
-            origin: each3(|k| f32x4::splat(prep.origin[axes[k]])),
-            shear: each3(|k| f32x4::splat(shear[k])),
+            origin: each3(|k| prep.origin[axes[k]]),
+            shear,
         }
     }
 }
@@ -204,7 +205,9 @@ fn too_close<L: Lanes>(e: &Edges<L>) -> L {
 #[inline(always)]
 fn triangle4_edges(r: &TriangleTester, p: &Triangle4) -> Edges<f32x4> {
     let corners = each3(|c| each3(|k| f32x4::from(p.v[c][r.axes[k]])));
-    edges(&r.origin, &r.shear, &corners)
+    let origin = each3(|k| f32x4::splat(r.origin[k]));
+    let shear = each3(|k| f32x4::splat(r.shear[k]));
+    edges(&origin, &shear, &corners)
 }
 
 /// The any-hit verdict of each lane of `e` among the `valid` ones, against
