@@ -7,8 +7,9 @@
 //! packet can do with the four child boxes: a child no ray can enter is dropped for all of
 //! them, a child every active ray certainly enters keeps them all, and only the children in
 //! between are tested ray by ray (four rays per SIMD test). A single remaining ray goes on
-//! alone with the single-ray traversal; leaves run the single-ray leaf test for each ray.
-//! Packets with a non-finite origin or direction are traced ray by ray.
+//! alone with the single-ray traversal; leaves run the single-ray leaf test for each ray, or,
+//! at kernel width `Eight` (`dispatch.rs`), each triangle against eight rays at once
+//! (`leaf8.rs`). Packets with a non-finite origin or direction are traced ray by ray.
 //!
 //! Guarantee: [`Bvh::closest_hits`] gives every ray exactly what [`Bvh::closest_hit`] gives it.
 //! Each lane's box test is the single-ray slab test (same operations in the same order, so the
@@ -18,8 +19,8 @@
 //! are exactly the smallest and largest per-ray values, and the test can only claim "no ray
 //! enters" or "every ray enters" when the per-ray tests would say so. A ray leaves a child only
 //! when its own test says the child cannot hold a better hit, and all hits go through the
-//! single-ray best-hit update ([`Bvh::closest_in_leaf`]). The closest hit is unique (smaller t,
-//! then smaller id), so the visiting order cannot change it.
+//! single-ray best-hit rule ([`Bvh::closest_in_leaf`], or the same rule in lanes). The closest
+//! hit is unique (smaller t, then smaller id), so the visiting order cannot change it.
 
 use super::dispatch::{KernelWidth, kernel_width};
 use super::lanes::{greater4, lesser4};
