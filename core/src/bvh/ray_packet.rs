@@ -25,7 +25,7 @@
 use super::dispatch::{KernelWidth, kernel_width};
 use super::lanes::{greater4, lesser4};
 #[cfg(target_arch = "x86_64")]
-use super::leaf8::{LANES as EIGHT, RayLanes8, closest_in_leaf8};
+use super::leaf8::{LANES as EIGHT, RayLanes8, closest_in_leaf8, pays_eight_wide};
 use super::node4::{LEAF, Node4};
 use super::simd4::{BoxTester, each3, each4};
 use super::traverse::{
@@ -433,15 +433,11 @@ impl Bvh {
         searches: &mut [Option<ClosestSearch>; RAY_PACKET],
         lanes8: &mut [Option<Option<RayLanes8>>; 2],
     ) -> u32 {
-        if count == 0 {
-            return active;
-        }
-        let triangles = 4 * (count - 1) + self.triangles[first + count - 1].lanes as usize;
         let mut rest = active;
         for (g, lanes) in lanes8.iter_mut().enumerate() {
             let from = g * EIGHT;
             let group = (active >> from) & 0xff;
-            if group.count_ones() as usize * count <= triangles {
+            if !pays_eight_wide(self, (first, count), group) {
                 continue;
             }
             let group_rays = &rays[from..rays.len().min(from + EIGHT)];

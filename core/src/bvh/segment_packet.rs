@@ -13,7 +13,7 @@
 use super::Bvh;
 use super::dispatch::{KernelWidth, kernel_width};
 #[cfg(target_arch = "x86_64")]
-use super::leaf8::{LANES as EIGHT, RayLanes8, occluded_in_leaf8};
+use super::leaf8::{LANES as EIGHT, RayLanes8, occluded_in_leaf8, pays_eight_wide};
 use super::node4::LEAF;
 use super::ray_packet::{
     GROUPS, RAY_PACKET, RAY_PACKET_STACKS, RayPacketEntry, RayPacketTester, bits, descend,
@@ -83,15 +83,11 @@ impl Bvh {
         active: u32,
         lanes8: &mut [Option<Option<RayLanes8>>; 2],
     ) -> (u32, u32) {
-        if count == 0 {
-            return (active, 0);
-        }
-        let triangles = 4 * (count - 1) + self.triangles[first + count - 1].lanes as usize;
         let (mut rest, mut blocked) = (active, 0);
         for (g, lanes) in lanes8.iter_mut().enumerate() {
             let from = g * EIGHT;
             let group = (active >> from) & 0xff;
-            if group.count_ones() as usize * count <= triangles {
+            if !pays_eight_wide(self, (first, count), group) {
                 continue;
             }
             let group_segments = &segments[from..segments.len().min(from + EIGHT)];
