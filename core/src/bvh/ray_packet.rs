@@ -92,7 +92,6 @@ impl RayPacketTester {
     /// repeat the last ray (and are never active).
     pub(super) fn new(rays: &[Ray]) -> Self {
         let last = rays.len() - 1;
-        let valid = (1u32 << rays.len()) - 1;
         let dir = |g: usize, a: usize| f32x4::from(each4(|l| rays[(4 * g + l).min(last)].dir[a]));
         let origin: [[f32x4; 3]; GROUPS] =
             each4(|g| each3(|a| f32x4::from(each4(|l| rays[(4 * g + l).min(last)].origin[a]))));
@@ -101,25 +100,26 @@ impl RayPacketTester {
         // Directions are finite (`is_coherent`), so 1/d is never zero or NaN: its sign bit is
         // set exactly when it is below zero.
         let near_hi = each4(|g| each3(|a| inv_dir[g][a].simd_lt(f32x4::ZERO)));
+        // Lanes past the end repeat the last ray, so extremes and signs over all lanes are
+        // those over the rays: no lane masks needed.
         let inf = f32x4::splat(f32::INFINITY);
         let (mut lo, mut hi) = ([inf; 3], [-inf; 3]);
         let (mut o_lo, mut o_hi) = ([inf; 3], [-inf; 3]);
         let (mut negative, mut infinite) = ([0u32; 3], [0u32; 3]);
         for g in 0..GROUPS {
-            let bits = (valid >> (4 * g)) & 0xf;
-            let lanes = lane_mask(bits);
             for a in 0..3 {
                 let x = inv_dir[g][a];
-                lo[a] = (lanes & x.simd_lt(lo[a])).select(x, lo[a]);
-                hi[a] = (lanes & x.simd_gt(hi[a])).select(x, hi[a]);
+                lo[a] = lesser4(x, lo[a]);
+                hi[a] = greater4(x, hi[a]);
                 let o = origin[g][a];
-                o_lo[a] = (lanes & o.simd_lt(o_lo[a])).select(o, o_lo[a]);
-                o_hi[a] = (lanes & o.simd_gt(o_hi[a])).select(o, o_hi[a]);
-                negative[a] |= (near_hi[g][a].to_bitmask() & bits) << (4 * g);
-                infinite[a] |= (x.abs().simd_eq(inf).to_bitmask() & bits) << (4 * g);
+                o_lo[a] = lesser4(o, o_lo[a]);
+                o_hi[a] = greater4(o, o_hi[a]);
+                negative[a] |= near_hi[g][a].to_bitmask() << (4 * g);
+                infinite[a] |= x.abs().simd_eq(inf).to_bitmask() << (4 * g);
             }
         }
-        let all_near_hi = each3(|a| negative[a] == valid);
+        let all_lanes = (1u32 << RAY_PACKET) - 1;
+        let all_near_hi = each3(|a| negative[a] == all_lanes);
         let origin_lo = each3(|a| lowest(o_lo[a]));
         let origin_hi = each3(|a| -lowest(-o_hi[a]));
         RayPacketTester {
