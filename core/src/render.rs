@@ -250,8 +250,9 @@ fn shade_batch_timed(
         .map(|(ray, hit)| hit.as_ref().map(|h| surface_of(&scene.mesh, h, ray)))
         .collect();
     // Per sample, its lights' tests in light order (the order `combine` sums them in).
-    let mut segments = Vec::new();
-    let mut tests = Vec::new();
+    let most = surfaces.iter().flatten().count() * scene.lights.len();
+    let mut segments = Vec::with_capacity(most);
+    let mut tests = Vec::with_capacity(most);
     for (sample, sp) in surfaces.iter().enumerate() {
         let Some(sp) = sp else { continue };
         for (light, &free) in scene.lights.iter().zip(unoccludable) {

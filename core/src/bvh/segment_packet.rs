@@ -8,7 +8,8 @@
 //!
 //! Guarantee: every segment gets exactly [`Bvh::occluded`]'s answer: the root test is
 //! `occluded`'s own, every box test either is the single-ray slab test or can only claim what
-//! it would claim, and every triangle test is the single-ray leaf test.
+//! it would claim, and every triangle test is the single-ray leaf test or decides as it does
+//! (`leaf8.rs`).
 
 use super::Bvh;
 use super::dispatch::{KernelWidth, kernel_width};
