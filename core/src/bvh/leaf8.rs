@@ -40,7 +40,7 @@ fn count_leaf_test() {
 /// the leaf against one per `Triangle4` per ray. (An 8-wide test costs more than a 4-wide one;
 /// weighting it so measured no better on the bundled scenes and a 1M mesh.)
 #[inline(always)]
-pub(super) fn pays_eight_wide(bvh: &Bvh, (first, count): (usize, usize), group: u32) -> bool {
+fn pays_eight_wide(bvh: &Bvh, (first, count): (usize, usize), group: u32) -> bool {
     let leaf = &bvh.triangles[first..first + count];
     let triangles: usize = leaf.iter().map(|p| p.lanes as usize).sum();
     group.count_ones() as usize * count > triangles
@@ -90,6 +90,51 @@ impl RayLanes8 {
             origin: each3(|k| lanes(&|r| r.origin[[kx, ky, kz][k]])),
             shear: [dir[kx] / dz, dir[ky] / dz, F32x8::splat(1.0) / dz],
         })
+    }
+}
+
+/// A packet's two groups of eight rays in lanes, each made when the group first meets a leaf
+/// 8-wide (`None` inside: its rays permute the axes differently, so it stays 4-wide).
+#[derive(Default)]
+pub(super) struct PacketLanes8([Option<Option<RayLanes8>>; 2]);
+
+impl PacketLanes8 {
+    /// Calls `test(from, group, lanes)` for each group of eight rays of `active` that meets the
+    /// leaf `(first Triangle4, count)` 8-wide: the packet's rays `from..from + 8`, bit i of
+    /// `group` standing for ray `from + i`, where that takes fewer tests than the 4-wide path
+    /// ([`pays_eight_wide`]) and the group's rays permute the axes alike. Returns the rays of
+    /// `active` left for the 4-wide path. `ray(i)` is ray i of the packet's `len`. Only at
+    /// kernel width `Eight` (hosts with AVX2).
+    #[inline(always)]
+    pub fn by_eights<'r>(
+        &mut self,
+        bvh: &Bvh,
+        leaf: (usize, usize),
+        active: u32,
+        len: usize,
+        ray: impl Fn(usize) -> &'r Ray,
+        mut test: impl FnMut(usize, u32, &RayLanes8),
+    ) -> u32 {
+        let mut rest = active;
+        for (g, slot) in self.0.iter_mut().enumerate() {
+            let from = g * LANES;
+            let group = (active >> from) & 0xff;
+            if !pays_eight_wide(bvh, leaf, group) {
+                continue;
+            }
+            let count = len.min(from + LANES) - from;
+            // SAFETY: callers reach this only at kernel width `Eight`, so on hosts with AVX2
+            // (`dispatch.rs`).
+            #[allow(unsafe_code)]
+            let lanes =
+                slot.get_or_insert_with(|| unsafe { RayLanes8::new(count, |i| ray(from + i)) });
+            let Some(lanes) = lanes else {
+                continue;
+            };
+            test(from, group, lanes);
+            rest &= !(group << from);
+        }
+        rest
     }
 }
 

@@ -25,7 +25,7 @@
 use super::dispatch::{KernelWidth, kernel_width};
 use super::lanes::{greater4, lesser4};
 #[cfg(target_arch = "x86_64")]
-use super::leaf8::{LANES as EIGHT, RayLanes8, closest_in_leaf8, pays_eight_wide};
+use super::leaf8::{PacketLanes8, closest_in_leaf8};
 use super::node4::{LEAF, Node4};
 use super::simd4::{BoxTester, each3, each4};
 use super::traverse::{
@@ -352,10 +352,8 @@ impl Bvh {
         let mut depth = 0usize;
         let (mut child, mut triangle4_count) = ROOT;
         let mut active = (1u32 << rays.len()) - 1;
-        // Each group of eight rays in lanes, made when the group first reaches a leaf
-        // (`None` inside: its rays permute the axes differently, so it stays 4-wide).
         #[cfg(target_arch = "x86_64")]
-        let mut lanes8: [Option<Option<RayLanes8>>; 2] = [None, None];
+        let mut lanes8 = PacketLanes8::default();
         loop {
             if active.count_ones() <= 1 {
                 for i in bits(active) {
@@ -376,7 +374,19 @@ impl Bvh {
                 let leaf = ((child & !LEAF) as usize, triangle4_count as usize);
                 #[cfg(target_arch = "x86_64")]
                 let rest = if EIGHT {
-                    self.leaf_by_eights(leaf, rays, active, &mut searches, &mut lanes8)
+                    let ray = |i: usize| &rays[i];
+                    lanes8.by_eights(self, leaf, active, rays.len(), ray, |from, group, lanes| {
+                        for i in bits(group) {
+                            let ray = &rays[from + i];
+                            searches[from + i].get_or_insert_with(|| ClosestSearch::deferred(ray));
+                        }
+                        // SAFETY: only `closest_packets::<true>` reaches this, which runs only
+                        // at kernel width `Eight`, so on hosts with AVX2 (`dispatch.rs`).
+                        #[allow(unsafe_code)]
+                        unsafe {
+                            closest_in_leaf8(self, leaf, lanes, group, &mut searches[from..])
+                        };
+                    })
                 } else {
                     active
                 };
@@ -415,51 +425,6 @@ impl Bvh {
                 }
             }
         }
-    }
-}
-
-impl Bvh {
-    /// Tests the leaf `(first Triangle4, count)` 8-wide against the groups of eight rays of
-    /// `active` for which that takes fewer tests than the 4-wide path (a test per triangle of
-    /// the leaf instead of one per `Triangle4` per active ray) and whose rays permute the axes
-    /// alike; returns the rays left for the 4-wide path. Only for hosts with AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[inline(always)]
-    fn leaf_by_eights(
-        &self,
-        (first, count): (usize, usize),
-        rays: &[Ray],
-        active: u32,
-        searches: &mut [Option<ClosestSearch>; RAY_PACKET],
-        lanes8: &mut [Option<Option<RayLanes8>>; 2],
-    ) -> u32 {
-        let mut rest = active;
-        for (g, lanes) in lanes8.iter_mut().enumerate() {
-            let from = g * EIGHT;
-            let group = (active >> from) & 0xff;
-            if !pays_eight_wide(self, (first, count), group) {
-                continue;
-            }
-            let group_rays = &rays[from..rays.len().min(from + EIGHT)];
-            // SAFETY (both calls): only `closest_packets::<true>` reaches this, which runs only
-            // at kernel width `Eight`, so on hosts with AVX2 (`dispatch.rs`).
-            #[allow(unsafe_code)]
-            let lanes = lanes.get_or_insert_with(|| unsafe {
-                RayLanes8::new(group_rays.len(), |i| &group_rays[i])
-            });
-            let Some(lanes) = lanes else {
-                continue;
-            };
-            for i in bits(group) {
-                searches[from + i].get_or_insert_with(|| ClosestSearch::deferred(&group_rays[i]));
-            }
-            #[allow(unsafe_code)]
-            unsafe {
-                closest_in_leaf8(self, (first, count), lanes, group, &mut searches[from..])
-            };
-            rest &= !(group << from);
-        }
-        rest
     }
 }
 

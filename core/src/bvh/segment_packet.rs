@@ -14,7 +14,7 @@
 use super::Bvh;
 use super::dispatch::{KernelWidth, kernel_width};
 #[cfg(target_arch = "x86_64")]
-use super::leaf8::{LANES as EIGHT, RayLanes8, occluded_in_leaf8, pays_eight_wide};
+use super::leaf8::{LANES, PacketLanes8, occluded_in_leaf8};
 use super::node4::LEAF;
 use super::ray_packet::{
     GROUPS, RAY_PACKET, RAY_PACKET_STACKS, RayPacketEntry, RayPacketTester, bits, descend,
@@ -40,7 +40,8 @@ impl Bvh {
             out.fill(false);
             return;
         }
-        if self.wide.len() < SMALL_TREE && kernel_width() == KernelWidth::Four {
+        let width = kernel_width();
+        if self.wide.len() < SMALL_TREE && width == KernelWidth::Four {
             // In a tree of a few nodes 4-wide packets share nothing: they would only add setup
             // (cornell, 36 triangles: 0.7x single rays). 8-wide leaves make them pay (1.04x).
             for ((ray, t_max), out) in rays.iter().zip(out) {
@@ -49,7 +50,7 @@ impl Bvh {
             return;
         }
         RAY_PACKET_STACKS.with_borrow_mut(|stack| {
-            STACKS.with_borrow_mut(|ray_stack| match kernel_width() {
+            STACKS.with_borrow_mut(|ray_stack| match width {
                 KernelWidth::Eight => self.segment_packets::<true>(rays, out, stack, ray_stack),
                 KernelWidth::Four => self.segment_packets::<false>(rays, out, stack, ray_stack),
             })
@@ -69,45 +70,6 @@ impl Bvh {
         for (rays, out) in rays.chunks(RAY_PACKET).zip(out.chunks_mut(RAY_PACKET)) {
             self.trace_segment_packet::<EIGHT>(rays, out, stack, ray_stack);
         }
-    }
-
-    /// Tests the leaf `(first Triangle4, count)` 8-wide against the groups of eight segments
-    /// of `active` for which that takes fewer tests than the 4-wide path and whose rays
-    /// permute the axes alike: (the segments left for the 4-wide path, the segments found
-    /// blocked). Only for hosts with AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[inline(always)]
-    fn segment_leaf_by_eights(
-        &self,
-        (first, count): (usize, usize),
-        segments: &[(Ray, f32)],
-        active: u32,
-        lanes8: &mut [Option<Option<RayLanes8>>; 2],
-    ) -> (u32, u32) {
-        let (mut rest, mut blocked) = (active, 0);
-        for (g, lanes) in lanes8.iter_mut().enumerate() {
-            let from = g * EIGHT;
-            let group = (active >> from) & 0xff;
-            if !pays_eight_wide(self, (first, count), group) {
-                continue;
-            }
-            let group_segments = &segments[from..segments.len().min(from + EIGHT)];
-            // SAFETY (both calls): only `segment_packets::<true>` reaches this, which runs
-            // only at kernel width `Eight`, so on hosts with AVX2 (`dispatch.rs`).
-            #[allow(unsafe_code)]
-            let lanes = lanes.get_or_insert_with(|| unsafe {
-                RayLanes8::new(group_segments.len(), |i| &group_segments[i].0)
-            });
-            let Some(lanes) = lanes else {
-                continue;
-            };
-            #[allow(unsafe_code)]
-            let hit =
-                unsafe { occluded_in_leaf8(self, (first, count), lanes, group, group_segments) };
-            blocked |= hit << from;
-            rest &= !(group << from);
-        }
-        (rest, blocked)
     }
 
     /// [`Bvh::occluded_many`] of one packet of 1..=[`RAY_PACKET`] segments.
@@ -148,10 +110,8 @@ impl Bvh {
         let mut blocked = 0u32;
         let mut depth = 0usize;
         let (mut child, mut triangle4_count) = ROOT;
-        // Each group of eight segments in lanes, made when the group first reaches a leaf
-        // (`None` inside: its rays permute the axes differently, so it stays 4-wide).
         #[cfg(target_arch = "x86_64")]
-        let mut lanes8: [Option<Option<RayLanes8>>; 2] = [None, None];
+        let mut lanes8 = PacketLanes8::default();
         loop {
             if active.count_ones() <= 1 {
                 for i in bits(active) {
@@ -174,10 +134,17 @@ impl Bvh {
                 let leaf = ((child & !LEAF) as usize, triangle4_count as usize);
                 #[cfg(target_arch = "x86_64")]
                 let active = if EIGHT {
-                    let (rest, hit) =
-                        self.segment_leaf_by_eights(leaf, segments, active, &mut lanes8);
-                    blocked |= hit;
-                    rest
+                    let len = segments.len();
+                    let ray = |i: usize| &segments[i].0;
+                    lanes8.by_eights(self, leaf, active, len, ray, |from, group, lanes| {
+                        let group_segments = &segments[from..len.min(from + LANES)];
+                        // SAFETY: only `segment_packets::<true>` reaches this, which runs only
+                        // at kernel width `Eight`, so on hosts with AVX2 (`dispatch.rs`).
+                        #[allow(unsafe_code)]
+                        let hit =
+                            unsafe { occluded_in_leaf8(self, leaf, lanes, group, group_segments) };
+                        blocked |= hit << from;
+                    })
                 } else {
                     active
                 };
