@@ -13,7 +13,7 @@ use crate::phase_timer::{NoTimer, Phase, PhaseTimer, PhaseTimes};
 use crate::pipeline::FrameChoice;
 use crate::sampling::PixelSum;
 use crate::scene::{Mesh, NO_NORMAL, Scene, TriangleShading, check_image_size};
-use crate::shading::{SurfacePoint, combine, shadow_test, surface_point};
+use crate::shading::{SurfacePoint, combine, shadow_tests, surface_point};
 use crate::texture::TexturedCorners;
 use crate::tiles::{BAND_ROWS, tile_order};
 use crate::triangle::Ray;
@@ -244,52 +244,52 @@ fn shade_batch_timed(
     hits: &[Option<ClosestHit>],
     timer: &mut impl PhaseTimer,
 ) -> Vec<[f32; 3]> {
-    let surfaces: Vec<Option<SurfacePoint>> = rays
+    // The hits' surface points, in sample order, and each one's sample.
+    let (samples, points): (Vec<usize>, Vec<SurfacePoint>) = rays
         .iter()
         .zip(hits)
-        .map(|(ray, hit)| hit.as_ref().map(|h| surface_of(&scene.mesh, h, ray)))
-        .collect();
+        .enumerate()
+        .filter_map(|(sample, (ray, hit))| {
+            Some((sample, surface_of(&scene.mesh, hit.as_ref()?, ray)))
+        })
+        .unzip();
     // Per sample, its lights' tests in light order (the order `combine` sums them in).
-    let most = surfaces.iter().flatten().count() * scene.lights.len();
+    let most = points.len() * scene.lights.len();
     let mut segments = Vec::with_capacity(most);
     let mut tests = Vec::with_capacity(most);
-    for (sample, sp) in surfaces.iter().enumerate() {
-        let Some(sp) = sp else { continue };
-        for (light, &free) in scene.lights.iter().zip(unoccludable) {
-            if let Some(test) = shadow_test(sp, light) {
-                if !free {
-                    segments.push((test.ray, test.t_max));
-                }
-                tests.push((sample, test.unoccluded, free));
-            }
+    shadow_tests(&points, &scene.lights, |point, light, test| {
+        let free = unoccludable[light];
+        if !free {
+            segments.push((test.ray, test.t_max));
         }
-    }
+        tests.push((samples[point], test.unoccluded, free));
+    });
     let mut traced = vec![false; segments.len()];
     timer.lap(Phase::Shading);
     bvh.occluded_many(&segments, &mut traced);
     timer.lap(Phase::ShadowRays);
     // Each test's answer in test order: unblocked when not traced, else its segment's.
     let mut traced = traced.into_iter();
-    let blocked: Vec<bool> = tests
-        .iter()
-        .map(|&(_, _, free)| !free && traced.next().unwrap_or(false))
-        .collect();
-    let mut next = tests.iter().zip(&blocked).peekable();
-    let colours = surfaces
+    let mut next = tests.iter().peekable();
+    let mut reflectances = points.iter().map(|sp| sp.kd);
+    let colours = hits
         .iter()
         .enumerate()
-        .map(|(sample, sp)| {
-            let Some(sp) = sp else {
+        .map(|(sample, hit)| {
+            let Some(kd) = hit.and_then(|_| reflectances.next()) else {
                 return scene.background;
             };
             // This sample's unblocked lights, in light order, straight from the test list (no
             // per-sample allocation).
             let contributions = std::iter::from_fn(|| {
-                next.next_if(|((s, _, _), _)| *s == sample)
-                    .map(|((_, unoccluded, _), &b)| (!b).then_some(*unoccluded))
+                next.next_if(|(s, _, _)| *s == sample)
+                    .map(|&(_, unoccluded, free)| {
+                        let blocked = !free && traced.next().unwrap_or(false);
+                        (!blocked).then_some(unoccluded)
+                    })
             })
             .flatten();
-            combine(sp.kd, contributions, scene.ambient)
+            combine(kd, contributions, scene.ambient)
         })
         .collect();
     timer.lap(Phase::Shading);
@@ -386,6 +386,7 @@ mod tests {
     use super::*;
     use crate::sampling::sample_offset;
     use crate::scene::load_scene;
+    use crate::shading::shadow_test;
 
     fn teapot() -> Scene {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/teapot/teapot.json");

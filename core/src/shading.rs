@@ -26,6 +26,8 @@ use crate::scene::Light;
 use crate::triangle::{Ray, gamma};
 use glam::{DVec3, Vec3};
 
+mod lanes;
+
 /// Fraction of a point light's distance not tested for occluders, at the light's end
 /// (pbrt-v4's ShadowEpsilon): nothing can sit exactly on a point light.
 pub const SHADOW_EPSILON: f32 = 1e-4;
@@ -164,22 +166,30 @@ pub fn shadow_point(
     (q, error)
 }
 
-/// The shadow test of `light` at `sp`, or `None` when the light cannot contribute (behind the
-/// shading normal as seen by the viewer, or at grazing angle), so no ray is needed. The ray
-/// starts at `sp.p_shadow` pushed off the triangle along `n_geo` by `sp.p_shadow_error`.
+/// Where a light is seen from a point, and what it gives there: the unit direction toward it,
+/// and the irradiance per channel on a surface facing it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Incidence {
+    /// Unit direction from the point toward the light.
+    pub to_light: Vec3,
+    /// Irradiance per RGB channel on a surface facing the light.
+    pub irradiance: [f32; 3],
+}
+
+/// The light's [`Incidence`] at `p`, or `None` when `p` is at a point light's position.
 #[inline]
-pub fn shadow_test(sp: &SurfacePoint, light: &Light) -> Option<ShadowTest> {
-    let (to_light, irradiance) = match *light {
+pub fn incidence(p: Vec3, light: &Light) -> Option<Incidence> {
+    match *light {
         Light::Point {
             position,
             intensity,
         } => {
-            let v: DVec3 = position - sp.p.as_dvec3();
+            let v: DVec3 = position - p.as_dvec3();
             let r2 = v.length_squared();
             if r2 <= 0.0 {
                 return None;
             }
-            let wi = (v / r2.sqrt()).as_vec3();
+            let to_light = (v / r2.sqrt()).as_vec3();
             // Grey lights (equal channel bits) divide once: the same operation on the same
             // operands, so the same bits.
             let e0 = (f64::from(intensity[0]) / r2) as f32;
@@ -190,13 +200,37 @@ pub fn shadow_test(sp: &SurfacePoint, light: &Light) -> Option<ShadowTest> {
                     (f64::from(intensity[k]) / r2) as f32
                 }
             };
-            (wi, [e0, e(1), e(2)])
+            Some(Incidence {
+                to_light,
+                irradiance: [e0, e(1), e(2)],
+            })
         }
         Light::Directional {
             direction,
             irradiance,
-        } => ((-direction).as_vec3(), irradiance),
-    };
+        } => Some(Incidence {
+            to_light: (-direction).as_vec3(),
+            irradiance,
+        }),
+    }
+}
+
+/// The shadow test of `light` at `sp`, or `None` when the light cannot contribute (behind the
+/// shading normal as seen by the viewer, or at grazing angle), so no ray is needed. The ray
+/// starts at `sp.p_shadow` pushed off the triangle along `n_geo` by `sp.p_shadow_error`.
+#[inline]
+pub fn shadow_test(sp: &SurfacePoint, light: &Light) -> Option<ShadowTest> {
+    shadow_test_at(sp, light, incidence(sp.p, light)?)
+}
+
+/// [`shadow_test`] given the light's [`incidence`] at `sp.p` (computed one point at a time or
+/// four at a time, [`shadow_tests`]: the same bits).
+#[inline]
+fn shadow_test_at(sp: &SurfacePoint, light: &Light, incidence: Incidence) -> Option<ShadowTest> {
+    let Incidence {
+        to_light,
+        irradiance,
+    } = incidence;
     // The shading normal decides the light's side. On a flat triangle it is the geometric
     // normal. On a smooth one, a light behind the flat triangle but in front of the shading
     // normal (the terminator of a coarse mesh) gets a shadow ray from the shadow point, which
@@ -219,6 +253,39 @@ pub fn shadow_test(sp: &SurfacePoint, light: &Light) -> Option<ShadowTest> {
             sp.kd[2] * f * irradiance[2],
         ],
     })
+}
+
+/// Every light's [`shadow_test`] at every point of `points`, handed to `visit(point, light,
+/// test)` in order of point, then light: the tests and order of calling [`shadow_test`] pair by
+/// pair, bit for bit. A point light's incidence, two divisions and a square root in f64 per
+/// point whose results the rest waits on, is computed for four points at a time in lanes
+/// ([`lanes::point_incidences4`]).
+pub fn shadow_tests(
+    points: &[SurfacePoint],
+    lights: &[Light],
+    mut visit: impl FnMut(usize, usize, ShadowTest),
+) {
+    let mut incidences = Vec::with_capacity(lights.len());
+    for (group, four) in points.chunks(4).enumerate() {
+        // Lanes past the group's end repeat its first point; their results are not used.
+        let at = |k: usize| four.get(k).unwrap_or(&four[0]).p;
+        let positions = [at(0), at(1), at(2), at(3)];
+        incidences.clear();
+        incidences.extend(lights.iter().map(|light| match *light {
+            Light::Point {
+                position,
+                intensity,
+            } => lanes::point_incidences4(position, intensity, positions),
+            Light::Directional { .. } => [incidence(positions[0], light); 4],
+        }));
+        for (k, sp) in four.iter().enumerate() {
+            for (l, (light, lit)) in lights.iter().zip(&incidences).enumerate() {
+                if let Some(test) = lit[k].and_then(|i| shadow_test_at(sp, light, i)) {
+                    visit(group * 4 + k, l, test);
+                }
+            }
+        }
+    }
 }
 
 /// The shadow segment from `origin` to `light`: toward a point light, the ray reaches the light
@@ -463,6 +530,81 @@ mod tests {
             );
         }
         assert!(moved > 1000, "{moved} of the cases moved the point");
+    }
+
+    /// The batch path (four points' point-light incidences in lanes) gives every pair's
+    /// [`shadow_test`] bit for bit, in order of point then light: grey, coloured and
+    /// directional lights, a light at a point's position, and groups that do not fill four lanes.
+    #[test]
+    fn batched_shadow_tests_are_the_tests_one_by_one() {
+        let mut r = rng(5);
+        let lights = [
+            Light::Point {
+                position: DVec3::new(0.3, 4.0, -0.2),
+                intensity: [5.0; 3],
+            },
+            Light::Directional {
+                direction: DVec3::new(0.1, -1.0, 0.2).normalize(),
+                irradiance: [0.5, 1.0, 2.0],
+            },
+            Light::Point {
+                position: DVec3::new(-1.7, 2.5, 1.1),
+                intensity: [3.0, 7.0, 3.0],
+            },
+            // At the first point's position exactly (no incidence there).
+            Light::Point {
+                position: DVec3::new(0.25, 0.0, 0.5),
+                intensity: [1.0; 3],
+            },
+        ];
+        for count in [1, 3, 4, 5, 8, 11, 200] {
+            let points: Vec<SurfacePoint> = (0..count)
+                .map(|i| {
+                    let mut v = || Vec3::new(r() * 4.0 - 2.0, r() * 0.5, r() * 4.0 - 2.0);
+                    let corners = if i == 0 {
+                        [
+                            Vec3::ZERO,
+                            Vec3::new(0.5, 0.0, 0.0),
+                            Vec3::new(0.0, 0.0, 1.0),
+                        ]
+                    } else {
+                        [v(), v(), v()]
+                    };
+                    let b = if i == 0 {
+                        [0.0, 0.5, 0.5]
+                    } else {
+                        let (b1, b2) = (r() * 0.5, r() * 0.5);
+                        [1.0 - b1 - b2, b1, b2]
+                    };
+                    let dir = Vec3::new(r() - 0.5, -1.0, r() - 0.5);
+                    surface_point(corners, b, dir, None, [r(), r(), r()])
+                })
+                .collect();
+            assert_eq!(points[0].p, Vec3::new(0.25, 0.0, 0.5));
+            let mut expected = Vec::new();
+            for (k, sp) in points.iter().enumerate() {
+                for (l, light) in lights.iter().enumerate() {
+                    if let Some(t) = shadow_test(sp, light) {
+                        expected.push((k, l, t));
+                    }
+                }
+            }
+            let mut batched = Vec::new();
+            shadow_tests(&points, &lights, |k, l, t| batched.push((k, l, t)));
+            let bits = |v: &[(usize, usize, ShadowTest)]| -> Vec<(usize, usize, Vec<u32>)> {
+                v.iter()
+                    .map(|&(k, l, t)| {
+                        let mut b = t.ray.origin.to_array().to_vec();
+                        b.extend(t.ray.dir.to_array());
+                        b.push(t.t_max);
+                        b.extend(t.unoccluded);
+                        (k, l, b.into_iter().map(f32::to_bits).collect())
+                    })
+                    .collect()
+            };
+            assert_eq!(bits(&batched), bits(&expected), "{count} points");
+            assert!(!expected.iter().any(|&(k, l, _)| k == 0 && l == 3));
+        }
     }
 
     #[test]
