@@ -4,7 +4,7 @@
 //! their shadow rays, as packets: [`Bvh::closest_hits`], [`Bvh::occluded_many`]); the colours
 //! are those of tracing each sample alone, and the result does not depend on the thread count.
 
-use crate::bvh::{Bvh, ClosestHit};
+use crate::bvh::{BuildPreset, Bvh, ClosestHit};
 use crate::camera::Camera;
 use crate::error::SceneError;
 use crate::hits::Hit;
@@ -83,9 +83,24 @@ pub fn build_scene_bvh(mesh: &Mesh) -> Bvh {
 
 /// [`build_scene_bvh`] on at most `threads` threads (the same BVH for any count).
 pub fn build_scene_bvh_on(mesh: &Mesh, threads: usize) -> Bvh {
+    build_scene_bvh_with(mesh, threads, BuildPreset::Quality)
+}
+
+/// [`build_scene_bvh_on`] with the construction `preset` (the same hits with any preset).
+pub fn build_scene_bvh_with(mesh: &Mesh, threads: usize, preset: BuildPreset) -> Bvh {
     let n = mesh.triangle_count();
     let triangles = (0..n).map(|i| mesh.corners(i)).collect();
-    Bvh::build_on_threads(triangles, (0..n as u32).collect(), threads)
+    Bvh::build_preset(triangles, (0..n as u32).collect(), threads, preset)
+}
+
+/// About how many rays `frames` renders of `scene` at `width` x `height` and `spp` samples
+/// per pixel trace: a camera ray per sample and a shadow ray per sample and light (an upper
+/// bound: misses and unlit points trace none), what [`BuildPreset::for_rays`] weighs.
+pub fn expected_rays(scene: &Scene, (width, height, spp): (u32, u32, u32), frames: u64) -> u64 {
+    let samples = u64::from(width) * u64::from(height) * u64::from(spp);
+    samples
+        .saturating_mul(1 + scene.lights.len() as u64)
+        .saturating_mul(frames)
 }
 
 /// The vertex normals (if any), material reflectance and texture (if any) of the scene's

@@ -8,15 +8,16 @@
 //! The same digests must hold on x86-64 and on aarch64: the renderer uses no fused multiply-add
 //! and no platform libm, so its output is the same bits on both. A digest that differs on one
 //! architecture is a portability bug, not a reason to re-pin. Likewise at every SIMD width of
-//! the ray kernels (`hort_core::bvh::KernelWidth`): each case runs at every width the host has.
+//! the ray kernels (`hort_core::bvh::KernelWidth`): each case runs at every width the host has,
+//! and with the BVH of every build preset (`hort_core::bvh::BuildPreset`).
 //!
 //! To re-pin after an intended change of the output, run
 //! `cargo test -p hort-core --test golden -- --nocapture` and copy the printed lines.
 
-use hort_core::bvh::{KernelWidth, available_kernel_widths, force_kernel_width};
+use hort_core::bvh::{BuildPreset, KernelWidth, available_kernel_widths, force_kernel_width};
 use hort_core::hits::encode_hits;
 use hort_core::image::encode_pfm;
-use hort_core::render::{RenderSettings, build_scene_bvh, render};
+use hort_core::render::{RenderSettings, build_scene_bvh_with, render};
 use hort_core::scene::load_scene;
 use std::path::Path;
 
@@ -95,14 +96,16 @@ const GOLDEN: [Golden; 7] = [
     },
 ];
 
-/// Every case at every kernel width this host runs (4-wide, and 8-wide on x86-64 with AVX2):
-/// the width changes speed, never bits.
+/// Every case at every kernel width this host runs (4-wide, and 8-wide on x86-64 with AVX2)
+/// and with every build preset: the width and the tree change speed, never bits.
 #[test]
 fn bundled_scenes_render_to_the_pinned_digests() {
     let mut failures = Vec::new();
     for width in available_kernel_widths() {
         force_kernel_width(Some(width));
-        failures.extend(render_the_cases(width));
+        for preset in [BuildPreset::Quality, BuildPreset::Fast] {
+            failures.extend(render_the_cases(width, preset));
+        }
     }
     force_kernel_width(None);
     assert!(
@@ -113,12 +116,12 @@ fn bundled_scenes_render_to_the_pinned_digests() {
 }
 
 /// The cases whose digests differ from the pinned ones, described.
-fn render_the_cases(width: KernelWidth) -> Vec<String> {
+fn render_the_cases(width: KernelWidth, preset: BuildPreset) -> Vec<String> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let mut failures = Vec::new();
     for g in &GOLDEN {
         let scene = load_scene(&root.join(g.scene)).unwrap_or_else(|e| panic!("{}: {e}", g.scene));
-        let bvh = build_scene_bvh(&scene.mesh);
+        let bvh = build_scene_bvh_with(&scene.mesh, 2, preset);
         let settings = RenderSettings {
             width: g.width,
             height: g.height,
@@ -136,12 +139,12 @@ fn render_the_cases(width: KernelWidth) -> Vec<String> {
         let hits = fnv1a64(&encode_hits(&out.hits));
         let (w, h, spp) = (g.width, g.height, g.spp);
         println!(
-            "{} {w}x{h} spp {spp} ({width:?}): pfm: {pfm:#018x}, hits: {hits:#018x},",
+            "{} {w}x{h} spp {spp} ({width:?}, {preset:?}): pfm: {pfm:#018x}, hits: {hits:#018x},",
             g.scene
         );
         if (pfm, hits) != (g.pfm, g.hits) {
             failures.push(format!(
-                "{} {w}x{h} spp {spp} ({width:?}): pfm {pfm:#018x} (pinned {:#018x}), hits {hits:#018x} (pinned {:#018x})",
+                "{} {w}x{h} spp {spp} ({width:?}, {preset:?}): pfm {pfm:#018x} (pinned {:#018x}), hits {hits:#018x} (pinned {:#018x})",
                 g.scene, g.pfm, g.hits
             ));
         }

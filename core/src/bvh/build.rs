@@ -18,7 +18,7 @@ use wide::{f32x4, i32x4};
 
 const BINS: usize = 16;
 /// Nodes this small become leaves; coincident centroids are split by index instead.
-const MAX_LEAF: u32 = 4;
+pub(super) const MAX_LEAF: u32 = 4;
 /// Deepest level a node may have; deeper subtrees become (large) leaves. Traversal stacks hold
 /// one entry per level, so this bounds them (see `traverse::STACK`).
 pub(super) const MAX_DEPTH: usize = 60;

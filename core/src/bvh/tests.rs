@@ -141,9 +141,19 @@ fn check_segment_packets_against_single_rays(bvh: &Bvh, segments: &[(Ray, f32)])
     (single.iter().filter(|&&b| b).count(), eight_wide)
 }
 
+/// [`check_tree_against_brute_force`] with the tree of every build preset.
 fn check_against_brute_force(tris: &[[Vec3; 3]], rays: &[Ray]) {
-    let bvh = bvh_of(tris);
-    check_ray_packets_against_single_rays(&bvh, rays);
+    for preset in [BuildPreset::Quality, BuildPreset::Fast] {
+        let ids = (0..tris.len() as u32).collect();
+        let bvh = Bvh::build_preset(tris.to_vec(), ids, 1, preset);
+        check_tree_against_brute_force(&bvh, tris, rays);
+    }
+}
+
+/// Single rays, packets and segments through `bvh` (over `tris`, ids their indices) give the
+/// brute-force answers.
+fn check_tree_against_brute_force(bvh: &Bvh, tris: &[[Vec3; 3]], rays: &[Ray]) {
+    check_ray_packets_against_single_rays(bvh, rays);
     let segments: Vec<(Ray, f32)> = rays
         .iter()
         .filter_map(|r| Some((r, bvh.closest_hit(r)?.t)))
@@ -156,7 +166,7 @@ fn check_against_brute_force(tris: &[[Vec3; 3]], rays: &[Ray]) {
             ]
         })
         .collect();
-    let (blocked, _) = check_segment_packets_against_single_rays(&bvh, &segments);
+    let (blocked, _) = check_segment_packets_against_single_rays(bvh, &segments);
     assert!(
         blocked > 0 && blocked < segments.len(),
         "both answers occur ({blocked})"
@@ -208,6 +218,51 @@ fn closest_hit_equals_brute_force_on_random_triangle_soup() {
         .collect();
     let rays = random_rays(&mut rng, 3000, Vec3::ZERO, 10.0);
     check_against_brute_force(&tris, &rays);
+}
+
+/// The fast preset on layouts that stress its grid: every centroid in one cell (split in the
+/// middle), a flat scene (a zero extent) and clusters among scattered triangles: the same
+/// answers as brute force, and the same tree every time.
+#[test]
+fn fast_preset_trees_answer_as_brute_force_on_degenerate_layouts() {
+    let mut rng = Rng(13);
+    let tri = [
+        Vec3::new(-1.0, -1.0, 0.0),
+        Vec3::new(1.0, -1.0, 0.5),
+        Vec3::new(0.0, 1.0, -0.5),
+    ];
+    let soup = |rng: &mut Rng, n: usize| -> Vec<[Vec3; 3]> {
+        (0..n)
+            .map(|_| {
+                let c = rng.vec(-3.0, 3.0);
+                [
+                    c + rng.vec(-0.5, 0.5),
+                    c + rng.vec(-0.5, 0.5),
+                    c + rng.vec(-0.5, 0.5),
+                ]
+            })
+            .collect()
+    };
+    let flat: Vec<[Vec3; 3]> = soup(&mut rng, 500)
+        .into_iter()
+        .map(|t| t.map(|p| Vec3::new(p.x, 0.0, p.z)))
+        .collect();
+    let mut clusters = soup(&mut rng, 300);
+    for i in 0..300 {
+        clusters.insert(i * 2, tri.map(|p| p + Vec3::splat((i % 3) as f32)));
+    }
+    for (name, tris) in [
+        ("one triangle 100 times", vec![tri; 100]),
+        ("flat in y", flat),
+        ("clusters", clusters),
+    ] {
+        let ids: Vec<u32> = (0..tris.len() as u32).collect();
+        let bvh = Bvh::build_preset(tris.clone(), ids.clone(), 1, BuildPreset::Fast);
+        let again = Bvh::build_preset(tris.clone(), ids, 1, BuildPreset::Fast);
+        assert_eq!(bvh, again, "{name}: the same tree");
+        let rays = random_rays(&mut rng, 500, Vec3::ZERO, 3.0);
+        check_tree_against_brute_force(&bvh, &tris, &rays);
+    }
 }
 
 #[test]
