@@ -11,6 +11,7 @@
 //! minimum and median times, so that a change of the split object's layout can be judged on any
 //! scene.
 
+use hort_core::bvh::BuildPreset;
 use hort_core::pipeline::{SplitMode, decode_split, encode_split, split_scene};
 use hort_core::shuffle::{MAX_TAKE, RecordKind, decode_block, read_block};
 use std::time::Instant;
@@ -48,10 +49,16 @@ fn main() {
     let scene = load_scene_arg(&scene_arg);
     let mut stored = Vec::new();
     let (build, _) = times(1, || {
-        split_scene(&scene.mesh, 1, SplitMode::Spatial, |_, bytes| {
-            stored = bytes;
-            Ok::<(), ()>(())
-        })
+        split_scene(
+            &scene.mesh,
+            1,
+            SplitMode::Spatial,
+            BuildPreset::Quality,
+            |_, bytes| {
+                stored = bytes;
+                Ok::<(), ()>(())
+            },
+        )
     });
     drop(scene);
     let (block, raw) = times(repeats, || {

@@ -93,16 +93,6 @@ pub fn build_scene_bvh_with(mesh: &Mesh, threads: usize, preset: BuildPreset) ->
     Bvh::build_preset(triangles, (0..n as u32).collect(), threads, preset)
 }
 
-/// About how many rays `frames` renders of `scene` at `width` x `height` and `spp` samples
-/// per pixel trace: a camera ray per sample and a shadow ray per sample and light (an upper
-/// bound: misses and unlit points trace none), what [`BuildPreset::for_rays`] weighs.
-pub fn expected_rays(scene: &Scene, (width, height, spp): (u32, u32, u32), frames: u64) -> u64 {
-    let samples = u64::from(width) * u64::from(height) * u64::from(spp);
-    samples
-        .saturating_mul(1 + scene.lights.len() as u64)
-        .saturating_mul(frames)
-}
-
 /// The vertex normals (if any), material reflectance and texture (if any) of the scene's
 /// triangle `id`: what a split object stores of it.
 #[inline]

@@ -27,7 +27,7 @@ use hort_core::pipeline::{
     ExecutionMode, JobOutputs, PipelineOptions, PlanRequest, resolve_counts_with, run_pipeline,
 };
 use hort_core::plural::count;
-use hort_core::render::{RenderSettings, build_scene_bvh_with, expected_rays, render};
+use hort_core::render::{RenderSettings, build_scene_bvh_with, render};
 use hort_core::report::{
     AdaptiveReport, FrameReport, Outputs, Preparation, RayReport, Report, Seconds, StageReport,
 };
@@ -312,10 +312,10 @@ fn render_monolithic_frames(
 ) -> Result<(Rendered, Vec<FrameImages>)> {
     let threads = threads.unwrap_or_else(available_cores);
     let build_start = Instant::now();
-    // Few rays per triangle (large meshes at low sample counts) get the fast build.
-    let size = (request.width, request.height, request.spp);
-    let rays = expected_rays(scene, size, frames.frames.len() as u64);
-    let preset = BuildPreset::for_rays(rays, scene.mesh.triangle_count() as u64);
+    // Few samples per triangle (large meshes at low sample counts) get the fast build.
+    let samples = u64::from(request.width) * u64::from(request.height) * u64::from(request.spp);
+    let samples = samples.saturating_mul(frames.frames.len() as u64);
+    let preset = BuildPreset::for_samples(samples, scene.mesh.triangle_count() as u64);
     let bvh = build_scene_bvh_with(&scene.mesh, threads, preset);
     let build_seconds = build_start.elapsed().as_secs_f64();
     let mut total: Option<Rendered> = None;

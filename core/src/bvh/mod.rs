@@ -88,10 +88,14 @@ impl Aabb {
     }
 }
 
-/// How a BVH is constructed: a trade between build time and ray speed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// How a BVH is constructed: a trade between build time and ray speed. A job plan records
+/// its split objects' preset (`"quality"` or `"fast"`), so a task rebuilding a lost one makes
+/// the same bytes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum BuildPreset {
     /// Binned SAH (`build.rs`): the faster tree, for trees that serve many rays.
+    #[default]
     Quality,
     /// Morton order (`build_morton.rs`): a several times faster build of a slower tree, for
     /// trees that serve few rays.
@@ -99,16 +103,17 @@ pub enum BuildPreset {
 }
 
 impl BuildPreset {
-    /// Below this many rays per triangle the fast preset wins. Measured on one core (1M and
-    /// 2M generated triangles, docs/perf/time-per-sample.md, "Build presets"): the fast build
-    /// saves about 300 ns per triangle and its tree costs about 15 ns more per ray, so it
-    /// pays up to about 20 rays per triangle; this keeps well inside that.
-    pub const FAST_BELOW_RAYS_PER_TRIANGLE: u64 = 8;
+    /// Below this many camera samples per triangle the fast preset wins. Measured on one core
+    /// with one point light (a camera ray and a shadow ray per sample; 1M and 2M generated
+    /// triangles, docs/perf/time-per-sample.md, "Build presets"): the fast build saves about
+    /// 300 ns per triangle and its tree costs 30 to 45 ns more per sample, so it pays up to 7
+    /// to 10 samples per triangle; this keeps well inside that.
+    pub const FAST_BELOW_SAMPLES_PER_TRIANGLE: u64 = 4;
 
-    /// The preset for a tree over `triangles` that will serve about `rays` rays (camera and
-    /// shadow rays together).
-    pub fn for_rays(rays: u64, triangles: u64) -> BuildPreset {
-        if rays < BuildPreset::FAST_BELOW_RAYS_PER_TRIANGLE.saturating_mul(triangles) {
+    /// The preset for a tree over `triangles` that will serve the rays of about `samples`
+    /// camera samples (and their shadow rays).
+    pub fn for_samples(samples: u64, triangles: u64) -> BuildPreset {
+        if samples < BuildPreset::FAST_BELOW_SAMPLES_PER_TRIANGLE.saturating_mul(triangles) {
             BuildPreset::Fast
         } else {
             BuildPreset::Quality

@@ -61,7 +61,7 @@ pub use mode::{
 pub use outputs::{JobOutputs, StoredOutputs, read_frame_outputs, read_outputs};
 pub use plan::{
     CastTask, JobPlan, MAX_SPANS, MAX_SPLITS, PLAN_FORMAT_VERSION, PlanRequest, ScenePartsShape,
-    Span, SplitInfo, TraceTask, plan_job, resolve_counts, resolve_counts_with,
+    Span, SplitInfo, TraceTask, plan_job, resolve_counts, resolve_counts_with, split_build_preset,
 };
 pub use plan_step::{PlannedJob, plan_into_store, plan_into_store_keeping};
 pub use records::{Occluded, PixelBlock, ShadowQuery, SurfaceHit};

@@ -8,7 +8,7 @@ use super::mode::{DEFAULT_MEMORY_MB, ExecutionMode, JobShape, check_combine_memo
 use super::outputs::StoredOutputs;
 use super::split::SplitMode;
 use crate::adaptive::AdaptiveSettings;
-use crate::bvh::Aabb;
+use crate::bvh::{Aabb, BuildPreset};
 use crate::camera::Camera;
 use crate::plural::count;
 use crate::scene::{CameraSpec, Light, Scene, check_image_size};
@@ -71,6 +71,23 @@ fn default_memory_mb() -> u32 {
 
 fn is_zero(v: &u32) -> bool {
     *v == 0
+}
+
+fn is_quality(preset: &BuildPreset) -> bool {
+    *preset == BuildPreset::Quality
+}
+
+/// The BVH build of the split objects of `request` over a scene of `triangles` triangles: the
+/// fast preset when a still image without adaptive sampling takes few camera samples per
+/// triangle ([`BuildPreset::for_samples`]); else the quality preset, as animations and
+/// adaptive jobs may trace many more rays than one frame's base samples through the same
+/// split objects. The splitters in memory and by tasks both follow it.
+pub fn split_build_preset(request: &PlanRequest, triangles: u64) -> BuildPreset {
+    if request.adaptive.is_some() || !request.frame.is_still() {
+        return BuildPreset::Quality;
+    }
+    let samples = u64::from(request.width) * u64::from(request.height) * u64::from(request.spp);
+    BuildPreset::for_samples(samples, triangles)
 }
 
 /// A contiguous row-major range of pixels `[start, end)`; one reduce task each.
@@ -188,6 +205,11 @@ pub struct JobPlan {
     /// loaded whole, so other plans keep their bytes.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub scene_parts: Option<ScenePartsShape>,
+    /// How the split objects' BVHs are built: [`split_build_preset`] of the request and the
+    /// triangle count, which whoever builds them follows; absent from the JSON for the quality
+    /// preset.
+    #[serde(default, skip_serializing_if = "is_quality")]
+    pub bvh_build: BuildPreset,
     /// A plan previewed before its job runs (`hort plan`, the API's dry run): the estimated
     /// fraction of camera samples that hit a surface ([`crate::coverage`]), which the models
     /// scale the hit records and shadow rays by. `None` in a job's own plan (the models then
@@ -494,6 +516,7 @@ pub fn plan_job(
         trace_tasks,
         adaptive: request.adaptive,
         scene_parts: None,
+        bvh_build: split_build_preset(request, triangles),
         camera_hit_estimate: None,
         outputs: request.outputs,
         frames,
@@ -605,9 +628,13 @@ mod tests {
             "/../scenes/cornell/cornell.json"
         );
         let scene = crate::scene::load_scene(std::path::Path::new(path)).unwrap();
+        let triangles = scene.mesh.triangle_count() as u64;
+        let preset = split_build_preset(&req(Some(3), Some(7)), triangles);
         let infos =
-            super::super::split_scene(&scene.mesh, 3, SplitMode::Spatial, |_, _| Ok::<(), ()>(()))
-                .unwrap();
+            super::super::split_scene(&scene.mesh, 3, SplitMode::Spatial, preset, |_, _| {
+                Ok::<(), ()>(())
+            })
+            .unwrap();
         let (shape, _) = resolve_counts(&req(Some(3), Some(7)), 100).unwrap();
         assert_eq!(shape.mode, ExecutionMode::Staged);
         let plan = plan_job(&scene, &req(Some(3), Some(7)), infos, &shape, 7).unwrap();

@@ -56,10 +56,12 @@ pub fn plan_into_store_keeping(
     let mut encode_us = 0;
     let textures = &scene.mesh.textures;
     let (shape, s) = resolve_counts_with(request, scene.mesh.triangle_count() as u64, textures)?;
+    let preset = super::split_build_preset(request, scene.mesh.triangle_count() as u64);
     let infos = split_scene_objects(
         &scene.mesh,
         shape.splits as usize,
         request.mode,
+        preset,
         |split, mut object, bytes, encoded_in| {
             encode_us += encoded_in;
             store.put(&split_key(job, SplitId(split)), &bytes)?;

@@ -993,7 +993,7 @@ mod tests {
         let expected = store.get(&output).unwrap();
         let cache = SplitCache::new(0);
         let rebuild = |split: u32| {
-            crate::pipeline::rebuild_split(&scene.mesh, 2, SplitMode::Naive, split)
+            crate::pipeline::rebuild_split(&scene.mesh, 2, SplitMode::Naive, plan.bvh_build, split)
                 .ok_or_else(|| PipelineError::BadInput("no split".into()))
         };
 

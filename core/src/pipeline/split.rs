@@ -4,9 +4,10 @@
 //! acceleration data for the whole scene.
 
 use super::split_object::{SplitObject, TriangleShading, encode_split};
-use crate::bvh::Bvh;
+use crate::bvh::{BuildPreset, Bvh};
 use crate::render::shading_of;
 use crate::scene::Mesh;
+use crate::worker_pool::available_cores;
 use serde::{Deserialize, Serialize};
 
 /// How triangles are grouped into splits.
@@ -98,9 +99,12 @@ pub fn split_scene<E>(
     mesh: &Mesh,
     k: usize,
     mode: SplitMode,
+    preset: BuildPreset,
     mut emit: impl FnMut(u32, Vec<u8>) -> Result<(), E>,
 ) -> Result<Vec<super::SplitInfo>, E> {
-    split_scene_objects(mesh, k, mode, |split, _, bytes, _| emit(split, bytes))
+    split_scene_objects(mesh, k, mode, preset, |split, _, bytes, _| {
+        emit(split, bytes)
+    })
 }
 
 /// [`split_scene`] that also hands `emit` each split object as built, before it is dropped:
@@ -111,12 +115,14 @@ pub fn split_scene_objects<E>(
     mesh: &Mesh,
     k: usize,
     mode: SplitMode,
+    preset: BuildPreset,
     mut emit: impl FnMut(u32, SplitObject, Vec<u8>, u64) -> Result<(), E>,
 ) -> Result<Vec<super::SplitInfo>, E> {
     let mut infos = Vec::with_capacity(k);
     for (split, ids) in assign_splits(mesh, k, mode).into_iter().enumerate() {
         let mut encode_us = 0;
-        let (info, object, bytes) = build_split_object(mesh, split as u32, ids, &mut encode_us);
+        let (info, object, bytes) =
+            build_split_object(mesh, split as u32, ids, preset, &mut encode_us);
         infos.push(info);
         emit(split as u32, object, bytes, encode_us)?;
     }
@@ -126,17 +132,17 @@ pub fn split_scene_objects<E>(
 /// The encoded split object `split` of `k` in `mode`: exactly the bytes [`split_scene`] emits
 /// for it, built alone (lineage recomputation of a lost or corrupt split object). `None` if
 /// `split` is not below `k`.
-pub fn rebuild_split(mesh: &Mesh, k: usize, mode: SplitMode, split: u32) -> Option<Vec<u8>> {
+pub fn rebuild_split(
+    mesh: &Mesh,
+    k: usize,
+    mode: SplitMode,
+    preset: BuildPreset,
+    split: u32,
+) -> Option<Vec<u8>> {
     let ids = assign_splits(mesh, k, mode)
         .into_iter()
         .nth(split as usize)?;
-    Some(build_split(mesh, split, ids).1)
-}
-
-/// Builds split `split` of the triangles `ids`: its summary and its encoded object.
-fn build_split(mesh: &Mesh, split: u32, ids: Vec<u32>) -> (super::SplitInfo, Vec<u8>) {
-    let (info, _, bytes) = build_split_object(mesh, split, ids, &mut 0);
-    (info, bytes)
+    Some(build_split_object(mesh, split, ids, preset, &mut 0).2)
 }
 
 /// Builds split `split` of the triangles `ids`: its summary, the object and its encoding, whose
@@ -145,36 +151,27 @@ fn build_split_object(
     mesh: &Mesh,
     split: u32,
     ids: Vec<u32>,
+    preset: BuildPreset,
     encode_us: &mut u64,
 ) -> (super::SplitInfo, SplitObject, Vec<u8>) {
     let triangles = ids.iter().map(|&i| mesh.corners(i as usize)).collect();
-    assemble_split(split, triangles, ids, |id| shading_of(mesh, id), encode_us)
+    let object = build_split_bvh(split, triangles, ids, preset, |id| shading_of(mesh, id));
+    encode_built_split(object, encode_us)
 }
 
-/// Builds split `split` of the triangles `ids` with corners `triangles` (same order) and the
-/// shading `shading` gives each id: its summary, the object and its encoding, whose
-/// microseconds are added to `encode_us`. The one place split objects are made, whether the
-/// triangles come from a loaded scene or from partition tasks ([`build_split_bvh`], then
-/// [`encode_built_split`]).
-pub(super) fn assemble_split(
-    split: u32,
-    triangles: Vec<[glam::Vec3; 3]>,
-    ids: Vec<u32>,
-    shading: impl Fn(u32) -> TriangleShading,
-    encode_us: &mut u64,
-) -> (super::SplitInfo, SplitObject, Vec<u8>) {
-    encode_built_split(build_split_bvh(split, triangles, ids, shading), encode_us)
-}
-
-/// The split object of split `split` (see [`assemble_split`]), not yet encoded: a caller can
-/// drop what `shading` borrows before encoding it.
+/// The split object of split `split` over the triangles `ids` with corners `triangles` (same
+/// order), each with the shading `shading` gives its id, its BVH built with `preset`; not yet
+/// encoded, so a caller can drop what `shading` borrows before encoding it. The one place
+/// split objects are made, whether the triangles come from a loaded scene or from partition
+/// tasks (then [`encode_built_split`]).
 pub(super) fn build_split_bvh(
     split: u32,
     triangles: Vec<[glam::Vec3; 3]>,
     ids: Vec<u32>,
+    preset: BuildPreset,
     shading: impl Fn(u32) -> TriangleShading,
 ) -> SplitObject {
-    let bvh = Bvh::build(triangles, ids);
+    let bvh = Bvh::build_preset(triangles, ids, available_cores(), preset);
     let shading = bvh.ids().iter().map(|&id| shading(id)).collect();
     SplitObject {
         split,
@@ -184,7 +181,8 @@ pub(super) fn build_split_bvh(
     }
 }
 
-/// `object`'s summary, the object and its encoding (see [`assemble_split`]).
+/// `object`'s summary, the object and its encoding, whose microseconds are added to
+/// `encode_us`.
 pub(super) fn encode_built_split(
     object: SplitObject,
     encode_us: &mut u64,
@@ -266,19 +264,19 @@ mod tests {
         let mesh = grid_mesh(301);
         for mode in [SplitMode::Naive, SplitMode::Spatial] {
             let mut emitted = Vec::new();
-            split_scene(&mesh, 5, mode, |split, bytes| {
+            split_scene(&mesh, 5, mode, BuildPreset::Quality, |split, bytes| {
                 emitted.push((split, bytes));
                 Ok::<(), ()>(())
             })
             .unwrap();
             for (split, bytes) in emitted {
                 assert_eq!(
-                    rebuild_split(&mesh, 5, mode, split).as_deref(),
+                    rebuild_split(&mesh, 5, mode, BuildPreset::Quality, split).as_deref(),
                     Some(bytes.as_slice()),
                     "{mode:?} split {split}"
                 );
             }
-            assert_eq!(rebuild_split(&mesh, 5, mode, 5), None);
+            assert_eq!(rebuild_split(&mesh, 5, mode, BuildPreset::Quality, 5), None);
         }
     }
 

@@ -110,7 +110,7 @@ mod tests {
     use super::*;
     use crate::pipeline::{
         DEFAULT_MEMORY_MB, PlanRequest, SplitMode, StoredOutputs, plan_job, resolve_counts,
-        split_scene,
+        split_build_preset, split_scene,
     };
 
     /// The bundled Cornell box at 64x48, staged over 3 splits and 7 spans.
@@ -133,8 +133,11 @@ mod tests {
             outputs: StoredOutputs::ALL,
             frame: Default::default(),
         };
-        let infos =
-            split_scene(&scene.mesh, 3, SplitMode::Spatial, |_, _| Ok::<(), ()>(())).unwrap();
+        let preset = split_build_preset(&request, scene.mesh.triangle_count() as u64);
+        let infos = split_scene(&scene.mesh, 3, SplitMode::Spatial, preset, |_, _| {
+            Ok::<(), ()>(())
+        })
+        .unwrap();
         let (shape, _) = resolve_counts(&request, 100).unwrap();
         plan_job(&scene, &request, infos, &shape, 7).unwrap()
     }

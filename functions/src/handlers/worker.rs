@@ -112,9 +112,14 @@ pub fn handle_worker(
             return Ok(build_split_from_parts(store, &event.job, split)?.1);
         }
         let (_, scene) = load(&format!("split-{split}"))?;
-        rebuild_split(&scene.mesh, plan.k() as usize, plan.split_mode, split).ok_or_else(|| {
-            PipelineError::BadInput(format!("split {split} is not in the plan {key}"))
-        })
+        rebuild_split(
+            &scene.mesh,
+            plan.k() as usize,
+            plan.split_mode,
+            plan.bvh_build,
+            split,
+        )
+        .ok_or_else(|| PipelineError::BadInput(format!("split {split} is not in the plan {key}")))
     };
     let mut metrics = run_frame_task(
         store,

@@ -10,7 +10,7 @@ use hort_core::ids::{JobId, SplitId};
 use hort_core::keys::split_key;
 use hort_core::pipeline::{
     ExecutionMode, PipelineOptions, PipelineRun, PlanRequest, SplitMode, StoredOutputs, plan_job,
-    resolve_counts, run_pipeline, run_task, split_scene,
+    resolve_counts, run_pipeline, run_task, split_build_preset, split_scene,
 };
 use hort_core::render::{RenderSettings, build_scene_bvh, render};
 use hort_core::scene::{Scene, load_scene};
@@ -306,7 +306,8 @@ fn memory_table(
     let k = shape.splits;
     meter.reset_peak();
     let before_split = meter.current();
-    let infos = split_scene(&scene.mesh, k as usize, req.mode, |i, bytes| {
+    let preset = split_build_preset(&req, scene.mesh.triangle_count() as u64);
+    let infos = split_scene(&scene.mesh, k as usize, req.mode, preset, |i, bytes| {
         store.put(&split_key(&job, SplitId(i)), &bytes)
     })?;
     let stored: usize = infos.iter().map(|i| i.bytes as usize).sum();

@@ -6,7 +6,9 @@
 
 use asl_interpreter::{Event, FunctionLimits, NoObserver, Observer};
 use hort::emulator::{EmulatorConfig, run_job};
-use hort_core::pipeline::{PlanRequest, SplitMode, StoredOutputs, decode_split, rebuild_split};
+use hort_core::pipeline::{
+    PlanRequest, SplitMode, StoredOutputs, decode_split, rebuild_split, split_build_preset,
+};
 use hort_core::scene::load_scene;
 use hort_core::stage::Stage;
 use hort_tests::{hit_bits, pixel_bits, scene_path, stored};
@@ -46,12 +48,15 @@ fn request(k: u32, spans: u32, mode: SplitMode, spp: u32) -> PlanRequest {
     }
 }
 
-/// `memory_bytes` of each decoded split object of the scene cut into `k` splits.
+/// `memory_bytes` of each decoded split object of the scene cut into `k` splits, as a job of
+/// `request(k, _, mode, 1)` builds them.
 fn split_memory(k: u32, mode: SplitMode) -> Vec<u64> {
     let scene = load_scene(&scene_path(SCENE)).unwrap();
+    let triangles = scene.mesh.triangle_count() as u64;
+    let preset = split_build_preset(&request(k, 2, mode, 1), triangles);
     (0..k)
         .map(|split| {
-            let bytes = rebuild_split(&scene.mesh, k as usize, mode, split).unwrap();
+            let bytes = rebuild_split(&scene.mesh, k as usize, mode, preset, split).unwrap();
             decode_split("split", &bytes).unwrap().memory_bytes()
         })
         .collect()

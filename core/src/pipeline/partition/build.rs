@@ -77,7 +77,7 @@ pub fn build_split_from_parts(
     drop(order);
     normals.sort_unstable_by_key(|n| n.0);
     let sorted_ids = ids.clone();
-    let object = build_split_bvh(split, corners, ids, |id| {
+    let object = build_split_bvh(split, corners, ids, cut.bvh_build, |id| {
         let at = sorted_ids.binary_search(&id).expect("a split's own id");
         TriangleShading {
             normals: normals

@@ -27,6 +27,10 @@ pub struct CutSplits {
     pub origin: [f64; 3],
     /// Each split's runs, by split id; a range appears at most once per split.
     pub splits: Vec<Vec<RecordRun>>,
+    /// How the build tasks build the splits' BVHs: the plan's preset
+    /// ([`crate::pipeline::split_build_preset`] of the request and the triangle count).
+    #[serde(default)]
+    pub bvh_build: crate::bvh::BuildPreset,
 }
 
 /// Cuts the scene whose partition tasks wrote `indexes` (by range) into `k` splits (`1 <= k`,
@@ -39,6 +43,7 @@ pub fn cut_splits(
     job: &JobId,
     indexes: &[PartIndex],
     k: u32,
+    bvh_build: crate::bvh::BuildPreset,
 ) -> Result<CutSplits, PipelineError> {
     for (range, index) in indexes.iter().enumerate() {
         let counted: u64 = index.buckets.iter().map(|b| b.1).sum();
@@ -89,6 +94,7 @@ pub fn cut_splits(
     let cut = CutSplits {
         origin: ((lo + hi) * 0.5).to_array(),
         splits,
+        bvh_build,
     };
     write_json(store, &parts_splits_key(job), &cut)?;
     Ok(cut)
@@ -138,5 +144,9 @@ pub fn cut_scene(
     let indexes: Vec<PartIndex> = (0..table.ranges.len() as u32)
         .map(|range| super::read_json(store, &parts_index_key(job, range)))
         .collect::<Result<_, _>>()?;
-    Ok((cut_splits(store, job, &indexes, shape.splits)?, shape))
+    let preset = crate::pipeline::split_build_preset(request, table.triangles);
+    Ok((
+        cut_splits(store, job, &indexes, shape.splits, preset)?,
+        shape,
+    ))
 }

@@ -1,4 +1,5 @@
 use super::*;
+use crate::bvh::BuildPreset;
 use crate::ids::{JobId, SplitId};
 use crate::keys::{parts_table_key, scene_prefix, split_key};
 use crate::pipeline::{
@@ -250,7 +251,7 @@ fn cuts_take_equal_runs_of_bucket_then_id_order() {
     let job = JobId::new("j").unwrap();
     // Order: bucket 1 (range 0: 3, range 1: 2), bucket 2 (range 1: 1), bucket 5 (range 0: 4).
     let indexes = [index(vec![(1, 3), (5, 4)]), index(vec![(1, 2), (2, 1)])];
-    let cut = cut_splits(&store, &job, &indexes, 3).unwrap();
+    let cut = cut_splits(&store, &job, &indexes, 3, BuildPreset::Quality).unwrap();
     let run = |range, start, end| RecordRun { range, start, end };
     assert_eq!(cut.origin, [1.0, 2.0, 3.0]);
     assert_eq!(
@@ -258,7 +259,7 @@ fn cuts_take_equal_runs_of_bucket_then_id_order() {
         vec![vec![run(0, 0, 3)], vec![run(1, 0, 3)], vec![run(0, 3, 7)],]
     );
     assert_eq!(
-        cut_splits(&store, &job, &indexes, 11)
+        cut_splits(&store, &job, &indexes, 11, BuildPreset::Quality)
             .unwrap_err()
             .to_string(),
         "cannot cut 10 triangles into 11 splits"
