@@ -262,21 +262,25 @@ mod tests {
     #[test]
     fn a_rebuilt_split_has_exactly_the_bytes_split_scene_emitted() {
         let mesh = grid_mesh(301);
-        for mode in [SplitMode::Naive, SplitMode::Spatial] {
+        let presets = [BuildPreset::Quality, BuildPreset::Fast];
+        for (mode, preset) in [SplitMode::Naive, SplitMode::Spatial]
+            .into_iter()
+            .flat_map(|mode| presets.map(|preset| (mode, preset)))
+        {
             let mut emitted = Vec::new();
-            split_scene(&mesh, 5, mode, BuildPreset::Quality, |split, bytes| {
+            split_scene(&mesh, 5, mode, preset, |split, bytes| {
                 emitted.push((split, bytes));
                 Ok::<(), ()>(())
             })
             .unwrap();
             for (split, bytes) in emitted {
                 assert_eq!(
-                    rebuild_split(&mesh, 5, mode, BuildPreset::Quality, split).as_deref(),
+                    rebuild_split(&mesh, 5, mode, preset, split).as_deref(),
                     Some(bytes.as_slice()),
-                    "{mode:?} split {split}"
+                    "{mode:?} {preset:?} split {split}"
                 );
             }
-            assert_eq!(rebuild_split(&mesh, 5, mode, BuildPreset::Quality, 5), None);
+            assert_eq!(rebuild_split(&mesh, 5, mode, preset, 5), None);
         }
     }
 
