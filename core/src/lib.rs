@@ -17,6 +17,7 @@ pub mod animation;
 pub mod bvh;
 pub mod camera;
 pub mod coverage;
+mod morton;
 pub mod phase_timer;
 pub mod render;
 pub mod sampling;

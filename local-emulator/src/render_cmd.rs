@@ -313,8 +313,7 @@ fn render_monolithic_frames(
     let threads = threads.unwrap_or_else(available_cores);
     let build_start = Instant::now();
     // Few samples per triangle (large meshes at low sample counts) get the fast build.
-    let samples = u64::from(request.width) * u64::from(request.height) * u64::from(request.spp);
-    let samples = samples.saturating_mul(frames.frames.len() as u64);
+    let samples = request.samples().saturating_mul(frames.frames.len() as u64);
     let preset = BuildPreset::for_samples(samples, scene.mesh.triangle_count() as u64);
     let bvh = build_scene_bvh_with(&scene.mesh, threads, preset);
     let build_seconds = build_start.elapsed().as_secs_f64();
@@ -950,7 +949,7 @@ fn emulated_frames(
     }
     let total_seconds = run.ledger.total().task_us as f64 / 1e6;
     let share = |seconds: f64| run.cost.total * seconds / total_seconds.max(1e-9);
-    let primary = u64::from(request.width) * u64::from(request.height) * u64::from(request.spp);
+    let primary = request.samples();
     let frames = run
         .frame_figures
         .iter()

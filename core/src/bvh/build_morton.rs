@@ -15,10 +15,18 @@
 
 use super::build::{MAX_DEPTH, MAX_LEAF};
 use super::{Aabb, Node};
+use crate::morton::morton_code;
 use glam::Vec3;
 
 /// Grid cells per axis: 10 bits each, a 30-bit code.
 const CELLS: f32 = 1024.0;
+
+/// A node before its split or leaf is decided and its box is set.
+const UNSET: Node = Node {
+    bounds: Aabb::EMPTY,
+    first: 0,
+    count: 0,
+};
 
 /// The binary tree over `triangles` (root first; empty for no triangles) and its leaf order:
 /// `order[t]` is the index in `triangles` of leaf-order triangle `t`.
@@ -42,19 +50,16 @@ pub(super) fn binary_tree(triangles: &[[Vec3; 3]]) -> (Vec<Node>, Vec<u32>) {
             // `as` saturates (and takes NaN to 0), so every cell index is in 0..1024.
             let cell = ((centroid(b) - lo) * scale)
                 .to_array()
-                .map(|x| (x as u32).min(1023));
-            u64::from(morton3(cell)) << 32 | i as u64
+                .map(|x| u64::from((x as u32).min(1023)));
+            // Cells below 2^10 per axis: a 30-bit code.
+            morton_code(cell) << 32 | i as u64
         })
         .collect();
     keys.sort_unstable();
     let codes: Vec<u32> = keys.iter().map(|k| (k >> 32) as u32).collect();
     let order: Vec<u32> = keys.iter().map(|&k| k as u32).collect();
     let mut nodes = Vec::with_capacity(2 * n / MAX_LEAF as usize + 1);
-    nodes.push(Node {
-        bounds: Aabb::EMPTY,
-        first: 0,
-        count: 0,
-    });
+    nodes.push(UNSET);
     // (node, start, end, depth), left child popped first.
     let mut stack = vec![(0usize, 0usize, n, 0usize)];
     while let Some((node, start, end, depth)) = stack.pop() {
@@ -65,13 +70,7 @@ pub(super) fn binary_tree(triangles: &[[Vec3; 3]]) -> (Vec<Node>, Vec<u32>) {
         }
         let mid = split_point(&codes[start..end]) + start;
         let left = nodes.len();
-        for _ in 0..2 {
-            nodes.push(Node {
-                bounds: Aabb::EMPTY,
-                first: 0,
-                count: 0,
-            });
-        }
+        nodes.extend([UNSET; 2]);
         nodes[node].first = left as u32;
         stack.push((left + 1, mid, end, depth + 1));
         stack.push((left, start, mid, depth + 1));
@@ -102,34 +101,9 @@ fn split_point(codes: &[u32]) -> usize {
     codes.partition_point(|&c| c & bit == 0)
 }
 
-/// The Morton code of a cell: its x, y and z bits interleaved (x lowest).
-fn morton3([x, y, z]: [u32; 3]) -> u32 {
-    spread(x) | spread(y) << 1 | spread(z) << 2
-}
-
-/// The low 10 bits of `v` spread to every third bit.
-fn spread(v: u32) -> u32 {
-    let mut v = v & 0x3ff;
-    v = (v | v << 16) & 0x0300_00ff;
-    v = (v | v << 8) & 0x0300_f00f;
-    v = (v | v << 4) & 0x030c_30c3;
-    (v | v << 2) & 0x0924_9249
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn spread_puts_each_bit_three_apart() {
-        for bit in 0..10 {
-            assert_eq!(spread(1 << bit), 1 << (3 * bit));
-        }
-        assert_eq!(morton3([1, 0, 0]), 1);
-        assert_eq!(morton3([0, 1, 0]), 2);
-        assert_eq!(morton3([0, 0, 1]), 4);
-        assert_eq!(morton3([1023, 1023, 1023]), (1 << 30) - 1);
-    }
 
     #[test]
     fn split_points_are_strictly_inside_the_run() {

@@ -65,6 +65,14 @@ pub struct PlanRequest {
     pub frame: FrameChoice,
 }
 
+impl PlanRequest {
+    /// Camera samples of one frame: width x height x spp (with the adaptive sampler, its
+    /// first pass's count).
+    pub fn samples(&self) -> u64 {
+        u64::from(self.width) * u64::from(self.height) * u64::from(self.spp)
+    }
+}
+
 fn default_memory_mb() -> u32 {
     DEFAULT_MEMORY_MB
 }
@@ -86,8 +94,7 @@ pub fn split_build_preset(request: &PlanRequest, triangles: u64) -> BuildPreset 
     if request.adaptive.is_some() || !request.frame.is_still() {
         return BuildPreset::Quality;
     }
-    let samples = u64::from(request.width) * u64::from(request.height) * u64::from(request.spp);
-    BuildPreset::for_samples(samples, triangles)
+    BuildPreset::for_samples(request.samples(), triangles)
 }
 
 /// A contiguous row-major range of pixels `[start, end)`; one reduce task each.

@@ -5,6 +5,7 @@
 
 use super::split_object::{SplitObject, TriangleShading, encode_split};
 use crate::bvh::{BuildPreset, Bvh};
+use crate::morton::morton_code;
 use crate::render::shading_of;
 use crate::scene::Mesh;
 use crate::worker_pool::available_cores;
@@ -73,23 +74,12 @@ fn morton_order(mesh: &Mesh) -> Vec<u32> {
     let mut keyed: Vec<(u64, u32)> = (0..n)
         .map(|i| {
             let q = ((centroid(i) - lo) / extent * scale).round();
-            let code = spread(q.x as u64) | (spread(q.y as u64) << 1) | (spread(q.z as u64) << 2);
+            let code = morton_code([q.x as u64, q.y as u64, q.z as u64]);
             (code, i as u32)
         })
         .collect();
     keyed.sort_unstable();
     keyed.into_iter().map(|(_, i)| i).collect()
-}
-
-/// Spreads the low 21 bits of `v` to every third bit.
-pub(super) fn spread(v: u64) -> u64 {
-    let mut x = v & 0x1f_ffff;
-    x = (x | (x << 32)) & 0x001f_0000_0000_ffff;
-    x = (x | (x << 16)) & 0x001f_0000_ff00_00ff;
-    x = (x | (x << 8)) & 0x100f_00f0_0f00_f00f;
-    x = (x | (x << 4)) & 0x10c3_0c30_c30c_30c3;
-    x = (x | (x << 2)) & 0x1249_2492_4924_9249;
-    x
 }
 
 /// Builds each split (triangles, shading, BVH) one at a time and hands its encoded bytes to
@@ -282,11 +272,5 @@ mod tests {
             }
             assert_eq!(rebuild_split(&mesh, 5, mode, preset, 5), None);
         }
-    }
-
-    #[test]
-    fn morton_spread_interleaves() {
-        assert_eq!(spread(0b11), 0b1001);
-        assert_eq!(spread(0x1f_ffff).count_ones(), 21);
     }
 }

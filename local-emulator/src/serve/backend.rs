@@ -645,7 +645,7 @@ fn store_report(
         triangles: r.triangles,
         threads: shared.workers,
         rays: RayReport {
-            primary: u64::from(request.width) * u64::from(request.height) * u64::from(request.spp),
+            primary: request.samples(),
             shadow: run.ledger.total().shadow_rays,
         },
         seconds: Seconds {

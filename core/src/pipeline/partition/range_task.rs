@@ -132,8 +132,7 @@ fn bucket_of(centroid: DVec3, lo: DVec3, extent: DVec3) -> u32 {
     let q = ((centroid - lo) / extent * scale)
         .round()
         .clamp(DVec3::ZERO, DVec3::splat(scale));
-    let spread = super::super::split::spread;
-    let code = spread(q.x as u64) | (spread(q.y as u64) << 1) | (spread(q.z as u64) << 2);
+    let code = crate::morton::morton_code([q.x as u64, q.y as u64, q.z as u64]);
     (code >> (63 - BUCKET_BITS)) as u32
 }
 
