@@ -2,12 +2,15 @@
 //! sets, so one binary serves every x86-64 host (Lambda's included) and aarch64.
 //!
 //! - [`KernelWidth::Four`]: 4-wide tests everywhere (SSE4.1 on x86-64, NEON on aarch64).
-//! - [`KernelWidth::Eight`]: x86-64 hosts with AVX2. Closest-hit packets then test each
-//!   triangle of a leaf against eight of their rays at once (`leaf8.rs`).
+//! - [`KernelWidth::Eight`]: x86-64 hosts with AVX2. Ray packets then test each triangle of a
+//!   leaf against eight of their rays at once (`leaf_lanes.rs`).
+//! - [`KernelWidth::Sixteen`]: x86-64 hosts with AVX-512F (and AVX2). The same against all
+//!   sixteen rays of a packet at once.
 //!
 //! Every width gives the same bits (`lanes.rs`), so the choice changes speed only. The
-//! environment variable `HORT_SIMD_WIDTH=4` (or `8`) overrides the detection for a process (to
-//! compare speeds, or to check bytes); tests force each width with [`force_kernel_width`].
+//! environment variable `HORT_SIMD_WIDTH=4` (or `8`, `16`) overrides the detection for a
+//! process (to compare speeds, or to check bytes); tests force each width with
+//! [`force_kernel_width`].
 
 use std::sync::OnceLock;
 use std::sync::atomic::{AtomicU8, Ordering};
@@ -17,11 +20,24 @@ use std::sync::atomic::{AtomicU8, Ordering};
 pub enum KernelWidth {
     /// 4-wide tests: SSE4.1 on x86-64, NEON on aarch64.
     Four,
-    /// 8-wide leaf tests of closest-hit packets (x86-64 with AVX2).
+    /// Leaf tests of ray packets eight rays at a time (x86-64 with AVX2).
     Eight,
+    /// Leaf tests of ray packets sixteen rays at a time (x86-64 with AVX-512F and AVX2).
+    Sixteen,
 }
 
-/// The environment variable that overrides the detected width: `4` or `8`.
+impl KernelWidth {
+    /// The lanes of the width: 4, 8 or 16.
+    pub fn lanes(self) -> u8 {
+        match self {
+            KernelWidth::Four => 4,
+            KernelWidth::Eight => 8,
+            KernelWidth::Sixteen => 16,
+        }
+    }
+}
+
+/// The environment variable that overrides the detected width: `4`, `8` or `16`.
 pub const WIDTH_VARIABLE: &str = "HORT_SIMD_WIDTH";
 
 /// 0: no forced width; else the forced width's lane count.
@@ -32,6 +48,9 @@ pub fn available_kernel_widths() -> Vec<KernelWidth> {
     let mut widths = vec![KernelWidth::Four];
     if has_avx2() {
         widths.push(KernelWidth::Eight);
+        if has_avx512f() {
+            widths.push(KernelWidth::Sixteen);
+        }
     }
     widths
 }
@@ -42,6 +61,7 @@ pub fn kernel_width() -> KernelWidth {
     match FORCED.load(Ordering::Relaxed) {
         4 => KernelWidth::Four,
         8 => KernelWidth::Eight,
+        16 => KernelWidth::Sixteen,
         _ => *DETECTED.get_or_init(detect),
     }
 }
@@ -56,35 +76,28 @@ pub fn force_kernel_width(width: Option<KernelWidth>) {
             "this host cannot run the {w:?} kernels"
         );
     }
-    let lanes = match width {
-        None => 0,
-        Some(KernelWidth::Four) => 4,
-        Some(KernelWidth::Eight) => 8,
-    };
+    let lanes = width.map_or(0, KernelWidth::lanes);
     FORCED.store(lanes, Ordering::Relaxed);
 }
 
 static DETECTED: OnceLock<KernelWidth> = OnceLock::new();
 
 fn detect() -> KernelWidth {
-    let widest = *available_kernel_widths()
-        .last()
-        .expect("Four is always there");
-    match std::env::var(WIDTH_VARIABLE).as_deref() {
-        Ok("4") => KernelWidth::Four,
-        Ok("8") if widest == KernelWidth::Eight => KernelWidth::Eight,
-        Ok(other) => {
-            eprintln!(
-                "warning: {WIDTH_VARIABLE}={other:?} is not a width this host runs (4{}); using {widest:?}",
-                if widest == KernelWidth::Eight {
-                    " or 8"
-                } else {
-                    ""
-                }
-            );
-            widest
-        }
+    let available = available_kernel_widths();
+    let widest = *available.last().expect("Four is always there");
+    match std::env::var(WIDTH_VARIABLE) {
         Err(_) => widest,
+        Ok(asked) => match available.iter().find(|w| w.lanes().to_string() == asked) {
+            Some(&w) => w,
+            None => {
+                let names: Vec<String> = available.iter().map(|w| w.lanes().to_string()).collect();
+                eprintln!(
+                    "warning: {WIDTH_VARIABLE}={asked:?} is not a width this host runs ({}); using {widest:?}",
+                    names.join(", ")
+                );
+                widest
+            }
+        },
     }
 }
 
@@ -92,6 +105,17 @@ fn has_avx2() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
         std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+fn has_avx512f() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx512f")
     }
     #[cfg(not(target_arch = "x86_64"))]
     {

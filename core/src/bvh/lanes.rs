@@ -1,6 +1,7 @@
 //! The lane operations of the triangle tests, at any SIMD width: four lanes ([`f32x4`] of the
-//! `wide` crate: SSE4.1 on x86-64, NEON on aarch64) everywhere, and eight ([`F32x8`], AVX) on
-//! x86-64 hosts that have AVX2, chosen at run time (`dispatch.rs`).
+//! `wide` crate: SSE4.1 on x86-64, NEON on aarch64) everywhere, eight ([`F32x8`], AVX) on
+//! x86-64 hosts that have AVX2 and sixteen ([`F32x16`], AVX-512) on those that have AVX-512F,
+//! chosen at run time (`dispatch.rs`).
 //!
 //! Guarantee: each operation is one IEEE operation per lane (add, subtract, multiply and
 //! divide correctly rounded, never fused), comparisons are ordered (false when a lane holds a
@@ -109,13 +110,37 @@ impl Lanes for f32x4 {
 
 #[cfg(target_arch = "x86_64")]
 pub(super) use avx::F32x8;
+#[cfg(target_arch = "x86_64")]
+pub(super) use avx512::F32x16;
+
+/// Lanes that hold one ray of a packet's group each at the leaves (`leaf_lanes.rs`): eight
+/// ([`F32x8`]) or sixteen ([`F32x16`]). Values move through arrays of sixteen, of which the
+/// first [`RayGroupLanes::LANES`] are the lanes (the rest read as nothing and write as zeros).
+/// Only code compiled with the type's instruction set may make or use one (see each type).
+#[cfg(target_arch = "x86_64")]
+pub(super) trait RayGroupLanes: Lanes {
+    /// Lanes, and rays of a group: 8 or 16.
+    const LANES: usize;
+    /// Lanes from the first [`Self::LANES`] values of `x`.
+    fn load(x: &[f32; 16]) -> Self;
+    /// Lanes holding the bit patterns of the first [`Self::LANES`] values of `x`.
+    fn load_bits(x: &[u32; 16]) -> Self;
+    /// The lanes, then zeros.
+    fn store(self) -> [f32; 16];
+    /// The lanes' bit patterns, then zeros.
+    fn store_bits(self) -> [u32; 16];
+    /// All ones in the lanes whose bit is set in `bits`.
+    fn lane_mask(bits: u32) -> Self;
+    /// Lanes (holding `u32` bit patterns) whose value is above `x`, unsigned.
+    fn u32_above(self, x: u32) -> Self;
+}
 
 // `std::arch`'s AVX intrinsics are unsafe to call outside code compiled for AVX; this module
 // is the only place in the crate that calls them.
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code)]
 mod avx {
-    use super::Lanes;
+    use super::{Lanes, RayGroupLanes};
     use std::arch::x86_64::*;
     use std::ops::{Add, BitAnd, BitOr, BitXor, Div, Mul, Not, Sub};
 
@@ -127,32 +152,39 @@ mod avx {
     #[derive(Clone, Copy)]
     pub(in crate::bvh) struct F32x8(__m256);
 
-    impl F32x8 {
+    impl RayGroupLanes for F32x8 {
+        const LANES: usize = 8;
+
         #[inline(always)]
-        pub fn from_array(x: [f32; 8]) -> Self {
-            // SAFETY: AVX is available (see the type's contract); the array holds 8 floats.
+        fn load(x: &[f32; 16]) -> Self {
+            // SAFETY: AVX is available (see the type's contract); `x` holds at least 8 floats.
             F32x8(unsafe { _mm256_loadu_ps(x.as_ptr()) })
         }
 
-        /// Lanes holding the bit patterns `x`.
         #[inline(always)]
-        pub fn from_bits(x: [u32; 8]) -> Self {
-            // SAFETY: AVX is available (see the type's contract); the array holds 8 words.
+        fn load_bits(x: &[u32; 16]) -> Self {
+            // SAFETY: AVX is available (see the type's contract); `x` holds at least 8 words.
             F32x8(unsafe { _mm256_castsi256_ps(_mm256_loadu_si256(x.as_ptr().cast())) })
         }
 
-        /// The lanes' bit patterns.
         #[inline(always)]
-        pub fn to_bits(self) -> [u32; 8] {
-            let mut out = [0u32; 8];
-            // SAFETY: AVX is available; `out` holds 8 words.
+        fn store(self) -> [f32; 16] {
+            let mut out = [0.0f32; 16];
+            // SAFETY: AVX is available; `out` holds at least 8 floats.
+            unsafe { _mm256_storeu_ps(out.as_mut_ptr(), self.0) };
+            out
+        }
+
+        #[inline(always)]
+        fn store_bits(self) -> [u32; 16] {
+            let mut out = [0u32; 16];
+            // SAFETY: AVX is available; `out` holds at least 8 words.
             unsafe { _mm256_storeu_si256(out.as_mut_ptr().cast(), _mm256_castps_si256(self.0)) };
             out
         }
 
-        /// All ones in the lanes whose bit is set in `bits`.
         #[inline(always)]
-        pub fn lane_mask(bits: u32) -> Self {
+        fn lane_mask(bits: u32) -> Self {
             let lane = |i: u32| if bits & (1 << i) != 0 { -1 } else { 0 };
             // SAFETY: AVX is available (the type's contract).
             F32x8(unsafe {
@@ -169,9 +201,8 @@ mod avx {
             })
         }
 
-        /// Lanes (holding `u32` bit patterns) whose value is above `x`, unsigned.
         #[inline(always)]
-        pub fn u32_above(self, x: u32) -> Self {
+        fn u32_above(self, x: u32) -> Self {
             // SAFETY: AVX2 is available (the type's contract). Flipping the top bit maps the
             // unsigned order onto the signed one that `cmpgt` compares.
             F32x8(unsafe {
@@ -180,14 +211,6 @@ mod avx {
                 let x = _mm256_xor_si256(_mm256_set1_epi32(x as i32), flip);
                 _mm256_castsi256_ps(_mm256_cmpgt_epi32(lanes, x))
             })
-        }
-
-        #[inline(always)]
-        pub fn to_array(self) -> [f32; 8] {
-            let mut out = [0.0f32; 8];
-            // SAFETY: AVX is available; `out` holds 8 floats.
-            unsafe { _mm256_storeu_ps(out.as_mut_ptr(), self.0) };
-            out
         }
     }
 
@@ -265,6 +288,185 @@ mod avx {
             // SAFETY: AVX is available (the type's contract). `maxps` gives the second
             // operand unless the first is greater: exactly `Lanes::greater`.
             F32x8(unsafe { _mm256_max_ps(self.0, other.0) })
+        }
+    }
+}
+
+// `std::arch`'s AVX-512 intrinsics are unsafe to call outside code compiled for AVX-512F; this
+// module is the only place in the crate that calls them.
+#[cfg(target_arch = "x86_64")]
+#[allow(unsafe_code)]
+mod avx512 {
+    use super::{Lanes, RayGroupLanes};
+    use std::arch::x86_64::*;
+    use std::ops::{Add, BitAnd, BitOr, BitXor, Div, Mul, Not, Sub};
+
+    /// Sixteen `f32` lanes in one AVX-512 register; masks are whole lanes (all ones or all
+    /// zeros), as at the other widths, made from and read into AVX-512's mask registers.
+    ///
+    /// Only code compiled with AVX-512F enabled (a `#[target_feature(enable = "avx512f")]`
+    /// function, entered after `dispatch.rs` found AVX-512F on the host) may make or use one:
+    /// every method is inlined into its caller, where the AVX-512 instructions are then allowed.
+    #[derive(Clone, Copy)]
+    pub(in crate::bvh) struct F32x16(__m512);
+
+    /// The whole-lane mask of the mask register `k`.
+    #[inline(always)]
+    fn lanes_of(k: __mmask16) -> F32x16 {
+        // SAFETY: AVX-512F is available (the type's contract).
+        F32x16(unsafe { _mm512_castsi512_ps(_mm512_maskz_set1_epi32(k, -1)) })
+    }
+
+    impl F32x16 {
+        /// The mask register of the whole-lane mask `self` (a lane is set when any bit is).
+        #[inline(always)]
+        fn mask(self) -> __mmask16 {
+            // SAFETY: AVX-512F is available (the type's contract).
+            unsafe {
+                let bits = _mm512_castps_si512(self.0);
+                _mm512_test_epi32_mask(bits, bits)
+            }
+        }
+
+        #[inline(always)]
+        fn bits(self) -> __m512i {
+            // SAFETY: AVX-512F is available (the type's contract).
+            unsafe { _mm512_castps_si512(self.0) }
+        }
+
+        #[inline(always)]
+        fn from_bits(x: __m512i) -> Self {
+            // SAFETY: AVX-512F is available (the type's contract).
+            F32x16(unsafe { _mm512_castsi512_ps(x) })
+        }
+    }
+
+    impl RayGroupLanes for F32x16 {
+        const LANES: usize = 16;
+
+        #[inline(always)]
+        fn load(x: &[f32; 16]) -> Self {
+            // SAFETY: AVX-512F is available (see the type's contract); `x` holds 16 floats.
+            F32x16(unsafe { _mm512_loadu_ps(x.as_ptr()) })
+        }
+
+        #[inline(always)]
+        fn load_bits(x: &[u32; 16]) -> Self {
+            // SAFETY: AVX-512F is available (see the type's contract); `x` holds 16 words.
+            Self::from_bits(unsafe { _mm512_loadu_si512(x.as_ptr().cast()) })
+        }
+
+        #[inline(always)]
+        fn store(self) -> [f32; 16] {
+            let mut out = [0.0f32; 16];
+            // SAFETY: AVX-512F is available; `out` holds 16 floats.
+            unsafe { _mm512_storeu_ps(out.as_mut_ptr(), self.0) };
+            out
+        }
+
+        #[inline(always)]
+        fn store_bits(self) -> [u32; 16] {
+            let mut out = [0u32; 16];
+            // SAFETY: AVX-512F is available; `out` holds 16 words.
+            unsafe { _mm512_storeu_si512(out.as_mut_ptr().cast(), self.bits()) };
+            out
+        }
+
+        #[inline(always)]
+        fn lane_mask(bits: u32) -> Self {
+            lanes_of(bits as __mmask16)
+        }
+
+        #[inline(always)]
+        fn u32_above(self, x: u32) -> Self {
+            // SAFETY: AVX-512F is available (the type's contract); the compare is unsigned.
+            lanes_of(unsafe { _mm512_cmpgt_epu32_mask(self.bits(), _mm512_set1_epi32(x as i32)) })
+        }
+    }
+
+    macro_rules! arithmetic {
+        ($trait:ident, $method:ident, $intrinsic:ident) => {
+            impl $trait for F32x16 {
+                type Output = F32x16;
+                #[inline(always)]
+                fn $method(self, other: F32x16) -> F32x16 {
+                    // SAFETY: AVX-512F is available (the type's contract).
+                    F32x16(unsafe { $intrinsic(self.0, other.0) })
+                }
+            }
+        };
+    }
+    arithmetic!(Add, add, _mm512_add_ps);
+    arithmetic!(Sub, sub, _mm512_sub_ps);
+    arithmetic!(Mul, mul, _mm512_mul_ps);
+    arithmetic!(Div, div, _mm512_div_ps);
+
+    /// Bitwise operations on the lanes' bits (AVX-512F has them on integer lanes only).
+    macro_rules! bitwise {
+        ($trait:ident, $method:ident, $intrinsic:ident) => {
+            impl $trait for F32x16 {
+                type Output = F32x16;
+                #[inline(always)]
+                fn $method(self, other: F32x16) -> F32x16 {
+                    // SAFETY: AVX-512F is available (the type's contract).
+                    F32x16::from_bits(unsafe { $intrinsic(self.bits(), other.bits()) })
+                }
+            }
+        };
+    }
+    bitwise!(BitAnd, bitand, _mm512_and_si512);
+    bitwise!(BitOr, bitor, _mm512_or_si512);
+    bitwise!(BitXor, bitxor, _mm512_xor_si512);
+
+    impl Not for F32x16 {
+        type Output = F32x16;
+        #[inline(always)]
+        fn not(self) -> F32x16 {
+            // SAFETY: AVX-512F is available (the type's contract).
+            F32x16::from_bits(unsafe { _mm512_xor_si512(self.bits(), _mm512_set1_epi32(-1)) })
+        }
+    }
+
+    /// An ordered, quiet comparison (false with a NaN), as SSE's `cmpltps` and friends.
+    macro_rules! compare {
+        ($method:ident, $predicate:ident) => {
+            #[inline(always)]
+            fn $method(self, other: F32x16) -> F32x16 {
+                // SAFETY: AVX-512F is available (the type's contract).
+                lanes_of(unsafe { _mm512_cmp_ps_mask::<$predicate>(self.0, other.0) })
+            }
+        };
+    }
+
+    impl Lanes for F32x16 {
+        #[inline(always)]
+        fn splat(x: f32) -> Self {
+            // SAFETY: AVX-512F is available (the type's contract).
+            F32x16(unsafe { _mm512_set1_ps(x) })
+        }
+        #[inline(always)]
+        fn abs(self) -> Self {
+            // SAFETY: AVX-512F is available (the type's contract).
+            F32x16::from_bits(unsafe { _mm512_and_si512(self.bits(), _mm512_set1_epi32(i32::MAX)) })
+        }
+        compare!(cmp_eq, _CMP_EQ_OQ);
+        compare!(cmp_lt, _CMP_LT_OQ);
+        compare!(cmp_le, _CMP_LE_OQ);
+        compare!(cmp_gt, _CMP_GT_OQ);
+        #[inline(always)]
+        fn select(self, if_true: Self, if_false: Self) -> Self {
+            // SAFETY: AVX-512F is available (the type's contract).
+            F32x16(unsafe { _mm512_mask_blend_ps(self.mask(), if_false.0, if_true.0) })
+        }
+        #[inline(always)]
+        fn bitmask(self) -> u32 {
+            u32::from(self.mask())
+        }
+        #[inline(always)]
+        fn greater(self, other: Self) -> Self {
+            // SAFETY: AVX-512F is available (the type's contract). `vmaxps` gives the second
+            // operand unless the first is greater, as `maxps` does: exactly `Lanes::greater`.
+            F32x16(unsafe { _mm512_max_ps(self.0, other.0) })
         }
     }
 }

@@ -31,7 +31,7 @@ mod build_tests;
 mod dispatch;
 mod lanes;
 #[cfg(target_arch = "x86_64")]
-mod leaf8;
+mod leaf_lanes;
 mod node4;
 mod parts;
 mod ray_packet;

@@ -8,8 +8,8 @@
 //! them, a child every active ray certainly enters keeps them all, and only the children in
 //! between are tested ray by ray (four rays per SIMD test). A single remaining ray goes on
 //! alone with the single-ray traversal; leaves run the single-ray leaf test for each ray, or,
-//! at kernel width `Eight` (`dispatch.rs`), each triangle against eight rays at once
-//! (`leaf8.rs`). Packets with a non-finite origin or direction are traced ray by ray.
+//! at kernel widths `Eight` and `Sixteen` (`dispatch.rs`), each triangle against eight or
+//! sixteen rays at once (`leaf_lanes.rs`). Packets with a non-finite origin or direction are traced ray by ray.
 //!
 //! Guarantee: [`Bvh::closest_hits`] gives every ray exactly what [`Bvh::closest_hit`] gives it.
 //! Each lane's box test is the single-ray slab test (same operations in the same order, so the
@@ -23,9 +23,11 @@
 //! hit is unique (smaller t, then smaller id), so the visiting order cannot change it.
 
 use super::dispatch::{KernelWidth, kernel_width};
+#[cfg(target_arch = "x86_64")]
+use super::lanes::{F32x8, F32x16};
 use super::lanes::{greater4, lesser4};
 #[cfg(target_arch = "x86_64")]
-use super::leaf8::{PacketLanes8, closest_in_leaf8};
+use super::leaf_lanes::{LeafLanes, PacketLanes};
 use super::node4::{LEAF, Node4};
 use super::simd4::{BoxTester, each3, each4};
 use super::traverse::{
@@ -299,18 +301,20 @@ impl Bvh {
         }
         RAY_PACKET_STACKS.with_borrow_mut(|stack| {
             STACKS.with_borrow_mut(|ray_stack| match kernel_width() {
-                KernelWidth::Eight => self.closest_packets::<true>(rays, out, stack, ray_stack),
-                KernelWidth::Four => self.closest_packets::<false>(rays, out, stack, ray_stack),
+                KernelWidth::Sixteen => self.closest_packets::<16>(rays, out, stack, ray_stack),
+                KernelWidth::Eight => self.closest_packets::<8>(rays, out, stack, ray_stack),
+                KernelWidth::Four => self.closest_packets::<4>(rays, out, stack, ray_stack),
             })
         });
     }
 
-    /// [`Bvh::closest_hits`] over a non-empty BVH, packet by packet; `EIGHT`: with 8-wide
-    /// leaves (only when the kernel width is `Eight`, so on hosts with AVX2). Only the 8-wide
-    /// leaf tests are compiled for AVX2: the traversal compiled so ran 5-10% slower on the 1M
-    /// mesh (AVX's `vblendvps` is two micro-operations where SSE4.1's `blendvps` is one).
+    /// [`Bvh::closest_hits`] over a non-empty BVH, packet by packet, with leaves tested
+    /// `WIDTH` rays at a time (8 or 16, only at that kernel width, so on hosts with AVX2 or
+    /// AVX-512F) or ray by ray (4). Only the leaf tests in lanes are compiled for the wider
+    /// instruction sets: the traversal compiled for AVX2 ran 5-10% slower on the 1M mesh (AVX's
+    /// `vblendvps` is two micro-operations where SSE4.1's `blendvps` is one).
     #[inline(always)]
-    fn closest_packets<const EIGHT: bool>(
+    fn closest_packets<const WIDTH: usize>(
         &self,
         rays: &[Ray],
         out: &mut [Option<ClosestHit>],
@@ -319,7 +323,7 @@ impl Bvh {
     ) {
         for (rays, out) in rays.chunks(RAY_PACKET).zip(out.chunks_mut(RAY_PACKET)) {
             if rays.iter().all(is_finite) {
-                self.trace_closest_packet::<EIGHT>(rays, out, stack, ray_stack);
+                self.trace_closest_packet::<WIDTH>(rays, out, stack, ray_stack);
             } else {
                 for (ray, out) in rays.iter().zip(out) {
                     *out = self.closest_hit_with(ray, ray_stack);
@@ -330,7 +334,7 @@ impl Bvh {
 
     /// [`Bvh::closest_hits`] of one packet of 1..=[`RAY_PACKET`] finite rays.
     #[inline(always)]
-    fn trace_closest_packet<const EIGHT: bool>(
+    fn trace_closest_packet<const WIDTH: usize>(
         &self,
         rays: &[Ray],
         out: &mut [Option<ClosestHit>],
@@ -353,7 +357,7 @@ impl Bvh {
         let (mut child, mut triangle4_count) = ROOT;
         let mut active = (1u32 << rays.len()) - 1;
         #[cfg(target_arch = "x86_64")]
-        let mut lanes8 = PacketLanes8::default();
+        let (mut lanes8, mut lanes16) = (PacketLanes::default(), PacketLanes::default());
         loop {
             if active.count_ones() <= 1 {
                 for i in bits(active) {
@@ -373,22 +377,24 @@ impl Bvh {
             } else {
                 let leaf = ((child & !LEAF) as usize, triangle4_count as usize);
                 #[cfg(target_arch = "x86_64")]
-                let rest = if EIGHT {
-                    let ray = |i: usize| &rays[i];
-                    lanes8.by_eights(self, leaf, active, rays.len(), ray, |from, group, lanes| {
-                        for i in bits(group) {
-                            let ray = &rays[from + i];
-                            searches[from + i].get_or_insert_with(|| ClosestSearch::deferred(ray));
-                        }
-                        // SAFETY: only `closest_packets::<true>` reaches this, which runs only
-                        // at kernel width `Eight`, so on hosts with AVX2 (`dispatch.rs`).
-                        #[allow(unsafe_code)]
-                        unsafe {
-                            closest_in_leaf8(self, leaf, lanes, group, &mut searches[from..])
-                        };
-                    })
-                } else {
-                    active
+                let rest = match WIDTH {
+                    8 => closest_in_lanes::<F32x8>(
+                        self,
+                        &mut lanes8,
+                        leaf,
+                        active,
+                        rays,
+                        &mut searches,
+                    ),
+                    16 => closest_in_lanes::<F32x16>(
+                        self,
+                        &mut lanes16,
+                        leaf,
+                        active,
+                        rays,
+                        &mut searches,
+                    ),
+                    _ => active,
                 };
                 #[cfg(not(target_arch = "x86_64"))]
                 let rest = active;
@@ -413,12 +419,7 @@ impl Bvh {
                 }
                 depth -= 1;
                 let e = stack[depth];
-                let mut keep = 0;
-                for i in bits(e.rays) {
-                    if e.t <= bounds[i / 4][i % 4] {
-                        keep |= 1 << i;
-                    }
-                }
+                let keep = e.rays & rays_within(e.t, &bounds);
                 if keep != 0 {
                     (child, triangle4_count, active) = (e.child, e.triangle4_count, keep);
                     break;
@@ -426,6 +427,34 @@ impl Bvh {
             }
         }
     }
+}
+
+/// The leaf `(first Triangle4, count)` in lanes of `L` for the groups of `active` where that
+/// pays ([`PacketLanes::by_groups`]), making their searches as needed; returns the rays left
+/// for the 4-wide path. Only at the kernel width of `L` (hosts with its instruction set).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn closest_in_lanes<L: LeafLanes>(
+    bvh: &Bvh,
+    packet_lanes: &mut PacketLanes<L>,
+    leaf: (usize, usize),
+    active: u32,
+    rays: &[Ray],
+    searches: &mut [Option<ClosestSearch>; RAY_PACKET],
+) -> u32 {
+    let ray = |i: usize| &rays[i];
+    packet_lanes.by_groups(bvh, leaf, active, rays.len(), ray, |from, group, lanes| {
+        for i in bits(group) {
+            let ray = &rays[from + i];
+            searches[from + i].get_or_insert_with(|| ClosestSearch::deferred(ray));
+        }
+        // SAFETY: only `closest_packets::<8>` and `::<16>` reach this, which run only at their
+        // kernel width, so on hosts with its instruction set (`dispatch.rs`).
+        #[allow(unsafe_code)]
+        unsafe {
+            L::closest_in_leaf(bvh, leaf, lanes, group, &mut searches[from..])
+        };
+    })
 }
 
 /// The indices of the set bits of `mask`, lowest first.
@@ -438,6 +467,18 @@ pub(super) fn bits(mut mask: u32) -> impl Iterator<Item = usize> {
             i
         })
     })
+}
+
+/// The rays (bit i = ray i) whose bound (lane i % 4 of group i / 4) is at least `t`; false
+/// where either is NaN, as `t <= bound` is.
+#[inline(always)]
+fn rays_within(t: f32, bounds: &[[f32; 4]; GROUPS]) -> u32 {
+    let t = f32x4::splat(t);
+    let mut within = 0;
+    for (g, bound) in bounds.iter().enumerate() {
+        within |= t.simd_le(f32x4::from(*bound)).to_bitmask() << (4 * g);
+    }
+    within
 }
 
 /// The smallest lane of `x` (no NaN lanes).

@@ -2,19 +2,21 @@
 //! neighbouring samples towards one light) traverse the 4-wide BVH together for any-hit
 //! ([`Bvh::occluded_many`]), with the interval hull and per-ray tests of
 //! `RayPacketTester` (`ray_packet.rs`) spanning origins as well as directions. Leaves run
-//! the single-ray any-hit test per ray (or 8 rays per test, `leaf8.rs`), a blocked ray leaves
+//! the single-ray any-hit test per ray (or 8 or 16 rays per test, `leaf_lanes.rs`), a blocked ray leaves
 //! its packet, and with 4-wide leaves trees of fewer than [`SMALL_TREE`] wide nodes are traced
 //! ray by ray.
 //!
 //! Guarantee: every segment gets exactly [`Bvh::occluded`]'s answer: the root test is
 //! `occluded`'s own, every box test either is the single-ray slab test or can only claim what
 //! it would claim, and every triangle test is the single-ray leaf test or decides as it does
-//! (`leaf8.rs`).
+//! (`leaf_lanes.rs`).
 
 use super::Bvh;
 use super::dispatch::{KernelWidth, kernel_width};
 #[cfg(target_arch = "x86_64")]
-use super::leaf8::{LANES, PacketLanes8, occluded_in_leaf8};
+use super::lanes::{F32x8, F32x16};
+#[cfg(target_arch = "x86_64")]
+use super::leaf_lanes::{LeafLanes, PacketLanes};
 use super::node4::LEAF;
 use super::ray_packet::{
     GROUPS, RAY_PACKET, RAY_PACKET_STACKS, RayPacketEntry, RayPacketTester, bits, descend,
@@ -51,16 +53,18 @@ impl Bvh {
         }
         RAY_PACKET_STACKS.with_borrow_mut(|stack| {
             STACKS.with_borrow_mut(|ray_stack| match width {
-                KernelWidth::Eight => self.segment_packets::<true>(rays, out, stack, ray_stack),
-                KernelWidth::Four => self.segment_packets::<false>(rays, out, stack, ray_stack),
+                KernelWidth::Sixteen => self.segment_packets::<16>(rays, out, stack, ray_stack),
+                KernelWidth::Eight => self.segment_packets::<8>(rays, out, stack, ray_stack),
+                KernelWidth::Four => self.segment_packets::<4>(rays, out, stack, ray_stack),
             })
         });
     }
 
-    /// [`Bvh::occluded_many`] over a non-empty BVH, packet by packet; `EIGHT`: with 8-wide
-    /// leaves (only at kernel width `Eight`, so on hosts with AVX2; see `closest_packets`).
+    /// [`Bvh::occluded_many`] over a non-empty BVH, packet by packet, with leaves tested
+    /// `WIDTH` rays at a time (8 or 16, only at that kernel width) or ray by ray (4); see
+    /// `closest_packets`.
     #[inline(always)]
-    fn segment_packets<const EIGHT: bool>(
+    fn segment_packets<const WIDTH: usize>(
         &self,
         rays: &[(Ray, f32)],
         out: &mut [bool],
@@ -68,13 +72,13 @@ impl Bvh {
         ray_stack: &mut [Entry; STACK],
     ) {
         for (rays, out) in rays.chunks(RAY_PACKET).zip(out.chunks_mut(RAY_PACKET)) {
-            self.trace_segment_packet::<EIGHT>(rays, out, stack, ray_stack);
+            self.trace_segment_packet::<WIDTH>(rays, out, stack, ray_stack);
         }
     }
 
     /// [`Bvh::occluded_many`] of one packet of 1..=[`RAY_PACKET`] segments.
     #[inline(always)]
-    fn trace_segment_packet<const EIGHT: bool>(
+    fn trace_segment_packet<const WIDTH: usize>(
         &self,
         segments: &[(Ray, f32)],
         out: &mut [bool],
@@ -111,7 +115,7 @@ impl Bvh {
         let mut depth = 0usize;
         let (mut child, mut triangle4_count) = ROOT;
         #[cfg(target_arch = "x86_64")]
-        let mut lanes8 = PacketLanes8::default();
+        let (mut lanes8, mut lanes16) = (PacketLanes::default(), PacketLanes::default());
         loop {
             if active.count_ones() <= 1 {
                 for i in bits(active) {
@@ -133,20 +137,24 @@ impl Bvh {
             } else {
                 let leaf = ((child & !LEAF) as usize, triangle4_count as usize);
                 #[cfg(target_arch = "x86_64")]
-                let active = if EIGHT {
-                    let len = segments.len();
-                    let ray = |i: usize| &segments[i].0;
-                    lanes8.by_eights(self, leaf, active, len, ray, |from, group, lanes| {
-                        let group_segments = &segments[from..len.min(from + LANES)];
-                        // SAFETY: only `segment_packets::<true>` reaches this, which runs only
-                        // at kernel width `Eight`, so on hosts with AVX2 (`dispatch.rs`).
-                        #[allow(unsafe_code)]
-                        let hit =
-                            unsafe { occluded_in_leaf8(self, leaf, lanes, group, group_segments) };
-                        blocked |= hit << from;
-                    })
-                } else {
-                    active
+                let active = match WIDTH {
+                    8 => occluded_in_lanes::<F32x8>(
+                        self,
+                        &mut lanes8,
+                        leaf,
+                        active,
+                        segments,
+                        &mut blocked,
+                    ),
+                    16 => occluded_in_lanes::<F32x16>(
+                        self,
+                        &mut lanes16,
+                        leaf,
+                        active,
+                        segments,
+                        &mut blocked,
+                    ),
+                    _ => active,
                 };
                 for i in bits(active) {
                     let (ray, t_max) = &segments[i];
@@ -175,4 +183,30 @@ impl Bvh {
             }
         }
     }
+}
+
+/// The leaf `(first Triangle4, count)` in lanes of `L` for the groups of `active` where that
+/// pays ([`PacketLanes::by_groups`]), adding the segments it blocks to `blocked`; returns the
+/// rays left for the 4-wide path. Only at the kernel width of `L` (hosts with its instruction
+/// set).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn occluded_in_lanes<L: LeafLanes>(
+    bvh: &Bvh,
+    packet_lanes: &mut PacketLanes<L>,
+    leaf: (usize, usize),
+    active: u32,
+    segments: &[(Ray, f32)],
+    blocked: &mut u32,
+) -> u32 {
+    let len = segments.len();
+    let ray = |i: usize| &segments[i].0;
+    packet_lanes.by_groups(bvh, leaf, active, len, ray, |from, group, lanes| {
+        let group_segments = &segments[from..len.min(from + L::LANES)];
+        // SAFETY: only `segment_packets::<8>` and `::<16>` reach this, which run only at their
+        // kernel width, so on hosts with its instruction set (`dispatch.rs`).
+        #[allow(unsafe_code)]
+        let hit = unsafe { L::occluded_in_leaf(bvh, leaf, lanes, group, group_segments) };
+        *blocked |= hit << from;
+    })
 }

@@ -120,7 +120,7 @@ pub(super) struct Edges<L> {
 /// The edge functions of each lane's pair: `origin[k]` and `shear[k]` are the ray's origin on
 /// its permuted axis k (kx, ky, kz) and its shear ([`RayPrep::shear`]), `corners[c][k]` corner
 /// c of the triangle on that axis. Four triangles against one ray ([`Triangle4`]) or one
-/// triangle against a ray per lane (`leaf8.rs`) alike.
+/// triangle against a ray per lane (`leaf_lanes.rs`) alike.
 ///
 /// No closures here or in what it calls: a closure is compiled on its own, without the SIMD
 /// features of the function it is meant to be inlined into, unless the compiler inlines it.

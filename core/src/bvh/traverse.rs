@@ -136,7 +136,7 @@ impl ClosestSearch {
     }
 
     /// A search whose 4-wide constants are made only if a 4-wide test needs them: for rays
-    /// that the 8-wide leaf tests (`leaf8.rs`) serve, which hold their own.
+    /// that the leaf tests in lanes (`leaf_lanes.rs`) serve, which hold their own.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     pub fn deferred(ray: &Ray) -> Self {

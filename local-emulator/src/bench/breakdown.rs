@@ -144,6 +144,7 @@ pub(super) fn table(rows: &[Breakdown], s: RenderSettings) -> Table {
         "Embree rays ns/sample",
         "rays ours / Embree",
         "closest hits ours / Embree x16",
+        "closest hits ours / Embree x16 coherent",
         "Mitsuba ns/sample",
         "ours / Mitsuba",
     ]);
@@ -176,8 +177,9 @@ pub(super) fn table(rows: &[Breakdown], s: RenderSettings) -> Table {
                 row.push(f3(embree_rays));
                 row.push(f3(ours_rays / embree_rays));
                 row.push(f3(phase_ns(Phase::ClosestHits) / ns(e.primary16_s)));
+                row.push(f3(phase_ns(Phase::ClosestHits) / ns(e.primary16_coherent_s)));
             }
-            None => row.extend(["-".to_owned(), "-".to_owned(), "-".to_owned()]),
+            None => row.extend(std::iter::repeat_n("-".to_owned(), 4)),
         }
         row.push(f3(ns(r.mitsuba_s)));
         row.push(f3(ns(r.plain_s) / ns(r.mitsuba_s)));

@@ -94,6 +94,8 @@ pub(super) struct EmbreeResult {
     pub primary_s: f64,
     /// `rtcIntersect16` over the primary rays, 16 consecutive rays a packet.
     pub primary16_s: f64,
+    /// The same with the context's coherent flag, as Mitsuba 3 traces camera rays.
+    pub primary16_coherent_s: f64,
     /// Primary rays whose hit triangle is ours.
     pub primary_same_id: u64,
     /// `rtcOccluded1` over the shadow segments.
@@ -444,6 +446,8 @@ fn ray_table(results: &[SceneResult], args: &KernelBenchArgs) -> Table {
             "Embree x16",
             "ours x16",
             "ratio x16",
+            "Embree x16 coherent",
+            "ratio x16 coherent",
             "same id %",
             "shadow rays",
             "occluded %",
@@ -482,6 +486,8 @@ fn ray_table(results: &[SceneResult], args: &KernelBenchArgs) -> Table {
                     format!("{:.2}", mrays(r.primary, e.primary16_s)),
                     format!("{ours_x16:.2}"),
                     f3(ours_x16 / mrays(r.primary, e.primary16_s)),
+                    format!("{:.2}", mrays(r.primary, e.primary16_coherent_s)),
+                    f3(ours_x16 / mrays(r.primary, e.primary16_coherent_s)),
                     pct(e.primary_same_id, r.primary),
                     r.shadow.to_string(),
                     pct(r.occluded as u64, r.shadow),
@@ -497,6 +503,8 @@ fn ray_table(results: &[SceneResult], args: &KernelBenchArgs) -> Table {
                 dash(),
                 dash(),
                 format!("{ours_x16:.2}"),
+                dash(),
+                dash(),
                 dash(),
                 dash(),
                 r.shadow.to_string(),

@@ -176,11 +176,13 @@ pub fn run_samples_bench(args: &SamplesBenchArgs) -> Result<()> {
     Ok(())
 }
 
-/// How a table names a kernel width: `x4` (4-wide) or `x8` (8-wide leaves, AVX2).
+/// How a table names a kernel width: `x4` (4-wide), `x8` (8-wide leaves, AVX2) or `x16`
+/// (16-wide leaves, AVX-512F).
 fn width_label(width: KernelWidth) -> &'static str {
     match width {
         KernelWidth::Four => "x4",
         KernelWidth::Eight => "x8",
+        KernelWidth::Sixteen => "x16",
     }
 }
 
