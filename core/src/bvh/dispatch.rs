@@ -4,8 +4,9 @@
 //! - [`KernelWidth::Four`]: 4-wide tests everywhere (SSE4.1 on x86-64, NEON on aarch64).
 //! - [`KernelWidth::Eight`]: x86-64 hosts with AVX2. Ray packets then test each triangle of a
 //!   leaf against eight of their rays at once (`leaf_lanes.rs`).
-//! - [`KernelWidth::Sixteen`]: x86-64 hosts with AVX-512F (and AVX2). The same against all
-//!   sixteen rays of a packet at once.
+//! - [`KernelWidth::Sixteen`]: x86-64 hosts with AVX-512F (and AVX2), when asked for
+//!   (`HORT_SIMD_WIDTH=16`): the same against all sixteen rays of a packet at once where
+//!   enough of them are active to pay for it, else eight. Not the default: see [`preferred`].
 //!
 //! Every width gives the same bits (`lanes.rs`), so the choice changes speed only. The
 //! environment variable `HORT_SIMD_WIDTH=4` (or `8`, `16`) overrides the detection for a
@@ -82,20 +83,33 @@ pub fn force_kernel_width(width: Option<KernelWidth>) {
 
 static DETECTED: OnceLock<KernelWidth> = OnceLock::new();
 
+/// The width a process uses unless told otherwise: `Eight` where the host has AVX2, else
+/// `Four`. `Sixteen` is not chosen by itself: its ray phases are faster than `Eight`'s on
+/// coherent packets, but whole renders were not (the AVX-512 instructions slow the rest of
+/// the sample), and on a 1M-triangle mesh its packets were slower (core/src/bvh/README.md,
+/// "16-wide leaves").
+fn preferred(available: &[KernelWidth]) -> KernelWidth {
+    if available.contains(&KernelWidth::Eight) {
+        KernelWidth::Eight
+    } else {
+        KernelWidth::Four
+    }
+}
+
 fn detect() -> KernelWidth {
     let available = available_kernel_widths();
-    let widest = *available.last().expect("Four is always there");
+    let preferred = preferred(&available);
     match std::env::var(WIDTH_VARIABLE) {
-        Err(_) => widest,
+        Err(_) => preferred,
         Ok(asked) => match available.iter().find(|w| w.lanes().to_string() == asked) {
             Some(&w) => w,
             None => {
                 let names: Vec<String> = available.iter().map(|w| w.lanes().to_string()).collect();
                 eprintln!(
-                    "warning: {WIDTH_VARIABLE}={asked:?} is not a width this host runs ({}); using {widest:?}",
+                    "warning: {WIDTH_VARIABLE}={asked:?} is not a width this host runs ({}); using {preferred:?}",
                     names.join(", ")
                 );
-                widest
+                preferred
             }
         },
     }

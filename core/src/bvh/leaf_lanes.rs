@@ -42,10 +42,10 @@ fn count_leaf_test() {
 /// the leaf against one per `Triangle4` per ray. (A wide test costs more than a 4-wide one;
 /// weighting it so measured no better on the bundled scenes and a 1M mesh.)
 #[inline(always)]
-fn pays_in_lanes(bvh: &Bvh, (first, count): (usize, usize), group: u32) -> bool {
+fn pays_in_lanes(bvh: &Bvh, (first, count): (usize, usize), group: u32, lanes: usize) -> bool {
     let leaf = &bvh.triangles[first..first + count];
     let triangles: usize = leaf.iter().map(|p| p.lanes as usize).sum();
-    group.count_ones() as usize * count > triangles
+    group.count_ones() as usize * count * 8 > triangles * lanes
 }
 
 /// A group of up to [`RayGroupLanes::LANES`] rays in lanes for the triangle test: the
@@ -260,7 +260,7 @@ impl<L: LeafLanes> PacketLanes<L> {
         for (g, slot) in self.0.iter_mut().take(RAY_PACKET / L::LANES).enumerate() {
             let from = g * L::LANES;
             let group = (active >> from) & all;
-            if !pays_in_lanes(bvh, leaf, group) {
+            if !pays_in_lanes(bvh, leaf, group, L::LANES) {
                 continue;
             }
             let count = len.min(from + L::LANES) - from;

@@ -378,22 +378,25 @@ impl Bvh {
                 let leaf = ((child & !LEAF) as usize, triangle4_count as usize);
                 #[cfg(target_arch = "x86_64")]
                 let rest = match WIDTH {
-                    8 => closest_in_lanes::<F32x8>(
-                        self,
-                        &mut lanes8,
-                        leaf,
-                        active,
-                        rays,
-                        &mut searches,
-                    ),
-                    16 => closest_in_lanes::<F32x16>(
-                        self,
-                        &mut lanes16,
-                        leaf,
-                        active,
-                        rays,
-                        &mut searches,
-                    ),
+                    8 | 16 => {
+                        // At width 16, sixteen lanes where enough rays are active to pay for
+                        // them ([`PacketLanes::by_groups`]); then eight where that pays.
+                        let rest = if WIDTH == 16 {
+                            let lanes = &mut lanes16;
+                            closest_in_lanes::<F32x16>(
+                                self,
+                                lanes,
+                                leaf,
+                                active,
+                                rays,
+                                &mut searches,
+                            )
+                        } else {
+                            active
+                        };
+                        let lanes = &mut lanes8;
+                        closest_in_lanes::<F32x8>(self, lanes, leaf, rest, rays, &mut searches)
+                    }
                     _ => active,
                 };
                 #[cfg(not(target_arch = "x86_64"))]

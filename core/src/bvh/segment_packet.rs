@@ -138,22 +138,21 @@ impl Bvh {
                 let leaf = ((child & !LEAF) as usize, triangle4_count as usize);
                 #[cfg(target_arch = "x86_64")]
                 let active = match WIDTH {
-                    8 => occluded_in_lanes::<F32x8>(
-                        self,
-                        &mut lanes8,
-                        leaf,
-                        active,
-                        segments,
-                        &mut blocked,
-                    ),
-                    16 => occluded_in_lanes::<F32x16>(
-                        self,
-                        &mut lanes16,
-                        leaf,
-                        active,
-                        segments,
-                        &mut blocked,
-                    ),
+                    8 | 16 => {
+                        // At width 16, sixteen lanes where enough rays are active to pay for
+                        // them ([`PacketLanes::by_groups`]); then eight where that pays.
+                        let (segments, blocked) = (segments, &mut blocked);
+                        let rest = if WIDTH == 16 {
+                            let lanes = &mut lanes16;
+                            occluded_in_lanes::<F32x16>(
+                                self, lanes, leaf, active, segments, blocked,
+                            )
+                        } else {
+                            active
+                        };
+                        let lanes = &mut lanes8;
+                        occluded_in_lanes::<F32x8>(self, lanes, leaf, rest, segments, blocked)
+                    }
                     _ => active,
                 };
                 for i in bits(active) {
