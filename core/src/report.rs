@@ -54,6 +54,11 @@ pub struct Report {
     /// Why the plan chose that mode and split count; null in monolithic mode.
     #[serde(default)]
     pub execution_reason: Option<String>,
+    /// How the BVH was built (`"quality"` or `"fast"`, [`crate::bvh::BuildPreset`]): the
+    /// monolithic render's tree, or a job's split objects (the plan's choice). Null in reports
+    /// that predate the field.
+    #[serde(default)]
+    pub bvh_build: Option<crate::bvh::BuildPreset>,
     /// Tasks running at once (function slots or worker threads); null in monolithic mode,
     /// where `threads` says it.
     #[serde(default)]
@@ -274,6 +279,7 @@ mod tests {
             spans: Some(4),
             execution: Some("staged".into()),
             execution_reason: Some("--splits 3: HORT's staged shuffle over 3 splits".into()),
+            bvh_build: Some(crate::bvh::BuildPreset::Fast),
             workers: Some(2),
             job: Some("local".into()),
             outputs: Outputs {
@@ -350,6 +356,7 @@ mod tests {
   "spans": 4,
   "execution": "staged",
   "execution_reason": "--splits 3: HORT's staged shuffle over 3 splits",
+  "bvh_build": "fast",
   "workers": 2,
   "job": "local",
   "outputs": {

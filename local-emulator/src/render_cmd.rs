@@ -70,6 +70,8 @@ struct Rendered {
     plan: Option<(u32, u32)>,
     /// The plan's mode and why it was chosen (pipeline modes).
     execution: Option<(ExecutionMode, String)>,
+    /// How the BVH (monolithic) or the split objects (pipeline modes) were built.
+    bvh_build: Option<BuildPreset>,
     /// Tasks at once (pipeline modes).
     workers: Option<usize>,
     /// The job id (pipeline modes).
@@ -352,6 +354,7 @@ fn render_monolithic_frames(
         });
     }
     let mut total = total.ok_or_else(|| anyhow!("no frame to render"))?;
+    total.bvh_build = Some(preset);
     if frames.count() > 1 {
         total.frame_reports = ready;
         total.preparation = Some(Preparation {
@@ -535,6 +538,7 @@ fn run_report(
         spans: rendered.plan.map(|(_, s)| s),
         execution: rendered.execution.as_ref().map(|(m, _)| m.to_string()),
         execution_reason: rendered.execution.map(|(_, why)| why),
+        bvh_build: rendered.bvh_build,
         workers: rendered.workers,
         job: rendered.job,
         outputs,
@@ -688,6 +692,7 @@ fn render_monolithic(
         retried_attempts: 0,
         recomputed_blocks: 0,
         plan: None,
+        bvh_build: None,
         execution: None,
         workers: None,
         job: None,
@@ -741,6 +746,7 @@ fn render_pipeline(scene: &Scene, request: PlanRequest, args: &RenderArgs) -> Re
         recomputed_blocks: run.metrics.iter().map(|m| m.recomputed).sum(),
         plan: Some((run.plan.k(), run.plan.spans.len() as u32)),
         execution: Some((run.plan.mode, run.plan.mode_reason.clone())),
+        bvh_build: Some(run.plan.bvh_build),
         workers: Some(workers),
         job: Some(options.job.to_string()),
         adaptive,
@@ -910,13 +916,9 @@ fn emulated_rendered(run: EmulatorRun, request: PlanRequest, workers: usize) -> 
         preparation,
         frames: run.frames,
         rays: RayReport {
-            primary: adaptive.as_ref().map_or(
-                u64::from(request.width)
-                    * u64::from(request.height)
-                    * u64::from(request.spp)
-                    * frames,
-                |_| counts.samples,
-            ),
+            primary: adaptive
+                .as_ref()
+                .map_or(request.samples() * frames, |_| counts.samples),
             shadow: run.ledger.total().shadow_rays,
         },
         build_seconds: run.stages.first().map_or(0.0, |s| s.seconds),
@@ -927,6 +929,7 @@ fn emulated_rendered(run: EmulatorRun, request: PlanRequest, workers: usize) -> 
         recomputed_blocks: recomputed,
         plan: Some((run.plan.k(), run.plan.spans.len() as u32)),
         execution: Some((run.plan.mode, run.plan.mode_reason.clone())),
+        bvh_build: Some(run.plan.bvh_build),
         workers: Some(workers),
         job: Some(run.job.to_string()),
         unoccludable_lights: run.plan.unoccludable_lights.clone(),

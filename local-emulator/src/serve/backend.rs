@@ -666,6 +666,7 @@ fn store_report(
         spans: Some(run.plan.spans.len() as u32),
         execution: Some(run.plan.mode.to_string()),
         execution_reason: Some(run.plan.mode_reason.clone()),
+        bvh_build: Some(run.plan.bvh_build),
         workers: Some(shared.workers),
         job: Some(r.job.clone()),
         outputs: Outputs {

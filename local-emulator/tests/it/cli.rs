@@ -62,6 +62,8 @@ fn monolithic_render_writes_contract_files() {
     assert_eq!(report["width"], 64);
     assert_eq!(report["height"], 48);
     assert_eq!(report["rays"]["primary"], 64 * 48 * 2);
+    // 6,144 samples over 3,676 triangles: below 4 a triangle, so the fast build.
+    assert_eq!(report["bvh_build"], "fast");
     // One shadow ray per hit sample and light (one light): at least the sample-0 hits.
     assert!(report["rays"]["shadow"].as_u64().unwrap() >= hit_count);
     assert!(

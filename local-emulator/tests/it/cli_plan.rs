@@ -333,6 +333,14 @@ fn the_plan_is_the_one_render_runs() {
         assert_eq!(planned["mode_reason"], report["execution_reason"], "{rel}");
         assert_eq!(planned["splits"], report["splits"], "{rel}");
         assert_eq!(planned["spans"], report["spans"], "{rel}");
+        // The split objects' build preset: fast below 4 camera samples per triangle (bunny's
+        // 3,676 and the teapot's 994 triangles at 48x32), quality above (Cornell's 36).
+        let fast = 48 * 32 < 4 * u(&report["triangles"]);
+        assert_eq!(
+            report["bvh_build"],
+            if fast { "fast" } else { "quality" },
+            "{rel}"
+        );
         let tasks = |stages: &Value| -> Vec<(String, u64)> {
             stages
                 .as_array()
