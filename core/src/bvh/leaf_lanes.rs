@@ -37,10 +37,11 @@ fn count_leaf_test() {
     LEAF_TESTS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
 }
 
-/// Whether testing the leaf of `count` `Triangle4`s from `first` in lanes against the rays of
-/// `group` (bit i = lane i) takes fewer tests than the 4-wide path: one test per triangle of
-/// the leaf against one per `Triangle4` per ray. (A wide test costs more than a 4-wide one;
-/// weighting it so measured no better on the bundled scenes and a 1M mesh.)
+/// Whether testing the leaf of `count` `Triangle4`s from `first` in `lanes` lanes against the
+/// rays of `group` (bit i = lane i) takes fewer tests than the 4-wide path: one test per
+/// triangle of the leaf, a 16-lane one counted as two, against one per `Triangle4` per ray.
+/// (An 8-lane test costs more than a 4-wide one; weighting it so measured no better on the
+/// bundled scenes and a 1M mesh. Counting a 16-lane test as one was slower on the 1M mesh.)
 #[inline(always)]
 fn pays_in_lanes(bvh: &Bvh, (first, count): (usize, usize), group: u32, lanes: usize) -> bool {
     let leaf = &bvh.triangles[first..first + count];

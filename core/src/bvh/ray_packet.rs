@@ -9,7 +9,8 @@
 //! between are tested ray by ray (four rays per SIMD test). A single remaining ray goes on
 //! alone with the single-ray traversal; leaves run the single-ray leaf test for each ray, or,
 //! at kernel widths `Eight` and `Sixteen` (`dispatch.rs`), each triangle against eight or
-//! sixteen rays at once (`leaf_lanes.rs`). Packets with a non-finite origin or direction are traced ray by ray.
+//! sixteen rays at once (`leaf_lanes.rs`). Packets with a non-finite origin or direction are
+//! traced ray by ray.
 //!
 //! Guarantee: [`Bvh::closest_hits`] gives every ray exactly what [`Bvh::closest_hit`] gives it.
 //! Each lane's box test is the single-ray slab test (same operations in the same order, so the
@@ -452,7 +453,8 @@ fn closest_in_lanes<L: LeafLanes>(
             searches[from + i].get_or_insert_with(|| ClosestSearch::deferred(ray));
         }
         // SAFETY: only `closest_packets::<8>` and `::<16>` reach this, which run only at their
-        // kernel width, so on hosts with its instruction set (`dispatch.rs`).
+        // kernel width, so on hosts with AVX2, and with AVX-512F too at width 16 (`dispatch.rs`
+        // offers `Sixteen` only where both are): the instruction set of `L` either way.
         #[allow(unsafe_code)]
         unsafe {
             L::closest_in_leaf(bvh, leaf, lanes, group, &mut searches[from..])

@@ -2,9 +2,9 @@
 //! neighbouring samples towards one light) traverse the 4-wide BVH together for any-hit
 //! ([`Bvh::occluded_many`]), with the interval hull and per-ray tests of
 //! `RayPacketTester` (`ray_packet.rs`) spanning origins as well as directions. Leaves run
-//! the single-ray any-hit test per ray (or 8 or 16 rays per test, `leaf_lanes.rs`), a blocked ray leaves
-//! its packet, and with 4-wide leaves trees of fewer than [`SMALL_TREE`] wide nodes are traced
-//! ray by ray.
+//! the single-ray any-hit test per ray (or 8 or 16 rays per test, `leaf_lanes.rs`), a blocked
+//! ray leaves its packet, and with 4-wide leaves trees of fewer than [`SMALL_TREE`] wide nodes
+//! are traced ray by ray.
 //!
 //! Guarantee: every segment gets exactly [`Bvh::occluded`]'s answer: the root test is
 //! `occluded`'s own, every box test either is the single-ray slab test or can only claim what
@@ -203,7 +203,8 @@ fn occluded_in_lanes<L: LeafLanes>(
     packet_lanes.by_groups(bvh, leaf, active, len, ray, |from, group, lanes| {
         let group_segments = &segments[from..len.min(from + L::LANES)];
         // SAFETY: only `segment_packets::<8>` and `::<16>` reach this, which run only at their
-        // kernel width, so on hosts with its instruction set (`dispatch.rs`).
+        // kernel width, so on hosts with AVX2, and with AVX-512F too at width 16 (`dispatch.rs`
+        // offers `Sixteen` only where both are): the instruction set of `L` either way.
         #[allow(unsafe_code)]
         let hit = unsafe { L::occluded_in_leaf(bvh, leaf, lanes, group, group_segments) };
         *blocked |= hit << from;
