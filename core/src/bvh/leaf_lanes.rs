@@ -25,16 +25,20 @@ use super::simd4::{any_hit_verdict, closest_verdict, each3, edges};
 use super::traverse::ClosestSearch;
 use crate::triangle::{Ray, RayPrep, TriangleHit, intersect};
 
-/// Group leaf tests run so far (closest-hit and any-hit, either width), so tests can show
-/// they ran.
+/// Group leaf tests run so far (closest-hit and any-hit) in 8 lanes (`[0]`) and in 16 (`[1]`),
+/// so tests can show each ran.
 #[cfg(test)]
-pub(super) static LEAF_TESTS: std::sync::atomic::AtomicUsize =
-    std::sync::atomic::AtomicUsize::new(0);
+pub(super) static LEAF_TESTS: [std::sync::atomic::AtomicUsize; 2] = [
+    std::sync::atomic::AtomicUsize::new(0),
+    std::sync::atomic::AtomicUsize::new(0),
+];
 
 #[inline(always)]
-fn count_leaf_test() {
+fn count_leaf_test(lanes: usize) {
     #[cfg(test)]
-    LEAF_TESTS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    LEAF_TESTS[usize::from(lanes == 16)].fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    #[cfg(not(test))]
+    let _ = lanes;
 }
 
 /// Whether testing the leaf of `count` `Triangle4`s from `first` in `lanes` lanes against the
@@ -291,7 +295,7 @@ fn closest_in_leaf<L: RayGroupLanes>(
     active: u32,
     searches: &mut [Option<ClosestSearch>],
 ) {
-    count_leaf_test();
+    count_leaf_test(L::LANES);
     let mut best = BestLanes::load(searches, active);
     for k in first..first + count {
         let p: &Triangle4 = &bvh.triangles[k];
@@ -421,7 +425,7 @@ fn occluded_in_leaf<L: RayGroupLanes>(
     active: u32,
     segments: &[(Ray, f32)],
 ) -> u32 {
-    count_leaf_test();
+    count_leaf_test(L::LANES);
     let last = segments.len() - 1;
     let mut t_max = [0.0f32; 16];
     for (l, t) in t_max.iter_mut().take(L::LANES).enumerate() {

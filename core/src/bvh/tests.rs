@@ -70,10 +70,10 @@ pub(crate) fn at_every_kernel_width(mut check: impl FnMut(KernelWidth)) -> usize
     let mut fewest: Option<usize> = None;
     for width in available_kernel_widths() {
         force_kernel_width(Some(width));
-        let before = leaf_tests_in_lanes();
+        let before = leaf_tests_in_lanes(width);
         check(width);
         if width != KernelWidth::Four {
-            let ran = leaf_tests_in_lanes() - before;
+            let ran = leaf_tests_in_lanes(width) - before;
             fewest = Some(fewest.map_or(ran, |f| f.min(ran)));
         }
     }
@@ -81,16 +81,25 @@ pub(crate) fn at_every_kernel_width(mut check: impl FnMut(KernelWidth)) -> usize
     fewest.unwrap_or(0)
 }
 
-/// How many leaf tests in lanes (8 or 16 rays) have run in this process (0 where there are
-/// none). Only the forcing tests above run them while they hold the lock, so the difference
-/// around one width's checks counts that width's.
-fn leaf_tests_in_lanes() -> usize {
+/// How many leaf tests in the lanes of `width` (8 or 16 rays) have run in this process (0
+/// where there are none, and for `Four`). Only the forcing tests above run them while they
+/// hold the lock, so the difference around one width's checks counts what that width ran in
+/// its own lanes (width 16 also runs 8-lane tests where 16 lanes do not pay; they count for
+/// `Eight`).
+fn leaf_tests_in_lanes(width: KernelWidth) -> usize {
     #[cfg(target_arch = "x86_64")]
     {
-        super::leaf_lanes::LEAF_TESTS.load(std::sync::atomic::Ordering::Relaxed)
+        let tests =
+            |i: usize| super::leaf_lanes::LEAF_TESTS[i].load(std::sync::atomic::Ordering::Relaxed);
+        match width {
+            KernelWidth::Four => 0,
+            KernelWidth::Eight => tests(0),
+            KernelWidth::Sixteen => tests(1),
+        }
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
+        let _ = width;
         0
     }
 }
