@@ -249,7 +249,8 @@ impl<L: LeafLanes> PacketLanes<L> {
     /// LANES`, bit i of `group` standing for ray `from + i`, where that takes fewer tests than
     /// the 4-wide path ([`pays_in_lanes`]) and the group's rays permute the axes alike. Returns
     /// the rays of `active` left for the 4-wide path. `ray(i)` is ray i of the packet's `len`.
-    /// Only at the kernel width of `L` (hosts with its instruction set).
+    /// Only on hosts with the instruction set of `L`: at kernel width 8 or 16 for eight lanes
+    /// (AVX2), at width 16 for sixteen (AVX-512F).
     #[inline(always)]
     pub fn by_groups<'r>(
         &mut self,
@@ -269,8 +270,8 @@ impl<L: LeafLanes> PacketLanes<L> {
                 continue;
             }
             let count = len.min(from + L::LANES) - from;
-            // SAFETY: callers reach this only at the kernel width of `L`, so on hosts with its
-            // instruction set (`dispatch.rs`).
+            // SAFETY: callers reach this only at a kernel width that implies the instruction
+            // set of `L` (8 or 16 for AVX2, 16 for AVX-512F; `dispatch.rs`).
             #[allow(unsafe_code)]
             let lanes =
                 slot.get_or_insert_with(|| unsafe { L::ray_lanes(count, |i| ray(from + i)) });

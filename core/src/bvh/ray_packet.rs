@@ -435,7 +435,8 @@ impl Bvh {
 
 /// The leaf `(first Triangle4, count)` in lanes of `L` for the groups of `active` where that
 /// pays ([`PacketLanes::by_groups`]), making their searches as needed; returns the rays left
-/// for the 4-wide path. Only at the kernel width of `L` (hosts with its instruction set).
+/// for the 4-wide path. Only on hosts with the instruction set of `L` (see
+/// [`PacketLanes::by_groups`]).
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn closest_in_lanes<L: LeafLanes>(
