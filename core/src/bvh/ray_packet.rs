@@ -94,10 +94,22 @@ impl RayPacketTester {
     /// `rays` holds 1..=RAY_PACKET rays with finite origins and directions; lanes past the end
     /// repeat the last ray (and are never active).
     pub(super) fn new(rays: &[Ray]) -> Self {
-        let last = rays.len() - 1;
-        let dir = |g: usize, a: usize| f32x4::from(each4(|l| rays[(4 * g + l).min(last)].dir[a]));
+        match <&[Ray; RAY_PACKET]>::try_from(rays) {
+            // A full packet (the common case) reads each ray at a fixed place.
+            Ok(full) => Self::of(|i| &full[i]),
+            Err(_) => {
+                let last = rays.len() - 1;
+                Self::of(|i| &rays[i.min(last)])
+            }
+        }
+    }
+
+    /// [`Self::new`] of the packet whose ray `i` (`0..RAY_PACKET`) is `ray(i)`.
+    #[inline(always)]
+    fn of<'a>(ray: impl Fn(usize) -> &'a Ray) -> Self {
+        let dir = |g: usize, a: usize| f32x4::from(each4(|l| ray(4 * g + l).dir[a]));
         let origin: [[f32x4; 3]; GROUPS] =
-            each4(|g| each3(|a| f32x4::from(each4(|l| rays[(4 * g + l).min(last)].origin[a]))));
+            each4(|g| each3(|a| f32x4::from(each4(|l| ray(4 * g + l).origin[a]))));
         // The same correctly rounded division as the single-ray testers (`Vec3::ONE / dir`).
         let inv_dir: [[f32x4; 3]; GROUPS] = each4(|g| each3(|a| f32x4::ONE / dir(g, a)));
         // Directions are finite (`is_coherent`), so 1/d is never zero or NaN: its sign bit is
@@ -487,11 +499,13 @@ fn rays_within(t: f32, bounds: &[[f32; 4]; GROUPS]) -> u32 {
     within
 }
 
-/// The smallest lane of `x` (no NaN lanes).
+/// The smallest lane of `x` (no NaN lanes), in two vector steps: `f32::min`'s NaN handling
+/// made the scalar chain a measurable part of every packet's setup and inner node.
 #[inline(always)]
 fn lowest(x: f32x4) -> f32 {
-    let x = x.to_array();
-    x[0].min(x[1]).min(x[2].min(x[3]))
+    // [min(x0, x2), _, min(x1, x3), _], then the least of its lanes 0 and 2.
+    let m = lesser4(x.unpack_lo(x), x.unpack_hi(x));
+    lesser4(m, m.unpack_hi(m)).to_array()[0]
 }
 
 /// The smallest and largest bound among the `active` rays.
