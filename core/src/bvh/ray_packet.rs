@@ -211,15 +211,17 @@ impl RayPacketTester {
 
     /// For each child of `node`: the rays of `active` that enter it at or before their bound
     /// (lane i of group i / 4 of `bound`) and a lower bound of their entry distances. The hull
-    /// test decides what it can; the single-ray test decides the rest ray by ray.
+    /// test decides what it can; the single-ray test decides the rest ray by ray. `range`
+    /// holds the bound of every active ray ([`bound_range`] of `bound`, of these or of more
+    /// rays: a wider range only leaves more to the single-ray test).
     #[inline(always)]
     pub(super) fn enter_children(
         &self,
         node: &Node4,
         active: u32,
         bound: &[f32x4; GROUPS],
+        (bound_lo, bound_hi): (f32, f32),
     ) -> ([u32; 4], [f32; 4]) {
-        let (bound_lo, bound_hi) = bound_range(bound, active);
         let (some, all, mut entry) = self.test_hull(node, bound_lo, bound_hi);
         let mut enter = [0u32; 4];
         for slot in bits(some) {
@@ -364,8 +366,12 @@ impl Bvh {
         // Per-ray searches are set up when the ray first reaches a leaf (or goes on alone):
         // rays that miss everything never pay for it.
         let mut searches: [Option<ClosestSearch>; RAY_PACKET] = [None; RAY_PACKET];
-        // Each ray's culling bound, kept in step with its search.
+        // Each ray's culling bound, kept in step with its search; in lanes, and their range
+        // over the packet, remade only when a bound changes (after leaves and single rays).
         let mut bounds = [[f32::INFINITY; 4]; GROUPS];
+        let mut bound = [f32x4::splat(f32::INFINITY); GROUPS];
+        let mut range = (f32::INFINITY, f32::INFINITY);
+        let all_rays = (1u32 << rays.len()) - 1;
         let mut depth = 0usize;
         let (mut child, mut triangle4_count) = ROOT;
         let mut active = (1u32 << rays.len()) - 1;
@@ -379,10 +385,11 @@ impl Bvh {
                     self.closest_from((child, triangle4_count), &single, search, ray_stack);
                     bounds[i / 4][i % 4] = search.bound();
                 }
+                bound = each4(|g| f32x4::from(bounds[g]));
+                range = bound_range(&bound, all_rays);
             } else if child & LEAF == 0 {
                 let node = &self.wide[child as usize];
-                let bound = each4(|g| f32x4::from(bounds[g]));
-                let (enter, entry) = boxes.enter_children(node, active, &bound);
+                let (enter, entry) = boxes.enter_children(node, active, &bound, range);
                 if let Some(next) = descend(node, &enter, &entry, stack, &mut depth) {
                     (child, triangle4_count, active) = next;
                     continue;
@@ -423,6 +430,8 @@ impl Bvh {
                         bounds[i / 4][i % 4] = search.bound();
                     }
                 }
+                bound = each4(|g| f32x4::from(bounds[g]));
+                range = bound_range(&bound, all_rays);
             }
             // Pop the next child with the rays that may still find a better hit in it: a ray
             // whose bound is below the child's entry bound would fail its box test now.
@@ -435,7 +444,7 @@ impl Bvh {
                 }
                 depth -= 1;
                 let e = stack[depth];
-                let keep = e.rays & rays_within(e.t, &bounds);
+                let keep = e.rays & rays_within(e.t, &bound);
                 if keep != 0 {
                     (child, triangle4_count, active) = (e.child, e.triangle4_count, keep);
                     break;
@@ -490,11 +499,11 @@ pub(super) fn bits(mut mask: u32) -> impl Iterator<Item = usize> {
 /// The rays (bit i = ray i) whose bound (lane i % 4 of group i / 4) is at least `t`; false
 /// where either is NaN, as `t <= bound` is.
 #[inline(always)]
-fn rays_within(t: f32, bounds: &[[f32; 4]; GROUPS]) -> u32 {
+fn rays_within(t: f32, bound: &[f32x4; GROUPS]) -> u32 {
     let t = f32x4::splat(t);
     let mut within = 0;
-    for (g, bound) in bounds.iter().enumerate() {
-        within |= t.simd_le(f32x4::from(*bound)).to_bitmask() << (4 * g);
+    for (g, bound) in bound.iter().enumerate() {
+        within |= t.simd_le(*bound).to_bitmask() << (4 * g);
     }
     within
 }
@@ -510,7 +519,7 @@ fn lowest(x: f32x4) -> f32 {
 
 /// The smallest and largest bound among the `active` rays.
 #[inline(always)]
-fn bound_range(bound: &[f32x4; GROUPS], active: u32) -> (f32, f32) {
+pub(super) fn bound_range(bound: &[f32x4; GROUPS], active: u32) -> (f32, f32) {
     let mut lo = f32x4::splat(f32::INFINITY);
     let mut hi = f32x4::splat(f32::NEG_INFINITY);
     for (g, b) in bound.iter().enumerate() {

@@ -19,8 +19,8 @@ use super::lanes::{F32x8, F32x16};
 use super::leaf_lanes::{LeafLanes, PacketLanes};
 use super::node4::LEAF;
 use super::ray_packet::{
-    GROUPS, RAY_PACKET, RAY_PACKET_STACKS, RayPacketEntry, RayPacketTester, bits, descend,
-    is_finite,
+    GROUPS, RAY_PACKET, RAY_PACKET_STACKS, RayPacketEntry, RayPacketTester, bits, bound_range,
+    descend, is_finite,
 };
 use super::simd4::{BoxTester, each4};
 use super::traverse::{Entry, ROOT, STACK, STACKS, ShadowSearch, segment_may_hit};
@@ -111,6 +111,8 @@ impl Bvh {
             bounds[i / 4][i % 4] = *t_max * super::traverse::CULL_MARGIN;
         }
         let bound = each4(|g| f32x4::from(bounds[g]));
+        // Bounds never change, so their range over the packet holds for any active rays.
+        let range = bound_range(&bound, active);
         let mut blocked = 0u32;
         let mut depth = 0usize;
         let (mut child, mut triangle4_count) = ROOT;
@@ -129,7 +131,7 @@ impl Bvh {
                 }
             } else if child & LEAF == 0 {
                 let node = &self.wide[child as usize];
-                let (enter, entry) = boxes.enter_children(node, active, &bound);
+                let (enter, entry) = boxes.enter_children(node, active, &bound, range);
                 if let Some(next) = descend(node, &enter, &entry, stack, &mut depth) {
                     (child, triangle4_count, active) = next;
                     continue;
