@@ -560,3 +560,35 @@ pub(super) fn descend(
     let e = defer_all_but_nearest(&hit[..n], stack, depth);
     Some((e.child, e.triangle4_count, e.rays))
 }
+
+#[cfg(test)]
+mod lane_tests {
+    use super::*;
+
+    /// `lowest` is the least lane wherever it sits, infinities included, and
+    /// `bound_range` the least and largest of the active lanes only.
+    #[test]
+    fn lowest_and_bound_range_pick_the_right_lanes() {
+        let values = [3.0f32, -1.5, f32::INFINITY, f32::NEG_INFINITY, 0.25, 7.0];
+        for a in values {
+            for b in values {
+                for c in values {
+                    for d in values {
+                        let expected = a.min(b).min(c.min(d));
+                        let x = f32x4::from([a, b, c, d]);
+                        assert_eq!(lowest(x), expected, "{a} {b} {c} {d}");
+                    }
+                }
+            }
+        }
+        let bound = [
+            f32x4::from([5.0, 1.0, 9.0, 2.0]),
+            f32x4::from([0.5, 8.0, 3.0, 4.0]),
+            f32x4::from([6.0, 7.0, 0.25, 11.0]),
+            f32x4::from([2.5, 3.5, 4.5, 5.5]),
+        ];
+        assert_eq!(bound_range(&bound, u32::MAX >> 16), (0.25, 11.0));
+        // Rays 0, 2 and 13 only: 5, 9 and 3.5.
+        assert_eq!(bound_range(&bound, 1 | 1 << 2 | 1 << 13), (3.5, 9.0));
+    }
+}
