@@ -211,9 +211,9 @@ impl RayPacketTester {
 
     /// For each child of `node`: the rays of `active` that enter it at or before their bound
     /// (lane i of group i / 4 of `bound`) and a lower bound of their entry distances. The hull
-    /// test decides what it can; the single-ray test decides the rest ray by ray. `range`
-    /// holds the bound of every active ray ([`bound_range`] of `bound`, of these or of more
-    /// rays: a wider range only leaves more to the single-ray test).
+    /// test decides what it can; the single-ray test decides the rest ray by ray.
+    /// `[bound_lo, bound_hi]` holds the bound of every active ray ([`bound_range`] of `bound`
+    /// over these rays or more: a wider range only leaves more to the single-ray test).
     #[inline(always)]
     pub(super) fn enter_children(
         &self,
@@ -374,7 +374,7 @@ impl Bvh {
         let all_rays = (1u32 << rays.len()) - 1;
         let mut depth = 0usize;
         let (mut child, mut triangle4_count) = ROOT;
-        let mut active = (1u32 << rays.len()) - 1;
+        let mut active = all_rays;
         #[cfg(target_arch = "x86_64")]
         let (mut lanes8, mut lanes16) = (PacketLanes::default(), PacketLanes::default());
         loop {
