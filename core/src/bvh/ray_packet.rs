@@ -369,9 +369,8 @@ impl Bvh {
         // Each ray's culling bound, kept in step with its search; in lanes, and their range
         // over the packet, remade only when a bound changes (after leaves and single rays).
         let mut bounds = [[f32::INFINITY; 4]; GROUPS];
-        let mut bound = [f32x4::splat(f32::INFINITY); GROUPS];
-        let mut range = (f32::INFINITY, f32::INFINITY);
         let all_rays = (1u32 << rays.len()) - 1;
+        let (mut bound, mut range) = bounds_in_lanes(&bounds, all_rays);
         let mut depth = 0usize;
         let (mut child, mut triangle4_count) = ROOT;
         let mut active = all_rays;
@@ -385,8 +384,7 @@ impl Bvh {
                     self.closest_from((child, triangle4_count), &single, search, ray_stack);
                     bounds[i / 4][i % 4] = search.bound();
                 }
-                bound = each4(|g| f32x4::from(bounds[g]));
-                range = bound_range(&bound, all_rays);
+                (bound, range) = bounds_in_lanes(&bounds, all_rays);
             } else if child & LEAF == 0 {
                 let node = &self.wide[child as usize];
                 let (enter, entry) = boxes.enter_children(node, active, &bound, range);
@@ -430,8 +428,7 @@ impl Bvh {
                         bounds[i / 4][i % 4] = search.bound();
                     }
                 }
-                bound = each4(|g| f32x4::from(bounds[g]));
-                range = bound_range(&bound, all_rays);
+                (bound, range) = bounds_in_lanes(&bounds, all_rays);
             }
             // Pop the next child with the rays that may still find a better hit in it: a ray
             // whose bound is below the child's entry bound would fail its box test now.
@@ -517,9 +514,21 @@ fn lowest(x: f32x4) -> f32 {
     lesser4(m, m.unpack_hi(m)).to_array()[0]
 }
 
+/// Each ray's bound (`bounds[i / 4][i % 4]`) in lanes, and the smallest and largest bound
+/// among the rays of `rays`: what the hull test and the pop filter read.
+#[inline(always)]
+pub(super) fn bounds_in_lanes(
+    bounds: &[[f32; 4]; GROUPS],
+    rays: u32,
+) -> ([f32x4; GROUPS], (f32, f32)) {
+    let bound = each4(|g| f32x4::from(bounds[g]));
+    let range = bound_range(&bound, rays);
+    (bound, range)
+}
+
 /// The smallest and largest bound among the `active` rays.
 #[inline(always)]
-pub(super) fn bound_range(bound: &[f32x4; GROUPS], active: u32) -> (f32, f32) {
+fn bound_range(bound: &[f32x4; GROUPS], active: u32) -> (f32, f32) {
     let mut lo = f32x4::splat(f32::INFINITY);
     let mut hi = f32x4::splat(f32::NEG_INFINITY);
     for (g, b) in bound.iter().enumerate() {
