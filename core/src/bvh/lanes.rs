@@ -126,9 +126,31 @@ pub(super) trait RayGroupLanes: Lanes {
     /// Lanes holding the bit patterns of the first [`Self::LANES`] values of `x`.
     fn load_bits(x: &[u32; 16]) -> Self;
     /// The lanes, then zeros.
-    fn store(self) -> [f32; 16];
+    #[cfg(test)]
+    #[inline(always)]
+    fn store(self) -> [f32; 16] {
+        let mut out = [0.0f32; 16];
+        self.store_at(&mut out, 0);
+        out
+    }
     /// The lanes' bit patterns, then zeros.
-    fn store_bits(self) -> [u32; 16];
+    #[cfg(test)]
+    #[inline(always)]
+    fn store_bits(self) -> [u32; 16] {
+        let mut out = [0u32; 16];
+        self.store_bits_at(&mut out, 0);
+        out
+    }
+    /// Lanes from `x[from..from + LANES]`. Panics unless `from + LANES <= 16`.
+    fn load_at(x: &[f32; 16], from: usize) -> Self;
+    /// Lanes holding the bit patterns of `x[from..from + LANES]`. Panics unless
+    /// `from + LANES <= 16`.
+    fn load_bits_at(x: &[u32; 16], from: usize) -> Self;
+    /// Writes the lanes to `x[from..from + LANES]`. Panics unless `from + LANES <= 16`.
+    fn store_at(self, x: &mut [f32; 16], from: usize);
+    /// Writes the lanes' bit patterns to `x[from..from + LANES]`. Panics unless
+    /// `from + LANES <= 16`.
+    fn store_bits_at(self, x: &mut [u32; 16], from: usize);
     /// All ones in the lanes whose bit is set in `bits`.
     fn lane_mask(bits: u32) -> Self;
     /// Lanes (holding `u32` bit patterns) whose value is above `x`, unsigned.
@@ -168,19 +190,35 @@ mod avx {
         }
 
         #[inline(always)]
-        fn store(self) -> [f32; 16] {
-            let mut out = [0.0f32; 16];
-            // SAFETY: AVX is available; `out` holds at least 8 floats.
-            unsafe { _mm256_storeu_ps(out.as_mut_ptr(), self.0) };
-            out
+        fn load_at(x: &[f32; 16], from: usize) -> Self {
+            assert!(from <= 8, "eight lanes from {from} of 16");
+            // SAFETY: AVX is available (see the type's contract); `x[from..]` holds at least 8
+            // floats.
+            F32x8(unsafe { _mm256_loadu_ps(x.as_ptr().add(from)) })
         }
 
         #[inline(always)]
-        fn store_bits(self) -> [u32; 16] {
-            let mut out = [0u32; 16];
-            // SAFETY: AVX is available; `out` holds at least 8 words.
-            unsafe { _mm256_storeu_si256(out.as_mut_ptr().cast(), _mm256_castps_si256(self.0)) };
-            out
+        fn load_bits_at(x: &[u32; 16], from: usize) -> Self {
+            assert!(from <= 8, "eight lanes from {from} of 16");
+            // SAFETY: AVX is available (see the type's contract); `x[from..]` holds at least 8
+            // words.
+            F32x8(unsafe { _mm256_castsi256_ps(_mm256_loadu_si256(x.as_ptr().add(from).cast())) })
+        }
+
+        #[inline(always)]
+        fn store_at(self, x: &mut [f32; 16], from: usize) {
+            assert!(from <= 8, "eight lanes from {from} of 16");
+            // SAFETY: AVX is available; `x[from..]` holds at least 8 floats.
+            unsafe { _mm256_storeu_ps(x.as_mut_ptr().add(from), self.0) };
+        }
+
+        #[inline(always)]
+        fn store_bits_at(self, x: &mut [u32; 16], from: usize) {
+            assert!(from <= 8, "eight lanes from {from} of 16");
+            // SAFETY: AVX is available; `x[from..]` holds at least 8 words.
+            unsafe {
+                _mm256_storeu_si256(x.as_mut_ptr().add(from).cast(), _mm256_castps_si256(self.0))
+            };
         }
 
         #[inline(always)]
@@ -357,19 +395,29 @@ mod avx512 {
         }
 
         #[inline(always)]
-        fn store(self) -> [f32; 16] {
-            let mut out = [0.0f32; 16];
-            // SAFETY: AVX-512F is available; `out` holds 16 floats.
-            unsafe { _mm512_storeu_ps(out.as_mut_ptr(), self.0) };
-            out
+        fn load_at(x: &[f32; 16], from: usize) -> Self {
+            assert_eq!(from, 0, "sixteen lanes of 16");
+            Self::load(x)
         }
 
         #[inline(always)]
-        fn store_bits(self) -> [u32; 16] {
-            let mut out = [0u32; 16];
-            // SAFETY: AVX-512F is available; `out` holds 16 words.
-            unsafe { _mm512_storeu_si512(out.as_mut_ptr().cast(), self.bits()) };
-            out
+        fn load_bits_at(x: &[u32; 16], from: usize) -> Self {
+            assert_eq!(from, 0, "sixteen lanes of 16");
+            Self::load_bits(x)
+        }
+
+        #[inline(always)]
+        fn store_at(self, x: &mut [f32; 16], from: usize) {
+            assert_eq!(from, 0, "sixteen lanes of 16");
+            // SAFETY: AVX-512F is available; `x` holds 16 floats.
+            unsafe { _mm512_storeu_ps(x.as_mut_ptr(), self.0) };
+        }
+
+        #[inline(always)]
+        fn store_bits_at(self, x: &mut [u32; 16], from: usize) {
+            assert_eq!(from, 0, "sixteen lanes of 16");
+            // SAFETY: AVX-512F is available; `x` holds 16 words.
+            unsafe { _mm512_storeu_si512(x.as_mut_ptr().cast(), self.bits()) };
         }
 
         #[inline(always)]

@@ -10,7 +10,7 @@
 //! watertight test of [`crate::triangle::intersect`] in its order of operations (`simd4.rs`,
 //! `edges`, over [`Lanes`]), which needs the lanes' rays to permute the axes alike (the
 //! packet's group falls back to the 4-wide path otherwise); lanes only the scalar test can
-//! decide go to it; and each lane keeps its best hit by [`ClosestSearch::offer`]'s rule
+//! decide go to it; and each lane keeps its best hit by [`super::traverse::BestHit::beaten_by`]'s rule
 //! (smaller t, then smaller id), whose winner does not depend on the order of the hits.
 //!
 //! The code is written once over [`RayGroupLanes`]; the entry points of each width are thin
@@ -20,9 +20,10 @@
 use super::Bvh;
 use super::lanes::{F32x8, F32x16, RayGroupLanes};
 use super::node4::Triangle4;
+use super::packet_hits::PacketHits;
 use super::ray_packet::{RAY_PACKET, bits};
-use super::simd4::{any_hit_verdict, closest_verdict, each3, edges};
-use super::traverse::ClosestSearch;
+use super::simd4::{any_hit_verdict, closest_verdict, edges};
+use super::traverse::scalar_hit;
 use crate::triangle::{Ray, RayPrep, TriangleHit, intersect};
 
 /// Group leaf tests run so far (closest-hit and any-hit) in 8 lanes (`[0]`) and in 16 (`[1]`),
@@ -147,7 +148,8 @@ pub(super) trait LeafLanes: RayGroupLanes {
         leaf: (usize, usize),
         lanes: &RayLanes<Self>,
         active: u32,
-        searches: &mut [Option<ClosestSearch>],
+        rays: &[Ray],
+        hits: (&mut PacketHits, usize),
     );
     /// [`occluded_in_leaf`]. Call only on hosts with the width's instruction set.
     unsafe fn occluded_in_leaf(
@@ -168,9 +170,10 @@ macro_rules! leaf_lanes {
             leaf: (usize, usize),
             lanes: &RayLanes<$lanes>,
             active: u32,
-            searches: &mut [Option<ClosestSearch>],
+            rays: &[Ray],
+            hits: (&mut PacketHits, usize),
         ) {
-            closest_in_leaf(bvh, leaf, lanes, active, searches)
+            closest_in_leaf(bvh, leaf, lanes, active, rays, hits)
         }
 
         #[target_feature(enable = $feature)]
@@ -198,10 +201,11 @@ macro_rules! leaf_lanes {
                 leaf: (usize, usize),
                 lanes: &RayLanes<Self>,
                 active: u32,
-                searches: &mut [Option<ClosestSearch>],
+                rays: &[Ray],
+                hits: (&mut PacketHits, usize),
             ) {
                 // SAFETY: the caller's contract (the host has the instruction set).
-                unsafe { $closest(bvh, leaf, lanes, active, searches) }
+                unsafe { $closest(bvh, leaf, lanes, active, rays, hits) }
             }
             unsafe fn occluded_in_leaf(
                 bvh: &Bvh,
@@ -286,18 +290,20 @@ impl<L: LeafLanes> PacketLanes<L> {
 }
 
 /// Tests the `count` `Triangle4`s from `first` (one leaf) against the rays of `active` (bit i =
-/// lane i of `lanes`), keeping each ray's best hit in `searches[i]`, which must be `Some` for
-/// every active ray. Inlined into the width's entry point.
+/// lane i of `lanes`, ray `rays[i]`), keeping each ray's best hit in lane i of the group
+/// starting at ray `from` of `hits` (the packet's: ray `from + i`). Inlined into the width's
+/// entry point.
 #[inline(always)]
 fn closest_in_leaf<L: RayGroupLanes>(
     bvh: &Bvh,
     (first, count): (usize, usize),
     lanes: &RayLanes<L>,
     active: u32,
-    searches: &mut [Option<ClosestSearch>],
+    rays: &[Ray],
+    (hits, from): (&mut PacketHits, usize),
 ) {
     count_leaf_test(L::LANES);
-    let mut best = BestLanes::load(searches, active);
+    let mut best = BestLanes::load(hits, from);
     for k in first..first + count {
         let p: &Triangle4 = &bvh.triangles[k];
         for lane in 0..p.lanes as usize {
@@ -310,14 +316,13 @@ fn closest_in_leaf<L: RayGroupLanes>(
             let b = [e.u * e.inv_det, e.v * e.inv_det, e.w * e.inv_det];
             best.offer(exact, e.t, b, id, (k * 4 + lane) as u32);
             for i in bits(scalar) {
-                let s = searches[i].as_ref().expect("every active ray has a search");
-                if let Some(h) = s.scalar_hit(p, lane) {
+                if let Some(h) = scalar_hit(&rays[i], p, lane) {
                     best.offer_one(i, h, id, (k * 4 + lane) as u32);
                 }
             }
         }
     }
-    best.store(searches);
+    best.store(hits, from);
 }
 
 /// Each lane's best hit during one leaf: t, barycentrics, triangle id and the hit's place
@@ -332,30 +337,21 @@ struct BestLanes<L> {
 }
 
 impl<L: RayGroupLanes> BestLanes<L> {
+    /// The best hits of the packet's rays `from..from + LANES`.
     #[inline(always)]
-    fn load(searches: &[Option<ClosestSearch>], active: u32) -> Self {
-        let mut t = [f32::INFINITY; 16];
-        let mut b = [[0.0f32; 16]; 3];
-        let mut id = [u32::MAX; 16];
-        let mut place = [0u32; 16];
-        for i in bits(active) {
-            let s = searches[i].as_ref().expect("every active ray has a search");
-            if let Some((h, best_id, k, lane)) = s.best() {
-                t[i] = h.t;
-                (0..3).for_each(|c| b[c][i] = h.b[c]);
-                id[i] = best_id;
-                place[i] = (k * 4 + lane) as u32;
-            }
-        }
+    fn load(hits: &PacketHits, from: usize) -> Self {
         BestLanes {
-            t: L::load(&t),
-            b: [L::load(&b[0]), L::load(&b[1]), L::load(&b[2])],
-            id: L::load_bits(&id),
-            place: L::load_bits(&place),
+            t: L::load_at(&hits.t, from),
+            b: [
+                L::load_at(&hits.b[0], from),
+                L::load_at(&hits.b[1], from),
+                L::load_at(&hits.b[2], from),
+            ],
+            id: L::load_bits_at(&hits.id, from),
+            place: L::load_bits_at(&hits.place, from),
             changed: 0,
         }
     }
-
     /// Keeps, in the lanes of `hits`, hits at `t` with barycentrics `b` on triangle `id` at
     /// `place` that beat the lane's best: smaller t, or equal t and smaller id.
     #[inline(always)]
@@ -392,25 +388,19 @@ impl<L: RayGroupLanes> BestLanes<L> {
         self.offer(1 << i, L::load(&t), b, id, place);
     }
 
-    /// Writes the changed lanes back to their searches.
+    /// Writes the lanes back to the packet's rays `from..from + LANES` (unchanged lanes
+    /// write what they read).
     #[inline(always)]
-    fn store(&self, searches: &mut [Option<ClosestSearch>]) {
+    fn store(&self, hits: &mut PacketHits, from: usize) {
         if self.changed == 0 {
             return;
         }
-        let t = self.t.store();
-        let b = [self.b[0].store(), self.b[1].store(), self.b[2].store()];
-        let id = self.id.store_bits();
-        let place = self.place.store_bits();
-        for i in bits(self.changed) {
-            let s = searches[i].as_mut().expect("every active ray has a search");
-            let h = TriangleHit {
-                t: t[i],
-                b: each3(|c| b[c][i]),
-            };
-            let (k, lane) = ((place[i] / 4) as usize, (place[i] % 4) as usize);
-            s.replace_best(h, id[i], k, lane);
+        self.t.store_at(&mut hits.t, from);
+        for c in 0..3 {
+            self.b[c].store_at(&mut hits.b[c], from);
         }
+        self.id.store_bits_at(&mut hits.id, from);
+        self.place.store_bits_at(&mut hits.place, from);
     }
 }
 

@@ -33,6 +33,7 @@ mod lanes;
 #[cfg(target_arch = "x86_64")]
 mod leaf_lanes;
 mod node4;
+mod packet_hits;
 mod parts;
 mod ray_packet;
 mod refit;

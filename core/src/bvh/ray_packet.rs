@@ -30,6 +30,7 @@ use super::lanes::{greater4, lesser4};
 #[cfg(target_arch = "x86_64")]
 use super::leaf_lanes::{LeafLanes, PacketLanes};
 use super::node4::{LEAF, Node4};
+use super::packet_hits::PacketHits;
 use super::simd4::{BoxTester, each3, each4};
 use super::traverse::{
     ClosestSearch, Entry, FAR_SCALE, ROOT, STACK, STACKS, defer_all_but_nearest,
@@ -363,14 +364,15 @@ impl Bvh {
             out.fill(None);
             return;
         }
-        // Per-ray searches are set up when the ray first reaches a leaf (or goes on alone):
-        // rays that miss everything never pay for it.
+        // Every ray's best hit, in lanes' layout. The 4-wide path and single rays take theirs
+        // into a search, made when the ray first needs one, and put it back after.
+        let mut hits = PacketHits::NONE;
         let mut searches: [Option<ClosestSearch>; RAY_PACKET] = [None; RAY_PACKET];
-        // Each ray's culling bound, kept in step with its search; in lanes, and their range
-        // over the packet, remade only when a bound changes (after leaves and single rays).
-        let mut bounds = [[f32::INFINITY; 4]; GROUPS];
+        // Each ray's culling bound in lanes and their range over the packet, remade only when
+        // a bound can change (after leaves and single rays).
         let all_rays = (1u32 << rays.len()) - 1;
-        let (mut bound, mut range) = bounds_in_lanes(&bounds, all_rays);
+        let mut bound = hits.bounds();
+        let mut range = bound_range(&bound, all_rays);
         let mut depth = 0usize;
         let (mut child, mut triangle4_count) = ROOT;
         let mut active = all_rays;
@@ -380,11 +382,12 @@ impl Bvh {
             if active.count_ones() <= 1 {
                 for i in bits(active) {
                     let single = BoxTester::new(&rays[i]);
-                    let search = searches[i].get_or_insert_with(|| ClosestSearch::new(&rays[i]));
+                    let search = resume(&mut searches, &hits, rays, i);
                     self.closest_from((child, triangle4_count), &single, search, ray_stack);
-                    bounds[i / 4][i % 4] = search.bound();
+                    hits.set(i, search.best);
                 }
-                (bound, range) = bounds_in_lanes(&bounds, all_rays);
+                bound = hits.bounds();
+                range = bound_range(&bound, all_rays);
             } else if child & LEAF == 0 {
                 let node = &self.wide[child as usize];
                 let (enter, entry) = boxes.enter_children(node, active, &bound, range);
@@ -401,41 +404,31 @@ impl Bvh {
                         // them ([`PacketLanes::by_groups`]); then eight where that pays.
                         let rest = if WIDTH == 16 {
                             let lanes = &mut lanes16;
-                            closest_in_lanes::<F32x16>(
-                                self,
-                                lanes,
-                                leaf,
-                                active,
-                                rays,
-                                &mut searches,
-                            )
+                            closest_in_lanes::<F32x16>(self, lanes, leaf, active, rays, &mut hits)
                         } else {
                             active
                         };
                         let lanes = &mut lanes8;
-                        closest_in_lanes::<F32x8>(self, lanes, leaf, rest, rays, &mut searches)
+                        closest_in_lanes::<F32x8>(self, lanes, leaf, rest, rays, &mut hits)
                     }
                     _ => active,
                 };
                 #[cfg(not(target_arch = "x86_64"))]
                 let rest = active;
                 for i in bits(rest) {
-                    let search = searches[i].get_or_insert_with(|| ClosestSearch::new(&rays[i]));
+                    let search = resume(&mut searches, &hits, rays, i);
                     self.closest_in_leaf(leaf.0, leaf.1, search);
+                    hits.set(i, search.best);
                 }
-                for i in bits(active) {
-                    if let Some(search) = &searches[i] {
-                        bounds[i / 4][i % 4] = search.bound();
-                    }
-                }
-                (bound, range) = bounds_in_lanes(&bounds, all_rays);
+                bound = hits.bounds();
+                range = bound_range(&bound, all_rays);
             }
             // Pop the next child with the rays that may still find a better hit in it: a ray
             // whose bound is below the child's entry bound would fail its box test now.
             loop {
                 if depth == 0 {
-                    for (o, s) in out.iter_mut().zip(&searches) {
-                        *o = s.as_ref().and_then(|s| self.closest_result(s));
+                    for (i, o) in out.iter_mut().enumerate() {
+                        *o = self.closest_result(&hits.get(i));
                     }
                     return;
                 }
@@ -451,8 +444,22 @@ impl Bvh {
     }
 }
 
+/// Ray `i`'s search, made the first time it is needed, holding the ray's best hit from
+/// `hits`: the 4-wide leaf test and the single-ray traversal continue from it.
+#[inline(always)]
+fn resume<'s>(
+    searches: &'s mut [Option<ClosestSearch>; RAY_PACKET],
+    hits: &PacketHits,
+    rays: &[Ray],
+    i: usize,
+) -> &'s mut ClosestSearch {
+    let search = searches[i].get_or_insert_with(|| ClosestSearch::new(&rays[i]));
+    search.best = hits.get(i);
+    search
+}
+
 /// The leaf `(first Triangle4, count)` in lanes of `L` for the groups of `active` where that
-/// pays ([`PacketLanes::by_groups`]), making their searches as needed; returns the rays left
+/// pays ([`PacketLanes::by_groups`]), keeping their best hits in `hits`; returns the rays left
 /// for the 4-wide path. Only on hosts with the instruction set of `L` (see
 /// [`PacketLanes::by_groups`]).
 #[cfg(target_arch = "x86_64")]
@@ -463,20 +470,16 @@ fn closest_in_lanes<L: LeafLanes>(
     leaf: (usize, usize),
     active: u32,
     rays: &[Ray],
-    searches: &mut [Option<ClosestSearch>; RAY_PACKET],
+    hits: &mut PacketHits,
 ) -> u32 {
     let ray = |i: usize| &rays[i];
     packet_lanes.by_groups(bvh, leaf, active, rays.len(), ray, |from, group, lanes| {
-        for i in bits(group) {
-            let ray = &rays[from + i];
-            searches[from + i].get_or_insert_with(|| ClosestSearch::deferred(ray));
-        }
         // SAFETY: only `closest_packets::<8>` and `::<16>` reach this, which run only at their
         // kernel width, so on hosts with AVX2, and with AVX-512F too at width 16 (`dispatch.rs`
         // offers `Sixteen` only where both are): the instruction set of `L` either way.
         #[allow(unsafe_code)]
         unsafe {
-            L::closest_in_leaf(bvh, leaf, lanes, group, &mut searches[from..])
+            L::closest_in_leaf(bvh, leaf, lanes, group, &rays[from..], (hits, from))
         };
     })
 }
@@ -514,21 +517,9 @@ fn lowest(x: f32x4) -> f32 {
     lesser4(m, m.unpack_hi(m)).to_array()[0]
 }
 
-/// Each ray's bound (`bounds[i / 4][i % 4]`) in lanes, and the smallest and largest bound
-/// among the rays of `rays`: what the hull test and the pop filter read.
-#[inline(always)]
-pub(super) fn bounds_in_lanes(
-    bounds: &[[f32; 4]; GROUPS],
-    rays: u32,
-) -> ([f32x4; GROUPS], (f32, f32)) {
-    let bound = each4(|g| f32x4::from(bounds[g]));
-    let range = bound_range(&bound, rays);
-    (bound, range)
-}
-
 /// The smallest and largest bound among the `active` rays.
 #[inline(always)]
-fn bound_range(bound: &[f32x4; GROUPS], active: u32) -> (f32, f32) {
+pub(super) fn bound_range(bound: &[f32x4; GROUPS], active: u32) -> (f32, f32) {
     let mut lo = f32x4::splat(f32::INFINITY);
     let mut hi = f32x4::splat(f32::NEG_INFINITY);
     for (g, b) in bound.iter().enumerate() {

@@ -19,12 +19,13 @@ use super::lanes::{F32x8, F32x16};
 use super::leaf_lanes::{LeafLanes, PacketLanes};
 use super::node4::LEAF;
 use super::ray_packet::{
-    GROUPS, RAY_PACKET, RAY_PACKET_STACKS, RayPacketEntry, RayPacketTester, bits, bounds_in_lanes,
+    GROUPS, RAY_PACKET, RAY_PACKET_STACKS, RayPacketEntry, RayPacketTester, bits, bound_range,
     descend, is_finite,
 };
-use super::simd4::BoxTester;
+use super::simd4::{BoxTester, each4};
 use super::traverse::{Entry, ROOT, STACK, STACKS, ShadowSearch, segment_may_hit};
 use crate::triangle::Ray;
+use wide::f32x4;
 
 /// Wide nodes below which shadow segments are traced one by one: in a tree of a few nodes
 /// there is nothing to share.
@@ -109,8 +110,9 @@ impl Bvh {
         for (i, (_, t_max)) in segments.iter().enumerate() {
             bounds[i / 4][i % 4] = *t_max * super::traverse::CULL_MARGIN;
         }
+        let bound = each4(|g| f32x4::from(bounds[g]));
         // Bounds never change, so their range over the packet holds for any active rays.
-        let (bound, range) = bounds_in_lanes(&bounds, active);
+        let range = bound_range(&bound, active);
         let mut blocked = 0u32;
         let mut depth = 0usize;
         let (mut child, mut triangle4_count) = ROOT;

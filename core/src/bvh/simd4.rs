@@ -79,14 +79,6 @@ pub(super) struct TriangleTester {
 }
 
 impl TriangleTester {
-    /// Placeholder constants, for a search that makes its own later.
-    #[cfg(target_arch = "x86_64")]
-    pub const UNSET: TriangleTester = TriangleTester {
-        axes: [0, 1, 2],
-        origin: [0.0; 3],
-        shear: [0.0; 3],
-    };
-
     pub fn new(prep: &RayPrep) -> Self {
         let (axes, shear) = prep.shear();
         TriangleTester {

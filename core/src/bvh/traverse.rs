@@ -106,20 +106,50 @@ thread_local! {
         const { std::cell::RefCell::new([NO_ENTRY; STACK]) };
 }
 
-/// One ray's closest-hit search: its constants for the triangle tests and its best hit so far
-/// (triangle hit, `Triangle4` index, lane). Shared by single rays and ray packets, so both
-/// keep exactly the same best hit.
+/// A ray's best hit so far: its distance (+inf while there is none: hits have finite t),
+/// barycentrics, triangle id (`u32::MAX` while none) and place (`Triangle4` index times 4 plus
+/// lane). Ray packets keep their rays' in lanes ([`super::ray_packet::PacketHits`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct BestHit {
+    pub t: f32,
+    pub b: [f32; 3],
+    pub id: u32,
+    pub place: u32,
+}
+
+impl BestHit {
+    /// No hit yet: every hit beats it.
+    pub const NONE: BestHit = BestHit {
+        t: f32::INFINITY,
+        b: [0.0; 3],
+        id: u32::MAX,
+        place: 0,
+    };
+
+    /// Whether `h`, a hit on triangle `id`, beats this one: smaller t, or equal t and smaller
+    /// id. The winner is unique, so the order of the offers cannot change it.
+    #[inline(always)]
+    pub fn beaten_by(&self, h: &TriangleHit, id: u32) -> bool {
+        h.t < self.t || (h.t == self.t && id < self.id)
+    }
+
+    /// The culling bound: a box entered beyond it cannot hold a better hit.
+    #[inline(always)]
+    pub fn bound(&self) -> f32 {
+        self.t * CULL_MARGIN
+    }
+}
+
+/// One ray's closest-hit search: its constants for the triangle tests and its best hit so far.
+/// Shared by single rays and ray packets, so both keep exactly the same best hit.
 #[derive(Clone, Copy)]
 pub(super) struct ClosestSearch {
     /// The ray (the scalar test's constants are rebuilt from it in the rare lanes that need
     /// them: copying them here stalled every ray's setup).
     ray: Ray,
-    /// The 4-wide triangle tests' constants; valid once `tris_ready`.
+    /// The 4-wide triangle tests' constants.
     tris: TriangleTester,
-    tris_ready: bool,
-    best: Option<(TriangleHit, usize, usize)>,
-    pub best_t: f32,
-    best_id: u32,
+    pub best: BestHit,
 }
 
 impl ClosestSearch {
@@ -127,78 +157,44 @@ impl ClosestSearch {
     pub fn new(ray: &Ray) -> Self {
         ClosestSearch {
             tris: TriangleTester::new(&RayPrep::new(ray)),
-            tris_ready: true,
             ray: *ray,
-            best: None,
-            best_t: f32::INFINITY,
-            best_id: u32::MAX,
-        }
-    }
-
-    /// A search whose 4-wide constants are made only if a 4-wide test needs them: for rays
-    /// that the leaf tests in lanes (`leaf_lanes.rs`) serve, which hold their own.
-    #[cfg(target_arch = "x86_64")]
-    #[inline(always)]
-    pub fn deferred(ray: &Ray) -> Self {
-        ClosestSearch {
-            tris: TriangleTester::UNSET,
-            tris_ready: false,
-            ray: *ray,
-            best: None,
-            best_t: f32::INFINITY,
-            best_id: u32::MAX,
-        }
-    }
-
-    /// Makes the 4-wide triangle tests' constants if they are not made yet.
-    #[inline(always)]
-    fn prepare_tris(&mut self) {
-        if !self.tris_ready {
-            self.tris = TriangleTester::new(&RayPrep::new(&self.ray));
-            self.tris_ready = true;
+            best: BestHit::NONE,
         }
     }
 
     /// Keeps `h`, a hit on triangle `id` (lane `lane` of `Triangle4` `k`), when it beats the
-    /// best hit so far: smaller t, or equal t and smaller id. The winner is unique, so the
-    /// order of the offers cannot change it.
+    /// best hit so far ([`BestHit::beaten_by`]).
     #[inline(always)]
     pub fn offer(&mut self, h: TriangleHit, id: u32, k: usize, lane: usize) {
-        // Hits have finite t, so the first one always wins against +inf.
-        if h.t < self.best_t || (h.t == self.best_t && id < self.best_id) {
-            (self.best_t, self.best_id) = (h.t, id);
-            self.best = Some((h, k, lane));
+        if self.best.beaten_by(&h, id) {
+            self.best = BestHit {
+                t: h.t,
+                b: h.b,
+                id,
+                place: (k * 4 + lane) as u32,
+            };
         }
-    }
-
-    /// The best hit so far: (hit, triangle id, `Triangle4` index, lane), if any.
-    #[cfg(target_arch = "x86_64")]
-    #[inline(always)]
-    pub fn best(&self) -> Option<(TriangleHit, u32, usize, usize)> {
-        self.best.map(|(h, k, lane)| (h, self.best_id, k, lane))
-    }
-
-    /// Replaces the best hit with one that beats it (the caller has applied [`Self::offer`]'s
-    /// rule).
-    #[cfg(target_arch = "x86_64")]
-    #[inline(always)]
-    pub fn replace_best(&mut self, h: TriangleHit, id: u32, k: usize, lane: usize) {
-        (self.best_t, self.best_id) = (h.t, id);
-        self.best = Some((h, k, lane));
     }
 
     /// The scalar test of lane `lane` of `p`, for the pairs the SIMD tests leave to it.
     #[cold]
     pub fn scalar_hit(&self, p: &Triangle4, lane: usize) -> Option<TriangleHit> {
-        let [p0, p1, p2] = p.corners(lane);
-        intersect(&RayPrep::new(&self.ray), p0, p1, p2, f32::INFINITY)
+        scalar_hit(&self.ray, p, lane)
     }
 
     /// The culling bound: a box entered beyond it cannot hold a better hit.
     #[inline(always)]
     pub fn bound(&self) -> f32 {
-        self.best_t * CULL_MARGIN
+        self.best.bound()
     }
+}
+
+/// The scalar test of `ray` against lane `lane` of `p`, for the pairs the SIMD tests leave to
+/// it.
+#[cold]
+pub(super) fn scalar_hit(ray: &Ray, p: &Triangle4, lane: usize) -> Option<TriangleHit> {
+    let [p0, p1, p2] = p.corners(lane);
+    intersect(&RayPrep::new(ray), p0, p1, p2, f32::INFINITY)
 }
 
 impl Bvh {
@@ -219,19 +215,21 @@ impl Bvh {
     ) -> Option<ClosestHit> {
         let mut search = ClosestSearch::new(ray);
         self.closest_from(ROOT, &BoxTester::new(ray), &mut search, stack);
-        self.closest_result(&search)
+        self.closest_result(&search.best)
     }
 
-    /// The finished search's hit.
+    /// The hit a finished search found, if any.
     #[inline(always)]
-    pub(super) fn closest_result(&self, search: &ClosestSearch) -> Option<ClosestHit> {
-        search.best.map(|(h, k, lane)| {
+    pub(super) fn closest_result(&self, best: &BestHit) -> Option<ClosestHit> {
+        // Hits have finite t: +inf means none was found.
+        (best.t < f32::INFINITY).then(|| {
+            let (k, lane) = ((best.place / 4) as usize, (best.place % 4) as usize);
             let p = &self.triangles[k];
             let index = p.first as usize + lane;
             ClosestHit {
-                id: self.ids[index],
-                t: h.t,
-                b: h.b,
+                id: best.id,
+                t: best.t,
+                b: best.b,
                 corners: p.corners(lane),
                 index: index as u32,
             }
@@ -242,10 +240,9 @@ impl Bvh {
     /// best hit.
     #[inline(always)]
     pub(super) fn closest_in_leaf(&self, first: usize, count: usize, s: &mut ClosestSearch) {
-        s.prepare_tris();
         for k in first..first + count {
             let p = &self.triangles[k];
-            let wide = triangle_hits(&s.tris, p, s.best_t);
+            let wide = triangle_hits(&s.tris, p, s.best.t);
             let mut lanes = wide.exact | wide.scalar;
             while lanes != 0 {
                 let lane = lanes.trailing_zeros() as usize;

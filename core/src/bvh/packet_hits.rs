@@ -1,0 +1,63 @@
+//! The best hit of every ray of a closest-hit packet (`ray_packet.rs`), kept for the packet's
+//! whole traversal in the layout lanes read and write directly: one array per field, ray i at
+//! index i. The leaf tests in lanes (`leaf_lanes.rs`) load a group's hits with one vector load
+//! per field and store them back the same way; the culling bounds are one vector product per
+//! four rays. Rays that go 4-wide or on alone take their [`BestHit`] into a
+//! [`super::traverse::ClosestSearch`] and put it back after, so every path offers hits to the
+//! same best hit by the same rule.
+
+use super::ray_packet::{GROUPS, RAY_PACKET};
+use super::simd4::each4;
+use super::traverse::{BestHit, CULL_MARGIN};
+use wide::f32x4;
+
+/// Each ray's [`BestHit`], field by field (ray i at index i; rays past the packet's end keep
+/// [`BestHit::NONE`]).
+#[derive(Clone, Copy)]
+#[repr(C, align(64))]
+pub(super) struct PacketHits {
+    pub t: [f32; RAY_PACKET],
+    pub b: [[f32; RAY_PACKET]; 3],
+    pub id: [u32; RAY_PACKET],
+    pub place: [u32; RAY_PACKET],
+}
+
+impl PacketHits {
+    /// No ray has a hit yet.
+    pub const NONE: PacketHits = PacketHits {
+        t: [BestHit::NONE.t; RAY_PACKET],
+        b: [[0.0; RAY_PACKET]; 3],
+        id: [BestHit::NONE.id; RAY_PACKET],
+        place: [BestHit::NONE.place; RAY_PACKET],
+    };
+
+    /// Ray `i`'s best hit.
+    #[inline(always)]
+    pub fn get(&self, i: usize) -> BestHit {
+        BestHit {
+            t: self.t[i],
+            b: [self.b[0][i], self.b[1][i], self.b[2][i]],
+            id: self.id[i],
+            place: self.place[i],
+        }
+    }
+
+    /// Sets ray `i`'s best hit.
+    #[inline(always)]
+    pub fn set(&mut self, i: usize, h: BestHit) {
+        self.t[i] = h.t;
+        for c in 0..3 {
+            self.b[c][i] = h.b[c];
+        }
+        self.id[i] = h.id;
+        self.place[i] = h.place;
+    }
+
+    /// Each ray's culling bound ([`BestHit::bound`]: the same product, lane by lane), ray i in
+    /// lane i % 4 of group i / 4.
+    #[inline(always)]
+    pub fn bounds(&self) -> [f32x4; GROUPS] {
+        let margin = f32x4::splat(CULL_MARGIN);
+        each4(|g| f32x4::from(each4(|l| self.t[4 * g + l])) * margin)
+    }
+}
