@@ -158,6 +158,7 @@ pub(super) trait LeafLanes: RayGroupLanes {
         lanes: &RayLanes<Self>,
         active: u32,
         segments: &[(Ray, f32)],
+        t_max: (&[f32; 16], usize),
     ) -> u32;
 }
 
@@ -183,8 +184,9 @@ macro_rules! leaf_lanes {
             lanes: &RayLanes<$lanes>,
             active: u32,
             segments: &[(Ray, f32)],
+            t_max: (&[f32; 16], usize),
         ) -> u32 {
-            occluded_in_leaf(bvh, leaf, lanes, active, segments)
+            occluded_in_leaf(bvh, leaf, lanes, active, segments, t_max)
         }
 
         #[allow(unsafe_code)]
@@ -213,9 +215,10 @@ macro_rules! leaf_lanes {
                 lanes: &RayLanes<Self>,
                 active: u32,
                 segments: &[(Ray, f32)],
+                t_max: (&[f32; 16], usize),
             ) -> u32 {
                 // SAFETY: the caller's contract (the host has the instruction set).
-                unsafe { $occluded(bvh, leaf, lanes, active, segments) }
+                unsafe { $occluded(bvh, leaf, lanes, active, segments, t_max) }
             }
         }
     };
@@ -405,9 +408,9 @@ impl<L: RayGroupLanes> BestLanes<L> {
 }
 
 /// Of the shadow segments of `active` (bit i = lane i of `lanes`; `segments[i]` is lane i's
-/// ray and `t_max`), those some triangle of the leaf (`count` `Triangle4`s from `first`) blocks
-/// (a hit with `0 < t < t_max`), as [`super::Bvh::occluded`]'s leaf test decides. Inlined into
-/// the width's entry point.
+/// ray and `t_max`, which `packet_t_max[from + i]` repeats), those some triangle of the leaf
+/// (`count` `Triangle4`s from `first`) blocks (a hit with `0 < t < t_max`), as
+/// [`super::Bvh::occluded`]'s leaf test decides. Inlined into the width's entry point.
 #[inline(always)]
 fn occluded_in_leaf<L: RayGroupLanes>(
     bvh: &Bvh,
@@ -415,14 +418,10 @@ fn occluded_in_leaf<L: RayGroupLanes>(
     lanes: &RayLanes<L>,
     active: u32,
     segments: &[(Ray, f32)],
+    (packet_t_max, from): (&[f32; 16], usize),
 ) -> u32 {
     count_leaf_test(L::LANES);
-    let last = segments.len() - 1;
-    let mut t_max = [0.0f32; 16];
-    for (l, t) in t_max.iter_mut().take(L::LANES).enumerate() {
-        *t = segments[l.min(last)].1;
-    }
-    let t_max = L::load(&t_max);
+    let t_max = L::load_at(packet_t_max, from);
     let mut open = active;
     for p in &bvh.triangles[first..first + count] {
         for lane in 0..p.lanes as usize {

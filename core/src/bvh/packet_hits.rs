@@ -6,9 +6,8 @@
 //! [`super::traverse::ClosestSearch`] and put it back after, so every path offers hits to the
 //! same best hit by the same rule.
 
-use super::ray_packet::{GROUPS, RAY_PACKET};
-use super::simd4::each4;
-use super::traverse::{BestHit, CULL_MARGIN};
+use super::ray_packet::{GROUPS, RAY_PACKET, culling_bounds};
+use super::traverse::BestHit;
 use wide::f32x4;
 
 /// Each ray's [`BestHit`], field by field (ray i at index i; rays past the packet's end keep
@@ -53,11 +52,9 @@ impl PacketHits {
         self.place[i] = h.place;
     }
 
-    /// Each ray's culling bound ([`BestHit::bound`]: the same product, lane by lane), ray i in
-    /// lane i % 4 of group i / 4.
+    /// Each ray's culling bound ([`BestHit::bound`]), ray i in lane i % 4 of group i / 4.
     #[inline(always)]
     pub fn bounds(&self) -> [f32x4; GROUPS] {
-        let margin = f32x4::splat(CULL_MARGIN);
-        each4(|g| f32x4::from(each4(|l| self.t[4 * g + l])) * margin)
+        culling_bounds(&self.t)
     }
 }

@@ -33,7 +33,7 @@ use super::node4::{LEAF, Node4};
 use super::packet_hits::PacketHits;
 use super::simd4::{BoxTester, each3, each4};
 use super::traverse::{
-    ClosestSearch, Entry, FAR_SCALE, ROOT, STACK, STACKS, defer_all_but_nearest,
+    CULL_MARGIN, ClosestSearch, Entry, FAR_SCALE, ROOT, STACK, STACKS, defer_all_but_nearest,
     insert_farthest_first,
 };
 use super::{Bvh, ClosestHit};
@@ -515,6 +515,14 @@ fn lowest(x: f32x4) -> f32 {
     // [min(x0, x2), _, min(x1, x3), _], then the least of its lanes 0 and 2.
     let m = lesser4(x.unpack_lo(x), x.unpack_hi(x));
     lesser4(m, m.unpack_hi(m)).to_array()[0]
+}
+
+/// The culling bounds `t · CULL_MARGIN` of distances `t` (ray i's at `t[i]`), ray i in lane
+/// i % 4 of group i / 4: the scalar product lane by lane, so the same bits.
+#[inline(always)]
+pub(super) fn culling_bounds(t: &[f32; RAY_PACKET]) -> [f32x4; GROUPS] {
+    let margin = f32x4::splat(CULL_MARGIN);
+    each4(|g| f32x4::from(each4(|l| t[4 * g + l])) * margin)
 }
 
 /// The smallest and largest bound among the `active` rays.

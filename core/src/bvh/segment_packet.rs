@@ -19,13 +19,12 @@ use super::lanes::{F32x8, F32x16};
 use super::leaf_lanes::{LeafLanes, PacketLanes};
 use super::node4::LEAF;
 use super::ray_packet::{
-    GROUPS, RAY_PACKET, RAY_PACKET_STACKS, RayPacketEntry, RayPacketTester, bits, bound_range,
-    descend, is_finite,
+    RAY_PACKET, RAY_PACKET_STACKS, RayPacketEntry, RayPacketTester, bits, bound_range,
+    culling_bounds, descend, is_finite,
 };
-use super::simd4::{BoxTester, each4};
+use super::simd4::BoxTester;
 use super::traverse::{Entry, ROOT, STACK, STACKS, ShadowSearch, segment_may_hit};
 use crate::triangle::Ray;
-use wide::f32x4;
 
 /// Wide nodes below which shadow segments are traced one by one: in a tree of a few nodes
 /// there is nothing to share.
@@ -106,11 +105,12 @@ impl Bvh {
         }
         let boxes = RayPacketTester::new(&rays[..segments.len()]);
         let mut searches: [Option<ShadowSearch>; RAY_PACKET] = [None; RAY_PACKET];
-        let mut bounds = [[f32::NEG_INFINITY; 4]; GROUPS];
-        for (i, (_, t_max)) in segments.iter().enumerate() {
-            bounds[i / 4][i % 4] = *t_max * super::traverse::CULL_MARGIN;
+        // Each segment's t_max, in lanes' layout (0 past the packet's end: never active).
+        let mut t_max = [0.0f32; RAY_PACKET];
+        for (t, (_, segment_t_max)) in t_max.iter_mut().zip(segments) {
+            *t = *segment_t_max;
         }
-        let bound = each4(|g| f32x4::from(bounds[g]));
+        let bound = culling_bounds(&t_max);
         // Bounds never change, so their range over the packet holds for any active rays.
         let range = bound_range(&bound, active);
         let mut blocked = 0u32;
@@ -147,13 +147,15 @@ impl Bvh {
                         let rest = if WIDTH == 16 {
                             let lanes = &mut lanes16;
                             occluded_in_lanes::<F32x16>(
-                                self, lanes, leaf, active, segments, blocked,
+                                self, lanes, leaf, active, segments, &t_max, blocked,
                             )
                         } else {
                             active
                         };
                         let lanes = &mut lanes8;
-                        occluded_in_lanes::<F32x8>(self, lanes, leaf, rest, segments, blocked)
+                        occluded_in_lanes::<F32x8>(
+                            self, lanes, leaf, rest, segments, &t_max, blocked,
+                        )
                     }
                     _ => active,
                 };
@@ -198,6 +200,7 @@ fn occluded_in_lanes<L: LeafLanes>(
     leaf: (usize, usize),
     active: u32,
     segments: &[(Ray, f32)],
+    t_max: &[f32; RAY_PACKET],
     blocked: &mut u32,
 ) -> u32 {
     let len = segments.len();
@@ -208,7 +211,8 @@ fn occluded_in_lanes<L: LeafLanes>(
         // kernel width, so on hosts with AVX2, and with AVX-512F too at width 16 (`dispatch.rs`
         // offers `Sixteen` only where both are): the instruction set of `L` either way.
         #[allow(unsafe_code)]
-        let hit = unsafe { L::occluded_in_leaf(bvh, leaf, lanes, group, group_segments) };
+        let hit =
+            unsafe { L::occluded_in_leaf(bvh, leaf, lanes, group, group_segments, (t_max, from)) };
         *blocked |= hit << from;
     })
 }
