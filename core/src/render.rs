@@ -13,7 +13,9 @@ use crate::phase_timer::{NoTimer, Phase, PhaseTimer, PhaseTimes};
 use crate::pipeline::FrameChoice;
 use crate::sampling::PixelSum;
 use crate::scene::{Mesh, NO_NORMAL, Scene, TriangleShading, check_image_size};
-use crate::shading::{SurfacePoint, combine, shadow_tests, surface_point};
+use crate::shading::{
+    FlatHit, FlatShader, ShadowTest, SurfacePoint, combine, shadow_tests, surface_point,
+};
 use crate::texture::TexturedCorners;
 use crate::tiles::{BAND_ROWS, tile_order};
 use crate::triangle::Ray;
@@ -115,7 +117,21 @@ pub fn shading_of(mesh: &Mesh, id: u32) -> TriangleShading {
 /// The shading data of a hit on the scene's triangle `hit.id`.
 #[inline]
 pub fn surface_of(mesh: &Mesh, hit: &ClosestHit, ray: &Ray) -> SurfacePoint {
-    let s = shading_of(mesh, hit.id);
+    surface_with(mesh, &shading_of(mesh, hit.id), hit, ray)
+}
+
+/// The reflectance of the scene's triangle `id` when it is flat (no vertex normals) and
+/// untextured: what [`surface_of`] gives as `kd` for a hit on it.
+#[inline]
+fn flat_kd(mesh: &Mesh, id: u32) -> Option<[f32; 3]> {
+    let i = id as usize;
+    let flat = mesh.triangle_normals[i][0] == NO_NORMAL && mesh.texture_of(i).is_none();
+    flat.then(|| mesh.materials[mesh.triangle_materials[i] as usize].kd)
+}
+
+/// [`surface_of`] given the triangle's shading data `s` ([`shading_of`]).
+#[inline]
+fn surface_with(mesh: &Mesh, s: &TriangleShading, hit: &ClosestHit, ray: &Ray) -> SurfacePoint {
     let kd = match &s.texture {
         None => s.kd,
         Some(t) => t.kd_at(s.kd, &mesh.textures[t.texture as usize], hit.b),
@@ -249,26 +265,56 @@ fn shade_batch_timed(
     hits: &[Option<ClosestHit>],
     timer: &mut impl PhaseTimer,
 ) -> Vec<[f32; 3]> {
-    // The hits' surface points, in sample order, and each one's sample.
-    let (samples, points): (Vec<usize>, Vec<SurfacePoint>) = rays
-        .iter()
-        .zip(hits)
-        .enumerate()
-        .filter_map(|(sample, (ray, hit))| {
-            Some((sample, surface_of(&scene.mesh, hit.as_ref()?, ray)))
-        })
-        .unzip();
-    // Per sample, its lights' tests in light order (the order `combine` sums them in).
-    let most = points.len() * scene.lights.len();
+    // Per hit, in sample order, its lights' tests in light order (the order `combine` sums
+    // them in), and its reflectance. Four hits on flat, untextured triangles are shaded at
+    // once in lanes, other hits one by one: the same tests either way.
+    let samples: Vec<usize> = (0..hits.len()).filter(|&s| hits[s].is_some()).collect();
+    let most = samples.len() * scene.lights.len();
     let mut segments = Vec::with_capacity(most);
     let mut tests = Vec::with_capacity(most);
-    shadow_tests(&points, &scene.lights, |point, light, test| {
+    let mut reflectances = Vec::with_capacity(samples.len());
+    let mut visit = |sample: usize, light: usize, test: ShadowTest| {
         let free = unoccludable[light];
         if !free {
             segments.push((test.ray, test.t_max));
         }
-        tests.push((samples[point], test.unoccluded, free));
-    });
+        tests.push((sample, test.unoccluded, free));
+    };
+    let mut shader = FlatShader::default();
+    let mut points = Vec::with_capacity(4);
+    let hit = |s: usize| hits[s].as_ref().expect("samples with hits");
+    for four in samples.chunks(4) {
+        let flat = |k: usize| four.get(k).and_then(|&s| flat_kd(&scene.mesh, hit(s).id));
+        match (four, [flat(0), flat(1), flat(2), flat(3)]) {
+            (&[s0, s1, s2, s3], [Some(kd0), Some(kd1), Some(kd2), Some(kd3)]) => {
+                let flat_hit = |s: usize, kd: [f32; 3]| FlatHit {
+                    corners: hit(s).corners,
+                    b: hit(s).b,
+                    dir: rays[s].dir,
+                    kd,
+                };
+                let flat_hits = [
+                    flat_hit(s0, kd0),
+                    flat_hit(s1, kd1),
+                    flat_hit(s2, kd2),
+                    flat_hit(s3, kd3),
+                ];
+                reflectances.extend([kd0, kd1, kd2, kd3]);
+                shader.shadow_tests4(&flat_hits, &scene.lights, |k, l, test| {
+                    visit(four[k], l, test)
+                });
+            }
+            _ => {
+                for &s in four {
+                    let point = surface_of(&scene.mesh, hit(s), &rays[s]);
+                    reflectances.push(point.kd);
+                    points.push(point);
+                }
+                shadow_tests(&points, &scene.lights, |p, l, test| visit(four[p], l, test));
+                points.clear();
+            }
+        }
+    }
     let mut traced = vec![false; segments.len()];
     timer.lap(Phase::Shading);
     bvh.occluded_many(&segments, &mut traced);
@@ -276,7 +322,7 @@ fn shade_batch_timed(
     // Each test's answer in test order: unblocked when not traced, else its segment's.
     let mut traced = traced.into_iter();
     let mut next = tests.iter().peekable();
-    let mut reflectances = points.iter().map(|sp| sp.kd);
+    let mut reflectances = reflectances.into_iter();
     let colours = hits
         .iter()
         .enumerate()

@@ -26,7 +26,10 @@ use crate::scene::Light;
 use crate::triangle::{Ray, gamma};
 use glam::{DVec3, Vec3};
 
+mod flat4;
 mod lanes;
+
+pub use flat4::{FlatHit, FlatShader};
 
 /// Fraction of a point light's distance not tested for occluders, at the light's end
 /// (pbrt-v4's ShadowEpsilon): nothing can sit exactly on a point light.
