@@ -16,7 +16,7 @@ mod sobol;
 
 pub use pixel_sum::PixelSum;
 
-use wide::{f64x4, u32x4};
+use wide::{f64x4, i32x4, u32x4};
 
 /// The offset in [0, 1)^2 inside pixel `pixel` (row-major index) of sample `sample` of `spp`:
 /// the pixel centre when `spp <= 1`, else the pixel's point `sample` of the sequence (the same
@@ -77,9 +77,10 @@ impl PixelSamples {
         }
         let index = u32x4::splat(first) + u32x4::from([0, 1, 2, 3]);
         let (x, y) = sobol::points4(index, self.seed_x, self.seed_y);
+        // The top 24 bits fit an i32, whose conversion to f64 is exact (as `f64::from`).
         let unit = |h: u32x4| {
-            let h = (h >> 8u32).to_array().map(f64::from);
-            (f64x4::from(h) * f64x4::splat(UNIT)).to_array()
+            let h = i32x4::from((h >> 8u32).to_array().map(|x| x as i32));
+            (f64x4::from_i32x4(h) * f64x4::splat(UNIT)).to_array()
         };
         let (x, y) = (unit(x), unit(y));
         [0, 1, 2, 3].map(|k| (x[k], y[k]))

@@ -36,8 +36,19 @@ pub(super) fn points4(index: u32x4, seed_x: u32, seed_y: u32) -> (u32x4, u32x4) 
 /// The second Sobol dimension of `index` in reversed bit order (bit 0 is 1/2). Its generator
 /// matrix is Pascal's triangle mod 2: column `k` is `v_k` with `v_0 = 1/2` and
 /// `v_(k+1) = v_k ^ (v_k >> 1)` as a fraction, that is `v_(k+1) = v_k ^ (v_k << 1)` reversed.
+/// Indices below [`SMALL_INDICES`] (every sample of a pixel up to that many) are read from a
+/// table of the same function.
 #[inline(always)]
-fn second_dimension_reversed(mut index: u32) -> u32 {
+fn second_dimension_reversed(index: u32) -> u32 {
+    match SECOND_DIMENSION_REVERSED.get(index as usize) {
+        Some(&out) => out,
+        None => second_dimension_reversed_by_columns(index),
+    }
+}
+
+/// [`second_dimension_reversed`], column by column.
+#[inline(always)]
+const fn second_dimension_reversed_by_columns(mut index: u32) -> u32 {
     let (mut v, mut out) = (1u32, 0u32);
     while index != 0 {
         if index & 1 != 0 {
@@ -49,11 +60,32 @@ fn second_dimension_reversed(mut index: u32) -> u32 {
     out
 }
 
-/// [`second_dimension_reversed`] of four indices: the same columns, each added where the
-/// lane's bit is set, for as many bits as the largest index has.
+/// Indices whose second dimension [`SECOND_DIMENSION_REVERSED`] holds.
+const SMALL_INDICES: usize = 256;
+
+/// [`second_dimension_reversed_by_columns`] of `0..SMALL_INDICES`, made at compile time.
+const SECOND_DIMENSION_REVERSED: [u32; SMALL_INDICES] = {
+    let mut table = [0u32; SMALL_INDICES];
+    let mut i = 0;
+    while i < SMALL_INDICES {
+        table[i] = second_dimension_reversed_by_columns(i as u32);
+        i += 1;
+    }
+    table
+};
+
+/// [`second_dimension_reversed`] of four indices: from the table when every index is in it,
+/// else the same columns, each added where the lane's bit is set, for as many bits as the
+/// largest index has.
 #[inline(always)]
 fn second_dimension_reversed4(index: u32x4) -> u32x4 {
-    let largest = index.to_array().into_iter().max().unwrap_or(0);
+    let lanes = index.to_array();
+    let largest = lanes[0].max(lanes[1]).max(lanes[2].max(lanes[3]));
+    if (largest as usize) < SMALL_INDICES {
+        let t = &SECOND_DIMENSION_REVERSED;
+        let at = |k: usize| t[lanes[k] as usize % SMALL_INDICES];
+        return u32x4::from([at(0), at(1), at(2), at(3)]);
+    }
     let (mut v, mut out) = (1u32, u32x4::splat(0));
     for bit in 0..32 - largest.leading_zeros() {
         // All ones where the lane's bit is set: 0 - 1 wraps to u32::MAX.
