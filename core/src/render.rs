@@ -288,9 +288,9 @@ fn shade_batch_timed(
         match (four, [flat(0), flat(1), flat(2), flat(3)]) {
             (&[s0, s1, s2, s3], [Some(kd0), Some(kd1), Some(kd2), Some(kd3)]) => {
                 let flat_hit = |s: usize, kd: [f32; 3]| FlatHit {
-                    corners: hit(s).corners,
-                    b: hit(s).b,
-                    dir: rays[s].dir,
+                    corners: &hit(s).corners,
+                    b: &hit(s).b,
+                    dir: &rays[s].dir,
                     kd,
                 };
                 let flat_hits = [

@@ -16,14 +16,15 @@ use wide::f32x4;
 
 /// What [`flat_shadow_tests4`] needs of one hit: the triangle's corners, the hit's
 /// barycentrics, the ray's direction and the diffuse reflectance.
+/// (References, not copies: the lanes read each value where the hit and the ray keep it.)
 #[derive(Clone, Copy, Debug)]
-pub struct FlatHit {
+pub struct FlatHit<'a> {
     /// The triangle's corners.
-    pub corners: [Vec3; 3],
+    pub corners: &'a [Vec3; 3],
     /// The hit's barycentrics.
-    pub b: [f32; 3],
+    pub b: &'a [f32; 3],
     /// The ray's direction.
-    pub dir: Vec3,
+    pub dir: &'a Vec3,
     /// Diffuse reflectance.
     pub kd: [f32; 3],
 }
@@ -183,7 +184,7 @@ impl FlatShader {
     #[inline]
     pub fn shadow_tests4(
         &mut self,
-        hits: &[FlatHit; 4],
+        hits: &[FlatHit<'_>; 4],
         lights: &[Light],
         mut visit: impl FnMut(usize, usize, ShadowTest),
     ) {
@@ -207,7 +208,7 @@ impl FlatShader {
             .add(w2.abs())
             .scale(f32x4::splat(gamma(7.0)));
         let n_geo = p1.sub(p0).cross(p2.sub(p0)).normalize_or_zero();
-        let dir = Vec3x4::of([hits[0].dir, hits[1].dir, hits[2].dir, hits[3].dir]);
+        let dir = Vec3x4::of([*hits[0].dir, *hits[1].dir, *hits[2].dir, *hits[3].dir]);
         let n = n_geo.negate_where(n_geo.dot(dir).simd_gt(f32x4::ZERO));
         // As `offset_origin(p, p_error, n, n)`: n·n is never below zero, so the offset keeps
         // its side; the rounding away from the surface is per lane, below.
@@ -287,31 +288,31 @@ mod tests {
         for round in 0..400 {
             let scale = [1e-3f32, 1.0, 3e3][round % 3];
             let mut v = || Vec3::new(r() * 4.0 - 2.0, r() * 2.0 - 1.0, r() * 4.0 - 2.0) * scale;
-            let hits: [FlatHit; 4] = std::array::from_fn(|k| {
-                let mut corners = [v(), v(), v()];
+            let mut corners: [[Vec3; 3]; 4] = std::array::from_fn(|_| [v(), v(), v()]);
+            let mut b = [[0.0f32; 3]; 4];
+            let mut dir = [Vec3::ZERO; 4];
+            let mut kd = [[0.0f32; 3]; 4];
+            for k in 0..4 {
                 if (round + k) % 7 == 0 {
                     // Collinear corners: no geometric normal.
-                    corners[2] = corners[0] + (corners[1] - corners[0]) * 0.5;
+                    corners[k][2] = corners[k][0] + (corners[k][1] - corners[k][0]) * 0.5;
                 }
-                FlatHit {
-                    corners,
-                    b: [0.0, 0.0, 0.0],
-                    dir: Vec3::ZERO,
-                    kd: [0.0; 3],
-                }
-            });
-            let mut hits = hits;
-            for (k, hit) in hits.iter_mut().enumerate() {
-                hit.b = if (round + k) % 5 == 0 {
+                b[k] = if (round + k) % 5 == 0 {
                     [0.0, 1.0, 0.0]
                 } else {
                     let (b1, b2) = (r() * 0.5, r() * 0.5);
                     [1.0 - b1 - b2, b1, b2]
                 };
-                hit.dir = Vec3::new(r() - 0.5, r() - 0.5, r() - 0.5);
-                hit.kd = [r(), r(), r()];
+                dir[k] = Vec3::new(r() - 0.5, r() - 0.5, r() - 0.5);
+                kd[k] = [r(), r(), r()];
             }
-            let first = surface_point(hits[0].corners, hits[0].b, hits[0].dir, None, [1.0; 3]);
+            let hits: [FlatHit<'_>; 4] = std::array::from_fn(|k| FlatHit {
+                corners: &corners[k],
+                b: &b[k],
+                dir: &dir[k],
+                kd: kd[k],
+            });
+            let first = surface_point(corners[0], b[0], dir[0], None, [1.0; 3]);
             let lights = [
                 Light::Point {
                     position: DVec3::new(0.3, 4.0, -0.2) * f64::from(scale),
@@ -333,7 +334,7 @@ mod tests {
             ];
             let mut expected = Vec::new();
             for (k, h) in hits.iter().enumerate() {
-                let sp = surface_point(h.corners, h.b, h.dir, None, h.kd);
+                let sp = surface_point(*h.corners, *h.b, *h.dir, None, h.kd);
                 for (l, light) in lights.iter().enumerate() {
                     if let Some(t) = shadow_test(&sp, light) {
                         expected.push((k, l, bits(&t)));
