@@ -322,27 +322,20 @@ fn shade_batch_timed(
     // Each test's answer in test order: unblocked when not traced, else its segment's.
     let mut traced = traced.into_iter();
     let mut next = tests.iter().peekable();
-    let mut reflectances = reflectances.into_iter();
-    let colours = hits
-        .iter()
-        .enumerate()
-        .map(|(sample, hit)| {
-            let Some(kd) = hit.and_then(|_| reflectances.next()) else {
-                return scene.background;
-            };
-            // This sample's unblocked lights, in light order, straight from the test list (no
-            // per-sample allocation).
-            let contributions = std::iter::from_fn(|| {
-                next.next_if(|(s, _, _)| *s == sample)
-                    .map(|&(_, unoccluded, free)| {
-                        let blocked = !free && traced.next().unwrap_or(false);
-                        (!blocked).then_some(unoccluded)
-                    })
-            })
-            .flatten();
-            combine(kd, contributions, scene.ambient)
+    let mut colours = vec![scene.background; hits.len()];
+    for (&sample, &kd) in samples.iter().zip(&reflectances) {
+        // This sample's unblocked lights, in light order, straight from the test list (no
+        // per-sample allocation).
+        let contributions = std::iter::from_fn(|| {
+            next.next_if(|(s, _, _)| *s == sample)
+                .map(|&(_, unoccluded, free)| {
+                    let blocked = !free && traced.next().unwrap_or(false);
+                    (!blocked).then_some(unoccluded)
+                })
         })
-        .collect();
+        .flatten();
+        colours[sample] = combine(kd, contributions, scene.ambient);
+    }
     timer.lap(Phase::Shading);
     colours
 }
