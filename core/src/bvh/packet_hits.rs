@@ -2,8 +2,8 @@
 //! whole traversal in the layout lanes read and write directly: one array per field, ray i at
 //! index i. The leaf tests in lanes (`leaf_lanes.rs`) load a group's hits with one vector load
 //! per field and store them back the same way; the culling bounds are one vector product per
-//! four rays. Rays that go 4-wide or on alone take their [`BestHit`] into a
-//! [`super::traverse::ClosestSearch`] and put it back after, so every path offers hits to the
+//! four rays. Rays that go 4-wide or on alone lend their [`BestHit`] to a
+//! [`super::traverse::ClosestSearch`] and take it back after, so every path offers hits to the
 //! same best hit by the same rule.
 
 use super::ray_packet::{GROUPS, RAY_PACKET, culling_bounds};
@@ -50,6 +50,25 @@ impl PacketHits {
         }
         self.id[i] = h.id;
         self.place[i] = h.place;
+    }
+
+    /// Hands ray `i`'s best hit to `best`, a search's (the 4-wide leaf test and the single-ray
+    /// traversal run on searches): only its distance and id, all that offering a hit compares
+    /// with. [`Self::take_back`] after the search.
+    #[inline(always)]
+    pub fn lend(&self, i: usize, best: &mut BestHit) {
+        (best.t, best.id) = (self.t[i], self.id[i]);
+    }
+
+    /// Keeps `best`, ray `i`'s search's best hit after [`Self::lend`], when the search found a
+    /// better hit than the one lent (which then holds every field). Fewer moves than a whole
+    /// copy each way, on the 4-wide path, where every leaf goes through a search.
+    #[inline(always)]
+    pub fn take_back(&mut self, i: usize, best: &BestHit) {
+        // Distances are never NaN (+inf or a hit's finite t), so `!=` sees every change.
+        if best.t != self.t[i] || best.id != self.id[i] {
+            self.set(i, *best);
+        }
     }
 
     /// Each ray's culling bound ([`BestHit::bound`]), ray i in lane i % 4 of group i / 4.

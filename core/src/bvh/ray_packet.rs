@@ -382,9 +382,10 @@ impl Bvh {
             if active.count_ones() <= 1 {
                 for i in bits(active) {
                     let single = BoxTester::new(&rays[i]);
-                    let search = resume(&mut searches, &hits, rays, i);
+                    let search = searches[i].get_or_insert_with(|| ClosestSearch::new(&rays[i]));
+                    hits.lend(i, &mut search.best);
                     self.closest_from((child, triangle4_count), &single, search, ray_stack);
-                    hits.set(i, search.best);
+                    hits.take_back(i, &search.best);
                 }
                 bound = hits.bounds();
                 range = bound_range(&bound, all_rays);
@@ -416,9 +417,10 @@ impl Bvh {
                 #[cfg(not(target_arch = "x86_64"))]
                 let rest = active;
                 for i in bits(rest) {
-                    let search = resume(&mut searches, &hits, rays, i);
+                    let search = searches[i].get_or_insert_with(|| ClosestSearch::new(&rays[i]));
+                    hits.lend(i, &mut search.best);
                     self.closest_in_leaf(leaf.0, leaf.1, search);
-                    hits.set(i, search.best);
+                    hits.take_back(i, &search.best);
                 }
                 bound = hits.bounds();
                 range = bound_range(&bound, all_rays);
@@ -442,20 +444,6 @@ impl Bvh {
             }
         }
     }
-}
-
-/// Ray `i`'s search, made the first time it is needed, holding the ray's best hit from
-/// `hits`: the 4-wide leaf test and the single-ray traversal continue from it.
-#[inline(always)]
-fn resume<'s>(
-    searches: &'s mut [Option<ClosestSearch>; RAY_PACKET],
-    hits: &PacketHits,
-    rays: &[Ray],
-    i: usize,
-) -> &'s mut ClosestSearch {
-    let search = searches[i].get_or_insert_with(|| ClosestSearch::new(&rays[i]));
-    search.best = hits.get(i);
-    search
 }
 
 /// The leaf `(first Triangle4, count)` in lanes of `L` for the groups of `active` where that
