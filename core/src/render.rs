@@ -267,7 +267,8 @@ fn shade_batch_timed(
 ) -> Vec<[f32; 3]> {
     // Per hit, in sample order, its lights' tests in light order (the order `combine` sums
     // them in), and its reflectance. Four hits on flat, untextured triangles are shaded at
-    // once in lanes, other hits one by one: the same tests either way.
+    // once in lanes; any other group of four goes through its surface points: the same tests
+    // either way.
     let samples: Vec<usize> = (0..hits.len()).filter(|&s| hits[s].is_some()).collect();
     let most = samples.len() * scene.lights.len();
     let mut segments = Vec::with_capacity(most);

@@ -405,7 +405,7 @@ mod tests {
     }
 
     /// A small deterministic generator (xorshift) for the randomised tests.
-    fn rng(seed: u64) -> impl FnMut() -> f32 {
+    pub(super) fn rng(seed: u64) -> impl FnMut() -> f32 {
         let mut x = seed;
         move || {
             x ^= x << 13;

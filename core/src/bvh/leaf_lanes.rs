@@ -10,8 +10,9 @@
 //! watertight test of [`crate::triangle::intersect`] in its order of operations (`simd4.rs`,
 //! `edges`, over [`Lanes`]), which needs the lanes' rays to permute the axes alike (the
 //! packet's group falls back to the 4-wide path otherwise); lanes only the scalar test can
-//! decide go to it; and each lane keeps its best hit by [`super::traverse::BestHit::beaten_by`]'s rule
-//! (smaller t, then smaller id), whose winner does not depend on the order of the hits.
+//! decide go to it; and each lane keeps its best hit by the rule of
+//! [`super::traverse::BestHit::beaten_by`] (smaller t, then smaller id), whose winner does not
+//! depend on the order of the hits.
 //!
 //! The code is written once over [`RayGroupLanes`]; the entry points of each width are thin
 //! functions compiled for its instruction set (the `*8` ones for AVX2, the `*16` ones for

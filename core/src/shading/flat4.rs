@@ -255,18 +255,9 @@ impl FlatShader {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::shading::tests::rng;
     use crate::shading::{shadow_test, surface_point};
     use glam::DVec3;
-
-    /// A deterministic stream of floats in [0, 1).
-    fn rng(mut state: u64) -> impl FnMut() -> f32 {
-        move || {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (state >> 40) as f32 / (1u64 << 24) as f32
-        }
-    }
 
     /// Each test's bits: origin, direction, t_max, radiance.
     fn bits(t: &ShadowTest) -> Vec<u32> {
