@@ -246,16 +246,23 @@ fn shadow_test_at(sp: &SurfacePoint, light: &Light, incidence: Incidence) -> Opt
     // flat triangle that is the light's side, as the spawn toward the light would give.
     let origin = offset_origin(sp.p_shadow, sp.p_shadow_error, sp.n_geo, sp.n_geo);
     let (ray, t_max) = shadow_ray(light, origin);
-    let f = std::f32::consts::FRAC_1_PI * cos;
     Some(ShadowTest {
         ray,
         t_max,
-        unoccluded: [
-            sp.kd[0] * f * irradiance[0],
-            sp.kd[1] * f * irradiance[1],
-            sp.kd[2] * f * irradiance[2],
-        ],
+        unoccluded: unoccluded_radiance(sp.kd, cos, irradiance),
     })
+}
+
+/// The radiance per channel a light adds toward the viewer when unblocked: kd/pi · E at
+/// cosine `cos`, evaluated as `kd · (cos/pi) · E`.
+#[inline(always)]
+fn unoccluded_radiance(kd: [f32; 3], cos: f32, irradiance: [f32; 3]) -> [f32; 3] {
+    let f = std::f32::consts::FRAC_1_PI * cos;
+    [
+        kd[0] * f * irradiance[0],
+        kd[1] * f * irradiance[1],
+        kd[2] * f * irradiance[2],
+    ]
 }
 
 /// Every light's [`shadow_test`] at every point of `points`, handed to `visit(point, light,
@@ -339,7 +346,13 @@ fn offset_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
     if w.dot(n) < 0.0 {
         offset = -offset;
     }
-    let mut po = p + offset;
+    round_away(p + offset, offset)
+}
+
+/// `po` moved one ulp further along `offset`'s sign on each axis (none where it is zero), so
+/// the rounding of `p + offset` cannot bring the point back toward the surface.
+#[inline(always)]
+fn round_away(mut po: Vec3, offset: Vec3) -> Vec3 {
     for i in 0..3 {
         if offset[i] > 0.0 {
             po[i] = po[i].next_up();

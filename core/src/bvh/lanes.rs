@@ -122,9 +122,10 @@ pub(super) trait RayGroupLanes: Lanes {
     /// Lanes, and rays of a group: 8 or 16.
     const LANES: usize;
     /// Lanes from the first [`Self::LANES`] values of `x`.
-    fn load(x: &[f32; 16]) -> Self;
-    /// Lanes holding the bit patterns of the first [`Self::LANES`] values of `x`.
-    fn load_bits(x: &[u32; 16]) -> Self;
+    #[inline(always)]
+    fn load(x: &[f32; 16]) -> Self {
+        Self::load_at(x, 0)
+    }
     /// The lanes, then zeros.
     #[cfg(test)]
     #[inline(always)]
@@ -176,18 +177,6 @@ mod avx {
 
     impl RayGroupLanes for F32x8 {
         const LANES: usize = 8;
-
-        #[inline(always)]
-        fn load(x: &[f32; 16]) -> Self {
-            // SAFETY: AVX is available (see the type's contract); `x` holds at least 8 floats.
-            F32x8(unsafe { _mm256_loadu_ps(x.as_ptr()) })
-        }
-
-        #[inline(always)]
-        fn load_bits(x: &[u32; 16]) -> Self {
-            // SAFETY: AVX is available (see the type's contract); `x` holds at least 8 words.
-            F32x8(unsafe { _mm256_castsi256_ps(_mm256_loadu_si256(x.as_ptr().cast())) })
-        }
 
         #[inline(always)]
         fn load_at(x: &[f32; 16], from: usize) -> Self {
@@ -383,27 +372,17 @@ mod avx512 {
         const LANES: usize = 16;
 
         #[inline(always)]
-        fn load(x: &[f32; 16]) -> Self {
+        fn load_at(x: &[f32; 16], from: usize) -> Self {
+            assert_eq!(from, 0, "sixteen lanes of 16");
             // SAFETY: AVX-512F is available (see the type's contract); `x` holds 16 floats.
             F32x16(unsafe { _mm512_loadu_ps(x.as_ptr()) })
         }
 
         #[inline(always)]
-        fn load_bits(x: &[u32; 16]) -> Self {
-            // SAFETY: AVX-512F is available (see the type's contract); `x` holds 16 words.
-            Self::from_bits(unsafe { _mm512_loadu_si512(x.as_ptr().cast()) })
-        }
-
-        #[inline(always)]
-        fn load_at(x: &[f32; 16], from: usize) -> Self {
-            assert_eq!(from, 0, "sixteen lanes of 16");
-            Self::load(x)
-        }
-
-        #[inline(always)]
         fn load_bits_at(x: &[u32; 16], from: usize) -> Self {
             assert_eq!(from, 0, "sixteen lanes of 16");
-            Self::load_bits(x)
+            // SAFETY: AVX-512F is available (see the type's contract); `x` holds 16 words.
+            Self::from_bits(unsafe { _mm512_loadu_si512(x.as_ptr().cast()) })
         }
 
         #[inline(always)]

@@ -371,8 +371,7 @@ impl Bvh {
         // Each ray's culling bound in lanes and their range over the packet, remade only when
         // a bound can change (after leaves and single rays).
         let all_rays = (1u32 << rays.len()) - 1;
-        let mut bound = hits.bounds();
-        let mut range = bound_range(&bound, all_rays);
+        let (mut bound, mut range) = hits.bounds(all_rays);
         let mut depth = 0usize;
         let (mut child, mut triangle4_count) = ROOT;
         let mut active = all_rays;
@@ -387,8 +386,7 @@ impl Bvh {
                     self.closest_from((child, triangle4_count), &single, search, ray_stack);
                     hits.take_back(i, &search.best);
                 }
-                bound = hits.bounds();
-                range = bound_range(&bound, all_rays);
+                (bound, range) = hits.bounds(all_rays);
             } else if child & LEAF == 0 {
                 let node = &self.wide[child as usize];
                 let (enter, entry) = boxes.enter_children(node, active, &bound, range);
@@ -422,8 +420,7 @@ impl Bvh {
                     self.closest_in_leaf(leaf.0, leaf.1, search);
                     hits.take_back(i, &search.best);
                 }
-                bound = hits.bounds();
-                range = bound_range(&bound, all_rays);
+                (bound, range) = hits.bounds(all_rays);
             }
             // Pop the next child with the rays that may still find a better hit in it: a ray
             // whose bound is below the child's entry bound would fail its box test now.

@@ -8,13 +8,13 @@
 //! the scalar code.
 
 use super::lanes::point_incidences4;
-use super::{Incidence, ShadowTest, incidence, shadow_ray};
+use super::{Incidence, ShadowTest, incidence, round_away, shadow_ray, unoccluded_radiance};
 use crate::scene::Light;
 use crate::triangle::gamma;
 use glam::Vec3;
 use wide::f32x4;
 
-/// What [`flat_shadow_tests4`] needs of one hit: the triangle's corners, the hit's
+/// What [`FlatShader::shadow_tests4`] needs of one hit: the triangle's corners, the hit's
 /// barycentrics, the ray's direction and the diffuse reflectance.
 /// (References, not copies: the lanes read each value where the hit and the ray keep it.)
 #[derive(Clone, Copy, Debug)]
@@ -222,29 +222,22 @@ impl FlatShader {
             (lanes, cos)
         }));
         for (k, hit) in hits.iter().enumerate() {
-            let mut origin = origins[k];
-            for a in 0..3 {
-                if offsets[k][a] > 0.0 {
-                    origin[a] = origin[a].next_up();
-                } else if offsets[k][a] < 0.0 {
-                    origin[a] = origin[a].next_down();
-                }
-            }
+            let origin = round_away(origins[k], offsets[k]);
             for (l, (light, (lanes, cos))) in lights.iter().zip(&self.lit).enumerate() {
                 let cos = cos[k];
                 if !lanes.valid[k] || cos <= 0.0 {
                     continue;
                 }
                 let (ray, t_max) = shadow_ray(light, origin);
-                let f = std::f32::consts::FRAC_1_PI * cos;
-                let e = |c: usize| hit.kd[c] * f * lanes.irradiance[c][k];
+                let e = &lanes.irradiance;
+                let irradiance = [e[0][k], e[1][k], e[2][k]];
                 visit(
                     k,
                     l,
                     ShadowTest {
                         ray,
                         t_max,
-                        unoccluded: [e(0), e(1), e(2)],
+                        unoccluded: unoccluded_radiance(hit.kd, cos, irradiance),
                     },
                 );
             }
