@@ -22,6 +22,7 @@ use super::Bvh;
 use super::lanes::{F32x8, F32x16, RayGroupLanes};
 use super::node4::Triangle4;
 use super::packet_hits::PacketHits;
+use super::packet_rays::PacketRays;
 use super::ray_packet::{RAY_PACKET, bits};
 use super::simd4::{any_hit_verdict, closest_verdict, edges};
 use super::traverse::scalar_hit;
@@ -65,22 +66,18 @@ pub(super) struct RayLanes<L> {
 }
 
 impl<L: RayGroupLanes> RayLanes<L> {
-    /// Rays `ray(0..count)` (`count` in 1..=LANES) in lanes, with exactly
+    /// Rays `from..from + LANES` of `rays` in lanes, with exactly
     /// [`crate::triangle::RayPrep::new`]'s permutation and shear for each; `None` when the rays
     /// permute the axes differently (their largest direction components differ in axis or
     /// sign). Inlined into the width's entry point ([`ray_lanes8`], [`ray_lanes16`]).
     #[inline(always)]
-    fn new<'a>(count: usize, ray: impl Fn(usize) -> &'a Ray) -> Option<Self> {
-        let mut dir = [[0.0f32; 16]; 3];
-        let mut origin = [[0.0f32; 16]; 3];
-        for l in 0..L::LANES {
-            let r = ray(l.min(count - 1));
-            for a in 0..3 {
-                dir[a][l] = r.dir[a];
-                origin[a][l] = r.origin[a];
-            }
-        }
-        let dir: [L; 3] = [L::load(&dir[0]), L::load(&dir[1]), L::load(&dir[2])];
+    fn new(rays: &PacketRays, from: usize) -> Option<Self> {
+        let (dir, origin) = (&rays.dir, &rays.origin);
+        let dir: [L; 3] = [
+            L::load_at(&dir[0], from),
+            L::load_at(&dir[1], from),
+            L::load_at(&dir[2], from),
+        ];
         let [ax, ay, az] = [dir[0].abs(), dir[1].abs(), dir[2].abs()];
         // As `RayPrep::new`: z is x when |x| > |y| and |x| > |z|, else y when |y| > |z|, else z.
         let all = (1u32 << L::LANES) - 1;
@@ -104,9 +101,9 @@ impl<L: RayGroupLanes> RayLanes<L> {
         Some(RayLanes {
             axes: [kx, ky, kz],
             origin: [
-                L::load(&origin[kx]),
-                L::load(&origin[ky]),
-                L::load(&origin[kz]),
+                L::load_at(&origin[kx], from),
+                L::load_at(&origin[ky], from),
+                L::load_at(&origin[kz], from),
             ],
             shear: [dir[kx] / dz, dir[ky] / dz, L::splat(1.0) / dz],
         })
@@ -127,22 +124,21 @@ impl<L: RayGroupLanes> RayLanes<L> {
 
 /// [`RayLanes::new`] of eight rays. Call only on hosts with AVX2.
 #[target_feature(enable = "avx2")]
-fn ray_lanes8<'a>(count: usize, ray: impl Fn(usize) -> &'a Ray) -> Option<RayLanes<F32x8>> {
-    RayLanes::new(count, ray)
+fn ray_lanes8(rays: &PacketRays, from: usize) -> Option<RayLanes<F32x8>> {
+    RayLanes::new(rays, from)
 }
 
 /// [`RayLanes::new`] of sixteen rays. Call only on hosts with AVX-512F.
 #[target_feature(enable = "avx512f")]
-fn ray_lanes16<'a>(count: usize, ray: impl Fn(usize) -> &'a Ray) -> Option<RayLanes<F32x16>> {
-    RayLanes::new(count, ray)
+fn ray_lanes16(rays: &PacketRays, from: usize) -> Option<RayLanes<F32x16>> {
+    RayLanes::new(rays, from)
 }
 
 /// What each group width runs at a leaf, through its instruction set's entry points.
 #[allow(unsafe_code)]
 pub(super) trait LeafLanes: RayGroupLanes {
     /// [`RayLanes::new`]. Call only on hosts with the width's instruction set.
-    unsafe fn ray_lanes<'a>(count: usize, ray: impl Fn(usize) -> &'a Ray)
-    -> Option<RayLanes<Self>>;
+    unsafe fn ray_lanes(rays: &PacketRays, from: usize) -> Option<RayLanes<Self>>;
     /// [`closest_in_leaf`]. Call only on hosts with the width's instruction set.
     unsafe fn closest_in_leaf(
         bvh: &Bvh,
@@ -192,12 +188,9 @@ macro_rules! leaf_lanes {
 
         #[allow(unsafe_code)]
         impl LeafLanes for $lanes {
-            unsafe fn ray_lanes<'a>(
-                count: usize,
-                ray: impl Fn(usize) -> &'a Ray,
-            ) -> Option<RayLanes<Self>> {
+            unsafe fn ray_lanes(rays: &PacketRays, from: usize) -> Option<RayLanes<Self>> {
                 // SAFETY: the caller's contract (the host has the instruction set).
-                unsafe { $ray_lanes(count, ray) }
+                unsafe { $ray_lanes(rays, from) }
             }
             unsafe fn closest_in_leaf(
                 bvh: &Bvh,
@@ -240,49 +233,57 @@ leaf_lanes!(
     occluded_in_leaf16
 );
 
-/// A packet's groups of rays in lanes (two of eight, or one of sixteen), each made when the
-/// group first meets a leaf in lanes (`None` inside: its rays permute the axes differently, so
-/// it stays 4-wide).
-pub(super) struct PacketLanes<L>([Option<Option<RayLanes<L>>>; 2]);
+/// A packet's groups of rays in lanes (two of eight, or one of sixteen), each made from the
+/// packet's rays when the group first meets a leaf in lanes (`None` inside: its rays permute
+/// the axes differently, so it stays 4-wide).
+pub(super) struct PacketLanes<'r, L> {
+    rays: &'r PacketRays,
+    groups: [Option<Option<RayLanes<L>>>; 2],
+}
 
-impl<L> Default for PacketLanes<L> {
-    fn default() -> Self {
-        PacketLanes([None, None])
+impl<'r, L> PacketLanes<'r, L> {
+    /// No group made yet, of the packet whose rays are `rays`.
+    pub fn new(rays: &'r PacketRays) -> Self {
+        PacketLanes {
+            rays,
+            groups: [None, None],
+        }
     }
 }
 
-impl<L: LeafLanes> PacketLanes<L> {
+impl<L: LeafLanes> PacketLanes<'_, L> {
     /// Calls `test(from, group, lanes)` for each group of `L::LANES` rays of `active` that
     /// meets the leaf `(first Triangle4, count)` in lanes: the packet's rays `from..from +
     /// LANES`, bit i of `group` standing for ray `from + i`, where that takes fewer tests than
     /// the 4-wide path ([`pays_in_lanes`]) and the group's rays permute the axes alike. Returns
-    /// the rays of `active` left for the 4-wide path. `ray(i)` is ray i of the packet's `len`.
+    /// the rays of `active` left for the 4-wide path.
     /// Only on hosts with the instruction set of `L`: at kernel width 8 or 16 for eight lanes
     /// (AVX2), at width 16 for sixteen (AVX-512F).
     #[inline(always)]
-    pub fn by_groups<'r>(
+    pub fn by_groups(
         &mut self,
         bvh: &Bvh,
         leaf: (usize, usize),
         active: u32,
-        len: usize,
-        ray: impl Fn(usize) -> &'r Ray,
         mut test: impl FnMut(usize, u32, &RayLanes<L>),
     ) -> u32 {
         let mut rest = active;
         let all = (1u32 << L::LANES) - 1;
-        for (g, slot) in self.0.iter_mut().take(RAY_PACKET / L::LANES).enumerate() {
+        for (g, slot) in self
+            .groups
+            .iter_mut()
+            .take(RAY_PACKET / L::LANES)
+            .enumerate()
+        {
             let from = g * L::LANES;
             let group = (active >> from) & all;
             if !pays_in_lanes(bvh, leaf, group, L::LANES) {
                 continue;
             }
-            let count = len.min(from + L::LANES) - from;
             // SAFETY: callers reach this only at a kernel width that implies the instruction
             // set of `L` (8 or 16 for AVX2, 16 for AVX-512F; `dispatch.rs`).
             #[allow(unsafe_code)]
-            let lanes =
-                slot.get_or_insert_with(|| unsafe { L::ray_lanes(count, |i| ray(from + i)) });
+            let lanes = slot.get_or_insert_with(|| unsafe { L::ray_lanes(self.rays, from) });
             let Some(lanes) = lanes else {
                 continue;
             };
@@ -476,7 +477,9 @@ mod tests {
         p: &Triangle4,
         t_max: &[f32; 16],
     ) -> Option<Verdicts> {
-        let lanes = RayLanes::<L>::new(rays.len(), |i| &rays[i])?;
+        let mut packet_rays = PacketRays::EMPTY;
+        packet_rays.fill(rays, |ray| ray);
+        let lanes = RayLanes::<L>::new(&packet_rays, 0)?;
         let valid = (1u32 << rays.len()) - 1;
         let e = edges(&lanes.origin, &lanes.shear, &lanes.corners(p, 0));
         let t_max = L::load(t_max);

@@ -34,6 +34,7 @@ mod lanes;
 mod leaf_lanes;
 mod node4;
 mod packet_hits;
+mod packet_rays;
 mod parts;
 mod ray_packet;
 mod refit;

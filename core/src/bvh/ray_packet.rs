@@ -31,6 +31,7 @@ use super::lanes::{greater4, lesser4};
 use super::leaf_lanes::{LeafLanes, PacketLanes};
 use super::node4::{LEAF, Node4};
 use super::packet_hits::PacketHits;
+use super::packet_rays::PacketRays;
 use super::simd4::{BoxTester, each3, each4};
 use super::traverse::{
     CULL_MARGIN, ClosestSearch, Entry, FAR_SCALE, ROOT, STACK, STACKS, defer_all_but_nearest,
@@ -92,27 +93,12 @@ pub(super) struct RayPacketTester {
 }
 
 impl RayPacketTester {
-    /// `rays` holds 1..=RAY_PACKET rays with finite origins and directions; lanes past the end
-    /// repeat the last ray (and are never active).
-    pub(super) fn new(rays: &[Ray]) -> Self {
-        match <&[Ray; RAY_PACKET]>::try_from(rays) {
-            // A full packet (the common case) reads each ray at a fixed place.
-            Ok(full) => Self::of(|i| &full[i]),
-            Err(_) => {
-                let last = rays.len() - 1;
-                Self::of(|i| &rays[i.min(last)])
-            }
-        }
-    }
-
-    /// [`Self::new`] of the packet whose ray `i` (`0..RAY_PACKET`) is `ray(i)`.
-    #[inline(always)]
-    fn of<'a>(ray: impl Fn(usize) -> &'a Ray) -> Self {
-        let dir = |g: usize, a: usize| f32x4::from(each4(|l| ray(4 * g + l).dir[a]));
-        let origin: [[f32x4; 3]; GROUPS] =
-            each4(|g| each3(|a| f32x4::from(each4(|l| ray(4 * g + l).origin[a]))));
+    /// `rays` holds the packet's rays, with finite origins and directions (places past the
+    /// last ray repeat it, and are never active).
+    pub(super) fn new(rays: &PacketRays) -> Self {
+        let origin: [[f32x4; 3]; GROUPS] = each4(|g| each3(|a| rays.origin4(a, g)));
         // The same correctly rounded division as the single-ray testers (`Vec3::ONE / dir`).
-        let inv_dir: [[f32x4; 3]; GROUPS] = each4(|g| each3(|a| f32x4::ONE / dir(g, a)));
+        let inv_dir: [[f32x4; 3]; GROUPS] = each4(|g| each3(|a| f32x4::ONE / rays.dir4(a, g)));
         // Directions are finite (`is_coherent`), so 1/d is never zero or NaN: its sign bit is
         // set exactly when it is below zero.
         let near_hi = each4(|g| each3(|a| inv_dir[g][a].simd_lt(f32x4::ZERO)));
@@ -337,9 +323,11 @@ impl Bvh {
         stack: &mut [RayPacketEntry; STACK],
         ray_stack: &mut [Entry; STACK],
     ) {
+        let mut packet_rays = PacketRays::EMPTY;
         for (rays, out) in rays.chunks(RAY_PACKET).zip(out.chunks_mut(RAY_PACKET)) {
             if rays.iter().all(is_finite) {
-                self.trace_closest_packet::<WIDTH>(rays, out, stack, ray_stack);
+                packet_rays.fill(rays, |ray| ray);
+                self.trace_closest_packet::<WIDTH>(rays, &packet_rays, out, stack, ray_stack);
             } else {
                 for (ray, out) in rays.iter().zip(out) {
                     *out = self.closest_hit_with(ray, ray_stack);
@@ -348,16 +336,18 @@ impl Bvh {
         }
     }
 
-    /// [`Bvh::closest_hits`] of one packet of 1..=[`RAY_PACKET`] finite rays.
+    /// [`Bvh::closest_hits`] of one packet of 1..=[`RAY_PACKET`] finite rays, also held in
+    /// `packet_rays`.
     #[inline(always)]
     fn trace_closest_packet<const WIDTH: usize>(
         &self,
         rays: &[Ray],
+        packet_rays: &PacketRays,
         out: &mut [Option<ClosestHit>],
         stack: &mut [RayPacketEntry; STACK],
         ray_stack: &mut [Entry; STACK],
     ) {
-        let boxes = RayPacketTester::new(rays);
+        let boxes = RayPacketTester::new(packet_rays);
         // A packet that misses every child of the root (background) needs no per-ray setup.
         let (some, _, _) = boxes.test_hull(&self.wide[0], f32::INFINITY, f32::INFINITY);
         if some == 0 {
@@ -376,7 +366,8 @@ impl Bvh {
         let (mut child, mut triangle4_count) = ROOT;
         let mut active = all_rays;
         #[cfg(target_arch = "x86_64")]
-        let (mut lanes8, mut lanes16) = (PacketLanes::default(), PacketLanes::default());
+        let (mut lanes8, mut lanes16) =
+            (PacketLanes::new(packet_rays), PacketLanes::new(packet_rays));
         loop {
             if active.count_ones() <= 1 {
                 for i in bits(active) {
@@ -451,14 +442,13 @@ impl Bvh {
 #[inline(always)]
 fn closest_in_lanes<L: LeafLanes>(
     bvh: &Bvh,
-    packet_lanes: &mut PacketLanes<L>,
+    packet_lanes: &mut PacketLanes<'_, L>,
     leaf: (usize, usize),
     active: u32,
     rays: &[Ray],
     hits: &mut PacketHits,
 ) -> u32 {
-    let ray = |i: usize| &rays[i];
-    packet_lanes.by_groups(bvh, leaf, active, rays.len(), ray, |from, group, lanes| {
+    packet_lanes.by_groups(bvh, leaf, active, |from, group, lanes| {
         // SAFETY: only `closest_packets::<8>` and `::<16>` reach this, which run only at their
         // kernel width, so on hosts with AVX2, and with AVX-512F too at width 16 (`dispatch.rs`
         // offers `Sixteen` only where both are): the instruction set of `L` either way.

@@ -18,6 +18,7 @@ use super::lanes::{F32x8, F32x16};
 #[cfg(target_arch = "x86_64")]
 use super::leaf_lanes::{LeafLanes, PacketLanes};
 use super::node4::LEAF;
+use super::packet_rays::PacketRays;
 use super::ray_packet::{
     RAY_PACKET, RAY_PACKET_STACKS, RayPacketEntry, RayPacketTester, bits, bound_range,
     culling_bounds, descend, is_finite,
@@ -70,8 +71,9 @@ impl Bvh {
         stack: &mut [RayPacketEntry; STACK],
         ray_stack: &mut [Entry; STACK],
     ) {
+        let mut packet_rays = PacketRays::EMPTY;
         for (rays, out) in rays.chunks(RAY_PACKET).zip(out.chunks_mut(RAY_PACKET)) {
-            self.trace_segment_packet::<WIDTH>(rays, out, stack, ray_stack);
+            self.trace_segment_packet::<WIDTH>(rays, &mut packet_rays, out, stack, ray_stack);
         }
     }
 
@@ -80,16 +82,15 @@ impl Bvh {
     fn trace_segment_packet<const WIDTH: usize>(
         &self,
         segments: &[(Ray, f32)],
+        packet_rays: &mut PacketRays,
         out: &mut [bool],
         stack: &mut [RayPacketEntry; STACK],
         ray_stack: &mut [Entry; STACK],
     ) {
         let root = self.bounds();
-        let mut rays = [segments[0].0; RAY_PACKET];
         // Rays still to trace: the root test of `occluded` and finite inputs (others go alone).
         let mut active = 0u32;
         for (i, (ray, t_max)) in segments.iter().enumerate() {
-            rays[i] = *ray;
             out[i] = false;
             if segment_may_hit(&root, ray, *t_max) {
                 active |= 1 << i;
@@ -103,7 +104,8 @@ impl Bvh {
             }
             return;
         }
-        let boxes = RayPacketTester::new(&rays[..segments.len()]);
+        packet_rays.fill(segments, |(ray, _)| ray);
+        let boxes = RayPacketTester::new(packet_rays);
         let mut searches: [Option<ShadowSearch>; RAY_PACKET] = [None; RAY_PACKET];
         // Each segment's t_max, in lanes' layout (0 past the packet's end: never active).
         let mut t_max = [0.0f32; RAY_PACKET];
@@ -117,7 +119,8 @@ impl Bvh {
         let mut depth = 0usize;
         let (mut child, mut triangle4_count) = ROOT;
         #[cfg(target_arch = "x86_64")]
-        let (mut lanes8, mut lanes16) = (PacketLanes::default(), PacketLanes::default());
+        let (mut lanes8, mut lanes16) =
+            (PacketLanes::new(packet_rays), PacketLanes::new(packet_rays));
         loop {
             if active.count_ones() <= 1 {
                 for i in bits(active) {
@@ -196,7 +199,7 @@ impl Bvh {
 #[inline(always)]
 fn occluded_in_lanes<L: LeafLanes>(
     bvh: &Bvh,
-    packet_lanes: &mut PacketLanes<L>,
+    packet_lanes: &mut PacketLanes<'_, L>,
     leaf: (usize, usize),
     active: u32,
     segments: &[(Ray, f32)],
@@ -204,8 +207,7 @@ fn occluded_in_lanes<L: LeafLanes>(
     blocked: &mut u32,
 ) -> u32 {
     let len = segments.len();
-    let ray = |i: usize| &segments[i].0;
-    packet_lanes.by_groups(bvh, leaf, active, len, ray, |from, group, lanes| {
+    packet_lanes.by_groups(bvh, leaf, active, |from, group, lanes| {
         let group_segments = &segments[from..len.min(from + L::LANES)];
         // SAFETY: only `segment_packets::<8>` and `::<16>` reach this, which run only at their
         // kernel width, so on hosts with AVX2, and with AVX-512F too at width 16 (`dispatch.rs`
