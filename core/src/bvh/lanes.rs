@@ -31,8 +31,6 @@ pub(super) trait Lanes:
     fn cmp_le(self, other: Self) -> Self;
     fn cmp_gt(self, other: Self) -> Self;
     /// Per lane of the mask `self`: `if_true` where it is set, else `if_false`.
-    // Only the 8-wide leaves (x86-64) select through the trait.
-    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     fn select(self, if_true: Self, if_false: Self) -> Self;
     /// Bit i set when lane i of the mask is set.
     fn bitmask(self) -> u32;
@@ -113,13 +111,12 @@ pub(super) use avx::F32x8;
 #[cfg(target_arch = "x86_64")]
 pub(super) use avx512::F32x16;
 
-/// Lanes that hold one ray of a packet's group each at the leaves (`leaf_lanes.rs`): eight
-/// ([`F32x8`]) or sixteen ([`F32x16`]). Values move through arrays of sixteen, of which the
-/// first [`RayGroupLanes::LANES`] are the lanes (the rest read as nothing and write as zeros).
+/// Lanes that hold one ray of a packet's group each at the leaves (`leaf_lanes.rs`): four
+/// ([`f32x4`], every host), eight ([`F32x8`]) or sixteen ([`F32x16`]). Values move through
+/// arrays of sixteen, of which [`RayGroupLanes::LANES`] from a group's first ray are the lanes.
 /// Only code compiled with the type's instruction set may make or use one (see each type).
-#[cfg(target_arch = "x86_64")]
 pub(super) trait RayGroupLanes: Lanes {
-    /// Lanes, and rays of a group: 8 or 16.
+    /// Lanes, and rays of a group: 4, 8 or 16.
     const LANES: usize;
     /// Lanes from the first [`Self::LANES`] values of `x`.
     #[inline(always)]
@@ -156,6 +153,45 @@ pub(super) trait RayGroupLanes: Lanes {
     fn lane_mask(bits: u32) -> Self;
     /// Lanes (holding `u32` bit patterns) whose value is above `x`, unsigned.
     fn u32_above(self, x: u32) -> Self;
+}
+
+impl RayGroupLanes for f32x4 {
+    const LANES: usize = 4;
+
+    #[inline(always)]
+    fn load_at(x: &[f32; 16], from: usize) -> Self {
+        let four: [f32; 4] = x[from..from + 4].try_into().expect("four lanes");
+        f32x4::from(four)
+    }
+
+    #[inline(always)]
+    fn load_bits_at(x: &[u32; 16], from: usize) -> Self {
+        let four: [u32; 4] = x[from..from + 4].try_into().expect("four lanes");
+        wide::bytemuck::cast(four)
+    }
+
+    #[inline(always)]
+    fn store_at(self, x: &mut [f32; 16], from: usize) {
+        x[from..from + 4].copy_from_slice(&self.to_array());
+    }
+
+    #[inline(always)]
+    fn store_bits_at(self, x: &mut [u32; 16], from: usize) {
+        let four: [u32; 4] = wide::bytemuck::cast(self);
+        x[from..from + 4].copy_from_slice(&four);
+    }
+
+    #[inline(always)]
+    fn lane_mask(bits: u32) -> Self {
+        let lane = |i: u32| if bits & (1 << i) != 0 { u32::MAX } else { 0 };
+        wide::bytemuck::cast([lane(0), lane(1), lane(2), lane(3)])
+    }
+
+    #[inline(always)]
+    fn u32_above(self, x: u32) -> Self {
+        let lanes: wide::u32x4 = wide::bytemuck::cast(self);
+        wide::bytemuck::cast(lanes.simd_gt(wide::u32x4::splat(x)))
+    }
 }
 
 // `std::arch`'s AVX intrinsics are unsafe to call outside code compiled for AVX; this module

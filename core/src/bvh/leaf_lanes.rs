@@ -1,12 +1,14 @@
-//! Leaves of ray packets (closest-hit and segment packets) a group of rays at a time (x86-64):
-//! each triangle of the leaf is tested against up to eight rays of the packet (AVX2, [`F32x8`])
-//! or all sixteen (AVX-512F, [`F32x16`]), one per lane, where the 4-wide path tests each ray
-//! against the leaf's [`Triangle4`]s in turn (`dispatch.rs` picks the width). A leaf of n
-//! triangles in m `Triangle4`s then costs n tests for the group instead of m per ray; rays of
-//! one pixel's samples, which reach the same leaves together, gain most.
+//! Leaves of ray packets (closest-hit and segment packets) a group of rays at a time: each
+//! triangle of the leaf is tested against up to four rays of the packet ([`f32x4`]: SSE4.1 on
+//! x86-64, NEON on aarch64, every host), eight (AVX2, [`F32x8`]) or all sixteen (AVX-512F,
+//! [`F32x16`]), one per lane, where the 4-wide path tests each ray against the leaf's
+//! [`Triangle4`]s in turn (`dispatch.rs` picks the width: four lanes at kernel width `Four`,
+//! eight and sixteen at `Eight` and `Sixteen`). A leaf of n triangles in m `Triangle4`s then
+//! costs n tests for the group instead of m per ray; rays of one pixel's samples, which reach
+//! the same leaves together, gain most.
 //!
 //! Guarantee: every ray keeps exactly the hit (and every segment the answer) the 4-wide path
-//! gives it, at either group width. Each lane runs the
+//! gives it, at every group width. Each lane runs the
 //! watertight test of [`crate::triangle::intersect`] in its order of operations (`simd4.rs`,
 //! `edges`, over [`Lanes`]), which needs the lanes' rays to permute the axes alike (the
 //! packet's group falls back to the 4-wide path otherwise); lanes only the scalar test can
@@ -16,10 +18,12 @@
 //!
 //! The code is written once over [`RayGroupLanes`]; the entry points of each width are thin
 //! functions compiled for its instruction set (the `*8` ones for AVX2, the `*16` ones for
-//! AVX-512F), into which the generic code is inlined.
+//! AVX-512F; the `*4` ones need none), into which the generic code is inlined.
 
 use super::Bvh;
-use super::lanes::{F32x8, F32x16, RayGroupLanes};
+use super::lanes::RayGroupLanes;
+#[cfg(target_arch = "x86_64")]
+use super::lanes::{F32x8, F32x16};
 use super::node4::Triangle4;
 use super::packet_hits::PacketHits;
 use super::packet_rays::PacketRays;
@@ -27,11 +31,13 @@ use super::ray_packet::{RAY_PACKET, bits};
 use super::simd4::{any_hit_verdict, closest_verdict, edges};
 use super::traverse::scalar_hit;
 use crate::triangle::{Ray, RayPrep, TriangleHit, intersect};
+use wide::f32x4;
 
-/// Group leaf tests run so far (closest-hit and any-hit) in 8 lanes (`[0]`) and in 16 (`[1]`),
-/// so tests can show each ran.
+/// Group leaf tests run so far (closest-hit and any-hit) in 4 lanes (`[0]`), 8 (`[1]`) and 16
+/// (`[2]`), so tests can show each ran.
 #[cfg(test)]
-pub(super) static LEAF_TESTS: [std::sync::atomic::AtomicUsize; 2] = [
+pub(super) static LEAF_TESTS: [std::sync::atomic::AtomicUsize; 3] = [
+    std::sync::atomic::AtomicUsize::new(0),
     std::sync::atomic::AtomicUsize::new(0),
     std::sync::atomic::AtomicUsize::new(0),
 ];
@@ -39,7 +45,8 @@ pub(super) static LEAF_TESTS: [std::sync::atomic::AtomicUsize; 2] = [
 #[inline(always)]
 fn count_leaf_test(lanes: usize) {
     #[cfg(test)]
-    LEAF_TESTS[usize::from(lanes == 16)].fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    LEAF_TESTS[lanes.trailing_zeros() as usize - 2]
+        .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     #[cfg(not(test))]
     let _ = lanes;
 }
@@ -122,18 +129,6 @@ impl<L: RayGroupLanes> RayLanes<L> {
     }
 }
 
-/// [`RayLanes::new`] of eight rays. Call only on hosts with AVX2.
-#[target_feature(enable = "avx2")]
-fn ray_lanes8(rays: &PacketRays, from: usize) -> Option<RayLanes<F32x8>> {
-    RayLanes::new(rays, from)
-}
-
-/// [`RayLanes::new`] of sixteen rays. Call only on hosts with AVX-512F.
-#[target_feature(enable = "avx512f")]
-fn ray_lanes16(rays: &PacketRays, from: usize) -> Option<RayLanes<F32x16>> {
-    RayLanes::new(rays, from)
-}
-
 /// What each group width runs at a leaf, through its instruction set's entry points.
 #[allow(unsafe_code)]
 pub(super) trait LeafLanes: RayGroupLanes {
@@ -159,10 +154,15 @@ pub(super) trait LeafLanes: RayGroupLanes {
     ) -> u32;
 }
 
-/// The entry points of one width, compiled for `$feature`.
+/// The entry points of one width, compiled with `$compile` (the width's instruction set).
 macro_rules! leaf_lanes {
-    ($lanes:ty, $feature:literal, $ray_lanes:ident, $closest:ident, $occluded:ident) => {
-        #[target_feature(enable = $feature)]
+    ($lanes:ty, $compile:meta, $ray_lanes:ident, $closest:ident, $occluded:ident) => {
+        #[$compile]
+        fn $ray_lanes(rays: &PacketRays, from: usize) -> Option<RayLanes<$lanes>> {
+            RayLanes::new(rays, from)
+        }
+
+        #[$compile]
         fn $closest(
             bvh: &Bvh,
             leaf: (usize, usize),
@@ -174,7 +174,7 @@ macro_rules! leaf_lanes {
             closest_in_leaf(bvh, leaf, lanes, active, rays, hits)
         }
 
-        #[target_feature(enable = $feature)]
+        #[$compile]
         fn $occluded(
             bvh: &Bvh,
             leaf: (usize, usize),
@@ -186,7 +186,8 @@ macro_rules! leaf_lanes {
             occluded_in_leaf(bvh, leaf, lanes, active, segments, t_max)
         }
 
-        #[allow(unsafe_code)]
+        // (Four lanes' entry points are safe to call, so their `unsafe` blocks are unused.)
+        #[allow(unsafe_code, unused_unsafe)]
         impl LeafLanes for $lanes {
             unsafe fn ray_lanes(rays: &PacketRays, from: usize) -> Option<RayLanes<Self>> {
                 // SAFETY: the caller's contract (the host has the instruction set).
@@ -218,27 +219,41 @@ macro_rules! leaf_lanes {
     };
 }
 
+// Four lanes need no instruction set beyond every host's (SSE4.1 in x86-64's baseline here,
+// NEON on aarch64); their entry points stay out of line as the wider ones must.
+leaf_lanes!(
+    f32x4,
+    inline(never),
+    ray_lanes4,
+    closest_in_leaf4,
+    occluded_in_leaf4
+);
+// Call only on hosts with AVX2.
+#[cfg(target_arch = "x86_64")]
 leaf_lanes!(
     F32x8,
-    "avx2",
+    target_feature(enable = "avx2"),
     ray_lanes8,
     closest_in_leaf8,
     occluded_in_leaf8
 );
+// Call only on hosts with AVX-512F.
+#[cfg(target_arch = "x86_64")]
 leaf_lanes!(
     F32x16,
-    "avx512f",
+    target_feature(enable = "avx512f"),
     ray_lanes16,
     closest_in_leaf16,
     occluded_in_leaf16
 );
 
-/// A packet's groups of rays in lanes (two of eight, or one of sixteen), each made from the
+/// A packet's groups of rays in lanes (four of four, two of eight, or one of sixteen), each
+/// made from the
 /// packet's rays when the group first meets a leaf in lanes (`None` inside: its rays permute
 /// the axes differently, so it stays 4-wide).
 pub(super) struct PacketLanes<'r, L> {
     rays: &'r PacketRays,
-    groups: [Option<Option<RayLanes<L>>>; 2],
+    groups: [Option<Option<RayLanes<L>>>; RAY_PACKET / 4],
 }
 
 impl<'r, L> PacketLanes<'r, L> {
@@ -246,7 +261,7 @@ impl<'r, L> PacketLanes<'r, L> {
     pub fn new(rays: &'r PacketRays) -> Self {
         PacketLanes {
             rays,
-            groups: [None, None],
+            groups: [None, None, None, None],
         }
     }
 }
@@ -257,8 +272,8 @@ impl<L: LeafLanes> PacketLanes<'_, L> {
     /// LANES`, bit i of `group` standing for ray `from + i`, where that takes fewer tests than
     /// the 4-wide path ([`pays_in_lanes`]) and the group's rays permute the axes alike. Returns
     /// the rays of `active` left for the 4-wide path.
-    /// Only on hosts with the instruction set of `L`: at kernel width 8 or 16 for eight lanes
-    /// (AVX2), at width 16 for sixteen (AVX-512F).
+    /// Only on hosts with the instruction set of `L`: four lanes anywhere (at kernel width 4),
+    /// eight at width 8 or 16 (AVX2), sixteen at width 16 (AVX-512F).
     #[inline(always)]
     pub fn by_groups(
         &mut self,
@@ -448,6 +463,7 @@ fn occluded_in_leaf<L: RayGroupLanes>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    #[cfg(target_arch = "x86_64")]
     use crate::bvh::dispatch::{KernelWidth, available_kernel_widths};
     use crate::bvh::simd4::tests::any_vec;
     use crate::bvh::tests::Rng;
@@ -500,11 +516,17 @@ mod tests {
         })
     }
 
+    fn verdicts4(rays: &[Ray], p: &Triangle4, t_max: &[f32; 16]) -> Option<Verdicts> {
+        verdicts::<f32x4>(rays, p, t_max)
+    }
+
+    #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn verdicts8(rays: &[Ray], p: &Triangle4, t_max: &[f32; 16]) -> Option<Verdicts> {
         verdicts::<F32x8>(rays, p, t_max)
     }
 
+    #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
     fn verdicts16(rays: &[Ray], p: &Triangle4, t_max: &[f32; 16]) -> Option<Verdicts> {
         verdicts::<F32x16>(rays, p, t_max)
@@ -528,11 +550,18 @@ mod tests {
         (dir != Vec3::ZERO && dir.is_finite()).then_some(Ray { origin, dir })
     }
 
-    /// On every lane it decides, the 8-wide test decides as the scalar test: the closest-hit
+    /// On every lane it decides, the 4-lane test decides as the scalar test: the closest-hit
     /// verdict with the scalar test's exact t and barycentric bits, the any-hit verdict with
-    /// its answer. 500,000 groups of up to eight rays sharing a permutation (4 million
+    /// its answer. 1,000,000 groups of up to four rays sharing a permutation (4 million
     /// ray/triangle pairs), on random and degenerate triangles (collinear, repeated corners,
     /// signed zeros, huge and tiny coordinates). The lanes' setup is `RayPrep`'s, bit for bit.
+    #[test]
+    fn four_lane_tests_agree_with_the_scalar_test() {
+        lanes_agree_with_the_scalar_test(4, 1_000_000, verdicts4);
+    }
+
+    /// The same for eight lanes (AVX2): 500,000 groups of up to eight rays.
+    #[cfg(target_arch = "x86_64")]
     #[test]
     fn eight_wide_tests_agree_with_the_scalar_test() {
         if !available_kernel_widths().contains(&KernelWidth::Eight) {
@@ -547,6 +576,7 @@ mod tests {
     }
 
     /// The same for sixteen lanes (AVX-512F): 300,000 groups of up to sixteen rays.
+    #[cfg(target_arch = "x86_64")]
     #[test]
     fn sixteen_wide_tests_agree_with_the_scalar_test() {
         if !available_kernel_widths().contains(&KernelWidth::Sixteen) {

@@ -30,7 +30,6 @@ mod build_reference;
 mod build_tests;
 mod dispatch;
 mod lanes;
-#[cfg(target_arch = "x86_64")]
 mod leaf_lanes;
 mod node4;
 mod packet_hits;

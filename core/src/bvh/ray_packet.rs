@@ -7,10 +7,10 @@
 //! packet can do with the four child boxes: a child no ray can enter is dropped for all of
 //! them, a child every active ray certainly enters keeps them all, and only the children in
 //! between are tested ray by ray (four rays per SIMD test). A single remaining ray goes on
-//! alone with the single-ray traversal; leaves run the single-ray leaf test for each ray, or,
-//! at kernel widths `Eight` and `Sixteen` (`dispatch.rs`), each triangle against eight or
-//! sixteen rays at once (`leaf_lanes.rs`). Packets with a non-finite origin or direction are
-//! traced ray by ray.
+//! alone with the single-ray traversal; leaves test each triangle against four rays at once
+//! (kernel width `Four`), eight or sixteen (`Eight`, `Sixteen`; `dispatch.rs`) where that
+//! takes fewer tests (`leaf_lanes.rs`), and run the single-ray leaf test for the other rays.
+//! Packets with a non-finite origin or direction are traced ray by ray.
 //!
 //! Guarantee: [`Bvh::closest_hits`] gives every ray exactly what [`Bvh::closest_hit`] gives it.
 //! Each lane's box test is the single-ray slab test (same operations in the same order, so the
@@ -27,7 +27,6 @@ use super::dispatch::{KernelWidth, kernel_width};
 #[cfg(target_arch = "x86_64")]
 use super::lanes::{F32x8, F32x16};
 use super::lanes::{greater4, lesser4};
-#[cfg(target_arch = "x86_64")]
 use super::leaf_lanes::{LeafLanes, PacketLanes};
 use super::node4::{LEAF, Node4};
 use super::packet_hits::PacketHits;
@@ -311,10 +310,11 @@ impl Bvh {
     }
 
     /// [`Bvh::closest_hits`] over a non-empty BVH, packet by packet, with leaves tested
-    /// `WIDTH` rays at a time (8 or 16, only at that kernel width, so on hosts with AVX2 or
-    /// AVX-512F) or ray by ray (4). Only the leaf tests in lanes are compiled for the wider
-    /// instruction sets: the traversal compiled for AVX2 ran 5-10% slower on the 1M mesh (AVX's
-    /// `vblendvps` is two micro-operations where SSE4.1's `blendvps` is one).
+    /// `WIDTH` rays at a time (4 anywhere; 8 or 16 only at that kernel width, so on hosts with
+    /// AVX2 or AVX-512F) where that pays, else ray by ray. Only the leaf tests in lanes are
+    /// compiled for the wider instruction sets: the traversal compiled for AVX2 ran 5-10%
+    /// slower on the 1M mesh (AVX's `vblendvps` is two micro-operations where SSE4.1's
+    /// `blendvps` is one).
     #[inline(always)]
     fn closest_packets<const WIDTH: usize>(
         &self,
@@ -365,6 +365,7 @@ impl Bvh {
         let mut depth = 0usize;
         let (mut child, mut triangle4_count) = ROOT;
         let mut active = all_rays;
+        let mut lanes4 = PacketLanes::new(packet_rays);
         #[cfg(target_arch = "x86_64")]
         let (mut lanes8, mut lanes16) =
             (PacketLanes::new(packet_rays), PacketLanes::new(packet_rays));
@@ -387,8 +388,8 @@ impl Bvh {
                 }
             } else {
                 let leaf = ((child & !LEAF) as usize, triangle4_count as usize);
-                #[cfg(target_arch = "x86_64")]
                 let rest = match WIDTH {
+                    #[cfg(target_arch = "x86_64")]
                     8 | 16 => {
                         // At width 16, sixteen lanes where enough rays are active to pay for
                         // them ([`PacketLanes::by_groups`]); then eight where that pays.
@@ -401,10 +402,11 @@ impl Bvh {
                         let lanes = &mut lanes8;
                         closest_in_lanes::<F32x8>(self, lanes, leaf, rest, rays, &mut hits)
                     }
-                    _ => active,
+                    _ => {
+                        let lanes = &mut lanes4;
+                        closest_in_lanes::<f32x4>(self, lanes, leaf, active, rays, &mut hits)
+                    }
                 };
-                #[cfg(not(target_arch = "x86_64"))]
-                let rest = active;
                 for i in bits(rest) {
                     let search = searches[i].get_or_insert_with(|| ClosestSearch::new(&rays[i]));
                     hits.lend(i, &mut search.best);
@@ -438,7 +440,6 @@ impl Bvh {
 /// pays ([`PacketLanes::by_groups`]), keeping their best hits in `hits`; returns the rays left
 /// for the 4-wide path. Only on hosts with the instruction set of `L` (see
 /// [`PacketLanes::by_groups`]).
-#[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn closest_in_lanes<L: LeafLanes>(
     bvh: &Bvh,
@@ -449,9 +450,10 @@ fn closest_in_lanes<L: LeafLanes>(
     hits: &mut PacketHits,
 ) -> u32 {
     packet_lanes.by_groups(bvh, leaf, active, |from, group, lanes| {
-        // SAFETY: only `closest_packets::<8>` and `::<16>` reach this, which run only at their
-        // kernel width, so on hosts with AVX2, and with AVX-512F too at width 16 (`dispatch.rs`
-        // offers `Sixteen` only where both are): the instruction set of `L` either way.
+        // SAFETY: four lanes need nothing beyond every host's instruction set; eight and
+        // sixteen are reached only from `closest_packets::<8>` and `::<16>`, which run only at
+        // their kernel width, so on hosts with AVX2, and with AVX-512F too at width 16
+        // (`dispatch.rs` offers `Sixteen` only where both are).
         #[allow(unsafe_code)]
         unsafe {
             L::closest_in_leaf(bvh, leaf, lanes, group, &rays[from..], (hits, from))

@@ -2,7 +2,7 @@
 //! neighbouring samples towards one light) traverse the 4-wide BVH together for any-hit
 //! ([`Bvh::occluded_many`]), with the interval hull and per-ray tests of
 //! `RayPacketTester` (`ray_packet.rs`) spanning origins as well as directions. Leaves run
-//! the single-ray any-hit test per ray (or 8 or 16 rays per test, `leaf_lanes.rs`), a blocked
+//! the single-ray any-hit test per ray (or 4, 8 or 16 rays per test, `leaf_lanes.rs`), a blocked
 //! ray leaves its packet, and with 4-wide leaves trees of fewer than [`SMALL_TREE`] wide nodes
 //! are traced ray by ray.
 //!
@@ -15,7 +15,6 @@ use super::Bvh;
 use super::dispatch::{KernelWidth, kernel_width};
 #[cfg(target_arch = "x86_64")]
 use super::lanes::{F32x8, F32x16};
-#[cfg(target_arch = "x86_64")]
 use super::leaf_lanes::{LeafLanes, PacketLanes};
 use super::node4::LEAF;
 use super::packet_rays::PacketRays;
@@ -26,6 +25,7 @@ use super::ray_packet::{
 use super::simd4::BoxTester;
 use super::traverse::{Entry, ROOT, STACK, STACKS, ShadowSearch, segment_may_hit};
 use crate::triangle::Ray;
+use wide::f32x4;
 
 /// Wide nodes below which shadow segments are traced one by one: in a tree of a few nodes
 /// there is nothing to share.
@@ -61,8 +61,8 @@ impl Bvh {
     }
 
     /// [`Bvh::occluded_many`] over a non-empty BVH, packet by packet, with leaves tested
-    /// `WIDTH` rays at a time (8 or 16, only at that kernel width) or ray by ray (4); see
-    /// `closest_packets`.
+    /// `WIDTH` rays at a time where that pays (4 anywhere; 8 or 16 only at that kernel width),
+    /// else ray by ray; see `closest_packets`.
     #[inline(always)]
     fn segment_packets<const WIDTH: usize>(
         &self,
@@ -118,6 +118,7 @@ impl Bvh {
         let mut blocked = 0u32;
         let mut depth = 0usize;
         let (mut child, mut triangle4_count) = ROOT;
+        let mut lanes4 = PacketLanes::new(packet_rays);
         #[cfg(target_arch = "x86_64")]
         let (mut lanes8, mut lanes16) =
             (PacketLanes::new(packet_rays), PacketLanes::new(packet_rays));
@@ -141,8 +142,8 @@ impl Bvh {
                 }
             } else {
                 let leaf = ((child & !LEAF) as usize, triangle4_count as usize);
-                #[cfg(target_arch = "x86_64")]
                 let active = match WIDTH {
+                    #[cfg(target_arch = "x86_64")]
                     8 | 16 => {
                         // At width 16, sixteen lanes where enough rays are active to pay for
                         // them ([`PacketLanes::by_groups`]); then eight where that pays.
@@ -160,7 +161,18 @@ impl Bvh {
                             self, lanes, leaf, rest, segments, &t_max, blocked,
                         )
                     }
-                    _ => active,
+                    _ => {
+                        let lanes = &mut lanes4;
+                        occluded_in_lanes::<f32x4>(
+                            self,
+                            lanes,
+                            leaf,
+                            active,
+                            segments,
+                            &t_max,
+                            &mut blocked,
+                        )
+                    }
                 };
                 for i in bits(active) {
                     let (ray, t_max) = &segments[i];
@@ -195,7 +207,6 @@ impl Bvh {
 /// pays ([`PacketLanes::by_groups`]), adding the segments it blocks to `blocked`; returns the
 /// rays left for the 4-wide path. Only on hosts with the instruction set of `L` (see
 /// [`PacketLanes::by_groups`]).
-#[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn occluded_in_lanes<L: LeafLanes>(
     bvh: &Bvh,
@@ -209,9 +220,10 @@ fn occluded_in_lanes<L: LeafLanes>(
     let len = segments.len();
     packet_lanes.by_groups(bvh, leaf, active, |from, group, lanes| {
         let group_segments = &segments[from..len.min(from + L::LANES)];
-        // SAFETY: only `segment_packets::<8>` and `::<16>` reach this, which run only at their
-        // kernel width, so on hosts with AVX2, and with AVX-512F too at width 16 (`dispatch.rs`
-        // offers `Sixteen` only where both are): the instruction set of `L` either way.
+        // SAFETY: four lanes need nothing beyond every host's instruction set; eight and
+        // sixteen are reached only from `segment_packets::<8>` and `::<16>`, which run only at
+        // their kernel width, so on hosts with AVX2, and with AVX-512F too at width 16
+        // (`dispatch.rs` offers `Sixteen` only where both are).
         #[allow(unsafe_code)]
         let hit =
             unsafe { L::occluded_in_leaf(bvh, leaf, lanes, group, group_segments, (t_max, from)) };

@@ -62,8 +62,7 @@ fn hit_bits(h: &ClosestHit) -> HitBits {
 /// Runs `check` once at each kernel width this host has, forced for the whole process (the
 /// lock keeps other forcing tests out meanwhile; tests that do not force see some width, and
 /// every width gives the same answers). Returns the fewest leaf tests in lanes that the checks
-/// ran at any one of the widths that have them (8 and 16), so that a caller can show each of
-/// those paths ran; 0 where the host has none.
+/// ran at any one width, so that a caller can show each width's lanes ran.
 pub(crate) fn at_every_kernel_width(mut check: impl FnMut(KernelWidth)) -> usize {
     static FORCING: std::sync::Mutex<()> = std::sync::Mutex::new(());
     let _only_us = FORCING.lock().unwrap_or_else(|e| e.into_inner());
@@ -72,36 +71,24 @@ pub(crate) fn at_every_kernel_width(mut check: impl FnMut(KernelWidth)) -> usize
         force_kernel_width(Some(width));
         let before = leaf_tests_in_lanes(width);
         check(width);
-        if width != KernelWidth::Four {
-            let ran = leaf_tests_in_lanes(width) - before;
-            fewest = Some(fewest.map_or(ran, |f| f.min(ran)));
-        }
+        let ran = leaf_tests_in_lanes(width) - before;
+        fewest = Some(fewest.map_or(ran, |f| f.min(ran)));
     }
     force_kernel_width(None);
     fewest.unwrap_or(0)
 }
 
-/// How many leaf tests in the lanes of `width` (8 or 16 rays) have run in this process (0
-/// where there are none, and for `Four`). Only the forcing tests above run them while they
-/// hold the lock, so the difference around one width's checks counts what that width ran in
-/// its own lanes (width 16 also runs 8-lane tests where 16 lanes do not pay; they count for
-/// `Eight`).
+/// How many leaf tests in the lanes of `width` (4, 8 or 16 rays) have run in this process.
+/// Only the forcing tests above run them while they hold the lock, so the difference around
+/// one width's checks counts what that width ran in its own lanes (width 16 also runs 8-lane
+/// tests where 16 lanes do not pay; they count for `Eight`).
 fn leaf_tests_in_lanes(width: KernelWidth) -> usize {
-    #[cfg(target_arch = "x86_64")]
-    {
-        let tests =
-            |i: usize| super::leaf_lanes::LEAF_TESTS[i].load(std::sync::atomic::Ordering::Relaxed);
-        match width {
-            KernelWidth::Four => 0,
-            KernelWidth::Eight => tests(0),
-            KernelWidth::Sixteen => tests(1),
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        let _ = width;
-        0
-    }
+    let lanes = match width {
+        KernelWidth::Four => 0,
+        KernelWidth::Eight => 1,
+        KernelWidth::Sixteen => 2,
+    };
+    super::leaf_lanes::LEAF_TESTS[lanes].load(std::sync::atomic::Ordering::Relaxed)
 }
 
 /// Closest-hit ray packets give every ray exactly the single-ray answer, for packets cut at
@@ -141,7 +128,7 @@ fn packets_give_single_ray_hits(
 
 /// Segment packets give every segment exactly the single-ray answer, for packets cut at every
 /// offset, at every kernel width; returns how many segments are blocked and the fewest leaf
-/// tests in lanes any wide width ran ([`at_every_kernel_width`]).
+/// tests in lanes any width ran ([`at_every_kernel_width`]).
 fn check_segment_packets_against_single_rays(bvh: &Bvh, segments: &[(Ray, f32)]) -> (usize, usize) {
     let single: Vec<bool> = segments.iter().map(|(r, t)| bvh.occluded(r, *t)).collect();
     let in_lanes = at_every_kernel_width(|width| {
@@ -347,10 +334,9 @@ fn closest_hit_equals_brute_force_on_the_bunny() {
                 }
             })
             .collect();
+        // Every width, four lanes included, ran its leaves in lanes.
         let in_lanes = check_ray_packets_against_single_rays(&bvh, &rays);
-        if available_kernel_widths().contains(&KernelWidth::Eight) {
-            assert!(in_lanes > 100, "closest-hit leaves in lanes ({in_lanes})");
-        }
+        assert!(in_lanes > 100, "closest-hit leaves in lanes ({in_lanes})");
         let hits = rays.iter().filter(|r| bvh.closest_hit(r).is_some()).count();
         assert!(hits > 200, "camera rays should hit the bunny ({hits})");
         // Coherent shadow segments: from each hit point to a light above the bunny.
@@ -374,9 +360,7 @@ fn closest_hit_equals_brute_force_on_the_bunny() {
             blocked > 20 && blocked < segments.len(),
             "some shadows ({blocked})"
         );
-        if available_kernel_widths().contains(&KernelWidth::Eight) {
-            assert!(in_lanes > 100, "segment leaves in lanes ({in_lanes})");
-        }
+        assert!(in_lanes > 100, "segment leaves in lanes ({in_lanes})");
     }
 }
 
