@@ -132,8 +132,9 @@ impl<L: RayGroupLanes> RayLanes<L> {
 /// What each group width runs at a leaf, through its instruction set's entry points.
 #[allow(unsafe_code)]
 pub(super) trait LeafLanes: RayGroupLanes {
-    /// [`RayLanes::new`]. Call only on hosts with the width's instruction set.
-    unsafe fn ray_lanes(rays: &PacketRays, from: usize) -> Option<RayLanes<Self>>;
+    /// Puts [`RayLanes::new`] in `slot` (made in place: returned, its bytes were copied in).
+    /// Call only on hosts with the width's instruction set.
+    unsafe fn ray_lanes(rays: &PacketRays, from: usize, slot: &mut Option<Option<RayLanes<Self>>>);
     /// [`closest_in_leaf`]. Call only on hosts with the width's instruction set.
     unsafe fn closest_in_leaf(
         bvh: &Bvh,
@@ -158,8 +159,8 @@ pub(super) trait LeafLanes: RayGroupLanes {
 macro_rules! leaf_lanes {
     ($lanes:ty, $compile:meta, $ray_lanes:ident, $closest:ident, $occluded:ident) => {
         #[$compile]
-        fn $ray_lanes(rays: &PacketRays, from: usize) -> Option<RayLanes<$lanes>> {
-            RayLanes::new(rays, from)
+        fn $ray_lanes(rays: &PacketRays, from: usize, slot: &mut Option<Option<RayLanes<$lanes>>>) {
+            *slot = Some(RayLanes::new(rays, from));
         }
 
         #[$compile]
@@ -189,9 +190,13 @@ macro_rules! leaf_lanes {
         // (Four lanes' entry points are safe to call, so their `unsafe` blocks are unused.)
         #[allow(unsafe_code, unused_unsafe)]
         impl LeafLanes for $lanes {
-            unsafe fn ray_lanes(rays: &PacketRays, from: usize) -> Option<RayLanes<Self>> {
+            unsafe fn ray_lanes(
+                rays: &PacketRays,
+                from: usize,
+                slot: &mut Option<Option<RayLanes<Self>>>,
+            ) {
                 // SAFETY: the caller's contract (the host has the instruction set).
-                unsafe { $ray_lanes(rays, from) }
+                unsafe { $ray_lanes(rays, from, slot) }
             }
             unsafe fn closest_in_leaf(
                 bvh: &Bvh,
@@ -295,11 +300,16 @@ impl<L: LeafLanes> PacketLanes<'_, L> {
             if !pays_in_lanes(bvh, leaf, group, L::LANES) {
                 continue;
             }
-            // SAFETY: callers reach this only at a kernel width that implies the instruction
-            // set of `L` (8 or 16 for AVX2, 16 for AVX-512F; `dispatch.rs`).
-            #[allow(unsafe_code)]
-            let lanes = slot.get_or_insert_with(|| unsafe { L::ray_lanes(self.rays, from) });
-            let Some(lanes) = lanes else {
+            if slot.is_none() {
+                // SAFETY: callers reach this only at a kernel width that implies the
+                // instruction set of `L` (four lanes anywhere, 8 or 16 for AVX2, 16 for
+                // AVX-512F; `dispatch.rs`).
+                #[allow(unsafe_code)]
+                unsafe {
+                    L::ray_lanes(self.rays, from, slot)
+                };
+            }
+            let Some(Some(lanes)) = slot else {
                 continue;
             };
             test(from, group, lanes);
