@@ -542,7 +542,7 @@ pub(super) fn descend(
     if n == 0 {
         return None;
     }
-    let e = defer_all_but_nearest(&hit[..n], stack, depth);
+    let e = defer_all_but_nearest(&hit, n, stack, depth);
     Some((e.child, e.triangle4_count, e.rays))
 }
 

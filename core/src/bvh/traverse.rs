@@ -430,7 +430,7 @@ fn descend(
             n = insert_farthest_first(&mut hit, n, e, |e| e.t);
         }
     }
-    let e = defer_all_but_nearest(&hit[..n], stack, depth);
+    let e = defer_all_but_nearest(&hit, n, stack, depth);
     (e.child, e.triangle4_count)
 }
 
@@ -452,16 +452,22 @@ pub(super) fn insert_farthest_first<E: Copy>(
     n + 1
 }
 
-/// Pushes all but the last of `sorted` (farthest first, not empty) onto `stack` at `depth` and
-/// returns the last, the nearest.
+/// Pushes all but the last of the first `n` (1..=4) of `sorted` (farthest first) onto `stack`
+/// at `depth` and returns the last, the nearest.
 #[inline(always)]
 pub(super) fn defer_all_but_nearest<E: Copy>(
-    sorted: &[E],
+    sorted: &[E; 4],
+    n: usize,
     stack: &mut [E],
     depth: &mut usize,
 ) -> E {
-    let n = sorted.len();
-    stack[*depth..*depth + n - 1].copy_from_slice(&sorted[..n - 1]);
+    // Entry by entry: copying the 0 to 3 entries as one slice compiled to a call to `memcpy`
+    // at every inner node.
+    for (k, &e) in sorted.iter().take(3).enumerate() {
+        if k + 1 < n {
+            stack[*depth + k] = e;
+        }
+    }
     *depth += n - 1;
     sorted[n - 1]
 }
