@@ -76,7 +76,7 @@ impl<L: RayGroupLanes> RayLanes<L> {
     /// Rays `from..from + LANES` of `rays` in lanes, with exactly
     /// [`crate::triangle::RayPrep::new`]'s permutation and shear for each; `None` when the rays
     /// permute the axes differently (their largest direction components differ in axis or
-    /// sign). Inlined into the width's entry point ([`ray_lanes8`], [`ray_lanes16`]).
+    /// sign). Inlined into the width's entry point (`ray_lanes4`, `ray_lanes8`, `ray_lanes16`).
     #[inline(always)]
     fn new(rays: &PacketRays, from: usize) -> Option<Self> {
         let (dir, origin) = (&rays.dir, &rays.origin);
@@ -253,9 +253,8 @@ leaf_lanes!(
 );
 
 /// A packet's groups of rays in lanes (four of four, two of eight, or one of sixteen), each
-/// made from the
-/// packet's rays when the group first meets a leaf in lanes (`None` inside: its rays permute
-/// the axes differently, so it stays 4-wide).
+/// made from the packet's rays when the group first meets a leaf in lanes (`None` inside: its
+/// rays permute the axes differently, so it stays 4-wide).
 pub(super) struct PacketLanes<'r, L> {
     rays: &'r PacketRays,
     groups: [Option<Option<RayLanes<L>>>; RAY_PACKET / 4],
