@@ -155,6 +155,24 @@ pub(super) trait RayGroupLanes: Lanes {
     fn u32_above(self, x: u32) -> Self;
 }
 
+/// `LANE_MASKS[bits]`: all ones in the four lanes whose bit is set (the ray packets' groups
+/// and the four-lane leaves read them).
+const LANE_MASKS: [[u32; 4]; 16] = {
+    let mut t = [[0u32; 4]; 16];
+    let mut bits = 0;
+    while bits < 16 {
+        let mut l = 0;
+        while l < 4 {
+            if bits & (1 << l) != 0 {
+                t[bits][l] = u32::MAX;
+            }
+            l += 1;
+        }
+        bits += 1;
+    }
+    t
+};
+
 impl RayGroupLanes for f32x4 {
     const LANES: usize = 4;
 
@@ -183,8 +201,7 @@ impl RayGroupLanes for f32x4 {
 
     #[inline(always)]
     fn lane_mask(bits: u32) -> Self {
-        let lane = |i: u32| if bits & (1 << i) != 0 { u32::MAX } else { 0 };
-        wide::bytemuck::cast([lane(0), lane(1), lane(2), lane(3)])
+        wide::bytemuck::cast(LANE_MASKS[(bits & 0xf) as usize])
     }
 
     #[inline(always)]

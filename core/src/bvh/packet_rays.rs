@@ -10,6 +10,7 @@
 //! direction; places past the packet's last ray repeat it, so extremes and signs over all
 //! places are those over the rays.
 
+use super::lanes::RayGroupLanes;
 use super::ray_packet::{GROUPS, RAY_PACKET};
 use crate::triangle::Ray;
 use wide::f32x4;
@@ -84,20 +85,14 @@ impl PacketRays {
     /// Group `g`'s origins along axis `a` (rays `4g..4g + 4`).
     #[inline(always)]
     pub fn origin4(&self, a: usize, g: usize) -> f32x4 {
-        lanes4(&self.origin[a], g)
+        f32x4::load_at(&self.origin[a], 4 * g)
     }
 
     /// Group `g`'s directions along axis `a` (rays `4g..4g + 4`).
     #[inline(always)]
     pub fn dir4(&self, a: usize, g: usize) -> f32x4 {
-        lanes4(&self.dir[a], g)
+        f32x4::load_at(&self.dir[a], 4 * g)
     }
-}
-
-#[inline(always)]
-fn lanes4(column: &[f32; RAY_PACKET], g: usize) -> f32x4 {
-    let four: [f32; 4] = column[4 * g..4 * g + 4].try_into().expect("four places");
-    f32x4::from(four)
 }
 
 #[cfg(test)]

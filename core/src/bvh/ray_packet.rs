@@ -26,7 +26,7 @@
 use super::dispatch::{KernelWidth, kernel_width};
 #[cfg(target_arch = "x86_64")]
 use super::lanes::{F32x8, F32x16};
-use super::lanes::{greater4, lesser4};
+use super::lanes::{RayGroupLanes, greater4, lesser4};
 use super::leaf_lanes::{LeafLanes, PacketLanes};
 use super::node4::{LEAF, Node4};
 use super::packet_hits::PacketHits;
@@ -46,28 +46,6 @@ use wide::f32x4;
 pub const RAY_PACKET: usize = 16;
 /// Groups of four rays (one SIMD register each) per packet.
 pub(super) const GROUPS: usize = RAY_PACKET / 4;
-
-/// `LANES[bits]`: all-ones in the lanes whose bit is set.
-const LANES: [[u32; 4]; 16] = {
-    let mut t = [[0u32; 4]; 16];
-    let mut bits = 0;
-    while bits < 16 {
-        let mut l = 0;
-        while l < 4 {
-            if bits & (1 << l) != 0 {
-                t[bits][l] = u32::MAX;
-            }
-            l += 1;
-        }
-        bits += 1;
-    }
-    t
-};
-
-fn lane_mask(bits: u32) -> f32x4 {
-    let l = &LANES[bits as usize];
-    f32x4::from(each4(|k| f32::from_bits(l[k])))
-}
 
 /// A ray packet's box tester: its rays four lanes per group, for slab tests across rays, and
 /// the interval hull of their origins and inverse directions for the whole-packet test.
@@ -254,7 +232,7 @@ impl RayPacketTester {
             }
             let hit = !t0.simd_gt(t1).to_bitmask() & lanes;
             rays |= hit << (4 * g);
-            entry = (lane_mask(hit) & t0.simd_lt(entry)).select(t0, entry);
+            entry = (f32x4::lane_mask(hit) & t0.simd_lt(entry)).select(t0, entry);
         }
         (rays, lowest(entry))
     }
@@ -508,7 +486,7 @@ pub(super) fn bound_range(bound: &[f32x4; GROUPS], active: u32) -> (f32, f32) {
     let mut lo = f32x4::splat(f32::INFINITY);
     let mut hi = f32x4::splat(f32::NEG_INFINITY);
     for (g, b) in bound.iter().enumerate() {
-        let lanes = lane_mask((active >> (4 * g)) & 0xf);
+        let lanes = f32x4::lane_mask((active >> (4 * g)) & 0xf);
         lo = (lanes & b.simd_lt(lo)).select(*b, lo);
         hi = (lanes & b.simd_gt(hi)).select(*b, hi);
     }
