@@ -3,16 +3,17 @@
 //! f32x4 lanes. Each lane performs the scalar code's IEEE operations in its order (glam's
 //! `dot`, `cross` and `normalize_or_zero` spelled out; no FMA; square root and division are
 //! correctly rounded in every SIMD instruction set; negation flips the sign bit), so each
-//! lane's test is the scalar test bit for bit. What branches per lane (rounding the shadow
-//! origin away from the surface, the ray toward the light, the radiance) runs lane by lane in
-//! the scalar code.
+//! lane's test is the scalar test bit for bit. What branches per lane runs in lanes too: the
+//! rounding of the shadow origin away from the surface is integer arithmetic on the bits
+//! (`lanes::round_away_lanes`), and a light's side and incidence become lane masks. Only the
+//! hand-over of each test, hit by hit and light by light, is scalar.
 
-use super::lanes::point_incidences4;
-use super::{Incidence, ShadowTest, incidence, round_away, shadow_ray, unoccluded_radiance};
+use super::lanes::{narrow, point_incidence_lanes, round_away_lanes, widen};
+use super::{ShadowTest, incidence, shadow_ray};
 use crate::scene::Light;
-use crate::triangle::gamma;
+use crate::triangle::{Ray, gamma};
 use glam::Vec3;
-use wide::f32x4;
+use wide::{f32x4, f64x4};
 
 /// What [`FlatShader::shadow_tests4`] needs of one hit: the triangle's corners, the hit's
 /// barycentrics, the ray's direction and the diffuse reflectance.
@@ -44,6 +45,16 @@ impl Vec3x4 {
             x: f32x4::from([v[0].x, v[1].x, v[2].x, v[3].x]),
             y: f32x4::from([v[0].y, v[1].y, v[2].y, v[3].y]),
             z: f32x4::from([v[0].z, v[1].z, v[2].z, v[3].z]),
+        }
+    }
+
+    /// `v` in every lane.
+    #[inline(always)]
+    fn splat(v: Vec3) -> Self {
+        Vec3x4 {
+            x: f32x4::splat(v.x),
+            y: f32x4::splat(v.y),
+            z: f32x4::splat(v.z),
         }
     }
 
@@ -134,47 +145,84 @@ impl Vec3x4 {
     }
 }
 
-/// A light seen from the four points: unit directions toward it, irradiance per channel, and
-/// whether the lane has an incidence at all (not at a point light's position).
-struct LightLanes {
-    to_light: Vec3x4,
-    irradiance: [[f32; 4]; 3],
-    valid: [bool; 4],
+/// One light's shadow tests at the four points, lane by lane: in `lit` bit k whether point k
+/// has a test (an incidence, and the light on the normal's side), each test's segment
+/// direction and the radiance it adds when unblocked.
+struct LitLanes {
+    lit: u32,
+    dir: [[f32; 4]; 3],
+    t_max: f32,
+    unoccluded: [[f32; 4]; 3],
 }
 
-impl LightLanes {
+impl LitLanes {
+    /// As [`super::shadow_test_at`] of a flat surface point, lane by lane: the light's
+    /// incidence at `p`, the cosine with the normal `n`, the segment from `origin` and the
+    /// radiance with reflectances `kd` (channel by channel).
     #[inline(always)]
-    fn new(light: &Light, points: [Vec3; 4]) -> Self {
-        let incidences: [Option<Incidence>; 4] = match *light {
+    fn new(light: &Light, p: &Vec3x4, n: &Vec3x4, origin: &Vec3x4, kd: &[f32x4; 3]) -> Self {
+        let (to_light, irradiance, valid) = match *light {
             Light::Point {
                 position,
                 intensity,
-            } => point_incidences4(position, intensity, points),
-            Light::Directional { .. } => [incidence(points[0], light); 4],
+            } => {
+                let i = point_incidence_lanes(position, intensity, [p.x, p.y, p.z]);
+                let [x, y, z] = i.to_light;
+                (Vec3x4 { x, y, z }, i.irradiance, i.valid)
+            }
+            Light::Directional { .. } => {
+                // The same incidence at every point.
+                let i = incidence(Vec3::ZERO, light).expect("a directional light reaches all");
+                let e = i.irradiance;
+                (
+                    Vec3x4::splat(i.to_light),
+                    [f32x4::splat(e[0]), f32x4::splat(e[1]), f32x4::splat(e[2])],
+                    0xf,
+                )
+            }
         };
-        let at = |k: usize| incidences[k].map_or(Vec3::ZERO, |i| i.to_light);
-        let e = |c: usize| {
-            let e = |k: usize| incidences[k].map_or(0.0, |i| i.irradiance[c]);
-            [e(0), e(1), e(2), e(3)]
-        };
-        LightLanes {
-            to_light: Vec3x4::of([at(0), at(1), at(2), at(3)]),
-            irradiance: [e(0), e(1), e(2)],
-            valid: [
-                incidences[0].is_some(),
-                incidences[1].is_some(),
-                incidences[2].is_some(),
-                incidences[3].is_some(),
-            ],
+        let cos = n.dot(to_light);
+        // `cos <= 0` has no test; a NaN has one, as in the scalar test.
+        let lit = valid & !cos.simd_le(f32x4::ZERO).to_bitmask() & 0xf;
+        let (dir, t_max) = shadow_rays(light, origin);
+        // As `unoccluded_radiance`: kd · (cos/pi) · E.
+        let f = f32x4::splat(std::f32::consts::FRAC_1_PI) * cos;
+        let radiance = |c: usize| (kd[c] * f * irradiance[c]).to_array();
+        LitLanes {
+            lit,
+            dir: [dir.x.to_array(), dir.y.to_array(), dir.z.to_array()],
+            t_max,
+            unoccluded: [radiance(0), radiance(1), radiance(2)],
         }
     }
+}
+
+/// [`shadow_ray`]'s direction and `t_max` from each of the four `origins`, lane by lane.
+#[inline(always)]
+fn shadow_rays(light: &Light, origins: &Vec3x4) -> (Vec3x4, f32) {
+    // The segment from the origin: the same `t_max` from every origin.
+    let (from_origin, t_max) = shadow_ray(light, Vec3::ZERO);
+    let dir = match *light {
+        Light::Point { position, .. } => {
+            // As `(position - origin.as_dvec3()).as_vec3()`: exact widening, one f64
+            // subtraction, one rounding.
+            let axis = |a: usize, o: f32x4| narrow(f64x4::splat(position[a]) - widen(o));
+            Vec3x4 {
+                x: axis(0, origins.x),
+                y: axis(1, origins.y),
+                z: axis(2, origins.z),
+            }
+        }
+        Light::Directional { .. } => Vec3x4::splat(from_origin.dir),
+    };
+    (dir, t_max)
 }
 
 /// Shades four flat, untextured hits at a time ([`FlatShader::shadow_tests4`]), keeping its
 /// per-light scratch space from call to call.
 #[derive(Default)]
 pub struct FlatShader {
-    lit: Vec<(LightLanes, [f32; 4])>,
+    lit: Vec<LitLanes>,
 }
 
 impl FlatShader {
@@ -211,33 +259,40 @@ impl FlatShader {
         let dir = Vec3x4::of([*hits[0].dir, *hits[1].dir, *hits[2].dir, *hits[3].dir]);
         let n = n_geo.negate_where(n_geo.dot(dir).simd_gt(f32x4::ZERO));
         // As `offset_origin(p, p_error, n, n)`: n·n is never below zero, so the offset keeps
-        // its side; the rounding away from the surface is per lane, below.
+        // its side, and the origin is rounded away from the surface along it.
         let offset = n.scale(n.abs().dot(p_error));
-        let (offsets, origins) = (offset.lanes(), p.add(offset).lanes());
-        let points = p.lanes();
+        let moved = p.add(offset);
+        let origin = Vec3x4 {
+            x: round_away_lanes(moved.x, offset.x),
+            y: round_away_lanes(moved.y, offset.y),
+            z: round_away_lanes(moved.z, offset.z),
+        };
+        let kd =
+            |c: usize| f32x4::from([hits[0].kd[c], hits[1].kd[c], hits[2].kd[c], hits[3].kd[c]]);
+        let kd = [kd(0), kd(1), kd(2)];
         self.lit.clear();
-        self.lit.extend(lights.iter().map(|light| {
-            let lanes = LightLanes::new(light, points);
-            let cos = n.dot(lanes.to_light).to_array();
-            (lanes, cos)
-        }));
-        for (k, hit) in hits.iter().enumerate() {
-            let origin = round_away(origins[k], offsets[k]);
-            for (l, (light, (lanes, cos))) in lights.iter().zip(&self.lit).enumerate() {
-                let cos = cos[k];
-                if !lanes.valid[k] || cos <= 0.0 {
+        self.lit.extend(
+            lights
+                .iter()
+                .map(|light| LitLanes::new(light, &p, &n, &origin, &kd)),
+        );
+        let origins = origin.lanes();
+        for (k, &origin) in origins.iter().enumerate() {
+            for (l, lit) in self.lit.iter().enumerate() {
+                if lit.lit & (1 << k) == 0 {
                     continue;
                 }
-                let (ray, t_max) = shadow_ray(light, origin);
-                let e = &lanes.irradiance;
-                let irradiance = [e[0][k], e[1][k], e[2][k]];
+                let (d, u) = (&lit.dir, &lit.unoccluded);
                 visit(
                     k,
                     l,
                     ShadowTest {
-                        ray,
-                        t_max,
-                        unoccluded: unoccluded_radiance(hit.kd, cos, irradiance),
+                        ray: Ray {
+                            origin,
+                            dir: Vec3::new(d[0][k], d[1][k], d[2][k]),
+                        },
+                        t_max: lit.t_max,
+                        unoccluded: [u[0][k], u[1][k], u[2][k]],
                     },
                 );
             }
