@@ -144,12 +144,24 @@ impl Camera {
         let y = (pixel / self.columns) as f64;
         out.reserve(spp as usize);
         let mut sample = 0;
-        while sample + 4 <= spp {
-            let offsets = samples.offsets4(sample);
-            let px = f64x4::from(offsets.map(|(ox, _)| x + ox));
-            let py = f64x4::from(offsets.map(|(_, oy)| y + oy));
-            out.extend(self.rays4(px, py));
-            sample += 4;
+        let whole = spp - spp % 4;
+        while sample < whole {
+            // Up to 16 samples in two passes, the image positions of all of them first: each
+            // pass's groups of four are independent, so their latency chains (the hash's
+            // multiplications, then the square root and division) overlap.
+            let groups = ((whole - sample) / 4).min(4) as usize;
+            let mut positions = [(f64x4::ZERO, f64x4::ZERO); 4];
+            for (g, position) in positions[..groups].iter_mut().enumerate() {
+                let offsets = samples.offsets4(sample + 4 * g as u32);
+                *position = (
+                    f64x4::from(offsets.map(|(ox, _)| x + ox)),
+                    f64x4::from(offsets.map(|(_, oy)| y + oy)),
+                );
+            }
+            for &(px, py) in &positions[..groups] {
+                out.extend(self.rays4(px, py));
+            }
+            sample += 4 * groups as u32;
         }
         for sample in sample..spp {
             let (ox, oy) = samples.offset(sample);
@@ -246,7 +258,7 @@ mod tests {
         let (width, height) = (9u32, 4u32);
         let cam = Camera::new(&spec, width, height).unwrap();
         let bits = |r: &Ray| (r.origin.to_array(), r.dir.to_array().map(f32::to_bits));
-        for spp in [1u32, 2, 7, 16, 64] {
+        for spp in [1u32, 2, 7, 16, 20, 35, 64] {
             for pixel in [0u64, 8, 9, 22, 35] {
                 let mut got = vec![cam.sample_ray(0, 0, 1)];
                 cam.pixel_rays(pixel, spp, &mut got);

@@ -396,7 +396,7 @@ fn render_band(
         for &i in &batch {
             camera.pixel_rays(first_pixel + i as u64, s.spp, &mut rays);
         }
-        hits.clear();
+        // `closest_hits` writes every place: only a new length is filled.
         hits.resize(rays.len(), None);
         timer.lap(Phase::CameraRays);
         bvh.closest_hits(&rays, &mut hits);

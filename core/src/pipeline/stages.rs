@@ -54,7 +54,7 @@ pub(super) fn push_surface_hits(
     hits: &mut Vec<Option<ClosestHit>>,
     out: &mut Vec<SurfaceHit>,
 ) {
-    hits.clear();
+    // `closest_hits` writes every place: only a new length is filled.
     hits.resize(rays.len(), None);
     split.bvh.closest_hits(rays, hits);
     for ((&(pixel, sample), ray), hit) in batch.iter().zip(rays).zip(hits.iter()) {
