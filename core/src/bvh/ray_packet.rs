@@ -209,9 +209,26 @@ impl RayPacketTester {
         active: u32,
         bound: &[f32x4; GROUPS],
     ) -> (u32, f32) {
+        let lo = each3(|a| node.lo[a][slot]);
+        let hi = each3(|a| node.hi[a][slot]);
+        self.rays_in_box(lo, hi, active, bound)
+    }
+
+    /// The rays of `active` (bit i = ray i) that enter the box `lo..hi` at or before their
+    /// bound (lane i of group i / 4 of `bound`), by the single-ray slab test (`SlabRay::entry`,
+    /// lane by lane: the same bits), and the smallest entry distance among them (+inf when
+    /// none).
+    #[inline(always)]
+    pub(super) fn rays_in_box(
+        &self,
+        lo: [f32; 3],
+        hi: [f32; 3],
+        active: u32,
+        bound: &[f32x4; GROUPS],
+    ) -> (u32, f32) {
         let scale = f32x4::splat(FAR_SCALE);
-        let lo = each3(|a| f32x4::splat(node.lo[a][slot]));
-        let hi = each3(|a| f32x4::splat(node.hi[a][slot]));
+        let lo = each3(|a| f32x4::splat(lo[a]));
+        let hi = each3(|a| f32x4::splat(hi[a]));
         let mut rays = 0;
         let mut entry = f32x4::splat(f32::INFINITY);
         for (g, &bound) in bound.iter().enumerate() {

@@ -77,31 +77,34 @@ impl Bvh {
         ray_stack: &mut [Entry; STACK],
     ) {
         let root = self.bounds();
-        // Rays still to trace: the root test of `occluded` and finite inputs (others go alone).
-        let mut active = 0u32;
-        for (i, (ray, t_max)) in segments.iter().enumerate() {
-            out[i] = false;
-            if segment_may_hit(&root, ray, *t_max) {
-                active |= 1 << i;
-            }
-        }
+        out.fill(false);
         let finite = |(r, t): &(Ray, f32)| is_finite(r) && !t.is_nan();
-        if active == 0 || !segments.iter().all(finite) {
-            for i in bits(active) {
-                let (ray, t_max) = &segments[i];
-                out[i] = self.occluded_with(ray, *t_max, ray_stack);
+        if !segments.iter().all(finite) {
+            // Ray by ray, behind `occluded`'s root test.
+            for (i, (ray, t_max)) in segments.iter().enumerate() {
+                if segment_may_hit(&root, ray, *t_max) {
+                    out[i] = self.occluded_with(ray, *t_max, ray_stack);
+                }
             }
             return;
         }
         packet_rays.fill(segments, |(ray, _)| ray);
         let boxes = RayPacketTester::new(packet_rays);
-        let mut searches: [Option<ShadowSearch>; RAY_PACKET] = [None; RAY_PACKET];
         // Each segment's t_max, in lanes' layout (0 past the packet's end: never active).
         let mut t_max = [0.0f32; RAY_PACKET];
         for (t, (_, segment_t_max)) in t_max.iter_mut().zip(segments) {
             *t = *segment_t_max;
         }
         let bound = culling_bounds(&t_max);
+        // Rays still to trace: `occluded`'s root test (`segment_may_hit`) in lanes, with the
+        // tester's inverse directions (the same bits) where that test divides again per ray.
+        let all_rays = (1u32 << segments.len()) - 1;
+        let (lo, hi) = (root.lo.to_array(), root.hi.to_array());
+        let (mut active, _) = boxes.rays_in_box(lo, hi, all_rays, &bound);
+        if active == 0 {
+            return;
+        }
+        let mut searches: [Option<ShadowSearch>; RAY_PACKET] = [None; RAY_PACKET];
         // Bounds never change, so their range over the packet holds for any active rays.
         let range = bound_range(&bound, active);
         let mut blocked = 0u32;
