@@ -11,7 +11,7 @@
 //! places are those over the rays.
 
 use super::lanes::RayGroupLanes;
-use super::ray_packet::{GROUPS, RAY_PACKET};
+use super::ray_packet::{GROUPS, RAY_PACKET, is_finite};
 use crate::triangle::Ray;
 use wide::f32x4;
 
@@ -31,12 +31,16 @@ impl PacketRays {
         dir: [[0.0; RAY_PACKET]; 3],
     };
 
-    /// Holds the rays `ray(&items[i])` of 1..=[`RAY_PACKET`] `items` (every place written).
+    /// Holds the rays `ray(&items[i])` of 1..=[`RAY_PACKET`] `items` (every place written), and
+    /// says whether every origin and direction is finite (`ray_packet::is_finite`).
     #[inline(always)]
-    pub fn fill<T>(&mut self, items: &[T], ray: impl Fn(&T) -> &Ray) {
+    pub fn fill<T>(&mut self, items: &[T], ray: impl Fn(&T) -> &Ray) -> bool {
         match <&[T; RAY_PACKET]>::try_from(items) {
             // A full packet (the common case) reads each ray at a fixed place.
             Ok(full) => {
+                // 0 · x is a zero for finite x and NaN for an infinity or NaN, so the sum
+                // of these products over the packet is a zero exactly when all are finite.
+                let mut zeros = f32x4::ZERO;
                 for g in 0..GROUPS {
                     let at = 4 * g;
                     let four = [
@@ -45,8 +49,9 @@ impl PacketRays {
                         ray(&full[at + 2]),
                         ray(&full[at + 3]),
                     ];
-                    self.put4(at, four);
+                    zeros += self.put4(at, four);
                 }
+                zeros.simd_eq(f32x4::ZERO).all()
             }
             Err(_) => {
                 let last = items.len() - 1;
@@ -57,20 +62,24 @@ impl PacketRays {
                         self.dir[a][i] = r.dir[a];
                     }
                 }
+                items.iter().all(|item| is_finite(ray(item)))
             }
         }
     }
 
     /// Writes four rays at places `at..at + 4`: each ray's `[ox, oy, oz, dx]` and
-    /// `[oz, dx, dy, dz]` as vectors, transposed.
+    /// `[oz, dx, dy, dz]` as vectors, transposed. Returns the sum of 0 · x over their
+    /// coordinates x (zeros where all are finite, else NaN in some lane).
     #[inline(always)]
-    fn put4(&mut self, at: usize, rays: [&Ray; 4]) {
+    fn put4(&mut self, at: usize, rays: [&Ray; 4]) -> f32x4 {
         let head = |r: &Ray| f32x4::from([r.origin.x, r.origin.y, r.origin.z, r.dir.x]);
         let tail = |r: &Ray| f32x4::from([r.origin.z, r.dir.x, r.dir.y, r.dir.z]);
         let [ox, oy, oz, dx] =
             f32x4::transpose([head(rays[0]), head(rays[1]), head(rays[2]), head(rays[3])]);
         let [_, _, dy, dz] =
             f32x4::transpose([tail(rays[0]), tail(rays[1]), tail(rays[2]), tail(rays[3])]);
+        let zero = f32x4::ZERO;
+        let zeros = (ox * zero + oy * zero) + (oz * zero + dx * zero) + (dy * zero + dz * zero);
         let put = |column: &mut [f32; RAY_PACKET], lanes: f32x4| {
             column[at..at + 4].copy_from_slice(&lanes.to_array());
         };
@@ -80,6 +89,7 @@ impl PacketRays {
         put(&mut self.dir[0], dx);
         put(&mut self.dir[1], dy);
         put(&mut self.dir[2], dz);
+        zeros
     }
 
     /// Group `g`'s origins along axis `a` (rays `4g..4g + 4`).
@@ -99,6 +109,37 @@ impl PacketRays {
 mod tests {
     use super::*;
     use glam::Vec3;
+
+    /// `fill` says a packet is finite exactly when every coordinate of every ray is: one
+    /// infinity or NaN at any coordinate of any ray, in full and short packets, makes it false.
+    #[test]
+    fn fill_finds_any_coordinate_that_is_not_finite() {
+        let finite = |i: usize| Ray {
+            origin: Vec3::new(i as f32, -1e30, 0.5),
+            dir: Vec3::new(-0.0, 3e-40, f32::MAX),
+        };
+        let mut packet = PacketRays::EMPTY;
+        for len in [1, 5, 16] {
+            let rays: Vec<Ray> = (0..len).map(finite).collect();
+            assert!(packet.fill(&rays, |r| r), "len {len}");
+            for bad in [f32::INFINITY, f32::NEG_INFINITY, f32::NAN] {
+                for i in [0, len / 2, len - 1] {
+                    for c in 0..6 {
+                        let mut rays = rays.clone();
+                        let r = &mut rays[i];
+                        match c {
+                            0..3 => r.origin[c] = bad,
+                            _ => r.dir[c - 3] = bad,
+                        }
+                        assert!(
+                            !packet.fill(&rays, |r| r),
+                            "len {len} ray {i} coordinate {c}"
+                        );
+                    }
+                }
+            }
+        }
+    }
 
     /// Every coordinate of every ray lands at its place, full packets and short ones alike,
     /// and places past the end repeat the last ray.

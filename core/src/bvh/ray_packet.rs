@@ -320,8 +320,7 @@ impl Bvh {
     ) {
         let mut packet_rays = PacketRays::EMPTY;
         for (rays, out) in rays.chunks(RAY_PACKET).zip(out.chunks_mut(RAY_PACKET)) {
-            if rays.iter().all(is_finite) {
-                packet_rays.fill(rays, |ray| ray);
+            if packet_rays.fill(rays, |ray| ray) {
                 self.trace_closest_packet::<WIDTH>(rays, &packet_rays, out, stack, ray_stack);
             } else {
                 for (ray, out) in rays.iter().zip(out) {

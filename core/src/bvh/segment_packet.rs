@@ -19,7 +19,7 @@ use super::node4::LEAF;
 use super::packet_rays::PacketRays;
 use super::ray_packet::{
     RAY_PACKET, RAY_PACKET_STACKS, RayPacketEntry, RayPacketTester, bits, bound_range,
-    culling_bounds, descend, is_finite,
+    culling_bounds, descend,
 };
 use super::simd4::BoxTester;
 use super::traverse::{Entry, ROOT, STACK, STACKS, ShadowSearch, segment_may_hit};
@@ -78,8 +78,8 @@ impl Bvh {
     ) {
         let root = self.bounds();
         out.fill(false);
-        let finite = |(r, t): &(Ray, f32)| is_finite(r) && !t.is_nan();
-        if !segments.iter().all(finite) {
+        let finite = packet_rays.fill(segments, |(ray, _)| ray);
+        if !finite || segments.iter().any(|(_, t_max)| t_max.is_nan()) {
             // Ray by ray, behind `occluded`'s root test.
             for (i, (ray, t_max)) in segments.iter().enumerate() {
                 if segment_may_hit(&root, ray, *t_max) {
@@ -88,7 +88,6 @@ impl Bvh {
             }
             return;
         }
-        packet_rays.fill(segments, |(ray, _)| ray);
         let boxes = RayPacketTester::new(packet_rays);
         // Each segment's t_max, in lanes' layout (0 past the packet's end: never active).
         let mut t_max = [0.0f32; RAY_PACKET];
