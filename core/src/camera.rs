@@ -152,11 +152,9 @@ impl Camera {
             let groups = ((whole - sample) / 4).min(4) as usize;
             let mut positions = [(f64x4::ZERO, f64x4::ZERO); 4];
             for (g, position) in positions[..groups].iter_mut().enumerate() {
-                let offsets = samples.offsets4(sample + 4 * g as u32);
-                *position = (
-                    f64x4::from(offsets.map(|(ox, _)| x + ox)),
-                    f64x4::from(offsets.map(|(_, oy)| y + oy)),
-                );
+                // `x + ox` lane by lane (addition commutes bit for bit).
+                let (ox, oy) = samples.offsets4(sample + 4 * g as u32);
+                *position = (f64x4::splat(x) + ox, f64x4::splat(y) + oy);
             }
             for &(px, py) in &positions[..groups] {
                 out.extend(self.rays4(px, py));

@@ -67,23 +67,22 @@ impl PixelSamples {
         (unit_float(x), unit_float(y))
     }
 
-    /// The offsets of samples `first..first + 4` (wrapping): `[self.offset(first), ..,
-    /// self.offset(first + 3)]`, the sequence's arithmetic in u32x4 lanes and the conversions
+    /// The offsets of samples `first..first + 4` (wrapping), x and y in lanes: lane k holds
+    /// `self.offset(first + k)`, the sequence's arithmetic in u32x4 lanes and the conversions
     /// in f64x4 lanes (the same exact operations per lane).
     #[inline(always)]
-    pub fn offsets4(&self, first: u32) -> [(f64, f64); 4] {
+    pub fn offsets4(&self, first: u32) -> (f64x4, f64x4) {
         if self.centre {
-            return [(0.5, 0.5); 4];
+            return (f64x4::splat(0.5), f64x4::splat(0.5));
         }
         let index = u32x4::splat(first) + u32x4::from([0, 1, 2, 3]);
         let (x, y) = sobol::points4(index, self.seed_x, self.seed_y);
         // The top 24 bits fit an i32, whose conversion to f64 is exact (as `f64::from`).
         let unit = |h: u32x4| {
-            let h = i32x4::from((h >> 8u32).to_array().map(|x| x as i32));
-            (f64x4::from_i32x4(h) * f64x4::splat(UNIT)).to_array()
+            let h: i32x4 = wide::bytemuck::cast(h >> 8u32);
+            f64x4::from_i32x4(h) * f64x4::splat(UNIT)
         };
-        let (x, y) = (unit(x), unit(y));
-        [0, 1, 2, 3].map(|k| (x[k], y[k]))
+        (unit(x), unit(y))
     }
 }
 

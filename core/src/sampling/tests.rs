@@ -4,7 +4,8 @@ use super::*;
 fn one_sample_is_the_pixel_centre() {
     assert_eq!(sample_offset(7, 0, 1), (0.5, 0.5));
     assert_eq!(sample_offset(7, 0, 0), (0.5, 0.5));
-    assert_eq!(PixelSamples::new(7, 1).offsets4(0), [(0.5, 0.5); 4]);
+    let (x, y) = PixelSamples::new(7, 1).offsets4(0);
+    assert_eq!((x.to_array(), y.to_array()), ([0.5; 4], [0.5; 4]));
 }
 
 /// A sample's position does not depend on the pixel's sample count (above 1): the first n
@@ -72,8 +73,8 @@ fn four_offsets_are_the_single_offsets() {
             let samples = PixelSamples::new(pixel, spp);
             let starts = (0..spp + 8).chain([1023, u32::MAX - 5, u32::MAX - 3, u32::MAX]);
             for first in starts {
-                let four = samples.offsets4(first);
-                for (k, (x, y)) in four.into_iter().enumerate() {
+                let (xs, ys) = samples.offsets4(first);
+                for (k, (x, y)) in xs.to_array().into_iter().zip(ys.to_array()).enumerate() {
                     let (ex, ey) = samples.offset(first.wrapping_add(k as u32));
                     assert_eq!(
                         (x.to_bits(), y.to_bits()),
