@@ -9,7 +9,15 @@
 //!
 //! [`Camera::sample_ray`] is the one camera-sample path: the monolithic renderer and CastMap
 //! both take their rays from it, so they trace the same rays bit for bit.
+//! [`Camera::pixel_rays`] gives a pixel's sample rays four at a time with the same operations
+//! in lanes: `wide`'s f64x4 everywhere, or one 256-bit register per coordinate on x86-64
+//! hosts with AVX2 (`avx.rs`, taken at the kernel widths `Eight` and `Sixteen`).
 
+#[cfg(target_arch = "x86_64")]
+mod avx;
+
+#[cfg(target_arch = "x86_64")]
+use crate::bvh::{KernelWidth, kernel_width};
 use crate::error::SceneError;
 use crate::sampling::PixelSamples;
 use crate::scene::CameraSpec;
@@ -139,6 +147,23 @@ impl Camera {
     /// samples at a time in SIMD lanes ([`Camera::rays4`]).
     #[inline]
     pub fn pixel_rays(&self, pixel: u64, spp: u32, out: &mut Vec<Ray>) {
+        #[cfg(target_arch = "x86_64")]
+        if kernel_width() != KernelWidth::Four {
+            // SAFETY: the widths `Eight` and `Sixteen` are offered only on hosts with AVX2
+            // (`bvh::dispatch`).
+            #[allow(unsafe_code)]
+            unsafe {
+                self.pixel_rays_avx2(pixel, spp, out)
+            };
+            return;
+        }
+        self.pixel_rays_in::<false>(pixel, spp, out);
+    }
+
+    /// [`Camera::pixel_rays`], with each group's rays from `Camera::rays4_avx` when `AVX` (only
+    /// inside `Camera::pixel_rays_avx2`), else from [`Camera::rays4`].
+    #[inline(always)]
+    fn pixel_rays_in<const AVX: bool>(&self, pixel: u64, spp: u32, out: &mut Vec<Ray>) {
         let samples = PixelSamples::of_frame(pixel, spp, self.frame);
         let x = (pixel % self.columns) as f64;
         let y = (pixel / self.columns) as f64;
@@ -157,6 +182,14 @@ impl Camera {
                 *position = (f64x4::splat(x) + ox, f64x4::splat(y) + oy);
             }
             for &(px, py) in &positions[..groups] {
+                #[cfg(target_arch = "x86_64")]
+                if AVX {
+                    // SAFETY: `AVX` is true only in `pixel_rays_avx2`, which runs only on
+                    // hosts with AVX2.
+                    #[allow(unsafe_code)]
+                    out.extend(unsafe { self.rays4_avx(px, py) });
+                    continue;
+                }
                 out.extend(self.rays4(px, py));
             }
             sample += 4 * groups as u32;
@@ -256,14 +289,32 @@ mod tests {
         let (width, height) = (9u32, 4u32);
         let cam = Camera::new(&spec, width, height).unwrap();
         let bits = |r: &Ray| (r.origin.to_array(), r.dir.to_array().map(f32::to_bits));
-        for spp in [1u32, 2, 7, 16, 20, 35, 64] {
-            for pixel in [0u64, 8, 9, 22, 35] {
-                let mut got = vec![cam.sample_ray(0, 0, 1)];
-                cam.pixel_rays(pixel, spp, &mut got);
-                assert_eq!(got.len(), 1 + spp as usize, "appends, spp {spp}");
-                for (sample, ray) in got[1..].iter().enumerate() {
-                    let expected = cam.sample_ray(pixel, sample as u32, spp);
-                    assert_eq!(bits(ray), bits(&expected), "pixel {pixel} sample {sample}");
+        // The dispatched path, the portable lanes, and AVX2's registers where the host has it.
+        type PixelRays = fn(&Camera, u64, u32, &mut Vec<Ray>);
+        #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
+        let mut paths: Vec<(&str, PixelRays)> = vec![
+            ("dispatched", Camera::pixel_rays),
+            ("portable", Camera::pixel_rays_in::<false>),
+        ];
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the host has AVX2.
+            #[allow(unsafe_code)]
+            paths.push(("avx2", |c, pixel, spp, out| unsafe {
+                c.pixel_rays_avx2(pixel, spp, out)
+            }));
+        }
+        for (path, pixel_rays) in paths {
+            for spp in [1u32, 2, 7, 16, 20, 35, 64] {
+                for pixel in [0u64, 8, 9, 22, 35] {
+                    let mut got = vec![cam.sample_ray(0, 0, 1)];
+                    pixel_rays(&cam, pixel, spp, &mut got);
+                    assert_eq!(got.len(), 1 + spp as usize, "{path}: appends, spp {spp}");
+                    for (sample, ray) in got[1..].iter().enumerate() {
+                        let expected = cam.sample_ray(pixel, sample as u32, spp);
+                        let at = format!("{path}: pixel {pixel} sample {sample}");
+                        assert_eq!(bits(ray), bits(&expected), "{at}");
+                    }
                 }
             }
         }
