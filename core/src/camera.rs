@@ -144,7 +144,7 @@ impl Camera {
     /// Appends the rays of samples `0..spp` of pixel `pixel` to `out`, in sample order: exactly
     /// [`Camera::sample_ray`]`(pixel, sample, spp)` for each sample, with the per-pixel work
     /// (the pixel's coordinates and sample pattern) done once and the ray arithmetic of four
-    /// samples at a time in SIMD lanes ([`Camera::rays4`]).
+    /// samples at a time in SIMD lanes ([`Camera::rays4`], or `avx.rs` on AVX2 hosts).
     #[inline]
     pub fn pixel_rays(&self, pixel: u64, spp: u32, out: &mut Vec<Ray>) {
         #[cfg(target_arch = "x86_64")]

@@ -6,9 +6,9 @@
 //! blocked ray leaves its packet.
 //!
 //! Guarantee: every segment gets exactly [`Bvh::occluded`]'s answer: the root test is
-//! `occluded`'s own, every box test either is the single-ray slab test or can only claim what
-//! it would claim, and every triangle test is the single-ray leaf test or decides as it does
-//! (`leaf_lanes.rs`).
+//! `occluded`'s own (in lanes: its operations lane by lane), every box test either is the
+//! single-ray slab test or can only claim what it would claim, and every triangle test is the
+//! single-ray leaf test or decides as it does (`leaf_lanes.rs`).
 
 use super::Bvh;
 use super::dispatch::{KernelWidth, kernel_width};
