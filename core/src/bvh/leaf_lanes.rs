@@ -8,10 +8,11 @@
 //! the same leaves together, gain most.
 //!
 //! Guarantee: every ray keeps exactly the hit (and every segment the answer) the 4-wide path
-//! gives it, at every group width. Each lane runs the
-//! watertight test of [`crate::triangle::intersect`] in its order of operations (`simd4.rs`,
-//! `edges`, over [`Lanes`]), which needs the lanes' rays to permute the axes alike (the
-//! packet's group falls back to the 4-wide path otherwise); lanes only the scalar test can
+//! gives it, at every group width. Each lane runs the watertight test of
+//! [`crate::triangle::intersect`] in its order of operations (`simd4.rs`,
+//! `edges_unless_outside`, over [`Lanes`]), which needs the lanes' rays to permute the axes
+//! alike (the packet's group falls back to the 4-wide path otherwise); a triangle all of whose
+//! lanes have mixed edge signs is left there; lanes only the scalar test can
 //! decide go to it; and each lane keeps its best hit by the rule of
 //! [`super::traverse::BestHit::beaten_by`] (smaller t, then smaller id), whose winner does not
 //! depend on the order of the hits.
@@ -28,7 +29,7 @@ use super::node4::Triangle4;
 use super::packet_hits::PacketHits;
 use super::packet_rays::PacketRays;
 use super::ray_packet::{RAY_PACKET, bits};
-use super::simd4::{any_hit_verdict, closest_verdict, edges};
+use super::simd4::{any_hit_verdict, closest_verdict, edges_unless_outside};
 use super::traverse::scalar_hit;
 use crate::triangle::{Ray, RayPrep, TriangleHit, intersect};
 use wide::f32x4;
@@ -336,7 +337,11 @@ fn closest_in_leaf<L: RayGroupLanes>(
     for k in first..first + count {
         let p: &Triangle4 = &bvh.triangles[k];
         for lane in 0..p.lanes as usize {
-            let e = edges(&lanes.origin, &lanes.shear, &lanes.corners(p, lane));
+            let corners = lanes.corners(p, lane);
+            let Some(e) = edges_unless_outside(&lanes.origin, &lanes.shear, &corners, active)
+            else {
+                continue;
+            };
             let (exact, scalar) = closest_verdict(&e, active, best.t);
             if exact | scalar == 0 {
                 continue;
@@ -451,7 +456,10 @@ fn occluded_in_leaf<L: RayGroupLanes>(
     let mut open = active;
     for p in &bvh.triangles[first..first + count] {
         for lane in 0..p.lanes as usize {
-            let e = edges(&lanes.origin, &lanes.shear, &lanes.corners(p, lane));
+            let corners = lanes.corners(p, lane);
+            let Some(e) = edges_unless_outside(&lanes.origin, &lanes.shear, &corners, open) else {
+                continue;
+            };
             let (hit, unsure) = any_hit_verdict(&e, open, t_max);
             open &= !hit;
             for i in bits(unsure) {
@@ -480,6 +488,8 @@ mod tests {
 
     /// What one width's lanes say of one triangle against a group of rays.
     struct Verdicts {
+        /// Every lane was outside: the test ended at the edge functions' signs.
+        outside: bool,
         /// The lanes' permutation, origins and shears.
         axes: [usize; 3],
         origin: [[u32; 16]; 3],
@@ -506,13 +516,28 @@ mod tests {
         packet_rays.fill(rays, |ray| ray);
         let lanes = RayLanes::<L>::new(&packet_rays, 0)?;
         let valid = (1u32 << rays.len()) - 1;
-        let e = edges(&lanes.origin, &lanes.shear, &lanes.corners(p, 0));
+        let bits = |x: [L; 3]| [x[0].store_bits(), x[1].store_bits(), x[2].store_bits()];
+        let corners = lanes.corners(p, 0);
+        let Some(e) = edges_unless_outside(&lanes.origin, &lanes.shear, &corners, valid) else {
+            return Some(Verdicts {
+                outside: true,
+                axes: lanes.axes,
+                origin: bits(lanes.origin),
+                shear: bits(lanes.shear),
+                exact: 0,
+                scalar: 0,
+                t: [f32::NAN; 16],
+                b: [[f32::NAN; 16]; 3],
+                hit: 0,
+                unsure: 0,
+            });
+        };
         let t_max = L::load(t_max);
         let (exact, scalar) = closest_verdict(&e, valid, t_max);
         let (hit, unsure) = any_hit_verdict(&e, valid, t_max);
         let b = [e.u * e.inv_det, e.v * e.inv_det, e.w * e.inv_det];
-        let bits = |x: [L; 3]| [x[0].store_bits(), x[1].store_bits(), x[2].store_bits()];
         Some(Verdicts {
+            outside: false,
             axes: lanes.axes,
             origin: bits(lanes.origin),
             shear: bits(lanes.shear),
@@ -606,6 +631,7 @@ mod tests {
     ) {
         let mut rng = Rng(7);
         let (mut pairs, mut exact_hits, mut any_hits, mut mixed) = (0, 0, 0, 0);
+        let mut outside = 0;
         let p_of = |tri: &[Vec3; 3]| {
             let mut v = [[[0.0f32; 4]; 3]; 3];
             for (c, corner) in tri.iter().enumerate() {
@@ -657,6 +683,7 @@ mod tests {
             let v = verdicts(&rays, &p, &t_max).expect("the rays share their permutation");
             assert_eq!(v.exact & v.scalar, 0);
             assert_eq!(v.hit & v.unsure, 0);
+            outside += usize::from(v.outside);
             exact_hits += v.exact.count_ones();
             any_hits += v.hit.count_ones();
             for (i, ray) in rays.iter().enumerate() {
@@ -691,5 +718,6 @@ mod tests {
         assert!(exact_hits > 50_000, "exact hits in lanes ({exact_hits})");
         assert!(any_hits > 50_000, "any hits in lanes ({any_hits})");
         assert_eq!(mixed, 1000, "groups of mixed permutations");
+        assert!(outside > groups / 200, "groups all outside ({outside})");
     }
 }

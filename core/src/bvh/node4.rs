@@ -44,6 +44,12 @@ pub(super) struct Triangle4 {
 }
 
 impl Triangle4 {
+    /// Its lanes that hold triangles (bit i = lane i).
+    #[inline(always)]
+    pub fn valid(&self) -> u32 {
+        (1u32 << self.lanes) - 1
+    }
+
     /// The corners of lane `lane`: the same values as the leaf-order triangle `first + lane`.
     #[inline(always)]
     pub fn corners(&self, lane: usize) -> [Vec3; 3] {

@@ -109,6 +109,21 @@ pub(super) struct Edges<L> {
     clean: L,
 }
 
+/// The first half of [`Edges`]: the sheared corners and the edge functions, enough to see the
+/// lanes the scalar test rejects first (mixed signs).
+pub(super) struct EdgeFunctions<L> {
+    x: [L; 3],
+    y: [L; 3],
+    z: [L; 3],
+    u: L,
+    v: L,
+    w: L,
+    /// Lanes with an edge function exactly 0 (the scalar test recomputes them in f64).
+    any_zero: L,
+    /// Lanes whose edge functions have mixed signs (one below zero, one above).
+    mixed: L,
+}
+
 /// The edge functions of each lane's pair: `origin[k]` and `shear[k]` are the ray's origin on
 /// its permuted axis k (kx, ky, kz) and its shear ([`RayPrep::shear`]), `corners[c][k]` corner
 /// c of the triangle on that axis. Four triangles against one ray ([`Triangle4`]) or one
@@ -117,7 +132,11 @@ pub(super) struct Edges<L> {
 /// No closures here or in what it calls: a closure is compiled on its own, without the SIMD
 /// features of the function it is meant to be inlined into, unless the compiler inlines it.
 #[inline(always)]
-pub(super) fn edges<L: Lanes>(origin: &[L; 3], shear: &[L; 3], corners: &[[L; 3]; 3]) -> Edges<L> {
+fn edge_functions<L: Lanes>(
+    origin: &[L; 3],
+    shear: &[L; 3],
+    corners: &[[L; 3]; 3],
+) -> EdgeFunctions<L> {
     #[inline(always)]
     fn sheared<L: Lanes>(origin: &[L; 3], shear: &[L; 3], corner: &[L; 3]) -> (L, L, L) {
         let x = corner[0] - origin[0];
@@ -125,7 +144,6 @@ pub(super) fn edges<L: Lanes>(origin: &[L; 3], shear: &[L; 3], corners: &[[L; 3]
         let z = corner[2] - origin[2];
         (x - shear[0] * z, y - shear[1] * z, z)
     }
-    let sz = shear[2];
     let (ax, ay, az) = sheared(origin, shear, &corners[0]);
     let (bx, by, bz) = sheared(origin, shear, &corners[1]);
     let (cx, cy, cz) = sheared(origin, shear, &corners[2]);
@@ -133,32 +151,81 @@ pub(super) fn edges<L: Lanes>(origin: &[L; 3], shear: &[L; 3], corners: &[[L; 3]
     let v = ax * cy - ay * cx;
     let w = bx * ay - by * ax;
     let zero = L::splat(0.0);
-    let any_zero = u.cmp_eq(zero) | v.cmp_eq(zero) | w.cmp_eq(zero);
     let any_neg = u.cmp_lt(zero) | v.cmp_lt(zero) | w.cmp_lt(zero);
     let any_pos = u.cmp_gt(zero) | v.cmp_gt(zero) | w.cmp_gt(zero);
-    let det = u + v + w;
-    let (zs0, zs1, zs2) = (sz * az, sz * bz, sz * cz);
-    let t_scaled = u * zs0 + v * zs1 + w * zs2;
-    let inv_det = L::splat(1.0) / det;
-    let t = t_scaled * inv_det;
-    let inf = L::splat(f32::INFINITY);
-    let det_bad = det.cmp_eq(zero) | !det.abs().cmp_lt(inf);
-    let wrong_side = det.cmp_lt(zero) ^ t_scaled.cmp_lt(zero);
-    let rejected = (any_neg & any_pos) | det_bad | wrong_side | !t.cmp_lt(inf);
-    let sum = ax + ay + bx + by + cx + cy + zs0 + zs1 + zs2 + u + v + w;
-    Edges {
+    EdgeFunctions {
         x: [ax, bx, cx],
         y: [ay, by, cy],
-        zs: [zs0, zs1, zs2],
+        z: [az, bz, cz],
         u,
         v,
         w,
-        inv_det,
-        t,
-        any_zero,
-        rejected,
-        clean: sum.cmp_eq(sum),
+        any_zero: u.cmp_eq(zero) | v.cmp_eq(zero) | w.cmp_eq(zero),
+        mixed: any_neg & any_pos,
     }
+}
+
+impl<L: Lanes> EdgeFunctions<L> {
+    /// Whether every lane of `valid` (bit i = lane i) misses for the scalar test: its edge
+    /// functions have mixed signs, where `intersect` returns `None` (NaN elsewhere in the lane
+    /// included). Also where one is exactly 0: `intersect` then recomputes them in f64, which
+    /// keeps the others' signs, because an f32 edge function that is not 0 has its exact sign
+    /// (the two products round monotonically, and so does their difference).
+    #[inline(always)]
+    fn all_outside(&self, valid: u32) -> bool {
+        !self.mixed.bitmask() & valid == 0
+    }
+
+    /// The rest of the test's values, with the ray's shear `sz` of its z axis.
+    #[inline(always)]
+    fn finish(self, sz: L) -> Edges<L> {
+        let EdgeFunctions { u, v, w, .. } = self;
+        let [ax, bx, cx] = self.x;
+        let [ay, by, cy] = self.y;
+        let zero = L::splat(0.0);
+        let det = u + v + w;
+        let [az, bz, cz] = self.z;
+        let (zs0, zs1, zs2) = (sz * az, sz * bz, sz * cz);
+        let t_scaled = u * zs0 + v * zs1 + w * zs2;
+        let inv_det = L::splat(1.0) / det;
+        let t = t_scaled * inv_det;
+        let inf = L::splat(f32::INFINITY);
+        let det_bad = det.cmp_eq(zero) | !det.abs().cmp_lt(inf);
+        let wrong_side = det.cmp_lt(zero) ^ t_scaled.cmp_lt(zero);
+        let rejected = self.mixed | det_bad | wrong_side | !t.cmp_lt(inf);
+        let sum = ax + ay + bx + by + cx + cy + zs0 + zs1 + zs2 + u + v + w;
+        Edges {
+            x: self.x,
+            y: self.y,
+            zs: [zs0, zs1, zs2],
+            u,
+            v,
+            w,
+            inv_det,
+            t,
+            any_zero: self.any_zero,
+            rejected,
+            clean: sum.cmp_eq(sum),
+        }
+    }
+}
+
+/// All of the test's values for each lane's pair ([`edge_functions`], then the rest), or `None`
+/// when every lane of `valid` (bit i = lane i) has mixed edge signs:
+/// those lanes miss ([`EdgeFunctions::all_outside`]), and the rest of the test (its division
+/// among it) is left out. Most pairs of a leaf test end here.
+#[inline(always)]
+pub(super) fn edges_unless_outside<L: Lanes>(
+    origin: &[L; 3],
+    shear: &[L; 3],
+    corners: &[[L; 3]; 3],
+    valid: u32,
+) -> Option<Edges<L>> {
+    let f = edge_functions(origin, shear, corners);
+    if f.all_outside(valid) {
+        return None;
+    }
+    Some(f.finish(shear[2]))
 }
 
 /// Lanes the scalar test rejects by its conservative t > 0 bound (pbrt-v4 6.8.6), computed in
@@ -193,13 +260,14 @@ fn too_close<L: Lanes>(e: &Edges<L>) -> L {
     e.t.cmp_le(delta_t) & e.clean
 }
 
-/// The edges of the 4 triangles of `p` against the ray of `r`.
+/// The edges of the 4 triangles of `p` against the ray of `r`, unless every triangle of `p`
+/// is outside ([`edges_unless_outside`]).
 #[inline(always)]
-fn triangle4_edges(r: &TriangleTester, p: &Triangle4) -> Edges<f32x4> {
+fn triangle4_edges(r: &TriangleTester, p: &Triangle4) -> Option<Edges<f32x4>> {
     let corners = each3(|c| each3(|k| f32x4::from(p.v[c][r.axes[k]])));
     let origin = each3(|k| f32x4::splat(r.origin[k]));
     let shear = each3(|k| f32x4::splat(r.shear[k]));
-    edges(&origin, &shear, &corners)
+    edges_unless_outside(&origin, &shear, &corners, p.valid())
 }
 
 /// The any-hit verdict of each lane of `e` among the `valid` ones, against
@@ -223,8 +291,10 @@ pub(super) fn any_hit_verdict<L: Lanes>(e: &Edges<L>, valid: u32, t_max: L) -> (
 /// against the ray of `r`.
 #[inline(always)]
 pub(super) fn triangle_any_hit(r: &TriangleTester, p: &Triangle4, t_max: f32) -> (u32, u32) {
-    let e = triangle4_edges(r, p);
-    any_hit_verdict(&e, (1u32 << p.lanes) - 1, f32x4::splat(t_max))
+    match triangle4_edges(r, p) {
+        Some(e) => any_hit_verdict(&e, p.valid(), f32x4::splat(t_max)),
+        None => (0, 0),
+    }
 }
 
 /// The closest-hit verdict of each lane of `e` among the `valid` ones (bit i = lane i), against
@@ -255,11 +325,17 @@ pub(super) struct Triangle4Hits {
     pub b: [[f32; 4]; 3],
 }
 
+/// The 4-wide closest-hit test of `p` against the ray of `r`; `None` when every triangle of `p`
+/// is outside ([`edges_unless_outside`]).
 #[inline(always)]
-pub(super) fn triangle_hits(r: &TriangleTester, p: &Triangle4, t_max: f32) -> Triangle4Hits {
-    let e = triangle4_edges(r, p);
-    let (exact, scalar) = closest_verdict(&e, (1u32 << p.lanes) - 1, f32x4::splat(t_max));
-    Triangle4Hits {
+pub(super) fn triangle_hits(
+    r: &TriangleTester,
+    p: &Triangle4,
+    t_max: f32,
+) -> Option<Triangle4Hits> {
+    let e = triangle4_edges(r, p)?;
+    let (exact, scalar) = closest_verdict(&e, p.valid(), f32x4::splat(t_max));
+    Some(Triangle4Hits {
         exact,
         scalar,
         t: e.t.to_array(),
@@ -268,7 +344,7 @@ pub(super) fn triangle_hits(r: &TriangleTester, p: &Triangle4, t_max: f32) -> Tr
             (e.v * e.inv_det).to_array(),
             (e.w * e.inv_det).to_array(),
         ],
-    }
+    })
 }
 
 #[cfg(test)]
@@ -307,6 +383,26 @@ pub(super) mod tests {
             first: 0,
             lanes: 4,
         }
+    }
+
+    /// What [`EdgeFunctions::all_outside`] relies on: an edge function `p·q - s·t` that is not
+    /// 0 in f32 has the sign of the f64 recomputation the scalar test makes when another is 0
+    /// (products overflowing to infinity included), over 4 million random and special values.
+    #[test]
+    fn nonzero_f32_edge_functions_keep_their_sign_in_f64() {
+        let mut rng = Rng(5);
+        let mut signed = 0;
+        for _ in 0..4_000_000 {
+            let [p, q, s, t] = [0; 4].map(|_| coord(&mut rng));
+            let e = p * q - s * t;
+            let e64 = (f64::from(p) * f64::from(q) - f64::from(s) * f64::from(t)) as f32;
+            if e != 0.0 && !e.is_nan() {
+                signed += 1;
+                assert_eq!(e < 0.0, e64 < 0.0, "{p} {q} {s} {t}: {e} {e64}");
+                assert_eq!(e > 0.0, e64 > 0.0, "{p} {q} {s} {t}: {e} {e64}");
+            }
+        }
+        assert!(signed > 3_000_000, "{signed}");
     }
 
     /// The 4-wide any-hit test decides every lane it claims (hit or miss) as the scalar test
@@ -351,7 +447,12 @@ pub(super) mod tests {
             let p = triangle4(&tris);
             let t_max = [f32::INFINITY, rng.unit() * 4.0][(rng.next() % 2) as usize];
             let (any_hit, unsure) = triangle_any_hit(&tester, &p, t_max);
-            let exact = triangle_hits(&tester, &p, t_max);
+            let exact = triangle_hits(&tester, &p, t_max).unwrap_or(Triangle4Hits {
+                exact: 0,
+                scalar: 0,
+                t: [f32::NAN; 4],
+                b: [[f32::NAN; 4]; 3],
+            });
             assert_eq!(exact.exact & exact.scalar, 0);
             exact_hits += exact.exact.count_ones();
             for (lane, [p0, p1, p2]) in tris.iter().enumerate() {

@@ -242,7 +242,9 @@ impl Bvh {
     pub(super) fn closest_in_leaf(&self, first: usize, count: usize, s: &mut ClosestSearch) {
         for k in first..first + count {
             let p = &self.triangles[k];
-            let wide = triangle_hits(&s.tris, p, s.best.t);
+            let Some(wide) = triangle_hits(&s.tris, p, s.best.t) else {
+                continue;
+            };
             let mut lanes = wide.exact | wide.scalar;
             while lanes != 0 {
                 let lane = lanes.trailing_zeros() as usize;
