@@ -114,10 +114,10 @@ pub fn shading_of(mesh: &Mesh, id: u32) -> TriangleShading {
     }
 }
 
-/// The shading data of a hit on the scene's triangle `hit.id`.
+/// The shading data of a hit on the scene's triangle `hit.id`, found by `bvh`.
 #[inline]
-pub fn surface_of(mesh: &Mesh, hit: &ClosestHit, ray: &Ray) -> SurfacePoint {
-    surface_with(mesh, &shading_of(mesh, hit.id), hit, ray)
+pub fn surface_of(mesh: &Mesh, bvh: &Bvh, hit: &ClosestHit, ray: &Ray) -> SurfacePoint {
+    surface_with(mesh, bvh, &shading_of(mesh, hit.id), hit, ray)
 }
 
 /// The reflectance of the scene's triangle `id` when it is flat (no vertex normals) and
@@ -131,12 +131,19 @@ fn flat_kd(mesh: &Mesh, id: u32) -> Option<[f32; 3]> {
 
 /// [`surface_of`] given the triangle's shading data `s` ([`shading_of`]).
 #[inline]
-fn surface_with(mesh: &Mesh, s: &TriangleShading, hit: &ClosestHit, ray: &Ray) -> SurfacePoint {
+fn surface_with(
+    mesh: &Mesh,
+    bvh: &Bvh,
+    s: &TriangleShading,
+    hit: &ClosestHit,
+    ray: &Ray,
+) -> SurfacePoint {
     let kd = match &s.texture {
         None => s.kd,
         Some(t) => t.kd_at(s.kd, &mesh.textures[t.texture as usize], hit.b),
     };
-    surface_point(hit.corners, hit.b, ray.dir, s.normals, kd)
+    let corners = bvh.hit_corners(hit).corners();
+    surface_point(corners, hit.b, ray.dir, s.normals, kd)
 }
 
 /// Renders `scene` with one BVH over all its triangles.
@@ -289,7 +296,7 @@ fn shade_batch_timed(
         match (four, [flat(0), flat(1), flat(2), flat(3)]) {
             (&[s0, s1, s2, s3], [Some(kd0), Some(kd1), Some(kd2), Some(kd3)]) => {
                 let flat_hit = |s: usize, kd: [f32; 3]| FlatHit {
-                    corners: &hit(s).corners,
+                    corners: bvh.hit_corners(hit(s)),
                     b: &hit(s).b,
                     dir: &rays[s].dir,
                     kd,
@@ -312,7 +319,7 @@ fn shade_batch_timed(
             }
             _ => {
                 for &s in four {
-                    let point = surface_of(&scene.mesh, hit(s), &rays[s]);
+                    let point = surface_of(&scene.mesh, bvh, hit(s), &rays[s]);
                     reflectances.push(point.kd);
                     points.push(point);
                 }
@@ -458,7 +465,7 @@ mod tests {
             };
             return (scene.background, rays);
         };
-        let sp = surface_of(&scene.mesh, hit, ray);
+        let sp = surface_of(&scene.mesh, bvh, hit, ray);
         let contributions = scene.lights.iter().filter_map(|light| {
             let test = shadow_test(&sp, light)?;
             (!bvh.occluded(&test.ray, test.t_max)).then_some(test.unoccluded)

@@ -163,7 +163,7 @@ pub fn measure(stacks: u32, slices: u32, size: u32) -> TerminatorFigures {
             f.band_pixels += 1;
             band_sum += e;
             let smooth = bvh.closest_hit(&ray).map_or(0.0, |hit| {
-                let sp = surface_of(&scene.mesh, &hit, &ray);
+                let sp = surface_of(&scene.mesh, &bvh, &hit, &ray);
                 f64::from(sp.n_shade.dot(l.as_vec3()).max(0.0))
             });
             shading_sum += (f64::from(mesh) - smooth).abs();
@@ -209,7 +209,7 @@ fn dark_cause(scene: &Scene, bvh: &Bvh, ray: &crate::triangle::Ray) -> Dark {
     let Some(hit) = bvh.closest_hit(ray) else {
         return Dark::Other;
     };
-    let sp = surface_of(&scene.mesh, &hit, ray);
+    let sp = surface_of(&scene.mesh, bvh, &hit, ray);
     let to_light = toward_light().as_vec3();
     match shadow_test(&sp, &scene.lights[0]) {
         Some(t) if bvh.occluded(&t.ray, t.t_max) => Dark::Blocked,

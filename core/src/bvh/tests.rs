@@ -49,13 +49,15 @@ fn bvh_of(tris: &[[Vec3; 3]]) -> Bvh {
 /// A hit's id, t, barycentrics, leaf-order index and corners, as bits.
 type HitBits = (u32, u32, [u32; 3], u32, [[u32; 3]; 3]);
 
-fn hit_bits(h: &ClosestHit) -> HitBits {
+fn hit_bits(bvh: &Bvh, h: &ClosestHit) -> HitBits {
     (
         h.id,
         h.t.to_bits(),
         h.b.map(f32::to_bits),
         h.index,
-        h.corners.map(|c| c.to_array().map(f32::to_bits)),
+        bvh.hit_corners(h)
+            .corners()
+            .map(|c| c.to_array().map(f32::to_bits)),
     )
 }
 
@@ -96,7 +98,7 @@ fn leaf_tests_in_lanes(width: KernelWidth) -> usize {
 fn check_ray_packets_against_single_rays(bvh: &Bvh, rays: &[Ray]) -> usize {
     let single: Vec<_> = rays
         .iter()
-        .map(|r| bvh.closest_hit(r).as_ref().map(hit_bits))
+        .map(|r| bvh.closest_hit(r).map(|h| hit_bits(bvh, &h)))
         .collect();
     at_every_kernel_width(|width| packets_give_single_ray_hits(bvh, rays, &single, width))
 }
@@ -117,7 +119,7 @@ fn packets_give_single_ray_hits(
             .enumerate()
         {
             assert_eq!(
-                &got.as_ref().map(hit_bits),
+                &got.as_ref().map(|h| hit_bits(bvh, h)),
                 expected,
                 "ray {} ({width:?})",
                 k + skip
@@ -179,8 +181,17 @@ fn check_tree_against_brute_force(bvh: &Bvh, tris: &[[Vec3; 3]], rays: &[Ray]) {
     let mut hits = 0;
     for (k, ray) in rays.iter().enumerate() {
         let expected = brute_force(tris, ray);
-        let got = bvh.closest_hit(ray).map(|h| (h.id, h.t.to_bits()));
+        let hit = bvh.closest_hit(ray);
+        let got = hit.map(|h| (h.id, h.t.to_bits()));
         assert_eq!(got, expected, "ray {k}: {ray:?}");
+        if let Some(h) = hit {
+            // The corners the BVH gives a hit are its triangle's.
+            assert_eq!(
+                bvh.hit_corners(&h).corners(),
+                tris[h.id as usize],
+                "ray {k}"
+            );
+        }
         hits += usize::from(expected.is_some());
         if let Some((_, t)) = expected {
             let t = f32::from_bits(t);
@@ -475,8 +486,8 @@ fn empty_bvh_hits_nothing() {
         id: 0,
         t: 1.0,
         b: [0.0; 3],
-        corners: [Vec3::ZERO; 3],
         index: 0,
+        place: 0,
     })];
     bvh.closest_hits(&[ray], &mut out);
     assert_eq!(out, [None]);

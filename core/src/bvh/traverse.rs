@@ -2,6 +2,7 @@
 //! far distance scaled by 1 + 2·gamma(3)), and a node is skipped only when its entry distance
 //! exceeds the current bound by a relative margin, so culling never changes the answer.
 
+use super::hit_corners::CornerLanes;
 use super::node4::{LEAF, Node4, Triangle4};
 use super::simd4::{BoxTester, TriangleTester, each3, triangle_any_hit, triangle_hits};
 use super::{Aabb, Bvh};
@@ -26,11 +27,12 @@ pub struct ClosestHit {
     pub t: f32,
     /// Barycentrics of the corners, each >= 0, summing to 1 up to rounding.
     pub b: [f32; 3],
-    /// The triangle's corners (as stored in the BVH), for shading without another lookup.
-    pub corners: [Vec3; 3],
     /// The triangle's position in the BVH's leaf order (indexes per-triangle data stored in
     /// that order, as split objects do).
     pub index: u32,
+    /// Where the BVH keeps the triangle: its `Triangle4` times 4 plus its lane
+    /// ([`Bvh::hit_corners`] reads the corners there).
+    pub(super) place: u32,
 }
 
 struct SlabRay {
@@ -218,6 +220,14 @@ impl Bvh {
         self.closest_result(&search.best)
     }
 
+    /// The corners of the triangle `hit` is on, where this BVH keeps them. `hit` must come
+    /// from this BVH (else the corners are another triangle's, or this panics).
+    #[inline(always)]
+    pub fn hit_corners(&self, hit: &ClosestHit) -> CornerLanes<'_> {
+        let (k, lane) = ((hit.place / 4) as usize, (hit.place % 4) as usize);
+        CornerLanes::new(&self.triangles[k].v, lane)
+    }
+
     /// The hit a finished search found, if any.
     #[inline(always)]
     pub(super) fn closest_result(&self, best: &BestHit) -> Option<ClosestHit> {
@@ -230,8 +240,8 @@ impl Bvh {
                 id: best.id,
                 t: best.t,
                 b: best.b,
-                corners: p.corners(lane),
                 index: index as u32,
+                place: best.place,
             }
         })
     }

@@ -71,7 +71,7 @@ pub(super) fn push_surface_hits(
             t: hit.t,
             triangle: hit.id,
             surface: surface_point(
-                hit.corners,
+                split.bvh.hit_corners(hit).corners(),
                 hit.b,
                 ray.dir,
                 shading.normals,

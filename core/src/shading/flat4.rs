@@ -10,6 +10,7 @@
 
 use super::lanes::{narrow, point_incidence_lanes, round_away_lanes, widen};
 use super::{ShadowTest, incidence, shadow_ray};
+use crate::bvh::CornerLanes;
 use crate::scene::Light;
 use crate::triangle::{Ray, gamma};
 use glam::Vec3;
@@ -21,7 +22,7 @@ use wide::{f32x4, f64x4};
 #[derive(Clone, Copy, Debug)]
 pub struct FlatHit<'a> {
     /// The triangle's corners.
-    pub corners: &'a [Vec3; 3],
+    pub corners: CornerLanes<'a>,
     /// The hit's barycentrics.
     pub b: &'a [f32; 3],
     /// The ray's direction.
@@ -237,7 +238,7 @@ impl FlatShader {
         mut visit: impl FnMut(usize, usize, ShadowTest),
     ) {
         let corner = |c: usize| {
-            let at = |k: usize| hits[k].corners[c];
+            let at = |k: usize| hits[k].corners.corner(c);
             Vec3x4::of([at(0), at(1), at(2), at(3)])
         };
         let [p0, p1, p2] = [corner(0), corner(1), corner(2)];
@@ -345,8 +346,17 @@ mod tests {
                 dir[k] = Vec3::new(r() - 0.5, r() - 0.5, r() - 0.5);
                 kd[k] = [r(), r(), r()];
             }
+            // The four triangles in the lanes of one array, as a BVH keeps them.
+            let mut v = [[[0.0f32; 4]; 3]; 3];
+            for (k, tri) in corners.iter().enumerate() {
+                for (c, corner) in tri.iter().enumerate() {
+                    for a in 0..3 {
+                        v[c][a][k] = corner[a];
+                    }
+                }
+            }
             let hits: [FlatHit<'_>; 4] = std::array::from_fn(|k| FlatHit {
-                corners: &corners[k],
+                corners: CornerLanes::new(&v, k),
                 b: &b[k],
                 dir: &dir[k],
                 kd: kd[k],
@@ -373,7 +383,7 @@ mod tests {
             ];
             let mut expected = Vec::new();
             for (k, h) in hits.iter().enumerate() {
-                let sp = surface_point(*h.corners, *h.b, *h.dir, None, h.kd);
+                let sp = surface_point(h.corners.corners(), *h.b, *h.dir, None, h.kd);
                 for (l, light) in lights.iter().enumerate() {
                     if let Some(t) = shadow_test(&sp, light) {
                         expected.push((k, l, bits(&t)));

@@ -122,7 +122,7 @@ fn render_rays(scene: &Scene, bvh: &Bvh, s: RenderSettings) -> Result<Rays> {
     let mut shadow = Vec::new();
     for (ray, hit) in primary.iter().zip(&hits) {
         let Some(hit) = hit else { continue };
-        let sp = surface_of(&scene.mesh, hit, ray);
+        let sp = surface_of(&scene.mesh, bvh, hit, ray);
         for (light, &free) in scene.lights.iter().zip(&free) {
             if let Some(test) = shadow_test(&sp, light).filter(|_| !free) {
                 shadow.push((test.ray, test.t_max));

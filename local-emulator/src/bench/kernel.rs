@@ -277,7 +277,7 @@ fn bench_scene(
         .iter()
         .zip(&hits)
         .filter_map(|(ray, hit)| {
-            let sp = surface_of(&scene.mesh, hit.as_ref()?, ray);
+            let sp = surface_of(&scene.mesh, &bvh, hit.as_ref()?, ray);
             let test = shadow_test(&sp, light?)?;
             Some((test.ray, test.t_max))
         })
