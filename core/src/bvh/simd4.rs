@@ -210,6 +210,12 @@ impl<L: Lanes> EdgeFunctions<L> {
     }
 }
 
+/// All of the test's values for each lane's pair ([`edge_functions`], then the rest).
+#[inline(always)]
+pub(super) fn edges<L: Lanes>(origin: &[L; 3], shear: &[L; 3], corners: &[[L; 3]; 3]) -> Edges<L> {
+    edge_functions(origin, shear, corners).finish(shear[2])
+}
+
 /// All of the test's values for each lane's pair ([`edge_functions`], then the rest), or `None`
 /// when every lane of `valid` (bit i = lane i) has mixed edge signs:
 /// those lanes miss ([`EdgeFunctions::all_outside`]), and the rest of the test (its division
@@ -260,15 +266,18 @@ fn too_close<L: Lanes>(e: &Edges<L>) -> L {
     e.t.cmp_le(delta_t) & e.clean
 }
 
-/// The edges of the 4 triangles of `p` against the ray of `r`, unless every triangle of `p`
-/// is outside ([`edges_unless_outside`]).
+/// The 4 triangles of `p` against the ray of `r`, as [`edges`] takes them: the ray's origin
+/// and shear and the corners, in lanes.
 #[inline(always)]
-fn triangle4_edges(r: &TriangleTester, p: &Triangle4) -> Option<Edges<f32x4>> {
+fn triangle4_lanes(r: &TriangleTester, p: &Triangle4) -> TestLanes<f32x4> {
     let corners = each3(|c| each3(|k| f32x4::from(p.v[c][r.axes[k]])));
     let origin = each3(|k| f32x4::splat(r.origin[k]));
     let shear = each3(|k| f32x4::splat(r.shear[k]));
-    edges_unless_outside(&origin, &shear, &corners, p.valid())
+    (origin, shear, corners)
 }
+
+/// A triangle test's inputs in lanes: the rays' origins and shears, and the corners.
+type TestLanes<L> = ([L; 3], [L; 3], [[L; 3]; 3]);
 
 /// The any-hit verdict of each lane of `e` among the `valid` ones, against
 /// `intersect(prep, .., t_max)` for that lane's pair: (`hit`, `unsure`). `hit` lanes are hits
@@ -288,13 +297,13 @@ pub(super) fn any_hit_verdict<L: Lanes>(e: &Edges<L>, valid: u32, t_max: L) -> (
 }
 
 /// [`any_hit_verdict`] of the 4 triangles of `p` (bit i = lane i, only lanes < `p.lanes`)
-/// against the ray of `r`.
+/// against the ray of `r`: the whole test, without [`triangle_hits`]' stop at the edge signs
+/// (measured slower for single shadow rays: the bvh README's "Triangle tests").
 #[inline(always)]
 pub(super) fn triangle_any_hit(r: &TriangleTester, p: &Triangle4, t_max: f32) -> (u32, u32) {
-    match triangle4_edges(r, p) {
-        Some(e) => any_hit_verdict(&e, p.valid(), f32x4::splat(t_max)),
-        None => (0, 0),
-    }
+    let (origin, shear, corners) = triangle4_lanes(r, p);
+    let e = edges(&origin, &shear, &corners);
+    any_hit_verdict(&e, p.valid(), f32x4::splat(t_max))
 }
 
 /// The closest-hit verdict of each lane of `e` among the `valid` ones (bit i = lane i), against
@@ -333,7 +342,8 @@ pub(super) fn triangle_hits(
     p: &Triangle4,
     t_max: f32,
 ) -> Option<Triangle4Hits> {
-    let e = triangle4_edges(r, p)?;
+    let (origin, shear, corners) = triangle4_lanes(r, p);
+    let e = edges_unless_outside(&origin, &shear, &corners, p.valid())?;
     let (exact, scalar) = closest_verdict(&e, p.valid(), f32x4::splat(t_max));
     Some(Triangle4Hits {
         exact,
