@@ -84,7 +84,6 @@ impl RayPacketTester {
         let inf = f32x4::splat(f32::INFINITY);
         let (mut lo, mut hi) = ([inf; 3], [-inf; 3]);
         let (mut o_lo, mut o_hi) = ([inf; 3], [-inf; 3]);
-        let (mut negative, mut infinite) = ([0u32; 3], [0u32; 3]);
         for g in 0..GROUPS {
             for a in 0..3 {
                 let x = inv_dir[g][a];
@@ -93,14 +92,18 @@ impl RayPacketTester {
                 let o = origin[g][a];
                 o_lo[a] = lesser4(o, o_lo[a]);
                 o_hi[a] = greater4(o, o_hi[a]);
-                negative[a] |= near_hi[g][a].to_bitmask() << (4 * g);
-                infinite[a] |= x.abs().simd_eq(inf).to_bitmask() << (4 * g);
             }
         }
-        let all_lanes = (1u32 << RAY_PACKET) - 1;
-        let all_near_hi = each3(|a| negative[a] == all_lanes);
         let origin_lo = each3(|a| lowest(o_lo[a]));
         let origin_hi = each3(|a| -lowest(-o_hi[a]));
+        let inv_lo = each3(|a| lowest(lo[a]));
+        let inv_hi = each3(|a| -lowest(-hi[a]));
+        // Signs and infinities from the extremes: inverse directions are never 0 or NaN, so
+        // every one is below zero exactly when the largest is, and some is infinite exactly
+        // when an extreme is.
+        let all_near_hi = each3(|a| inv_hi[a] < 0.0);
+        let some_negative = each3(|a| inv_lo[a] < 0.0);
+        let infinite = each3(|a| inv_lo[a] == -f32::INFINITY || inv_hi[a] == f32::INFINITY);
         RayPacketTester {
             origin,
             origin_lo: each3(|a| f32x4::splat(origin_lo[a])),
@@ -108,10 +111,10 @@ impl RayPacketTester {
             one_origin: origin_lo == origin_hi,
             inv_dir,
             near_hi,
-            inv_lo: each3(|a| f32x4::splat(lowest(lo[a]))),
-            inv_hi: each3(|a| f32x4::splat(-lowest(-hi[a]))),
+            inv_lo: each3(|a| f32x4::splat(inv_lo[a])),
+            inv_hi: each3(|a| f32x4::splat(inv_hi[a])),
             all_near_hi,
-            loose: each3(|a| infinite[a] != 0 || (negative[a] != 0 && !all_near_hi[a])),
+            loose: each3(|a| infinite[a] || (some_negative[a] && !all_near_hi[a])),
         }
     }
 
