@@ -11,11 +11,11 @@
 //! gives it, at every group width. Each lane runs the watertight test of
 //! [`crate::triangle::intersect`] in its order of operations (`simd4.rs`,
 //! `edges_unless_outside`, over [`Lanes`]), which needs the lanes' rays to permute the axes
-//! alike (the packet's group falls back to the 4-wide path otherwise); a triangle all of whose
-//! lanes have mixed edge signs is left there; lanes only the scalar test can
-//! decide go to it; and each lane keeps its best hit by the rule of
-//! [`super::traverse::BestHit::beaten_by`] (smaller t, then smaller id), whose winner does not
-//! depend on the order of the hits.
+//! alike (the packet's group falls back to the 4-wide path otherwise); a triangle is left at
+//! its edge functions when every lane has mixed signs and none of 0, as the scalar test leaves
+//! it; lanes only the scalar test can decide go to it; and each lane keeps its best hit by the
+//! rule of [`super::traverse::BestHit::beaten_by`] (smaller t, then smaller id), whose winner
+//! does not depend on the order of the hits.
 //!
 //! The code is written once over [`RayGroupLanes`]; the entry points of each width are thin
 //! functions compiled for its instruction set (the `*8` ones for AVX2, the `*16` ones for
