@@ -19,11 +19,11 @@ mod avx;
 #[cfg(target_arch = "x86_64")]
 use crate::bvh::{KernelWidth, kernel_width};
 use crate::error::SceneError;
-use crate::sampling::PixelSamples;
+use crate::sampling::{PixelSamples, TraceOrder};
 use crate::scene::CameraSpec;
 use crate::triangle::Ray;
 use glam::{DVec3, Vec3};
-use wide::f64x4;
+use wide::{f64x4, u32x4};
 
 /// A camera ready to generate rays for a `width` x `height` image.
 #[derive(Clone, Copy, Debug)]
@@ -141,44 +141,46 @@ impl Camera {
         self.ray(x + ox, y + oy)
     }
 
-    /// Appends the rays of samples `0..spp` of pixel `pixel` to `out`, in sample order: exactly
-    /// [`Camera::sample_ray`]`(pixel, sample, spp)` for each sample, with the per-pixel work
-    /// (the pixel's coordinates and sample pattern) done once and the ray arithmetic of four
-    /// samples at a time in SIMD lanes ([`Camera::rays4`], or `avx.rs` on AVX2 hosts).
+    /// Appends the rays of pixel `pixel`'s samples to `out` in `order` (a [`TraceOrder`] of
+    /// the pixel's sample count): exactly [`Camera::sample_ray`]`(pixel, sample, spp)` for each
+    /// sample of `order.samples()`, with the per-pixel work (the pixel's coordinates and sample
+    /// pattern) done once and the ray arithmetic of four samples at a time in SIMD lanes
+    /// ([`Camera::rays4`], or `avx.rs` on AVX2 hosts).
     #[inline]
-    pub fn pixel_rays(&self, pixel: u64, spp: u32, out: &mut Vec<Ray>) {
+    pub fn pixel_rays(&self, pixel: u64, order: &TraceOrder, out: &mut Vec<Ray>) {
         #[cfg(target_arch = "x86_64")]
         if kernel_width() != KernelWidth::Four {
             // SAFETY: the widths `Eight` and `Sixteen` are offered only on hosts with AVX2
             // (`bvh::dispatch`).
             #[allow(unsafe_code)]
             unsafe {
-                self.pixel_rays_avx2(pixel, spp, out)
+                self.pixel_rays_avx2(pixel, order, out)
             };
             return;
         }
-        self.pixel_rays_in::<false>(pixel, spp, out);
+        self.pixel_rays_in::<false>(pixel, order, out);
     }
 
     /// [`Camera::pixel_rays`], with each group's rays from `Camera::rays4_avx` when `AVX` (only
     /// inside `Camera::pixel_rays_avx2`), else from [`Camera::rays4`].
     #[inline(always)]
-    fn pixel_rays_in<const AVX: bool>(&self, pixel: u64, spp: u32, out: &mut Vec<Ray>) {
+    fn pixel_rays_in<const AVX: bool>(&self, pixel: u64, order: &TraceOrder, out: &mut Vec<Ray>) {
+        let order = order.samples();
+        let spp = order.len() as u32;
         let samples = PixelSamples::of_frame(pixel, spp, self.frame);
         let x = (pixel % self.columns) as f64;
         let y = (pixel / self.columns) as f64;
-        out.reserve(spp as usize);
-        let mut sample = 0;
-        let whole = spp - spp % 4;
-        while sample < whole {
+        out.reserve(order.len());
+        let (mut fours, rest) = order.as_chunks::<4>();
+        while !fours.is_empty() {
             // Up to 16 samples in two passes, the image positions of all of them first: each
             // pass's groups of four are independent, so their latency chains (the hash's
             // multiplications, then the square root and division) overlap.
-            let groups = ((whole - sample) / 4).min(4) as usize;
+            let groups = fours.len().min(4);
             let mut positions = [(f64x4::ZERO, f64x4::ZERO); 4];
-            for (g, position) in positions[..groups].iter_mut().enumerate() {
+            for (position, four) in positions.iter_mut().zip(&fours[..groups]) {
                 // `x + ox` lane by lane (addition commutes bit for bit).
-                let (ox, oy) = samples.offsets4(sample + 4 * g as u32);
+                let (ox, oy) = samples.offsets_of(u32x4::from(*four));
                 *position = (f64x4::splat(x) + ox, f64x4::splat(y) + oy);
             }
             for &(px, py) in &positions[..groups] {
@@ -192,9 +194,9 @@ impl Camera {
                 }
                 out.extend(self.rays4(px, py));
             }
-            sample += 4 * groups as u32;
+            fours = &fours[groups..];
         }
-        for sample in sample..spp {
+        for &sample in rest {
             let (ox, oy) = samples.offset(sample);
             out.push(self.ray(x + ox, y + oy));
         }
@@ -276,7 +278,7 @@ mod tests {
         }
     }
 
-    /// A pixel's batch of rays is its sample rays one by one, bit for bit, in sample order
+    /// A pixel's batch of rays is its sample rays one by one, bit for bit, in trace order
     /// (one sample, square and non-square strata, a sample count past the strata grid).
     #[test]
     fn pixel_rays_are_the_sample_rays_in_order() {
@@ -290,7 +292,7 @@ mod tests {
         let cam = Camera::new(&spec, width, height).unwrap();
         let bits = |r: &Ray| (r.origin.to_array(), r.dir.to_array().map(f32::to_bits));
         // The dispatched path, the portable lanes, and AVX2's registers where the host has it.
-        type PixelRays = fn(&Camera, u64, u32, &mut Vec<Ray>);
+        type PixelRays = fn(&Camera, u64, &TraceOrder, &mut Vec<Ray>);
         #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
         let mut paths: Vec<(&str, PixelRays)> = vec![
             ("dispatched", Camera::pixel_rays),
@@ -300,18 +302,19 @@ mod tests {
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the host has AVX2.
             #[allow(unsafe_code)]
-            paths.push(("avx2", |c, pixel, spp, out| unsafe {
-                c.pixel_rays_avx2(pixel, spp, out)
+            paths.push(("avx2", |c, pixel, order, out| unsafe {
+                c.pixel_rays_avx2(pixel, order, out)
             }));
         }
         for (path, pixel_rays) in paths {
             for spp in [1u32, 2, 7, 16, 20, 35, 64] {
+                let order = TraceOrder::new(spp);
                 for pixel in [0u64, 8, 9, 22, 35] {
                     let mut got = vec![cam.sample_ray(0, 0, 1)];
-                    pixel_rays(&cam, pixel, spp, &mut got);
+                    pixel_rays(&cam, pixel, &order, &mut got);
                     assert_eq!(got.len(), 1 + spp as usize, "{path}: appends, spp {spp}");
-                    for (sample, ray) in got[1..].iter().enumerate() {
-                        let expected = cam.sample_ray(pixel, sample as u32, spp);
+                    for (&sample, ray) in order.samples().iter().zip(&got[1..]) {
+                        let expected = cam.sample_ray(pixel, sample, spp);
                         let at = format!("{path}: pixel {pixel} sample {sample}");
                         assert_eq!(bits(ray), bits(&expected), "{at}");
                     }
@@ -356,9 +359,11 @@ mod tests {
                 "pixel {pixel}: only {differ} of 16 samples moved"
             );
             let mut batch = Vec::new();
-            frame3.pixel_rays(pixel, 16, &mut batch);
-            for (sample, ray) in batch.into_iter().enumerate() {
-                assert_eq!(bits(ray), bits(frame3.sample_ray(pixel, sample as u32, 16)));
+            let order = TraceOrder::new(16);
+            frame3.pixel_rays(pixel, &order, &mut batch);
+            assert_eq!(batch.len(), 16);
+            for (&sample, ray) in order.samples().iter().zip(batch) {
+                assert_eq!(bits(ray), bits(frame3.sample_ray(pixel, sample, 16)));
             }
         }
     }

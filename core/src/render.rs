@@ -11,7 +11,7 @@ use crate::hits::Hit;
 use crate::image::Image;
 use crate::phase_timer::{NoTimer, Phase, PhaseTimer, PhaseTimes};
 use crate::pipeline::FrameChoice;
-use crate::sampling::PixelSum;
+use crate::sampling::{PixelSum, TraceOrder};
 use crate::scene::{Mesh, NO_NORMAL, Scene, TriangleShading, check_image_size};
 use crate::shading::{
     FlatHit, FlatShader, ShadowTest, SurfacePoint, combine, shadow_tests, surface_point,
@@ -152,7 +152,7 @@ pub fn render(
     bvh: &Bvh,
     settings: RenderSettings,
 ) -> Result<RenderOutput, SceneError> {
-    let (camera, unoccludable) = prepare(scene, settings)?;
+    let setup = prepare(scene, settings)?;
     let threads = if settings.threads == 0 {
         available_cores()
     } else {
@@ -169,8 +169,7 @@ pub fn render(
             Ok::<Band, Infallible>(render_band(
                 scene,
                 bvh,
-                &unoccludable,
-                &camera,
+                &setup,
                 settings,
                 band as u32 * BAND_ROWS,
                 &mut NoTimer,
@@ -189,23 +188,35 @@ pub fn render_phases(
     bvh: &Bvh,
     settings: RenderSettings,
 ) -> Result<(RenderOutput, PhaseTimes), SceneError> {
-    let (camera, unoccludable) = prepare(scene, settings)?;
+    let setup = prepare(scene, settings)?;
     let start = Instant::now();
     let mut frame = Frame::new(settings);
     let mut timer = PhaseTimes::start();
     for y in (0..settings.height).step_by(BAND_ROWS as usize) {
-        let band = render_band(scene, bvh, &unoccludable, &camera, settings, y, &mut timer);
+        let band = render_band(scene, bvh, &setup, settings, y, &mut timer);
         frame.place(y as usize, band);
     }
     Ok((frame.finish(start), timer))
 }
 
-/// The checks and per-render setup of [`render`]: the image size, the camera, and which lights
-/// no surface can occlude.
-fn prepare(scene: &Scene, s: RenderSettings) -> Result<(Camera, Vec<bool>), SceneError> {
+/// What every band of a render shares, made once by [`prepare`].
+struct Setup {
+    camera: Camera,
+    /// Per light: no surface can occlude it ([`unoccludable_lights`]).
+    unoccludable: Vec<bool>,
+    /// The order each pixel's samples are traced in.
+    order: TraceOrder,
+}
+
+/// The checks and per-render setup of [`render`]: the image size, the camera, which lights no
+/// surface can occlude, and the samples' trace order.
+fn prepare(scene: &Scene, s: RenderSettings) -> Result<Setup, SceneError> {
     check_image_size(s.width, s.height, s.spp)?;
-    let camera = s.camera(scene)?;
-    Ok((camera, unoccludable_lights(&scene.mesh, &scene.lights)))
+    Ok(Setup {
+        camera: s.camera(scene)?,
+        unoccludable: unoccludable_lights(&scene.mesh, &scene.lights),
+        order: TraceOrder::new(s.spp),
+    })
 }
 
 /// The image, hit buffer and ray counts as bands of rows arrive (in any order).
@@ -369,8 +380,7 @@ struct Band {
 fn render_band(
     scene: &Scene,
     bvh: &Bvh,
-    unoccludable: &[bool],
-    camera: &Camera,
+    setup: &Setup,
     s: RenderSettings,
     y0: u32,
     timer: &mut impl PhaseTimer,
@@ -383,9 +393,9 @@ fn render_band(
         hits: vec![Hit::MISS; pixels],
         rays: RayCounts::default(),
     };
-    // The band's pixels tile by tile ([`crate::tiles`]), each pixel's samples together, in
-    // batches of about `BATCH_SAMPLES` samples (whole pixels): memory stays bounded whatever
-    // the width and spp.
+    // The band's pixels tile by tile ([`crate::tiles`]), each pixel's samples together in
+    // trace order ([`TraceOrder`]), in batches of about `BATCH_SAMPLES` samples (whole pixels):
+    // memory stays bounded whatever the width and spp.
     let first_pixel = u64::from(y0) * u64::from(s.width);
     let order = tile_order(first_pixel..first_pixel + pixels as u64, s.width)
         .map(|p| (p - first_pixel) as usize);
@@ -401,34 +411,33 @@ fn render_band(
         batch.extend(order.by_ref().take(pixels_per_batch));
         rays.clear();
         for &i in &batch {
-            camera.pixel_rays(first_pixel + i as u64, s.spp, &mut rays);
+            let pixel = first_pixel + i as u64;
+            setup.camera.pixel_rays(pixel, &setup.order, &mut rays);
         }
         // `closest_hits` writes every place: only a new length is filled.
         hits.resize(rays.len(), None);
         timer.lap(Phase::CameraRays);
         bvh.closest_hits(&rays, &mut hits);
         timer.lap(Phase::ClosestHits);
-        let colours = shade_batch_timed(scene, bvh, unoccludable, &rays, &hits, timer);
+        let colours = shade_batch_timed(scene, bvh, &setup.unoccludable, &rays, &hits, timer);
         for ((&i, colours), hits) in batch
             .iter()
             .zip(colours.chunks(samples))
             .zip(hits.chunks(samples))
         {
+            // The mean in sample order, whatever the trace order.
             let mut sum = PixelSum::default();
-            for (colour, hit) in colours.iter().zip(hits) {
-                sum.add(*colour);
-                // One primary ray, and for a hit one shadow ray per light.
-                band.rays += RayCounts {
-                    primary: 1,
-                    shadow: if hit.is_some() {
-                        scene.lights.len() as u64
-                    } else {
-                        0
-                    },
-                };
+            for sample in 0..s.spp {
+                sum.add(colours[setup.order.position(sample)]);
             }
+            // One primary ray per sample, and for a hit one shadow ray per light.
+            let hit_samples = hits.iter().filter(|hit| hit.is_some()).count() as u64;
+            band.rays += RayCounts {
+                primary: u64::from(s.spp),
+                shadow: hit_samples * scene.lights.len() as u64,
+            };
             band.colours[i] = sum.mean(s.spp);
-            band.hits[i] = hits[0].map_or(Hit::MISS, |h| Hit {
+            band.hits[i] = hits[setup.order.position(0)].map_or(Hit::MISS, |h| Hit {
                 triangle: h.id,
                 t: h.t,
             });

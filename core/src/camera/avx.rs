@@ -8,6 +8,7 @@
 #![allow(unsafe_code)]
 
 use super::Camera;
+use crate::sampling::TraceOrder;
 use crate::triangle::Ray;
 use glam::Vec3;
 use std::arch::x86_64::{
@@ -22,8 +23,13 @@ impl Camera {
     /// # Safety
     /// Only on hosts with AVX2.
     #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn pixel_rays_avx2(&self, pixel: u64, spp: u32, out: &mut Vec<Ray>) {
-        self.pixel_rays_in::<true>(pixel, spp, out);
+    pub(super) unsafe fn pixel_rays_avx2(
+        &self,
+        pixel: u64,
+        order: &TraceOrder,
+        out: &mut Vec<Ray>,
+    ) {
+        self.pixel_rays_in::<true>(pixel, order, out);
     }
 
     /// `Camera::rays4` in 256-bit registers.

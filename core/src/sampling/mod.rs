@@ -13,8 +13,10 @@
 
 mod pixel_sum;
 mod sobol;
+mod trace_order;
 
 pub use pixel_sum::PixelSum;
+pub use trace_order::TraceOrder;
 
 use wide::{f64x4, i32x4, u32x4};
 
@@ -72,11 +74,17 @@ impl PixelSamples {
     /// in f64x4 lanes (the same exact operations per lane).
     #[inline(always)]
     pub fn offsets4(&self, first: u32) -> (f64x4, f64x4) {
+        self.offsets_of(u32x4::splat(first) + u32x4::from([0, 1, 2, 3]))
+    }
+
+    /// The offsets of the samples `samples` (one per lane), x and y in lanes: lane k holds
+    /// `self.offset(samples[k])`, computed as [`PixelSamples::offsets4`] does.
+    #[inline(always)]
+    pub fn offsets_of(&self, samples: u32x4) -> (f64x4, f64x4) {
         if self.centre {
             return (f64x4::splat(0.5), f64x4::splat(0.5));
         }
-        let index = u32x4::splat(first) + u32x4::from([0, 1, 2, 3]);
-        let (x, y) = sobol::points4(index, self.seed_x, self.seed_y);
+        let (x, y) = sobol::points4(samples, self.seed_x, self.seed_y);
         // The top 24 bits fit an i32, whose conversion to f64 is exact (as `f64::from`).
         let unit = |h: u32x4| {
             let h: i32x4 = wide::bytemuck::cast(h >> 8u32);

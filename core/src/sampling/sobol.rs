@@ -25,6 +25,22 @@ pub(super) fn point(index: u32, seed_x: u32, seed_y: u32) -> (u32, u32) {
     (x, y)
 }
 
+/// Which dyadic cell of the pixel point `index` lies in, at every level up to `levels`, up to
+/// a relabelling fixed per pixel: the top `levels` bits of both coordinates before scrambling,
+/// interleaved with the coarsest level most significant (x's bit, then y's). Nested
+/// scrambling changes each bit by a function of the seed and the bits above it only, so two
+/// points of one pixel share their top `l` bits of both coordinates exactly when they share
+/// those bits here: they lie in the same `2^-l x 2^-l` square. The key ignores the seeds, so
+/// it is the same for every pixel and frame.
+pub(super) fn cell_key(index: u32, levels: u32) -> u32 {
+    let y = second_dimension_reversed(index);
+    let mut key = 0;
+    for level in 0..levels {
+        key = key << 2 | ((index >> level) & 1) << 1 | ((y >> level) & 1);
+    }
+    key
+}
+
 /// [`point`] of four indices, one per lane.
 #[inline(always)]
 pub(super) fn points4(index: u32x4, seed_x: u32, seed_y: u32) -> (u32x4, u32x4) {

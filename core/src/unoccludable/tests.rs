@@ -102,8 +102,9 @@ fn skipping_the_shadow_rays_changes_no_pixel() {
     let (w, h) = (48u32, 32u32);
     let camera = Camera::new(&scene.camera_for(w, h), w, h).unwrap();
     let mut rays = Vec::new();
+    let order = crate::sampling::TraceOrder::new(4);
     for pixel in 0..u64::from(w * h) {
-        camera.pixel_rays(pixel, 4, &mut rays);
+        camera.pixel_rays(pixel, &order, &mut rays);
     }
     let mut hits = vec![None; rays.len()];
     bvh.closest_hits(&rays, &mut hits);

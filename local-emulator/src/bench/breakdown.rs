@@ -17,6 +17,7 @@ use hort_core::bvh::Bvh;
 use hort_core::camera::Camera;
 use hort_core::phase_timer::{Phase, PhaseTimes};
 use hort_core::render::{RenderSettings, render_phases, surface_of};
+use hort_core::sampling::TraceOrder;
 use hort_core::scene::Scene;
 use hort_core::shading::shadow_test;
 use hort_core::unoccludable::unoccludable_lights;
@@ -108,13 +109,15 @@ type Rays = (
     Vec<bool>,
 );
 
-/// Every camera ray of the render (all samples, pixel by pixel) with its closest hit, and every
-/// shadow segment the renderer traces (lights some surface can occlude) with its answer.
+/// Every camera ray of the render (all samples, pixel by pixel, each pixel's in the renderer's
+/// trace order) with its closest hit, and every shadow segment the renderer traces (lights
+/// some surface can occlude) with its answer.
 fn render_rays(scene: &Scene, bvh: &Bvh, s: RenderSettings) -> Result<Rays> {
     let camera = Camera::new(&scene.camera_for(s.width, s.height), s.width, s.height)?;
+    let order = TraceOrder::new(s.spp);
     let mut primary = Vec::new();
     for pixel in 0..u64::from(s.width) * u64::from(s.height) {
-        camera.pixel_rays(pixel, s.spp, &mut primary);
+        camera.pixel_rays(pixel, &order, &mut primary);
     }
     let mut hits = vec![None; primary.len()];
     bvh.closest_hits(&primary, &mut hits);
