@@ -53,7 +53,7 @@ pub fn cast_samples(
             .iter()
             .map(|&(pixel, rank)| camera.sample_ray(pixel, rank, max_spp))
             .collect();
-        push_surface_hits(split, batch, &rays, &mut hits, &mut out);
+        push_surface_hits(split, (batch, &rays), &mut hits, &mut out, 0..batch.len());
     }
     out
 }

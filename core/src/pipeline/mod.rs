@@ -37,6 +37,7 @@ mod outputs;
 pub mod partition;
 mod plan;
 mod plan_step;
+mod query_order;
 mod records;
 mod refine_list;
 mod rounds;

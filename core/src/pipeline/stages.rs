@@ -3,6 +3,7 @@
 
 use super::PipelineError;
 use super::plan::{JobPlan, Span};
+use super::query_order::QueryOrder;
 use super::records::{Occluded, PixelBlock, ShadowQuery, SurfaceHit};
 use super::split::SplitMode;
 use super::split_object::SplitObject;
@@ -10,7 +11,7 @@ use crate::bvh::{ClosestHit, segment_may_hit};
 use crate::error::SceneError;
 use crate::hits::Hit;
 use crate::image::Image;
-use crate::sampling::PixelSum;
+use crate::sampling::{PixelSum, TraceOrder};
 use crate::shading::{combine as combine_light, shadow_ray, shadow_test, surface_point};
 use crate::triangle::Ray;
 
@@ -22,45 +23,50 @@ pub fn cast_map(
     split: &SplitObject,
 ) -> Result<Vec<SurfaceHit>, SceneError> {
     let camera = plan.ray_camera()?;
-    // Samples in (pixel, sample) order, traced in batches of neighbouring camera rays (coherent,
-    // so `closest_hits` runs them as packets).
-    let samples = (span.start..span.end).flat_map(|pixel| (0..plan.spp).map(move |s| (pixel, s)));
+    // Batches of whole pixels, each pixel's samples traced in trace order (as the monolithic
+    // renderer traces them: coherent packets) and written in sample order.
+    let order = TraceOrder::new(plan.spp);
+    let spp = plan.spp as usize;
+    let pixels_per_batch = (BATCH / spp.max(1)).max(1) as u64;
     let mut out = Vec::new();
     let mut batch: Vec<(u64, u32)> = Vec::with_capacity(BATCH);
     let mut rays = Vec::with_capacity(BATCH);
     let mut hits = Vec::with_capacity(BATCH);
-    let mut samples = samples.peekable();
-    while samples.peek().is_some() {
+    for first in (span.start..span.end).step_by(pixels_per_batch as usize) {
+        let pixels = first..(first + pixels_per_batch).min(span.end);
         batch.clear();
-        batch.extend(samples.by_ref().take(BATCH));
         rays.clear();
-        rays.extend(
-            batch
-                .iter()
-                .map(|&(pixel, sample)| camera.sample_ray(pixel, sample, plan.spp)),
-        );
-        push_surface_hits(split, &batch, &rays, &mut hits, &mut out);
+        for pixel in pixels.clone() {
+            camera.pixel_rays(pixel, &order, &mut rays);
+            batch.extend(order.samples().iter().map(|&sample| (pixel, sample)));
+        }
+        let in_sample_order = (0..pixels.count())
+            .flat_map(|p| (0..plan.spp).map(move |sample| (p, sample)))
+            .map(|(p, sample)| p * spp + order.position(sample));
+        push_surface_hits(split, (&batch, &rays), &mut hits, &mut out, in_sample_order);
     }
     Ok(out)
 }
 
 /// Traces the camera rays `rays` of the samples `batch` ((pixel, sample), one per ray) against
 /// `split` as packets, and appends the split's nearest hit of each sample that hits it to `out`,
-/// in batch order. `hits` is scratch space.
+/// taking the samples in the order of the indices `write_order` (into `batch`). `hits` is
+/// scratch space.
 pub(super) fn push_surface_hits(
     split: &SplitObject,
-    batch: &[(u64, u32)],
-    rays: &[Ray],
+    (batch, rays): (&[(u64, u32)], &[Ray]),
     hits: &mut Vec<Option<ClosestHit>>,
     out: &mut Vec<SurfaceHit>,
+    write_order: impl IntoIterator<Item = usize>,
 ) {
     // `closest_hits` writes every place: only a new length is filled.
     hits.resize(rays.len(), None);
     split.bvh.closest_hits(rays, hits);
-    for ((&(pixel, sample), ray), hit) in batch.iter().zip(rays).zip(hits.iter()) {
-        let Some(hit) = hit else {
+    for i in write_order {
+        let Some(hit) = &hits[i] else {
             continue;
         };
+        let ((pixel, sample), ray) = (batch[i], &rays[i]);
         let shading = split
             .shading
             .get(hit.index as usize)
@@ -140,17 +146,28 @@ pub fn trace_map(
     let mut out = Vec::new();
     let mut segments = Vec::with_capacity(BATCH);
     let mut blocked = Vec::with_capacity(BATCH);
-    // Queries are sorted by (pixel, sample, light): neighbours are coherent, so a batch is
-    // traced as packets.
+    let mut traced = Vec::with_capacity(BATCH);
+    let mut answers = Vec::with_capacity(BATCH);
+    let mut order = QueryOrder::new(plan.spp);
+    // Neighbours in trace order are coherent, so a batch is traced as packets; the answers
+    // are read back in input order.
     for batch in queries.chunks(BATCH) {
+        traced.clear();
+        order.append(batch, &mut traced);
         segments.clear();
-        for q in batch {
+        for &i in &traced {
+            let q = &batch[i];
             let light = plan.lights.get(q.light as usize).ok_or(q.light)?;
             segments.push(shadow_ray(light, q.origin));
         }
+        answers.clear();
+        answers.resize(segments.len(), false);
+        split.bvh.occluded_many(&segments, &mut answers);
         blocked.clear();
-        blocked.resize(segments.len(), false);
-        split.bvh.occluded_many(&segments, &mut blocked);
+        blocked.resize(batch.len(), false);
+        for (&i, &answer) in traced.iter().zip(&answers) {
+            blocked[i] = answer;
+        }
         out.extend(
             batch
                 .iter()
