@@ -4,7 +4,7 @@
 //! their shadow rays, as packets: [`Bvh::closest_hits`], [`Bvh::occluded_many`]); the colours
 //! are those of tracing each sample alone, and the result does not depend on the thread count.
 
-use crate::bvh::{BuildPreset, Bvh, ClosestHit};
+use crate::bvh::{BuildPreset, Bvh, ClosestHit, SegmentGroups};
 use crate::camera::Camera;
 use crate::error::SceneError;
 use crate::hits::Hit;
@@ -258,7 +258,7 @@ impl Frame {
 /// The radiance of every sample of a batch whose primary rays `rays` have the closest hits
 /// `hits`: the background for a miss, else Lambert shading with the lights its shadow rays
 /// reach (summed in light order) plus ambient. The shadow rays of the whole batch are traced as
-/// packets (sample by sample, light by light: neighbours share a light).
+/// packets, light by light ([`Bvh::occluded_grouped`]), each light's in sample order.
 ///
 /// `unoccludable[l]` says light `l` can be occluded by no surface
 /// ([`crate::unoccludable::unoccludable_lights`]): its shadow rays are not traced and count as
@@ -290,12 +290,14 @@ fn shade_batch_timed(
     let samples: Vec<usize> = (0..hits.len()).filter(|&s| hits[s].is_some()).collect();
     let most = samples.len() * scene.lights.len();
     let mut segments = Vec::with_capacity(most);
+    let mut segment_lights = Vec::with_capacity(most);
     let mut tests = Vec::with_capacity(most);
     let mut reflectances = Vec::with_capacity(samples.len());
     let mut visit = |sample: usize, light: usize, test: ShadowTest| {
         let free = unoccludable[light];
         if !free {
             segments.push((test.ray, test.t_max));
+            segment_lights.push(light as u32);
         }
         tests.push((sample, test.unoccluded, free));
     };
@@ -341,7 +343,14 @@ fn shade_batch_timed(
     }
     let mut traced = vec![false; segments.len()];
     timer.lap(Phase::Shading);
-    bvh.occluded_many(&segments, &mut traced);
+    // Light by light: with several lights, neighbouring segments alternate lights.
+    let lights = (segment_lights.as_slice(), scene.lights.len());
+    bvh.occluded_grouped(
+        &segments,
+        lights,
+        &mut traced,
+        &mut SegmentGroups::default(),
+    );
     timer.lap(Phase::ShadowRays);
     // Each test's answer in test order: unblocked when not traced, else its segment's.
     let mut traced = traced.into_iter();

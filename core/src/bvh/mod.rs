@@ -38,6 +38,7 @@ mod packet_rays;
 mod parts;
 mod ray_packet;
 mod refit;
+mod segment_groups;
 mod segment_packet;
 mod simd4;
 mod traverse;
@@ -48,6 +49,7 @@ pub use dispatch::{
 pub use hit_corners::CornerLanes;
 pub use parts::{BvhParts, BvhPartsError, NODE_BYTES, PartsLoader};
 pub use ray_packet::RAY_PACKET;
+pub use segment_groups::SegmentGroups;
 pub use traverse::{ClosestHit, segment_may_hit};
 
 use glam::Vec3;

@@ -7,7 +7,7 @@ use super::query_order::QueryOrder;
 use super::records::{Occluded, PixelBlock, ShadowQuery, SurfaceHit};
 use super::split::SplitMode;
 use super::split_object::SplitObject;
-use crate::bvh::{ClosestHit, segment_may_hit};
+use crate::bvh::{ClosestHit, SegmentGroups, segment_may_hit};
 use crate::error::SceneError;
 use crate::hits::Hit;
 use crate::image::Image;
@@ -148,6 +148,8 @@ pub fn trace_map(
     let mut blocked = Vec::with_capacity(BATCH);
     let mut traced = Vec::with_capacity(BATCH);
     let mut answers = Vec::with_capacity(BATCH);
+    let mut segment_lights = Vec::with_capacity(BATCH);
+    let mut groups = SegmentGroups::default();
     let mut order = QueryOrder::new(plan.spp);
     // Neighbours in trace order are coherent, so a batch is traced as packets; the answers
     // are read back in input order.
@@ -155,14 +157,18 @@ pub fn trace_map(
         traced.clear();
         order.append(batch, &mut traced);
         segments.clear();
+        segment_lights.clear();
         for &i in &traced {
             let q = &batch[i];
             let light = plan.lights.get(q.light as usize).ok_or(q.light)?;
             segments.push(shadow_ray(light, q.origin));
+            segment_lights.push(q.light);
         }
         answers.clear();
         answers.resize(segments.len(), false);
-        split.bvh.occluded_many(&segments, &mut answers);
+        // Light by light: with several lights, neighbouring queries alternate lights.
+        let lights = (segment_lights.as_slice(), plan.lights.len());
+        (split.bvh).occluded_grouped(&segments, lights, &mut answers, &mut groups);
         blocked.clear();
         blocked.resize(batch.len(), false);
         for (&i, &answer) in traced.iter().zip(&answers) {
