@@ -1,7 +1,8 @@
 //! The monolithic renderer (the paper's TRAD): one process, one BVH over the whole scene.
 //!
-//! Bands of rows are traced tile by tile, in batches of camera samples (primary rays, then all
-//! their shadow rays, as packets: [`Bvh::closest_hits`], [`Bvh::occluded_many`]); the colours
+//! Bands of rows are traced tile by tile, each pixel's samples in trace order
+//! ([`TraceOrder`]), in batches of camera samples (primary rays, then all their shadow rays
+//! light by light, as packets: [`Bvh::closest_hits`], [`Bvh::occluded_grouped`]); the colours
 //! are those of tracing each sample alone, and the result does not depend on the thread count.
 
 use crate::bvh::{BuildPreset, Bvh, ClosestHit, SegmentGroups};

@@ -167,8 +167,8 @@ pub fn trace_map(
         answers.clear();
         answers.resize(segments.len(), false);
         // Light by light: with several lights, neighbouring queries alternate lights.
-        let lights = (segment_lights.as_slice(), plan.lights.len());
-        (split.bvh).occluded_grouped(&segments, lights, &mut answers, &mut groups);
+        let (lights, bvh) = ((segment_lights.as_slice(), plan.lights.len()), &split.bvh);
+        bvh.occluded_grouped(&segments, lights, &mut answers, &mut groups);
         blocked.clear();
         blocked.resize(batch.len(), false);
         for (&i, &answer) in traced.iter().zip(&answers) {
