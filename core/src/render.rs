@@ -5,23 +5,31 @@
 //! light by light, as packets: [`Bvh::closest_hits`], [`Bvh::occluded_grouped`]); the colours
 //! are those of tracing each sample alone, and the result does not depend on the thread count.
 
+mod band;
+mod batch;
+mod surfaces;
+
+pub(crate) use band::BATCH_SAMPLES;
+pub use band::{Band, View, band_runs, render_run};
+pub use batch::Lighting;
+pub use surfaces::Surfaces;
+
 use crate::bvh::{BuildPreset, Bvh, ClosestHit, SegmentGroups};
 use crate::camera::Camera;
 use crate::error::SceneError;
 use crate::hits::Hit;
 use crate::image::Image;
-use crate::phase_timer::{NoTimer, Phase, PhaseTimer, PhaseTimes};
+use crate::phase_timer::{NoTimer, PhaseTimer, PhaseTimes};
 use crate::pipeline::FrameChoice;
-use crate::sampling::{PixelSum, TraceOrder};
+use crate::sampling::TraceOrder;
 use crate::scene::{Mesh, NO_NORMAL, Scene, TriangleShading, check_image_size};
-use crate::shading::{
-    FlatHit, FlatShader, ShadowTest, SurfacePoint, combine, shadow_tests, surface_point,
-};
+use crate::shading::{SurfacePoint, surface_point};
 use crate::texture::TexturedCorners;
-use crate::tiles::{BAND_ROWS, tile_order};
+use crate::tiles::BAND_ROWS;
 use crate::triangle::Ray;
 use crate::unoccludable::unoccludable_lights;
 use crate::worker_pool::{available_cores, run_indexed};
+use batch::shade_batch_timed;
 use std::convert::Infallible;
 use std::time::Instant;
 
@@ -256,6 +264,16 @@ impl Frame {
     }
 }
 
+/// The lights, ambient and background of `scene`, with `unoccludable` per light.
+fn lighting<'a>(scene: &'a Scene, unoccludable: &'a [bool]) -> Lighting<'a> {
+    Lighting {
+        lights: &scene.lights,
+        unoccludable,
+        ambient: scene.ambient,
+        background: scene.background,
+    }
+}
+
 /// The radiance of every sample of a batch whose primary rays `rays` have the closest hits
 /// `hits`: the background for a miss, else Lambert shading with the lights its shadow rays
 /// reach (summed in light order) plus ambient. The shadow rays of the whole batch are traced as
@@ -271,122 +289,19 @@ pub(crate) fn shade_batch(
     rays: &[Ray],
     hits: &[Option<ClosestHit>],
 ) -> Vec<[f32; 3]> {
-    shade_batch_timed(scene, bvh, unoccludable, rays, hits, &mut NoTimer)
+    let lighting = lighting(scene, unoccludable);
+    let mut groups = SegmentGroups::default();
+    let batch = (rays, hits);
+    shade_batch_timed(
+        (&scene.mesh, bvh),
+        &lighting,
+        batch,
+        &mut groups,
+        &mut NoTimer,
+    )
 }
 
-/// [`shade_batch`], reporting its shading and shadow-ray phases to `timer`.
-#[inline(always)]
-fn shade_batch_timed(
-    scene: &Scene,
-    bvh: &Bvh,
-    unoccludable: &[bool],
-    rays: &[Ray],
-    hits: &[Option<ClosestHit>],
-    timer: &mut impl PhaseTimer,
-) -> Vec<[f32; 3]> {
-    // Per hit, in sample order, its lights' tests in light order (the order `combine` sums
-    // them in), and its reflectance. Four hits on flat, untextured triangles are shaded at
-    // once in lanes; any other group of four goes through its surface points: the same tests
-    // either way.
-    let samples: Vec<usize> = (0..hits.len()).filter(|&s| hits[s].is_some()).collect();
-    let most = samples.len() * scene.lights.len();
-    let mut segments = Vec::with_capacity(most);
-    let mut segment_lights = Vec::with_capacity(most);
-    let mut tests = Vec::with_capacity(most);
-    let mut reflectances = Vec::with_capacity(samples.len());
-    let mut visit = |sample: usize, light: usize, test: ShadowTest| {
-        let free = unoccludable[light];
-        if !free {
-            segments.push((test.ray, test.t_max));
-            segment_lights.push(light as u32);
-        }
-        tests.push((sample, test.unoccluded, free));
-    };
-    let mut shader = FlatShader::default();
-    let mut points = Vec::with_capacity(4);
-    let hit = |s: usize| hits[s].as_ref().expect("samples with hits");
-    for four in samples.chunks(4) {
-        let flat = |k: usize| four.get(k).and_then(|&s| flat_kd(&scene.mesh, hit(s).id));
-        match (four, [flat(0), flat(1), flat(2), flat(3)]) {
-            (&[s0, s1, s2, s3], [Some(kd0), Some(kd1), Some(kd2), Some(kd3)]) => {
-                let flat_hit = |s: usize, kd: [f32; 3]| FlatHit {
-                    corners: bvh.hit_corners(hit(s)),
-                    b: &hit(s).b,
-                    dir: &rays[s].dir,
-                    kd,
-                };
-                let flat_hits = [
-                    flat_hit(s0, kd0),
-                    flat_hit(s1, kd1),
-                    flat_hit(s2, kd2),
-                    flat_hit(s3, kd3),
-                ];
-                // One push each: built as one array, the four were stored piece by piece
-                // and read back whole, a store-forwarding stall of 3-4% of a render.
-                reflectances.push(kd0);
-                reflectances.push(kd1);
-                reflectances.push(kd2);
-                reflectances.push(kd3);
-                shader.shadow_tests4(&flat_hits, &scene.lights, |k, l, test| {
-                    visit(four[k], l, test)
-                });
-            }
-            _ => {
-                for &s in four {
-                    let point = surface_of(&scene.mesh, bvh, hit(s), &rays[s]);
-                    reflectances.push(point.kd);
-                    points.push(point);
-                }
-                shadow_tests(&points, &scene.lights, |p, l, test| visit(four[p], l, test));
-                points.clear();
-            }
-        }
-    }
-    let mut traced = vec![false; segments.len()];
-    timer.lap(Phase::Shading);
-    // Light by light: with several lights, neighbouring segments alternate lights.
-    let lights = (segment_lights.as_slice(), scene.lights.len());
-    bvh.occluded_grouped(
-        &segments,
-        lights,
-        &mut traced,
-        &mut SegmentGroups::default(),
-    );
-    timer.lap(Phase::ShadowRays);
-    // Each test's answer in test order: unblocked when not traced, else its segment's.
-    let mut traced = traced.into_iter();
-    let mut next = tests.iter().peekable();
-    let mut colours = vec![scene.background; hits.len()];
-    for (&sample, &kd) in samples.iter().zip(&reflectances) {
-        // This sample's unblocked lights, in light order, straight from the test list (no
-        // per-sample allocation).
-        let contributions = std::iter::from_fn(|| {
-            next.next_if(|(s, _, _)| *s == sample)
-                .map(|&(_, unoccluded, free)| {
-                    let blocked = !free && traced.next().unwrap_or(false);
-                    (!blocked).then_some(unoccluded)
-                })
-        })
-        .flatten();
-        colours[sample] = combine(kd, contributions, scene.ambient);
-    }
-    timer.lap(Phase::Shading);
-    colours
-}
-
-/// Camera samples traced per `closest_hits` call (rounded to whole pixels).
-pub(crate) const BATCH_SAMPLES: usize = 1024;
-
-/// A band's pixels, row-major from its first row, and its ray counts.
-struct Band {
-    colours: Vec<[f32; 3]>,
-    hits: Vec<Hit>,
-    rays: RayCounts,
-}
-
-/// Renders the band of up to [`BAND_ROWS`] rows from row `y0`, tile by tile
-/// ([`crate::tiles`]). Each pixel is the mean of its samples in sample order, whatever order
-/// the pixels are traced in, so the band's bits are those of rendering its rows one by one.
+/// Renders the band of up to [`BAND_ROWS`] rows from row `y0` ([`render_run`]).
 fn render_band(
     scene: &Scene,
     bvh: &Bvh,
@@ -396,73 +311,25 @@ fn render_band(
     timer: &mut impl PhaseTimer,
 ) -> Band {
     let rows = BAND_ROWS.min(s.height - y0);
-    let width = s.width as usize;
-    let pixels = width * rows as usize;
-    let mut band = Band {
-        colours: vec![[0.0; 3]; pixels],
-        hits: vec![Hit::MISS; pixels],
-        rays: RayCounts::default(),
-    };
-    // The band's pixels tile by tile ([`crate::tiles`]), each pixel's samples together in
-    // trace order ([`TraceOrder`]), in batches of about `BATCH_SAMPLES` samples (whole pixels):
-    // memory stays bounded whatever the width and spp.
     let first_pixel = u64::from(y0) * u64::from(s.width);
-    let order = tile_order(first_pixel..first_pixel + pixels as u64, s.width)
-        .map(|p| (p - first_pixel) as usize);
-    let samples = s.spp as usize;
-    let pixels_per_batch = (BATCH_SAMPLES / samples).max(1);
-    let mut batch = Vec::with_capacity(pixels_per_batch);
-    let mut order = order.peekable();
-    let mut rays = Vec::new();
-    let mut hits = Vec::new();
-    while order.peek().is_some() {
-        timer.lap(Phase::Loop);
-        batch.clear();
-        batch.extend(order.by_ref().take(pixels_per_batch));
-        rays.clear();
-        for &i in &batch {
-            let pixel = first_pixel + i as u64;
-            setup.camera.pixel_rays(pixel, &setup.order, &mut rays);
-        }
-        // `closest_hits` writes every place: only a new length is filled.
-        hits.resize(rays.len(), None);
-        timer.lap(Phase::CameraRays);
-        bvh.closest_hits(&rays, &mut hits);
-        timer.lap(Phase::ClosestHits);
-        let colours = shade_batch_timed(scene, bvh, &setup.unoccludable, &rays, &hits, timer);
-        for ((&i, colours), hits) in batch
-            .iter()
-            .zip(colours.chunks(samples))
-            .zip(hits.chunks(samples))
-        {
-            // The mean in sample order, whatever the trace order.
-            let mut sum = PixelSum::default();
-            for sample in 0..s.spp {
-                sum.add(colours[setup.order.position(sample)]);
-            }
-            // One primary ray per sample, and for a hit one shadow ray per light.
-            let hit_samples = hits.iter().filter(|hit| hit.is_some()).count() as u64;
-            band.rays += RayCounts {
-                primary: u64::from(s.spp),
-                shadow: hit_samples * scene.lights.len() as u64,
-            };
-            band.colours[i] = sum.mean(s.spp);
-            band.hits[i] = hits[setup.order.position(0)].map_or(Hit::MISS, |h| Hit {
-                triangle: h.id,
-                t: h.t,
-            });
-        }
-        timer.lap(Phase::Accumulation);
-    }
-    band
+    let pixels = first_pixel..first_pixel + u64::from(rows) * u64::from(s.width);
+    let view = View {
+        camera: &setup.camera,
+        width: s.width,
+        spp: s.spp,
+        order: &setup.order,
+    };
+    let lighting = lighting(scene, &setup.unoccludable);
+    render_run((&scene.mesh, bvh), &lighting, &view, pixels, timer)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::phase_timer::Phase;
     use crate::sampling::sample_offset;
     use crate::scene::load_scene;
-    use crate::shading::shadow_test;
+    use crate::shading::{combine, shadow_test};
 
     fn teapot() -> Scene {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/teapot/teapot.json");

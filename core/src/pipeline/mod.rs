@@ -32,6 +32,8 @@ mod frame_request;
 mod frame_tests;
 mod frames;
 mod frustum;
+#[cfg(test)]
+mod fused_tests;
 mod mode;
 mod outputs;
 pub mod partition;

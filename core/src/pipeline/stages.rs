@@ -11,8 +11,10 @@ use crate::bvh::{ClosestHit, SegmentGroups, segment_may_hit};
 use crate::error::SceneError;
 use crate::hits::Hit;
 use crate::image::Image;
+use crate::phase_timer::NoTimer;
+use crate::render::{Lighting, Surfaces, View, band_runs, render_run};
 use crate::sampling::{PixelSum, TraceOrder};
-use crate::shading::{combine as combine_light, shadow_ray, shadow_test, surface_point};
+use crate::shading::{combine as combine_light, shadow_ray, shadow_test};
 use crate::triangle::Ray;
 
 /// CastMap: every camera sample of `span` against one split; the split's nearest hit of each
@@ -66,23 +68,13 @@ pub(super) fn push_surface_hits(
         let Some(hit) = &hits[i] else {
             continue;
         };
-        let ((pixel, sample), ray) = (batch[i], &rays[i]);
-        let shading = split
-            .shading
-            .get(hit.index as usize)
-            .expect("a split's shading covers its BVH's triangles (decode_split checks it)");
+        let (pixel, sample) = batch[i];
         out.push(SurfaceHit {
             pixel: pixel as u32,
             sample,
             t: hit.t,
             triangle: hit.id,
-            surface: surface_point(
-                split.bvh.hit_corners(hit).corners(),
-                hit.b,
-                ray.dir,
-                shading.normals,
-                split.kd_at(&shading, hit.b),
-            ),
+            surface: split.surface(&split.bvh, hit, &rays[i]),
         });
     }
 }
@@ -261,12 +253,25 @@ pub fn sample_colour(
     combine_light(h.surface.kd, contributions, plan.ambient)
 }
 
-/// Render (fused mode): the span's pixels from every split in memory, by running CastMap on
-/// each split, CastReduce, Expand, TraceMap on each split and TraceReduce in turn, with no
-/// encoding in between; so the block is bit-identical to the staged path's. `splits` are the
-/// plan's splits in id order. Returns the block and the logical shadow rays (hit samples x
-/// lights).
+/// Render (fused mode): the span's pixels from every split in memory, bit-identical to the
+/// staged path's block. With several splits it runs CastMap on each split, CastReduce, Expand,
+/// TraceMap on each split and TraceReduce in turn, with no encoding in between; with one (the
+/// whole scene) it renders the pixels as the monolithic renderer does, which gives the same
+/// bits without making the stages' records. `splits` are the plan's splits in id order.
+/// Returns the block and the logical shadow rays (hit samples x lights).
 pub fn render_span(
+    plan: &JobPlan,
+    span: &Span,
+    splits: &[&SplitObject],
+) -> Result<(PixelBlock, u64), PipelineError> {
+    match splits {
+        [whole] => Ok(render_span_whole(plan, span, whole)?),
+        _ => render_span_staged(plan, span, splits),
+    }
+}
+
+/// [`render_span`] by running the stage functions in turn.
+pub(super) fn render_span_staged(
     plan: &JobPlan,
     span: &Span,
     splits: &[&SplitObject],
@@ -284,6 +289,43 @@ pub fn render_span(
     let occluded = trace_in_memory(plan, splits, &expand(plan, &hits))?;
     let shadow_rays = hits.len() as u64 * plan.lights.len() as u64;
     Ok((trace_reduce(plan, span, &hits, occluded), shadow_rays))
+}
+
+/// [`render_span`] with one split, the whole scene: the span is rendered as the monolithic
+/// renderer renders its pixels ([`render_run`], band by band), which gives the bits of the
+/// stages run in turn without making their records.
+fn render_span_whole(
+    plan: &JobPlan,
+    span: &Span,
+    whole: &SplitObject,
+) -> Result<(PixelBlock, u64), SceneError> {
+    let camera = plan.ray_camera()?;
+    let order = TraceOrder::new(plan.spp);
+    let view = View {
+        camera: &camera,
+        width: plan.width,
+        spp: plan.spp,
+        order: &order,
+    };
+    let unoccludable: Vec<bool> = (0..plan.lights.len() as u32)
+        .map(|light| plan.is_unoccludable(light))
+        .collect();
+    let lighting = Lighting {
+        lights: &plan.lights,
+        unoccludable: &unoccludable,
+        ambient: plan.ambient,
+        background: plan.background,
+    };
+    let mut block = PixelBlock::with_capacity(span.start, (span.end - span.start) as usize);
+    let mut shadow_rays = 0;
+    for run in band_runs(span.start..span.end, plan.width) {
+        let band = render_run((whole, &whole.bvh), &lighting, &view, run, &mut NoTimer);
+        block.colours.extend(band.colours);
+        block.triangles.extend(band.hits.iter().map(|h| h.triangle));
+        block.ts.extend(band.hits.iter().map(|h| h.t));
+        shadow_rays += band.rays.shadow;
+    }
+    Ok((block, shadow_rays))
 }
 
 /// TraceMap of every split on its queries (`queries[i]` for `splits[i]`), in memory: each

@@ -97,6 +97,18 @@ impl ShadingTable {
         })
     }
 
+    /// The reflectance of leaf-order triangle `i` when it has no vertex normals and no
+    /// texture (what [`ShadingTable::get`] gives as its `kd` then); else, or past the end,
+    /// `None`.
+    #[inline]
+    pub fn flat_kd(&self, i: usize) -> Option<[f32; 3]> {
+        let has = |slots: &[u32]| slots.get(i).is_some_and(|&slot| slot != NO_SLOT);
+        if has(&self.normal_slots) || has(&self.texture_slots) {
+            return None;
+        }
+        self.kd_values.get(*self.kd_index.get(i)? as usize).copied()
+    }
+
     /// The distinct textures the triangles use, ascending.
     pub fn texture_ids(&self) -> Vec<u32> {
         let mut ids: Vec<u32> = self.textured.iter().map(|t| t.texture).collect();
@@ -192,6 +204,28 @@ mod tests {
         assert_eq!(table.kd_values.len(), 2);
         assert_eq!(table.normals.len(), 1);
         assert_eq!(table.memory_bytes(), 2 * 12 + 8 * 4 + 36);
+    }
+
+    /// `flat_kd` gives the reflectance exactly for the triangles without normals and
+    /// texture, and nothing past the end.
+    #[test]
+    fn flat_kd_is_the_reflectance_of_flat_untextured_triangles_only() {
+        let textured = TriangleShading {
+            texture: Some(TexturedCorners {
+                texture: 0,
+                uv: [[0.0; 2]; 3],
+            }),
+            ..shading(0.75, false)
+        };
+        let input = [shading(0.25, false), shading(0.5, true), textured];
+        let table: ShadingTable = input.iter().copied().collect();
+        assert_eq!(table.flat_kd(0), Some([0.25, 0.5, -0.0]));
+        assert_eq!(table.flat_kd(1), None);
+        assert_eq!(table.flat_kd(2), None);
+        assert_eq!(table.flat_kd(3), None);
+        let plain: ShadingTable = [shading(0.25, false)].into_iter().collect();
+        assert_eq!(plain.flat_kd(0), Some([0.25, 0.5, -0.0]));
+        assert_eq!(plain.flat_kd(1), None);
     }
 
     #[test]

@@ -1,0 +1,144 @@
+//! Rendering a run of pixels that lies in one band of rows: its pixels tile by tile
+//! ([`crate::tiles`]), each pixel's samples together in trace order ([`TraceOrder`]), in batches
+//! of about [`BATCH_SAMPLES`] samples (whole pixels), so memory stays bounded whatever the
+//! width and spp.
+
+use super::RayCounts;
+use super::batch::{Lighting, shade_batch_timed};
+use super::surfaces::Surfaces;
+use crate::bvh::{Bvh, SegmentGroups};
+use crate::camera::Camera;
+use crate::hits::Hit;
+use crate::phase_timer::{Phase, PhaseTimer};
+use crate::sampling::{PixelSum, TraceOrder};
+use crate::tiles::{BAND_ROWS, tile_order};
+use std::ops::Range;
+
+/// Camera samples traced per `closest_hits` call (rounded to whole pixels).
+pub(crate) const BATCH_SAMPLES: usize = 1024;
+
+/// The camera, image width, samples per pixel and trace order every band of a render shares.
+#[derive(Clone, Copy, Debug)]
+pub struct View<'a> {
+    /// The camera, with the frame's sample streams.
+    pub camera: &'a Camera,
+    /// Image width in pixels.
+    pub width: u32,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// The order each pixel's samples are traced in (made for `spp`).
+    pub order: &'a TraceOrder,
+}
+
+/// Pixels of a run, in order from its first, and their ray counts.
+#[derive(Clone, Debug, Default)]
+pub struct Band {
+    /// Each pixel's radiance: the mean of its samples in sample order.
+    pub colours: Vec<[f32; 3]>,
+    /// Each pixel's sample 0 hit.
+    pub hits: Vec<Hit>,
+    /// One primary ray per sample; one shadow ray per light of every sample that hits.
+    pub rays: RayCounts,
+}
+
+/// The row-major pixel range `pixels` of an image `width` pixels wide cut where bands of
+/// [`BAND_ROWS`] rows begin: runs that each lie in one band, in order.
+pub fn band_runs(pixels: Range<u64>, width: u32) -> impl Iterator<Item = Range<u64>> {
+    let band = u64::from(BAND_ROWS) * u64::from(width.max(1));
+    let mut start = pixels.start;
+    std::iter::from_fn(move || {
+        (start < pixels.end).then(|| {
+            let end = ((start / band + 1) * band).min(pixels.end);
+            let run = start..end;
+            start = end;
+            run
+        })
+    })
+}
+
+/// Renders the pixels `pixels` (a run of the row-major image that lies in one band of rows)
+/// through `bvh`, whose triangles `surfaces` describes. Each pixel is the mean of its samples
+/// in sample order, whatever order the pixels are traced in, so the run's bits are those of
+/// rendering its pixels one by one.
+pub fn render_run(
+    scene: (&impl Surfaces, &Bvh),
+    lighting: &Lighting,
+    view: &View,
+    pixels: Range<u64>,
+    timer: &mut impl PhaseTimer,
+) -> Band {
+    let bvh = scene.1;
+    let first_pixel = pixels.start;
+    let count = (pixels.end - pixels.start) as usize;
+    let mut band = Band {
+        colours: vec![[0.0; 3]; count],
+        hits: vec![Hit::MISS; count],
+        rays: RayCounts::default(),
+    };
+    let order = tile_order(pixels, view.width).map(|p| (p - first_pixel) as usize);
+    let spp = view.spp;
+    let samples = spp as usize;
+    let pixels_per_batch = (BATCH_SAMPLES / samples).max(1);
+    let mut batch = Vec::with_capacity(pixels_per_batch);
+    let mut order = order.peekable();
+    let mut rays = Vec::new();
+    let mut hits = Vec::new();
+    let mut groups = SegmentGroups::default();
+    let trace_order = view.order;
+    while order.peek().is_some() {
+        timer.lap(Phase::Loop);
+        batch.clear();
+        batch.extend(order.by_ref().take(pixels_per_batch));
+        rays.clear();
+        for &i in &batch {
+            let pixel = first_pixel + i as u64;
+            view.camera.pixel_rays(pixel, trace_order, &mut rays);
+        }
+        // `closest_hits` writes every place: only a new length is filled.
+        hits.resize(rays.len(), None);
+        timer.lap(Phase::CameraRays);
+        bvh.closest_hits(&rays, &mut hits);
+        timer.lap(Phase::ClosestHits);
+        let colours = shade_batch_timed(scene, lighting, (&rays, &hits), &mut groups, timer);
+        for ((&i, colours), hits) in batch
+            .iter()
+            .zip(colours.chunks(samples))
+            .zip(hits.chunks(samples))
+        {
+            // The mean in sample order, whatever the trace order.
+            let mut sum = PixelSum::default();
+            for sample in 0..spp {
+                sum.add(colours[trace_order.position(sample)]);
+            }
+            // One primary ray per sample, and for a hit one shadow ray per light.
+            let hit_samples = hits.iter().filter(|hit| hit.is_some()).count() as u64;
+            band.rays += RayCounts {
+                primary: u64::from(spp),
+                shadow: hit_samples * lighting.lights.len() as u64,
+            };
+            band.colours[i] = sum.mean(spp);
+            band.hits[i] = hits[trace_order.position(0)].map_or(Hit::MISS, |h| Hit {
+                triangle: h.id,
+                t: h.t,
+            });
+        }
+        timer.lap(Phase::Accumulation);
+    }
+    band
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Runs cover the range in order, each within one band, cut only where a band begins.
+    #[test]
+    fn band_runs_cut_a_range_where_bands_begin() {
+        // Width 10: bands of 40 pixels.
+        let runs: Vec<_> = band_runs(35..123, 10).collect();
+        assert_eq!(runs, vec![35..40, 40..80, 80..120, 120..123]);
+        assert_eq!(band_runs(40..80, 10).collect::<Vec<_>>(), vec![40..80]);
+        assert_eq!(band_runs(7..7, 10).count(), 0);
+        assert_eq!(band_runs(0..3, 1).collect::<Vec<_>>(), vec![0..3]);
+    }
+}

@@ -1,0 +1,122 @@
+//! Shading a batch of camera samples: their surfaces, their shadow rays traced as packets light
+//! by light, and each sample's radiance.
+
+use super::surfaces::Surfaces;
+use crate::bvh::{Bvh, ClosestHit, SegmentGroups};
+use crate::phase_timer::{Phase, PhaseTimer};
+use crate::scene::Light;
+use crate::shading::{FlatHit, FlatShader, ShadowTest, combine, shadow_tests};
+use crate::triangle::Ray;
+
+/// The lights of a render and what a sample shows besides them.
+#[derive(Clone, Copy, Debug)]
+pub struct Lighting<'a> {
+    /// The lights, in the order their contributions are summed.
+    pub lights: &'a [Light],
+    /// Per light: no surface can occlude it
+    /// ([`crate::unoccludable::unoccludable_lights`]). Its shadow rays are not traced and
+    /// count as unblocked, which is what tracing them would give.
+    pub unoccludable: &'a [bool],
+    /// Radiance added to every hit sample, times its reflectance.
+    pub ambient: [f32; 3],
+    /// Radiance of a sample that hits nothing.
+    pub background: [f32; 3],
+}
+
+/// The radiance of every sample of a batch whose primary rays `rays` have the closest hits
+/// `hits` (found by `bvh`, whose triangles `surfaces` describes): the background for a miss,
+/// else Lambert shading with the lights its shadow rays reach (summed in light order) plus
+/// ambient. The shadow rays of the whole batch are traced as packets, light by light
+/// ([`Bvh::occluded_grouped`]), each light's in sample order; `groups` is scratch space. The
+/// shading and shadow-ray phases are reported to `timer`.
+#[inline(always)]
+pub(super) fn shade_batch_timed(
+    (surfaces, bvh): (&impl Surfaces, &Bvh),
+    lighting: &Lighting,
+    (rays, hits): (&[Ray], &[Option<ClosestHit>]),
+    groups: &mut SegmentGroups,
+    timer: &mut impl PhaseTimer,
+) -> Vec<[f32; 3]> {
+    let lights = lighting.lights;
+    // Per hit, in sample order, its lights' tests in light order (the order `combine` sums
+    // them in), and its reflectance. Four hits on flat, untextured triangles are shaded at
+    // once in lanes; any other group of four goes through its surface points: the same tests
+    // either way.
+    let samples: Vec<usize> = (0..hits.len()).filter(|&s| hits[s].is_some()).collect();
+    let most = samples.len() * lights.len();
+    let mut segments = Vec::with_capacity(most);
+    let mut segment_lights = Vec::with_capacity(most);
+    let mut tests = Vec::with_capacity(most);
+    let mut reflectances = Vec::with_capacity(samples.len());
+    let mut visit = |sample: usize, light: usize, test: ShadowTest| {
+        let free = lighting.unoccludable[light];
+        if !free {
+            segments.push((test.ray, test.t_max));
+            segment_lights.push(light as u32);
+        }
+        tests.push((sample, test.unoccluded, free));
+    };
+    let mut shader = FlatShader::default();
+    let mut points = Vec::with_capacity(4);
+    let hit = |s: usize| hits[s].as_ref().expect("samples with hits");
+    for four in samples.chunks(4) {
+        let flat = |k: usize| four.get(k).and_then(|&s| surfaces.flat_kd(hit(s)));
+        match (four, [flat(0), flat(1), flat(2), flat(3)]) {
+            (&[s0, s1, s2, s3], [Some(kd0), Some(kd1), Some(kd2), Some(kd3)]) => {
+                let flat_hit = |s: usize, kd: [f32; 3]| FlatHit {
+                    corners: bvh.hit_corners(hit(s)),
+                    b: &hit(s).b,
+                    dir: &rays[s].dir,
+                    kd,
+                };
+                let flat_hits = [
+                    flat_hit(s0, kd0),
+                    flat_hit(s1, kd1),
+                    flat_hit(s2, kd2),
+                    flat_hit(s3, kd3),
+                ];
+                // One push each: built as one array, the four were stored piece by piece
+                // and read back whole, a store-forwarding stall of 3-4% of a render.
+                reflectances.push(kd0);
+                reflectances.push(kd1);
+                reflectances.push(kd2);
+                reflectances.push(kd3);
+                shader.shadow_tests4(&flat_hits, lights, |k, l, test| visit(four[k], l, test));
+            }
+            _ => {
+                for &s in four {
+                    let point = surfaces.surface(bvh, hit(s), &rays[s]);
+                    reflectances.push(point.kd);
+                    points.push(point);
+                }
+                shadow_tests(&points, lights, |p, l, test| visit(four[p], l, test));
+                points.clear();
+            }
+        }
+    }
+    let mut traced = vec![false; segments.len()];
+    timer.lap(Phase::Shading);
+    // Light by light: with several lights, neighbouring segments alternate lights.
+    let by_light = (segment_lights.as_slice(), lights.len());
+    bvh.occluded_grouped(&segments, by_light, &mut traced, groups);
+    timer.lap(Phase::ShadowRays);
+    // Each test's answer in test order: unblocked when not traced, else its segment's.
+    let mut traced = traced.into_iter();
+    let mut next = tests.iter().peekable();
+    let mut colours = vec![lighting.background; hits.len()];
+    for (&sample, &kd) in samples.iter().zip(&reflectances) {
+        // This sample's unblocked lights, in light order, straight from the test list (no
+        // per-sample allocation).
+        let contributions = std::iter::from_fn(|| {
+            next.next_if(|(s, _, _)| *s == sample)
+                .map(|&(_, unoccluded, free)| {
+                    let blocked = !free && traced.next().unwrap_or(false);
+                    (!blocked).then_some(unoccluded)
+                })
+        })
+        .flatten();
+        colours[sample] = combine(kd, contributions, lighting.ambient);
+    }
+    timer.lap(Phase::Shading);
+    colours
+}
