@@ -76,7 +76,7 @@ impl RayPacketTester {
         let origin: [[f32x4; 3]; GROUPS] = each4(|g| each3(|a| rays.origin4(a, g)));
         // The same correctly rounded division as the single-ray testers (`Vec3::ONE / dir`).
         let inv_dir: [[f32x4; 3]; GROUPS] = each4(|g| each3(|a| f32x4::ONE / rays.dir4(a, g)));
-        // Directions are finite (`is_coherent`), so 1/d is never zero or NaN: its sign bit is
+        // Directions are finite ([`is_finite`]), so 1/d is never zero or NaN: its sign bit is
         // set exactly when it is below zero.
         let near_hi = each4(|g| each3(|a| inv_dir[g][a].simd_lt(f32x4::ZERO)));
         // Lanes past the end repeat the last ray, so extremes and signs over all lanes are

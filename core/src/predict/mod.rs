@@ -19,7 +19,7 @@
 //! samples that hit ([`JobPlan::camera_hit_estimate`], a coarse rasterization); without it
 //! every sample is assumed to hit, an upper bound. A scene split by tasks adds its scan,
 //! Partition, cut, Build and plan-from-parts steps ([`job_steps`]). A fused Render task pays
-//! per hit and per shadow ray, and each of these rays costs more with the scene's size: a little by log2
+//! per pixel, per hit and per shadow ray, and each of these rays costs more with the scene's size: a little by log2
 //! of its triangles (the depth of its BVH), much more by log2(1 + triangles / hitting camera
 //! samples of the frame), the part of the BVH each ray meets cold because few other rays
 //! share it (a ray of a generated 300,000-triangle scene costs twice as much at 320x180 as at
@@ -94,9 +94,11 @@ pub struct Rates {
     /// Combine: per pixel (reading the spans' pixels, encoding the outputs; the emulator's
     /// projection adds its storage's time per stored byte).
     pub combine_us_per_pixel: f64,
-    /// Render (fused): per camera sample that hits (its shading, its hit record, its pixel),
-    /// against the whole scene, without a shuffle. A sample that misses costs about nothing
-    /// beyond the task's overhead at the span sizes the plan chooses.
+    /// Render (fused): per pixel of the span (its camera rays' setup, its mean and its place in
+    /// the stored block), whether its samples hit or miss.
+    pub render_us_per_pixel: f64,
+    /// Render (fused): per camera sample that hits (its shading), against the whole scene,
+    /// without a shuffle. A sample that misses costs about nothing beyond its pixel's share.
     pub render_us_per_hit: f64,
     /// Render (fused): per shadow ray ((hit, traced light) of the span).
     pub render_us_per_query: f64,
@@ -133,8 +135,10 @@ pub struct Rates {
 /// `cargo build --release`, on a 2-core x86-64 machine; fitted from the stage times of
 /// `hort bench plan --stages` on the bundled teapot, Cornell box and globe and a generated
 /// 300,000-triangle scene at 320x180, 960x540 and 1920x1080, fused and staged over 2 splits;
-/// the fused Render rates from its tasks' times on the bundled scenes and generated scenes of
-/// 100,000 to 2,000,000 triangles at 320x180 to 1920x1080, 1 to 16 spp and 1 to 3 lights
+/// the fused Render rates (refitted 2026-12-06, when a fused task came to render its pixels
+/// as the monolithic renderer does) from its tasks' times on the bundled teapot, Cornell box,
+/// bunny and globe, copies of the bunny and the Cornell box with 3 lights and generated scenes
+/// of 300,000 and 1,000,000 triangles at 320x180 and 960x540, 1 to 64 spp
 /// (`docs/perf/plan-validation.md` has the tables and the commands). See the module
 /// documentation.
 pub const RATES: Rates = Rates {
@@ -150,10 +154,11 @@ pub const RATES: Rates = Rates {
     trace_us_per_query: 0.045,
     trace_reduce_us_per_query: 0.07,
     combine_us_per_pixel: 0.03,
-    render_us_per_hit: 0.127,
-    render_us_per_query: 0.130,
-    render_us_per_ray_log2: 0.003,
-    render_us_per_ray_cold: 0.083,
+    render_us_per_pixel: 0.099,
+    render_us_per_hit: 0.017,
+    render_us_per_query: 0.038,
+    render_us_per_ray_log2: 0.0003,
+    render_us_per_ray_cold: 0.121,
     split_load_us_per_triangle: 0.11,
     upload_us_per_triangle: 0.2,
     file_upload_us_per_byte: 0.004,
@@ -539,7 +544,8 @@ fn task_ms(plan: &JobPlan, step: JobStep, r: &Rates, speed: f64, bound: Bound) -
             ms(
                 r.task_overhead_ms,
                 1.0,
-                hits * r.render_us_per_hit
+                span_samples / f64::from(spp.max(1)) * r.render_us_per_pixel
+                    + hits * r.render_us_per_hit
                     + queries * r.render_us_per_query
                     + (hits + queries) * per_ray,
             )
