@@ -23,7 +23,7 @@ use crate::phase_timer::{NoTimer, PhaseTimer, PhaseTimes};
 use crate::pipeline::FrameChoice;
 use crate::sampling::TraceOrder;
 use crate::scene::{Mesh, NO_NORMAL, Scene, TriangleShading, check_image_size};
-use crate::shading::{SurfacePoint, surface_point};
+use crate::shading::{LastFrame, SurfacePoint, surface_point_on};
 use crate::texture::TexturedCorners;
 use crate::tiles::BAND_ROWS;
 use crate::triangle::Ray;
@@ -126,7 +126,7 @@ pub fn shading_of(mesh: &Mesh, id: u32) -> TriangleShading {
 /// The shading data of a hit on the scene's triangle `hit.id`, found by `bvh`.
 #[inline]
 pub fn surface_of(mesh: &Mesh, bvh: &Bvh, hit: &ClosestHit, ray: &Ray) -> SurfacePoint {
-    surface_with(mesh, bvh, &shading_of(mesh, hit.id), hit, ray)
+    surface_with(mesh, bvh, hit, ray, &mut LastFrame::default())
 }
 
 /// The reflectance of the scene's triangle `id` when it is flat (no vertex normals) and
@@ -138,21 +138,24 @@ fn flat_kd(mesh: &Mesh, id: u32) -> Option<[f32; 3]> {
     flat.then(|| mesh.materials[mesh.triangle_materials[i] as usize].kd)
 }
 
-/// [`surface_of`] given the triangle's shading data `s` ([`shading_of`]).
+/// [`surface_of`], the triangle's frame taken from `last` (made anew for another triangle of
+/// `bvh` than the last): the same bits.
 #[inline]
 fn surface_with(
     mesh: &Mesh,
     bvh: &Bvh,
-    s: &TriangleShading,
     hit: &ClosestHit,
     ray: &Ray,
+    last: &mut LastFrame,
 ) -> SurfacePoint {
+    let s = shading_of(mesh, hit.id);
     let kd = match &s.texture {
         None => s.kd,
         Some(t) => t.kd_at(s.kd, &mesh.textures[t.texture as usize], hit.b),
     };
     let corners = bvh.hit_corners(hit).corners();
-    surface_point(corners, hit.b, ray.dir, s.normals, kd)
+    let frame = last.of(hit.index, || (corners, s.normals));
+    surface_point_on(frame, corners, hit.b, ray.dir, s.normals, kd)
 }
 
 /// Renders `scene` with one BVH over all its triangles.

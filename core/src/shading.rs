@@ -27,9 +27,11 @@ use crate::triangle::{Ray, gamma};
 use glam::{DVec3, Vec3};
 
 mod flat4;
+mod frame;
 mod lanes;
 
 pub use flat4::{FlatHit, FlatShader};
+pub use frame::{LastFrame, TriangleFrame};
 
 /// Fraction of a point light's distance not tested for occluders, at the light's end
 /// (pbrt-v4's ShadowEpsilon): nothing can sit exactly on a point light.
@@ -78,30 +80,47 @@ pub fn surface_point(
     normals: Option<[Vec3; 3]>,
     kd: [f32; 3],
 ) -> SurfacePoint {
+    let frame = TriangleFrame::new(corners, normals);
+    surface_point_on(&frame, corners, b, ray_dir, normals, kd)
+}
+
+/// [`surface_point`] given the triangle's `frame` ([`TriangleFrame::new`] of `corners` and
+/// `normals`): the same bits.
+#[inline]
+pub fn surface_point_on(
+    frame: &TriangleFrame,
+    corners: [Vec3; 3],
+    b: [f32; 3],
+    ray_dir: Vec3,
+    normals: Option<[Vec3; 3]>,
+    kd: [f32; 3],
+) -> SurfacePoint {
     let [p0, p1, p2] = corners;
     let p = b[0] * p0 + b[1] * p1 + b[2] * p2;
     let p_error = gamma(7.0) * ((b[0] * p0).abs() + (b[1] * p1).abs() + (b[2] * p2).abs());
-    let mut n_geo = (p1 - p0).cross(p2 - p0).normalize_or_zero();
+    let mut n_geo = frame.n_geo;
     if n_geo.dot(ray_dir) > 0.0 {
         n_geo = -n_geo;
     }
-    let (n_shade, p_shadow, p_shadow_error) = match normals {
-        Some([n0, n1, n2]) => {
+    let (n_shade, p_shadow, p_shadow_error) = match (normals, frame.unit_normals) {
+        (Some([n0, n1, n2]), Some(units)) => {
             let n = (b[0] * n0 + b[1] * n1 + b[2] * n2).normalize_or_zero();
             if n == Vec3::ZERO {
                 (n_geo, p, p_error)
             } else {
                 // The vertex normals turned with the shading normal, to n_geo's side.
-                let (n, vertex_normals) = if n.dot(n_geo) < 0.0 {
-                    (-n, [-n0, -n1, -n2])
+                // (Normalising a negated vector gives the negated unit vector bit for bit;
+                // a zero one, +0 or -0, never moves the shadow point.)
+                let (n, unit_normals) = if n.dot(n_geo) < 0.0 {
+                    (-n, units.map(|u| -u))
                 } else {
-                    (n, [n0, n1, n2])
+                    (n, units)
                 };
-                let (q, q_error) = shadow_point(corners, b, vertex_normals, n_geo, p, p_error);
+                let (q, q_error) = shadow_point_unit(corners, b, unit_normals, n_geo, p, p_error);
                 (n, q, q_error)
             }
         }
-        None => (n_geo, p, p_error),
+        _ => (n_geo, p, p_error),
     };
     SurfacePoint {
         p,
@@ -147,10 +166,23 @@ pub fn shadow_point(
     p: Vec3,
     p_error: Vec3,
 ) -> (Vec3, Vec3) {
+    let units = normals.map(Vec3::normalize_or_zero);
+    shadow_point_unit(corners, b, units, n_geo, p, p_error)
+}
+
+/// [`shadow_point`] given the vertex normals already normalised (`normalize_or_zero`).
+#[inline]
+fn shadow_point_unit(
+    corners: [Vec3; 3],
+    b: [f32; 3],
+    unit_normals: [Vec3; 3],
+    n_geo: Vec3,
+    p: Vec3,
+    p_error: Vec3,
+) -> (Vec3, Vec3) {
     let mut offset = Vec3::ZERO;
     let mut magnitude = Vec3::ZERO;
-    for i in 0..3 {
-        let n = normals[i].normalize_or_zero();
+    for (i, &n) in unit_normals.iter().enumerate() {
         // (Both tests are false for NaN.)
         if n.dot(n_geo) >= MIN_NORMAL_COS {
             let height = (p - corners[i]).dot(n);
@@ -269,29 +301,49 @@ fn unoccluded_radiance(kd: [f32; 3], cos: f32, irradiance: [f32; 3]) -> [f32; 3]
 /// test)` in order of point, then light: the tests and order of calling [`shadow_test`] pair by
 /// pair, bit for bit. A point light's incidence, two divisions and a square root in f64 per
 /// point whose results the rest waits on, is computed for four points at a time in lanes
-/// ([`lanes::point_incidences4`]).
+/// ([`lanes::point_incidences4`]). ([`ShadowTester`] does the same, keeping its scratch space
+/// from call to call.)
 pub fn shadow_tests(
     points: &[SurfacePoint],
     lights: &[Light],
-    mut visit: impl FnMut(usize, usize, ShadowTest),
+    visit: impl FnMut(usize, usize, ShadowTest),
 ) {
-    let mut incidences = Vec::with_capacity(lights.len());
-    for (group, four) in points.chunks(4).enumerate() {
-        // Lanes past the group's end repeat its first point; their results are not used.
-        let at = |k: usize| four.get(k).unwrap_or(&four[0]).p;
-        let positions = [at(0), at(1), at(2), at(3)];
-        incidences.clear();
-        incidences.extend(lights.iter().map(|light| match *light {
-            Light::Point {
-                position,
-                intensity,
-            } => lanes::point_incidences4(position, intensity, positions),
-            Light::Directional { .. } => [incidence(positions[0], light); 4],
-        }));
-        for (k, sp) in four.iter().enumerate() {
-            for (l, (light, lit)) in lights.iter().zip(&incidences).enumerate() {
-                if let Some(test) = lit[k].and_then(|i| shadow_test_at(sp, light, i)) {
-                    visit(group * 4 + k, l, test);
+    ShadowTester::default().shadow_tests(points, lights, visit);
+}
+
+/// [`shadow_tests`] with the lights' incidences at four points kept from call to call, for
+/// callers that test a few points at a time.
+#[derive(Default)]
+pub struct ShadowTester {
+    incidences: Vec<[Option<Incidence>; 4]>,
+}
+
+impl ShadowTester {
+    /// [`shadow_tests`].
+    pub fn shadow_tests(
+        &mut self,
+        points: &[SurfacePoint],
+        lights: &[Light],
+        mut visit: impl FnMut(usize, usize, ShadowTest),
+    ) {
+        let incidences = &mut self.incidences;
+        for (group, four) in points.chunks(4).enumerate() {
+            // Lanes past the group's end repeat its first point; their results are not used.
+            let at = |k: usize| four.get(k).unwrap_or(&four[0]).p;
+            let positions = [at(0), at(1), at(2), at(3)];
+            incidences.clear();
+            incidences.extend(lights.iter().map(|light| match *light {
+                Light::Point {
+                    position,
+                    intensity,
+                } => lanes::point_incidences4(position, intensity, positions),
+                Light::Directional { .. } => [incidence(positions[0], light); 4],
+            }));
+            for (k, sp) in four.iter().enumerate() {
+                for (l, (light, lit)) in lights.iter().zip(incidences.iter()).enumerate() {
+                    if let Some(test) = lit[k].and_then(|i| shadow_test_at(sp, light, i)) {
+                        visit(group * 4 + k, l, test);
+                    }
                 }
             }
         }

@@ -14,7 +14,7 @@ use crate::image::Image;
 use crate::phase_timer::NoTimer;
 use crate::render::{Lighting, Surfaces, View, band_runs, render_run};
 use crate::sampling::{PixelSum, TraceOrder};
-use crate::shading::{combine as combine_light, shadow_ray, shadow_test};
+use crate::shading::{LastFrame, combine as combine_light, shadow_ray, shadow_test};
 use crate::triangle::Ray;
 
 /// CastMap: every camera sample of `span` against one split; the split's nearest hit of each
@@ -64,6 +64,7 @@ pub(super) fn push_surface_hits(
     // `closest_hits` writes every place: only a new length is filled.
     hits.resize(rays.len(), None);
     split.bvh.closest_hits(rays, hits);
+    let mut last = LastFrame::default();
     for i in write_order {
         let Some(hit) = &hits[i] else {
             continue;
@@ -74,7 +75,7 @@ pub(super) fn push_surface_hits(
             sample,
             t: hit.t,
             triangle: hit.id,
-            surface: split.surface(&split.bvh, hit, &rays[i]),
+            surface: split.surface(&split.bvh, hit, &rays[i], &mut last),
         });
     }
 }

@@ -5,7 +5,7 @@ use super::surfaces::Surfaces;
 use crate::bvh::{Bvh, ClosestHit, SegmentGroups};
 use crate::phase_timer::{Phase, PhaseTimer};
 use crate::scene::Light;
-use crate::shading::{FlatHit, FlatShader, ShadowTest, combine, shadow_tests};
+use crate::shading::{FlatHit, FlatShader, LastFrame, ShadowTest, ShadowTester, combine};
 use crate::triangle::Ray;
 
 /// The lights of a render and what a sample shows besides them.
@@ -57,6 +57,8 @@ pub(super) fn shade_batch_timed(
         tests.push((sample, test.unoccluded, free));
     };
     let mut shader = FlatShader::default();
+    let mut tester = ShadowTester::default();
+    let mut last = LastFrame::default();
     let mut points = Vec::with_capacity(4);
     let hit = |s: usize| hits[s].as_ref().expect("samples with hits");
     for four in samples.chunks(4) {
@@ -85,11 +87,11 @@ pub(super) fn shade_batch_timed(
             }
             _ => {
                 for &s in four {
-                    let point = surfaces.surface(bvh, hit(s), &rays[s]);
+                    let point = surfaces.surface(bvh, hit(s), &rays[s], &mut last);
                     reflectances.push(point.kd);
                     points.push(point);
                 }
-                shadow_tests(&points, lights, |p, l, test| visit(four[p], l, test));
+                tester.shadow_tests(&points, lights, |p, l, test| visit(four[p], l, test));
                 points.clear();
             }
         }

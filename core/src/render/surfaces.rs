@@ -3,11 +3,11 @@
 //! in the split's leaf order). Both give the same surface for the same triangle, so a render
 //! through either has the same bits.
 
-use super::{flat_kd, surface_of};
+use super::{flat_kd, surface_with};
 use crate::bvh::{Bvh, ClosestHit};
 use crate::pipeline::SplitObject;
 use crate::scene::Mesh;
-use crate::shading::{SurfacePoint, surface_point};
+use crate::shading::{LastFrame, SurfacePoint, surface_point_on};
 use crate::triangle::Ray;
 
 /// The shading data of hit triangles.
@@ -16,8 +16,10 @@ pub trait Surfaces {
     /// untextured, which is then the `kd` of [`Surfaces::surface`]; else `None`.
     fn flat_kd(&self, hit: &ClosestHit) -> Option<[f32; 3]>;
 
-    /// The surface point of `hit`, found by `bvh` along `ray`.
-    fn surface(&self, bvh: &Bvh, hit: &ClosestHit, ray: &Ray) -> SurfacePoint;
+    /// The surface point of `hit`, found by `bvh` along `ray`; the triangle's frame is taken
+    /// from `last`, which keeps the frame of the last triangle of `bvh` it was asked for.
+    fn surface(&self, bvh: &Bvh, hit: &ClosestHit, ray: &Ray, last: &mut LastFrame)
+    -> SurfacePoint;
 }
 
 impl Surfaces for Mesh {
@@ -27,8 +29,14 @@ impl Surfaces for Mesh {
     }
 
     #[inline]
-    fn surface(&self, bvh: &Bvh, hit: &ClosestHit, ray: &Ray) -> SurfacePoint {
-        surface_of(self, bvh, hit, ray)
+    fn surface(
+        &self,
+        bvh: &Bvh,
+        hit: &ClosestHit,
+        ray: &Ray,
+        last: &mut LastFrame,
+    ) -> SurfacePoint {
+        surface_with(self, bvh, hit, ray, last)
     }
 }
 
@@ -40,17 +48,20 @@ impl Surfaces for SplitObject {
 
     /// `bvh` is the split's own.
     #[inline]
-    fn surface(&self, bvh: &Bvh, hit: &ClosestHit, ray: &Ray) -> SurfacePoint {
+    fn surface(
+        &self,
+        bvh: &Bvh,
+        hit: &ClosestHit,
+        ray: &Ray,
+        last: &mut LastFrame,
+    ) -> SurfacePoint {
         let shading = self
             .shading
             .get(hit.index as usize)
             .expect("a split's shading covers its BVH's triangles (decode_split checks it)");
-        surface_point(
-            bvh.hit_corners(hit).corners(),
-            hit.b,
-            ray.dir,
-            shading.normals,
-            self.kd_at(&shading, hit.b),
-        )
+        let corners = bvh.hit_corners(hit).corners();
+        let frame = last.of(hit.index, || (corners, shading.normals));
+        let kd = self.kd_at(&shading, hit.b);
+        surface_point_on(frame, corners, hit.b, ray.dir, shading.normals, kd)
     }
 }

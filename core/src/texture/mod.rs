@@ -77,7 +77,15 @@ impl Texture {
         let y = finite((1.0 - uv[1]) * h - 0.5);
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = (x - x0, y - y0);
-        let wrap = |i: f32, n: u32| (i as i64).rem_euclid(i64::from(n)) as usize;
+        // `rem_euclid` divides; most coordinates are already in range.
+        let wrap = |i: f32, n: u32| {
+            let (i, n) = (i as i64, i64::from(n));
+            (if (0..n).contains(&i) {
+                i
+            } else {
+                i.rem_euclid(n)
+            }) as usize
+        };
         let (xa, ya) = (wrap(x0, self.width), wrap(y0, self.height));
         let xb = if xa + 1 == self.width as usize {
             0
