@@ -77,14 +77,18 @@ impl Texture {
         let y = finite((1.0 - uv[1]) * h - 0.5);
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = (x - x0, y - y0);
-        // `rem_euclid` divides; most coordinates are already in range.
+        // `rem_euclid` divides: most coordinates are already in range, and a power-of-two
+        // size wraps by a mask (the same value, in two's complement).
         let wrap = |i: f32, n: u32| {
             let (i, n) = (i as i64, i64::from(n));
-            (if (0..n).contains(&i) {
+            let wrapped = if (0..n).contains(&i) {
                 i
+            } else if n.count_ones() == 1 {
+                i & (n - 1)
             } else {
                 i.rem_euclid(n)
-            }) as usize
+            };
+            wrapped as usize
         };
         let (xa, ya) = (wrap(x0, self.width), wrap(y0, self.height));
         let xb = if xa + 1 == self.width as usize {

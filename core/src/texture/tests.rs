@@ -49,6 +49,23 @@ fn halfway_between_centres_is_the_mean_and_edges_wrap() {
     assert_eq!(t.sample([-0.875, 0.5]), t.sample([0.125, 0.5]));
 }
 
+/// Coordinates far outside the texture wrap as `rem_euclid` wraps them, for power-of-two sizes
+/// (a mask) and others (a division) alike, below zero too.
+#[test]
+fn far_coordinates_wrap_by_whole_periods_at_any_size() {
+    for (w, h) in [(4, 2), (3, 5), (8, 1)] {
+        let t = ramp(w, h);
+        // Dyadic coordinates, so that whole periods away they are exact too.
+        for (u, v) in [(0.375f32, 0.625f32), (0.0625, 0.9375), (0.875, 0.125)] {
+            let inside = t.sample([u, v]);
+            for k in [-37.0f32, -6.0, -1.0, 1.0, 5.0, 1000.0] {
+                assert_eq!(t.sample([u + k, v]), inside, "{w}x{h} u {u} + {k}");
+                assert_eq!(t.sample([u, v + k]), inside, "{w}x{h} v {v} + {k}");
+            }
+        }
+    }
+}
+
 #[test]
 fn non_finite_coordinates_read_a_finite_value() {
     let t = ramp(3, 3);
