@@ -138,6 +138,16 @@ fn flat_kd(mesh: &Mesh, id: u32) -> Option<[f32; 3]> {
     flat.then(|| mesh.materials[mesh.triangle_materials[i] as usize].kd)
 }
 
+/// The reflectance at `hit` of a triangle of `mesh` with shading `s`: its material's, times
+/// its texture's colour there if it has one.
+#[inline]
+fn kd_with(mesh: &Mesh, s: &TriangleShading, hit: &ClosestHit) -> [f32; 3] {
+    match &s.texture {
+        None => s.kd,
+        Some(t) => t.kd_at(s.kd, &mesh.textures[t.texture as usize], hit.b),
+    }
+}
+
 /// [`surface_of`], the triangle's frame taken from `last` (made anew for another triangle of
 /// `bvh` than the last): the same bits.
 #[inline]
@@ -149,10 +159,7 @@ fn surface_with(
     last: &mut LastFrame,
 ) -> SurfacePoint {
     let s = shading_of(mesh, hit.id);
-    let kd = match &s.texture {
-        None => s.kd,
-        Some(t) => t.kd_at(s.kd, &mesh.textures[t.texture as usize], hit.b),
-    };
+    let kd = kd_with(mesh, &s, hit);
     let corners = bvh.hit_corners(hit).corners();
     let frame = last.of(hit.index, || (corners, s.normals));
     surface_point_on(frame, corners, hit.b, ray.dir, s.normals, kd)

@@ -39,9 +39,10 @@ pub(super) fn shade_batch_timed(
 ) -> Vec<[f32; 3]> {
     let lights = lighting.lights;
     // Per hit, in sample order, its lights' tests in light order (the order `combine` sums
-    // them in), and its reflectance. Four hits on flat, untextured triangles are shaded at
-    // once in lanes; any other group of four goes through its surface points: the same tests
-    // either way.
+    // them in), and its reflectance. Four hits are shaded at once in lanes: on flat,
+    // untextured triangles by the flat lanes, else with their vertex normals (zeros for a flat
+    // triangle) and their reflectances at the hits; a last group of fewer than four goes
+    // through its surface points. The same tests every way.
     let samples: Vec<usize> = (0..hits.len()).filter(|&s| hits[s].is_some()).collect();
     let most = samples.len() * lights.len();
     let mut segments = Vec::with_capacity(most);
@@ -84,6 +85,30 @@ pub(super) fn shade_batch_timed(
                 reflectances.push(kd2);
                 reflectances.push(kd3);
                 shader.shadow_tests4(&flat_hits, lights, |k, l, test| visit(four[k], l, test));
+            }
+            (&[s0, s1, s2, s3], _) => {
+                // Vertex normals or textures: the same tests in lanes, with each hit's
+                // normals (zeros for a flat triangle) and reflectance at the hit.
+                let shading = [s0, s1, s2, s3].map(|s| surfaces.lane_shading(hit(s)));
+                let lane_hit = |s: usize, k: usize| FlatHit {
+                    corners: bvh.hit_corners(hit(s)),
+                    b: &hit(s).b,
+                    dir: &rays[s].dir,
+                    kd: shading[k].1,
+                };
+                let lane_hits = [
+                    lane_hit(s0, 0),
+                    lane_hit(s1, 1),
+                    lane_hit(s2, 2),
+                    lane_hit(s3, 3),
+                ];
+                for (_, kd) in &shading {
+                    reflectances.push(*kd);
+                }
+                let normals = shading.map(|(normals, _)| normals);
+                shader.smooth_tests4(&lane_hits, &normals, lights, |k, l, test| {
+                    visit(four[k], l, test)
+                });
             }
             _ => {
                 for &s in four {

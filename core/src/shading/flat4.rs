@@ -1,6 +1,9 @@
-//! Four hits on flat (no vertex normals), untextured triangles shaded at once: their
-//! [`super::surface_point`]s and every light's [`super::shadow_test`], the f32 arithmetic in
-//! f32x4 lanes. Each lane performs the scalar code's IEEE operations in its order (glam's
+//! Four hits shaded at once: their [`super::surface_point`]s and every light's
+//! [`super::shadow_test`], the f32 arithmetic in f32x4 lanes. [`FlatShader::shadow_tests4`]
+//! takes hits on flat (no vertex normals), untextured triangles;
+//! [`FlatShader::smooth_tests4`] any hits, with their triangles' vertex normals (zeros for a
+//! flat one) and their reflectances at the hits (a texture is looked up per hit before): the
+//! shading normal and Hanika's shadow point (`smooth_lanes`) are lanes too. Each lane performs the scalar code's IEEE operations in its order (glam's
 //! `dot`, `cross` and `normalize_or_zero` spelled out; no FMA; square root and division are
 //! correctly rounded in every SIMD instruction set; negation flips the sign bit), so each
 //! lane's test is the scalar test bit for bit. What branches per lane runs in lanes too: the
@@ -134,6 +137,33 @@ impl Vec3x4 {
         }
     }
 
+    /// All ones in the lanes where every axis is zero (either sign), as `v == Vec3::ZERO`.
+    #[inline(always)]
+    fn is_zero(&self) -> f32x4 {
+        let zero = f32x4::ZERO;
+        self.x.simd_eq(zero) & self.y.simd_eq(zero) & self.z.simd_eq(zero)
+    }
+
+    /// `v` where `mask` is all ones, +0 elsewhere.
+    #[inline(always)]
+    fn keep(self, mask: f32x4) -> Self {
+        Vec3x4 {
+            x: mask & self.x,
+            y: mask & self.y,
+            z: mask & self.z,
+        }
+    }
+
+    /// `a` where `mask` is all ones, else `b`.
+    #[inline(always)]
+    fn choose(mask: f32x4, a: Self, b: Self) -> Self {
+        Vec3x4 {
+            x: mask.select(a.x, b.x),
+            y: mask.select(a.y, b.y),
+            z: mask.select(a.z, b.z),
+        }
+    }
+
     /// `-v` where `flip` is all ones (the sign bit flipped, as scalar negation does).
     #[inline(always)]
     fn negate_where(self, flip: f32x4) -> Self {
@@ -235,20 +265,43 @@ impl FlatShader {
         &mut self,
         hits: &[FlatHit<'_>; 4],
         lights: &[Light],
+        visit: impl FnMut(usize, usize, ShadowTest),
+    ) {
+        self.tests4(hits, None, lights, visit);
+    }
+
+    /// [`FlatShader::shadow_tests4`] of four hits on triangles with vertex normals
+    /// (`normals[k]`, the corners' normals of hit k's triangle, as the mesh has them); each
+    /// hit's `kd` is its reflectance at the hit (textured or not).
+    #[inline]
+    pub fn smooth_tests4(
+        &mut self,
+        hits: &[FlatHit<'_>; 4],
+        normals: &[[Vec3; 3]; 4],
+        lights: &[Light],
+        visit: impl FnMut(usize, usize, ShadowTest),
+    ) {
+        self.tests4(hits, Some(normals), lights, visit);
+    }
+
+    #[inline(always)]
+    fn tests4(
+        &mut self,
+        hits: &[FlatHit<'_>; 4],
+        normals: Option<&[[Vec3; 3]; 4]>,
+        lights: &[Light],
         mut visit: impl FnMut(usize, usize, ShadowTest),
     ) {
         let corner = |c: usize| {
             let at = |k: usize| hits[k].corners.corner(c);
             Vec3x4::of([at(0), at(1), at(2), at(3)])
         };
-        let [p0, p1, p2] = [corner(0), corner(1), corner(2)];
+        let corners = [corner(0), corner(1), corner(2)];
+        let [p0, p1, p2] = corners;
         let weight =
             |c: usize| f32x4::from([hits[0].b[c], hits[1].b[c], hits[2].b[c], hits[3].b[c]]);
-        let (w0, w1, w2) = (
-            p0.scale(weight(0)),
-            p1.scale(weight(1)),
-            p2.scale(weight(2)),
-        );
+        let b = [weight(0), weight(1), weight(2)];
+        let (w0, w1, w2) = (p0.scale(b[0]), p1.scale(b[1]), p2.scale(b[2]));
         // As `surface_point`: p, its error bound, and the geometric normal facing the ray.
         let p = w0.add(w1).add(w2);
         let p_error = w0
@@ -259,10 +312,19 @@ impl FlatShader {
         let n_geo = p1.sub(p0).cross(p2.sub(p0)).normalize_or_zero();
         let dir = Vec3x4::of([*hits[0].dir, *hits[1].dir, *hits[2].dir, *hits[3].dir]);
         let n = n_geo.negate_where(n_geo.dot(dir).simd_gt(f32x4::ZERO));
-        // As `offset_origin(p, p_error, n, n)`: n·n is never below zero, so the offset keeps
-        // its side, and the origin is rounded away from the surface along it.
-        let offset = n.scale(n.abs().dot(p_error));
-        let moved = p.add(offset);
+        // The shading normal and where shadow rays start: on a flat triangle the geometric
+        // normal and p.
+        let (n_shade, p_shadow, p_shadow_error) = match normals {
+            None => (n, p, p_error),
+            Some(normals) => {
+                let at = |c: usize| Vec3x4::of(std::array::from_fn(|k| normals[k][c]));
+                smooth_lanes([at(0), at(1), at(2)], (corners, b), n, (p, p_error))
+            }
+        };
+        // As `offset_origin(p_shadow, p_shadow_error, n, n)`: n·n is never below zero, so the
+        // offset keeps its side, and the origin is rounded away from the surface along it.
+        let offset = n.scale(n.abs().dot(p_shadow_error));
+        let moved = p_shadow.add(offset);
         let origin = Vec3x4 {
             x: round_away_lanes(moved.x, offset.x),
             y: round_away_lanes(moved.y, offset.y),
@@ -275,7 +337,7 @@ impl FlatShader {
         self.lit.extend(
             lights
                 .iter()
-                .map(|light| LitLanes::new(light, &p, &n, &origin, &kd)),
+                .map(|light| LitLanes::new(light, &p, &n_shade, &origin, &kd)),
         );
         let origins = origin.lanes();
         for (k, &origin) in origins.iter().enumerate() {
@@ -299,6 +361,59 @@ impl FlatShader {
             }
         }
     }
+}
+
+/// As the vertex-normal branch of [`super::surface_point_on`], lane by lane: the shading
+/// normal (the barycentric blend of the vertex `normals`, normalised and turned to the side of
+/// `n_geo`, the geometric normal facing the ray) and Hanika's shadow point with its error
+/// bound ([`super::shadow_point`]), from the triangles' `corners`, the barycentrics `b` and the
+/// hit point `p` with its bound. Lanes whose blended normal is zero keep `(n_geo, p, p_error)`.
+#[inline(always)]
+fn smooth_lanes(
+    normals: [Vec3x4; 3],
+    (corners, b): ([Vec3x4; 3], [f32x4; 3]),
+    n_geo: Vec3x4,
+    (p, p_error): (Vec3x4, Vec3x4),
+) -> (Vec3x4, Vec3x4, Vec3x4) {
+    let zero = f32x4::ZERO;
+    let [n0, n1, n2] = normals;
+    let n = n0
+        .scale(b[0])
+        .add(n1.scale(b[1]))
+        .add(n2.scale(b[2]))
+        .normalize_or_zero();
+    let none = n.is_zero();
+    // The normal and the vertex normals turned to n_geo's side (a negated unit vector is the
+    // unit vector of the negated one, bit for bit).
+    let flip = n.dot(n_geo).simd_lt(zero);
+    let n = n.negate_where(flip);
+    let units = normals.map(|v| v.normalize_or_zero().negate_where(flip));
+    // As `shadow_point_unit`: each vertex plane above p (its normal not within
+    // MIN_NORMAL_COS of the triangle's plane) lifts p by its weight; where a term is not
+    // taken, +0 is added, which leaves a sum that starts at +0 as it is.
+    let (mut offset, mut magnitude) = (Vec3x4::splat(Vec3::ZERO), Vec3x4::splat(Vec3::ZERO));
+    for (i, unit) in units.iter().enumerate() {
+        let facing = unit.dot(n_geo).simd_ge(f32x4::splat(super::MIN_NORMAL_COS));
+        let height = p.sub(corners[i]).dot(*unit);
+        let below = height.simd_lt(zero);
+        // `b.max(0.0)`: zero for a NaN (the sign of a zero weight never reaches the sums).
+        let weight = b[i].simd_gt(zero).select(b[i], zero);
+        let term = unit.scale(weight * -height);
+        let take = facing & below;
+        offset = offset.add(term.keep(take));
+        magnitude = magnitude.add(term.abs().keep(take));
+    }
+    let q = p.add(offset);
+    let error = p_error
+        .add(q.abs().scale(f32x4::splat(gamma(2.0))))
+        .add(magnitude.scale(f32x4::splat(gamma(4.0))))
+        .scale(f32x4::splat(1.0 + gamma(4.0)));
+    let lifted = !magnitude.is_zero() & !none;
+    (
+        Vec3x4::choose(none, n_geo, n),
+        Vec3x4::choose(lifted, q, p),
+        Vec3x4::choose(lifted, error, p_error),
+    )
 }
 
 #[cfg(test)]
@@ -398,5 +513,108 @@ mod tests {
             checked += expected.len();
         }
         assert!(checked > 2000, "{checked} tests");
+    }
+
+    /// Four hits on triangles with vertex normals, in lanes, are the scalar surface points'
+    /// shadow tests bit for bit: normals toward either side of the triangle, of any length,
+    /// zero (no shading normal), nearly in the triangle's plane (the shadow point's cutoff) and
+    /// one the others cancel; hits on a corner and on an edge; point and directional lights.
+    #[test]
+    fn four_smooth_hits_in_lanes_are_the_scalar_tests() {
+        let mut r = rng(23);
+        let (mut checked, mut lifted) = (0, 0);
+        for round in 0..600 {
+            let scale = [1e-3f32, 1.0, 3e3][round % 3];
+            let mut v = || Vec3::new(r() * 4.0 - 2.0, r() * 2.0 - 1.0, r() * 4.0 - 2.0) * scale;
+            let corners: [[Vec3; 3]; 4] = std::array::from_fn(|_| [v(), v(), v()]);
+            let mut b = [[0.0f32; 3]; 4];
+            let mut dir = [Vec3::ZERO; 4];
+            let mut kd = [[0.0f32; 3]; 4];
+            let mut normals = [[Vec3::ZERO; 3]; 4];
+            for k in 0..4 {
+                b[k] = match (round + k) % 6 {
+                    0 => [0.0, 1.0, 0.0],
+                    1 => [0.5, 0.0, 0.5],
+                    _ => {
+                        let (b1, b2) = (r() * 0.5, r() * 0.5);
+                        [1.0 - b1 - b2, b1, b2]
+                    }
+                };
+                dir[k] = Vec3::new(r() - 0.5, r() - 0.5, r() - 0.5);
+                kd[k] = [r(), r(), r()];
+                let [p0, p1, p2] = corners[k];
+                let n_geo = (p1 - p0).cross(p2 - p0).normalize_or_zero();
+                let mut jitter = || Vec3::new(r() - 0.5, r() - 0.5, r() - 0.5);
+                normals[k] = match (round + 2 * k) % 7 {
+                    // No shading normal: the flat point.
+                    0 => [Vec3::ZERO; 3],
+                    // Cancelling: the blend is zero at the centroid-ish hit or nearly.
+                    1 => [n_geo, -n_geo, Vec3::ZERO],
+                    // Nearly in the plane: below and above MIN_NORMAL_COS.
+                    2 => {
+                        let t = (p1 - p0).normalize_or_zero();
+                        [t + n_geo * 5e-4, t + n_geo * 2e-3, n_geo]
+                    }
+                    // Toward the far side, long.
+                    3 => [
+                        -n_geo * 3.0 + jitter() * 0.5,
+                        -n_geo + jitter(),
+                        -n_geo * 7.0,
+                    ],
+                    // Smooth, bulging: tilted outward, as a coarse sphere's.
+                    _ => [
+                        (n_geo + jitter() * 0.8) * 2.0,
+                        n_geo + jitter() * 0.8,
+                        (n_geo + jitter() * 0.8) * 0.3,
+                    ],
+                };
+            }
+            let mut v = [[[0.0f32; 4]; 3]; 3];
+            for (k, tri) in corners.iter().enumerate() {
+                for (c, corner) in tri.iter().enumerate() {
+                    for a in 0..3 {
+                        v[c][a][k] = corner[a];
+                    }
+                }
+            }
+            let hits: [FlatHit<'_>; 4] = std::array::from_fn(|k| FlatHit {
+                corners: CornerLanes::new(&v, k),
+                b: &b[k],
+                dir: &dir[k],
+                kd: kd[k],
+            });
+            let lights = [
+                Light::Point {
+                    position: DVec3::new(0.3, 4.0, -0.2) * f64::from(scale),
+                    intensity: [5.0; 3],
+                },
+                Light::Directional {
+                    direction: DVec3::new(0.1, -1.0, 0.2).normalize(),
+                    irradiance: [0.5, 1.0, 2.0],
+                },
+                Light::Point {
+                    position: DVec3::new(-1.7, -2.5, 1.1) * f64::from(scale),
+                    intensity: [3.0, 7.0, 3.0],
+                },
+            ];
+            let mut expected = Vec::new();
+            for (k, h) in hits.iter().enumerate() {
+                let sp = surface_point(h.corners.corners(), *h.b, *h.dir, Some(normals[k]), h.kd);
+                lifted += usize::from(sp.p_shadow != sp.p);
+                for (l, light) in lights.iter().enumerate() {
+                    if let Some(t) = shadow_test(&sp, light) {
+                        expected.push((k, l, bits(&t)));
+                    }
+                }
+            }
+            let mut lanes = Vec::new();
+            FlatShader::default().smooth_tests4(&hits, &normals, &lights, |k, l, t| {
+                lanes.push((k, l, bits(&t)))
+            });
+            assert_eq!(lanes, expected, "round {round}");
+            checked += expected.len();
+        }
+        assert!(checked > 3000, "{checked} tests");
+        assert!(lifted > 300, "shadow points moved off the facet: {lifted}");
     }
 }
