@@ -144,12 +144,18 @@ impl Observer for Attempts {
 #[test]
 fn a_task_over_the_functions_memory_fails_the_job_without_a_retry() {
     // The job asks for 2048 MB, so its plan runs fused in one split; the functions have 97 MB:
-    // 1 MB above the runtime allowance, less than the decoded scene.
+    // 1 MB above the runtime allowance, less than the decoded scene and the one span's pixels
+    // (320x240: 1.5 MB of radiance, triangle ids and distances) that the render task holds.
     let attempts = Attempts::default();
+    let big = PlanRequest {
+        width: 320,
+        height: 240,
+        ..request(1, 1, SplitMode::Spatial, 1)
+    };
     let e = run_job(
         &config(1, 97, Some("oom")),
         &scene_path(SCENE),
-        request(1, 1, SplitMode::Spatial, 16),
+        big,
         &attempts,
     )
     .err()
