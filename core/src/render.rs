@@ -1,4 +1,6 @@
 //! The monolithic renderer (the paper's TRAD): one process, one BVH over the whole scene.
+//! Its loop over a run of pixels ([`render_run`]) also renders a fused task's span, from the
+//! task's split object ([`Surfaces`]), so the two give the same bits at the same cost.
 //!
 //! Bands of rows are traced tile by tile, each pixel's samples in trace order
 //! ([`TraceOrder`]), in batches of camera samples (primary rays, then all their shadow rays
