@@ -5,7 +5,7 @@
 
 use super::{flat_kd, kd_with, shading_of, surface_with};
 use crate::bvh::{Bvh, ClosestHit};
-use crate::pipeline::SplitObject;
+use crate::pipeline::{SplitObject, TriangleShading};
 use crate::scene::Mesh;
 use crate::shading::{LastFrame, SurfacePoint, surface_point_on};
 use crate::triangle::Ray;
@@ -60,10 +60,7 @@ impl Surfaces for SplitObject {
 
     #[inline]
     fn lane_shading(&self, hit: &ClosestHit) -> ([Vec3; 3], [f32; 3]) {
-        let shading = self
-            .shading
-            .get(hit.index as usize)
-            .expect("a split's shading covers its BVH's triangles (decode_split checks it)");
+        let shading = shading_at(self, hit);
         let kd = self.kd_at(&shading, hit.b);
         (shading.normals.unwrap_or([Vec3::ZERO; 3]), kd)
     }
@@ -77,13 +74,19 @@ impl Surfaces for SplitObject {
         ray: &Ray,
         last: &mut LastFrame,
     ) -> SurfacePoint {
-        let shading = self
-            .shading
-            .get(hit.index as usize)
-            .expect("a split's shading covers its BVH's triangles (decode_split checks it)");
+        let shading = shading_at(self, hit);
         let corners = bvh.hit_corners(hit).corners();
         let frame = last.of(hit.index, || (corners, shading.normals));
         let kd = self.kd_at(&shading, hit.b);
         surface_point_on(frame, corners, hit.b, ray.dir, shading.normals, kd)
     }
+}
+
+/// The shading of the split's triangle that `hit` (found by the split's BVH) is on.
+#[inline]
+fn shading_at(split: &SplitObject, hit: &ClosestHit) -> TriangleShading {
+    split
+        .shading
+        .get(hit.index as usize)
+        .expect("a split's shading covers its BVH's triangles (decode_split checks it)")
 }

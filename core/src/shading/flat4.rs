@@ -432,6 +432,37 @@ mod tests {
         b.into_iter().map(f32::to_bits).collect()
     }
 
+    /// The corners of four triangles in the lanes of one array, as a BVH keeps them.
+    fn in_lanes(corners: &[[Vec3; 3]; 4]) -> [[[f32; 4]; 3]; 3] {
+        let mut v = [[[0.0f32; 4]; 3]; 3];
+        for (k, tri) in corners.iter().enumerate() {
+            for (c, corner) in tri.iter().enumerate() {
+                for a in 0..3 {
+                    v[c][a][k] = corner[a];
+                }
+            }
+        }
+        v
+    }
+
+    /// Two point lights (one grey, one coloured) at `scale` and a directional light.
+    fn three_lights(scale: f32) -> [Light; 3] {
+        [
+            Light::Point {
+                position: DVec3::new(0.3, 4.0, -0.2) * f64::from(scale),
+                intensity: [5.0; 3],
+            },
+            Light::Directional {
+                direction: DVec3::new(0.1, -1.0, 0.2).normalize(),
+                irradiance: [0.5, 1.0, 2.0],
+            },
+            Light::Point {
+                position: DVec3::new(-1.7, -2.5, 1.1) * f64::from(scale),
+                intensity: [3.0, 7.0, 3.0],
+            },
+        ]
+    }
+
     /// The lanes give, hit by hit and light by light, the scalar surface point's shadow tests
     /// bit for bit: random triangles at several scales seen from either side, degenerate ones
     /// (no normal), hits on a corner, point lights (one at a hit point, grey and coloured)
@@ -461,15 +492,7 @@ mod tests {
                 dir[k] = Vec3::new(r() - 0.5, r() - 0.5, r() - 0.5);
                 kd[k] = [r(), r(), r()];
             }
-            // The four triangles in the lanes of one array, as a BVH keeps them.
-            let mut v = [[[0.0f32; 4]; 3]; 3];
-            for (k, tri) in corners.iter().enumerate() {
-                for (c, corner) in tri.iter().enumerate() {
-                    for a in 0..3 {
-                        v[c][a][k] = corner[a];
-                    }
-                }
-            }
+            let v = in_lanes(&corners);
             let hits: [FlatHit<'_>; 4] = std::array::from_fn(|k| FlatHit {
                 corners: CornerLanes::new(&v, k),
                 b: &b[k],
@@ -477,25 +500,12 @@ mod tests {
                 kd: kd[k],
             });
             let first = surface_point(corners[0], b[0], dir[0], None, [1.0; 3]);
-            let lights = [
-                Light::Point {
-                    position: DVec3::new(0.3, 4.0, -0.2) * f64::from(scale),
-                    intensity: [5.0; 3],
-                },
-                Light::Directional {
-                    direction: DVec3::new(0.1, -1.0, 0.2).normalize(),
-                    irradiance: [0.5, 1.0, 2.0],
-                },
-                Light::Point {
-                    position: DVec3::new(-1.7, -2.5, 1.1) * f64::from(scale),
-                    intensity: [3.0, 7.0, 3.0],
-                },
-                // At the first hit's point exactly (no incidence there).
-                Light::Point {
-                    position: first.p.as_dvec3(),
-                    intensity: [1.0; 3],
-                },
-            ];
+            let mut lights = three_lights(scale).to_vec();
+            // At the first hit's point exactly (no incidence there).
+            lights.push(Light::Point {
+                position: first.p.as_dvec3(),
+                intensity: [1.0; 3],
+            });
             let mut expected = Vec::new();
             for (k, h) in hits.iter().enumerate() {
                 let sp = surface_point(h.corners.corners(), *h.b, *h.dir, None, h.kd);
@@ -569,34 +579,14 @@ mod tests {
                     ],
                 };
             }
-            let mut v = [[[0.0f32; 4]; 3]; 3];
-            for (k, tri) in corners.iter().enumerate() {
-                for (c, corner) in tri.iter().enumerate() {
-                    for a in 0..3 {
-                        v[c][a][k] = corner[a];
-                    }
-                }
-            }
+            let v = in_lanes(&corners);
             let hits: [FlatHit<'_>; 4] = std::array::from_fn(|k| FlatHit {
                 corners: CornerLanes::new(&v, k),
                 b: &b[k],
                 dir: &dir[k],
                 kd: kd[k],
             });
-            let lights = [
-                Light::Point {
-                    position: DVec3::new(0.3, 4.0, -0.2) * f64::from(scale),
-                    intensity: [5.0; 3],
-                },
-                Light::Directional {
-                    direction: DVec3::new(0.1, -1.0, 0.2).normalize(),
-                    irradiance: [0.5, 1.0, 2.0],
-                },
-                Light::Point {
-                    position: DVec3::new(-1.7, -2.5, 1.1) * f64::from(scale),
-                    intensity: [3.0, 7.0, 3.0],
-                },
-            ];
+            let lights = three_lights(scale);
             let mut expected = Vec::new();
             for (k, h) in hits.iter().enumerate() {
                 let sp = surface_point(h.corners.corners(), *h.b, *h.dir, Some(normals[k]), h.kd);
