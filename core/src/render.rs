@@ -25,7 +25,7 @@ use crate::phase_timer::{NoTimer, PhaseTimer, PhaseTimes};
 use crate::pipeline::FrameChoice;
 use crate::sampling::TraceOrder;
 use crate::scene::{Mesh, NO_NORMAL, Scene, TriangleShading, check_image_size};
-use crate::shading::{LastFrame, SurfacePoint, surface_point_on};
+use crate::shading::{LastFrame, SurfacePoint};
 use crate::texture::TexturedCorners;
 use crate::tiles::BAND_ROWS;
 use crate::triangle::Ray;
@@ -128,7 +128,7 @@ pub fn shading_of(mesh: &Mesh, id: u32) -> TriangleShading {
 /// The shading data of a hit on the scene's triangle `hit.id`, found by `bvh`.
 #[inline]
 pub fn surface_of(mesh: &Mesh, bvh: &Bvh, hit: &ClosestHit, ray: &Ray) -> SurfacePoint {
-    surface_with(mesh, bvh, hit, ray, &mut LastFrame::default())
+    mesh.surface(bvh, hit, ray, &mut LastFrame::default())
 }
 
 /// The reflectance of the scene's triangle `id` when it is flat (no vertex normals) and
@@ -138,33 +138,6 @@ fn flat_kd(mesh: &Mesh, id: u32) -> Option<[f32; 3]> {
     let i = id as usize;
     let flat = mesh.triangle_normals[i][0] == NO_NORMAL && mesh.texture_of(i).is_none();
     flat.then(|| mesh.materials[mesh.triangle_materials[i] as usize].kd)
-}
-
-/// The reflectance at `hit` of a triangle of `mesh` with shading `s`: its material's, times
-/// its texture's colour there if it has one.
-#[inline]
-fn kd_with(mesh: &Mesh, s: &TriangleShading, hit: &ClosestHit) -> [f32; 3] {
-    match &s.texture {
-        None => s.kd,
-        Some(t) => t.kd_at(s.kd, &mesh.textures[t.texture as usize], hit.b),
-    }
-}
-
-/// [`surface_of`], the triangle's frame taken from `last` (made anew for another triangle of
-/// `bvh` than the last): the same bits.
-#[inline]
-fn surface_with(
-    mesh: &Mesh,
-    bvh: &Bvh,
-    hit: &ClosestHit,
-    ray: &Ray,
-    last: &mut LastFrame,
-) -> SurfacePoint {
-    let s = shading_of(mesh, hit.id);
-    let kd = kd_with(mesh, &s, hit);
-    let corners = bvh.hit_corners(hit).corners();
-    let frame = last.of(hit.index, || (corners, s.normals));
-    surface_point_on(frame, corners, hit.b, ray.dir, s.normals, kd)
 }
 
 /// Renders `scene` with one BVH over all its triangles.

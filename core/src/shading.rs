@@ -116,7 +116,7 @@ pub fn surface_point_on(
                 } else {
                     (n, units)
                 };
-                let (q, q_error) = shadow_point_unit(corners, b, unit_normals, n_geo, p, p_error);
+                let (q, q_error) = shadow_point(corners, b, unit_normals, n_geo, p, p_error);
                 (n, q, q_error)
             }
         }
@@ -139,10 +139,10 @@ pub fn surface_point_on(
 const MIN_NORMAL_COS: f32 = 1e-3;
 
 /// Hanika's shadow-ray origin for the hit `p` (error bound `p_error`) at barycentrics `b` of a
-/// triangle with corners `corners` and vertex normals `normals` (any length, turned to the side
-/// of the unit geometric normal `n_geo`):
+/// triangle with corners `corners` and unit vertex normals `unit_normals` (each the mesh's
+/// normal after `normalize_or_zero`, turned to the side of the unit geometric normal `n_geo`):
 ///
-///   p' = p + sum_i b_i · max(0, (A_i - p)·n_i) · n_i   (n_i normalised),
+///   p' = p + sum_i b_i · max(0, (A_i - p)·n_i) · n_i,
 ///
 /// p projected onto each vertex's tangent plane where it lies below it, blended with the
 /// barycentrics ("Hacking the Shadow Terminator", Ray Tracing Gems II, ch. 4, 2021). On a convex
@@ -159,20 +159,6 @@ const MIN_NORMAL_COS: f32 = 1e-3;
 /// robust spawn along n_geo by this bound starts the ray strictly on that side.
 #[inline]
 pub fn shadow_point(
-    corners: [Vec3; 3],
-    b: [f32; 3],
-    normals: [Vec3; 3],
-    n_geo: Vec3,
-    p: Vec3,
-    p_error: Vec3,
-) -> (Vec3, Vec3) {
-    let units = normals.map(Vec3::normalize_or_zero);
-    shadow_point_unit(corners, b, units, n_geo, p, p_error)
-}
-
-/// [`shadow_point`] given the vertex normals already normalised (`normalize_or_zero`).
-#[inline]
-fn shadow_point_unit(
     corners: [Vec3; 3],
     b: [f32; 3],
     unit_normals: [Vec3; 3],

@@ -3,9 +3,9 @@
 //! in the split's leaf order). Both give the same surface for the same triangle, so a render
 //! through either has the same bits.
 
-use super::{flat_kd, kd_with, shading_of, surface_with};
+use super::{flat_kd, shading_of};
 use crate::bvh::{Bvh, ClosestHit};
-use crate::pipeline::{SplitObject, TriangleShading};
+use crate::pipeline::SplitObject;
 use crate::scene::Mesh;
 use crate::shading::{LastFrame, SurfacePoint, surface_point_on};
 use crate::triangle::Ray;
@@ -17,15 +17,34 @@ pub trait Surfaces {
     /// untextured, which is then the `kd` of [`Surfaces::surface`]; else `None`.
     fn flat_kd(&self, hit: &ClosestHit) -> Option<[f32; 3]>;
 
+    /// The hit triangle's vertex normals, if it has them, and the reflectance at the hit,
+    /// textured or not.
+    fn normals_and_kd(&self, hit: &ClosestHit) -> (Option<[Vec3; 3]>, [f32; 3]);
+
     /// The hit triangle's vertex normals (zeros for a triangle without: the same surface point)
-    /// and the reflectance at the hit, textured or not: what
-    /// [`crate::shading::FlatShader::smooth_tests4`] takes of a hit.
-    fn lane_shading(&self, hit: &ClosestHit) -> ([Vec3; 3], [f32; 3]);
+    /// and the reflectance at the hit: what [`crate::shading::FlatShader::smooth_tests4`]
+    /// takes of a hit.
+    #[inline]
+    fn lane_shading(&self, hit: &ClosestHit) -> ([Vec3; 3], [f32; 3]) {
+        let (normals, kd) = self.normals_and_kd(hit);
+        (normals.unwrap_or([Vec3::ZERO; 3]), kd)
+    }
 
     /// The surface point of `hit`, found by `bvh` along `ray`; the triangle's frame is taken
     /// from `last`, which keeps the frame of the last triangle of `bvh` it was asked for.
-    fn surface(&self, bvh: &Bvh, hit: &ClosestHit, ray: &Ray, last: &mut LastFrame)
-    -> SurfacePoint;
+    #[inline]
+    fn surface(
+        &self,
+        bvh: &Bvh,
+        hit: &ClosestHit,
+        ray: &Ray,
+        last: &mut LastFrame,
+    ) -> SurfacePoint {
+        let (normals, kd) = self.normals_and_kd(hit);
+        let corners = bvh.hit_corners(hit).corners();
+        let frame = last.of(hit.index, || (corners, normals));
+        surface_point_on(frame, corners, hit.b, ray.dir, normals, kd)
+    }
 }
 
 impl Surfaces for Mesh {
@@ -35,23 +54,18 @@ impl Surfaces for Mesh {
     }
 
     #[inline]
-    fn lane_shading(&self, hit: &ClosestHit) -> ([Vec3; 3], [f32; 3]) {
+    fn normals_and_kd(&self, hit: &ClosestHit) -> (Option<[Vec3; 3]>, [f32; 3]) {
         let s = shading_of(self, hit.id);
-        (s.normals.unwrap_or([Vec3::ZERO; 3]), kd_with(self, &s, hit))
-    }
-
-    #[inline]
-    fn surface(
-        &self,
-        bvh: &Bvh,
-        hit: &ClosestHit,
-        ray: &Ray,
-        last: &mut LastFrame,
-    ) -> SurfacePoint {
-        surface_with(self, bvh, hit, ray, last)
+        let kd = match &s.texture {
+            None => s.kd,
+            Some(t) => t.kd_at(s.kd, &self.textures[t.texture as usize], hit.b),
+        };
+        (s.normals, kd)
     }
 }
 
+/// A split's hits are found by its own BVH (`hit.index` is a leaf-order index into its
+/// shading).
 impl Surfaces for SplitObject {
     #[inline]
     fn flat_kd(&self, hit: &ClosestHit) -> Option<[f32; 3]> {
@@ -59,34 +73,11 @@ impl Surfaces for SplitObject {
     }
 
     #[inline]
-    fn lane_shading(&self, hit: &ClosestHit) -> ([Vec3; 3], [f32; 3]) {
-        let shading = shading_at(self, hit);
-        let kd = self.kd_at(&shading, hit.b);
-        (shading.normals.unwrap_or([Vec3::ZERO; 3]), kd)
+    fn normals_and_kd(&self, hit: &ClosestHit) -> (Option<[Vec3; 3]>, [f32; 3]) {
+        let shading = self
+            .shading
+            .get(hit.index as usize)
+            .expect("a split's shading covers its BVH's triangles (decode_split checks it)");
+        (shading.normals, self.kd_at(&shading, hit.b))
     }
-
-    /// `bvh` is the split's own.
-    #[inline]
-    fn surface(
-        &self,
-        bvh: &Bvh,
-        hit: &ClosestHit,
-        ray: &Ray,
-        last: &mut LastFrame,
-    ) -> SurfacePoint {
-        let shading = shading_at(self, hit);
-        let corners = bvh.hit_corners(hit).corners();
-        let frame = last.of(hit.index, || (corners, shading.normals));
-        let kd = self.kd_at(&shading, hit.b);
-        surface_point_on(frame, corners, hit.b, ray.dir, shading.normals, kd)
-    }
-}
-
-/// The shading of the split's triangle that `hit` (found by the split's BVH) is on.
-#[inline]
-fn shading_at(split: &SplitObject, hit: &ClosestHit) -> TriangleShading {
-    split
-        .shading
-        .get(hit.index as usize)
-        .expect("a split's shading covers its BVH's triangles (decode_split checks it)")
 }

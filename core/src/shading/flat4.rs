@@ -445,6 +445,22 @@ mod tests {
         v
     }
 
+    /// Hit k of four on triangle k of `v` ([`in_lanes`]), at barycentrics `b[k]`, along
+    /// `dir[k]`, with reflectance `kd[k]`.
+    fn lane_hits<'a>(
+        v: &'a [[[f32; 4]; 3]; 3],
+        b: &'a [[f32; 3]; 4],
+        dir: &'a [Vec3; 4],
+        kd: [[f32; 3]; 4],
+    ) -> [FlatHit<'a>; 4] {
+        std::array::from_fn(|k| FlatHit {
+            corners: CornerLanes::new(v, k),
+            b: &b[k],
+            dir: &dir[k],
+            kd: kd[k],
+        })
+    }
+
     /// Two point lights (one grey, one coloured) at `scale` and a directional light.
     fn three_lights(scale: f32) -> [Light; 3] {
         [
@@ -493,12 +509,7 @@ mod tests {
                 kd[k] = [r(), r(), r()];
             }
             let v = in_lanes(&corners);
-            let hits: [FlatHit<'_>; 4] = std::array::from_fn(|k| FlatHit {
-                corners: CornerLanes::new(&v, k),
-                b: &b[k],
-                dir: &dir[k],
-                kd: kd[k],
-            });
+            let hits = lane_hits(&v, &b, &dir, kd);
             let first = surface_point(corners[0], b[0], dir[0], None, [1.0; 3]);
             let mut lights = three_lights(scale).to_vec();
             // At the first hit's point exactly (no incidence there).
@@ -580,12 +591,7 @@ mod tests {
                 };
             }
             let v = in_lanes(&corners);
-            let hits: [FlatHit<'_>; 4] = std::array::from_fn(|k| FlatHit {
-                corners: CornerLanes::new(&v, k),
-                b: &b[k],
-                dir: &dir[k],
-                kd: kd[k],
-            });
+            let hits = lane_hits(&v, &b, &dir, kd);
             let lights = three_lights(scale);
             let mut expected = Vec::new();
             for (k, h) in hits.iter().enumerate() {
