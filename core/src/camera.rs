@@ -161,6 +161,74 @@ impl Camera {
         self.pixel_rays_in::<false>(pixel, order, out);
     }
 
+    /// [`Camera::pixel_rays`] of each of `pixels` in turn: the same rays in the same order. With
+    /// fewer than four samples a pixel, the rays of neighbouring pixels are made four at a time
+    /// in lanes (one pixel's samples would leave the lanes idle).
+    #[inline]
+    pub fn pixels_rays(&self, pixels: &[u64], order: &TraceOrder, out: &mut Vec<Ray>) {
+        #[cfg(target_arch = "x86_64")]
+        if kernel_width() != KernelWidth::Four {
+            // SAFETY: as in `pixel_rays`.
+            #[allow(unsafe_code)]
+            unsafe {
+                self.pixels_rays_avx2(pixels, order, out)
+            };
+            return;
+        }
+        self.pixels_rays_in::<false>(pixels, order, out);
+    }
+
+    /// [`Camera::pixels_rays`], with [`Camera::pixel_rays_in`]'s choice of lanes.
+    #[inline(always)]
+    fn pixels_rays_in<const AVX: bool>(
+        &self,
+        pixels: &[u64],
+        order: &TraceOrder,
+        out: &mut Vec<Ray>,
+    ) {
+        let samples = order.samples();
+        if samples.len() >= 4 {
+            for &pixel in pixels {
+                self.pixel_rays_in::<AVX>(pixel, order, out);
+            }
+            return;
+        }
+        out.reserve(pixels.len() * samples.len());
+        let spp = samples.len() as u32;
+        // Image positions of consecutive (pixel, sample) pairs, four at a time.
+        let (mut xs, mut ys, mut filled) = ([0.0f64; 4], [0.0f64; 4], 0);
+        for &pixel in pixels {
+            let offsets = PixelSamples::of_frame(pixel, spp, self.frame);
+            let x = (pixel % self.columns) as f64;
+            let y = (pixel / self.columns) as f64;
+            for &sample in samples {
+                let (ox, oy) = offsets.offset(sample);
+                (xs[filled], ys[filled]) = (x + ox, y + oy);
+                filled += 1;
+                if filled == 4 {
+                    out.extend(self.rays4_in::<AVX>(f64x4::from(xs), f64x4::from(ys)));
+                    filled = 0;
+                }
+            }
+        }
+        for k in 0..filled {
+            out.push(self.ray(xs[k], ys[k]));
+        }
+    }
+
+    /// [`Camera::rays4`], in 256-bit registers when `AVX` (only inside an AVX2 function).
+    #[inline(always)]
+    fn rays4_in<const AVX: bool>(&self, px: f64x4, py: f64x4) -> [Ray; 4] {
+        #[cfg(target_arch = "x86_64")]
+        if AVX {
+            // SAFETY: `AVX` is true only inside functions compiled for AVX2, which run only
+            // on hosts with it.
+            #[allow(unsafe_code)]
+            return unsafe { self.rays4_avx(px, py) };
+        }
+        self.rays4(px, py)
+    }
+
     /// [`Camera::pixel_rays`], with each group's rays from `Camera::rays4_avx` when `AVX` (only
     /// inside `Camera::pixel_rays_avx2`), else from [`Camera::rays4`].
     #[inline(always)]
@@ -184,15 +252,7 @@ impl Camera {
                 *position = (f64x4::splat(x) + ox, f64x4::splat(y) + oy);
             }
             for &(px, py) in &positions[..groups] {
-                #[cfg(target_arch = "x86_64")]
-                if AVX {
-                    // SAFETY: `AVX` is true only in `pixel_rays_avx2`, which runs only on
-                    // hosts with AVX2.
-                    #[allow(unsafe_code)]
-                    out.extend(unsafe { self.rays4_avx(px, py) });
-                    continue;
-                }
-                out.extend(self.rays4(px, py));
+                out.extend(self.rays4_in::<AVX>(px, py));
             }
             fours = &fours[groups..];
         }
@@ -317,6 +377,55 @@ mod tests {
                         let expected = cam.sample_ray(pixel, sample, spp);
                         let at = format!("{path}: pixel {pixel} sample {sample}");
                         assert_eq!(bits(ray), bits(&expected), "{at}");
+                    }
+                }
+            }
+        }
+    }
+
+    /// Several pixels' rays are each pixel's rays in turn, bit for bit, on every path: below
+    /// four samples a pixel (lanes across pixels, with a remainder of one to three rays) and
+    /// above (pixel by pixel), in a frame of an animation too.
+    #[test]
+    fn pixels_rays_are_each_pixels_rays_in_turn() {
+        let spec = CameraSpec {
+            eye: DVec3::new(-0.5, 2.0, 7.0),
+            look_at: DVec3::new(0.25, 0.5, 0.0),
+            up: DVec3::Y,
+            vfov_degrees: 50.0,
+        };
+        let bits = |r: &Ray| (r.origin.to_array(), r.dir.to_array().map(f32::to_bits));
+        type PixelsRays = fn(&Camera, &[u64], &TraceOrder, &mut Vec<Ray>);
+        #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
+        let mut paths: Vec<(&str, PixelsRays)> = vec![
+            ("dispatched", Camera::pixels_rays),
+            ("portable", Camera::pixels_rays_in::<false>),
+        ];
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the host has AVX2.
+            #[allow(unsafe_code)]
+            paths.push(("avx2", |c, pixels, order, out| unsafe {
+                c.pixels_rays_avx2(pixels, order, out)
+            }));
+        }
+        for frame in [0, 3] {
+            let cam = Camera::new(&spec, 9, 4).unwrap().with_frame(frame);
+            for (path, pixels_rays) in &paths {
+                for spp in [1u32, 2, 3, 4, 5] {
+                    let order = TraceOrder::new(spp);
+                    for pixels in [&[0u64, 8, 9, 22, 35][..], &[4, 5, 6], &[7], &[]] {
+                        let mut got = vec![cam.sample_ray(0, 0, 1)];
+                        pixels_rays(&cam, pixels, &order, &mut got);
+                        let mut expected = vec![cam.sample_ray(0, 0, 1)];
+                        for &pixel in pixels {
+                            cam.pixel_rays_in::<false>(pixel, &order, &mut expected);
+                        }
+                        let at = format!("{path}: frame {frame}, {spp} spp, pixels {pixels:?}");
+                        assert_eq!(got.len(), expected.len(), "{at}");
+                        for (g, e) in got.iter().zip(&expected) {
+                            assert_eq!(bits(g), bits(e), "{at}");
+                        }
                     }
                 }
             }

@@ -32,6 +32,20 @@ impl Camera {
         self.pixel_rays_in::<true>(pixel, order, out);
     }
 
+    /// [`Camera::pixels_rays`] compiled for AVX2, with [`Camera::rays4_avx`].
+    ///
+    /// # Safety
+    /// Only on hosts with AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn pixels_rays_avx2(
+        &self,
+        pixels: &[u64],
+        order: &TraceOrder,
+        out: &mut Vec<Ray>,
+    ) {
+        self.pixels_rays_in::<true>(pixels, order, out);
+    }
+
     /// `Camera::rays4` in 256-bit registers.
     #[target_feature(enable = "avx2")]
     #[inline]

@@ -33,13 +33,16 @@ pub fn cast_map(
     let mut out = Vec::new();
     let mut batch: Vec<(u64, u32)> = Vec::with_capacity(BATCH);
     let mut rays = Vec::with_capacity(BATCH);
+    let mut batch_pixels = Vec::with_capacity(BATCH);
     let mut hits = Vec::with_capacity(BATCH);
     for first in (span.start..span.end).step_by(pixels_per_batch as usize) {
         let pixels = first..(first + pixels_per_batch).min(span.end);
         batch.clear();
         rays.clear();
+        batch_pixels.clear();
+        batch_pixels.extend(pixels.clone());
+        camera.pixels_rays(&batch_pixels, &order, &mut rays);
         for pixel in pixels.clone() {
-            camera.pixel_rays(pixel, &order, &mut rays);
             batch.extend(order.samples().iter().map(|&sample| (pixel, sample)));
         }
         let in_sample_order = (0..pixels.count())

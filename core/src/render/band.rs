@@ -80,6 +80,7 @@ pub fn render_run(
     let samples = spp as usize;
     let pixels_per_batch = (BATCH_SAMPLES / samples).max(1);
     let mut batch = Vec::with_capacity(pixels_per_batch);
+    let mut batch_pixels = Vec::with_capacity(pixels_per_batch);
     let mut order = order.peekable();
     let mut rays = Vec::new();
     let mut hits = Vec::new();
@@ -90,10 +91,10 @@ pub fn render_run(
         batch.clear();
         batch.extend(order.by_ref().take(pixels_per_batch));
         rays.clear();
-        for &i in &batch {
-            let pixel = first_pixel + i as u64;
-            view.camera.pixel_rays(pixel, trace_order, &mut rays);
-        }
+        batch_pixels.clear();
+        batch_pixels.extend(batch.iter().map(|&i| first_pixel + i as u64));
+        view.camera
+            .pixels_rays(&batch_pixels, trace_order, &mut rays);
         // `closest_hits` writes every place: only a new length is filled.
         hits.resize(rays.len(), None);
         timer.lap(Phase::CameraRays);

@@ -1,5 +1,6 @@
-//! `hort bench samples`' second table: where one core's time per sample goes, beside native
-//! Embree's kernel on the same rays and Mitsuba 3's whole render.
+//! `hort bench samples`' second table (and `hort bench kernel`'s whole-render table,
+//! `whole_render.rs`): where one core's time per sample goes, beside native Embree's kernel on
+//! the same rays and Mitsuba 3's whole render.
 //!
 //! Ours: [`render_phases`], the monolithic renderer on one thread with a clock read at the end
 //! of each phase of each batch of about 1,000 samples (camera rays, closest hits, shading,
@@ -7,8 +8,10 @@
 //! must be the plain render's. Embree: every camera ray of the render (all samples) and every
 //! shadow segment the renderer traces, with our answers, through `bench/embree_harness.c`
 //! (`rtcIntersect1` and `rtcOccluded1`, and `rtcIntersect16` on 16 consecutive camera rays, on
-//! a one-thread device, best of `repeats`). Mitsuba:
-//! its `multijitter` sweep time from `mitsuba.csv`, read, not run.
+//! a one-thread device, best of `repeats`). "whole render / Embree rays" is the plain render's
+//! time (camera rays, traversal, shading, accumulation) over Embree's single-ray time on the
+//! rays it traces: at or below 1, our whole render traces faster than Embree's kernel alone.
+//! Mitsuba: its `multijitter` sweep time from `mitsuba.csv`, read, not run (where it has one).
 
 use super::kernel::{EmbreeResult, RaySet, run_embree};
 use super::table::{Table, f3};
@@ -34,13 +37,14 @@ pub(super) struct Breakdown {
     timed_s: f64,
     phases: PhaseTimes,
     embree: Option<EmbreeResult>,
-    mitsuba_s: f64,
+    /// Mitsuba's seconds for the same image, where the references have it.
+    mitsuba_s: Option<f64>,
 }
 
 /// Measures `scene` at `settings` (one thread): the phase-timed render, whose pixels must be
 /// `expected_pixels` (the plain render's), and Embree on the same rays when `harness` (the
 /// compiled harness and a folder for its ray file) is given. `plain_s` and `mitsuba_s` are the
-/// plain render's and Mitsuba's seconds, for the table.
+/// plain render's and (where known) Mitsuba's seconds, for the table.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn measure(
     name: &str,
@@ -49,7 +53,7 @@ pub(super) fn measure(
     settings: RenderSettings,
     repeats: u32,
     plain_s: f64,
-    mitsuba_s: f64,
+    mitsuba_s: Option<f64>,
     expected_pixels: &[[f32; 3]],
     harness: Option<(&Path, &Path)>,
 ) -> Result<Breakdown> {
@@ -116,9 +120,8 @@ fn render_rays(scene: &Scene, bvh: &Bvh, s: RenderSettings) -> Result<Rays> {
     let camera = Camera::new(&scene.camera_for(s.width, s.height), s.width, s.height)?;
     let order = TraceOrder::new(s.spp);
     let mut primary = Vec::new();
-    for pixel in 0..u64::from(s.width) * u64::from(s.height) {
-        camera.pixel_rays(pixel, &order, &mut primary);
-    }
+    let pixels: Vec<u64> = (0..u64::from(s.width) * u64::from(s.height)).collect();
+    camera.pixels_rays(&pixels, &order, &mut primary);
     let mut hits = vec![None; primary.len()];
     bvh.closest_hits(&primary, &mut hits);
     let free = unoccludable_lights(&scene.mesh, &scene.lights);
@@ -146,6 +149,7 @@ pub(super) fn table(rows: &[Breakdown], s: RenderSettings) -> Table {
         "our rays ns/sample",
         "Embree rays ns/sample",
         "rays ours / Embree",
+        "whole render / Embree rays",
         "closest hits ours / Embree x16",
         "closest hits ours / Embree x16 coherent",
         "Mitsuba ns/sample",
@@ -179,13 +183,19 @@ pub(super) fn table(rows: &[Breakdown], s: RenderSettings) -> Table {
                 let embree_rays = ns(e.primary_s + e.shadow_s);
                 row.push(f3(embree_rays));
                 row.push(f3(ours_rays / embree_rays));
+                row.push(f3(ns(r.plain_s) / embree_rays));
                 row.push(f3(phase_ns(Phase::ClosestHits) / ns(e.primary16_s)));
                 row.push(f3(phase_ns(Phase::ClosestHits) / ns(e.primary16_coherent_s)));
             }
-            None => row.extend(std::iter::repeat_n("-".to_owned(), 4)),
+            None => row.extend(std::iter::repeat_n("-".to_owned(), 5)),
         }
-        row.push(f3(ns(r.mitsuba_s)));
-        row.push(f3(ns(r.plain_s) / ns(r.mitsuba_s)));
+        match r.mitsuba_s {
+            Some(mitsuba_s) => {
+                row.push(f3(ns(mitsuba_s)));
+                row.push(f3(ns(r.plain_s) / ns(mitsuba_s)));
+            }
+            None => row.extend(std::iter::repeat_n("-".to_owned(), 2)),
+        }
         table.push(row);
     }
     table

@@ -12,6 +12,8 @@
 //! shadow rays go through [`Bvh::occluded_many`] the same way. With
 //! `--features obvhs-bench`, the crate obvhs runs on the same rays too (`obvhs_kernel.rs`).
 //! Timings are the best of `--repeats` passes; ratios compare numbers measured in the same run.
+//! A third table times the whole monolithic render at the same size, one sample per pixel, beside
+//! Embree on the rays it traces (`whole_render.rs`).
 
 use super::scenes::{bundled, generated};
 use super::table::{Table, f3};
@@ -51,6 +53,9 @@ pub struct KernelBenchArgs {
     /// Do not run Embree even if it is installed.
     #[arg(long)]
     pub no_embree: bool,
+    /// Skip the whole-render table (the monolithic renderer at 1 spp beside Embree).
+    #[arg(long)]
+    pub skip_whole_render: bool,
     /// Append the tables to this CSV file.
     #[arg(long)]
     pub csv: Option<PathBuf>,
@@ -82,6 +87,8 @@ struct SceneResult {
     build_all_cores: (f64, usize),
     load: SplitLoad,
     embree: Option<EmbreeResult>,
+    /// The whole render at 1 spp, per tree (`whole_render.rs`).
+    whole: Vec<super::breakdown::Breakdown>,
     #[cfg(feature = "obvhs-bench")]
     obvhs: super::obvhs_kernel::ObvhsResult,
 }
@@ -184,7 +191,18 @@ pub fn run_kernel_bench(args: &KernelBenchArgs) -> Result<()> {
         );
         results.push(result);
     }
-    let tables = [ray_table(&results, args), build_table(&results)];
+    let whole: Vec<_> = results.iter_mut().flat_map(|r| r.whole.drain(..)).collect();
+    let mut tables = vec![ray_table(&results, args), build_table(&results)];
+    if !whole.is_empty() {
+        let settings = hort_core::render::RenderSettings {
+            width: args.width,
+            height: args.height,
+            spp: 1,
+            threads: 1,
+            frame: Default::default(),
+        };
+        tables.push(super::breakdown::table(&whole, settings));
+    }
     for t in &tables {
         t.print();
         if let Some(csv) = &args.csv {
@@ -295,6 +313,13 @@ fn bench_scene(
     if packet_occluded != occluded {
         bail!("{name}: shadow packets and single rays disagree");
     }
+    let whole = if args.skip_whole_render {
+        Vec::new()
+    } else {
+        let harness = harness.map(|h| (h, args.work_dir.as_path()));
+        let size = (args.width, args.height);
+        super::whole_render::measure(name, scene, &bvh, size, args.repeats, harness)?
+    };
     let load = split_load(scene, bvh.clone(), args.repeats)?;
 
     let embree = match harness {
@@ -327,6 +352,7 @@ fn bench_scene(
         build_all_cores: (all_cores_s, cores),
         load,
         embree,
+        whole,
         #[cfg(feature = "obvhs-bench")]
         obvhs: super::obvhs_kernel::run(scene, &primary, &hits, &shadow, &occluded, args.repeats),
     })

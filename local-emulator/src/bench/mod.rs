@@ -14,6 +14,7 @@ mod samples;
 mod scenes;
 mod table;
 mod timing;
+mod whole_render;
 
 pub use emulator::{EmulatorBenchArgs, run_emulator_bench};
 pub use faults::{FaultsBenchArgs, run_faults_bench};

@@ -149,7 +149,7 @@ pub fn run_samples_bench(args: &SamplesBenchArgs) -> Result<()> {
                 settings,
                 args.repeats,
                 best,
-                theirs.seconds,
+                Some(theirs.seconds),
                 &warm_up.image.pixels,
                 harness.as_deref().map(|h| (h, args.work_dir.as_path())),
             )?);
