@@ -164,3 +164,55 @@ fn a_chain_deeper_than_the_limit_builds_the_specified_tree() {
     );
     check("deep chain", &chain);
 }
+
+/// The two triangles of each face of an axis-aligned box from `lo` to `hi`, face by face.
+fn room(lo: Vec3, hi: Vec3) -> Vec<[Vec3; 3]> {
+    let mut faces = Vec::new();
+    for axis in 0..3 {
+        for side in [lo, hi] {
+            // The face's four corners: the box's corners with this axis at `side`.
+            let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+            let corner = |a: f32, b: f32| {
+                let mut p = side;
+                p[u] = a;
+                p[v] = b;
+                p
+            };
+            let [p00, p10, p11, p01] = [
+                corner(lo[u], lo[v]),
+                corner(hi[u], lo[v]),
+                corner(hi[u], hi[v]),
+                corner(lo[u], hi[v]),
+            ];
+            faces.push([p00, p10, p11]);
+            faces.push([p00, p11, p01]);
+        }
+    }
+    faces
+}
+
+/// Walls, floors and ceilings: a node of a few triangles whose box is mostly empty is split, so
+/// no leaf pools two faces of a room (each face's two triangles are flat along one axis, a
+/// leaf's box of two faces is a room), and the builder builds the specified tree.
+#[test]
+fn mostly_empty_small_nodes_are_split() {
+    let one = room(Vec3::ZERO, Vec3::new(5.0, 3.0, 8.0));
+    check("a room", &one);
+    let (nodes, order) = build::binary_tree(&one, 1);
+    for leaf in nodes.iter().filter(|n| n.count > 0) {
+        let range = leaf.first as usize..(leaf.first + leaf.count) as usize;
+        let mut faces: Vec<u32> = order[range].iter().map(|&t| t / 2).collect();
+        faces.dedup();
+        assert_eq!(faces.len(), 1, "a leaf pools faces {faces:?}");
+    }
+    let mut rng = Rng(11);
+    let mut rooms: Vec<[Vec3; 3]> = (0..40)
+        .flat_map(|i| {
+            let lo = Vec3::new((i % 8) as f32 * 6.0, 0.0, (i / 8) as f32 * 9.0);
+            room(lo, lo + Vec3::new(5.0, 3.0, 8.0))
+        })
+        .collect();
+    // Furniture: small tilted triangles, whose leaves stay leaves.
+    rooms.extend(soup(&mut rng, 500, 20.0, 0.3));
+    check("rooms with furniture", &rooms);
+}
