@@ -104,7 +104,9 @@ impl Mesh {
             return None;
         }
         let texture = self.materials[self.triangle_materials[i] as usize].texture?;
-        Some((texture, ids.map(|t| self.texcoords[t as usize])))
+        // Spelled out: `array::map` is not always inlined.
+        let uv = |k: usize| self.texcoords[ids[k] as usize];
+        Some((texture, [uv(0), uv(1), uv(2)]))
     }
 
     /// Bytes the textures hold decoded.
