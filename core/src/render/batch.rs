@@ -43,7 +43,9 @@ pub(super) fn shade_batch_timed(
     // untextured triangles by the flat lanes, else with their vertex normals (zeros for a flat
     // triangle) and their reflectances at the hits; a last group of fewer than four goes
     // through its surface points. The same tests every way.
-    let samples: Vec<usize> = (0..hits.len()).filter(|&s| hits[s].is_some()).collect();
+    // Sized once (a filtered `collect` grows it step by step).
+    let mut samples: Vec<usize> = Vec::with_capacity(hits.len());
+    samples.extend((0..hits.len()).filter(|&s| hits[s].is_some()));
     let most = samples.len() * lights.len();
     let mut segments = Vec::with_capacity(most);
     let mut segment_lights = Vec::with_capacity(most);

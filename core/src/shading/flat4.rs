@@ -333,34 +333,46 @@ impl FlatShader {
         let kd =
             |c: usize| f32x4::from([hits[0].kd[c], hits[1].kd[c], hits[2].kd[c], hits[3].kd[c]]);
         let kd = [kd(0), kd(1), kd(2)];
+        let origins = origin.lanes();
+        let test = |lit: &LitLanes, k: usize| {
+            let (d, u) = (&lit.dir, &lit.unoccluded);
+            ShadowTest {
+                ray: Ray {
+                    origin: origins[k],
+                    dir: Vec3::new(d[0][k], d[1][k], d[2][k]),
+                },
+                t_max: lit.t_max,
+                unoccluded: [u[0][k], u[1][k], u[2][k]],
+            }
+        };
+        if let [light] = lights {
+            // One light (the common scene): its lanes stay in registers.
+            let lit = LitLanes::new(light, &p, &n_shade, &origin, &kd);
+            for k in bits4(lit.lit) {
+                visit(k, 0, test(&lit, k));
+            }
+            return;
+        }
         self.lit.clear();
         self.lit.extend(
             lights
                 .iter()
                 .map(|light| LitLanes::new(light, &p, &n_shade, &origin, &kd)),
         );
-        let origins = origin.lanes();
-        for (k, &origin) in origins.iter().enumerate() {
+        for k in 0..4 {
             for (l, lit) in self.lit.iter().enumerate() {
-                if lit.lit & (1 << k) == 0 {
-                    continue;
+                if lit.lit & (1 << k) != 0 {
+                    visit(k, l, test(lit, k));
                 }
-                let (d, u) = (&lit.dir, &lit.unoccluded);
-                visit(
-                    k,
-                    l,
-                    ShadowTest {
-                        ray: Ray {
-                            origin,
-                            dir: Vec3::new(d[0][k], d[1][k], d[2][k]),
-                        },
-                        t_max: lit.t_max,
-                        unoccluded: [u[0][k], u[1][k], u[2][k]],
-                    },
-                );
             }
         }
     }
+}
+
+/// The set bits of the 4-bit mask `mask`, lowest first.
+#[inline(always)]
+fn bits4(mask: u32) -> impl Iterator<Item = usize> {
+    (0..4).filter(move |k| mask & (1 << k) != 0)
 }
 
 /// As the vertex-normal branch of [`super::surface_point_on`], lane by lane: the shading
@@ -462,6 +474,13 @@ mod tests {
     }
 
     /// Two point lights (one grey, one coloured) at `scale` and a directional light.
+    /// The tests of light `l` among `expected` (hit, light, test bits), as the tests of a
+    /// scene with that light alone.
+    fn alone(expected: &[(usize, usize, Vec<u32>)], l: usize) -> Vec<(usize, usize, Vec<u32>)> {
+        let of_l = expected.iter().filter(|(_, light, _)| *light == l);
+        of_l.map(|(k, _, t)| (*k, 0, t.clone())).collect()
+    }
+
     fn three_lights(scale: f32) -> [Light; 3] {
         [
             Light::Point {
@@ -531,6 +550,16 @@ mod tests {
                 .shadow_tests4(&hits, &lights, |k, l, t| lanes.push((k, l, bits(&t))));
             assert_eq!(lanes, expected, "round {round}");
             assert!(!lanes.iter().any(|&(k, l, _)| k == 0 && l == 3));
+            // Each light alone (the one-light path).
+            for (l, light) in lights.iter().enumerate() {
+                let mut lanes = Vec::new();
+                FlatShader::default().shadow_tests4(
+                    &hits,
+                    std::slice::from_ref(light),
+                    |k, l, t| lanes.push((k, l, bits(&t))),
+                );
+                assert_eq!(lanes, alone(&expected, l), "round {round}, light {l} alone");
+            }
             checked += expected.len();
         }
         assert!(checked > 2000, "{checked} tests");
@@ -608,6 +637,14 @@ mod tests {
                 lanes.push((k, l, bits(&t)))
             });
             assert_eq!(lanes, expected, "round {round}");
+            for (l, light) in lights.iter().enumerate() {
+                let mut lanes = Vec::new();
+                let light = std::slice::from_ref(light);
+                FlatShader::default().smooth_tests4(&hits, &normals, light, |k, l, t| {
+                    lanes.push((k, l, bits(&t)))
+                });
+                assert_eq!(lanes, alone(&expected, l), "round {round}, light {l} alone");
+            }
             checked += expected.len();
         }
         assert!(checked > 3000, "{checked} tests");
