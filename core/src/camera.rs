@@ -9,7 +9,7 @@
 //!
 //! [`Camera::sample_ray`] is the one camera-sample path: the monolithic renderer and CastMap
 //! both take their rays from it, so they trace the same rays bit for bit.
-//! [`Camera::pixel_rays`] gives a pixel's sample rays four at a time with the same operations
+//! [`Camera::pixels_rays`] gives pixels' sample rays four at a time with the same operations
 //! in lanes: `wide`'s f64x4 everywhere, or one 256-bit register per coordinate on x86-64
 //! hosts with AVX2 (`avx.rs`, taken at the kernel widths `Eight` and `Sixteen`).
 
@@ -141,34 +141,19 @@ impl Camera {
         self.ray(x + ox, y + oy)
     }
 
-    /// Appends the rays of pixel `pixel`'s samples to `out` in `order` (a [`TraceOrder`] of
-    /// the pixel's sample count): exactly [`Camera::sample_ray`]`(pixel, sample, spp)` for each
-    /// sample of `order.samples()`, with the per-pixel work (the pixel's coordinates and sample
-    /// pattern) done once and the ray arithmetic of four samples at a time in SIMD lanes
-    /// ([`Camera::rays4`], or `avx.rs` on AVX2 hosts).
-    #[inline]
-    pub fn pixel_rays(&self, pixel: u64, order: &TraceOrder, out: &mut Vec<Ray>) {
-        #[cfg(target_arch = "x86_64")]
-        if kernel_width() != KernelWidth::Four {
-            // SAFETY: the widths `Eight` and `Sixteen` are offered only on hosts with AVX2
-            // (`bvh::dispatch`).
-            #[allow(unsafe_code)]
-            unsafe {
-                self.pixel_rays_avx2(pixel, order, out)
-            };
-            return;
-        }
-        self.pixel_rays_in::<false>(pixel, order, out);
-    }
-
-    /// [`Camera::pixel_rays`] of each of `pixels` in turn: the same rays in the same order. With
-    /// fewer than four samples a pixel, the rays of neighbouring pixels are made four at a time
-    /// in lanes (one pixel's samples would leave the lanes idle).
+    /// Appends the rays of each of `pixels`' samples to `out`, pixel by pixel, each pixel's in
+    /// `order` (a [`TraceOrder`] of the pixels' sample count): exactly
+    /// [`Camera::sample_ray`]`(pixel, sample, spp)` for each pixel and each sample of
+    /// `order.samples()`, with the per-pixel work (the pixel's coordinates and sample pattern)
+    /// done once and the ray arithmetic four rays at a time in SIMD lanes ([`Camera::rays4`],
+    /// or `avx.rs` on AVX2 hosts): four samples of a pixel, or below four samples a pixel four
+    /// consecutive (pixel, sample) pairs (one pixel's samples would leave lanes idle).
     #[inline]
     pub fn pixels_rays(&self, pixels: &[u64], order: &TraceOrder, out: &mut Vec<Ray>) {
         #[cfg(target_arch = "x86_64")]
         if kernel_width() != KernelWidth::Four {
-            // SAFETY: as in `pixel_rays`.
+            // SAFETY: the widths `Eight` and `Sixteen` are offered only on hosts with AVX2
+            // (`bvh::dispatch`).
             #[allow(unsafe_code)]
             unsafe {
                 self.pixels_rays_avx2(pixels, order, out)
@@ -178,7 +163,8 @@ impl Camera {
         self.pixels_rays_in::<false>(pixels, order, out);
     }
 
-    /// [`Camera::pixels_rays`], with [`Camera::pixel_rays_in`]'s choice of lanes.
+    /// [`Camera::pixels_rays`], with each group's rays from `Camera::rays4_avx` when `AVX` (only
+    /// inside `Camera::pixels_rays_avx2`), else from [`Camera::rays4`].
     #[inline(always)]
     fn pixels_rays_in<const AVX: bool>(
         &self,
@@ -229,8 +215,8 @@ impl Camera {
         self.rays4(px, py)
     }
 
-    /// [`Camera::pixel_rays`], with each group's rays from `Camera::rays4_avx` when `AVX` (only
-    /// inside `Camera::pixel_rays_avx2`), else from [`Camera::rays4`].
+    /// The rays of one pixel's samples, as [`Camera::pixels_rays`] gives them, four samples at a
+    /// time (`AVX` as there).
     #[inline(always)]
     fn pixel_rays_in<const AVX: bool>(&self, pixel: u64, order: &TraceOrder, out: &mut Vec<Ray>) {
         let order = order.samples();
@@ -338,63 +324,21 @@ mod tests {
         }
     }
 
-    /// A pixel's batch of rays is its sample rays one by one, bit for bit, in trace order
-    /// (one sample, square and non-square strata, a sample count past the strata grid).
+    /// Pixels' batch of rays is their sample rays one by one, bit for bit, pixel by pixel in
+    /// trace order, on every path: one sample (pixel centres), below four samples a pixel (lanes
+    /// across pixels, with a remainder of one to three rays), square and non-square strata, a
+    /// sample count past the strata grid; one pixel, several, none; a still camera and a frame
+    /// of an animation.
     #[test]
-    fn pixel_rays_are_the_sample_rays_in_order() {
+    fn pixels_rays_are_the_sample_rays_in_order() {
         let spec = CameraSpec {
             eye: DVec3::new(-0.5, 2.0, 7.0),
             look_at: DVec3::new(0.25, 0.5, 0.0),
             up: DVec3::Y,
             vfov_degrees: 50.0,
         };
-        let (width, height) = (9u32, 4u32);
-        let cam = Camera::new(&spec, width, height).unwrap();
         let bits = |r: &Ray| (r.origin.to_array(), r.dir.to_array().map(f32::to_bits));
         // The dispatched path, the portable lanes, and AVX2's registers where the host has it.
-        type PixelRays = fn(&Camera, u64, &TraceOrder, &mut Vec<Ray>);
-        #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
-        let mut paths: Vec<(&str, PixelRays)> = vec![
-            ("dispatched", Camera::pixel_rays),
-            ("portable", Camera::pixel_rays_in::<false>),
-        ];
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the host has AVX2.
-            #[allow(unsafe_code)]
-            paths.push(("avx2", |c, pixel, order, out| unsafe {
-                c.pixel_rays_avx2(pixel, order, out)
-            }));
-        }
-        for (path, pixel_rays) in paths {
-            for spp in [1u32, 2, 7, 16, 20, 35, 64] {
-                let order = TraceOrder::new(spp);
-                for pixel in [0u64, 8, 9, 22, 35] {
-                    let mut got = vec![cam.sample_ray(0, 0, 1)];
-                    pixel_rays(&cam, pixel, &order, &mut got);
-                    assert_eq!(got.len(), 1 + spp as usize, "{path}: appends, spp {spp}");
-                    for (&sample, ray) in order.samples().iter().zip(&got[1..]) {
-                        let expected = cam.sample_ray(pixel, sample, spp);
-                        let at = format!("{path}: pixel {pixel} sample {sample}");
-                        assert_eq!(bits(ray), bits(&expected), "{at}");
-                    }
-                }
-            }
-        }
-    }
-
-    /// Several pixels' rays are each pixel's rays in turn, bit for bit, on every path: below
-    /// four samples a pixel (lanes across pixels, with a remainder of one to three rays) and
-    /// above (pixel by pixel), in a frame of an animation too.
-    #[test]
-    fn pixels_rays_are_each_pixels_rays_in_turn() {
-        let spec = CameraSpec {
-            eye: DVec3::new(-0.5, 2.0, 7.0),
-            look_at: DVec3::new(0.25, 0.5, 0.0),
-            up: DVec3::Y,
-            vfov_degrees: 50.0,
-        };
-        let bits = |r: &Ray| (r.origin.to_array(), r.dir.to_array().map(f32::to_bits));
         type PixelsRays = fn(&Camera, &[u64], &TraceOrder, &mut Vec<Ray>);
         #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
         let mut paths: Vec<(&str, PixelsRays)> = vec![
@@ -412,14 +356,16 @@ mod tests {
         for frame in [0, 3] {
             let cam = Camera::new(&spec, 9, 4).unwrap().with_frame(frame);
             for (path, pixels_rays) in &paths {
-                for spp in [1u32, 2, 3, 4, 5] {
+                for spp in [1u32, 2, 3, 4, 5, 7, 16, 20, 35, 64] {
                     let order = TraceOrder::new(spp);
                     for pixels in [&[0u64, 8, 9, 22, 35][..], &[4, 5, 6], &[7], &[]] {
+                        // A ray already there stays first: the batch is appended.
                         let mut got = vec![cam.sample_ray(0, 0, 1)];
                         pixels_rays(&cam, pixels, &order, &mut got);
                         let mut expected = vec![cam.sample_ray(0, 0, 1)];
                         for &pixel in pixels {
-                            cam.pixel_rays_in::<false>(pixel, &order, &mut expected);
+                            let sample_ray = |&sample| cam.sample_ray(pixel, sample, spp);
+                            expected.extend(order.samples().iter().map(sample_ray));
                         }
                         let at = format!("{path}: frame {frame}, {spp} spp, pixels {pixels:?}");
                         assert_eq!(got.len(), expected.len(), "{at}");
@@ -469,7 +415,7 @@ mod tests {
             );
             let mut batch = Vec::new();
             let order = TraceOrder::new(16);
-            frame3.pixel_rays(pixel, &order, &mut batch);
+            frame3.pixels_rays(&[pixel], &order, &mut batch);
             assert_eq!(batch.len(), 16);
             for (&sample, ray) in order.samples().iter().zip(batch) {
                 assert_eq!(bits(ray), bits(frame3.sample_ray(pixel, sample, 16)));

@@ -13,7 +13,7 @@ use std::time::Instant;
 pub enum Phase {
     /// Between batches: the row loop's own work (batch bounds, buffers).
     Loop,
-    /// Sample positions and camera rays (`Camera::pixel_rays`).
+    /// Sample positions and camera rays (`Camera::pixels_rays`).
     CameraRays,
     /// Closest-hit traversal of the camera rays (`Bvh::closest_hits`).
     ClosestHits,

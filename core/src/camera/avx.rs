@@ -18,20 +18,6 @@ use std::arch::x86_64::{
 use wide::f64x4;
 
 impl Camera {
-    /// [`Camera::pixel_rays`] compiled for AVX2, with [`Camera::rays4_avx`].
-    ///
-    /// # Safety
-    /// Only on hosts with AVX2.
-    #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn pixel_rays_avx2(
-        &self,
-        pixel: u64,
-        order: &TraceOrder,
-        out: &mut Vec<Ray>,
-    ) {
-        self.pixel_rays_in::<true>(pixel, order, out);
-    }
-
     /// [`Camera::pixels_rays`] compiled for AVX2, with [`Camera::rays4_avx`].
     ///
     /// # Safety

@@ -104,7 +104,7 @@ fn skipping_the_shadow_rays_changes_no_pixel() {
     let mut rays = Vec::new();
     let order = crate::sampling::TraceOrder::new(4);
     for pixel in 0..u64::from(w * h) {
-        camera.pixel_rays(pixel, &order, &mut rays);
+        camera.pixels_rays(&[pixel], &order, &mut rays);
     }
     let mut hits = vec![None; rays.len()];
     bvh.closest_hits(&rays, &mut hits);
