@@ -249,8 +249,9 @@ fn shadow_rays(light: &Light, origins: &Vec3x4) -> (Vec3x4, f32) {
     (dir, t_max)
 }
 
-/// Shades four flat, untextured hits at a time ([`FlatShader::shadow_tests4`]), keeping its
-/// per-light scratch space from call to call.
+/// Shades four hits at a time ([`FlatShader::shadow_tests4`], [`FlatShader::smooth_tests4`]),
+/// keeping its scratch space for scenes of several lights from call to call (one light's lanes
+/// stay in registers).
 #[derive(Default)]
 pub struct FlatShader {
     lit: Vec<LitLanes>,
@@ -473,7 +474,6 @@ mod tests {
         })
     }
 
-    /// Two point lights (one grey, one coloured) at `scale` and a directional light.
     /// The tests of light `l` among `expected` (hit, light, test bits), as the tests of a
     /// scene with that light alone.
     fn alone(expected: &[(usize, usize, Vec<u32>)], l: usize) -> Vec<(usize, usize, Vec<u32>)> {
@@ -481,6 +481,7 @@ mod tests {
         of_l.map(|(k, _, t)| (*k, 0, t.clone())).collect()
     }
 
+    /// Two point lights (one grey, one coloured) at `scale` and a directional light.
     fn three_lights(scale: f32) -> [Light; 3] {
         [
             Light::Point {
