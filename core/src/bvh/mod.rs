@@ -49,6 +49,7 @@ pub use dispatch::{
 pub use hit_corners::CornerLanes;
 pub use parts::{BvhParts, BvhPartsError, NODE_BYTES, PartsLoader};
 pub use ray_packet::RAY_PACKET;
+pub(crate) use ray_packet::bits;
 pub use segment_groups::SegmentGroups;
 pub use traverse::{ClosestHit, segment_may_hit};
 

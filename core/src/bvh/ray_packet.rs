@@ -460,7 +460,7 @@ fn closest_in_lanes<L: LeafLanes>(
 
 /// The indices of the set bits of `mask`, lowest first.
 #[inline(always)]
-pub(super) fn bits(mut mask: u32) -> impl Iterator<Item = usize> {
+pub(crate) fn bits(mut mask: u32) -> impl Iterator<Item = usize> {
     std::iter::from_fn(move || {
         (mask != 0).then(|| {
             let i = mask.trailing_zeros() as usize;

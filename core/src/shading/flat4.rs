@@ -13,7 +13,7 @@
 
 use super::lanes::{narrow, point_incidence_lanes, round_away_lanes, widen};
 use super::{ShadowTest, incidence, shadow_ray};
-use crate::bvh::CornerLanes;
+use crate::bvh::{CornerLanes, bits};
 use crate::scene::Light;
 use crate::triangle::{Ray, gamma};
 use glam::Vec3;
@@ -349,7 +349,7 @@ impl FlatShader {
         if let [light] = lights {
             // One light (the common scene): its lanes stay in registers.
             let lit = LitLanes::new(light, &p, &n_shade, &origin, &kd);
-            for k in bits4(lit.lit) {
+            for k in bits(lit.lit) {
                 visit(k, 0, test(&lit, k));
             }
             return;
@@ -368,12 +368,6 @@ impl FlatShader {
             }
         }
     }
-}
-
-/// The set bits of the 4-bit mask `mask`, lowest first.
-#[inline(always)]
-fn bits4(mask: u32) -> impl Iterator<Item = usize> {
-    (0..4).filter(move |k| mask & (1 << k) != 0)
 }
 
 /// As the vertex-normal branch of [`super::surface_point_on`], lane by lane: the shading
