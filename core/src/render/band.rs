@@ -75,12 +75,11 @@ pub fn render_run(
         hits: vec![Hit::MISS; count],
         rays: RayCounts::default(),
     };
-    let order = tile_order(pixels, view.width).map(|p| (p - first_pixel) as usize);
+    let order = tile_order(pixels, view.width);
     let spp = view.spp;
     let samples = spp as usize;
     let pixels_per_batch = (BATCH_SAMPLES / samples).max(1);
-    let mut batch = Vec::with_capacity(pixels_per_batch);
-    let mut batch_pixels = Vec::with_capacity(pixels_per_batch);
+    let mut batch: Vec<u64> = Vec::with_capacity(pixels_per_batch);
     let mut order = order.peekable();
     let mut rays = Vec::new();
     let mut hits = Vec::new();
@@ -91,21 +90,19 @@ pub fn render_run(
         batch.clear();
         batch.extend(order.by_ref().take(pixels_per_batch));
         rays.clear();
-        batch_pixels.clear();
-        batch_pixels.extend(batch.iter().map(|&i| first_pixel + i as u64));
-        view.camera
-            .pixels_rays(&batch_pixels, trace_order, &mut rays);
+        view.camera.pixels_rays(&batch, trace_order, &mut rays);
         // `closest_hits` writes every place: only a new length is filled.
         hits.resize(rays.len(), None);
         timer.lap(Phase::CameraRays);
         bvh.closest_hits(&rays, &mut hits);
         timer.lap(Phase::ClosestHits);
         let colours = shade_batch_timed(scene, lighting, (&rays, &hits), &mut groups, timer);
-        for ((&i, colours), hits) in batch
+        for ((&pixel, colours), hits) in batch
             .iter()
             .zip(colours.chunks(samples))
             .zip(hits.chunks(samples))
         {
+            let i = (pixel - first_pixel) as usize;
             // The mean in sample order, whatever the trace order.
             let mut sum = PixelSum::default();
             for sample in 0..spp {
