@@ -12,8 +12,9 @@
 //!
 //! The memory model ([`task_bytes`]) is deliberately simple and conservative: a fixed runtime
 //! allowance, bytes per triangle resident in a task (the stored split object while it is decoded,
-//! the decoded BVH and the per-triangle shading data), and bytes per camera sample of the span
-//! (candidate hits, shadow queries, occlusion keys and their encodings).
+//! the decoded BVH and the per-triangle shading data), and what the span costs: a staged task
+//! holds every camera sample's records (candidate hits, shadow queries, occlusion keys and their
+//! encodings), a fused task only its pixels and one batch of samples at a time.
 
 use super::PipelineError;
 use crate::plural::count;
@@ -98,16 +99,34 @@ pub const RUNTIME_BYTES: u64 = 96 << 20;
 /// (held while decoding), of the decoded BVH (4-wide leaves and nodes) and of the shading data
 /// (vertex normals, reflectance, global id).
 pub const TRIANGLE_BYTES: u64 = 320;
-/// Bytes one camera sample of a span costs a task at its peak: its candidate hit, shadow
-/// queries and occlusion keys, decoded and encoded.
+/// Bytes one camera sample of a span costs a staged task at its peak: its candidate hit,
+/// shadow queries and occlusion keys, decoded and encoded. A fused task pays it for one batch
+/// of samples at a time.
 pub const SAMPLE_BYTES: u64 = 256;
+/// Bytes a pixel of its span costs a fused Render task at its peak: its radiance and hit in the
+/// band being rendered, and the span's pixel block, raw and encoded. Measured with the task
+/// memory counter on the Cornell box rendered as one span (100x100, 960x540 and 1920x1080, 1
+/// and 16 spp; 2026-12): 78 to 79 B/px.
+pub const FUSED_PIXEL_BYTES: u64 = 96;
 
-/// Predicted peak memory of a task holding `triangles` triangles for a span of
-/// `span_samples` camera samples (bytes).
-pub fn task_bytes(triangles: u64, span_samples: u64) -> u64 {
+/// Predicted peak memory of a task of a `mode` job holding `triangles` triangles for a span of
+/// `span_pixels` pixels of `spp` samples each (bytes).
+pub fn task_bytes(mode: ExecutionMode, triangles: u64, span_pixels: u64, spp: u32) -> u64 {
+    let span = match mode {
+        ExecutionMode::Staged => span_pixels
+            .saturating_mul(u64::from(spp))
+            .saturating_mul(SAMPLE_BYTES),
+        // Samples are traced and shaded a batch of whole pixels at a time.
+        ExecutionMode::Fused => {
+            let batch = u64::from(spp).max(crate::render::BATCH_SAMPLES as u64);
+            span_pixels
+                .saturating_mul(FUSED_PIXEL_BYTES)
+                .saturating_add(batch.saturating_mul(SAMPLE_BYTES))
+        }
+    };
     RUNTIME_BYTES
         .saturating_add(triangles.saturating_mul(TRIANGLE_BYTES))
-        .saturating_add(span_samples.saturating_mul(SAMPLE_BYTES))
+        .saturating_add(span)
 }
 
 /// Bytes per pixel Combine holds at its peak whatever it stores: the assembled radiance, the
@@ -175,10 +194,10 @@ pub struct JobShape {
     pub reason: String,
 }
 
-/// Chooses mode and split count for `triangles` triangles, spans of at most `span_samples`
-/// camera samples, a budget of `memory_mb`, the user's `splits` (if given) and `mode` (if
-/// forced). `max_splits` is the most splits the scene allows; `texture_bytes` are held by every
-/// task beside its triangles (the scene's textures).
+/// Chooses mode and split count for `triangles` triangles, spans of at most `span_pixels`
+/// pixels of `spp` samples, a budget of `memory_mb`, the user's `splits` (if given) and `mode`
+/// (if forced). `max_splits` is the most splits the scene allows; `texture_bytes` are held by
+/// every task beside its triangles (the scene's textures).
 ///
 /// - `mode` forced: that mode; splits as given, else 1 (fused) or the fewest that fit (staged).
 /// - else `splits` = 1: fused; `splits` = K > 1: staged with K splits;
@@ -188,7 +207,7 @@ pub struct JobShape {
 /// A task of the chosen shape that does not fit the budget is refused with the figures named.
 pub fn choose_shape(
     triangles: u64,
-    span_samples: u64,
+    (span_pixels, spp): (u64, u32),
     memory_mb: u32,
     splits: Option<u32>,
     mode: Option<ExecutionMode>,
@@ -196,9 +215,16 @@ pub fn choose_shape(
     texture_bytes: u64,
 ) -> Result<JobShape, PipelineError> {
     let budget = (u64::from(memory_mb) << 20).saturating_sub(texture_bytes);
-    let fits = |k: u64| task_bytes(triangles.div_ceil(k.max(1)), span_samples) <= budget;
+    let bytes = |mode: ExecutionMode, held: u64| task_bytes(mode, held, span_pixels, spp);
+    let fits = |k: u64| bytes(ExecutionMode::Staged, triangles.div_ceil(k.max(1))) <= budget;
     let mib = |b: u64| b.div_ceil(1 << 20);
-    let whole = task_bytes(triangles, span_samples);
+    let whole = bytes(ExecutionMode::Fused, triangles);
+    let too_big = || {
+        let records = bytes(ExecutionMode::Staged, 0);
+        let samples = span_pixels.saturating_mul(u64::from(spp));
+        let span = (records > budget).then_some((samples, records));
+        too_big(triangles, span, memory_mb, max_splits)
+    };
     let fewest = || {
         // Task memory falls as k grows, so the fewest fitting k is found by bisection.
         let (mut lo, mut hi) = (1u64, u64::from(max_splits.max(1)));
@@ -229,7 +255,7 @@ pub fn choose_shape(
             format!("forced by --mode staged with --splits {k}"),
         ),
         (Some(ExecutionMode::Staged), None) => {
-            let k = fewest().ok_or_else(|| too_big(triangles, memory_mb, max_splits))?;
+            let k = fewest().ok_or_else(too_big)?;
             let reason = format!(
                 "forced by --mode staged; {} is the fewest whose tasks fit {memory_mb} MB",
                 count(u64::from(k), "split")
@@ -249,7 +275,7 @@ pub fn choose_shape(
                 count(u64::from(k), "split")
             ),
         ),
-        (None, None) if fits(1) => (
+        (None, None) if whole <= budget => (
             ExecutionMode::Fused,
             1,
             format!(
@@ -259,7 +285,7 @@ pub fn choose_shape(
             ),
         ),
         (None, None) => {
-            let k = fewest().ok_or_else(|| too_big(triangles, memory_mb, max_splits))?;
+            let k = fewest().ok_or_else(too_big)?;
             let reason = format!(
                 "the whole scene needs about {} MB, over {memory_mb} MB: {k} splits is the fewest whose tasks fit",
                 mib(whole)
@@ -271,10 +297,14 @@ pub fn choose_shape(
         ExecutionMode::Fused => triangles,
         ExecutionMode::Staged => triangles.div_ceil(u64::from(k.max(1))),
     };
-    let need = task_bytes(held, span_samples);
+    let need = bytes(mode, held);
     if need > budget {
+        let span = match mode {
+            ExecutionMode::Fused => count(span_pixels, "pixel"),
+            ExecutionMode::Staged => count(span_pixels.saturating_mul(u64::from(spp)), "sample"),
+        };
         return Err(PipelineError::BadInput(format!(
-            "a {mode} task of this job would need about {} MB ({}, {span_samples} samples per span), over --memory-mb {memory_mb}: raise --memory-mb or use more splits",
+            "a {mode} task of this job would need about {} MB ({}, {span} per span), over --memory-mb {memory_mb}: raise --memory-mb or use more splits",
             mib(need),
             count(held, "triangle")
         )));
@@ -286,7 +316,21 @@ pub fn choose_shape(
     })
 }
 
-fn too_big(triangles: u64, memory_mb: u32, max_splits: u32) -> PipelineError {
+/// No split count fits: the scene's triangles, or `span`'s samples and the bytes a task holding
+/// them needs, when even a split of no triangles would not fit.
+fn too_big(
+    triangles: u64,
+    span: Option<(u64, u64)>,
+    memory_mb: u32,
+    max_splits: u32,
+) -> PipelineError {
+    if let Some((samples, bytes)) = span {
+        return PipelineError::BadInput(format!(
+            "a staged task holds every sample of its span: with {} a task needs about {} MB, over --memory-mb {memory_mb}: use more spans (--spans), fewer samples, or raise --memory-mb",
+            count(samples, "sample"),
+            bytes.div_ceil(1 << 20)
+        ));
+    }
     PipelineError::BadInput(format!(
         "the scene's {} do not fit --memory-mb {memory_mb} even in {max_splits} splits: raise --memory-mb",
         count(triangles, "triangle")
@@ -325,7 +369,7 @@ mod tests {
         splits: Option<u32>,
         mode: Option<ExecutionMode>,
     ) -> Result<(ExecutionMode, u32), String> {
-        choose_shape(triangles, 65_536, memory_mb, splits, mode, 4096, 0)
+        choose_shape(triangles, (65_536, 1), memory_mb, splits, mode, 4096, 0)
             .map(|s| (s.mode, s.splits))
             .map_err(|e| e.to_string())
     }
@@ -334,15 +378,17 @@ mod tests {
     fn a_large_budget_chooses_fused_and_a_tiny_one_the_fewest_splits_that_fit() {
         use ExecutionMode::*;
         assert_eq!(shape(1_000_000, 2048, None, None), Ok((Fused, 1)));
-        // 128 MB leaves 128 - 96 - 16 (65,536 samples x 256 B) = 16 MB, 52,428 triangles.
+        // 128 MB leaves a fused task 128 - 96 - 6 (65,536 pixels x 96 B) - 0.25 (a batch of
+        // 1,024 samples x 256 B) = 25.75 MB, 84,377 triangles.
         assert_eq!(shape(100_000, 128, None, None), Ok((Staged, 2)));
-        assert_eq!(shape(52_428, 128, None, None), Ok((Fused, 1)));
-        assert_eq!(shape(52_429, 128, None, None), Ok((Staged, 2)));
+        assert_eq!(shape(84_377, 128, None, None), Ok((Fused, 1)));
+        assert_eq!(shape(84_378, 128, None, None), Ok((Staged, 2)));
         // 1,024 MB: (1024 - 96 - 16) MB / 320 B = 2,988,441 triangles per task.
         assert_eq!(shape(20_000_000, 1024, None, None), Ok((Staged, 7)));
         let fewest = shape(20_000_000, 1024, None, None).unwrap().1 as u64;
-        assert!(task_bytes(20_000_000u64.div_ceil(fewest), 65_536) <= 1024 << 20);
-        assert!(task_bytes(20_000_000u64.div_ceil(fewest - 1), 65_536) > 1024 << 20);
+        let staged = |k: u64| task_bytes(Staged, 20_000_000u64.div_ceil(k), 65_536, 1);
+        assert!(staged(fewest) <= 1024 << 20);
+        assert!(staged(fewest - 1) > 1024 << 20);
     }
 
     #[test]
@@ -353,13 +399,13 @@ mod tests {
         assert_eq!(shape(100, 2048, None, Some(Staged)), Ok((Staged, 1)));
         assert_eq!(shape(100, 2048, Some(3), Some(Fused)), Ok((Fused, 3)));
         let reason = |splits, mode| {
-            choose_shape(100_000, 65_536, 128, splits, mode, 4096, 0)
+            choose_shape(100_000, (65_536, 1), 128, splits, mode, 4096, 0)
                 .unwrap()
                 .reason
         };
         assert_eq!(
             reason(None, None),
-            "the whole scene needs about 143 MB, over 128 MB: 2 splits is the fewest whose tasks fit"
+            "the whole scene needs about 133 MB, over 128 MB: 2 splits is the fewest whose tasks fit"
         );
         assert_eq!(
             reason(None, Some(Staged)),
@@ -375,13 +421,38 @@ mod tests {
     fn what_cannot_fit_is_refused_with_the_figures() {
         assert_eq!(
             shape(1_000_000, 128, Some(1), None).unwrap_err(),
-            "a fused task of this job would need about 418 MB (1000000 triangles, 65536 samples per span), over --memory-mb 128: raise --memory-mb or use more splits"
+            "a fused task of this job would need about 408 MB (1000000 triangles, 65536 pixels per span), over --memory-mb 128: raise --memory-mb or use more splits"
         );
         assert_eq!(
-            choose_shape(10_000_000_000, 65_536, 128, None, None, 4096, 0)
+            choose_shape(10_000_000_000, (65_536, 1), 128, None, None, 4096, 0)
                 .unwrap_err()
                 .to_string(),
             "the scene's 10000000000 triangles do not fit --memory-mb 128 even in 4096 splits: raise --memory-mb"
+        );
+    }
+
+    /// A fused task traces and shades one batch of samples at a time: its memory grows with its
+    /// span's pixels, not their samples, so the bunny at 3840x2160 and 256 spp renders fused
+    /// (it was refused when every sample of a span was counted). A staged task holds every
+    /// sample's records: the same job forced staged is refused, naming the samples and
+    /// `--spans`.
+    #[test]
+    fn a_fused_task_is_charged_its_pixels_and_one_batch_of_samples() {
+        use ExecutionMode::*;
+        let span = (3840 * 2160u64).div_ceil(100);
+        let choose = |spp, mode| {
+            choose_shape(3676, (span, spp), 2048, None, mode, 3676, 0)
+                .map(|s| s.mode)
+                .map_err(|e| e.to_string())
+        };
+        assert_eq!(choose(256, None), Ok(Fused));
+        assert_eq!(choose(65_536, None), Ok(Fused));
+        let fused = |spp| task_bytes(Fused, 3676, span, spp);
+        assert_eq!(fused(1), fused(1024));
+        assert_eq!(fused(4096) - fused(1024), 3072 * SAMPLE_BYTES);
+        assert_eq!(
+            choose(256, Some(Staged)),
+            Err("a staged task holds every sample of its span: with 21233664 samples a task needs about 5280 MB, over --memory-mb 2048: use more spans (--spans), fewer samples, or raise --memory-mb".to_owned())
         );
     }
 

@@ -421,7 +421,7 @@ pub fn resolve_counts_with(
                 .clamp(1, u64::from(max_s).min(100)) as u32
         }
     };
-    let span_samples = pixels.div_ceil(u64::from(s)) * u64::from(spp);
+    let span_pixels = pixels.div_ceil(u64::from(s));
     check_combine_memory(
         request.width,
         request.height,
@@ -430,7 +430,7 @@ pub fn resolve_counts_with(
     )?;
     let shape = choose_shape(
         triangles,
-        span_samples,
+        (span_pixels, spp),
         request.memory_mb,
         request.splits,
         request.execution,
@@ -443,7 +443,7 @@ pub fn resolve_counts_with(
             ExecutionMode::Fused => triangles,
             ExecutionMode::Staged => triangles.div_ceil(u64::from(shape.splits.max(1))),
         };
-        check_frame_assembly_memory(request, task_triangles, span_samples)?;
+        check_frame_assembly_memory(request, (shape.mode, task_triangles), (span_pixels, spp))?;
     }
     Ok((shape, s))
 }
@@ -608,7 +608,7 @@ mod tests {
         );
         let staged = choose_shape(
             100,
-            1,
+            (1, 1),
             DEFAULT_MEMORY_MB,
             None,
             Some(ExecutionMode::Staged),
@@ -622,7 +622,7 @@ mod tests {
                 "forced by --mode staged; 1 split is the fewest whose tasks fit {DEFAULT_MEMORY_MB} MB"
             )
         );
-        let reason = choose_shape(100, 1, DEFAULT_MEMORY_MB, Some(2), None, MAX_SPLITS, 0)
+        let reason = choose_shape(100, (1, 1), DEFAULT_MEMORY_MB, Some(2), None, MAX_SPLITS, 0)
             .unwrap()
             .reason;
         assert_eq!(reason, "--splits 2: HORT's staged shuffle over 2 splits");

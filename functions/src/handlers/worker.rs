@@ -164,7 +164,7 @@ fn splits_read(job: &JobId, plan: &JobPlan, stage: Stage, task: u32) -> Vec<Stri
 }
 
 /// The plan's memory model ([`task_bytes`]) for its largest task: the most triangles a task
-/// holds (the whole scene fused, the largest split staged) and the largest span's samples.
+/// holds (the whole scene fused, the largest split staged) and the largest span.
 fn largest_task_bytes(plan: &JobPlan) -> u64 {
     let triangles = match plan.mode {
         ExecutionMode::Fused => plan.triangles,
@@ -176,5 +176,5 @@ fn largest_task_bytes(plan: &JobPlan) -> u64 {
         .map(|s| s.end - s.start)
         .max()
         .unwrap_or(0);
-    task_bytes(triangles, pixels.saturating_mul(u64::from(plan.spp)))
+    task_bytes(plan.mode, triangles, pixels, plan.max_spp())
 }

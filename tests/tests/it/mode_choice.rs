@@ -73,18 +73,15 @@ fn a_tiny_budget_runs_staged_with_the_fewest_splits_and_a_large_one_fused() {
         assert_eq!((run.plan.mode, run.plan.k()), (mode, splits), "{what}");
         assert_eq!(run.plan.memory_mb, memory_mb);
         // The fewest: one split fewer would not fit.
-        let span_samples = u64::from(width * height).div_ceil(4);
+        let span_pixels = u64::from(width * height).div_ceil(4);
         let budget = u64::from(memory_mb) << 20;
         let held = |k: u64| TRIANGLES.div_ceil(k);
-        assert!(
-            task_bytes(held(u64::from(splits)), span_samples) <= budget,
-            "{what}"
-        );
+        let bytes = |mode, k: u64| task_bytes(mode, held(k), span_pixels, 1);
+        assert!(bytes(mode, u64::from(splits)) <= budget, "{what}");
         if splits > 1 {
-            assert!(
-                task_bytes(held(u64::from(splits) - 1), span_samples) > budget,
-                "{what}"
-            );
+            assert!(bytes(mode, u64::from(splits) - 1) > budget, "{what}");
+            // Not fused: the whole scene in one task would not fit either.
+            assert!(bytes(ExecutionMode::Fused, 1) > budget, "{what}");
         }
         assert_eq!(
             pixel_bits(&stored(&run.image).pixels),
