@@ -28,8 +28,8 @@ pub struct PlanFlags {
     /// whole scene within --memory-mb, else staged with the fewest splits that fit).
     #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..))]
     pub splits: Option<u32>,
-    /// Pixel spans s, one reduce task each; HORT's d = s x k map inputs (default: about one per
-    /// 64k samples, at most 100).
+    /// Pixel spans s, one reduce task each; HORT's d = s x k map inputs (default: fused, about
+    /// one per 50 ms of predicted work; staged, one per 64k samples; at most 100).
     #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..))]
     pub spans: Option<u32>,
     /// Force fused (no shuffle) or staged (HORT's map/reduce stages) execution, for tests and

@@ -133,7 +133,7 @@ fn a_job_of_frames_is_refused_when_a_task_cannot_also_hold_its_frame() {
     assert_eq!(
         error.to_string(),
         "a task that finishes a frame also assembles it: rendering and assembling a 3840x1080 \
-         frame would need about 261 MB, over --memory-mb 256: raise --memory-mb, store fewer \
+         frame would need about 282 MB, over --memory-mb 256: raise --memory-mb, store fewer \
          outputs, or render fewer pixels"
     );
     assert!(store.list("").unwrap().is_empty(), "nothing stored");

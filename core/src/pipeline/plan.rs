@@ -23,8 +23,15 @@ pub const PLAN_FORMAT_VERSION: u32 = 2;
 pub const MAX_SPLITS: u32 = 4096;
 /// Most spans a job may have.
 pub const MAX_SPANS: u32 = 10_000;
-/// Samples per span when the span count is chosen automatically.
+/// Samples per span when the span count of a staged job is chosen automatically.
 const AUTO_SAMPLES_PER_SPAN: u64 = 65_536;
+/// Predicted work per task when the span count of a fused job is chosen automatically, ms at
+/// the prediction model's reference rates ([`crate::predict::fused_frame_work_ms`]): 12 times
+/// a task's fixed cost in the emulator, and half of it on Lambda (an invocation and three S3
+/// requests). Measured against 65,536 samples per span (`docs/perf/block-sizes.md`).
+const AUTO_FUSED_TASK_MS: f64 = 50.0;
+/// Most spans an automatic count gives.
+const AUTO_MAX_SPANS: u64 = 100;
 
 /// What the user asked for; `None` means choose automatically. Stored inside the job request,
 /// so its JSON field names are part of the job request's format.
@@ -40,7 +47,8 @@ pub struct PlanRequest {
     /// Scene splits k; when `None`, 1 if one task holds the whole scene within `memory_mb`,
     /// else the fewest whose tasks fit (see [`choose_shape`]).
     pub splits: Option<u32>,
-    /// Pixel spans s; automatic (about 64k samples each) when `None`.
+    /// Pixel spans s; automatic when `None`: fused, spans of about 100 ms of predicted work;
+    /// staged, of about 64k samples; at most 100.
     pub spans: Option<u32>,
     /// How the scene is cut into splits.
     #[serde(rename = "split_mode")]
@@ -363,7 +371,8 @@ impl JobPlan {
 
 /// The shape (mode and split count, see [`choose_shape`]) and span count for `request` on a
 /// scene of `triangles` triangles: the given counts after range checks, else automatic (the
-/// fewest splits that fit the memory budget, about 64k samples per span).
+/// fewest splits that fit the memory budget; spans of about 100 ms of predicted work each for a
+/// fused job, of about 64k samples for a staged one, at most 100).
 pub fn resolve_counts(
     request: &PlanRequest,
     triangles: u64,
@@ -406,37 +415,52 @@ pub fn resolve_counts_with(
             count(triangles, "triangle")
         )));
     }
-    let s = match request.spans {
-        Some(s) if s == 0 || s > max_s => {
-            return Err(PipelineError::BadInput(format!(
-                "--spans {s} is out of range: the image has {}, so use 1 to {max_s}",
-                count(pixels, "pixel")
-            )));
-        }
-        Some(s) => s,
-        None => {
-            let samples = pixels * u64::from(spp);
-            samples
-                .div_ceil(AUTO_SAMPLES_PER_SPAN)
-                .clamp(1, u64::from(max_s).min(100)) as u32
-        }
-    };
-    let span_pixels = pixels.div_ceil(u64::from(s));
+    if let Some(s) = request.spans
+        && (s == 0 || s > max_s)
+    {
+        return Err(PipelineError::BadInput(format!(
+            "--spans {s} is out of range: the image has {}, so use 1 to {max_s}",
+            count(pixels, "pixel")
+        )));
+    }
     check_combine_memory(
         request.width,
         request.height,
         request.outputs,
         request.memory_mb,
     )?;
-    let shape = choose_shape(
-        triangles,
-        (span_pixels, spp),
-        request.memory_mb,
-        request.splits,
-        request.execution,
-        max_k.max(1),
-        texture_bytes,
-    )?;
+    let shape_for = |s: u32| {
+        choose_shape(
+            triangles,
+            (pixels.div_ceil(u64::from(s)), spp),
+            request.memory_mb,
+            request.splits,
+            request.execution,
+            max_k.max(1),
+            texture_bytes,
+        )
+    };
+    let auto = |per_span: f64, total: f64| {
+        let s = (total / per_span).ceil() as u64;
+        s.clamp(1, u64::from(max_s).min(AUTO_MAX_SPANS)) as u32
+    };
+    let (shape, s) = match request.spans {
+        Some(s) => (shape_for(s)?, s),
+        None => {
+            // Fused spans by their work; if the job runs staged, by their samples.
+            let work = crate::predict::fused_frame_work_ms(pixels, spp, triangles);
+            let s = auto(AUTO_FUSED_TASK_MS, work);
+            match shape_for(s)? {
+                shape if shape.mode == ExecutionMode::Fused => (shape, s),
+                _ => {
+                    let samples = pixels as f64 * f64::from(spp);
+                    let s = auto(AUTO_SAMPLES_PER_SPAN as f64, samples);
+                    (shape_for(s)?, s)
+                }
+            }
+        }
+    };
+    let span_pixels = pixels.div_ceil(u64::from(s));
     if request.frame.count > 1 {
         // The largest split is about the scene over k (the splits are cut near even).
         let task_triangles = match shape.mode {
@@ -559,6 +583,42 @@ mod tests {
 
     fn counts(request: &PlanRequest, triangles: u64) -> Result<(u32, u32), PipelineError> {
         resolve_counts(request, triangles).map(|(shape, s)| (shape.splits, s))
+    }
+
+    /// Automatic spans: a fused job's carry about 50 ms of predicted work each, a staged job's
+    /// about 65,536 samples each, at most 100 either way.
+    #[test]
+    fn automatic_spans_are_sized_by_work_fused_and_by_samples_staged() {
+        let job = |width, height, spp, execution| PlanRequest {
+            width,
+            height,
+            spp,
+            execution,
+            ..req(None, None)
+        };
+        let spans = |request: &PlanRequest| {
+            let (shape, s) = resolve_counts(request, 3676).unwrap();
+            (shape.mode, s)
+        };
+        let work = crate::predict::fused_frame_work_ms(320 * 180, 64, 3676);
+        assert!((200.0..250.0).contains(&work), "{work}");
+        let fused = (work / AUTO_FUSED_TASK_MS).ceil() as u32;
+        assert_eq!(fused, 5);
+        assert_eq!(
+            spans(&job(320, 180, 64, None)),
+            (ExecutionMode::Fused, fused)
+        );
+        // 320 x 180 x 64 / 65,536 = 56.25.
+        let staged = Some(ExecutionMode::Staged);
+        assert_eq!(
+            spans(&job(320, 180, 64, staged)),
+            (ExecutionMode::Staged, 57)
+        );
+        assert_eq!(
+            spans(&job(1920, 1080, 64, None)),
+            (ExecutionMode::Fused, 100)
+        );
+        assert_eq!(spans(&job(64, 48, 1, None)), (ExecutionMode::Fused, 1));
     }
 
     #[test]

@@ -536,10 +536,8 @@ fn task_ms(plan: &JobPlan, step: JobStep, r: &Rates, speed: f64, bound: Bound) -
         }
         (Stage::Build, _) => ms(r.task_overhead_ms, largest_split, r.build_us_per_triangle),
         (Stage::Render, _) => {
-            let frame_hits = (pixels as f64 * f64::from(spp) * hit_fraction).max(1.0);
-            let triangles = plan.triangles.max(2) as f64;
-            let per_ray = r.render_us_per_ray_log2 * libm::log2(triangles)
-                + r.render_us_per_ray_cold * libm::log2(1.0 + triangles / frame_hits);
+            let frame_hits = pixels as f64 * f64::from(spp) * hit_fraction;
+            let per_ray = render_us_per_ray(r, plan.triangles, frame_hits);
             // Rays that enter the BVH: hits and shadow rays (a miss leaves at the root box).
             ms(
                 r.task_overhead_ms,
@@ -573,6 +571,28 @@ fn task_ms(plan: &JobPlan, step: JobStep, r: &Rates, speed: f64, bound: Bound) -
         Bound::Upper => pixels as f64,
     };
     work + ms(0.0, assembled, r.combine_us_per_pixel)
+}
+
+/// Microseconds a fused Render task spends per ray that enters the BVH of a scene of
+/// `triangles` triangles, when `frame_hits` camera samples of the frame hit: the BVH's depth,
+/// and the part of it a ray meets cold.
+fn render_us_per_ray(r: &Rates, triangles: u64, frame_hits: f64) -> f64 {
+    let triangles = triangles.max(2) as f64;
+    r.render_us_per_ray_log2 * libm::log2(triangles)
+        + r.render_us_per_ray_cold * libm::log2(1.0 + triangles / frame_hits.max(1.0))
+}
+
+/// The fused Render work of one frame of `pixels` pixels at `spp` samples on a scene of
+/// `triangles` triangles, at the reference rates ([`RATES`], speed 1), without the tasks'
+/// fixed costs (ms): every sample hitting and one traced light, the upper bound a plan can
+/// compute before it knows the scene's lights and coverage. The plan sizes fused spans by it
+/// (`pipeline::resolve_counts`).
+pub fn fused_frame_work_ms(pixels: u64, spp: u32, triangles: u64) -> f64 {
+    let r = &RATES;
+    let samples = pixels as f64 * f64::from(spp);
+    let per_ray = render_us_per_ray(r, triangles, samples);
+    let per_sample = r.render_us_per_hit + r.render_us_per_query + 2.0 * per_ray;
+    (pixels as f64 * r.render_us_per_pixel + samples * per_sample) / 1000.0
 }
 
 /// Milliseconds a function spends on its first read of the largest split `step` reads (0 for
