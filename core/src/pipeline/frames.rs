@@ -6,7 +6,7 @@
 use super::PipelineError;
 use super::frame_choice::FrameChoice;
 use super::frustum::span_may_meet_box;
-use super::mode::{ExecutionMode, RUNTIME_BYTES, combine_bytes, task_bytes};
+use super::mode::{ExecutionMode, RUNTIME_BYTES, SpanLoad, SpanMemory, combine_bytes, task_bytes};
 use super::plan::{CastTask, JobPlan, Span, SplitInfo};
 use super::split::SplitMode;
 use crate::camera::Camera;
@@ -50,15 +50,15 @@ pub(super) fn planned_frames(
 
 /// Refuses a job of several frames whose pixel-stage task, which also assembles its frame when
 /// it finishes one, would not fit `memory_mb` as the memory model puts it: the largest such
-/// task ([`task_bytes`] of its mode, triangles and span) plus Combine's hold of the frame
+/// task ([`task_bytes`] of its triangles and span) plus Combine's hold of the frame
 /// ([`combine_bytes`], its runtime counted once).
 pub(super) fn check_frame_assembly_memory(
     request: &super::PlanRequest,
-    (mode, task_triangles): (ExecutionMode, u64),
-    (span_pixels, spp): (u64, u32),
+    (memory, task_triangles): (SpanMemory, u64),
+    load: SpanLoad,
 ) -> Result<(), PipelineError> {
     let pixels = u64::from(request.width) * u64::from(request.height);
-    let need = task_bytes(mode, task_triangles, span_pixels, spp)
+    let need = task_bytes(memory, task_triangles, load)
         .saturating_add(combine_bytes(pixels, request.outputs).saturating_sub(RUNTIME_BYTES));
     if need <= u64::from(request.memory_mb) << 20 {
         return Ok(());

@@ -58,8 +58,8 @@ pub use frame_request::{FrameRequest, FrameRequestError, FrameSelection};
 pub use frames::{PlannedFrame, assembled_frames};
 pub use frustum::span_may_meet_box;
 pub use mode::{
-    DEFAULT_MEMORY_MB, ExecutionMode, JobShape, RUNTIME_BYTES, SAMPLE_BYTES, TRIANGLE_BYTES,
-    choose_shape, task_bytes,
+    DEFAULT_MEMORY_MB, ExecutionMode, FUSED_PIXEL_BYTES, JobShape, RUNTIME_BYTES, SAMPLE_BYTES,
+    SpanLoad, SpanMemory, TRIANGLE_BYTES, choose_shape, task_bytes,
 };
 pub use outputs::{JobOutputs, StoredOutputs, read_frame_outputs, read_outputs};
 pub use plan::{

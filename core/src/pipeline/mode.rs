@@ -99,27 +99,62 @@ pub const RUNTIME_BYTES: u64 = 96 << 20;
 /// (held while decoding), of the decoded BVH (4-wide leaves and nodes) and of the shading data
 /// (vertex normals, reflectance, global id).
 pub const TRIANGLE_BYTES: u64 = 320;
-/// Bytes one camera sample of a span costs a staged task at its peak: its candidate hit,
-/// shadow queries and occlusion keys, decoded and encoded. A fused task pays it for one batch
-/// of samples at a time.
+/// Bytes one camera sample of a span costs a task that holds every sample's records at its
+/// peak ([`SpanMemory::Records`]): its candidate hit, shadow queries and occlusion keys, decoded
+/// and encoded. A task that renders in batches pays it for one batch at a time.
 pub const SAMPLE_BYTES: u64 = 256;
-/// Bytes a pixel of its span costs a fused Render task at its peak: its radiance and hit in the
-/// band being rendered, and the span's pixel block, raw and encoded. Measured with the task
-/// memory counter on the Cornell box rendered as one span (100x100, 960x540 and 1920x1080, 1
-/// and 16 spp; 2026-12): 78 to 79 B/px.
+/// Bytes a pixel of its span costs a task that renders in batches ([`SpanMemory::Batches`]) at
+/// its peak: its radiance and hit in the band being rendered, and the span's pixel block, raw
+/// and encoded. Measured with the task memory counter on the Cornell box rendered as one span
+/// (100x100, 960x540 and 1920x1080 at 1 and 16 spp, 320x180 at 1,024 spp; 2026-12): 78 to
+/// 80 B/px.
 pub const FUSED_PIXEL_BYTES: u64 = 96;
 
-/// Predicted peak memory of a task of a `mode` job holding `triangles` triangles for a span of
-/// `span_pixels` pixels of `spp` samples each (bytes).
-pub fn task_bytes(mode: ExecutionMode, triangles: u64, span_pixels: u64, spp: u32) -> u64 {
-    let span = match mode {
-        ExecutionMode::Staged => span_pixels
-            .saturating_mul(u64::from(spp))
+/// The span a task serves: its pixels, the most samples a pixel may get, and whether the
+/// adaptive sampler takes them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SpanLoad {
+    /// Pixels of the largest span.
+    pub pixels: u64,
+    /// Samples per pixel (the adaptive sampler's most).
+    pub spp: u32,
+    /// Whether the adaptive sampler renders the job.
+    pub adaptive: bool,
+}
+
+/// How a task holds its span's samples.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SpanMemory {
+    /// Every sample's records at once: staged tasks, and fused tasks that run the stage
+    /// functions in memory (several splits, or the adaptive sampler).
+    Records,
+    /// Its pixels, and one batch of samples at a time: a fused task of one split without the
+    /// adaptive sampler, which renders as the monolithic renderer does.
+    Batches,
+}
+
+impl SpanMemory {
+    /// How a task of a `mode` job over `splits` splits holds a span of `load`.
+    pub fn of(mode: ExecutionMode, splits: u32, load: SpanLoad) -> Self {
+        match (mode, splits, load.adaptive) {
+            (ExecutionMode::Fused, 1, false) => SpanMemory::Batches,
+            _ => SpanMemory::Records,
+        }
+    }
+}
+
+/// Predicted peak memory of a task holding `triangles` triangles for a span of `load`, held as
+/// `memory` says (bytes).
+pub fn task_bytes(memory: SpanMemory, triangles: u64, load: SpanLoad) -> u64 {
+    let span = match memory {
+        SpanMemory::Records => load
+            .pixels
+            .saturating_mul(u64::from(load.spp))
             .saturating_mul(SAMPLE_BYTES),
         // Samples are traced and shaded a batch of whole pixels at a time.
-        ExecutionMode::Fused => {
-            let batch = u64::from(spp).max(crate::render::BATCH_SAMPLES as u64);
-            span_pixels
+        SpanMemory::Batches => {
+            let batch = u64::from(load.spp).max(crate::render::BATCH_SAMPLES as u64);
+            load.pixels
                 .saturating_mul(FUSED_PIXEL_BYTES)
                 .saturating_add(batch.saturating_mul(SAMPLE_BYTES))
         }
@@ -194,8 +229,8 @@ pub struct JobShape {
     pub reason: String,
 }
 
-/// Chooses mode and split count for `triangles` triangles, spans of at most `span_pixels`
-/// pixels of `spp` samples, a budget of `memory_mb`, the user's `splits` (if given) and `mode`
+/// Chooses mode and split count for `triangles` triangles, spans of at most `load`, a budget of
+/// `memory_mb`, the user's `splits` (if given) and `mode`
 /// (if forced). `max_splits` is the most splits the scene allows; `texture_bytes` are held by
 /// every task beside its triangles (the scene's textures).
 ///
@@ -207,7 +242,7 @@ pub struct JobShape {
 /// A task of the chosen shape that does not fit the budget is refused with the figures named.
 pub fn choose_shape(
     triangles: u64,
-    (span_pixels, spp): (u64, u32),
+    load: SpanLoad,
     memory_mb: u32,
     splits: Option<u32>,
     mode: Option<ExecutionMode>,
@@ -215,13 +250,16 @@ pub fn choose_shape(
     texture_bytes: u64,
 ) -> Result<JobShape, PipelineError> {
     let budget = (u64::from(memory_mb) << 20).saturating_sub(texture_bytes);
-    let bytes = |mode: ExecutionMode, held: u64| task_bytes(mode, held, span_pixels, spp);
-    let fits = |k: u64| bytes(ExecutionMode::Staged, triangles.div_ceil(k.max(1))) <= budget;
+    let bytes = |mode: ExecutionMode, k: u32, held: u64| {
+        task_bytes(SpanMemory::of(mode, k, load), held, load)
+    };
+    let staged = |held: u64| task_bytes(SpanMemory::Records, held, load);
+    let fits = |k: u64| staged(triangles.div_ceil(k.max(1))) <= budget;
     let mib = |b: u64| b.div_ceil(1 << 20);
-    let whole = bytes(ExecutionMode::Fused, triangles);
+    let whole = bytes(ExecutionMode::Fused, 1, triangles);
     let too_big = || {
-        let records = bytes(ExecutionMode::Staged, 0);
-        let samples = span_pixels.saturating_mul(u64::from(spp));
+        let records = staged(0);
+        let samples = load.pixels.saturating_mul(u64::from(load.spp));
         let span = (records > budget).then_some((samples, records));
         too_big(triangles, span, memory_mb, max_splits)
     };
@@ -297,11 +335,11 @@ pub fn choose_shape(
         ExecutionMode::Fused => triangles,
         ExecutionMode::Staged => triangles.div_ceil(u64::from(k.max(1))),
     };
-    let need = bytes(mode, held);
+    let need = bytes(mode, k, held);
     if need > budget {
-        let span = match mode {
-            ExecutionMode::Fused => count(span_pixels, "pixel"),
-            ExecutionMode::Staged => count(span_pixels.saturating_mul(u64::from(spp)), "sample"),
+        let span = match SpanMemory::of(mode, k, load) {
+            SpanMemory::Batches => count(load.pixels, "pixel"),
+            SpanMemory::Records => count(load.pixels.saturating_mul(u64::from(load.spp)), "sample"),
         };
         return Err(PipelineError::BadInput(format!(
             "a {mode} task of this job would need about {} MB ({}, {span} per span), over --memory-mb {memory_mb}: raise --memory-mb or use more splits",
@@ -363,13 +401,21 @@ mod tests {
         assert!(check_combine_memory(1920, 1080, StoredOutputs::ALL, 512).is_ok());
     }
 
+    fn load(pixels: u64, spp: u32) -> SpanLoad {
+        SpanLoad {
+            pixels,
+            spp,
+            adaptive: false,
+        }
+    }
+
     fn shape(
         triangles: u64,
         memory_mb: u32,
         splits: Option<u32>,
         mode: Option<ExecutionMode>,
     ) -> Result<(ExecutionMode, u32), String> {
-        choose_shape(triangles, (65_536, 1), memory_mb, splits, mode, 4096, 0)
+        choose_shape(triangles, load(65_536, 1), memory_mb, splits, mode, 4096, 0)
             .map(|s| (s.mode, s.splits))
             .map_err(|e| e.to_string())
     }
@@ -386,7 +432,13 @@ mod tests {
         // 1,024 MB: (1024 - 96 - 16) MB / 320 B = 2,988,441 triangles per task.
         assert_eq!(shape(20_000_000, 1024, None, None), Ok((Staged, 7)));
         let fewest = shape(20_000_000, 1024, None, None).unwrap().1 as u64;
-        let staged = |k: u64| task_bytes(Staged, 20_000_000u64.div_ceil(k), 65_536, 1);
+        let staged = |k: u64| {
+            task_bytes(
+                SpanMemory::Records,
+                20_000_000u64.div_ceil(k),
+                load(65_536, 1),
+            )
+        };
         assert!(staged(fewest) <= 1024 << 20);
         assert!(staged(fewest - 1) > 1024 << 20);
     }
@@ -399,7 +451,7 @@ mod tests {
         assert_eq!(shape(100, 2048, None, Some(Staged)), Ok((Staged, 1)));
         assert_eq!(shape(100, 2048, Some(3), Some(Fused)), Ok((Fused, 3)));
         let reason = |splits, mode| {
-            choose_shape(100_000, (65_536, 1), 128, splits, mode, 4096, 0)
+            choose_shape(100_000, load(65_536, 1), 128, splits, mode, 4096, 0)
                 .unwrap()
                 .reason
         };
@@ -424,35 +476,49 @@ mod tests {
             "a fused task of this job would need about 408 MB (1000000 triangles, 65536 pixels per span), over --memory-mb 128: raise --memory-mb or use more splits"
         );
         assert_eq!(
-            choose_shape(10_000_000_000, (65_536, 1), 128, None, None, 4096, 0)
+            choose_shape(10_000_000_000, load(65_536, 1), 128, None, None, 4096, 0)
                 .unwrap_err()
                 .to_string(),
             "the scene's 10000000000 triangles do not fit --memory-mb 128 even in 4096 splits: raise --memory-mb"
         );
     }
 
-    /// A fused task traces and shades one batch of samples at a time: its memory grows with its
-    /// span's pixels, not their samples, so the bunny at 3840x2160 and 256 spp renders fused
-    /// (it was refused when every sample of a span was counted). A staged task holds every
-    /// sample's records: the same job forced staged is refused, naming the samples and
-    /// `--spans`.
+    /// A fused task of one split traces and shades one batch of samples at a time: its memory
+    /// grows with its span's pixels, not their samples, so the bunny at 3840x2160 and 256 spp
+    /// renders fused (it was refused when every sample of a span was counted). A task that
+    /// holds every sample's records (staged, a fused task of several splits or with the
+    /// adaptive sampler) is charged them: the same job forced staged is refused, naming the
+    /// samples and `--spans`.
     #[test]
     fn a_fused_task_is_charged_its_pixels_and_one_batch_of_samples() {
         use ExecutionMode::*;
         let span = (3840 * 2160u64).div_ceil(100);
         let choose = |spp, mode| {
-            choose_shape(3676, (span, spp), 2048, None, mode, 3676, 0)
+            choose_shape(3676, load(span, spp), 2048, None, mode, 3676, 0)
                 .map(|s| s.mode)
                 .map_err(|e| e.to_string())
         };
         assert_eq!(choose(256, None), Ok(Fused));
         assert_eq!(choose(65_536, None), Ok(Fused));
-        let fused = |spp| task_bytes(Fused, 3676, span, spp);
+        let fused = |spp| task_bytes(SpanMemory::Batches, 3676, load(span, spp));
         assert_eq!(fused(1), fused(1024));
         assert_eq!(fused(4096) - fused(1024), 3072 * SAMPLE_BYTES);
         assert_eq!(
             choose(256, Some(Staged)),
             Err("a staged task holds every sample of its span: with 21233664 samples a task needs about 5280 MB, over --memory-mb 2048: use more spans (--spans), fewer samples, or raise --memory-mb".to_owned())
+        );
+        let adaptive = SpanLoad {
+            adaptive: true,
+            ..load(span, 256)
+        };
+        for (mode, splits, load) in [(Fused, 2, load(span, 256)), (Fused, 1, adaptive)] {
+            assert_eq!(SpanMemory::of(mode, splits, load), SpanMemory::Records);
+        }
+        assert_eq!(
+            choose_shape(3676, adaptive, 2048, Some(1), None, 3676, 0)
+                .unwrap_err()
+                .to_string(),
+            "a fused task of this job would need about 5282 MB (3676 triangles, 21233664 samples per span), over --memory-mb 2048: raise --memory-mb or use more splits"
         );
     }
 

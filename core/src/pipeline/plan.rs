@@ -4,7 +4,10 @@
 use super::PipelineError;
 use super::frame_choice::FrameChoice;
 use super::frames::{PlannedFrame, cast_pairs, check_frame_assembly_memory, planned_frames};
-use super::mode::{DEFAULT_MEMORY_MB, ExecutionMode, JobShape, check_combine_memory, choose_shape};
+use super::mode::{
+    DEFAULT_MEMORY_MB, ExecutionMode, JobShape, SpanLoad, SpanMemory, check_combine_memory,
+    choose_shape,
+};
 use super::outputs::StoredOutputs;
 use super::split::SplitMode;
 use crate::adaptive::AdaptiveSettings;
@@ -47,7 +50,7 @@ pub struct PlanRequest {
     /// Scene splits k; when `None`, 1 if one task holds the whole scene within `memory_mb`,
     /// else the fewest whose tasks fit (see [`choose_shape`]).
     pub splits: Option<u32>,
-    /// Pixel spans s; automatic when `None`: fused, spans of about 100 ms of predicted work;
+    /// Pixel spans s; automatic when `None`: fused, spans of about 50 ms of predicted work;
     /// staged, of about 64k samples; at most 100.
     pub spans: Option<u32>,
     /// How the scene is cut into splits.
@@ -371,7 +374,7 @@ impl JobPlan {
 
 /// The shape (mode and split count, see [`choose_shape`]) and span count for `request` on a
 /// scene of `triangles` triangles: the given counts after range checks, else automatic (the
-/// fewest splits that fit the memory budget; spans of about 100 ms of predicted work each for a
+/// fewest splits that fit the memory budget; spans of about 50 ms of predicted work each for a
 /// fused job, of about 64k samples for a staged one, at most 100).
 pub fn resolve_counts(
     request: &PlanRequest,
@@ -429,10 +432,15 @@ pub fn resolve_counts_with(
         request.outputs,
         request.memory_mb,
     )?;
+    let load = |s: u32| SpanLoad {
+        pixels: pixels.div_ceil(u64::from(s)),
+        spp,
+        adaptive: request.adaptive.is_some(),
+    };
     let shape_for = |s: u32| {
         choose_shape(
             triangles,
-            (pixels.div_ceil(u64::from(s)), spp),
+            load(s),
             request.memory_mb,
             request.splits,
             request.execution,
@@ -447,11 +455,16 @@ pub fn resolve_counts_with(
     let (shape, s) = match request.spans {
         Some(s) => (shape_for(s)?, s),
         None => {
-            // Fused spans by their work; if the job runs staged, by their samples.
+            // Spans by their work when a task renders them in batches (fused, one split, no
+            // adaptive sampler); else by their samples, whose records a task holds.
             let work = crate::predict::fused_frame_work_ms(pixels, spp, triangles);
             let s = auto(AUTO_FUSED_TASK_MS, work);
             match shape_for(s)? {
-                shape if shape.mode == ExecutionMode::Fused => (shape, s),
+                shape
+                    if SpanMemory::of(shape.mode, shape.splits, load(s)) == SpanMemory::Batches =>
+                {
+                    (shape, s)
+                }
                 _ => {
                     let samples = pixels as f64 * f64::from(spp);
                     let s = auto(AUTO_SAMPLES_PER_SPAN as f64, samples);
@@ -460,14 +473,14 @@ pub fn resolve_counts_with(
             }
         }
     };
-    let span_pixels = pixels.div_ceil(u64::from(s));
     if request.frame.count > 1 {
         // The largest split is about the scene over k (the splits are cut near even).
         let task_triangles = match shape.mode {
             ExecutionMode::Fused => triangles,
             ExecutionMode::Staged => triangles.div_ceil(u64::from(shape.splits.max(1))),
         };
-        check_frame_assembly_memory(request, (shape.mode, task_triangles), (span_pixels, spp))?;
+        let memory = SpanMemory::of(shape.mode, shape.splits, load(s));
+        check_frame_assembly_memory(request, (memory, task_triangles), load(s))?;
     }
     Ok((shape, s))
 }
@@ -585,8 +598,9 @@ mod tests {
         resolve_counts(request, triangles).map(|(shape, s)| (shape.splits, s))
     }
 
-    /// Automatic spans: a fused job's carry about 50 ms of predicted work each, a staged job's
-    /// about 65,536 samples each, at most 100 either way.
+    /// Automatic spans: those a fused task of one split renders in batches carry about 50 ms
+    /// of predicted work each; those whose every sample's records a task holds (staged, or the
+    /// adaptive sampler) about 65,536 samples each; at most 100 either way.
     #[test]
     fn automatic_spans_are_sized_by_work_fused_and_by_samples_staged() {
         let job = |width, height, spp, execution| PlanRequest {
@@ -619,6 +633,18 @@ mod tests {
             (ExecutionMode::Fused, 100)
         );
         assert_eq!(spans(&job(64, 48, 1, None)), (ExecutionMode::Fused, 1));
+        // The adaptive sampler's fused tasks run the stage functions and hold every sample's
+        // records (its most samples a pixel): spans by samples.
+        let adaptive = PlanRequest {
+            spp: 4,
+            adaptive: Some(crate::adaptive::AdaptiveSettings {
+                base_spp: 4,
+                max_spp: 64,
+                threshold: 0.01,
+            }),
+            ..job(320, 180, 4, None)
+        };
+        assert_eq!(spans(&adaptive), (ExecutionMode::Fused, 57));
     }
 
     #[test]
@@ -666,9 +692,14 @@ mod tests {
             counts(&pixels(2, 1), 100).unwrap_err().to_string(),
             "--spans 3 is out of range: the image has 2 pixels, so use 1 to 2"
         );
+        let one = SpanLoad {
+            pixels: 1,
+            spp: 1,
+            adaptive: false,
+        };
         let staged = choose_shape(
             100,
-            (1, 1),
+            one,
             DEFAULT_MEMORY_MB,
             None,
             Some(ExecutionMode::Staged),
@@ -682,7 +713,7 @@ mod tests {
                 "forced by --mode staged; 1 split is the fewest whose tasks fit {DEFAULT_MEMORY_MB} MB"
             )
         );
-        let reason = choose_shape(100, (1, 1), DEFAULT_MEMORY_MB, Some(2), None, MAX_SPLITS, 0)
+        let reason = choose_shape(100, one, DEFAULT_MEMORY_MB, Some(2), None, MAX_SPLITS, 0)
             .unwrap()
             .reason;
         assert_eq!(reason, "--splits 2: HORT's staged shuffle over 2 splits");

@@ -584,8 +584,8 @@ fn render_us_per_ray(r: &Rates, triangles: u64, frame_hits: f64) -> f64 {
 
 /// The fused Render work of one frame of `pixels` pixels at `spp` samples on a scene of
 /// `triangles` triangles, at the reference rates ([`RATES`], speed 1), without the tasks'
-/// fixed costs (ms): every sample hitting and one traced light, the upper bound a plan can
-/// compute before it knows the scene's lights and coverage. The plan sizes fused spans by it
+/// fixed costs (ms), with every sample hitting and one traced light: what a plan can estimate
+/// before it knows the scene's lights and coverage. The plan sizes fused spans by it
 /// (`pipeline::resolve_counts`).
 pub fn fused_frame_work_ms(pixels: u64, spp: u32, triangles: u64) -> f64 {
     let r = &RATES;

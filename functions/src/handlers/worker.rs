@@ -10,8 +10,8 @@ use hort_core::ids::{JobId, SplitId};
 use hort_core::keys::{plan_key, split_key};
 use hort_core::pipeline::partition::{build_split_from_parts, partition_range};
 use hort_core::pipeline::{
-    ExecutionMode, JobPlan, PipelineError, SplitCache, TaskMetrics, micros, plan_into_store,
-    rebuild_split, run_frame_task, task_bytes, timed,
+    ExecutionMode, JobPlan, PipelineError, SpanLoad, SpanMemory, SplitCache, TaskMetrics, micros,
+    plan_into_store, rebuild_split, run_frame_task, task_bytes, timed,
 };
 use hort_core::stage::Stage;
 use hort_core::store::BlobStore;
@@ -176,5 +176,10 @@ fn largest_task_bytes(plan: &JobPlan) -> u64 {
         .map(|s| s.end - s.start)
         .max()
         .unwrap_or(0);
-    task_bytes(plan.mode, triangles, pixels, plan.max_spp())
+    let load = SpanLoad {
+        pixels,
+        spp: plan.max_spp(),
+        adaptive: plan.adaptive.is_some(),
+    };
+    task_bytes(SpanMemory::of(plan.mode, plan.k(), load), triangles, load)
 }

@@ -4,7 +4,8 @@
 
 use hort_core::ids::JobId;
 use hort_core::pipeline::{
-    ExecutionMode, PipelineOptions, PlanRequest, SplitMode, StoredOutputs, run_pipeline, task_bytes,
+    ExecutionMode, PipelineOptions, PlanRequest, SpanLoad, SpanMemory, SplitMode, StoredOutputs,
+    run_pipeline, task_bytes,
 };
 use hort_core::render::{RenderSettings, build_scene_bvh, render};
 use hort_core::scene::load_scene;
@@ -76,7 +77,15 @@ fn a_tiny_budget_runs_staged_with_the_fewest_splits_and_a_large_one_fused() {
         let span_pixels = u64::from(width * height).div_ceil(4);
         let budget = u64::from(memory_mb) << 20;
         let held = |k: u64| TRIANGLES.div_ceil(k);
-        let bytes = |mode, k: u64| task_bytes(mode, held(k), span_pixels, 1);
+        let load = SpanLoad {
+            pixels: span_pixels,
+            spp: 1,
+            adaptive: false,
+        };
+        let bytes = |mode, k: u64| {
+            let memory = SpanMemory::of(mode, k as u32, load);
+            task_bytes(memory, held(k), load)
+        };
         assert!(bytes(mode, u64::from(splits)) <= budget, "{what}");
         if splits > 1 {
             assert!(bytes(mode, u64::from(splits) - 1) > budget, "{what}");
