@@ -257,7 +257,7 @@ pub fn choose_shape(
     let fits = |k: u64| staged(triangles.div_ceil(k.max(1))) <= budget;
     let mib = |b: u64| b.div_ceil(1 << 20);
     let whole = bytes(ExecutionMode::Fused, 1, triangles);
-    let too_big = || {
+    let refuse = || {
         let records = staged(0);
         let samples = load.pixels.saturating_mul(u64::from(load.spp));
         let span = (records > budget).then_some((samples, records));
@@ -293,7 +293,7 @@ pub fn choose_shape(
             format!("forced by --mode staged with --splits {k}"),
         ),
         (Some(ExecutionMode::Staged), None) => {
-            let k = fewest().ok_or_else(too_big)?;
+            let k = fewest().ok_or_else(refuse)?;
             let reason = format!(
                 "forced by --mode staged; {} is the fewest whose tasks fit {memory_mb} MB",
                 count(u64::from(k), "split")
@@ -323,7 +323,7 @@ pub fn choose_shape(
             ),
         ),
         (None, None) => {
-            let k = fewest().ok_or_else(too_big)?;
+            let k = fewest().ok_or_else(refuse)?;
             let reason = format!(
                 "the whole scene needs about {} MB, over {memory_mb} MB: {k} splits is the fewest whose tasks fit",
                 mib(whole)

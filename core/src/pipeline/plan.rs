@@ -456,15 +456,15 @@ pub fn resolve_counts_with(
         Some(s) => (shape_for(s)?, s),
         None => {
             // Spans by their work when a task renders them in batches (fused, one split, no
-            // adaptive sampler); else by their samples, whose records a task holds.
+            // adaptive sampler); else (or if that shape is refused) by their samples, whose
+            // records a task holds.
             let work = crate::predict::fused_frame_work_ms(pixels, spp, triangles);
             let s = auto(AUTO_FUSED_TASK_MS, work);
-            match shape_for(s)? {
-                shape
-                    if SpanMemory::of(shape.mode, shape.splits, load(s)) == SpanMemory::Batches =>
-                {
-                    (shape, s)
-                }
+            let batches = |shape: &JobShape| {
+                SpanMemory::of(shape.mode, shape.splits, load(s)) == SpanMemory::Batches
+            };
+            match shape_for(s) {
+                Ok(shape) if batches(&shape) => (shape, s),
                 _ => {
                     let samples = pixels as f64 * f64::from(spp);
                     let s = auto(AUTO_SAMPLES_PER_SPAN as f64, samples);
