@@ -122,6 +122,13 @@ pub struct SpanLoad {
     pub adaptive: bool,
 }
 
+impl SpanLoad {
+    /// Camera samples of the span (its pixels times the most samples a pixel may get).
+    pub fn samples(&self) -> u64 {
+        self.pixels.saturating_mul(u64::from(self.spp))
+    }
+}
+
 /// How a task holds its span's samples.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SpanMemory {
@@ -147,10 +154,7 @@ impl SpanMemory {
 /// `memory` says (bytes).
 pub fn task_bytes(memory: SpanMemory, triangles: u64, load: SpanLoad) -> u64 {
     let span = match memory {
-        SpanMemory::Records => load
-            .pixels
-            .saturating_mul(u64::from(load.spp))
-            .saturating_mul(SAMPLE_BYTES),
+        SpanMemory::Records => load.samples().saturating_mul(SAMPLE_BYTES),
         // Samples are traced and shaded a batch of whole pixels at a time.
         SpanMemory::Batches => {
             let batch = u64::from(load.spp).max(crate::render::BATCH_SAMPLES as u64);
@@ -230,9 +234,9 @@ pub struct JobShape {
 }
 
 /// Chooses mode and split count for `triangles` triangles, spans of at most `load`, a budget of
-/// `memory_mb`, the user's `splits` (if given) and `mode`
-/// (if forced). `max_splits` is the most splits the scene allows; `texture_bytes` are held by
-/// every task beside its triangles (the scene's textures).
+/// `memory_mb`, the user's `splits` (if given) and `mode` (if forced). `max_splits` is the most
+/// splits the scene allows; `texture_bytes` are held by every task beside its triangles (the
+/// scene's textures).
 ///
 /// - `mode` forced: that mode; splits as given, else 1 (fused) or the fewest that fit (staged).
 /// - else `splits` = 1: fused; `splits` = K > 1: staged with K splits;
@@ -259,8 +263,7 @@ pub fn choose_shape(
     let whole = bytes(ExecutionMode::Fused, 1, triangles);
     let refuse = || {
         let records = staged(0);
-        let samples = load.pixels.saturating_mul(u64::from(load.spp));
-        let span = (records > budget).then_some((samples, records));
+        let span = (records > budget).then_some((load.samples(), records));
         too_big(triangles, span, memory_mb, max_splits)
     };
     let fewest = || {
@@ -335,11 +338,12 @@ pub fn choose_shape(
         ExecutionMode::Fused => triangles,
         ExecutionMode::Staged => triangles.div_ceil(u64::from(k.max(1))),
     };
-    let need = bytes(mode, k, held);
+    let memory = SpanMemory::of(mode, k, load);
+    let need = task_bytes(memory, held, load);
     if need > budget {
-        let span = match SpanMemory::of(mode, k, load) {
+        let span = match memory {
             SpanMemory::Batches => count(load.pixels, "pixel"),
-            SpanMemory::Records => count(load.pixels.saturating_mul(u64::from(load.spp)), "sample"),
+            SpanMemory::Records => count(load.samples(), "sample"),
         };
         return Err(PipelineError::BadInput(format!(
             "a {mode} task of this job would need about {} MB ({}, {span} per span), over --memory-mb {memory_mb}: raise --memory-mb or use more splits",

@@ -26,12 +26,14 @@ pub const PLAN_FORMAT_VERSION: u32 = 2;
 pub const MAX_SPLITS: u32 = 4096;
 /// Most spans a job may have.
 pub const MAX_SPANS: u32 = 10_000;
-/// Samples per span when the span count of a staged job is chosen automatically.
+/// Samples per span when the span count is chosen automatically for a job whose tasks hold
+/// every sample's records (staged, or fused over several splits or with the adaptive sampler).
 const AUTO_SAMPLES_PER_SPAN: u64 = 65_536;
-/// Predicted work per task when the span count of a fused job is chosen automatically, ms at
-/// the prediction model's reference rates ([`crate::predict::fused_frame_work_ms`]): 12 times
-/// a task's fixed cost in the emulator, and half of it on Lambda (an invocation and three S3
-/// requests). Measured against 65,536 samples per span (`docs/perf/block-sizes.md`).
+/// Predicted work per task when the span count is chosen automatically for a fused job whose
+/// tasks render in batches (one split, no adaptive sampler), ms at the prediction model's
+/// reference rates ([`crate::predict::fused_frame_work_ms`]): 12 times a task's fixed cost in
+/// the emulator, and half of it on Lambda (an invocation and three S3 requests). Measured
+/// against 65,536 samples per span (`docs/perf/block-sizes.md`).
 const AUTO_FUSED_TASK_MS: f64 = 50.0;
 /// Most spans an automatic count gives.
 const AUTO_MAX_SPANS: u64 = 100;
@@ -50,8 +52,8 @@ pub struct PlanRequest {
     /// Scene splits k; when `None`, 1 if one task holds the whole scene within `memory_mb`,
     /// else the fewest whose tasks fit (see [`choose_shape`]).
     pub splits: Option<u32>,
-    /// Pixel spans s; automatic when `None`: fused, spans of about 50 ms of predicted work;
-    /// staged, of about 64k samples; at most 100.
+    /// Pixel spans s; automatic when `None`: spans of about 50 ms of predicted work when a
+    /// fused task of one split renders them in batches, else of about 64k samples; at most 100.
     pub spans: Option<u32>,
     /// How the scene is cut into splits.
     #[serde(rename = "split_mode")]
@@ -374,8 +376,8 @@ impl JobPlan {
 
 /// The shape (mode and split count, see [`choose_shape`]) and span count for `request` on a
 /// scene of `triangles` triangles: the given counts after range checks, else automatic (the
-/// fewest splits that fit the memory budget; spans of about 50 ms of predicted work each for a
-/// fused job, of about 64k samples for a staged one, at most 100).
+/// fewest splits that fit the memory budget; spans of about 50 ms of predicted work each when a
+/// fused task of one split renders them in batches, else of about 64k samples; at most 100).
 pub fn resolve_counts(
     request: &PlanRequest,
     triangles: u64,
@@ -466,7 +468,7 @@ pub fn resolve_counts_with(
             match shape_for(s) {
                 Ok(shape) if batches(&shape) => (shape, s),
                 _ => {
-                    let samples = pixels as f64 * f64::from(spp);
+                    let samples = load(1).samples() as f64;
                     let s = auto(AUTO_SAMPLES_PER_SPAN as f64, samples);
                     (shape_for(s)?, s)
                 }
