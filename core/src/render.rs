@@ -16,7 +16,7 @@ pub use band::{Band, View, band_runs, render_run};
 pub use batch::Lighting;
 pub use surfaces::Surfaces;
 
-use crate::bvh::{BuildPreset, Bvh, ClosestHit, SegmentGroups};
+use crate::bvh::{BuildPreset, Bvh, ClosestHit};
 use crate::camera::Camera;
 use crate::error::SceneError;
 use crate::hits::Hit;
@@ -31,7 +31,7 @@ use crate::tiles::BAND_ROWS;
 use crate::triangle::Ray;
 use crate::unoccludable::unoccludable_lights;
 use crate::worker_pool::{available_cores, run_indexed};
-use batch::shade_batch_timed;
+use batch::{ShadingScratch, shade_batch_timed};
 use std::convert::Infallible;
 use std::time::Instant;
 
@@ -276,15 +276,16 @@ pub(crate) fn shade_batch(
     hits: &[Option<ClosestHit>],
 ) -> Vec<[f32; 3]> {
     let lighting = lighting(scene, unoccludable);
-    let mut groups = SegmentGroups::default();
+    let mut scratch = ShadingScratch::default();
     let batch = (rays, hits);
     shade_batch_timed(
         (&scene.mesh, bvh),
         &lighting,
         batch,
-        &mut groups,
+        &mut scratch,
         &mut NoTimer,
     )
+    .to_vec()
 }
 
 /// Renders the band of up to [`BAND_ROWS`] rows from row `y0` ([`render_run`]).

@@ -355,7 +355,9 @@ pub fn shadow_ray(light: &Light, origin: Vec3) -> (Ray, f32) {
 }
 
 /// The final radiance of a hit: the unblocked lights' contributions summed in light order,
-/// then `kd · ambient`. Every renderer path sums in this order, so results match bit for bit.
+/// then `kd · ambient`. Every renderer path sums in this order, so results match bit for bit
+/// (a path that sums as it goes starts from `[0.0; 3]`, adds with [`add_light`] in light order
+/// and ends with [`add_ambient`]).
 #[inline]
 pub fn combine(
     kd: [f32; 3],
@@ -364,10 +366,22 @@ pub fn combine(
 ) -> [f32; 3] {
     let mut sum = [0.0f32; 3];
     for c in contributions {
-        for k in 0..3 {
-            sum[k] += c[k];
-        }
+        add_light(&mut sum, c);
     }
+    add_ambient(sum, kd, ambient)
+}
+
+/// One unblocked light's contribution added to a hit's sum ([`combine`]).
+#[inline(always)]
+pub fn add_light(sum: &mut [f32; 3], contribution: [f32; 3]) {
+    for k in 0..3 {
+        sum[k] += contribution[k];
+    }
+}
+
+/// A hit's final radiance from the sum of its lights ([`combine`]): `sum + kd · ambient`.
+#[inline(always)]
+pub fn add_ambient(sum: [f32; 3], kd: [f32; 3], ambient: [f32; 3]) -> [f32; 3] {
     [
         sum[0] + kd[0] * ambient[0],
         sum[1] + kd[1] * ambient[1],

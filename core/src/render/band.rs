@@ -4,9 +4,9 @@
 //! width and spp.
 
 use super::RayCounts;
-use super::batch::{Lighting, shade_batch_timed};
+use super::batch::{Lighting, ShadingScratch, shade_batch_timed};
 use super::surfaces::Surfaces;
-use crate::bvh::{Bvh, SegmentGroups};
+use crate::bvh::Bvh;
 use crate::camera::Camera;
 use crate::hits::Hit;
 use crate::phase_timer::{Phase, PhaseTimer};
@@ -83,7 +83,7 @@ pub fn render_run(
     let mut order = order.peekable();
     let mut rays = Vec::new();
     let mut hits = Vec::new();
-    let mut groups = SegmentGroups::default();
+    let mut scratch = ShadingScratch::default();
     let trace_order = view.order;
     while order.peek().is_some() {
         timer.lap(Phase::Loop);
@@ -96,7 +96,7 @@ pub fn render_run(
         timer.lap(Phase::CameraRays);
         bvh.closest_hits(&rays, &mut hits);
         timer.lap(Phase::ClosestHits);
-        let colours = shade_batch_timed(scene, lighting, (&rays, &hits), &mut groups, timer);
+        let colours = shade_batch_timed(scene, lighting, (&rays, &hits), &mut scratch, timer);
         for ((&pixel, colours), hits) in batch
             .iter()
             .zip(colours.chunks(samples))

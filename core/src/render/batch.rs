@@ -5,7 +5,9 @@ use super::surfaces::Surfaces;
 use crate::bvh::{Bvh, ClosestHit, SegmentGroups};
 use crate::phase_timer::{Phase, PhaseTimer};
 use crate::scene::Light;
-use crate::shading::{FlatHit, FlatShader, LastFrame, ShadowTest, ShadowTester, combine};
+use crate::shading::{
+    FlatHit, FlatShader, LastFrame, ShadowTest, ShadowTester, SurfacePoint, add_ambient, add_light,
+};
 use crate::triangle::Ray;
 
 /// The lights of a render and what a sample shows besides them.
@@ -23,46 +25,95 @@ pub struct Lighting<'a> {
     pub background: [f32; 3],
 }
 
+/// One light's shadow test at a sample, as the sum over lights needs it.
+struct Lit {
+    /// The sample.
+    sample: u32,
+    /// Whether its segment was traced (the light is occludable): it is the next untraced
+    /// answer of the traced segments, in test order.
+    traced: bool,
+    /// Its radiance when unblocked.
+    unoccluded: [f32; 3],
+}
+
+/// What shading a batch needs besides its inputs, kept from batch to batch so each batch
+/// reuses the last one's memory instead of allocating its own.
+#[derive(Default)]
+pub(super) struct ShadingScratch {
+    /// The samples with hits, in sample order.
+    samples: Vec<usize>,
+    /// Per hit sample, its reflectance.
+    reflectances: Vec<[f32; 3]>,
+    /// The shadow segments to trace, and each one's light.
+    segments: Vec<(Ray, f32)>,
+    segment_lights: Vec<u32>,
+    /// Per lit (sample, light), in order of sample, then light.
+    tests: Vec<Lit>,
+    /// Per segment, whether it is blocked.
+    blocked: Vec<bool>,
+    /// Per sample, its unblocked lights' sum.
+    sums: Vec<[f32; 3]>,
+    /// Per sample, its radiance.
+    colours: Vec<[f32; 3]>,
+    groups: SegmentGroups,
+    shader: FlatShader,
+    tester: ShadowTester,
+    points: Vec<SurfacePoint>,
+}
+
 /// The radiance of every sample of a batch whose primary rays `rays` have the closest hits
 /// `hits` (found by `bvh`, whose triangles `surfaces` describes): the background for a miss,
 /// else Lambert shading with the lights its shadow rays reach (summed in light order) plus
 /// ambient. The shadow rays of the whole batch are traced as packets, light by light
-/// ([`Bvh::occluded_grouped`]), each light's in sample order; `groups` is scratch space. The
-/// shading and shadow-ray phases are reported to `timer`.
+/// ([`Bvh::occluded_grouped`]), each light's in sample order. The shading and shadow-ray
+/// phases are reported to `timer`.
 #[inline(always)]
-pub(super) fn shade_batch_timed(
+pub(super) fn shade_batch_timed<'s>(
     (surfaces, bvh): (&impl Surfaces, &Bvh),
     lighting: &Lighting,
     (rays, hits): (&[Ray], &[Option<ClosestHit>]),
-    groups: &mut SegmentGroups,
+    scratch: &'s mut ShadingScratch,
     timer: &mut impl PhaseTimer,
-) -> Vec<[f32; 3]> {
+) -> &'s [[f32; 3]] {
     let lights = lighting.lights;
+    let ShadingScratch {
+        samples,
+        reflectances,
+        segments,
+        segment_lights,
+        tests,
+        blocked,
+        sums,
+        colours,
+        groups,
+        shader,
+        tester,
+        points,
+    } = scratch;
     // Per hit, in sample order, its lights' tests in light order (the order `combine` sums
     // them in), and its reflectance. Four hits are shaded at once in lanes: on flat,
     // untextured triangles by the flat lanes, else with their vertex normals (zeros for a flat
     // triangle) and their reflectances at the hits; a last group of fewer than four goes
     // through its surface points. The same tests every way.
-    // Sized once (a filtered `collect` grows it step by step).
-    let mut samples: Vec<usize> = Vec::with_capacity(hits.len());
+    samples.clear();
     samples.extend((0..hits.len()).filter(|&s| hits[s].is_some()));
-    let most = samples.len() * lights.len();
-    let mut segments = Vec::with_capacity(most);
-    let mut segment_lights = Vec::with_capacity(most);
-    let mut tests = Vec::with_capacity(most);
-    let mut reflectances = Vec::with_capacity(samples.len());
+    segments.clear();
+    segment_lights.clear();
+    tests.clear();
+    reflectances.clear();
     let mut visit = |sample: usize, light: usize, test: ShadowTest| {
         let free = lighting.unoccludable[light];
         if !free {
             segments.push((test.ray, test.t_max));
             segment_lights.push(light as u32);
         }
-        tests.push((sample, test.unoccluded, free));
+        tests.push(Lit {
+            sample: sample as u32,
+            traced: !free,
+            unoccluded: test.unoccluded,
+        });
     };
-    let mut shader = FlatShader::default();
-    let mut tester = ShadowTester::default();
     let mut last = LastFrame::default();
-    let mut points = Vec::with_capacity(4);
     let hit = |s: usize| hits[s].as_ref().expect("samples with hits");
     for four in samples.chunks(4) {
         let flat = |k: usize| four.get(k).and_then(|&s| surfaces.flat_kd(hit(s)));
@@ -125,28 +176,29 @@ pub(super) fn shade_batch_timed(
             }
         }
     }
-    let mut traced = vec![false; segments.len()];
+    blocked.clear();
+    blocked.resize(segments.len(), false);
     timer.lap(Phase::Shading);
     // Light by light: with several lights, neighbouring segments alternate lights.
     let by_light = (segment_lights.as_slice(), lights.len());
-    bvh.occluded_grouped(&segments, by_light, &mut traced, groups);
+    bvh.occluded_grouped(segments, by_light, blocked, groups);
     timer.lap(Phase::ShadowRays);
-    // Each test's answer in test order: unblocked when not traced, else its segment's.
-    let mut traced = traced.into_iter();
-    let mut next = tests.iter().peekable();
-    let mut colours = vec![lighting.background; hits.len()];
-    for (&sample, &kd) in samples.iter().zip(&reflectances) {
-        // This sample's unblocked lights, in light order, straight from the test list (no
-        // per-sample allocation).
-        let contributions = std::iter::from_fn(|| {
-            next.next_if(|(s, _, _)| *s == sample)
-                .map(|&(_, unoccluded, free)| {
-                    let blocked = !free && traced.next().unwrap_or(false);
-                    (!blocked).then_some(unoccluded)
-                })
-        })
-        .flatten();
-        colours[sample] = combine(kd, contributions, lighting.ambient);
+    // Each test's radiance added to its sample's sum unless its segment is blocked: tests come
+    // in order of sample, then light, so each sum adds its lights in light order from +0, as
+    // `combine` does. (One pass over the tests: gathering each sample's tests through an
+    // iterator was 5 ns of a Cornell box sample's 32 of shading.)
+    sums.clear();
+    sums.resize(hits.len(), [0.0; 3]);
+    let mut blocked = blocked.iter();
+    for test in tests.iter() {
+        if !(test.traced && blocked.next().copied().unwrap_or(false)) {
+            add_light(&mut sums[test.sample as usize], test.unoccluded);
+        }
+    }
+    colours.clear();
+    colours.resize(hits.len(), lighting.background);
+    for (&sample, &kd) in samples.iter().zip(reflectances.iter()) {
+        colours[sample] = add_ambient(sums[sample], kd, lighting.ambient);
     }
     timer.lap(Phase::Shading);
     colours
