@@ -28,9 +28,9 @@ pub struct Lighting<'a> {
 /// One light's shadow test at a sample, as the sum over lights needs it.
 struct Lit {
     /// The sample.
-    sample: u32,
-    /// Whether its segment was traced (the light is occludable): it is the next untraced
-    /// answer of the traced segments, in test order.
+    sample: usize,
+    /// Whether its segment was traced (the light is occludable). The traced tests' answers
+    /// are the segments' answers in the same order.
     traced: bool,
     /// Its radiance when unblocked.
     unoccluded: [f32; 3],
@@ -108,7 +108,7 @@ pub(super) fn shade_batch_timed<'s>(
             segment_lights.push(light as u32);
         }
         tests.push(Lit {
-            sample: sample as u32,
+            sample,
             traced: !free,
             unoccluded: test.unoccluded,
         });
@@ -171,7 +171,7 @@ pub(super) fn shade_batch_timed<'s>(
                     reflectances.push(point.kd);
                     points.push(point);
                 }
-                tester.shadow_tests(&points, lights, |p, l, test| visit(four[p], l, test));
+                tester.shadow_tests(points, lights, |p, l, test| visit(four[p], l, test));
                 points.clear();
             }
         }
@@ -185,14 +185,14 @@ pub(super) fn shade_batch_timed<'s>(
     timer.lap(Phase::ShadowRays);
     // Each test's radiance added to its sample's sum unless its segment is blocked: tests come
     // in order of sample, then light, so each sum adds its lights in light order from +0, as
-    // `combine` does. (One pass over the tests: gathering each sample's tests through an
-    // iterator was 5 ns of a Cornell box sample's 32 of shading.)
+    // `combine` does. (One pass over the tests: gathering each sample's tests with an
+    // iterator per sample was slower, docs/perf/time-per-sample.md.)
     sums.clear();
     sums.resize(hits.len(), [0.0; 3]);
     let mut blocked = blocked.iter();
     for test in tests.iter() {
-        if !(test.traced && blocked.next().copied().unwrap_or(false)) {
-            add_light(&mut sums[test.sample as usize], test.unoccluded);
+        if !(test.traced && *blocked.next().expect("an answer per traced test")) {
+            add_light(&mut sums[test.sample], test.unoccluded);
         }
     }
     colours.clear();
