@@ -150,17 +150,27 @@ impl Camera {
     /// consecutive (pixel, sample) pairs (one pixel's samples would leave lanes idle).
     #[inline]
     pub fn pixels_rays(&self, pixels: &[u64], order: &TraceOrder, out: &mut Vec<Ray>) {
+        let samples = order.samples();
+        self.pixels_samples_rays(pixels, (samples, samples.len() as u32), out);
+    }
+
+    /// [`Camera::pixels_rays`] of the samples `samples` of `spp` (a sample of a pixel whose
+    /// sequence has `spp` samples, in any order): [`Camera::sample_ray`]`(pixel, sample, spp)`
+    /// for each pixel and each of `samples`, pixel by pixel. (The adaptive sampler traces the
+    /// samples `base..max` of its refined pixels, of a sequence of `max`.)
+    #[inline]
+    pub fn pixels_samples_rays(&self, pixels: &[u64], samples: (&[u32], u32), out: &mut Vec<Ray>) {
         #[cfg(target_arch = "x86_64")]
         if kernel_width() != KernelWidth::Four {
             // SAFETY: the widths `Eight` and `Sixteen` are offered only on hosts with AVX2
             // (`bvh::dispatch`).
             #[allow(unsafe_code)]
             unsafe {
-                self.pixels_rays_avx2(pixels, order, out)
+                self.pixels_rays_avx2(pixels, samples, out)
             };
             return;
         }
-        self.pixels_rays_in::<false>(pixels, order, out);
+        self.pixels_rays_in::<false>(pixels, samples, out);
     }
 
     /// [`Camera::pixels_rays`], with each group's rays from `Camera::rays4_avx` when `AVX` (only
@@ -169,18 +179,16 @@ impl Camera {
     fn pixels_rays_in<const AVX: bool>(
         &self,
         pixels: &[u64],
-        order: &TraceOrder,
+        (samples, spp): (&[u32], u32),
         out: &mut Vec<Ray>,
     ) {
-        let samples = order.samples();
         if samples.len() >= 4 {
             for &pixel in pixels {
-                self.pixel_rays_in::<AVX>(pixel, order, out);
+                self.pixel_rays_in::<AVX>(pixel, (samples, spp), out);
             }
             return;
         }
         out.reserve(pixels.len() * samples.len());
-        let spp = samples.len() as u32;
         // Image positions of consecutive (pixel, sample) pairs, four at a time.
         let (mut xs, mut ys, mut filled) = ([0.0f64; 4], [0.0f64; 4], 0);
         for &pixel in pixels {
@@ -215,12 +223,15 @@ impl Camera {
         self.rays4(px, py)
     }
 
-    /// The rays of one pixel's samples, as [`Camera::pixels_rays`] gives them, four samples at a
-    /// time (`AVX` as there).
+    /// The rays of one pixel's samples, as [`Camera::pixels_samples_rays`] gives them, four
+    /// samples at a time (`AVX` as there).
     #[inline(always)]
-    fn pixel_rays_in<const AVX: bool>(&self, pixel: u64, order: &TraceOrder, out: &mut Vec<Ray>) {
-        let order = order.samples();
-        let spp = order.len() as u32;
+    fn pixel_rays_in<const AVX: bool>(
+        &self,
+        pixel: u64,
+        (order, spp): (&[u32], u32),
+        out: &mut Vec<Ray>,
+    ) {
         let samples = PixelSamples::of_frame(pixel, spp, self.frame);
         let x = (pixel % self.columns) as f64;
         let y = (pixel / self.columns) as f64;
@@ -328,7 +339,8 @@ mod tests {
     /// trace order, on every path: one sample (pixel centres), below four samples a pixel (lanes
     /// across pixels, with a remainder of one to three rays), square and non-square strata, a
     /// sample count past the strata grid; one pixel, several, none; a still camera and a frame
-    /// of an animation.
+    /// of an animation. So for the samples of the tail of a longer sequence (the adaptive
+    /// sampler's second pass: samples `spp / 4..spp` of `spp`, and one sample alone).
     #[test]
     fn pixels_rays_are_the_sample_rays_in_order() {
         let spec = CameraSpec {
@@ -339,18 +351,18 @@ mod tests {
         };
         let bits = |r: &Ray| (r.origin.to_array(), r.dir.to_array().map(f32::to_bits));
         // The dispatched path, the portable lanes, and AVX2's registers where the host has it.
-        type PixelsRays = fn(&Camera, &[u64], &TraceOrder, &mut Vec<Ray>);
+        type PixelsRays = fn(&Camera, &[u64], (&[u32], u32), &mut Vec<Ray>);
         #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
         let mut paths: Vec<(&str, PixelsRays)> = vec![
-            ("dispatched", Camera::pixels_rays),
+            ("dispatched", Camera::pixels_samples_rays),
             ("portable", Camera::pixels_rays_in::<false>),
         ];
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the host has AVX2.
             #[allow(unsafe_code)]
-            paths.push(("avx2", |c, pixels, order, out| unsafe {
-                c.pixels_rays_avx2(pixels, order, out)
+            paths.push(("avx2", |c, pixels, samples, out| unsafe {
+                c.pixels_rays_avx2(pixels, samples, out)
             }));
         }
         for frame in [0, 3] {
@@ -358,16 +370,23 @@ mod tests {
             for (path, pixels_rays) in &paths {
                 for spp in [1u32, 2, 3, 4, 5, 7, 16, 20, 35, 64] {
                     let order = TraceOrder::new(spp);
-                    for pixels in [&[0u64, 8, 9, 22, 35][..], &[4, 5, 6], &[7], &[]] {
+                    let tail: Vec<u32> = (spp / 4..spp).collect();
+                    let lists = [order.samples(), &tail, &[spp - 1]];
+                    for (samples, pixels) in lists.into_iter().flat_map(|samples| {
+                        [&[0u64, 8, 9, 22, 35][..], &[4, 5, 6], &[7], &[]]
+                            .map(|pixels| (samples, pixels))
+                    }) {
                         // A ray already there stays first: the batch is appended.
                         let mut got = vec![cam.sample_ray(0, 0, 1)];
-                        pixels_rays(&cam, pixels, &order, &mut got);
+                        pixels_rays(&cam, pixels, (samples, spp), &mut got);
                         let mut expected = vec![cam.sample_ray(0, 0, 1)];
                         for &pixel in pixels {
                             let sample_ray = |&sample| cam.sample_ray(pixel, sample, spp);
-                            expected.extend(order.samples().iter().map(sample_ray));
+                            expected.extend(samples.iter().map(sample_ray));
                         }
-                        let at = format!("{path}: frame {frame}, {spp} spp, pixels {pixels:?}");
+                        let at = format!(
+                            "{path}: frame {frame}, samples {samples:?} of {spp}, pixels {pixels:?}"
+                        );
                         assert_eq!(got.len(), expected.len(), "{at}");
                         for (g, e) in got.iter().zip(&expected) {
                             assert_eq!(bits(g), bits(e), "{at}");

@@ -31,7 +31,8 @@ use crate::tiles::BAND_ROWS;
 use crate::triangle::Ray;
 use crate::unoccludable::unoccludable_lights;
 use crate::worker_pool::{available_cores, run_indexed};
-use batch::{ShadingScratch, shade_batch_timed};
+pub(crate) use batch::ShadingScratch;
+use batch::shade_batch_timed;
 use std::convert::Infallible;
 use std::time::Instant;
 
@@ -267,25 +268,18 @@ fn lighting<'a>(scene: &'a Scene, unoccludable: &'a [bool]) -> Lighting<'a> {
 ///
 /// `unoccludable[l]` says light `l` can be occluded by no surface
 /// ([`crate::unoccludable::unoccludable_lights`]): its shadow rays are not traced and count as
-/// unblocked, which is what tracing them would give.
-pub(crate) fn shade_batch(
+/// unblocked, which is what tracing them would give. `scratch` keeps the lists of one batch
+/// for the next, and holds the radiances returned.
+pub(crate) fn shade_batch<'s>(
     scene: &Scene,
     bvh: &Bvh,
     unoccludable: &[bool],
-    rays: &[Ray],
-    hits: &[Option<ClosestHit>],
-) -> Vec<[f32; 3]> {
+    (rays, hits): (&[Ray], &[Option<ClosestHit>]),
+    scratch: &'s mut ShadingScratch,
+) -> &'s [[f32; 3]] {
     let lighting = lighting(scene, unoccludable);
-    let mut scratch = ShadingScratch::default();
-    let batch = (rays, hits);
-    shade_batch_timed(
-        (&scene.mesh, bvh),
-        &lighting,
-        batch,
-        &mut scratch,
-        &mut NoTimer,
-    )
-    .to_vec()
+    let surfaces = (&scene.mesh, bvh);
+    shade_batch_timed(surfaces, &lighting, (rays, hits), scratch, &mut NoTimer)
 }
 
 /// Renders the band of up to [`BAND_ROWS`] rows from row `y0` ([`render_run`]).

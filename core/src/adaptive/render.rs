@@ -8,7 +8,10 @@ use crate::camera::Camera;
 use crate::error::SceneError;
 use crate::hits::Hit;
 use crate::image::Image;
-use crate::render::{BATCH_SAMPLES, RayCounts, RenderOutput, RenderSettings, shade_batch};
+use crate::render::{
+    BATCH_SAMPLES, RayCounts, RenderOutput, RenderSettings, ShadingScratch, shade_batch,
+};
+use crate::sampling::TraceOrder;
 use crate::scene::{Scene, check_image_size};
 use crate::unoccludable::unoccludable_lights;
 use crate::worker_pool::run_indexed;
@@ -40,6 +43,7 @@ pub fn render_adaptive(
     };
     let unoccludable = unoccludable_lights(&scene.mesh, &scene.lights);
     let start = Instant::now();
+    let refinement = RefinementOrder::new(adaptive);
     let mut image = Image::new(width, height);
     let mut hits = vec![Hit::MISS; width as usize * height as usize];
     let mut rays = RayCounts::default();
@@ -50,7 +54,8 @@ pub fn render_adaptive(
         height as usize,
         |(), y| {
             let lights = (scene, bvh, unoccludable.as_slice());
-            Ok::<Row, Infallible>(render_row(lights, &camera, width, adaptive, y as u32))
+            let row = render_row(lights, &camera, width, (adaptive, &refinement), y as u32);
+            Ok::<Row, Infallible>(row)
         },
         |y, row| {
             let range = y * width as usize..(y + 1) * width as usize;
@@ -76,26 +81,64 @@ struct Row {
     counts: AdaptiveCounts,
 }
 
-/// Traces and shades the given (pixel, rank) samples in batches of about `BATCH_SAMPLES`
-/// neighbouring camera rays; returns each sample's radiance and whether it hit, in order.
+/// The order the second pass traces a refined pixel's ranks `base..max` in: the renderer's
+/// trace order at `max` samples ([`TraceOrder`]) without the first pass's ranks, so a packet
+/// of neighbouring ranks covers a part of the pixel rather than all of it (every aligned run of
+/// 16 ranks spans the whole pixel).
+struct RefinementOrder {
+    /// The ranks in trace order.
+    ranks: Vec<u32>,
+    /// Per rank `base + k`, where it is traced.
+    positions: Vec<usize>,
+}
+
+impl RefinementOrder {
+    fn new(a: AdaptiveSettings) -> Self {
+        let order = TraceOrder::new(a.max_spp);
+        let ranks: Vec<u32> = (order.samples().iter().copied())
+            .filter(|&rank| rank >= a.base_spp)
+            .collect();
+        let mut positions = vec![0; ranks.len()];
+        for (position, &rank) in ranks.iter().enumerate() {
+            positions[(rank - a.base_spp) as usize] = position;
+        }
+        RefinementOrder { ranks, positions }
+    }
+
+    /// A refined pixel's radiances in rank order, from them in trace order.
+    fn in_rank_order(&self, traced: &[[f32; 3]]) -> Vec<[f32; 3]> {
+        self.positions.iter().map(|&p| traced[p]).collect()
+    }
+}
+
+/// Traces and shades the samples `ranks` (of a sequence of `max_spp`) of each of `pixels`,
+/// pixel by pixel, in batches of about `BATCH_SAMPLES` neighbouring camera rays; returns each
+/// sample's radiance and whether it hit, in that order.
 fn trace_samples(
     (scene, bvh, unoccludable): Shading<'_>,
     camera: &Camera,
+    (pixels, ranks): (&[u64], &[u32]),
     max_spp: u32,
-    samples: &[(u64, u32)],
+    scratch: &mut ShadingScratch,
 ) -> (Vec<[f32; 3]>, Vec<Option<ClosestHit>>) {
-    let mut colours = Vec::with_capacity(samples.len());
-    let mut all_hits = Vec::with_capacity(samples.len());
-    let mut hits = Vec::new();
-    for batch in samples.chunks(BATCH_SAMPLES) {
-        let rays: Vec<_> = batch
-            .iter()
-            .map(|&(pixel, rank)| camera.sample_ray(pixel, rank, max_spp))
-            .collect();
+    let count = pixels.len() * ranks.len();
+    let mut colours = Vec::with_capacity(count);
+    let mut all_hits = Vec::with_capacity(count);
+    let (mut rays, mut hits) = (Vec::new(), Vec::new());
+    let pixels_per_batch = (BATCH_SAMPLES / ranks.len().max(1)).max(1);
+    for batch in pixels.chunks(pixels_per_batch) {
+        rays.clear();
+        camera.pixels_samples_rays(batch, (ranks, max_spp), &mut rays);
         hits.clear();
         hits.resize(rays.len(), None);
         bvh.closest_hits(&rays, &mut hits);
-        colours.extend(shade_batch(scene, bvh, unoccludable, &rays, &hits));
+        colours.extend_from_slice(shade_batch(
+            scene,
+            bvh,
+            unoccludable,
+            (&rays, &hits),
+            scratch,
+        ));
         all_hits.extend_from_slice(&hits);
     }
     (colours, all_hits)
@@ -108,7 +151,7 @@ fn render_row(
     shading: Shading<'_>,
     camera: &Camera,
     width: u32,
-    a: AdaptiveSettings,
+    (a, refinement): (AdaptiveSettings, &RefinementOrder),
     y: u32,
 ) -> Row {
     let first_pixel = u64::from(y) * u64::from(width);
@@ -124,25 +167,26 @@ fn render_row(
             };
         }
     };
+    let mut scratch = ShadingScratch::default();
     // First pass: ranks 0..base of every pixel.
-    let first: Vec<(u64, u32)> = pixels
-        .clone()
-        .flat_map(|p| (0..a.base_spp).map(move |r| (p, r)))
-        .collect();
-    let (colours1, hits1) = trace_samples(shading, camera, a.max_spp, &first);
+    let all: Vec<u64> = pixels.clone().collect();
+    let ranks: Vec<u32> = (0..a.base_spp).collect();
+    let first = (all.as_slice(), ranks.as_slice());
+    let (colours1, hits1) = trace_samples(shading, camera, first, a.max_spp, &mut scratch);
     count(&hits1);
     let decisions: Vec<Decision> = colours1
         .chunks(base)
         .zip(hits1.chunks(base))
         .map(|(c, h)| decide(c, h.iter().any(Option::is_some), a.threshold))
         .collect();
-    // Second pass: ranks base..max of the refined pixels only, if any.
-    let second: Vec<(u64, u32)> = pixels
+    // Second pass: ranks base..max of the refined pixels only, if any, in `refinement`'s order.
+    let refine: Vec<u64> = pixels
         .zip(&decisions)
         .filter(|(_, d)| **d == Decision::Refine)
-        .flat_map(|(p, _)| (a.base_spp..a.max_spp).map(move |r| (p, r)))
+        .map(|(p, _)| p)
         .collect();
-    let (colours2, hits2) = trace_samples(shading, camera, a.max_spp, &second);
+    let second = (refine.as_slice(), refinement.ranks.as_slice());
+    let (colours2, hits2) = trace_samples(shading, camera, second, a.max_spp, &mut scratch);
     count(&hits2);
     let extra = (a.max_spp - a.base_spp) as usize;
     let mut refined = colours2.chunks(extra);
@@ -158,10 +202,10 @@ fn render_row(
         .zip(&decisions)
     {
         let second = match decision {
-            Decision::Refine => refined.next().unwrap_or_default(),
-            _ => &[],
+            Decision::Refine => refinement.in_rank_order(refined.next().unwrap_or_default()),
+            _ => Vec::new(),
         };
-        row.colours.push(pixel_value(first, second));
+        row.colours.push(pixel_value(first, &second));
         row.hits.push(hits[0].map_or(Hit::MISS, |h| Hit {
             triangle: h.id,
             t: h.t,

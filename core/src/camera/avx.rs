@@ -8,7 +8,6 @@
 #![allow(unsafe_code)]
 
 use super::Camera;
-use crate::sampling::TraceOrder;
 use crate::triangle::Ray;
 use glam::Vec3;
 use std::arch::x86_64::{
@@ -18,7 +17,7 @@ use std::arch::x86_64::{
 use wide::f64x4;
 
 impl Camera {
-    /// [`Camera::pixels_rays`] compiled for AVX2, with [`Camera::rays4_avx`].
+    /// [`Camera::pixels_samples_rays`] compiled for AVX2, with [`Camera::rays4_avx`].
     ///
     /// # Safety
     /// Only on hosts with AVX2.
@@ -26,10 +25,10 @@ impl Camera {
     pub(super) unsafe fn pixels_rays_avx2(
         &self,
         pixels: &[u64],
-        order: &TraceOrder,
+        samples: (&[u32], u32),
         out: &mut Vec<Ray>,
     ) {
-        self.pixels_rays_in::<true>(pixels, order, out);
+        self.pixels_rays_in::<true>(pixels, samples, out);
     }
 
     /// `Camera::rays4` in 256-bit registers.

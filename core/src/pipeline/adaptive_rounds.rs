@@ -48,11 +48,16 @@ pub fn cast_samples(
 ) -> Vec<SurfaceHit> {
     let mut out = Vec::new();
     let mut hits = Vec::with_capacity(BATCH);
+    let (mut rays, mut ranks) = (Vec::with_capacity(BATCH), Vec::new());
     for batch in samples.chunks(BATCH) {
-        let rays: Vec<_> = batch
-            .iter()
-            .map(|&(pixel, rank)| camera.sample_ray(pixel, rank, max_spp))
-            .collect();
+        // Each pixel's run of samples at once: `Camera::sample_ray` of each, the pixel's work
+        // done once and the rays made in lanes.
+        rays.clear();
+        for run in batch.chunk_by(|a, b| a.0 == b.0) {
+            ranks.clear();
+            ranks.extend(run.iter().map(|&(_, rank)| rank));
+            camera.pixels_samples_rays(&[run[0].0], (&ranks, max_spp), &mut rays);
+        }
         push_surface_hits(split, (batch, &rays), &mut hits, &mut out, 0..batch.len());
     }
     out

@@ -39,7 +39,7 @@ struct Lit {
 /// What shading a batch needs besides its inputs, kept from batch to batch so each batch
 /// reuses the last one's memory instead of allocating its own.
 #[derive(Default)]
-pub(super) struct ShadingScratch {
+pub(crate) struct ShadingScratch {
     /// The samples with hits, in sample order.
     samples: Vec<usize>,
     /// Per hit sample, its reflectance.

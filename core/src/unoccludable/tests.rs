@@ -83,7 +83,7 @@ fn no_triangles_occlude_nothing() {
 #[test]
 fn skipping_the_shadow_rays_changes_no_pixel() {
     use crate::camera::Camera;
-    use crate::render::{build_scene_bvh, shade_batch};
+    use crate::render::{ShadingScratch, build_scene_bvh, shade_batch};
     let scratch = tempfile::tempdir().unwrap();
     let dir = scratch.path();
     std::fs::write(dir.join("room.obj"), CUBE).unwrap();
@@ -112,8 +112,10 @@ fn skipping_the_shadow_rays_changes_no_pixel() {
         hits.iter().all(Option::is_some),
         "the room surrounds the eye"
     );
-    let skipping = shade_batch(&scene, &bvh, &free, &rays, &hits);
-    let tracing = shade_batch(&scene, &bvh, &[false, false], &rays, &hits);
+    let batch = (rays.as_slice(), hits.as_slice());
+    let mut lists = (ShadingScratch::default(), ShadingScratch::default());
+    let skipping = shade_batch(&scene, &bvh, &free, batch, &mut lists.0);
+    let tracing = shade_batch(&scene, &bvh, &[false, false], batch, &mut lists.1);
     assert_eq!(skipping, tracing);
     let lit = skipping.iter().filter(|c| c[0] > 0.0).count();
     assert!(lit > rays.len() / 2, "most samples see the light ({lit})");

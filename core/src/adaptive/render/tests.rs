@@ -1,5 +1,5 @@
 use super::*;
-use crate::render::build_scene_bvh;
+use crate::render::{ShadingScratch, build_scene_bvh};
 use crate::scene::load_scene;
 
 fn teapot() -> Scene {
@@ -37,7 +37,13 @@ fn pixels_equal_their_samples_traced_alone() {
         let ray = camera.sample_ray(pixel, rank, 64);
         let hit = bvh.closest_hit(&ray);
         (
-            shade_batch(&scene, &bvh, &unoccludable, &[ray], &[hit])[0],
+            shade_batch(
+                &scene,
+                &bvh,
+                &unoccludable,
+                (&[ray], &[hit]),
+                &mut ShadingScratch::default(),
+            )[0],
             hit,
         )
     };
