@@ -339,7 +339,7 @@ mod tests {
     /// trace order, on every path: one sample (pixel centres), below four samples a pixel (lanes
     /// across pixels, with a remainder of one to three rays), square and non-square strata, a
     /// sample count past the strata grid; one pixel, several, none; a still camera and a frame
-    /// of an animation. So for the samples of the tail of a longer sequence (the adaptive
+    /// of an animation. The same for samples from the tail of a longer sequence (the adaptive
     /// sampler's second pass: samples `spp / 4..spp` of `spp`, and one sample alone).
     #[test]
     fn pixels_rays_are_the_sample_rays_in_order() {

@@ -202,7 +202,12 @@ fn render_row(
         .zip(&decisions)
     {
         let second = match decision {
-            Decision::Refine => refinement.in_rank_order(refined.next().unwrap_or_default()),
+            Decision::Refine => {
+                let traced = refined
+                    .next()
+                    .expect("the second pass traced every refined pixel");
+                refinement.in_rank_order(traced)
+            }
             _ => Vec::new(),
         };
         row.colours.push(pixel_value(first, &second));
