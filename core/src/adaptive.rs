@@ -21,6 +21,7 @@ use serde::{Deserialize, Serialize};
 
 mod render;
 pub use render::render_adaptive;
+pub(crate) use render::{RefinementOrder, adaptive_run};
 
 /// The adaptive sampler's settings; recorded in the plan and the report.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

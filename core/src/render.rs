@@ -252,7 +252,7 @@ impl Frame {
 }
 
 /// The lights, ambient and background of `scene`, with `unoccludable` per light.
-fn lighting<'a>(scene: &'a Scene, unoccludable: &'a [bool]) -> Lighting<'a> {
+pub(crate) fn lighting<'a>(scene: &'a Scene, unoccludable: &'a [bool]) -> Lighting<'a> {
     Lighting {
         lights: &scene.lights,
         unoccludable,
@@ -270,16 +270,27 @@ fn lighting<'a>(scene: &'a Scene, unoccludable: &'a [bool]) -> Lighting<'a> {
 /// ([`crate::unoccludable::unoccludable_lights`]): its shadow rays are not traced and count as
 /// unblocked, which is what tracing them would give. `scratch` keeps the lists of one batch
 /// for the next, and holds the radiances returned.
+#[cfg(test)]
 pub(crate) fn shade_batch<'s>(
     scene: &Scene,
     bvh: &Bvh,
     unoccludable: &[bool],
-    (rays, hits): (&[Ray], &[Option<ClosestHit>]),
+    batch: (&[Ray], &[Option<ClosestHit>]),
     scratch: &'s mut ShadingScratch,
 ) -> &'s [[f32; 3]] {
     let lighting = lighting(scene, unoccludable);
-    let surfaces = (&scene.mesh, bvh);
-    shade_batch_timed(surfaces, &lighting, (rays, hits), scratch, &mut NoTimer)
+    shade_batch_lit((&scene.mesh, bvh), &lighting, batch, scratch)
+}
+
+/// [`shade_batch`] of hits found by `bvh` on the triangles `surfaces` describes (the scene's
+/// mesh, or a split object), under `lighting`.
+pub(crate) fn shade_batch_lit<'s>(
+    (surfaces, bvh): (&impl Surfaces, &Bvh),
+    lighting: &Lighting,
+    batch: (&[Ray], &[Option<ClosestHit>]),
+    scratch: &'s mut ShadingScratch,
+) -> &'s [[f32; 3]] {
+    shade_batch_timed((surfaces, bvh), lighting, batch, scratch, &mut NoTimer)
 }
 
 /// Renders the band of up to [`BAND_ROWS`] rows from row `y0` ([`render_run`]).

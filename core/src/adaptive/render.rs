@@ -1,6 +1,7 @@
 //! The adaptive sampler in the monolithic renderer: per row, a first pass of `base_spp` samples
 //! in every pixel, then the ranks `base_spp..max_spp` of the pixels [`decide`] refines, traced
-//! and shaded by the renderer's own batch path ([`crate::render`]'s `shade_batch`).
+//! and shaded by the renderer's own batch path ([`crate::render`]'s `shade_batch_lit`). A fused
+//! task of one split renders its span's pixels the same way ([`adaptive_run`]).
 
 use super::{AdaptiveCounts, AdaptiveSettings, Decision, decide, pixel_value};
 use crate::bvh::{Bvh, ClosestHit};
@@ -9,13 +10,15 @@ use crate::error::SceneError;
 use crate::hits::Hit;
 use crate::image::Image;
 use crate::render::{
-    BATCH_SAMPLES, RayCounts, RenderOutput, RenderSettings, ShadingScratch, shade_batch,
+    BATCH_SAMPLES, Lighting, RayCounts, RenderOutput, RenderSettings, ShadingScratch, Surfaces,
+    lighting, shade_batch_lit,
 };
 use crate::sampling::TraceOrder;
 use crate::scene::{Scene, check_image_size};
 use crate::unoccludable::unoccludable_lights;
 use crate::worker_pool::run_indexed;
 use std::convert::Infallible;
+use std::ops::Range;
 use std::time::Instant;
 
 /// Renders `scene` with the adaptive sampler: `settings` gives the size and threads (its `spp`
@@ -42,6 +45,7 @@ pub fn render_adaptive(
         threads
     };
     let unoccludable = unoccludable_lights(&scene.mesh, &scene.lights);
+    let lighting = lighting(scene, &unoccludable);
     let start = Instant::now();
     let refinement = RefinementOrder::new(adaptive);
     let mut image = Image::new(width, height);
@@ -53,9 +57,11 @@ pub fn render_adaptive(
         std::iter::repeat_n((), threads),
         height as usize,
         |(), y| {
-            let lights = (scene, bvh, unoccludable.as_slice());
-            let row = render_row(lights, &camera, width, (adaptive, &refinement), y as u32);
-            Ok::<Row, Infallible>(row)
+            let first = y as u64 * u64::from(width);
+            let row = first..first + u64::from(width);
+            let sampler = (adaptive, &refinement);
+            let run = adaptive_run((&scene.mesh, bvh), &lighting, &camera, row, sampler);
+            Ok::<AdaptiveRun, Infallible>(run)
         },
         |y, row| {
             let range = y * width as usize..(y + 1) * width as usize;
@@ -74,18 +80,23 @@ pub fn render_adaptive(
     Ok((output, counts))
 }
 
-struct Row {
-    colours: Vec<[f32; 3]>,
-    hits: Vec<Hit>,
-    rays: RayCounts,
-    counts: AdaptiveCounts,
+/// A run of pixels rendered with the adaptive sampler ([`adaptive_run`]).
+pub(crate) struct AdaptiveRun {
+    /// Each pixel's value, in pixel order.
+    pub colours: Vec<[f32; 3]>,
+    /// Each pixel's rank-0 hit.
+    pub hits: Vec<Hit>,
+    /// Logical rays of both passes.
+    pub rays: RayCounts,
+    /// The pixels' decisions.
+    pub counts: AdaptiveCounts,
 }
 
 /// The order the second pass traces a refined pixel's ranks `base..max` in: the renderer's
 /// trace order at `max` samples ([`TraceOrder`]) without the first pass's ranks, so a packet
 /// of neighbouring ranks covers a part of the pixel rather than all of it (every aligned run of
 /// 16 ranks spans the whole pixel).
-struct RefinementOrder {
+pub(crate) struct RefinementOrder {
     /// The ranks in trace order.
     ranks: Vec<u32>,
     /// Per rank `base + k`, where it is traced.
@@ -93,7 +104,8 @@ struct RefinementOrder {
 }
 
 impl RefinementOrder {
-    fn new(a: AdaptiveSettings) -> Self {
+    /// The order for the settings `a`.
+    pub(crate) fn new(a: AdaptiveSettings) -> Self {
         let order = TraceOrder::new(a.max_spp);
         let ranks: Vec<u32> = (order.samples().iter().copied())
             .filter(|&rank| rank >= a.base_spp)
@@ -115,7 +127,8 @@ impl RefinementOrder {
 /// pixel by pixel, in batches of about `BATCH_SAMPLES` neighbouring camera rays; returns each
 /// sample's radiance and whether it hit, in that order.
 fn trace_samples(
-    (scene, bvh, unoccludable): Shading<'_>,
+    (surfaces, bvh): (&impl Surfaces, &Bvh),
+    lighting: &Lighting,
     camera: &Camera,
     (pixels, ranks): (&[u64], &[u32]),
     max_spp: u32,
@@ -132,32 +145,26 @@ fn trace_samples(
         hits.clear();
         hits.resize(rays.len(), None);
         bvh.closest_hits(&rays, &mut hits);
-        colours.extend_from_slice(shade_batch(
-            scene,
-            bvh,
-            unoccludable,
-            (&rays, &hits),
-            scratch,
-        ));
+        let batch = (rays.as_slice(), hits.as_slice());
+        colours.extend_from_slice(shade_batch_lit((surfaces, bvh), lighting, batch, scratch));
         all_hits.extend_from_slice(&hits);
     }
     (colours, all_hits)
 }
 
-/// The scene, its BVH and its unoccludable lights: what shading a sample needs.
-type Shading<'a> = (&'a Scene, &'a Bvh, &'a [bool]);
-
-fn render_row(
-    shading: Shading<'_>,
+/// The pixels `pixels` with the adaptive sampler `a` (whose second pass traces in
+/// `refinement`'s order), through `bvh`, whose triangles `surfaces` describes, under
+/// `lighting`: each pixel is a function of its own samples, so any run of pixels gives the
+/// bits of the same pixels in a whole-image render.
+pub(crate) fn adaptive_run(
+    shading: (&impl Surfaces, &Bvh),
+    lighting: &Lighting,
     camera: &Camera,
-    width: u32,
+    pixels: Range<u64>,
     (a, refinement): (AdaptiveSettings, &RefinementOrder),
-    y: u32,
-) -> Row {
-    let first_pixel = u64::from(y) * u64::from(width);
-    let pixels = first_pixel..first_pixel + u64::from(width);
+) -> AdaptiveRun {
     let base = a.base_spp as usize;
-    let lights = shading.0.lights.len() as u64;
+    let lights = lighting.lights.len() as u64;
     let mut rays = RayCounts::default();
     let mut count = |hits: &[Option<ClosestHit>]| {
         for hit in hits {
@@ -172,7 +179,8 @@ fn render_row(
     let all: Vec<u64> = pixels.clone().collect();
     let ranks: Vec<u32> = (0..a.base_spp).collect();
     let first = (all.as_slice(), ranks.as_slice());
-    let (colours1, hits1) = trace_samples(shading, camera, first, a.max_spp, &mut scratch);
+    let (colours1, hits1) =
+        trace_samples(shading, lighting, camera, first, a.max_spp, &mut scratch);
     count(&hits1);
     let decisions: Vec<Decision> = colours1
         .chunks(base)
@@ -186,13 +194,14 @@ fn render_row(
         .map(|(p, _)| p)
         .collect();
     let second = (refine.as_slice(), refinement.ranks.as_slice());
-    let (colours2, hits2) = trace_samples(shading, camera, second, a.max_spp, &mut scratch);
+    let (colours2, hits2) =
+        trace_samples(shading, lighting, camera, second, a.max_spp, &mut scratch);
     count(&hits2);
     let extra = (a.max_spp - a.base_spp) as usize;
     let mut refined = colours2.chunks(extra);
-    let mut row = Row {
-        colours: Vec::with_capacity(width as usize),
-        hits: Vec::with_capacity(width as usize),
+    let mut row = AdaptiveRun {
+        colours: Vec::with_capacity(all.len()),
+        hits: Vec::with_capacity(all.len()),
         rays,
         counts: AdaptiveCounts::default(),
     };

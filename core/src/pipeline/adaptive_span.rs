@@ -1,10 +1,12 @@
 //! Render (fused mode) with the adaptive sampler: the span's first pass (ranks `0..base_spp`
 //! of every pixel) through the stage functions in memory (cast on every split, reduce,
 //! expand, trace on every split, shade), then a second round of the same functions for ranks
-//! `base_spp..max_spp` of the pixels [`crate::adaptive::decide`] refines, only if any. A
-//! span's pixels are all local to its task, and a pixel's decision depends only on its own
-//! samples, so the block is bit-identical to the monolithic adaptive render's pixels
-//! ([`crate::adaptive`]) and to a staged job's ([`super::adaptive_rounds`]).
+//! `base_spp..max_spp` of the pixels [`crate::adaptive::decide`] refines, only if any. With
+//! one split (the whole scene) the span is rendered as the monolithic adaptive renderer
+//! renders its pixels, row by row, without making the stages' records. A span's pixels are
+//! all local to its task, and a pixel's decision depends only on its own samples, so the
+//! block is bit-identical to the monolithic adaptive render's pixels ([`crate::adaptive`]) and
+//! to a staged job's ([`super::adaptive_rounds`]).
 
 use super::PipelineError;
 use super::adaptive_rounds::{
@@ -14,8 +16,8 @@ use super::adaptive_rounds::{
 use super::plan::{JobPlan, Span};
 use super::records::{PixelBlock, SurfaceHit};
 use super::split_object::SplitObject;
-use super::stages::{cast_reduce, expand, merge_occluded, trace_in_memory};
-use crate::adaptive::{AdaptiveCounts, AdaptiveSettings};
+use super::stages::{cast_reduce, expand, merge_occluded, trace_in_memory, with_plan_lighting};
+use crate::adaptive::{AdaptiveCounts, AdaptiveSettings, RefinementOrder, adaptive_run};
 use crate::hits::Hit;
 
 /// The span's pixels with the adaptive sampler `a`, the logical shadow rays (hit samples x
@@ -26,6 +28,9 @@ pub fn render_span_adaptive(
     splits: &[&SplitObject],
     a: AdaptiveSettings,
 ) -> Result<(PixelBlock, u64, AdaptiveCounts), PipelineError> {
+    if let [whole] = splits {
+        return render_span_whole(plan, span, whole, a);
+    }
     let first = pass(plan, splits, &first_round_samples(span, &a), a.max_spp)?;
     let (block, list, counts) = first_round_pixels(span, &a, &first.colours, &first.hits);
     if list.pixels.is_empty() {
@@ -34,6 +39,37 @@ pub fn render_span_adaptive(
     let second = pass(plan, splits, &second_round_samples(&list, &a), a.max_spp)?;
     let block = second_round_pixels(block, &list, &a, &second.colours);
     Ok((block, first.shadow_rays + second.shadow_rays, counts))
+}
+
+/// [`render_span_adaptive`] with one split, the whole scene: the span's pixels row by row as
+/// the monolithic adaptive renderer renders them ([`adaptive_run`]).
+fn render_span_whole(
+    plan: &JobPlan,
+    span: &Span,
+    whole: &SplitObject,
+    a: AdaptiveSettings,
+) -> Result<(PixelBlock, u64, AdaptiveCounts), PipelineError> {
+    let camera = plan.ray_camera()?;
+    let refinement = RefinementOrder::new(a);
+    let mut block = PixelBlock::with_capacity(span.start, (span.end - span.start) as usize);
+    let (mut shadow_rays, mut counts) = (0, AdaptiveCounts::default());
+    let width = u64::from(plan.width);
+    with_plan_lighting(plan, |lighting| {
+        let mut start = span.start;
+        while start < span.end {
+            // The rest of `start`'s row within the span.
+            let end = ((start / width + 1) * width).min(span.end);
+            let shading = (whole, &whole.bvh);
+            let run = adaptive_run(shading, lighting, &camera, start..end, (a, &refinement));
+            block.colours.extend(run.colours);
+            block.triangles.extend(run.hits.iter().map(|h| h.triangle));
+            block.ts.extend(run.hits.iter().map(|h| h.t));
+            shadow_rays += run.rays.shadow;
+            counts += run.counts;
+            start = end;
+        }
+    });
+    Ok((block, shadow_rays, counts))
 }
 
 /// What one round of the stage functions gives, per sample in order.

@@ -311,25 +311,32 @@ fn render_span_whole(
         spp: plan.spp,
         order: &order,
     };
+    let mut block = PixelBlock::with_capacity(span.start, (span.end - span.start) as usize);
+    let mut shadow_rays = 0;
+    with_plan_lighting(plan, |lighting| {
+        for run in band_runs(span.start..span.end, plan.width) {
+            let band = render_run((whole, &whole.bvh), lighting, &view, run, &mut NoTimer);
+            block.colours.extend(band.colours);
+            block.triangles.extend(band.hits.iter().map(|h| h.triangle));
+            block.ts.extend(band.hits.iter().map(|h| h.t));
+            shadow_rays += band.rays.shadow;
+        }
+    });
+    Ok((block, shadow_rays))
+}
+
+/// `f` of the plan's lights, ambient and background, with each light's unoccludability, as
+/// the renderer's batch path takes them.
+pub(super) fn with_plan_lighting<R>(plan: &JobPlan, f: impl FnOnce(&Lighting) -> R) -> R {
     let unoccludable: Vec<bool> = (0..plan.lights.len() as u32)
         .map(|light| plan.is_unoccludable(light))
         .collect();
-    let lighting = Lighting {
+    f(&Lighting {
         lights: &plan.lights,
         unoccludable: &unoccludable,
         ambient: plan.ambient,
         background: plan.background,
-    };
-    let mut block = PixelBlock::with_capacity(span.start, (span.end - span.start) as usize);
-    let mut shadow_rays = 0;
-    for run in band_runs(span.start..span.end, plan.width) {
-        let band = render_run((whole, &whole.bvh), &lighting, &view, run, &mut NoTimer);
-        block.colours.extend(band.colours);
-        block.triangles.extend(band.hits.iter().map(|h| h.triangle));
-        block.ts.extend(band.hits.iter().map(|h| h.t));
-        shadow_rays += band.rays.shadow;
-    }
-    Ok((block, shadow_rays))
+    })
 }
 
 /// TraceMap of every split on its queries (`queries[i]` for `splits[i]`), in memory: each

@@ -1,5 +1,5 @@
 use super::*;
-use crate::render::{ShadingScratch, build_scene_bvh};
+use crate::render::{ShadingScratch, build_scene_bvh, shade_batch};
 use crate::scene::load_scene;
 
 fn teapot() -> Scene {
