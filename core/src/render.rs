@@ -261,15 +261,7 @@ pub(crate) fn lighting<'a>(scene: &'a Scene, unoccludable: &'a [bool]) -> Lighti
     }
 }
 
-/// The radiance of every sample of a batch whose primary rays `rays` have the closest hits
-/// `hits`: the background for a miss, else Lambert shading with the lights its shadow rays
-/// reach (summed in light order) plus ambient. The shadow rays of the whole batch are traced as
-/// packets, light by light ([`Bvh::occluded_grouped`]), each light's in sample order.
-///
-/// `unoccludable[l]` says light `l` can be occluded by no surface
-/// ([`crate::unoccludable::unoccludable_lights`]): its shadow rays are not traced and count as
-/// unblocked, which is what tracing them would give. `scratch` keeps the lists of one batch
-/// for the next, and holds the radiances returned.
+/// [`shade_batch_lit`] of the scene's own mesh and lighting (for tests).
 #[cfg(test)]
 pub(crate) fn shade_batch<'s>(
     scene: &Scene,
@@ -282,15 +274,29 @@ pub(crate) fn shade_batch<'s>(
     shade_batch_lit((&scene.mesh, bvh), &lighting, batch, scratch)
 }
 
-/// [`shade_batch`] of hits found by `bvh` on the triangles `surfaces` describes (the scene's
-/// mesh, or a split object), under `lighting`.
+/// The radiance of every sample of a batch whose primary rays `rays` have the closest hits
+/// `hits` (found by `bvh`, on the triangles `surfaces` describes: the scene's mesh, or a split
+/// object): the background for a miss, else Lambert shading with the lights its shadow rays
+/// reach (summed in light order) plus ambient. The shadow rays of the whole batch are traced as
+/// packets, light by light ([`Bvh::occluded_grouped`]), each light's in sample order.
+///
+/// `lighting.unoccludable[l]` says light `l` can be occluded by no surface
+/// ([`crate::unoccludable::unoccludable_lights`]): its shadow rays are not traced and count as
+/// unblocked, which is what tracing them would give. `scratch` keeps the lists of one batch
+/// for the next, and holds the radiances returned.
 pub(crate) fn shade_batch_lit<'s>(
     (surfaces, bvh): (&impl Surfaces, &Bvh),
     lighting: &Lighting,
-    batch: (&[Ray], &[Option<ClosestHit>]),
+    (rays, hits): (&[Ray], &[Option<ClosestHit>]),
     scratch: &'s mut ShadingScratch,
 ) -> &'s [[f32; 3]] {
-    shade_batch_timed((surfaces, bvh), lighting, batch, scratch, &mut NoTimer)
+    shade_batch_timed(
+        (surfaces, bvh),
+        lighting,
+        (rays, hits),
+        scratch,
+        &mut NoTimer,
+    )
 }
 
 /// Renders the band of up to [`BAND_ROWS`] rows from row `y0` ([`render_run`]).

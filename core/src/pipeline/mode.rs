@@ -132,8 +132,9 @@ impl SpanLoad {
 /// How a task holds its span's samples.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SpanMemory {
-    /// Every sample's records at once: staged tasks, and fused tasks that run the stage
-    /// functions in memory (several splits, or the adaptive sampler).
+    /// Every sample's records at once: staged tasks, fused tasks that run the stage functions
+    /// in memory (several splits), and fused adaptive tasks (of one split they hold a row's
+    /// samples of both passes at once, never more than the span's, so the same bound holds).
     Records,
     /// Its pixels, and one batch of samples at a time: a fused task of one split without the
     /// adaptive sampler, which renders as the monolithic renderer does.
