@@ -27,10 +27,10 @@ pub const MAX_SPLITS: u32 = 4096;
 /// Most spans a job may have.
 pub const MAX_SPANS: u32 = 10_000;
 /// Samples per span when the span count is chosen automatically for a job whose tasks hold
-/// every sample's records (staged, or fused over several splits or with the adaptive sampler).
+/// every sample's records (staged, or fused over several splits).
 const AUTO_SAMPLES_PER_SPAN: u64 = 65_536;
 /// Predicted work per task when the span count is chosen automatically for a fused job whose
-/// tasks render in batches (one split, no adaptive sampler), ms at the prediction model's
+/// tasks render as the monolithic renderer does (one split), ms at the prediction model's
 /// reference rates ([`crate::predict::fused_frame_work_ms`]): 12 times a task's fixed cost in
 /// the emulator, and half of it on Lambda (an invocation and three S3 requests). Measured
 /// against 65,536 samples per span (`docs/perf/block-sizes.md`).
@@ -53,7 +53,7 @@ pub struct PlanRequest {
     /// else the fewest whose tasks fit (see [`choose_shape`]).
     pub splits: Option<u32>,
     /// Pixel spans s; automatic when `None`: spans of about 50 ms of predicted work when a
-    /// fused task of one split renders them in batches, else of about 64k samples; at most 100.
+    /// fused task of one split renders them, else of about 64k samples; at most 100.
     pub spans: Option<u32>,
     /// How the scene is cut into splits.
     #[serde(rename = "split_mode")]
@@ -377,7 +377,7 @@ impl JobPlan {
 /// The shape (mode and split count, see [`choose_shape`]) and span count for `request` on a
 /// scene of `triangles` triangles: the given counts after range checks, else automatic (the
 /// fewest splits that fit the memory budget; spans of about 50 ms of predicted work each when a
-/// fused task of one split renders them in batches, else of about 64k samples; at most 100).
+/// fused task of one split renders them, else of about 64k samples; at most 100).
 pub fn resolve_counts(
     request: &PlanRequest,
     triangles: u64,
@@ -457,16 +457,16 @@ pub fn resolve_counts_with(
     let (shape, s) = match request.spans {
         Some(s) => (shape_for(s)?, s),
         None => {
-            // Spans by their work when a task renders them in batches (fused, one split, no
-            // adaptive sampler); else (or if that shape is refused) by their samples, whose
-            // records a task holds.
+            // Spans by their work when a task renders them as the monolithic renderer does
+            // (fused, one split; with the adaptive sampler, its work if every pixel were
+            // refined); else (or if that shape is refused) by their samples, whose records a
+            // task holds.
             let work = crate::predict::fused_frame_work_ms(pixels, spp, triangles);
             let s = auto(AUTO_FUSED_TASK_MS, work);
-            let batches = |shape: &JobShape| {
-                SpanMemory::of(shape.mode, shape.splits, load(s)) == SpanMemory::Batches
-            };
+            let renders =
+                |shape: &JobShape| shape.mode == ExecutionMode::Fused && shape.splits == 1;
             match shape_for(s) {
-                Ok(shape) if batches(&shape) => (shape, s),
+                Ok(shape) if renders(&shape) => (shape, s),
                 _ => {
                     let samples = load(1).samples() as f64;
                     let s = auto(AUTO_SAMPLES_PER_SPAN as f64, samples);
@@ -600,9 +600,10 @@ mod tests {
         resolve_counts(request, triangles).map(|(shape, s)| (shape.splits, s))
     }
 
-    /// Automatic spans: those a fused task of one split renders in batches carry about 50 ms
-    /// of predicted work each; those whose every sample's records a task holds (staged, or the
-    /// adaptive sampler) about 65,536 samples each; at most 100 either way.
+    /// Automatic spans: those a fused task of one split renders carry about 50 ms of predicted
+    /// work each (with the adaptive sampler, at its most samples a pixel); those whose every
+    /// sample's records a task holds (staged) about 65,536 samples each; at most 100 either
+    /// way.
     #[test]
     fn automatic_spans_are_sized_by_work_fused_and_by_samples_staged() {
         let job = |width, height, spp, execution| PlanRequest {
@@ -635,8 +636,9 @@ mod tests {
             (ExecutionMode::Fused, 100)
         );
         assert_eq!(spans(&job(64, 48, 1, None)), (ExecutionMode::Fused, 1));
-        // The adaptive sampler's fused tasks run the stage functions and hold every sample's
-        // records (its most samples a pixel): spans by samples.
+        // A fused task of one split renders the adaptive sampler's pixels as the monolithic
+        // renderer does: spans by the work of its most samples a pixel (64, as above), not by
+        // samples (57).
         let adaptive = PlanRequest {
             spp: 4,
             adaptive: Some(crate::adaptive::AdaptiveSettings {
@@ -646,7 +648,12 @@ mod tests {
             }),
             ..job(320, 180, 4, None)
         };
-        assert_eq!(spans(&adaptive), (ExecutionMode::Fused, 57));
+        assert_eq!(spans(&adaptive), (ExecutionMode::Fused, fused));
+        let staged_adaptive = PlanRequest {
+            execution: staged,
+            ..adaptive
+        };
+        assert_eq!(spans(&staged_adaptive), (ExecutionMode::Staged, 57));
     }
 
     #[test]
