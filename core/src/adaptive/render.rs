@@ -117,9 +117,10 @@ impl RefinementOrder {
         RefinementOrder { ranks, positions }
     }
 
-    /// A refined pixel's radiances in rank order, from them in trace order.
-    fn in_rank_order(&self, traced: &[[f32; 3]]) -> Vec<[f32; 3]> {
-        self.positions.iter().map(|&p| traced[p]).collect()
+    /// A refined pixel's radiances in rank order into `out`, from them in trace order.
+    fn in_rank_order(&self, traced: &[[f32; 3]], out: &mut Vec<[f32; 3]>) {
+        out.clear();
+        out.extend(self.positions.iter().map(|&p| traced[p]));
     }
 }
 
@@ -199,6 +200,8 @@ pub(crate) fn adaptive_run(
     count(&hits2);
     let extra = (a.max_spp - a.base_spp) as usize;
     let mut refined = colours2.chunks(extra);
+    // A refined pixel's second-pass radiances in rank order (empty for the others).
+    let mut second = Vec::with_capacity(extra);
     let mut row = AdaptiveRun {
         colours: Vec::with_capacity(all.len()),
         hits: Vec::with_capacity(all.len()),
@@ -210,15 +213,13 @@ pub(crate) fn adaptive_run(
         .zip(hits1.chunks(base))
         .zip(&decisions)
     {
-        let second = match decision {
-            Decision::Refine => {
-                let traced = refined
-                    .next()
-                    .expect("the second pass traced every refined pixel");
-                refinement.in_rank_order(traced)
-            }
-            _ => Vec::new(),
-        };
+        second.clear();
+        if decision == Decision::Refine {
+            let traced = refined
+                .next()
+                .expect("the second pass traced every refined pixel");
+            refinement.in_rank_order(traced, &mut second);
+        }
         row.colours.push(pixel_value(first, &second));
         row.hits.push(hits[0].map_or(Hit::MISS, |h| Hit {
             triangle: h.id,

@@ -61,9 +61,7 @@ fn render_span_whole(
             let end = ((start / width + 1) * width).min(span.end);
             let shading = (whole, &whole.bvh);
             let run = adaptive_run(shading, lighting, &camera, start..end, (a, &refinement));
-            block.colours.extend(run.colours);
-            block.triangles.extend(run.hits.iter().map(|h| h.triangle));
-            block.ts.extend(run.hits.iter().map(|h| h.t));
+            block.extend(run.colours, &run.hits);
             shadow_rays += run.rays.shadow;
             counts += run.counts;
             start = end;

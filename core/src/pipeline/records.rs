@@ -2,6 +2,7 @@
 //! are sorted by their key, the first key column is delta-encoded, floats are byte planes.
 
 use super::PipelineError;
+use crate::hits::Hit;
 use crate::shading::SurfacePoint;
 use crate::shuffle::columns::{ColumnError, ColumnReader, ColumnWriter};
 use crate::shuffle::{RecordKind, decode_block, encode_block};
@@ -70,6 +71,13 @@ impl PixelBlock {
             triangles: Vec::with_capacity(n),
             ts: Vec::with_capacity(n),
         }
+    }
+
+    /// Appends pixels: their colours and the hits of their samples 0.
+    pub fn extend(&mut self, colours: impl IntoIterator<Item = [f32; 3]>, hits: &[Hit]) {
+        self.colours.extend(colours);
+        self.triangles.extend(hits.iter().map(|h| h.triangle));
+        self.ts.extend(hits.iter().map(|h| h.t));
     }
 }
 

@@ -316,9 +316,7 @@ fn render_span_whole(
     with_plan_lighting(plan, |lighting| {
         for run in band_runs(span.start..span.end, plan.width) {
             let band = render_run((whole, &whole.bvh), lighting, &view, run, &mut NoTimer);
-            block.colours.extend(band.colours);
-            block.triangles.extend(band.hits.iter().map(|h| h.triangle));
-            block.ts.extend(band.hits.iter().map(|h| h.t));
+            block.extend(band.colours, &band.hits);
             shadow_rays += band.rays.shadow;
         }
     });

@@ -51,8 +51,6 @@ pub(crate) struct ShadingScratch {
     tests: Vec<Lit>,
     /// Per segment, whether it is blocked.
     blocked: Vec<bool>,
-    /// Per sample, its unblocked lights' sum.
-    sums: Vec<[f32; 3]>,
     /// Per sample, its radiance.
     colours: Vec<[f32; 3]>,
     groups: SegmentGroups,
@@ -83,7 +81,6 @@ pub(super) fn shade_batch_timed<'s>(
         segment_lights,
         tests,
         blocked,
-        sums,
         colours,
         groups,
         shader,
@@ -183,22 +180,23 @@ pub(super) fn shade_batch_timed<'s>(
     let by_light = (segment_lights.as_slice(), lights.len());
     bvh.occluded_grouped(segments, by_light, blocked, groups);
     timer.lap(Phase::ShadowRays);
-    // Each test's radiance added to its sample's sum unless its segment is blocked: tests come
-    // in order of sample, then light, so each sum adds its lights in light order from +0, as
-    // `combine` does. (One pass over the tests: gathering each sample's tests with an
-    // iterator per sample was slower, docs/perf/time-per-sample.md.)
-    sums.clear();
-    sums.resize(hits.len(), [0.0; 3]);
+    // A hit sample's colour is its lights' sum until the ambient term is added: from +0, each
+    // test's radiance added unless its segment is blocked, in one pass over the tests. Tests
+    // come in order of sample, then light, so each sum adds its lights in light order, as
+    // `combine` does.
+    colours.clear();
+    colours.resize(hits.len(), lighting.background);
+    for &sample in samples.iter() {
+        colours[sample] = [0.0; 3];
+    }
     let mut blocked = blocked.iter();
     for test in tests.iter() {
         if !(test.traced && *blocked.next().expect("an answer per traced test")) {
-            add_light(&mut sums[test.sample], test.unoccluded);
+            add_light(&mut colours[test.sample], test.unoccluded);
         }
     }
-    colours.clear();
-    colours.resize(hits.len(), lighting.background);
     for (&sample, &kd) in samples.iter().zip(reflectances.iter()) {
-        colours[sample] = add_ambient(sums[sample], kd, lighting.ambient);
+        colours[sample] = add_ambient(colours[sample], kd, lighting.ambient);
     }
     timer.lap(Phase::Shading);
     colours
