@@ -4,9 +4,9 @@
 //! - [`KernelWidth::Four`]: 4-wide tests everywhere (SSE4.1 on x86-64, NEON on aarch64).
 //! - [`KernelWidth::Eight`]: x86-64 hosts with AVX2. Ray packets then test each triangle of a
 //!   leaf against eight of their rays at once (`leaf_lanes.rs`).
-//! - [`KernelWidth::Sixteen`]: x86-64 hosts with AVX-512F (and AVX2), when asked for
-//!   (`HORT_SIMD_WIDTH=16`): the same against all sixteen rays of a packet at once where
-//!   enough of them are active to pay for it, else eight. Not the default: see [`preferred`].
+//! - [`KernelWidth::Sixteen`]: x86-64 hosts with AVX-512F (and AVX2): the same against all
+//!   sixteen rays of a packet at once where enough of them are active to pay for it, else
+//!   eight. The default on hosts of the Ice Lake generation on (see [`preferred`]).
 //!
 //! Every width gives the same bits (`lanes.rs`), so the choice changes speed only. The
 //! environment variable `HORT_SIMD_WIDTH=4` (or `8`, `16`) overrides the detection for a
@@ -83,13 +83,17 @@ pub fn force_kernel_width(width: Option<KernelWidth>) {
 
 static DETECTED: OnceLock<KernelWidth> = OnceLock::new();
 
-/// The width a process uses unless told otherwise: `Eight` where the host has AVX2, else
-/// `Four`. `Sixteen` is not chosen by itself: its ray phases are faster than `Eight`'s on
-/// coherent packets, but whole renders were not (the AVX-512 instructions slow the rest of
-/// the sample), and on a 1M-triangle mesh its packets were slower (core/src/bvh/README.md,
-/// "16-wide leaves").
+/// The width a process uses unless told otherwise: `Sixteen` where the host has AVX-512F and
+/// its 512-bit instructions cost no clock speed (see [`has_cheap_avx512`]), else `Eight` where
+/// it has AVX2, else `Four`. Measured on an AVX-512 Xeon (Sapphire Rapids), one pinned core,
+/// the same image bits: whole renders at `Sixteen` took 0.90 to 0.99 of `Eight`'s time (bundled
+/// scenes at 4 to 256 spp, a 300k-triangle mesh at 4 spp), and the same within the noise on a
+/// 1M-triangle mesh at 1 and 16 spp (`docs/perf/time-per-sample.md`, "Sixteen lanes by
+/// default").
 fn preferred(available: &[KernelWidth]) -> KernelWidth {
-    if available.contains(&KernelWidth::Eight) {
+    if available.contains(&KernelWidth::Sixteen) && has_cheap_avx512() {
+        KernelWidth::Sixteen
+    } else if available.contains(&KernelWidth::Eight) {
         KernelWidth::Eight
     } else {
         KernelWidth::Four
@@ -130,6 +134,23 @@ fn has_avx512f() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
         std::arch::is_x86_feature_detected!("avx512f")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// Whether the host's AVX-512 is of the Ice Lake generation or later (Intel from Ice Lake,
+/// AMD from Zen 4), told by AVX-512 VPOPCNTDQ, which those have and the Skylake-SP and Cascade
+/// Lake generations lack. Those first AVX-512 Xeons lower a core's clock for a while after
+/// 512-bit floating-point instructions (their "licence" levels), which slows the scalar rest of
+/// a sample too; Ice Lake made that penalty small. Only hosts with the later generation's
+/// AVX-512 get `Sixteen` by default; `HORT_SIMD_WIDTH=16` still asks for it anywhere.
+fn has_cheap_avx512() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx512vpopcntdq")
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
