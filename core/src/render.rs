@@ -4,7 +4,7 @@
 //!
 //! Bands of rows are traced tile by tile, each pixel's samples in trace order
 //! ([`TraceOrder`]), in batches of camera samples (primary rays, then all their shadow rays
-//! light by light, as packets: [`Bvh::closest_hits`], [`Bvh::occluded_grouped`]); the colours
+//! light by light, as packets: [`Bvh::closest_hits`], [`Bvh::occluded_columns`]); the colours
 //! are those of tracing each sample alone, and the result does not depend on the thread count.
 
 mod band;
@@ -278,7 +278,7 @@ pub(crate) fn shade_batch<'s>(
 /// `hits` (found by `bvh`, on the triangles `surfaces` describes: the scene's mesh, or a split
 /// object): the background for a miss, else Lambert shading with the lights its shadow rays
 /// reach (summed in light order) plus ambient. The shadow rays of the whole batch are traced as
-/// packets, light by light ([`Bvh::occluded_grouped`]), each light's in sample order.
+/// packets, light by light ([`Bvh::occluded_columns`]), each light's in sample order.
 ///
 /// `lighting.unoccludable[l]` says light `l` can be occluded by no surface
 /// ([`crate::unoccludable::unoccludable_lights`]): its shadow rays are not traced and count as

@@ -30,7 +30,7 @@ mod flat4;
 mod frame;
 mod lanes;
 
-pub use flat4::{FlatHit, FlatShader};
+pub use flat4::{FlatHit, TestLanes, flat_test_lanes, smooth_test_lanes};
 pub use frame::{LastFrame, TriangleFrame};
 
 /// Fraction of a point light's distance not tested for occluders, at the light's end

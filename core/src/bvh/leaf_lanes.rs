@@ -151,7 +151,7 @@ pub(super) trait LeafLanes: RayGroupLanes {
         leaf: (usize, usize),
         lanes: &RayLanes<Self>,
         active: u32,
-        segments: &[(Ray, f32)],
+        rays: &PacketRays,
         t_max: (&[f32; 16], usize),
     ) -> u32;
 }
@@ -182,10 +182,10 @@ macro_rules! leaf_lanes {
             leaf: (usize, usize),
             lanes: &RayLanes<$lanes>,
             active: u32,
-            segments: &[(Ray, f32)],
+            rays: &PacketRays,
             t_max: (&[f32; 16], usize),
         ) -> u32 {
-            occluded_in_leaf(bvh, leaf, lanes, active, segments, t_max)
+            occluded_in_leaf(bvh, leaf, lanes, active, rays, t_max)
         }
 
         // (Four lanes' entry points are safe to call, so their `unsafe` blocks are unused.)
@@ -215,11 +215,11 @@ macro_rules! leaf_lanes {
                 leaf: (usize, usize),
                 lanes: &RayLanes<Self>,
                 active: u32,
-                segments: &[(Ray, f32)],
+                rays: &PacketRays,
                 t_max: (&[f32; 16], usize),
             ) -> u32 {
                 // SAFETY: the caller's contract (the host has the instruction set).
-                unsafe { $occluded(bvh, leaf, lanes, active, segments, t_max) }
+                unsafe { $occluded(bvh, leaf, lanes, active, rays, t_max) }
             }
         }
     };
@@ -268,6 +268,11 @@ impl<'r, L> PacketLanes<'r, L> {
             rays,
             groups: [None, None, None, None],
         }
+    }
+
+    /// The packet's rays.
+    pub fn rays(&self) -> &'r PacketRays {
+        self.rays
     }
 }
 
@@ -438,8 +443,8 @@ impl<L: RayGroupLanes> BestLanes<L> {
     }
 }
 
-/// Of the shadow segments of `active` (bit i = lane i of `lanes`; `segments[i]` is lane i's
-/// ray and `t_max`, which `packet_t_max[from + i]` repeats), those some triangle of the leaf
+/// Of the shadow segments of `active` (bit i = lane i of `lanes`, the packet's segment
+/// `from + i`: ray `rays.ray(from + i)`, ending at `packet_t_max[from + i]`), those some triangle of the leaf
 /// (`count` `Triangle4`s from `first`) blocks (a hit with `0 < t < t_max`), as
 /// [`super::Bvh::occluded`]'s leaf test decides. Inlined into the width's entry point.
 #[inline(always)]
@@ -448,7 +453,7 @@ fn occluded_in_leaf<L: RayGroupLanes>(
     (first, count): (usize, usize),
     lanes: &RayLanes<L>,
     active: u32,
-    segments: &[(Ray, f32)],
+    rays: &PacketRays,
     (packet_t_max, from): (&[f32; 16], usize),
 ) -> u32 {
     count_leaf_test(L::LANES);
@@ -463,9 +468,9 @@ fn occluded_in_leaf<L: RayGroupLanes>(
             let (hit, unsure) = any_hit_verdict(&e, open, t_max);
             open &= !hit;
             for i in bits(unsure) {
-                let (ray, t_max) = &segments[i];
+                let (ray, t_max) = (rays.ray(from + i), packet_t_max[from + i]);
                 let [p0, p1, p2] = p.corners(lane);
-                if intersect(&RayPrep::new(ray), p0, p1, p2, *t_max).is_some() {
+                if intersect(&RayPrep::new(&ray), p0, p1, p2, t_max).is_some() {
                     open &= !(1 << i);
                 }
             }

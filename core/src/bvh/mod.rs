@@ -38,6 +38,7 @@ mod packet_rays;
 mod parts;
 mod ray_packet;
 mod refit;
+mod segment_columns;
 mod segment_groups;
 mod segment_packet;
 mod simd4;
@@ -50,6 +51,7 @@ pub use hit_corners::CornerLanes;
 pub use parts::{BvhParts, BvhPartsError, NODE_BYTES, PartsLoader};
 pub use ray_packet::RAY_PACKET;
 pub(crate) use ray_packet::bits;
+pub use segment_columns::SegmentColumns;
 pub use segment_groups::SegmentGroups;
 pub use traverse::{ClosestHit, segment_may_hit};
 

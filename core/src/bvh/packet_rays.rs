@@ -67,6 +67,39 @@ impl PacketRays {
         }
     }
 
+    /// Holds the 1..=[`RAY_PACKET`] rays whose coordinate `a` is `origin[a][i]` and `dir[a][i]`
+    /// (all six slices of one length; every place written), and says whether every coordinate
+    /// is finite: [`Self::fill`] for rays kept column by column, with one copy per coordinate.
+    #[inline(always)]
+    pub fn fill_columns(&mut self, origin: [&[f32]; 3], dir: [&[f32]; 3]) -> bool {
+        let len = origin[0].len();
+        let put =
+            |column: &mut [f32; RAY_PACKET], from: &[f32]| match <&[f32; RAY_PACKET]>::try_from(
+                from,
+            ) {
+                // A full packet (the common case): a copy of fixed size.
+                Ok(full) => *column = *full,
+                Err(_) => {
+                    column[..len].copy_from_slice(from);
+                    column[len..].fill(from[len - 1]);
+                }
+            };
+        for a in 0..3 {
+            put(&mut self.origin[a], origin[a]);
+            put(&mut self.dir[a], dir[a]);
+        }
+        // As in `fill`: 0 · x is a zero exactly when x is finite, and places past the end
+        // repeat the last ray.
+        let zero = f32x4::ZERO;
+        let mut zeros = zero;
+        for g in 0..GROUPS {
+            for a in 0..3 {
+                zeros += self.origin4(a, g) * zero + self.dir4(a, g) * zero;
+            }
+        }
+        zeros.simd_eq(zero).all()
+    }
+
     /// Writes four rays at places `at..at + 4`: each ray's `[ox, oy, oz, dx]` and
     /// `[oz, dx, dy, dz]` as vectors, transposed. Returns the sum of 0 · x over their
     /// coordinates x (zeros where all are finite, else NaN in some lane).
@@ -90,6 +123,16 @@ impl PacketRays {
         put(&mut self.dir[1], dy);
         put(&mut self.dir[2], dz);
         zeros
+    }
+
+    /// Ray `i`, bit for bit as it was put in.
+    #[inline(always)]
+    pub fn ray(&self, i: usize) -> Ray {
+        let at = |c: &[[f32; RAY_PACKET]; 3]| glam::Vec3::new(c[0][i], c[1][i], c[2][i]);
+        Ray {
+            origin: at(&self.origin),
+            dir: at(&self.dir),
+        }
     }
 
     /// Group `g`'s origins along axis `a` (rays `4g..4g + 4`).

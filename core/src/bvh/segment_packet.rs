@@ -21,9 +21,11 @@ use super::ray_packet::{
     RAY_PACKET, RAY_PACKET_STACKS, RayPacketEntry, RayPacketTester, bits, bound_range,
     culling_bounds, descend,
 };
+use super::segment_columns::SegmentColumns;
 use super::simd4::BoxTester;
 use super::traverse::{Entry, ROOT, STACK, STACKS, ShadowSearch, segment_may_hit};
 use crate::triangle::Ray;
+use std::ops::Range;
 use wide::f32x4;
 
 impl Bvh {
@@ -33,6 +35,34 @@ impl Bvh {
     /// Panics if the lengths differ.
     pub fn occluded_many(&self, rays: &[(Ray, f32)], out: &mut [bool]) {
         assert_eq!(rays.len(), out.len(), "one output per ray");
+        self.each_segment_packet(out, |range, packet_rays, t_max| {
+            let segments = &rays[range];
+            *t_max = [0.0; RAY_PACKET];
+            for (t, (_, segment_t_max)) in t_max.iter_mut().zip(segments) {
+                *t = *segment_t_max;
+            }
+            packet_rays.fill(segments, |(ray, _)| ray)
+        });
+    }
+
+    /// [`Bvh::occluded_many`] of segments kept column by column (`out[i]` for segment `i`):
+    /// the same answers, the same packets. Panics if the lengths differ.
+    pub fn occluded_columns(&self, segments: &SegmentColumns, out: &mut [bool]) {
+        assert_eq!(segments.len(), out.len(), "one output per segment");
+        self.each_segment_packet(out, |range, packet_rays, t_max| {
+            segments.fill(range, packet_rays, t_max)
+        });
+    }
+
+    /// Traces the segments of `out` (one place each) in packets of [`RAY_PACKET`] consecutive
+    /// ones: `fill(range, rays, t_max)` puts segments `range` into a packet's rays and their
+    /// `t_max` (0 past the last) and says whether every origin and direction is finite.
+    #[inline(always)]
+    fn each_segment_packet(
+        &self,
+        out: &mut [bool],
+        fill: impl FnMut(Range<usize>, &mut PacketRays, &mut [f32; RAY_PACKET]) -> bool,
+    ) {
         if self.wide.is_empty() {
             out.fill(false);
             return;
@@ -42,62 +72,63 @@ impl Bvh {
         // was faster while width 4 tested every ray on its own at the leaves).
         RAY_PACKET_STACKS.with_borrow_mut(|stack| {
             STACKS.with_borrow_mut(|ray_stack| match kernel_width() {
-                KernelWidth::Sixteen => self.segment_packets::<16>(rays, out, stack, ray_stack),
-                KernelWidth::Eight => self.segment_packets::<8>(rays, out, stack, ray_stack),
-                KernelWidth::Four => self.segment_packets::<4>(rays, out, stack, ray_stack),
+                KernelWidth::Sixteen => self.segment_packets::<16>(out, fill, stack, ray_stack),
+                KernelWidth::Eight => self.segment_packets::<8>(out, fill, stack, ray_stack),
+                KernelWidth::Four => self.segment_packets::<4>(out, fill, stack, ray_stack),
             })
         });
     }
 
-    /// [`Bvh::occluded_many`] over a non-empty BVH, packet by packet, with leaves tested
+    /// [`Bvh::each_segment_packet`] over a non-empty BVH, packet by packet, with leaves tested
     /// `WIDTH` rays at a time where that pays (4 anywhere; 8 or 16 only at that kernel width),
     /// else ray by ray; see `closest_packets`.
     #[inline(always)]
     fn segment_packets<const WIDTH: usize>(
         &self,
-        rays: &[(Ray, f32)],
         out: &mut [bool],
+        mut fill: impl FnMut(Range<usize>, &mut PacketRays, &mut [f32; RAY_PACKET]) -> bool,
         stack: &mut [RayPacketEntry; STACK],
         ray_stack: &mut [Entry; STACK],
     ) {
         let mut packet_rays = PacketRays::EMPTY;
-        for (rays, out) in rays.chunks(RAY_PACKET).zip(out.chunks_mut(RAY_PACKET)) {
-            self.trace_segment_packet::<WIDTH>(rays, &mut packet_rays, out, stack, ray_stack);
+        let mut t_max = [0.0f32; RAY_PACKET];
+        for (k, out) in out.chunks_mut(RAY_PACKET).enumerate() {
+            let from = k * RAY_PACKET;
+            let finite = fill(from..from + out.len(), &mut packet_rays, &mut t_max);
+            let packet = (&packet_rays, &t_max, finite);
+            self.trace_segment_packet::<WIDTH>(packet, out, stack, ray_stack);
         }
     }
 
-    /// [`Bvh::occluded_many`] of one packet of 1..=[`RAY_PACKET`] segments.
+    /// [`Bvh::occluded_many`] of one packet of 1..=[`RAY_PACKET`] segments (`out.len()`): their
+    /// rays, their `t_max` (0 past the last) and whether every origin and direction is finite.
     #[inline(always)]
     fn trace_segment_packet<const WIDTH: usize>(
         &self,
-        segments: &[(Ray, f32)],
-        packet_rays: &mut PacketRays,
+        (packet_rays, t_max, finite): (&PacketRays, &[f32; RAY_PACKET], bool),
         out: &mut [bool],
         stack: &mut [RayPacketEntry; STACK],
         ray_stack: &mut [Entry; STACK],
     ) {
         let root = self.bounds();
+        let len = out.len();
         out.fill(false);
-        let finite = packet_rays.fill(segments, |(ray, _)| ray);
-        if !finite || segments.iter().any(|(_, t_max)| t_max.is_nan()) {
+        if !finite || t_max[..len].iter().any(|t| t.is_nan()) {
             // Ray by ray, behind `occluded`'s root test.
-            for (i, (ray, t_max)) in segments.iter().enumerate() {
-                if segment_may_hit(&root, ray, *t_max) {
-                    out[i] = self.occluded_with(ray, *t_max, ray_stack);
+            for (i, out) in out.iter_mut().enumerate() {
+                let (ray, t_max) = (packet_rays.ray(i), t_max[i]);
+                if segment_may_hit(&root, &ray, t_max) {
+                    *out = self.occluded_with(&ray, t_max, ray_stack);
                 }
             }
             return;
         }
         let boxes = RayPacketTester::new(packet_rays);
-        // Each segment's t_max, in lanes' layout (0 past the packet's end: never active).
-        let mut t_max = [0.0f32; RAY_PACKET];
-        for (t, (_, segment_t_max)) in t_max.iter_mut().zip(segments) {
-            *t = *segment_t_max;
-        }
-        let bound = culling_bounds(&t_max);
+        // Each segment's t_max is in lanes' layout (0 past the packet's end: never active).
+        let bound = culling_bounds(t_max);
         // Rays still to trace: `occluded`'s root test (`segment_may_hit`) in lanes, with the
         // tester's inverse directions (the same bits) where that test divides again per ray.
-        let all_rays = (1u32 << segments.len()) - 1;
+        let all_rays = (1u32 << len) - 1;
         let (lo, hi) = (root.lo.to_array(), root.hi.to_array());
         let (mut active, _) = boxes.rays_in_box(lo, hi, all_rays, &bound);
         if active == 0 {
@@ -116,9 +147,9 @@ impl Bvh {
         loop {
             if active.count_ones() <= 1 {
                 for i in bits(active) {
-                    let (ray, t_max) = &segments[i];
-                    let s = searches[i].get_or_insert_with(|| ShadowSearch::new(ray, *t_max));
-                    let single = BoxTester::new(ray);
+                    let s = searches[i]
+                        .get_or_insert_with(|| ShadowSearch::new(&packet_rays.ray(i), t_max[i]));
+                    let single = BoxTester::new(&packet_rays.ray(i));
                     let start = (child, triangle4_count);
                     if self.occluded_from(start, &single, &s.prep, &s.tris, s.t_max, ray_stack) {
                         blocked |= 1 << i;
@@ -138,36 +169,24 @@ impl Bvh {
                     8 | 16 => {
                         // At width 16, sixteen lanes where enough rays are active to pay for
                         // them ([`PacketLanes::by_groups`]); then eight where that pays.
-                        let (segments, blocked) = (segments, &mut blocked);
+                        let blocked = &mut blocked;
                         let rest = if WIDTH == 16 {
                             let lanes = &mut lanes16;
-                            occluded_in_lanes::<F32x16>(
-                                self, lanes, leaf, active, segments, &t_max, blocked,
-                            )
+                            occluded_in_lanes::<F32x16>(self, lanes, leaf, active, t_max, blocked)
                         } else {
                             active
                         };
                         let lanes = &mut lanes8;
-                        occluded_in_lanes::<F32x8>(
-                            self, lanes, leaf, rest, segments, &t_max, blocked,
-                        )
+                        occluded_in_lanes::<F32x8>(self, lanes, leaf, rest, t_max, blocked)
                     }
                     _ => {
                         let lanes = &mut lanes4;
-                        occluded_in_lanes::<f32x4>(
-                            self,
-                            lanes,
-                            leaf,
-                            active,
-                            segments,
-                            &t_max,
-                            &mut blocked,
-                        )
+                        occluded_in_lanes::<f32x4>(self, lanes, leaf, active, t_max, &mut blocked)
                     }
                 };
                 for i in bits(active) {
-                    let (ray, t_max) = &segments[i];
-                    let s = searches[i].get_or_insert_with(|| ShadowSearch::new(ray, *t_max));
+                    let s = searches[i]
+                        .get_or_insert_with(|| ShadowSearch::new(&packet_rays.ray(i), t_max[i]));
                     if self.occluded_in_leaf(leaf.0, leaf.1, &s.prep, &s.tris, s.t_max) {
                         blocked |= 1 << i;
                     }
@@ -204,20 +223,17 @@ fn occluded_in_lanes<L: LeafLanes>(
     packet_lanes: &mut PacketLanes<'_, L>,
     leaf: (usize, usize),
     active: u32,
-    segments: &[(Ray, f32)],
     t_max: &[f32; RAY_PACKET],
     blocked: &mut u32,
 ) -> u32 {
-    let len = segments.len();
+    let rays = packet_lanes.rays();
     packet_lanes.by_groups(bvh, leaf, active, |from, group, lanes| {
-        let group_segments = &segments[from..len.min(from + L::LANES)];
         // SAFETY: four lanes need nothing beyond every host's instruction set; eight and
         // sixteen are reached only from `segment_packets::<8>` and `::<16>`, which run only at
         // their kernel width, so on hosts with AVX2, and with AVX-512F too at width 16
         // (`dispatch.rs` offers `Sixteen` only where both are).
         #[allow(unsafe_code)]
-        let hit =
-            unsafe { L::occluded_in_leaf(bvh, leaf, lanes, group, group_segments, (t_max, from)) };
+        let hit = unsafe { L::occluded_in_leaf(bvh, leaf, lanes, group, rays, (t_max, from)) };
         *blocked |= hit << from;
     })
 }

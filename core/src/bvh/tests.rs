@@ -129,20 +129,25 @@ fn packets_give_single_ray_hits(
 }
 
 /// Segment packets give every segment exactly the single-ray answer, for packets cut at every
-/// offset, at every kernel width; returns how many segments are blocked and the fewest leaf
-/// tests in lanes any width ran ([`at_every_kernel_width`]).
+/// offset, at every kernel width, whether the segments come as pairs or as columns; returns
+/// how many segments are blocked and the fewest leaf tests in lanes any width ran
+/// ([`at_every_kernel_width`]).
 fn check_segment_packets_against_single_rays(bvh: &Bvh, segments: &[(Ray, f32)]) -> (usize, usize) {
     let single: Vec<bool> = segments.iter().map(|(r, t)| bvh.occluded(r, *t)).collect();
     let in_lanes = at_every_kernel_width(|width| {
         for skip in [0, 1, 5, 15] {
             let segments = &segments[skip.min(segments.len())..];
+            let expected = &single[skip.min(single.len())..];
             let mut out = vec![false; segments.len()];
             bvh.occluded_many(segments, &mut out);
-            assert_eq!(
-                out,
-                single[skip.min(single.len())..],
-                "skip {skip} ({width:?})"
-            );
+            assert_eq!(out, expected, "skip {skip} ({width:?})");
+            let mut columns = SegmentColumns::default();
+            for (ray, t_max) in segments {
+                columns.push(ray, *t_max);
+            }
+            let mut out = vec![!expected.first().copied().unwrap_or(false); segments.len()];
+            bvh.occluded_columns(&columns, &mut out);
+            assert_eq!(out, expected, "columns, skip {skip} ({width:?})");
         }
     });
     (single.iter().filter(|&&b| b).count(), in_lanes)
@@ -234,6 +239,42 @@ fn closest_hit_equals_brute_force_on_random_triangle_soup() {
         .collect();
     let rays = random_rays(&mut rng, 3000, Vec3::ZERO, 10.0);
     check_against_brute_force(&tris, &rays);
+}
+
+/// Segments with an infinite or NaN coordinate, or a NaN end, among finite ones (their packets
+/// go ray by ray) get the single-ray answers, as pairs and as columns, in every packet cut.
+#[test]
+fn segments_that_are_not_finite_get_single_ray_answers() {
+    let mut rng = Rng(19);
+    let tris: Vec<[Vec3; 3]> = (0..500)
+        .map(|_| {
+            let c = rng.vec(-5.0, 5.0);
+            [c, c + rng.vec(-1.0, 1.0), c + rng.vec(-1.0, 1.0)]
+        })
+        .collect();
+    let bvh = Bvh::build(tris, (0..500).collect());
+    let rays = random_rays(&mut rng, 400, Vec3::ZERO, 5.0);
+    let bad = [f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
+    let segments: Vec<(Ray, f32)> = rays
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let mut r = *r;
+            let mut t_max = 1e3;
+            match i % 37 {
+                3 => r.origin[i % 3] = bad[i % 3],
+                11 => r.dir[i % 3] = bad[(i + 1) % 3],
+                29 => t_max = f32::NAN,
+                _ => {}
+            }
+            (r, t_max)
+        })
+        .collect();
+    let (blocked, _) = check_segment_packets_against_single_rays(&bvh, &segments);
+    assert!(
+        blocked > 20 && blocked < segments.len() - 20,
+        "both answers occur ({blocked})"
+    );
 }
 
 /// Packets whose directions have a zero component (an infinite inverse direction on that

@@ -2,11 +2,12 @@
 //! by light, and each sample's radiance.
 
 use super::surfaces::Surfaces;
-use crate::bvh::{Bvh, ClosestHit, SegmentGroups};
+use crate::bvh::{Bvh, ClosestHit, SegmentColumns, bits};
 use crate::phase_timer::{Phase, PhaseTimer};
 use crate::scene::Light;
 use crate::shading::{
-    FlatHit, FlatShader, LastFrame, ShadowTest, ShadowTester, SurfacePoint, add_ambient, add_light,
+    FlatHit, LastFrame, ShadowTest, ShadowTester, SurfacePoint, TestLanes, add_ambient, add_light,
+    flat_test_lanes, smooth_test_lanes,
 };
 use crate::triangle::Ray;
 
@@ -28,9 +29,11 @@ pub struct Lighting<'a> {
 /// One light's shadow test at a sample, as the sum over lights needs it.
 struct Lit {
     /// The sample.
-    sample: usize,
-    /// Whether its segment was traced (the light is occludable). The traced tests' answers
-    /// are the segments' answers in the same order.
+    sample: u32,
+    /// The light.
+    light: u32,
+    /// Whether its segment was traced (the light is occludable). Each light's traced tests'
+    /// answers are its segments' answers in the same order.
     traced: bool,
     /// Its radiance when unblocked.
     unoccluded: [f32; 3],
@@ -44,26 +47,67 @@ pub(crate) struct ShadingScratch {
     samples: Vec<usize>,
     /// Per hit sample, its reflectance.
     reflectances: Vec<[f32; 3]>,
-    /// The shadow segments to trace, and each one's light.
-    segments: Vec<(Ray, f32)>,
-    segment_lights: Vec<u32>,
-    /// Per lit (sample, light), in order of sample, then light.
+    /// Per light, the shadow segments to trace, in sample order, and whether each is blocked.
+    segments: Vec<SegmentColumns>,
+    blocked: Vec<Vec<bool>>,
+    /// Per light, how many of its answers the sum has read.
+    read: Vec<usize>,
+    /// Per lit (sample, light), each sample's lights in light order.
     tests: Vec<Lit>,
-    /// Per segment, whether it is blocked.
-    blocked: Vec<bool>,
     /// Per sample, its radiance.
     colours: Vec<[f32; 3]>,
-    groups: SegmentGroups,
-    shader: FlatShader,
     tester: ShadowTester,
     points: Vec<SurfacePoint>,
+}
+
+/// Where a batch's shadow tests go: each traced one's segment to its light's columns, and
+/// every one to the list the sum over lights reads.
+struct TestSink<'a> {
+    unoccludable: &'a [bool],
+    segments: &'a mut [SegmentColumns],
+    tests: &'a mut Vec<Lit>,
+}
+
+impl TestSink<'_> {
+    /// Light `light`'s tests at the four samples `four` (lane k: sample `four[k]`).
+    #[inline(always)]
+    fn lanes(&mut self, four: &[usize], light: usize, lanes: &TestLanes) {
+        let traced = !self.unoccludable[light];
+        if traced {
+            let columns = &mut self.segments[light];
+            columns.push_lanes(lanes.lit, &lanes.origin, &lanes.dir, lanes.t_max);
+        }
+        for k in bits(lanes.lit) {
+            self.tests.push(Lit {
+                sample: four[k] as u32,
+                light: light as u32,
+                traced,
+                unoccluded: lanes.unoccluded(k),
+            });
+        }
+    }
+
+    /// Light `light`'s test at `sample`.
+    #[inline(always)]
+    fn one(&mut self, sample: usize, light: usize, test: ShadowTest) {
+        let traced = !self.unoccludable[light];
+        if traced {
+            self.segments[light].push(&test.ray, test.t_max);
+        }
+        self.tests.push(Lit {
+            sample: sample as u32,
+            light: light as u32,
+            traced,
+            unoccluded: test.unoccluded,
+        });
+    }
 }
 
 /// The radiance of every sample of a batch whose primary rays `rays` have the closest hits
 /// `hits` (found by `bvh`, whose triangles `surfaces` describes): the background for a miss,
 /// else Lambert shading with the lights its shadow rays reach (summed in light order) plus
 /// ambient. The shadow rays of the whole batch are traced as packets, light by light
-/// ([`Bvh::occluded_grouped`]), each light's in sample order. The shading and shadow-ray
+/// ([`Bvh::occluded_columns`]), each light's in sample order. The shading and shadow-ray
 /// phases are reported to `timer`.
 #[inline(always)]
 pub(super) fn shade_batch_timed<'s>(
@@ -78,37 +122,28 @@ pub(super) fn shade_batch_timed<'s>(
         samples,
         reflectances,
         segments,
-        segment_lights,
-        tests,
         blocked,
+        read,
+        tests,
         colours,
-        groups,
-        shader,
         tester,
         points,
     } = scratch;
-    // Per hit, in sample order, its lights' tests in light order (the order `combine` sums
-    // them in), and its reflectance. Four hits are shaded at once in lanes: on flat,
-    // untextured triangles by the flat lanes, else with their vertex normals (zeros for a flat
-    // triangle) and their reflectances at the hits; a last group of fewer than four goes
-    // through its surface points. The same tests every way.
+    // Per hit, in sample order, its lights' tests, and its reflectance. Four hits are shaded
+    // at once in lanes, their tests handed over light by light: on flat, untextured triangles
+    // by the flat lanes, else with their vertex normals (zeros for a flat triangle) and their
+    // reflectances at the hits; a last group of fewer than four goes through its surface
+    // points. The same tests every way, and each sample's in light order.
     samples.clear();
     samples.extend((0..hits.len()).filter(|&s| hits[s].is_some()));
-    segments.clear();
-    segment_lights.clear();
+    segments.resize_with(lights.len(), SegmentColumns::default);
+    segments.iter_mut().for_each(SegmentColumns::clear);
     tests.clear();
     reflectances.clear();
-    let mut visit = |sample: usize, light: usize, test: ShadowTest| {
-        let free = lighting.unoccludable[light];
-        if !free {
-            segments.push((test.ray, test.t_max));
-            segment_lights.push(light as u32);
-        }
-        tests.push(Lit {
-            sample,
-            traced: !free,
-            unoccluded: test.unoccluded,
-        });
+    let mut sink = TestSink {
+        unoccludable: lighting.unoccludable,
+        segments,
+        tests,
     };
     let mut last = LastFrame::default();
     let hit = |s: usize| hits[s].as_ref().expect("samples with hits");
@@ -134,7 +169,7 @@ pub(super) fn shade_batch_timed<'s>(
                 reflectances.push(kd1);
                 reflectances.push(kd2);
                 reflectances.push(kd3);
-                shader.shadow_tests4(&flat_hits, lights, |k, l, test| visit(four[k], l, test));
+                flat_test_lanes(&flat_hits, lights, |l, lanes| sink.lanes(four, l, lanes));
             }
             (&[s0, s1, s2, s3], _) => {
                 // Vertex normals or textures: the same tests in lanes, with each hit's
@@ -158,8 +193,8 @@ pub(super) fn shade_batch_timed<'s>(
                     reflectances.push(*kd);
                 }
                 let normals = [shading[0].0, shading[1].0, shading[2].0, shading[3].0];
-                shader.smooth_tests4(&lane_hits, &normals, lights, |k, l, test| {
-                    visit(four[k], l, test)
+                smooth_test_lanes(&lane_hits, &normals, lights, |l, lanes| {
+                    sink.lanes(four, l, lanes)
                 });
             }
             _ => {
@@ -168,31 +203,50 @@ pub(super) fn shade_batch_timed<'s>(
                     reflectances.push(point.kd);
                     points.push(point);
                 }
-                tester.shadow_tests(points, lights, |p, l, test| visit(four[p], l, test));
+                tester.shadow_tests(points, lights, |p, l, test| sink.one(four[p], l, test));
                 points.clear();
             }
         }
     }
-    blocked.clear();
-    blocked.resize(segments.len(), false);
     timer.lap(Phase::Shading);
-    // Light by light: with several lights, neighbouring segments alternate lights.
-    let by_light = (segment_lights.as_slice(), lights.len());
-    bvh.occluded_grouped(segments, by_light, blocked, groups);
+    // Light by light, each light's segments in sample order.
+    blocked.resize_with(lights.len(), Vec::new);
+    for (segments, blocked) in segments.iter().zip(blocked.iter_mut()) {
+        blocked.clear();
+        blocked.resize(segments.len(), false);
+        bvh.occluded_columns(segments, blocked);
+    }
     timer.lap(Phase::ShadowRays);
     // A hit sample's colour is its lights' sum until the ambient term is added: from +0, each
-    // test's radiance added unless its segment is blocked, in one pass over the tests. Tests
-    // come in order of sample, then light, so each sum adds its lights in light order, as
+    // test's radiance added unless its segment is blocked, in one pass over the tests. Each
+    // sample's tests come in light order, so each sum adds its lights in light order, as
     // `combine` does.
     colours.clear();
     colours.resize(hits.len(), lighting.background);
     for &sample in samples.iter() {
         colours[sample] = [0.0; 3];
     }
-    let mut blocked = blocked.iter();
-    for test in tests.iter() {
-        if !(test.traced && *blocked.next().expect("an answer per traced test")) {
-            add_light(&mut colours[test.sample], test.unoccluded);
+    if let [blocked] = blocked.as_slice() {
+        // One light: its answers in test order.
+        let mut blocked = blocked.iter();
+        for test in tests.iter() {
+            if !(test.traced && *blocked.next().expect("an answer per traced test")) {
+                add_light(&mut colours[test.sample as usize], test.unoccluded);
+            }
+        }
+    } else {
+        read.clear();
+        read.resize(lights.len(), 0);
+        for test in tests.iter() {
+            let light = test.light as usize;
+            let blocked = test.traced && {
+                let answer = blocked[light][read[light]];
+                read[light] += 1;
+                answer
+            };
+            if !blocked {
+                add_light(&mut colours[test.sample as usize], test.unoccluded);
+            }
         }
     }
     for (&sample, &kd) in samples.iter().zip(reflectances.iter()) {

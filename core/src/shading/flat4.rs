@@ -1,25 +1,26 @@
 //! Four hits shaded at once: their [`super::surface_point`]s and every light's
-//! [`super::shadow_test`], the f32 arithmetic in f32x4 lanes. [`FlatShader::shadow_tests4`]
-//! takes hits on flat (no vertex normals), untextured triangles;
-//! [`FlatShader::smooth_tests4`] any hits, with their triangles' vertex normals (zeros for a
+//! [`super::shadow_test`], the f32 arithmetic in f32x4 lanes, handed over light by light as
+//! lanes ([`TestLanes`]). [`flat_test_lanes`] takes hits on flat (no vertex normals),
+//! untextured triangles; [`smooth_test_lanes`] any hits, with their triangles' vertex normals (zeros for a
 //! flat one) and their reflectances at the hits (a texture is looked up per hit before): the
 //! shading normal and Hanika's shadow point (`smooth_lanes`) are lanes too. Each lane performs the scalar code's IEEE operations in its order (glam's
 //! `dot`, `cross` and `normalize_or_zero` spelled out; no FMA; square root and division are
 //! correctly rounded in every SIMD instruction set; negation flips the sign bit), so each
 //! lane's test is the scalar test bit for bit. What branches per lane runs in lanes too: the
 //! rounding of the shadow origin away from the surface is integer arithmetic on the bits
-//! (`lanes::round_away_lanes`), and a light's side and incidence become lane masks. Only the
-//! hand-over of each test, hit by hit and light by light, is scalar.
+//! (`lanes::round_away_lanes`), and a light's side and incidence become lane masks. The tests
+//! leave in lanes too: the renderer stores a light's four segments a coordinate at a time
+//! ([`crate::bvh::SegmentColumns::push_lanes`]).
 
 use super::lanes::{narrow, point_incidence_lanes, round_away_lanes, widen};
 use super::{ShadowTest, incidence, shadow_ray};
-use crate::bvh::{CornerLanes, bits};
+use crate::bvh::CornerLanes;
 use crate::scene::Light;
 use crate::triangle::{Ray, gamma};
 use glam::Vec3;
 use wide::{f32x4, f64x4};
 
-/// What [`FlatShader::shadow_tests4`] needs of one hit: the triangle's corners, the hit's
+/// What [`flat_test_lanes`] needs of one hit: the triangle's corners, the hit's
 /// barycentrics, the ray's direction and the diffuse reflectance.
 /// (References, not copies: the lanes read each value where the hit and the ray keep it.)
 #[derive(Clone, Copy, Debug)]
@@ -60,14 +61,6 @@ impl Vec3x4 {
             y: f32x4::splat(v.y),
             z: f32x4::splat(v.z),
         }
-    }
-
-    /// The lanes as four `Vec3`s.
-    #[inline(always)]
-    fn lanes(&self) -> [Vec3; 4] {
-        let (x, y, z) = (self.x.to_array(), self.y.to_array(), self.z.to_array());
-        let v = |k: usize| Vec3::new(x[k], y[k], z[k]);
-        [v(0), v(1), v(2), v(3)]
     }
 
     /// `s * v` (each axis times its lane of `s`).
@@ -176,17 +169,25 @@ impl Vec3x4 {
     }
 }
 
-/// One light's shadow tests at the four points, lane by lane: in `lit` bit k whether point k
-/// has a test (an incidence, and the light on the normal's side), each test's segment
-/// direction and the radiance it adds when unblocked.
-struct LitLanes {
-    lit: u32,
-    dir: [[f32; 4]; 3],
-    t_max: f32,
-    unoccluded: [[f32; 4]; 3],
+/// One light's shadow tests at four hits, lane by lane: in `lit` bit k whether hit k has a
+/// test (an incidence, and the light on the normal's side); lane k of the others is hit k's
+/// test, when it has one: its segment's origin and direction, and the radiance it adds when
+/// unblocked. Every segment ends at `t_max`.
+#[derive(Clone, Copy, Debug)]
+pub struct TestLanes {
+    /// Bit k: hit k has a test.
+    pub lit: u32,
+    /// The segments' origins, axis by axis.
+    pub origin: [f32x4; 3],
+    /// The segments' directions, axis by axis.
+    pub dir: [f32x4; 3],
+    /// Where every segment ends.
+    pub t_max: f32,
+    /// The radiance of each test when unblocked, channel by channel.
+    pub unoccluded: [f32x4; 3],
 }
 
-impl LitLanes {
+impl TestLanes {
     /// As [`super::shadow_test_at`] of a flat surface point, lane by lane: the light's
     /// incidence at `p`, the cosine with the normal `n`, the segment from `origin` and the
     /// radiance with reflectances `kd` (channel by channel).
@@ -218,12 +219,33 @@ impl LitLanes {
         let (dir, t_max) = shadow_rays(light, origin);
         // As `unoccluded_radiance`: kd · (cos/pi) · E.
         let f = f32x4::splat(std::f32::consts::FRAC_1_PI) * cos;
-        let radiance = |c: usize| (kd[c] * f * irradiance[c]).to_array();
-        LitLanes {
+        let radiance = |c: usize| kd[c] * f * irradiance[c];
+        TestLanes {
             lit,
-            dir: [dir.x.to_array(), dir.y.to_array(), dir.z.to_array()],
+            origin: [origin.x, origin.y, origin.z],
+            dir: [dir.x, dir.y, dir.z],
             t_max,
             unoccluded: [radiance(0), radiance(1), radiance(2)],
+        }
+    }
+
+    /// Hit `k`'s radiance when its segment is unblocked (when bit k of `lit` is set).
+    #[inline(always)]
+    pub fn unoccluded(&self, k: usize) -> [f32; 3] {
+        self.unoccluded.map(|c| c.to_array()[k])
+    }
+
+    /// Hit `k`'s test (when bit k of `lit` is set).
+    pub fn test(&self, k: usize) -> ShadowTest {
+        let at =
+            |v: &[f32x4; 3]| Vec3::new(v[0].to_array()[k], v[1].to_array()[k], v[2].to_array()[k]);
+        ShadowTest {
+            ray: Ray {
+                origin: at(&self.origin),
+                dir: at(&self.dir),
+            },
+            t_max: self.t_max,
+            unoccluded: self.unoccluded(k),
         }
     }
 }
@@ -249,124 +271,80 @@ fn shadow_rays(light: &Light, origins: &Vec3x4) -> (Vec3x4, f32) {
     (dir, t_max)
 }
 
-/// Shades four hits at a time ([`FlatShader::shadow_tests4`], [`FlatShader::smooth_tests4`]),
-/// keeping its scratch space for scenes of several lights from call to call (one light's lanes
-/// stay in registers).
-#[derive(Default)]
-pub struct FlatShader {
-    lit: Vec<LitLanes>,
+/// Every light's [`super::shadow_test`] at the [`super::surface_point`] of each of four flat,
+/// untextured hits, handed to `visit(light, tests)` light by light, in light order: lane k of
+/// `tests` is hit k's test where its bit of `tests.lit` is set, exactly the test
+/// [`super::shadow_tests`] gives that surface point and light.
+#[inline]
+pub fn flat_test_lanes(
+    hits: &[FlatHit<'_>; 4],
+    lights: &[Light],
+    visit: impl FnMut(usize, &TestLanes),
+) {
+    test_lanes(hits, None, lights, visit);
 }
 
-impl FlatShader {
-    /// Every light's [`super::shadow_test`] at the [`super::surface_point`] of each of four
-    /// flat, untextured hits, handed to `visit(hit, light, test)` in order of hit, then light:
-    /// exactly the tests and calls of [`super::shadow_tests`] over those surface points.
-    #[inline]
-    pub fn shadow_tests4(
-        &mut self,
-        hits: &[FlatHit<'_>; 4],
-        lights: &[Light],
-        visit: impl FnMut(usize, usize, ShadowTest),
-    ) {
-        self.tests4(hits, None, lights, visit);
-    }
+/// [`flat_test_lanes`] of four hits on triangles with vertex normals (`normals[k]`, the
+/// corners' normals of hit k's triangle, as the mesh has them); each hit's `kd` is its
+/// reflectance at the hit (textured or not).
+#[inline]
+pub fn smooth_test_lanes(
+    hits: &[FlatHit<'_>; 4],
+    normals: &[[Vec3; 3]; 4],
+    lights: &[Light],
+    visit: impl FnMut(usize, &TestLanes),
+) {
+    test_lanes(hits, Some(normals), lights, visit);
+}
 
-    /// [`FlatShader::shadow_tests4`] of four hits on triangles with vertex normals
-    /// (`normals[k]`, the corners' normals of hit k's triangle, as the mesh has them); each
-    /// hit's `kd` is its reflectance at the hit (textured or not).
-    #[inline]
-    pub fn smooth_tests4(
-        &mut self,
-        hits: &[FlatHit<'_>; 4],
-        normals: &[[Vec3; 3]; 4],
-        lights: &[Light],
-        visit: impl FnMut(usize, usize, ShadowTest),
-    ) {
-        self.tests4(hits, Some(normals), lights, visit);
-    }
-
-    #[inline(always)]
-    fn tests4(
-        &mut self,
-        hits: &[FlatHit<'_>; 4],
-        normals: Option<&[[Vec3; 3]; 4]>,
-        lights: &[Light],
-        mut visit: impl FnMut(usize, usize, ShadowTest),
-    ) {
-        let corner = |c: usize| {
-            let at = |k: usize| hits[k].corners.corner(c);
-            Vec3x4::of([at(0), at(1), at(2), at(3)])
-        };
-        let corners = [corner(0), corner(1), corner(2)];
-        let [p0, p1, p2] = corners;
-        let weight =
-            |c: usize| f32x4::from([hits[0].b[c], hits[1].b[c], hits[2].b[c], hits[3].b[c]]);
-        let b = [weight(0), weight(1), weight(2)];
-        let (w0, w1, w2) = (p0.scale(b[0]), p1.scale(b[1]), p2.scale(b[2]));
-        // As `surface_point`: p, its error bound, and the geometric normal facing the ray.
-        let p = w0.add(w1).add(w2);
-        let p_error = w0
-            .abs()
-            .add(w1.abs())
-            .add(w2.abs())
-            .scale(f32x4::splat(gamma(7.0)));
-        let n_geo = p1.sub(p0).cross(p2.sub(p0)).normalize_or_zero();
-        let dir = Vec3x4::of([*hits[0].dir, *hits[1].dir, *hits[2].dir, *hits[3].dir]);
-        let n = n_geo.negate_where(n_geo.dot(dir).simd_gt(f32x4::ZERO));
-        // The shading normal and where shadow rays start: on a flat triangle the geometric
-        // normal and p.
-        let (n_shade, p_shadow, p_shadow_error) = match normals {
-            None => (n, p, p_error),
-            Some(normals) => {
-                let at = |c: usize| Vec3x4::of(std::array::from_fn(|k| normals[k][c]));
-                smooth_lanes([at(0), at(1), at(2)], (corners, b), n, (p, p_error))
-            }
-        };
-        // As `offset_origin(p_shadow, p_shadow_error, n, n)`: n·n is never below zero, so the
-        // offset keeps its side, and the origin is rounded away from the surface along it.
-        let offset = n.scale(n.abs().dot(p_shadow_error));
-        let moved = p_shadow.add(offset);
-        let origin = Vec3x4 {
-            x: round_away_lanes(moved.x, offset.x),
-            y: round_away_lanes(moved.y, offset.y),
-            z: round_away_lanes(moved.z, offset.z),
-        };
-        let kd =
-            |c: usize| f32x4::from([hits[0].kd[c], hits[1].kd[c], hits[2].kd[c], hits[3].kd[c]]);
-        let kd = [kd(0), kd(1), kd(2)];
-        let origins = origin.lanes();
-        let test = |lit: &LitLanes, k: usize| {
-            let (d, u) = (&lit.dir, &lit.unoccluded);
-            ShadowTest {
-                ray: Ray {
-                    origin: origins[k],
-                    dir: Vec3::new(d[0][k], d[1][k], d[2][k]),
-                },
-                t_max: lit.t_max,
-                unoccluded: [u[0][k], u[1][k], u[2][k]],
-            }
-        };
-        if let [light] = lights {
-            // One light (the common scene): its lanes stay in registers.
-            let lit = LitLanes::new(light, &p, &n_shade, &origin, &kd);
-            for k in bits(lit.lit) {
-                visit(k, 0, test(&lit, k));
-            }
-            return;
+#[inline(always)]
+fn test_lanes(
+    hits: &[FlatHit<'_>; 4],
+    normals: Option<&[[Vec3; 3]; 4]>,
+    lights: &[Light],
+    mut visit: impl FnMut(usize, &TestLanes),
+) {
+    let corner = |c: usize| {
+        let at = |k: usize| hits[k].corners.corner(c);
+        Vec3x4::of([at(0), at(1), at(2), at(3)])
+    };
+    let corners = [corner(0), corner(1), corner(2)];
+    let [p0, p1, p2] = corners;
+    let weight = |c: usize| f32x4::from([hits[0].b[c], hits[1].b[c], hits[2].b[c], hits[3].b[c]]);
+    let b = [weight(0), weight(1), weight(2)];
+    let (w0, w1, w2) = (p0.scale(b[0]), p1.scale(b[1]), p2.scale(b[2]));
+    // As `surface_point`: p, its error bound, and the geometric normal facing the ray.
+    let p = w0.add(w1).add(w2);
+    let p_error = w0
+        .abs()
+        .add(w1.abs())
+        .add(w2.abs())
+        .scale(f32x4::splat(gamma(7.0)));
+    let n_geo = p1.sub(p0).cross(p2.sub(p0)).normalize_or_zero();
+    let dir = Vec3x4::of([*hits[0].dir, *hits[1].dir, *hits[2].dir, *hits[3].dir]);
+    let n = n_geo.negate_where(n_geo.dot(dir).simd_gt(f32x4::ZERO));
+    // The shading normal and where shadow rays start: on a flat triangle the geometric
+    // normal and p.
+    let (n_shade, p_shadow, p_shadow_error) = match normals {
+        None => (n, p, p_error),
+        Some(normals) => {
+            let at = |c: usize| Vec3x4::of(std::array::from_fn(|k| normals[k][c]));
+            smooth_lanes([at(0), at(1), at(2)], (corners, b), n, (p, p_error))
         }
-        self.lit.clear();
-        self.lit.extend(
-            lights
-                .iter()
-                .map(|light| LitLanes::new(light, &p, &n_shade, &origin, &kd)),
-        );
-        for k in 0..4 {
-            for (l, lit) in self.lit.iter().enumerate() {
-                if lit.lit & (1 << k) != 0 {
-                    visit(k, l, test(lit, k));
-                }
-            }
-        }
+    };
+    // As `offset_origin(p_shadow, p_shadow_error, n, n)`: n·n is never below zero, so the
+    // offset keeps its side, and the origin is rounded away from the surface along it.
+    let offset = n.scale(n.abs().dot(p_shadow_error));
+    let moved = p_shadow.add(offset);
+    let origin = Vec3x4 {
+        x: round_away_lanes(moved.x, offset.x),
+        y: round_away_lanes(moved.y, offset.y),
+        z: round_away_lanes(moved.z, offset.z),
+    };
+    let kd = |c: usize| f32x4::from([hits[0].kd[c], hits[1].kd[c], hits[2].kd[c], hits[3].kd[c]]);
+    let kd = [kd(0), kd(1), kd(2)];
+    for (l, light) in lights.iter().enumerate() {
+        visit(l, &TestLanes::new(light, &p, &n_shade, &origin, &kd));
     }
 }
 
@@ -429,6 +407,20 @@ mod tests {
     use crate::shading::tests::rng;
     use crate::shading::{shadow_test, surface_point};
     use glam::DVec3;
+
+    /// The lanes' tests as (hit, light, test bits), hit by hit, then light by light: the order
+    /// of [`crate::shading::shadow_tests`].
+    fn expand(lanes: &[(usize, TestLanes)]) -> Vec<(usize, usize, Vec<u32>)> {
+        let mut tests = Vec::new();
+        for k in 0..4 {
+            for (l, lanes) in lanes {
+                if lanes.lit & (1 << k) != 0 {
+                    tests.push((k, *l, bits(&lanes.test(k))));
+                }
+            }
+        }
+        tests
+    }
 
     /// Each test's bits: origin, direction, t_max, radiance.
     fn bits(t: &ShadowTest) -> Vec<u32> {
@@ -541,19 +533,21 @@ mod tests {
                 }
             }
             let mut lanes = Vec::new();
-            FlatShader::default()
-                .shadow_tests4(&hits, &lights, |k, l, t| lanes.push((k, l, bits(&t))));
+            flat_test_lanes(&hits, &lights, |l, t| lanes.push((l, *t)));
+            let lanes = expand(&lanes);
             assert_eq!(lanes, expected, "round {round}");
             assert!(!lanes.iter().any(|&(k, l, _)| k == 0 && l == 3));
             // Each light alone (the one-light path).
             for (l, light) in lights.iter().enumerate() {
                 let mut lanes = Vec::new();
-                FlatShader::default().shadow_tests4(
-                    &hits,
-                    std::slice::from_ref(light),
-                    |k, l, t| lanes.push((k, l, bits(&t))),
+                flat_test_lanes(&hits, std::slice::from_ref(light), |l, t| {
+                    lanes.push((l, *t))
+                });
+                assert_eq!(
+                    expand(&lanes),
+                    alone(&expected, l),
+                    "round {round}, light {l} alone"
                 );
-                assert_eq!(lanes, alone(&expected, l), "round {round}, light {l} alone");
             }
             checked += expected.len();
         }
@@ -628,17 +622,17 @@ mod tests {
                 }
             }
             let mut lanes = Vec::new();
-            FlatShader::default().smooth_tests4(&hits, &normals, &lights, |k, l, t| {
-                lanes.push((k, l, bits(&t)))
-            });
-            assert_eq!(lanes, expected, "round {round}");
+            smooth_test_lanes(&hits, &normals, &lights, |l, t| lanes.push((l, *t)));
+            assert_eq!(expand(&lanes), expected, "round {round}");
             for (l, light) in lights.iter().enumerate() {
                 let mut lanes = Vec::new();
                 let light = std::slice::from_ref(light);
-                FlatShader::default().smooth_tests4(&hits, &normals, light, |k, l, t| {
-                    lanes.push((k, l, bits(&t)))
-                });
-                assert_eq!(lanes, alone(&expected, l), "round {round}, light {l} alone");
+                smooth_test_lanes(&hits, &normals, light, |l, t| lanes.push((l, *t)));
+                assert_eq!(
+                    expand(&lanes),
+                    alone(&expected, l),
+                    "round {round}, light {l} alone"
+                );
             }
             checked += expected.len();
         }

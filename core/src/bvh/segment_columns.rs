@@ -1,0 +1,149 @@
+//! Shadow segments kept column by column ([`SegmentColumns`]): each coordinate of the origins
+//! and directions in its own array, as segment packets read them. The renderer's shading lanes
+//! write four segments of a coordinate with one vector store, and a packet of sixteen takes
+//! each coordinate with one copy, where segments kept as `(Ray, t_max)` pairs were pieced
+//! together from the lanes float by float and transposed back into lanes for every packet.
+
+use super::packet_rays::PacketRays;
+use super::ray_packet::RAY_PACKET;
+use crate::triangle::Ray;
+use glam::Vec3;
+use std::ops::Range;
+use wide::f32x4;
+
+/// Shadow segments `(ray, t_max)`, coordinate by coordinate: segment i's origin is
+/// `(origin[0][i], origin[1][i], origin[2][i])`, its direction likewise, and it ends at
+/// `t_max[i]`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SegmentColumns {
+    origin: [Vec<f32>; 3],
+    dir: [Vec<f32>; 3],
+    t_max: Vec<f32>,
+}
+
+impl SegmentColumns {
+    /// How many segments there are.
+    pub fn len(&self) -> usize {
+        self.t_max.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.t_max.is_empty()
+    }
+
+    /// Removes every segment, keeping the memory.
+    pub fn clear(&mut self) {
+        for a in 0..3 {
+            self.origin[a].clear();
+            self.dir[a].clear();
+        }
+        self.t_max.clear();
+    }
+
+    /// Appends the segment `(ray, t_max)`.
+    #[inline]
+    pub fn push(&mut self, ray: &Ray, t_max: f32) {
+        for a in 0..3 {
+            self.origin[a].push(ray.origin[a]);
+            self.dir[a].push(ray.dir[a]);
+        }
+        self.t_max.push(t_max);
+    }
+
+    /// Appends the segments of the lanes set in `mask` (bit k: lane k), lowest lane first:
+    /// lane k's origin is lane k of `origin[0..3]`, its direction likewise, and every one ends
+    /// at `t_max`.
+    #[inline]
+    pub fn push_lanes(&mut self, mask: u32, origin: &[f32x4; 3], dir: &[f32x4; 3], t_max: f32) {
+        if mask & 0xf == 0xf {
+            for a in 0..3 {
+                self.origin[a].extend_from_slice(&origin[a].to_array());
+                self.dir[a].extend_from_slice(&dir[a].to_array());
+            }
+            self.t_max.extend_from_slice(&[t_max; 4]);
+            return;
+        }
+        let origin = origin.map(|o| o.to_array());
+        let dir = dir.map(|d| d.to_array());
+        for k in super::bits(mask & 0xf) {
+            for a in 0..3 {
+                self.origin[a].push(origin[a][k]);
+                self.dir[a].push(dir[a][k]);
+            }
+            self.t_max.push(t_max);
+        }
+    }
+
+    /// Segment `i`.
+    pub fn get(&self, i: usize) -> (Ray, f32) {
+        let at = |c: &[Vec<f32>; 3]| Vec3::new(c[0][i], c[1][i], c[2][i]);
+        let ray = Ray {
+            origin: at(&self.origin),
+            dir: at(&self.dir),
+        };
+        (ray, self.t_max[i])
+    }
+
+    /// Puts the 1..=[`RAY_PACKET`] segments `range` into a packet's rays and `t_max` (0 past
+    /// the last), as [`PacketRays::fill`] does with pairs; says whether every origin and
+    /// direction is finite.
+    #[inline(always)]
+    pub(super) fn fill(
+        &self,
+        range: Range<usize>,
+        rays: &mut PacketRays,
+        t_max: &mut [f32; RAY_PACKET],
+    ) -> bool {
+        let len = range.len();
+        match <&[f32; RAY_PACKET]>::try_from(&self.t_max[range.clone()]) {
+            Ok(full) => *t_max = *full,
+            Err(_) => {
+                *t_max = [0.0; RAY_PACKET];
+                t_max[..len].copy_from_slice(&self.t_max[range.clone()]);
+            }
+        }
+        rays.fill_columns(
+            [&self.origin[0], &self.origin[1], &self.origin[2]].map(|c| &c[range.clone()]),
+            [&self.dir[0], &self.dir[1], &self.dir[2]].map(|c| &c[range.clone()]),
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Segments pushed one by one and four lanes at a time (every mask) come back as pushed,
+    /// in order.
+    #[test]
+    fn pushed_segments_come_back_in_order() {
+        let mut columns = SegmentColumns::default();
+        let mut expected = Vec::new();
+        let lane = |k: usize, m: u32, a: usize| (m * 100 + k as u32 * 10 + a as u32) as f32;
+        for mask in 0..16u32 {
+            let origin = [0, 1, 2].map(|a| f32x4::from([0, 1, 2, 3].map(|k| lane(k, mask, a))));
+            let dir = [0, 1, 2].map(|a| f32x4::from([0, 1, 2, 3].map(|k| -lane(k, mask, a))));
+            columns.push_lanes(mask, &origin, &dir, mask as f32 + 0.5);
+            for k in super::super::bits(mask) {
+                let ray = Ray {
+                    origin: Vec3::new(lane(k, mask, 0), lane(k, mask, 1), lane(k, mask, 2)),
+                    dir: -Vec3::new(lane(k, mask, 0), lane(k, mask, 1), lane(k, mask, 2)),
+                };
+                expected.push((ray, mask as f32 + 0.5));
+            }
+            let ray = Ray {
+                origin: Vec3::new(-1.0, 2.0, f32::INFINITY),
+                dir: Vec3::X,
+            };
+            columns.push(&ray, 7.0);
+            expected.push((ray, 7.0));
+        }
+        assert_eq!(columns.len(), expected.len());
+        assert_eq!(columns.len(), 32 + 16);
+        let got: Vec<_> = (0..columns.len()).map(|i| columns.get(i)).collect();
+        assert_eq!(got, expected);
+        columns.clear();
+        assert!(columns.is_empty());
+    }
+}
