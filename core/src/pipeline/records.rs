@@ -49,7 +49,9 @@ pub struct Occluded {
     pub light: u32,
 }
 
-/// A span's finished pixels: the mean radiance of each and the hit of its sample 0.
+/// A span's finished pixels: the mean radiance of each and, unless left out, the hit of its
+/// sample 0 (`triangles` and `ts` either hold one value per pixel or are both empty: a job that
+/// stores no hit buffer leaves them out of the blocks it stores, [`PixelBlock::without_hits`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct PixelBlock {
     /// First pixel (row-major index) of the span.
@@ -71,6 +73,19 @@ impl PixelBlock {
             triangles: Vec::with_capacity(n),
             ts: Vec::with_capacity(n),
         }
+    }
+
+    /// The block with its sample-0 hits left out (both lists empty), for a job that stores no
+    /// hit buffer: a fifth of a 1-spp job's pixel bytes fewer to compress, store and read.
+    pub fn without_hits(mut self) -> PixelBlock {
+        self.triangles = Vec::new();
+        self.ts = Vec::new();
+        self
+    }
+
+    /// Whether the block holds its pixels' sample-0 hits (one per pixel).
+    pub fn has_hits(&self) -> bool {
+        self.triangles.len() == self.colours.len()
     }
 
     /// Appends pixels: their colours and the hits of their samples 0.
@@ -335,8 +350,14 @@ pub fn encode_pixels(block: &PixelBlock) -> Vec<u8> {
     let mut w = ColumnWriter::new();
     w.put_u32(&[(block.start >> 32) as u32, block.start as u32]);
     put_vec3s(&mut w, block.colours.iter().map(|c| Vec3::from(*c)));
-    w.put_u32(&block.triangles);
-    w.put_f32(&block.ts);
+    // Whether the sample-0 hits follow (1) or were left out (0).
+    let hits = block.has_hits();
+    debug_assert!(hits || (block.triangles.is_empty() && block.ts.is_empty()));
+    w.put_bytes(&[u8::from(hits)]);
+    if hits {
+        w.put_u32(&block.triangles);
+        w.put_f32(&block.ts);
+    }
     encode_block(
         RecordKind::PixelColor,
         block.colours.len() as u64,
@@ -354,10 +375,21 @@ pub fn decode_pixels(key: &str, bytes: &[u8]) -> Result<PixelBlock, PipelineErro
     check_len(key, "start", start.len(), 2)?;
     let n = block.record_count as usize;
     let colours = read_vec3s(&mut r, n, key)?;
-    let triangles = r.read_u32().map_err(c)?;
-    let ts = r.read_f32().map_err(c)?;
-    check_len(key, "triangle", triangles.len(), n)?;
-    check_len(key, "t", ts.len(), n)?;
+    let (triangles, ts) = match r.read_bytes().map_err(c)? {
+        [1] => {
+            let triangles = r.read_u32().map_err(c)?;
+            let ts = r.read_f32().map_err(c)?;
+            check_len(key, "triangle", triangles.len(), n)?;
+            check_len(key, "t", ts.len(), n)?;
+            (triangles, ts)
+        }
+        [0] => (Vec::new(), Vec::new()),
+        other => {
+            return Err(PipelineError::Corrupt(format!(
+                "shuffle block {key}: column hits holds {other:?}, expected [0] or [1]"
+            )));
+        }
+    };
     r.finish().map_err(c)?;
     Ok(PixelBlock {
         start: (u64::from(start[0]) << 32) | u64::from(start[1]),
@@ -494,6 +526,41 @@ mod tests {
             ts: vec![2.5, f32::INFINITY],
         };
         assert_eq!(decode_pixels("k", &encode_pixels(&pixels)).unwrap(), pixels);
+    }
+
+    /// A pixel block without its hits decodes as it was (no hits, the same colours), in fewer
+    /// bytes; a hits flag other than 0 or 1 is refused by name.
+    #[test]
+    fn pixel_blocks_without_hits_round_trip_and_a_bad_flag_is_named() {
+        let colours: Vec<[f32; 3]> = (0..500).map(|i| [i as f32 * 0.01, 0.5, 1.0]).collect();
+        let pixels = PixelBlock {
+            start: 40,
+            triangles: (0..500).map(|i| i * 7 % 13).collect(),
+            ts: (0..500).map(|i| 1.0 + i as f32 * 0.37).collect(),
+            colours,
+        };
+        let bare = pixels.clone().without_hits();
+        assert!(pixels.has_hits() && !bare.has_hits());
+        assert_eq!((bare.start, &bare.colours), (pixels.start, &pixels.colours));
+        let (with, without) = (encode_pixels(&pixels), encode_pixels(&bare));
+        assert_eq!(decode_pixels("k", &without).unwrap(), bare);
+        assert!(
+            without.len() < with.len(),
+            "{} >= {}",
+            without.len(),
+            with.len()
+        );
+
+        let mut w = ColumnWriter::new();
+        w.put_u32(&[0, 3]);
+        put_vec3s(&mut w, [Vec3::ONE].into_iter());
+        w.put_bytes(&[2]);
+        let bytes = encode_block(RecordKind::PixelColor, 1, w.as_bytes());
+        let e = decode_pixels("jobs/j/render/3", &bytes).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "shuffle block jobs/j/render/3: column hits holds [2], expected [0] or [1]"
+        );
     }
 
     /// Blocks written before the f32 delta columns (every float as plain byte planes, tag 3)

@@ -282,9 +282,7 @@ impl Task<'_> {
             })?;
         self.metrics.shadow_rays += shadow_rays;
         self.metrics.adaptive += adaptive;
-        let n = block.colours.len();
-        let bytes = timed(&mut self.metrics.encode_us, || encode_pixels(&block));
-        self.write(&self.key(stage, task, 0), bytes, n)
+        self.write_pixels(stage, task, block)
     }
 
     /// CastMap: a span's camera samples (or a round's) against one split; candidate hits by
@@ -480,7 +478,7 @@ impl Task<'_> {
         let block = timed(&mut self.metrics.compute_us, || {
             stages::trace_reduce(plan, span, hits, occluded)
         });
-        self.write_pixels(task, &block)
+        self.write_pixels(Stage::TraceReduce, task, block)
     }
 
     /// Round 1 of an adaptive TraceReduce task: the first `base_spp` samples of every pixel of
@@ -507,7 +505,7 @@ impl Task<'_> {
             bytes,
             list.pixels.len(),
         )?;
-        self.write_pixels(task, &block)
+        self.write_pixels(Stage::TraceReduce, task, block)
     }
 
     /// Round 2 of an adaptive TraceReduce task for span `index`: the further samples of the
@@ -532,7 +530,7 @@ impl Task<'_> {
             let (colours, _) = sample_colours(plan, &samples, hits, blocked);
             second_round_pixels(first, &list, &a, &colours)
         });
-        self.write_pixels(task, &block)
+        self.write_pixels(Stage::TraceReduce, task, block)
     }
 
     /// Combine: every span's pixels assembled into the image and the outputs the plan asks for.
@@ -716,10 +714,22 @@ impl Task<'_> {
         Ok(list)
     }
 
-    fn write_pixels(&mut self, task: u32, block: &PixelBlock) -> Result<(), PipelineError> {
+    /// Stores a task's pixel block (partition 0 of `stage`), without its sample-0 hits when the
+    /// job stores no hit buffer (nothing reads them then).
+    fn write_pixels(
+        &mut self,
+        stage: Stage,
+        task: u32,
+        block: PixelBlock,
+    ) -> Result<(), PipelineError> {
+        let block = if self.plan.outputs.hits {
+            block
+        } else {
+            block.without_hits()
+        };
         let n = block.colours.len();
-        let bytes = timed(&mut self.metrics.encode_us, || encode_pixels(block));
-        self.write(&self.key(Stage::TraceReduce, task, 0), bytes, n)
+        let bytes = timed(&mut self.metrics.encode_us, || encode_pixels(&block));
+        self.write(&self.key(stage, task, 0), bytes, n)
     }
 
     fn read_span_hits(&mut self, span: u32) -> Result<Vec<super::SurfaceHit>, PipelineError> {

@@ -358,18 +358,19 @@ pub(super) fn trace_in_memory(
         .collect()
 }
 
-/// Combine: the image and the hit buffer from every span's pixels (in any order).
+/// Combine: the image and the hit buffer from every span's pixels (in any order); a block
+/// without its hits ([`PixelBlock::without_hits`]) leaves misses in the buffer.
 pub fn combine(plan: &JobPlan, blocks: &[PixelBlock]) -> (Image, Vec<Hit>) {
     let mut image = Image::new(plan.width, plan.height);
     let mut hits = vec![Hit::MISS; plan.width as usize * plan.height as usize];
     for b in blocks {
         let start = b.start as usize;
-        for (i, colour) in b.colours.iter().enumerate() {
-            image.pixels[start + i] = *colour;
-            hits[start + i] = Hit {
-                triangle: b.triangles[i],
-                t: b.ts[i],
-            };
+        image.pixels[start..start + b.colours.len()].copy_from_slice(&b.colours);
+        if b.has_hits() {
+            let buffer = &mut hits[start..start + b.colours.len()];
+            for ((hit, &triangle), &t) in buffer.iter_mut().zip(&b.triangles).zip(&b.ts) {
+                *hit = Hit { triangle, t };
+            }
         }
     }
     (image, hits)

@@ -167,6 +167,12 @@ fn write_seeds() {
         RecordKind::PixelColor,
         &encode_pixels(&pixels),
     );
+    save(
+        "shuffle_block",
+        "pixels-3-without-hits",
+        RecordKind::PixelColor,
+        &encode_pixels(&pixels.without_hits()),
+    );
     let list = RefineList {
         pixels: vec![12, 13, 40],
         sums: vec![[0.4, 0.8, 1.2], [4.0, 0.0, 2.0], [0.25; 3]],

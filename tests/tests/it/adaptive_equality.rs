@@ -1,7 +1,8 @@
 //! The adaptive sampler through the pipeline: fused jobs (both passes in each Render task) and
 //! staged jobs (a second round of the staged stages for the pixels that need it, only if any)
 //! equal the monolithic adaptive render bit for bit (image, hit buffer, rays, decisions) for
-//! every split, span and worker count.
+//! every split, span and worker count. A job that stores no hit buffer (uniform or adaptive)
+//! stores the same image from pixel blocks without hits.
 
 use hort_core::adaptive::{AdaptiveSettings, render_adaptive};
 use hort_core::ids::JobId;
@@ -207,4 +208,64 @@ fn a_base_spp_other_than_spp_is_refused() {
         e,
         "adaptive base spp 4 differs from spp 16: the first pass takes spp samples"
     );
+}
+
+/// A job that stores no hit buffer leaves the hits out of its pixel blocks and stores the
+/// same image: uniform and adaptive, fused and staged jobs, against the same job storing
+/// every output (the linear image bit for bit, the PNG byte for byte), with fewer raw bytes
+/// written by the stage that writes the pixel blocks.
+#[test]
+fn jobs_without_a_hit_buffer_store_the_same_image_in_smaller_blocks() {
+    let scene = load_scene(&scene_path("cornell/cornell.json")).expect("bundled scene");
+    let adaptive = AdaptiveSettings {
+        base_spp: 3,
+        max_spp: 12,
+        threshold: 0.01,
+    };
+    for (sampler, mode, k, s) in [
+        (None, ExecutionMode::Fused, 1u32, 3u32),
+        (None, ExecutionMode::Staged, 2, 2),
+        (Some(adaptive), ExecutionMode::Fused, 1, 3),
+        (Some(adaptive), ExecutionMode::Staged, 2, 3),
+    ] {
+        let what = format!("adaptive {} {mode} k={k} s={s}", sampler.is_some());
+        let run = |outputs: StoredOutputs| {
+            let request = PlanRequest {
+                adaptive: sampler,
+                outputs,
+                ..request(adaptive, k, s, Some(mode))
+            };
+            let options = PipelineOptions {
+                job: JobId::new("no-hits").unwrap(),
+                workers: 2,
+                split_cache_bytes: 1 << 30,
+            };
+            run_pipeline(&MemoryStore::new(), &scene, request, &options)
+                .unwrap_or_else(|e| panic!("{what}: {e}"))
+        };
+        let all = run(StoredOutputs::ALL);
+        let bare = run(StoredOutputs {
+            linear: true,
+            hits: false,
+        });
+        assert!(bare.hits.is_none(), "{what}");
+        assert_eq!(
+            pixel_bits(&stored(&bare.image).pixels),
+            pixel_bits(&stored(&all.image).pixels),
+            "{what}"
+        );
+        assert_eq!(bare.png, all.png, "{what}");
+        let pixel_stage = all.plan.mode.pixel_stage().to_string();
+        let raw = |run: &hort_core::pipeline::PipelineRun| {
+            let at = run.stages.iter().position(|r| r.name == pixel_stage);
+            let at = at.unwrap_or_else(|| panic!("{what}: no stage {pixel_stage}"));
+            run.metrics[at].bytes_written_raw
+        };
+        assert!(
+            raw(&bare) < raw(&all),
+            "{what}: {} >= {}",
+            raw(&bare),
+            raw(&all)
+        );
+    }
 }
