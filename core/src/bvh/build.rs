@@ -325,23 +325,35 @@ fn split(refs: &mut [Ref], centroid_bounds: Box3) -> Option<Split> {
             continue;
         }
         let (bins, counts) = (&bins[axis], &counts[axis]);
+        // Only bins that hold refs change a side: a split after an empty bin costs what the
+        // split before it costs (the same sides), and ties keep the first, so the sweeps visit
+        // the occupied bins alone and find the plain sweep's split. Small nodes, most of the
+        // tree's nodes, occupy few of the bins.
+        let occupied = (0..BINS).fold(0u32, |m, k| m | u32::from(counts[k] != 0) << k);
+        // right_cost[j], j occupied: the cost of the side made of bins j and up.
         let mut right_cost = [0.0f32; BINS];
         let (mut acc, mut n) = (Box3::EMPTY, 0u32);
-        for k in (1..BINS).rev() {
-            acc = acc.union(bins[k]);
-            n += counts[k];
-            right_cost[k] = acc.half_area() * n as f32;
+        let mut above = occupied & !1;
+        while above != 0 {
+            let j = (u32::BITS - 1 - above.leading_zeros()) as usize;
+            above &= !(1 << j);
+            acc = acc.union(bins[j]);
+            n += counts[j];
+            right_cost[j] = acc.half_area() * n as f32;
         }
         let (mut acc, mut n) = (Box3::EMPTY, 0u32);
-        for k in 1..BINS {
-            acc = acc.union(bins[k - 1]);
-            n += counts[k - 1];
-            if n == 0 || n as usize == count {
-                continue;
+        let mut rest = occupied;
+        while rest != 0 {
+            let i = rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            if rest == 0 {
+                break; // every ref would go left
             }
-            let cost = acc.half_area() * n as f32 + right_cost[k];
+            acc = acc.union(bins[i]);
+            n += counts[i];
+            let cost = acc.half_area() * n as f32 + right_cost[rest.trailing_zeros() as usize];
             if best.is_none_or(|(c, _, _)| cost < c) {
-                best = Some((cost, axis, k));
+                best = Some((cost, axis, i + 1));
             }
         }
     }
