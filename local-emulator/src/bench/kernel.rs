@@ -158,7 +158,10 @@ pub fn run_kernel_bench(args: &KernelBenchArgs) -> Result<()> {
         match compile_harness(&args.work_dir) {
             Ok(path) => Some(path),
             Err(e) => {
-                eprintln!("Embree unavailable ({e:#}); reporting our kernel only");
+                eprintln!(
+                    "Embree unavailable ({e:#}); reporting our kernel only \
+                     (`bash eval/embree.sh` installs it)"
+                );
                 None
             }
         }
@@ -210,7 +213,7 @@ pub fn run_kernel_bench(args: &KernelBenchArgs) -> Result<()> {
         }
     }
     if harness.is_none() {
-        println!("\n(Embree unavailable: install libembree-dev and a C compiler for its columns)");
+        println!("\n(Embree unavailable: `bash eval/embree.sh` installs it and a C compiler)");
     }
     #[cfg(not(feature = "obvhs-bench"))]
     println!("\n(obvhs not compiled in: build with --features obvhs-bench for its columns)");

@@ -82,7 +82,12 @@ pub fn run_samples_bench(args: &SamplesBenchArgs) -> Result<()> {
         std::fs::create_dir_all(&args.work_dir)
             .with_context(|| format!("cannot create {}", args.work_dir.display()))?;
         compile_harness(&args.work_dir)
-            .map_err(|e| eprintln!("Embree unavailable ({e:#}); its columns stay empty"))
+            .map_err(|e| {
+                eprintln!(
+                    "Embree unavailable ({e:#}); its columns stay empty \
+                     (`bash eval/embree.sh` installs it)"
+                )
+            })
             .ok()
     };
     let mut breakdowns = Vec::new();
