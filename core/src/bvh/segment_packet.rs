@@ -147,9 +147,9 @@ impl Bvh {
         loop {
             if active.count_ones() <= 1 {
                 for i in bits(active) {
-                    let s = searches[i]
-                        .get_or_insert_with(|| ShadowSearch::new(&packet_rays.ray(i), t_max[i]));
-                    let single = BoxTester::new(&packet_rays.ray(i));
+                    let ray = packet_rays.ray(i);
+                    let s = searches[i].get_or_insert_with(|| ShadowSearch::new(&ray, t_max[i]));
+                    let single = BoxTester::new(&ray);
                     let start = (child, triangle4_count);
                     if self.occluded_from(start, &single, &s.prep, &s.tris, s.t_max, ray_stack) {
                         blocked |= 1 << i;

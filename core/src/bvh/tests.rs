@@ -211,6 +211,17 @@ fn check_tree_against_brute_force(bvh: &Bvh, tris: &[[Vec3; 3]], rays: &[Ray]) {
     );
 }
 
+/// `n` triangles, each with a corner uniform in the cube of half side `spread` around the
+/// origin and its two other corners within 1 of it on every axis.
+fn random_soup(rng: &mut Rng, n: usize, spread: f32) -> Vec<[Vec3; 3]> {
+    (0..n)
+        .map(|_| {
+            let c = rng.vec(-spread, spread);
+            [c, c + rng.vec(-1.0, 1.0), c + rng.vec(-1.0, 1.0)]
+        })
+        .collect()
+}
+
 fn random_rays(rng: &mut Rng, n: usize, around: Vec3, radius: f32) -> Vec<Ray> {
     (0..n)
         .map(|_| {
@@ -246,12 +257,7 @@ fn closest_hit_equals_brute_force_on_random_triangle_soup() {
 #[test]
 fn segments_that_are_not_finite_get_single_ray_answers() {
     let mut rng = Rng(19);
-    let tris: Vec<[Vec3; 3]> = (0..500)
-        .map(|_| {
-            let c = rng.vec(-5.0, 5.0);
-            [c, c + rng.vec(-1.0, 1.0), c + rng.vec(-1.0, 1.0)]
-        })
-        .collect();
+    let tris = random_soup(&mut rng, 500, 5.0);
     let bvh = Bvh::build(tris, (0..500).collect());
     let rays = random_rays(&mut rng, 400, Vec3::ZERO, 5.0);
     let bad = [f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
@@ -616,12 +622,7 @@ fn subtree_box(bvh: &Bvh, node: usize, slot: usize) -> Option<([f32; 3], [f32; 3
 #[test]
 fn every_child_box_is_the_smallest_box_of_its_triangles() {
     let mut rng = Rng(21);
-    let tris: Vec<[Vec3; 3]> = (0..3000)
-        .map(|_| {
-            let c = rng.vec(-20.0, 20.0);
-            [c, c + rng.vec(-1.0, 1.0), c + rng.vec(-1.0, 1.0)]
-        })
-        .collect();
+    let tris = random_soup(&mut rng, 3000, 20.0);
     let bvh = bvh_of(&tris);
     assert!(bvh.wide.len() > 100);
     for (index, node) in bvh.wide.iter().enumerate() {

@@ -1,9 +1,10 @@
 //! Four hits shaded at once: their [`super::surface_point`]s and every light's
 //! [`super::shadow_test`], the f32 arithmetic in f32x4 lanes, handed over light by light as
 //! lanes ([`TestLanes`]). [`flat_test_lanes`] takes hits on flat (no vertex normals),
-//! untextured triangles; [`smooth_test_lanes`] any hits, with their triangles' vertex normals (zeros for a
-//! flat one) and their reflectances at the hits (a texture is looked up per hit before): the
-//! shading normal and Hanika's shadow point (`smooth_lanes`) are lanes too. Each lane performs the scalar code's IEEE operations in its order (glam's
+//! untextured triangles; [`smooth_test_lanes`] any hits, with their triangles' vertex normals
+//! (zeros for a flat one) and their reflectances at the hits (a texture is looked up per hit
+//! before): the shading normal and Hanika's shadow point (`smooth_lanes`) are lanes too. Each
+//! lane performs the scalar code's IEEE operations in its order (glam's
 //! `dot`, `cross` and `normalize_or_zero` spelled out; no FMA; square root and division are
 //! correctly rounded in every SIMD instruction set; negation flips the sign bit), so each
 //! lane's test is the scalar test bit for bit. What branches per lane runs in lanes too: the
@@ -13,10 +14,10 @@
 //! ([`crate::bvh::SegmentColumns::push_lanes`]).
 
 use super::lanes::{narrow, point_incidence_lanes, round_away_lanes, widen};
-use super::{ShadowTest, incidence, shadow_ray};
+use super::{incidence, shadow_ray};
 use crate::bvh::CornerLanes;
 use crate::scene::Light;
-use crate::triangle::{Ray, gamma};
+use crate::triangle::gamma;
 use glam::Vec3;
 use wide::{f32x4, f64x4};
 
@@ -234,20 +235,6 @@ impl TestLanes {
     pub fn unoccluded(&self, k: usize) -> [f32; 3] {
         self.unoccluded.map(|c| c.to_array()[k])
     }
-
-    /// Hit `k`'s test (when bit k of `lit` is set).
-    pub fn test(&self, k: usize) -> ShadowTest {
-        let at =
-            |v: &[f32x4; 3]| Vec3::new(v[0].to_array()[k], v[1].to_array()[k], v[2].to_array()[k]);
-        ShadowTest {
-            ray: Ray {
-                origin: at(&self.origin),
-                dir: at(&self.dir),
-            },
-            t_max: self.t_max,
-            unoccluded: self.unoccluded(k),
-        }
-    }
 }
 
 /// [`shadow_ray`]'s direction and `t_max` from each of the four `origins`, lane by lane.
@@ -405,8 +392,23 @@ fn smooth_lanes(
 mod tests {
     use super::*;
     use crate::shading::tests::rng;
-    use crate::shading::{shadow_test, surface_point};
+    use crate::shading::{ShadowTest, shadow_test, surface_point};
+    use crate::triangle::Ray;
     use glam::DVec3;
+
+    /// Hit `k`'s test in `lanes` (when bit k of `lit` is set).
+    fn test_of(lanes: &TestLanes, k: usize) -> ShadowTest {
+        let at =
+            |v: &[f32x4; 3]| Vec3::new(v[0].to_array()[k], v[1].to_array()[k], v[2].to_array()[k]);
+        ShadowTest {
+            ray: Ray {
+                origin: at(&lanes.origin),
+                dir: at(&lanes.dir),
+            },
+            t_max: lanes.t_max,
+            unoccluded: lanes.unoccluded(k),
+        }
+    }
 
     /// The lanes' tests as (hit, light, test bits), hit by hit, then light by light: the order
     /// of [`crate::shading::shadow_tests`].
@@ -415,7 +417,7 @@ mod tests {
         for k in 0..4 {
             for (l, lanes) in lanes {
                 if lanes.lit & (1 << k) != 0 {
-                    tests.push((k, *l, bits(&lanes.test(k))));
+                    tests.push((k, *l, bits(&test_of(lanes, k))));
                 }
             }
         }
