@@ -26,12 +26,13 @@ use crate::scene::Light;
 use crate::triangle::{Ray, gamma};
 use glam::{DVec3, Vec3};
 
-mod flat4;
+mod array_lanes;
 mod frame;
+mod hit_lanes;
 mod lanes;
 
-pub use flat4::{FlatHit, TestLanes, flat_test_lanes, smooth_test_lanes};
 pub use frame::{LastFrame, TriangleFrame};
+pub use hit_lanes::{HitLanes, TestLanes, flat_test_lanes, smooth_test_lanes};
 
 /// Fraction of a point light's distance not tested for occluders, at the light's end
 /// (pbrt-v4's ShadowEpsilon): nothing can sit exactly on a point light.

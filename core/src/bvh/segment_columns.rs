@@ -9,7 +9,6 @@ use super::ray_packet::RAY_PACKET;
 use crate::triangle::Ray;
 use glam::Vec3;
 use std::ops::Range;
-use wide::f32x4;
 
 /// Shadow segments `(ray, t_max)`, coordinate by coordinate: segment i's origin is
 /// `(origin[0][i], origin[1][i], origin[2][i])`, its direction likewise, and it ends at
@@ -51,22 +50,27 @@ impl SegmentColumns {
         self.t_max.push(t_max);
     }
 
-    /// Appends the segments of the lanes set in `mask` (bit k: lane k), lowest lane first:
-    /// lane k's origin is lane k of `origin[0..3]`, its direction likewise, and every one ends
-    /// at `t_max`.
+    /// Appends the segments of the `N` lanes set in `mask` (bit k: lane k), lowest lane
+    /// first: lane k's origin is `(origin[0][k], origin[1][k], origin[2][k])`, its direction
+    /// likewise, and every one ends at `t_max`.
     #[inline]
-    pub fn push_lanes(&mut self, mask: u32, origin: &[f32x4; 3], dir: &[f32x4; 3], t_max: f32) {
-        if mask & 0xf == 0xf {
+    pub fn push_lanes<const N: usize>(
+        &mut self,
+        mask: u32,
+        origin: &[[f32; N]; 3],
+        dir: &[[f32; N]; 3],
+        t_max: f32,
+    ) {
+        let all = u32::MAX >> (32 - N);
+        if mask & all == all {
             for a in 0..3 {
-                self.origin[a].extend_from_slice(&origin[a].to_array());
-                self.dir[a].extend_from_slice(&dir[a].to_array());
+                self.origin[a].extend_from_slice(&origin[a]);
+                self.dir[a].extend_from_slice(&dir[a]);
             }
-            self.t_max.extend_from_slice(&[t_max; 4]);
+            self.t_max.extend_from_slice(&[t_max; N]);
             return;
         }
-        let origin = origin.map(|o| o.to_array());
-        let dir = dir.map(|d| d.to_array());
-        for k in super::bits(mask & 0xf) {
+        for k in super::bits(mask & all) {
             for a in 0..3 {
                 self.origin[a].push(origin[a][k]);
                 self.dir[a].push(dir[a][k]);
@@ -114,16 +118,16 @@ impl SegmentColumns {
 mod tests {
     use super::*;
 
-    /// Segments pushed one by one and four lanes at a time (every mask) come back as pushed,
-    /// in order.
+    /// Segments pushed one by one and four lanes at a time (every mask, and a whole and a
+    /// partial sixteen) come back as pushed, in order.
     #[test]
     fn pushed_segments_come_back_in_order() {
         let mut columns = SegmentColumns::default();
         let mut expected = Vec::new();
         let lane = |k: usize, m: u32, a: usize| (m * 100 + k as u32 * 10 + a as u32) as f32;
         for mask in 0..16u32 {
-            let origin = [0, 1, 2].map(|a| f32x4::from([0, 1, 2, 3].map(|k| lane(k, mask, a))));
-            let dir = [0, 1, 2].map(|a| f32x4::from([0, 1, 2, 3].map(|k| -lane(k, mask, a))));
+            let origin = [0, 1, 2].map(|a| [0, 1, 2, 3].map(|k| lane(k, mask, a)));
+            let dir = [0, 1, 2].map(|a| [0, 1, 2, 3].map(|k| -lane(k, mask, a)));
             columns.push_lanes(mask, &origin, &dir, mask as f32 + 0.5);
             for k in super::super::bits(mask) {
                 let ray = Ray {
@@ -139,8 +143,25 @@ mod tests {
             columns.push(&ray, 7.0);
             expected.push((ray, 7.0));
         }
+        for mask in [0xffff, 0x8421, 0x7ffe] {
+            let sixteen =
+                |sign: f32| [0, 1, 2].map(|a| std::array::from_fn(|k| sign * lane(k, mask, a)));
+            columns.push_lanes::<16>(mask, &sixteen(1.0), &sixteen(-1.0), 3.0);
+            for k in super::super::bits(mask) {
+                let at = |sign: f32| {
+                    sign * Vec3::new(lane(k, mask, 0), lane(k, mask, 1), lane(k, mask, 2))
+                };
+                expected.push((
+                    Ray {
+                        origin: at(1.0),
+                        dir: at(-1.0),
+                    },
+                    3.0,
+                ));
+            }
+        }
         assert_eq!(columns.len(), expected.len());
-        assert_eq!(columns.len(), 32 + 16);
+        assert_eq!(columns.len(), 32 + 16 + 16 + 4 + 14);
         let got: Vec<_> = (0..columns.len()).map(|i| columns.get(i)).collect();
         assert_eq!(got, expected);
         columns.clear();
