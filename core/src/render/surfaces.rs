@@ -22,8 +22,8 @@ pub trait Surfaces {
     fn normals_and_kd(&self, hit: &ClosestHit) -> (Option<[Vec3; 3]>, [f32; 3]);
 
     /// The hit triangle's vertex normals (zeros for a triangle without: the same surface point)
-    /// and the reflectance at the hit: what [`crate::shading::FlatShader::smooth_tests4`]
-    /// takes of a hit.
+    /// and the reflectance at the hit: what [`crate::shading::smooth_test_lanes`] takes of a
+    /// hit ([`crate::shading::HitLanes`]).
     #[inline]
     fn lane_shading(&self, hit: &ClosestHit) -> ([Vec3; 3], [f32; 3]) {
         let (normals, kd) = self.normals_and_kd(hit);

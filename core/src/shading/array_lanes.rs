@@ -2,11 +2,11 @@
 //! [`Mask`]s of whole lanes. Each operation is a loop that does one IEEE operation per lane
 //! (add, subtract, multiply, divide and square root correctly rounded, never fused; widening
 //! exact, narrowing to nearest; comparisons ordered, false with a NaN), which the compiler
-//! turns into vector instructions of whatever width the calling function is compiled for:
-//! SSE4.1 or NEON at four lanes, AVX2 at eight, AVX-512 at sixteen (`render/batch.rs` enters
-//! such functions after finding the instruction set on the host). No instruction set changes
-//! a lane's bits, so code written once over these types gives the same answers at every
-//! width and on every machine.
+//! turns into vector instructions of the instruction set the calling function is compiled
+//! for: sixteen `f32` lanes take one AVX-512 register, two AVX ones, or four SSE4.1 or NEON
+//! ones (`render/batch.rs` compiles its shading for each and enters the one the host has). No
+//! instruction set changes a lane's bits, so code written once over these types gives the
+//! same answers at every lane count and on every machine.
 
 use std::ops::{Add, Div, Mul, Neg, Sub};
 

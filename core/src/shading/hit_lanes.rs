@@ -1,5 +1,5 @@
-//! Hits shaded `N` at a time, one hit per lane ([`super::array_lanes`]: four, eight or
-//! sixteen lanes, as wide as the calling code's instruction set): their
+//! Hits shaded `N` at a time, one hit per lane ([`super::array_lanes`], vectorized for the
+//! calling code's instruction set; the renderer takes sixteen): their
 //! [`super::surface_point`]s and every light's [`super::shadow_test`], handed over light by
 //! light as lanes ([`TestLanes`]). [`flat_test_lanes`] takes hits on flat (no vertex normals),
 //! untextured triangles; [`smooth_test_lanes`] any hits, with their triangles' vertex normals
