@@ -169,11 +169,12 @@ fn hit_tests<const N: usize, S: Surfaces>(
 
 /// Hits shaded at once ([`hit_tests`]): sixteen lanes with every instruction set. They take
 /// one AVX-512 register, two AVX ones or four SSE or NEON ones per value. Measured at 64 spp
-/// on the bundled scenes, one pinned core, against four lanes (SSE4.1 at every width): the
-/// shading phase took 0.82x the time with AVX-512 on the Cornell box and the bunny, about the
-/// same on the textured globe, and about the same with AVX2 and SSE4.1 (four lanes with SSE,
-/// or eight with AVX2, were 4-26% slower than sixteen: the per-group work is then paid more
-/// often).
+/// on the bundled scenes, one pinned core, against the four-lane shader it replaced (SSE4.1
+/// at every width): the shading phase took 0.78x to 0.82x the time with AVX-512 and with AVX2
+/// on the bunny, the Cornell box and the teapot (the textured globe 0.97x and 1.01x, its
+/// texture lookups one hit at a time), and 0.92x to 0.96x with SSE4.1 (the globe 1.14x: its
+/// smooth lanes spill SSE's sixteen registers). Four lanes with SSE, or eight with AVX2, were
+/// 4-26% slower than sixteen: the per-group work is then paid more often.
 const SHADING_LANES: usize = 16;
 
 /// [`hit_tests`] compiled with `$compile` (an instruction set).
