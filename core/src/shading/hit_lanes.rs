@@ -54,6 +54,7 @@ impl<const N: usize> Default for HitLanes<N> {
 impl<const N: usize> HitLanes<N> {
     /// Lane `k`: a hit on the triangle with `corners` at barycentrics `b` along `dir`, with
     /// reflectance `kd` at the hit. (Its vertex normals are set apart, [`Self::set_normals`].)
+    /// Panics unless `k < N`.
     #[inline(always)]
     pub fn set(
         &mut self,
@@ -72,7 +73,7 @@ impl<const N: usize> HitLanes<N> {
         }
     }
 
-    /// Lane `k`'s vertex normals: zeros for a flat triangle.
+    /// Lane `k`'s vertex normals: zeros for a flat triangle. Panics unless `k < N`.
     #[inline(always)]
     pub fn set_normals(&mut self, k: usize, normals: &[Vec3; 3]) {
         for (lanes, normal) in self.normals.iter_mut().zip(normals) {
