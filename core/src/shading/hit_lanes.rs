@@ -14,11 +14,12 @@
 //! segments a coordinate at a time ([`crate::bvh::SegmentColumns::push_lanes`]).
 
 use super::array_lanes::{F32s, F64s, Mask};
+use super::lanes::point_incidence_lanes;
 use super::{incidence, shadow_ray};
 use crate::bvh::CornerLanes;
 use crate::scene::Light;
 use crate::triangle::gamma;
-use glam::{DVec3, Vec3};
+use glam::Vec3;
 
 /// What shading needs of `N` hits, lane by lane (hit k in lane k): the triangles' corners,
 /// the hits' barycentrics, the rays' directions, the diffuse reflectances and, for
@@ -260,7 +261,11 @@ impl<const N: usize> TestLanes<N> {
             Light::Point {
                 position,
                 intensity,
-            } => point_incidence(position, intensity, p),
+            } => {
+                let i = point_incidence_lanes(position, intensity, [p.x, p.y, p.z]);
+                let [x, y, z] = i.to_light;
+                (Vec3s { x, y, z }, i.irradiance, i.valid)
+            }
             Light::Directional { .. } => {
                 // The same incidence at every point.
                 let i = incidence(Vec3::ZERO, light).expect("a directional light reaches all");
@@ -293,39 +298,6 @@ impl<const N: usize> TestLanes<N> {
             self.unoccluded[2][k],
         ]
     }
-}
-
-/// [`super::incidence`] of the point light at `position` with `intensity` at the points `p`,
-/// lane by lane: unit directions toward the light, irradiance per channel, and in the bits
-/// whether each point has an incidence at all (not at the light's position).
-#[inline(always)]
-fn point_incidence<const N: usize>(
-    position: DVec3,
-    intensity: [f32; 3],
-    p: &Vec3s<N>,
-) -> (Vec3s<N>, [F32s<N>; 3], u32) {
-    let axis = |a: usize, p: F32s<N>| F64s::splat(position[a]) - p.widen();
-    let (vx, vy, vz) = (axis(0, p.x), axis(1, p.y), axis(2, p.z));
-    // As `DVec3::length_squared`: (x·x + y·y) + z·z.
-    let r2 = vx * vx + vy * vy + vz * vz;
-    let length = r2.sqrt();
-    // Grey lights (equal channel bits) divide once, as the scalar path does.
-    let e0 = (F64s::splat(f64::from(intensity[0])) / r2).narrow();
-    let channel = |k: usize| {
-        if intensity[k].to_bits() == intensity[0].to_bits() {
-            e0
-        } else {
-            (F64s::splat(f64::from(intensity[k])) / r2).narrow()
-        }
-    };
-    let to_light = Vec3s {
-        x: (vx / length).narrow(),
-        y: (vy / length).narrow(),
-        z: (vz / length).narrow(),
-    };
-    // `r2 <= 0` has no incidence; a NaN has one, as in the scalar test.
-    let valid = !r2.le(F64s::splat(0.0)).to_bits() & (u32::MAX >> (32 - N));
-    (to_light, [e0, channel(1), channel(2)], valid)
 }
 
 /// [`shadow_ray`]'s direction and `t_max` from each of the `origins`, lane by lane.
