@@ -4,7 +4,7 @@
 use super::surfaces::Surfaces;
 use crate::bvh::{Bvh, ClosestHit, KernelWidth, SegmentColumns, bits, kernel_width};
 use crate::phase_timer::{Phase, PhaseTimer};
-use crate::scene::Light;
+use crate::scene::{Light, TriangleShading};
 use crate::shading::{
     HitLanes, TestLanes, add_ambient, add_light, flat_test_lanes, smooth_test_lanes,
 };
@@ -105,36 +105,87 @@ struct HitSamples<'a, S> {
     samples: &'a [u32],
 }
 
-/// Every hit sample's lights' tests, handed to `sink` in sample order (each sample's in light
-/// order), and its reflectance, pushed to `reflectances`: `N` hits shaded at once in lanes,
-/// their tests handed over light by light; when all are on flat, untextured triangles by the
-/// flat lanes, else with their vertex normals (zeros for a flat triangle) and their
-/// reflectances at the hits. A last group of fewer than `N` fills its lanes with its last
-/// hit, whose extra tests are dropped. The same tests every way and at every `N`.
-#[inline(always)]
-fn hit_tests<const N: usize, S: Surfaces>(
-    input: &HitSamples<'_, S>,
-    reflectances: &mut Vec<[f32; 3]>,
-    sink: &mut TestSink<'_>,
-) {
-    let HitSamples {
-        surfaces,
-        bvh,
-        lights,
-        rays,
-        hits,
-        samples,
-    } = *input;
-    let hit = |s: usize| hits[s].as_ref().expect("samples with hits");
-    let mut lanes = HitLanes::<N>::default();
-    for group in samples.chunks(N) {
-        // The normals are written once a hit of the group has them: zeros until then.
+impl<S: Surfaces> HitSamples<'_, S> {
+    /// Sample `s`'s hit.
+    #[inline(always)]
+    fn hit(&self, s: u32) -> &ClosestHit {
+        self.hits[s as usize].as_ref().expect("samples with hits")
+    }
+
+    /// The shading data of `hit`'s triangle, from `last` (the last triangle's, which it then
+    /// keeps) when it is the same triangle: consecutive samples mostly hit the same one.
+    #[inline(always)]
+    fn shading_of<'l>(
+        &self,
+        hit: &ClosestHit,
+        last: &'l mut Option<(u32, TriangleShading)>,
+    ) -> &'l TriangleShading {
+        if last.as_ref().is_none_or(|(index, _)| *index != hit.index) {
+            *last = Some((hit.index, self.surfaces.shading(hit)));
+        }
+        let Some((_, shading)) = last else {
+            unreachable!("set above")
+        };
+        shading
+    }
+
+    /// Fills `lanes` with the hits of `group` (lane k: sample `group[k]`, lanes past the
+    /// group's end its last hit), all on the triangle `first` hit, and pushes their
+    /// reflectances; whether the triangle needs the smooth lanes (vertex normals or a
+    /// texture). The triangle's corners, normals and (untextured) reflectance go to every
+    /// lane at once: the values [`Self::fill_mixed`] writes lane by lane. `last` is
+    /// [`Self::shading_of`]'s.
+    #[inline(always)]
+    fn fill_one_triangle<const N: usize>(
+        &self,
+        (group, first): (&[u32], &ClosestHit),
+        last: &mut Option<(u32, TriangleShading)>,
+        lanes: &mut HitLanes<N>,
+        reflectances: &mut Vec<[f32; 3]>,
+    ) -> bool {
+        let shading = self.shading_of(first, last);
+        let normals = shading.normals.unwrap_or([Vec3::ZERO; 3]);
+        lanes.set_triangle(self.bvh.hit_corners(first), &normals);
+        if shading.texture.is_none() {
+            for k in 0..N {
+                let s = group[k.min(group.len() - 1)];
+                lanes.set_ray(k, &self.hit(s).b, &self.rays[s as usize].dir);
+            }
+            lanes.set_kd_all(shading.kd);
+            reflectances.extend(std::iter::repeat_n(shading.kd, group.len()));
+        } else {
+            for k in 0..N {
+                let s = group[k.min(group.len() - 1)];
+                let h = self.hit(s);
+                let kd = self.surfaces.kd_on(shading, h.b);
+                lanes.set_ray(k, &h.b, &self.rays[s as usize].dir);
+                lanes.set_kd(k, kd);
+                if k < group.len() {
+                    reflectances.push(kd);
+                }
+            }
+        }
+        shading.normals.is_some() || shading.texture.is_some()
+    }
+
+    /// Fills `lanes` with the hits of `group` (lane k: sample `group[k]`, lanes past the
+    /// group's end its last hit), hit by hit, and pushes their reflectances; whether a hit
+    /// needs the smooth lanes (vertex normals or a texture). The normals are written once a
+    /// hit of the group has them: zeros until then, and for flat triangles. `last` is
+    /// [`Self::shading_of`]'s.
+    #[inline(always)]
+    fn fill_mixed<const N: usize>(
+        &self,
+        group: &[u32],
+        last: &mut Option<(u32, TriangleShading)>,
+        lanes: &mut HitLanes<N>,
+        reflectances: &mut Vec<[f32; 3]>,
+    ) -> bool {
         let mut smooth = false;
         for k in 0..N {
-            let s = group[k.min(group.len() - 1)] as usize;
-            let h = hit(s);
-            let at = (bvh.hit_corners(h), &h.b, &rays[s].dir);
-            let kd = match surfaces.flat_kd(h) {
+            let s = group[k.min(group.len() - 1)];
+            let h = self.hit(s);
+            let kd = match self.surfaces.flat_kd(h) {
                 Some(kd) => {
                     if smooth {
                         lanes.set_normals(k, &[Vec3::ZERO; 3]);
@@ -146,23 +197,52 @@ fn hit_tests<const N: usize, S: Surfaces>(
                         smooth = true;
                         lanes.clear_normals();
                     }
-                    let (normals, kd) = surfaces.lane_shading(h);
-                    lanes.set_normals(k, &normals);
-                    kd
+                    let shading = self.shading_of(h, last);
+                    lanes.set_normals(k, &shading.normals.unwrap_or([Vec3::ZERO; 3]));
+                    self.surfaces.kd_on(shading, h.b)
                 }
             };
-            lanes.set(k, at, kd);
+            lanes.set_corners(k, self.bvh.hit_corners(h));
+            lanes.set_ray(k, &h.b, &self.rays[s as usize].dir);
+            lanes.set_kd(k, kd);
             if k < group.len() {
                 reflectances.push(kd);
             }
         }
+        smooth
+    }
+}
+
+/// Every hit sample's lights' tests, handed to `sink` in sample order (each sample's in light
+/// order), and its reflectance, pushed to `reflectances`: `N` hits shaded at once in lanes,
+/// their tests handed over light by light; when all are on flat, untextured triangles by the
+/// flat lanes, else with their vertex normals (zeros for a flat triangle) and their
+/// reflectances at the hits. A last group of fewer than `N` fills its lanes with its last
+/// hit, whose extra tests are dropped. A group whose hits are all on one triangle (most
+/// groups: a run of samples lies in one part of a pixel) takes the triangle's data once.
+/// The same tests every way and at every `N`.
+#[inline(always)]
+fn hit_tests<const N: usize, S: Surfaces>(
+    input: &HitSamples<'_, S>,
+    reflectances: &mut Vec<[f32; 3]>,
+    sink: &mut TestSink<'_>,
+) {
+    let mut lanes = HitLanes::<N>::default();
+    let mut last = None;
+    for group in input.samples.chunks(N) {
+        let first = input.hit(group[0]);
+        let smooth = if group.iter().all(|&s| input.hit(s).index == first.index) {
+            input.fill_one_triangle((group, first), &mut last, &mut lanes, reflectances)
+        } else {
+            input.fill_mixed(group, &mut last, &mut lanes, reflectances)
+        };
         let visit = |l: usize, tests: &TestLanes<N>| sink.lanes(group, l, tests);
         if smooth {
             // Vertex normals or textures: the same tests, with each hit's normals (zeros for
             // a flat triangle) and reflectance at the hit.
-            smooth_test_lanes(&lanes, lights, visit);
+            smooth_test_lanes(&lanes, input.lights, visit);
         } else {
-            flat_test_lanes(&lanes, lights, visit);
+            flat_test_lanes(&lanes, input.lights, visit);
         }
     }
 }

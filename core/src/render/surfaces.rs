@@ -6,7 +6,7 @@
 use super::{flat_kd, shading_of};
 use crate::bvh::{Bvh, ClosestHit};
 use crate::pipeline::SplitObject;
-use crate::scene::Mesh;
+use crate::scene::{Mesh, TriangleShading};
 use crate::shading::{LastFrame, SurfacePoint, surface_point_on};
 use crate::triangle::Ray;
 use glam::Vec3;
@@ -14,20 +14,22 @@ use glam::Vec3;
 /// The shading data of hit triangles.
 pub trait Surfaces {
     /// The reflectance of the hit triangle when it is flat (no vertex normals) and
-    /// untextured, which is then the `kd` of [`Surfaces::surface`]; else `None`.
+    /// untextured; else `None`.
     fn flat_kd(&self, hit: &ClosestHit) -> Option<[f32; 3]>;
+
+    /// The hit triangle's shading data: its vertex normals, material reflectance and texture.
+    fn shading(&self, hit: &ClosestHit) -> TriangleShading;
+
+    /// The reflectance at barycentrics `b` of a triangle whose shading data is `shading`
+    /// (from [`Surfaces::shading`]): its material's, times its texture where it has one.
+    fn kd_on(&self, shading: &TriangleShading, b: [f32; 3]) -> [f32; 3];
 
     /// The hit triangle's vertex normals, if it has them, and the reflectance at the hit,
     /// textured or not.
-    fn normals_and_kd(&self, hit: &ClosestHit) -> (Option<[Vec3; 3]>, [f32; 3]);
-
-    /// The hit triangle's vertex normals (zeros for a triangle without: the same surface point)
-    /// and the reflectance at the hit: what [`crate::shading::smooth_test_lanes`] takes of a
-    /// hit ([`crate::shading::HitLanes`]).
     #[inline]
-    fn lane_shading(&self, hit: &ClosestHit) -> ([Vec3; 3], [f32; 3]) {
-        let (normals, kd) = self.normals_and_kd(hit);
-        (normals.unwrap_or([Vec3::ZERO; 3]), kd)
+    fn normals_and_kd(&self, hit: &ClosestHit) -> (Option<[Vec3; 3]>, [f32; 3]) {
+        let shading = self.shading(hit);
+        (shading.normals, self.kd_on(&shading, hit.b))
     }
 
     /// The surface point of `hit`, found by `bvh` along `ray`; the triangle's frame is taken
@@ -54,13 +56,16 @@ impl Surfaces for Mesh {
     }
 
     #[inline]
-    fn normals_and_kd(&self, hit: &ClosestHit) -> (Option<[Vec3; 3]>, [f32; 3]) {
-        let s = shading_of(self, hit.id);
-        let kd = match &s.texture {
-            None => s.kd,
-            Some(t) => t.kd_at(s.kd, &self.textures[t.texture as usize], hit.b),
-        };
-        (s.normals, kd)
+    fn shading(&self, hit: &ClosestHit) -> TriangleShading {
+        shading_of(self, hit.id)
+    }
+
+    #[inline]
+    fn kd_on(&self, shading: &TriangleShading, b: [f32; 3]) -> [f32; 3] {
+        match &shading.texture {
+            None => shading.kd,
+            Some(t) => t.kd_at(shading.kd, &self.textures[t.texture as usize], b),
+        }
     }
 }
 
@@ -73,11 +78,14 @@ impl Surfaces for SplitObject {
     }
 
     #[inline]
-    fn normals_and_kd(&self, hit: &ClosestHit) -> (Option<[Vec3; 3]>, [f32; 3]) {
-        let shading = self
-            .shading
+    fn shading(&self, hit: &ClosestHit) -> TriangleShading {
+        self.shading
             .get(hit.index as usize)
-            .expect("a split's shading covers its BVH's triangles (decode_split checks it)");
-        (shading.normals, self.kd_at(&shading, hit.b))
+            .expect("a split's shading covers its BVH's triangles (decode_split checks it)")
+    }
+
+    #[inline]
+    fn kd_on(&self, shading: &TriangleShading, b: [f32; 3]) -> [f32; 3] {
+        self.kd_at(shading, b)
     }
 }

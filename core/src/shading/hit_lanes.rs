@@ -53,25 +53,51 @@ impl<const N: usize> Default for HitLanes<N> {
 }
 
 impl<const N: usize> HitLanes<N> {
-    /// Lane `k`: a hit on the triangle with `corners` at barycentrics `b` along `dir`, with
-    /// reflectance `kd` at the hit. (Its vertex normals are set apart, [`Self::set_normals`].)
-    /// Panics unless `k < N`.
+    /// Lane `k`'s triangle has `corners`. Panics unless `k < N`.
     #[inline(always)]
-    pub fn set(
-        &mut self,
-        k: usize,
-        (corners, b, dir): (CornerLanes<'_>, &[f32; 3], &Vec3),
-        kd: [f32; 3],
-    ) {
+    pub fn set_corners(&mut self, k: usize, corners: CornerLanes<'_>) {
         for c in 0..3 {
             let corner = corners.corner(c);
             for a in 0..3 {
                 self.corners[c][a][k] = corner[a];
             }
+        }
+    }
+
+    /// Every lane's triangle has `corners` and vertex `normals` (zeros for a flat
+    /// triangle): what [`Self::set_corners`] and [`Self::set_normals`] write lane by lane.
+    #[inline(always)]
+    pub fn set_triangle(&mut self, corners: CornerLanes<'_>, normals: &[Vec3; 3]) {
+        for (c, normal) in normals.iter().enumerate() {
+            let corner = corners.corner(c);
+            for a in 0..3 {
+                self.corners[c][a] = [corner[a]; N];
+                self.normals[c][a] = [normal[a]; N];
+            }
+        }
+    }
+
+    /// Lane `k`'s hit is at barycentrics `b` along `dir`. Panics unless `k < N`.
+    #[inline(always)]
+    pub fn set_ray(&mut self, k: usize, b: &[f32; 3], dir: &Vec3) {
+        for c in 0..3 {
             self.b[c][k] = b[c];
             self.dir[c][k] = dir[c];
-            self.kd[c][k] = kd[c];
         }
+    }
+
+    /// Lane `k`'s reflectance at its hit is `kd`. Panics unless `k < N`.
+    #[inline(always)]
+    pub fn set_kd(&mut self, k: usize, kd: [f32; 3]) {
+        for (lanes, kd) in self.kd.iter_mut().zip(kd) {
+            lanes[k] = kd;
+        }
+    }
+
+    /// Every lane's reflectance is `kd`.
+    #[inline(always)]
+    pub fn set_kd_all(&mut self, kd: [f32; 3]) {
+        self.kd = kd.map(|kd| [kd; N]);
     }
 
     /// Lane `k`'s vertex normals: zeros for a flat triangle. Panics unless `k < N`.
@@ -507,7 +533,9 @@ mod tests {
             let mut lanes = HitLanes::<N>::default();
             for k in 0..N {
                 let h = hits[from + k];
-                lanes.set(k, (h.corners, h.b, h.dir), h.kd);
+                lanes.set_corners(k, h.corners);
+                lanes.set_ray(k, h.b, h.dir);
+                lanes.set_kd(k, h.kd);
                 if let Some(normals) = normals {
                     lanes.set_normals(k, &normals[from + k]);
                 }
@@ -650,6 +678,57 @@ mod tests {
                 intensity: [3.0, 7.0, 3.0],
             },
         ]
+    }
+
+    /// Every value of `lanes`, as bits, in field order.
+    fn lane_bits<const N: usize>(lanes: &HitLanes<N>) -> Vec<u32> {
+        let HitLanes {
+            corners,
+            b,
+            dir,
+            kd,
+            normals,
+        } = lanes;
+        let axes = [corners, normals].into_iter().flatten().flatten();
+        let values = axes.chain([b, dir, kd].into_iter().flatten());
+        values.flatten().map(|x| x.to_bits()).collect()
+    }
+
+    /// One triangle's corners, normals and reflectance written to every lane at once are
+    /// what writing them lane by lane gives, bit for bit (a negative zero included).
+    #[test]
+    fn one_triangle_in_every_lane_is_the_lane_by_lane_lanes() {
+        let mut r = rng(5);
+        for round in 0..20 {
+            let mut v = || Vec3::new(r() - 0.5, r() - 0.5, -r());
+            let corners: [[Vec3; 3]; HITS] = [[v(), v(), v()]; HITS];
+            let dir: [Vec3; HITS] = std::array::from_fn(|_| v());
+            let normals = match round % 3 {
+                0 => [Vec3::ZERO; 3],
+                1 => [Vec3::new(-0.0, 1.0, 0.0), dir[0], dir[1]],
+                _ => [dir[2], dir[3], dir[4]],
+            };
+            let kd = [r(), -0.0, r()];
+            let b: [[f32; 3]; HITS] = std::array::from_fn(|_| [r(), r(), r()]);
+            let v = in_lanes(&corners);
+            let hits = lane_hits(&v, &b, &dir, [kd; HITS]);
+            let mut at_once = HitLanes::<HITS>::default();
+            at_once.set_triangle(hits[0].corners, &normals);
+            at_once.set_kd_all(kd);
+            let mut lane_by_lane = HitLanes::<HITS>::default();
+            for (k, h) in hits.iter().enumerate() {
+                at_once.set_ray(k, h.b, h.dir);
+                lane_by_lane.set_corners(k, h.corners);
+                lane_by_lane.set_normals(k, &normals);
+                lane_by_lane.set_ray(k, h.b, h.dir);
+                lane_by_lane.set_kd(k, h.kd);
+            }
+            assert_eq!(
+                lane_bits(&at_once),
+                lane_bits(&lane_by_lane),
+                "round {round}"
+            );
+        }
     }
 
     /// The lanes give, hit by hit and light by light, the scalar surface point's shadow tests
