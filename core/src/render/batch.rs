@@ -5,9 +5,7 @@ use super::surfaces::Surfaces;
 use crate::bvh::{Bvh, ClosestHit, KernelWidth, SegmentColumns, bits, kernel_width};
 use crate::phase_timer::{Phase, PhaseTimer};
 use crate::scene::{Light, TriangleShading};
-use crate::shading::{
-    HitLanes, TestLanes, add_ambient, add_light, flat_test_lanes, smooth_test_lanes,
-};
+use crate::shading::{HitLanes, TestLanes, add_ambient, flat_test_lanes, smooth_test_lanes};
 use crate::triangle::Ray;
 use glam::Vec3;
 
@@ -26,21 +24,42 @@ pub struct Lighting<'a> {
     pub background: [f32; 3],
 }
 
-/// One light's shadow tests in a batch, in sample order: the segments to trace (none when
-/// the light is unoccludable), and for each test its sample and the radiance it adds when
-/// unblocked, channel by channel.
+/// One light's shadow tests in a batch, hit by hit (the batch's hit samples in sample
+/// order, shaded in groups of [`SHADING_LANES`]): which hits of each group have a test, the
+/// tests' segments in hit order (none when the light is unoccludable), and per hit the
+/// radiance the light adds, channel by channel: the test's radiance when unblocked, +0 for a
+/// hit without a test or (once [`LightTests::drop_blocked`] ran) a blocked one.
 #[derive(Default)]
 struct LightTests {
     segments: SegmentColumns,
-    samples: Vec<u32>,
-    unoccluded: [Vec<f32>; 3],
+    /// Per group, bit k: hit k of the group has a test.
+    lit: Vec<u32>,
+    /// Per hit, the radiance added, channel by channel.
+    added: [Vec<f32>; 3],
 }
 
 impl LightTests {
     fn clear(&mut self) {
         self.segments.clear();
-        self.samples.clear();
-        self.unoccluded.iter_mut().for_each(Vec::clear);
+        self.lit.clear();
+        self.added.iter_mut().for_each(Vec::clear);
+    }
+
+    /// Sets to +0 the radiance of the hits whose segment is blocked (`blocked[i]` for
+    /// segment `i`).
+    fn drop_blocked(&mut self, blocked: &[bool]) {
+        let mut segment = 0;
+        for (group, &lit) in self.lit.iter().enumerate() {
+            let run = &blocked[segment..segment + lit.count_ones() as usize];
+            segment += run.len();
+            if run.contains(&true) {
+                for (k, _) in bits(lit).zip(run).filter(|(_, blocked)| **blocked) {
+                    for column in &mut self.added {
+                        column[group * SHADING_LANES + k] = 0.0;
+                    }
+                }
+            }
+        }
     }
 }
 
@@ -56,6 +75,8 @@ pub(crate) struct ShadingScratch {
     tests: Vec<LightTests>,
     /// Per light, whether each of its segments is blocked.
     blocked: Vec<Vec<bool>>,
+    /// Per hit sample, the sum of its lights, channel by channel.
+    sums: [Vec<f32>; 3],
     /// Per sample, its radiance.
     colours: Vec<[f32; 3]>,
 }
@@ -67,8 +88,8 @@ struct TestSink<'a> {
 }
 
 impl TestSink<'_> {
-    /// Light `light`'s tests at the samples `group` (lane k: sample `group[k]`; lanes past the
-    /// group's end have no test).
+    /// Light `light`'s tests at the hits of `group` (lane k: hit k of the group; lanes past
+    /// the group's end have no test).
     #[inline(always)]
     fn lanes<const N: usize>(&mut self, group: &[u32], light: usize, lanes: &TestLanes<N>) {
         let lit = lanes.lit & (u32::MAX >> (32 - group.len()));
@@ -77,18 +98,11 @@ impl TestSink<'_> {
             let columns = &mut tests.segments;
             columns.push_lanes(lit, &lanes.origin, &lanes.dir, lanes.t_max);
         }
-        if lit == u32::MAX >> (32 - N) {
-            tests.samples.extend_from_slice(group);
-            for (column, lanes) in tests.unoccluded.iter_mut().zip(&lanes.unoccluded) {
-                column.extend_from_slice(lanes);
-            }
-        } else {
-            for k in bits(lit) {
-                tests.samples.push(group[k]);
-                for (column, lanes) in tests.unoccluded.iter_mut().zip(&lanes.unoccluded) {
-                    column.push(lanes[k]);
-                }
-            }
+        tests.lit.push(lit);
+        for (column, lanes) in tests.added.iter_mut().zip(&lanes.unoccluded) {
+            let added: [f32; N] =
+                std::array::from_fn(|k| if lit & (1 << k) != 0 { lanes[k] } else { 0.0 });
+            column.extend_from_slice(&added[..group.len()]);
         }
     }
 }
@@ -321,6 +335,7 @@ pub(super) fn shade_batch_timed<'s>(
         reflectances,
         tests,
         blocked,
+        sums,
         colours,
     } = scratch;
     samples.clear();
@@ -350,25 +365,28 @@ pub(super) fn shade_batch_timed<'s>(
         bvh.occluded_columns(&tests.segments, blocked);
     }
     timer.lap(Phase::ShadowRays);
-    // A hit sample's colour is its lights' sum until the ambient term is added: from +0, each
-    // test's radiance added unless its segment is blocked, light by light in light order, so
-    // each sample's sum adds its lights in light order, as `combine` does.
-    colours.clear();
-    colours.resize(hits.len(), lighting.background);
-    for &sample in samples.iter() {
-        colours[sample as usize] = [0.0; 3];
+    // A hit sample's colour is its lights' sum plus the ambient term: from +0, each light's
+    // radiance added in light order, as `combine` does, +0 where the light is blocked or has
+    // no test (adding +0 leaves every sum as it is: a sum from +0 is never -0).
+    for (tests, blocked) in tests.iter_mut().zip(blocked.iter()) {
+        if !blocked.is_empty() {
+            tests.drop_blocked(blocked);
+        }
     }
-    for (light, (tests, blocked)) in tests.iter().zip(blocked.iter()).enumerate() {
-        let traced = !lighting.unoccludable[light];
-        let [r, g, b] = &tests.unoccluded;
-        for (i, &sample) in tests.samples.iter().enumerate() {
-            if !(traced && blocked[i]) {
-                add_light(&mut colours[sample as usize], [r[i], g[i], b[i]]);
+    for (c, sums) in sums.iter_mut().enumerate() {
+        sums.clear();
+        sums.resize(samples.len(), 0.0);
+        for tests in tests.iter() {
+            for (sum, added) in sums.iter_mut().zip(&tests.added[c]) {
+                *sum += added;
             }
         }
     }
-    for (&sample, &kd) in samples.iter().zip(reflectances.iter()) {
-        colours[sample as usize] = add_ambient(colours[sample as usize], kd, lighting.ambient);
+    colours.clear();
+    colours.resize(hits.len(), lighting.background);
+    for (i, (&sample, &kd)) in samples.iter().zip(reflectances.iter()).enumerate() {
+        let sum = [sums[0][i], sums[1][i], sums[2][i]];
+        colours[sample as usize] = add_ambient(sum, kd, lighting.ambient);
     }
     timer.lap(Phase::Shading);
     colours
