@@ -102,7 +102,12 @@ impl TestSink<'_> {
         for (column, lanes) in tests.added.iter_mut().zip(&lanes.unoccluded) {
             let added: [f32; N] =
                 std::array::from_fn(|k| if lit & (1 << k) != 0 { lanes[k] } else { 0.0 });
-            column.extend_from_slice(&added[..group.len()]);
+            // A whole group's is a fixed-size copy, where a slice of any length is a call.
+            if group.len() == N {
+                column.extend_from_slice(&added);
+            } else {
+                column.extend_from_slice(&added[..group.len()]);
+            }
         }
     }
 }

@@ -22,6 +22,15 @@ pub(super) struct F64s<const N: usize>(pub [f64; N]);
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Mask<const N: usize>([u32; N]);
 
+/// `[f(a[0]), f(a[1]), f(a[2])]`: `array::map` spelled out, since `map` is not always
+/// inlined, and then runs apart from the lanes' instruction set (a call per element,
+/// compiled for the baseline).
+#[inline(always)]
+pub(super) fn three<A, B>(a: [A; 3], f: impl Fn(A) -> B) -> [B; 3] {
+    let [a0, a1, a2] = a;
+    [f(a0), f(a1), f(a2)]
+}
+
 /// `[f(a[k]) for each k]`.
 #[inline(always)]
 fn each<A: Copy, B: Copy + Default, const N: usize>(a: [A; N], f: impl Fn(A) -> B) -> [B; N] {

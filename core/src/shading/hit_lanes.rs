@@ -13,7 +13,7 @@
 //! incidence become lane masks. The tests leave in lanes too: the renderer stores a light's
 //! segments a coordinate at a time ([`crate::bvh::SegmentColumns::push_lanes`]).
 
-use super::array_lanes::{F32s, F64s, Mask};
+use super::array_lanes::{F32s, F64s, Mask, three};
 use super::lanes::point_incidence_lanes;
 use super::{incidence, shadow_ray};
 use crate::bvh::CornerLanes;
@@ -97,7 +97,7 @@ impl<const N: usize> HitLanes<N> {
     /// Every lane's reflectance is `kd`.
     #[inline(always)]
     pub fn set_kd_all(&mut self, kd: [f32; 3]) {
-        self.kd = kd.map(|kd| [kd; N]);
+        self.kd = three(kd, |kd| [kd; N]);
     }
 
     /// Lane `k`'s vertex normals: zeros for a flat triangle. Panics unless `k < N`.
@@ -295,7 +295,7 @@ impl<const N: usize> TestLanes<N> {
             Light::Directional { .. } => {
                 // The same incidence at every point.
                 let i = incidence(Vec3::ZERO, light).expect("a directional light reaches all");
-                let e = i.irradiance.map(F32s::splat);
+                let e = three(i.irradiance, F32s::splat);
                 (Vec3s::splat(i.to_light), e, all)
             }
         };
@@ -382,7 +382,7 @@ fn test_lanes<const N: usize>(
     const { assert!(N > 0 && N <= 32, "1 to 32 lanes") };
     let corners = [hits.corner(0), hits.corner(1), hits.corner(2)];
     let [p0, p1, p2] = corners;
-    let b = hits.b.map(F32s);
+    let b = three(hits.b, F32s);
     let (w0, w1, w2) = (p0.scale(b[0]), p1.scale(b[1]), p2.scale(b[2]));
     // As `surface_point`: p, its error bound, and the geometric normal facing the ray.
     let p = w0.add(w1).add(w2);
@@ -397,7 +397,7 @@ fn test_lanes<const N: usize>(
     // The shading normal and where shadow rays start: on a flat triangle the geometric
     // normal and p.
     let (n_shade, p_shadow, p_shadow_error) = if smooth {
-        let normals = hits.normals.each_ref().map(Vec3s::of_axes);
+        let normals = three(hits.normals, |n| Vec3s::of_axes(&n));
         smooth_lanes(normals, (corners, b), n, (p, p_error))
     } else {
         (n, p, p_error)
@@ -411,7 +411,7 @@ fn test_lanes<const N: usize>(
         y: moved.y.round_away(offset.y),
         z: moved.z.round_away(offset.z),
     };
-    let kd = hits.kd.map(F32s);
+    let kd = three(hits.kd, F32s);
     for (l, light) in lights.iter().enumerate() {
         visit(l, &TestLanes::new(light, &p, &n_shade, &origin, &kd));
     }
@@ -441,7 +441,14 @@ fn smooth_lanes<const N: usize>(
     // unit vector of the negated one, bit for bit).
     let flip = n.dot(n_geo).lt(zero);
     let n = n.negate_where(flip);
-    let units = normals.map(|v| v.normalize_or_zero().negate_where(flip));
+    // Spelled out: a closure this large is not inlined, and then runs in the baseline's
+    // instructions.
+    let [u0, u1, u2] = normals;
+    let units = [
+        u0.normalize_or_zero().negate_where(flip),
+        u1.normalize_or_zero().negate_where(flip),
+        u2.normalize_or_zero().negate_where(flip),
+    ];
     // As `shadow_point_unit`: each vertex plane above p (its normal not within
     // MIN_NORMAL_COS of the triangle's plane) lifts p by its weight; where a term is not
     // taken, +0 is added, which leaves a sum that starts at +0 as it is.
