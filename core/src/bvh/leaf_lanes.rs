@@ -28,7 +28,7 @@ use super::lanes::{F32x8, F32x16};
 use super::node4::Triangle4;
 use super::packet_hits::PacketHits;
 use super::packet_rays::PacketRays;
-use super::ray_packet::{RAY_PACKET, bits};
+use super::ray_packet::{RAY_PACKET, bits, first_bits};
 use super::simd4::{any_hit_verdict, closest_verdict, edges_unless_outside};
 use super::traverse::scalar_hit;
 use crate::triangle::{Ray, RayPrep, TriangleHit, intersect};
@@ -88,7 +88,7 @@ impl<L: RayGroupLanes> RayLanes<L> {
         ];
         let [ax, ay, az] = [dir[0].abs(), dir[1].abs(), dir[2].abs()];
         // As `RayPrep::new`: z is x when |x| > |y| and |x| > |z|, else y when |y| > |z|, else z.
-        let all = (1u32 << L::LANES) - 1;
+        let all = first_bits(L::LANES);
         let x_over_y = ax.cmp_gt(ay);
         let z_is_x = x_over_y & ax.cmp_gt(az);
         let z_is_y = !x_over_y & ay.cmp_gt(az);
@@ -293,7 +293,7 @@ impl<L: LeafLanes> PacketLanes<'_, L> {
         mut test: impl FnMut(usize, u32, &RayLanes<L>),
     ) -> u32 {
         let mut rest = active;
-        let all = (1u32 << L::LANES) - 1;
+        let all = first_bits(L::LANES);
         for (g, slot) in self
             .groups
             .iter_mut()
@@ -520,7 +520,7 @@ mod tests {
         let mut packet_rays = PacketRays::EMPTY;
         packet_rays.fill(rays, |ray| ray);
         let lanes = RayLanes::<L>::new(&packet_rays, 0)?;
-        let valid = (1u32 << rays.len()) - 1;
+        let valid = first_bits(rays.len());
         let bits = |x: [L; 3]| [x[0].store_bits(), x[1].store_bits(), x[2].store_bits()];
         let corners = lanes.corners(p, 0);
         let Some(e) = edges_unless_outside(&lanes.origin, &lanes.shear, &corners, valid) else {

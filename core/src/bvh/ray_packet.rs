@@ -357,7 +357,7 @@ impl Bvh {
         let mut searches: [Option<ClosestSearch>; RAY_PACKET] = [None; RAY_PACKET];
         // Each ray's culling bound in lanes and their range over the packet, remade only when
         // a bound can change (after leaves and single rays).
-        let all_rays = (1u32 << rays.len()) - 1;
+        let all_rays = first_bits(rays.len());
         let (mut bound, mut range) = hits.bounds(all_rays);
         let mut depth = 0usize;
         let (mut child, mut triangle4_count) = ROOT;
@@ -458,6 +458,12 @@ fn closest_in_lanes<L: LeafLanes>(
     })
 }
 
+/// The mask of lanes `0..n` (bits below `n`; `n` at most 32).
+#[inline(always)]
+pub(crate) fn first_bits(n: usize) -> u32 {
+    ((1u64 << n) - 1) as u32
+}
+
 /// The indices of the set bits of `mask`, lowest first.
 #[inline(always)]
 pub(crate) fn bits(mut mask: u32) -> impl Iterator<Item = usize> {
@@ -546,6 +552,17 @@ pub(super) fn descend(
 #[cfg(test)]
 mod lane_tests {
     use super::*;
+
+    /// `first_bits(n)` has exactly the bits below `n`, from none to all 32.
+    #[test]
+    fn first_bits_are_the_bits_below_n() {
+        assert_eq!(first_bits(0), 0);
+        assert_eq!(first_bits(1), 1);
+        assert_eq!(first_bits(4), 0b1111);
+        assert_eq!(first_bits(16), 0xffff);
+        assert_eq!(first_bits(31), u32::MAX >> 1);
+        assert_eq!(first_bits(32), u32::MAX);
+    }
 
     /// `lowest` is the least lane wherever it sits, infinities included, and
     /// `bound_range` the least and largest of the active lanes only.

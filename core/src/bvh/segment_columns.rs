@@ -5,7 +5,7 @@
 //! together from the lanes float by float and transposed back into lanes for every packet.
 
 use super::packet_rays::PacketRays;
-use super::ray_packet::RAY_PACKET;
+use super::ray_packet::{RAY_PACKET, first_bits};
 use crate::triangle::Ray;
 use glam::Vec3;
 use std::ops::Range;
@@ -61,7 +61,7 @@ impl SegmentColumns {
         dir: &[[f32; N]; 3],
         t_max: f32,
     ) {
-        let all = u32::MAX >> (32 - N);
+        let all = first_bits(N);
         if mask & all == all {
             for a in 0..3 {
                 self.origin[a].extend_from_slice(&origin[a]);

@@ -19,7 +19,7 @@ use super::node4::LEAF;
 use super::packet_rays::PacketRays;
 use super::ray_packet::{
     RAY_PACKET, RAY_PACKET_STACKS, RayPacketEntry, RayPacketTester, bits, bound_range,
-    culling_bounds, descend,
+    culling_bounds, descend, first_bits,
 };
 use super::segment_columns::SegmentColumns;
 use super::simd4::BoxTester;
@@ -128,7 +128,7 @@ impl Bvh {
         let bound = culling_bounds(t_max);
         // Rays still to trace: `occluded`'s root test (`segment_may_hit`) in lanes, with the
         // tester's inverse directions (the same bits) where that test divides again per ray.
-        let all_rays = (1u32 << len) - 1;
+        let all_rays = first_bits(len);
         let (lo, hi) = (root.lo.to_array(), root.hi.to_array());
         let (mut active, _) = boxes.rays_in_box(lo, hi, all_rays, &bound);
         if active == 0 {

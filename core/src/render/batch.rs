@@ -2,7 +2,7 @@
 //! by light, and each sample's radiance.
 
 use super::surfaces::Surfaces;
-use crate::bvh::{Bvh, ClosestHit, KernelWidth, SegmentColumns, bits, kernel_width};
+use crate::bvh::{Bvh, ClosestHit, KernelWidth, SegmentColumns, bits, first_bits, kernel_width};
 use crate::phase_timer::{Phase, PhaseTimer};
 use crate::scene::{Light, TriangleShading};
 use crate::shading::{HitLanes, TestLanes, add_ambient, flat_test_lanes, smooth_test_lanes};
@@ -92,7 +92,7 @@ impl TestSink<'_> {
     /// the group's end have no test).
     #[inline(always)]
     fn lanes<const N: usize>(&mut self, group: &[u32], light: usize, lanes: &TestLanes<N>) {
-        let lit = lanes.lit & (u32::MAX >> (32 - group.len()));
+        let lit = lanes.lit & first_bits(group.len());
         let tests = &mut self.tests[light];
         if !self.unoccludable[light] {
             let columns = &mut tests.segments;

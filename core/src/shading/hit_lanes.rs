@@ -16,7 +16,7 @@
 use super::array_lanes::{F32s, F64s, Mask, three};
 use super::lanes::point_incidence_lanes;
 use super::{incidence, shadow_ray};
-use crate::bvh::CornerLanes;
+use crate::bvh::{CornerLanes, first_bits};
 use crate::scene::Light;
 use crate::triangle::gamma;
 use glam::Vec3;
@@ -282,7 +282,7 @@ impl<const N: usize> TestLanes<N> {
         origin: &Vec3s<N>,
         kd: &[F32s<N>; 3],
     ) -> Self {
-        let all = u32::MAX >> (32 - N);
+        let all = first_bits(N);
         let (to_light, irradiance, valid) = match *light {
             Light::Point {
                 position,

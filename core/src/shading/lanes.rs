@@ -7,6 +7,7 @@
 
 use super::Incidence;
 use super::array_lanes::{F32s, F64s};
+use crate::bvh::first_bits;
 use glam::{DVec3, Vec3};
 
 /// A point light's incidence at `N` points: unit directions toward the light and irradiance
@@ -48,7 +49,7 @@ pub(super) fn point_incidence_lanes<const N: usize>(
         ],
         irradiance: [e0, channel(1), channel(2)],
         // `r2 <= 0` has no incidence; a NaN has one, as in the scalar test.
-        valid: !r2.le(F64s::splat(0.0)).to_bits() & (u32::MAX >> (32 - N)),
+        valid: !r2.le(F64s::splat(0.0)).to_bits() & first_bits(N),
     }
 }
 
