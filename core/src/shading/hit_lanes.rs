@@ -24,8 +24,10 @@ use glam::Vec3;
 /// What shading needs of `N` hits, lane by lane (hit k in lane k): the triangles' corners,
 /// the hits' barycentrics, the rays' directions, the diffuse reflectances and, for
 /// [`smooth_test_lanes`], the triangles' vertex normals (zeros for a flat triangle). The
-/// renderer fills it hit by hit ([`HitLanes::set`]) where the hits and rays keep the values,
-/// and the lanes read each array whole.
+/// renderer fills it hit by hit where the hits and rays keep the values
+/// ([`HitLanes::set_corners`], [`HitLanes::set_ray`], [`HitLanes::set_kd`]), or a triangle's
+/// values into every lane at once ([`HitLanes::set_triangle`], [`HitLanes::set_kd_all`]) when
+/// all its hits are on one, and the lanes read each array whole.
 #[derive(Clone, Copy, Debug)]
 pub struct HitLanes<const N: usize> {
     /// `corners[c][axis][k]`: corner c of hit k's triangle.
