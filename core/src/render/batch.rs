@@ -46,7 +46,7 @@ impl LightTests {
     }
 
     /// Sets to +0 the radiance of the hits whose segment is blocked (`blocked[i]` for
-    /// segment `i`).
+    /// segment `i`, one per test). Panics unless there is one answer per segment.
     fn drop_blocked(&mut self, blocked: &[bool]) {
         let mut segment = 0;
         for (group, &lit) in self.lit.iter().enumerate() {
@@ -60,6 +60,7 @@ impl LightTests {
                 }
             }
         }
+        assert_eq!(segment, blocked.len(), "one answer per test");
     }
 }
 
@@ -382,6 +383,11 @@ pub(super) fn shade_batch_timed<'s>(
         sums.clear();
         sums.resize(samples.len(), 0.0);
         for tests in tests.iter() {
+            assert_eq!(
+                tests.added[c].len(),
+                sums.len(),
+                "every light's radiance per hit"
+            );
             for (sum, added) in sums.iter_mut().zip(&tests.added[c]) {
                 *sum += added;
             }
