@@ -2,10 +2,10 @@
 //! duration and cost, for `POST /renders?dry_run=true` and the `max_cost_usd` budget.
 //!
 //! # The plan
-//! Exact: the split and span counts of `hort render` ([`crate::pipeline::resolve_counts`]), the triangles of each
-//! split as the Plan function assigns them ([`assign_splits`]), and [`plan_job`] over their
-//! bounding boxes, so the CastMap pairs that spatial mode leaves out are left out here too. No
-//! BVH is built and nothing is stored.
+//! Exact: the split and span counts of `hort render` ([`crate::pipeline::resolve_counts`]),
+//! the triangles of each split as the Plan function assigns them ([`assign_splits`]), and
+//! [`plan_job`] over their bounding boxes, so the CastMap pairs that spatial mode leaves out
+//! are left out here too. No BVH is built and nothing is stored.
 //!
 //! # The duration
 //! Each task's time is a fixed overhead (an invocation, its storage round trips) plus its work

@@ -125,6 +125,13 @@ struct HitSamples<'a, S> {
     samples: &'a [u32],
 }
 
+/// The sample in lane `k` of a group of 1 to `N` hit samples: lanes past the group's end
+/// repeat its last.
+#[inline(always)]
+fn lane_sample(group: &[u32], k: usize) -> u32 {
+    group[k.min(group.len() - 1)]
+}
+
 impl<S: Surfaces> HitSamples<'_, S> {
     /// Sample `s`'s hit.
     #[inline(always)]
@@ -168,14 +175,14 @@ impl<S: Surfaces> HitSamples<'_, S> {
         lanes.set_triangle(self.bvh.hit_corners(first), &normals);
         if shading.texture.is_none() {
             for k in 0..N {
-                let s = group[k.min(group.len() - 1)];
+                let s = lane_sample(group, k);
                 lanes.set_ray(k, &self.hit(s).b, &self.rays[s as usize].dir);
             }
             lanes.set_kd_all(shading.kd);
             reflectances.extend(std::iter::repeat_n(shading.kd, group.len()));
         } else {
             for k in 0..N {
-                let s = group[k.min(group.len() - 1)];
+                let s = lane_sample(group, k);
                 let h = self.hit(s);
                 let kd = self.surfaces.kd_on(shading, h.b);
                 lanes.set_ray(k, &h.b, &self.rays[s as usize].dir);
@@ -203,7 +210,7 @@ impl<S: Surfaces> HitSamples<'_, S> {
     ) -> bool {
         let mut smooth = false;
         for k in 0..N {
-            let s = group[k.min(group.len() - 1)];
+            let s = lane_sample(group, k);
             let h = self.hit(s);
             let kd = match self.surfaces.flat_kd(h) {
                 Some(kd) => {
