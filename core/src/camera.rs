@@ -9,12 +9,14 @@
 //!
 //! [`Camera::sample_ray`] is the one camera-sample path: the monolithic renderer and CastMap
 //! both take their rays from it, so they trace the same rays bit for bit.
-//! [`Camera::pixels_rays`] gives pixels' sample rays four at a time with the same operations
-//! in lanes: `wide`'s f64x4 everywhere, or one 256-bit register per coordinate on x86-64
-//! hosts with AVX2 (`avx.rs`, taken at the kernel widths `Eight` and `Sixteen`).
+//! [`Camera::pixels_rays`] gives pixels' sample rays with the same operations in lanes:
+//! sixteen samples of a pixel at a time in plain arrays (`lanes.rs`, compiled for AVX-512 or
+//! AVX2 where the kernel width is `Sixteen` or `Eight`, `avx.rs`), and shorter runs four at a
+//! time (`wide`'s f64x4, or one 256-bit register per coordinate with AVX2).
 
 #[cfg(target_arch = "x86_64")]
 mod avx;
+mod lanes;
 
 #[cfg(target_arch = "x86_64")]
 use crate::bvh::{KernelWidth, kernel_width};
@@ -145,9 +147,10 @@ impl Camera {
     /// `order` (a [`TraceOrder`] of the pixels' sample count): exactly
     /// [`Camera::sample_ray`]`(pixel, sample, spp)` for each pixel and each sample of
     /// `order.samples()`, with the per-pixel work (the pixel's coordinates and sample pattern)
-    /// done once and the ray arithmetic four rays at a time in SIMD lanes ([`Camera::rays4`],
-    /// or `avx.rs` on AVX2 hosts): four samples of a pixel, or below four samples a pixel four
-    /// consecutive (pixel, sample) pairs (one pixel's samples would leave lanes idle).
+    /// done once and the ray arithmetic in SIMD lanes: sixteen samples of a pixel at a time
+    /// (`lanes.rs`), the rest four at a time ([`Camera::rays4`], or `avx.rs` on AVX2 hosts),
+    /// and below four samples a pixel four consecutive (pixel, sample) pairs (one pixel's
+    /// samples would leave lanes idle).
     #[inline]
     pub fn pixels_rays(&self, pixels: &[u64], order: &TraceOrder, out: &mut Vec<Ray>) {
         let samples = order.samples();
@@ -161,16 +164,18 @@ impl Camera {
     #[inline]
     pub fn pixels_samples_rays(&self, pixels: &[u64], samples: (&[u32], u32), out: &mut Vec<Ray>) {
         #[cfg(target_arch = "x86_64")]
-        if kernel_width() != KernelWidth::Four {
-            // SAFETY: the widths `Eight` and `Sixteen` are offered only on hosts with AVX2
-            // (`bvh::dispatch`).
+        match kernel_width() {
+            // SAFETY: the width `Sixteen` is offered only on hosts with AVX-512F, `Eight` only
+            // on hosts with AVX2 (`bvh::dispatch`).
             #[allow(unsafe_code)]
-            unsafe {
-                self.pixels_rays_avx2(pixels, samples, out)
-            };
-            return;
+            KernelWidth::Sixteen => {
+                return unsafe { self.pixels_rays_avx512(pixels, samples, out) };
+            }
+            #[allow(unsafe_code)]
+            KernelWidth::Eight => return unsafe { self.pixels_rays_avx2(pixels, samples, out) },
+            KernelWidth::Four => {}
         }
-        self.pixels_rays_in::<false>(pixels, samples, out);
+        self.pixels_rays_lanes::<false>(pixels, samples, out);
     }
 
     /// [`Camera::pixels_rays`], with each group's rays from `Camera::rays4_avx` when `AVX` (only
@@ -365,6 +370,15 @@ mod tests {
                 c.pixels_rays_avx2(pixels, samples, out)
             }));
         }
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the host has AVX-512F.
+            #[allow(unsafe_code)]
+            paths.push(("avx512", |c, pixels, samples, out| unsafe {
+                c.pixels_rays_avx512(pixels, samples, out)
+            }));
+        }
+        paths.push(("portable sixteen", Camera::pixels_rays_lanes::<false>));
         for frame in [0, 3] {
             let cam = Camera::new(&spec, 9, 4).unwrap().with_frame(frame);
             for (path, pixels_rays) in &paths {

@@ -17,7 +17,8 @@ use std::arch::x86_64::{
 use wide::f64x4;
 
 impl Camera {
-    /// [`Camera::pixels_samples_rays`] compiled for AVX2, with [`Camera::rays4_avx`].
+    /// [`Camera::pixels_samples_rays`] compiled for AVX2 (`Camera::pixels_rays_lanes`), with
+    /// [`Camera::rays4_avx`] for runs shorter than sixteen samples.
     ///
     /// # Safety
     /// Only on hosts with AVX2.
@@ -28,7 +29,22 @@ impl Camera {
         samples: (&[u32], u32),
         out: &mut Vec<Ray>,
     ) {
-        self.pixels_rays_in::<true>(pixels, samples, out);
+        self.pixels_rays_lanes::<true>(pixels, samples, out);
+    }
+
+    /// `Camera::pixels_rays_lanes` compiled for AVX-512 (sixteen samples of a pixel in one
+    /// register of integers, two of f64), with [`Camera::rays4_avx`] for the rest.
+    ///
+    /// # Safety
+    /// Only on hosts with AVX-512F (which implies AVX2).
+    #[target_feature(enable = "avx512f")]
+    pub(super) unsafe fn pixels_rays_avx512(
+        &self,
+        pixels: &[u64],
+        samples: (&[u32], u32),
+        out: &mut Vec<Ray>,
+    ) {
+        self.pixels_rays_lanes::<true>(pixels, samples, out);
     }
 
     /// `Camera::rays4` in 256-bit registers.

@@ -49,6 +49,22 @@ pub(super) fn points4(index: u32x4, seed_x: u32, seed_y: u32) -> (u32x4, u32x4) 
     (x, y)
 }
 
+/// [`point`] of `N` indices, one per lane: the same wrapping operations per lane as plain
+/// array loops, which the compiler turns into vector instructions of the calling function's
+/// instruction set (sixteen lanes are one AVX-512 register).
+/// `second` is [`second_dimensions`] of `index`: it depends on the indices only, so a caller
+/// that scrambles the same indices for many pixels computes it once.
+#[inline(always)]
+pub(super) fn points_lanes<const N: usize>(
+    (index, second): ([u32; N], [u32; N]),
+    seed_x: u32,
+    seed_y: u32,
+) -> ([u32; N], [u32; N]) {
+    let x = reverse_bits_lanes(laine_karras_lanes(index, seed_x));
+    let y = reverse_bits_lanes(laine_karras_lanes(second, seed_y));
+    (x, y)
+}
+
 /// The second Sobol dimension of `index` in reversed bit order (bit 0 is 1/2). Its generator
 /// matrix is Pascal's triangle mod 2: column `k` is `v_k` with `v_0 = 1/2` and
 /// `v_(k+1) = v_k ^ (v_k >> 1)` as a fraction, that is `v_(k+1) = v_k ^ (v_k << 1)` reversed.
@@ -112,6 +128,29 @@ fn second_dimension_reversed4(index: u32x4) -> u32x4 {
     out
 }
 
+/// The second Sobol dimension of each of `N` indices before scrambling (in reversed bit
+/// order), as [`second_dimension_reversed4`] computes it: what [`points_lanes`] takes.
+#[inline(always)]
+pub(super) fn second_dimensions<const N: usize>(index: [u32; N]) -> [u32; N] {
+    let largest = index.iter().fold(0, |a, &b| a.max(b));
+    let mut out = [0u32; N];
+    if (largest as usize) < SMALL_INDICES {
+        for (out, &i) in out.iter_mut().zip(&index) {
+            *out = SECOND_DIMENSION_REVERSED[i as usize % SMALL_INDICES];
+        }
+        return out;
+    }
+    let mut v = 1u32;
+    for bit in 0..32 - largest.leading_zeros() {
+        for (out, &i) in out.iter_mut().zip(&index) {
+            // All ones where the lane's bit is set: 0 - 1 wraps to u32::MAX.
+            *out ^= 0u32.wrapping_sub((i >> bit) & 1) & v;
+        }
+        v ^= v << 1;
+    }
+    out
+}
+
 /// Laine and Karras's permutation of a bit-reversed fraction: every bit is changed by a
 /// function of the seed and the less significant bits only (the more significant ones of the
 /// fraction), so each dyadic interval maps onto one of the same size: a nested (Owen)
@@ -135,6 +174,28 @@ fn laine_karras4(mut v: u32x4, seed: u32) -> u32x4 {
     v ^= v * splat(0xb82f_1e52);
     v ^= v * splat(0xc7af_e638);
     v ^= v * splat(0x8d22_f6e6);
+    v
+}
+
+/// [`laine_karras`] of `N` values, one per lane.
+#[inline(always)]
+fn laine_karras_lanes<const N: usize>(mut v: [u32; N], seed: u32) -> [u32; N] {
+    for v in &mut v {
+        *v = laine_karras(*v, seed);
+    }
+    v
+}
+
+/// `u32::reverse_bits` of `N` values, as [`reverse_bits4`] swaps them.
+#[inline(always)]
+fn reverse_bits_lanes<const N: usize>(mut v: [u32; N]) -> [u32; N] {
+    for v in &mut v {
+        let mut x = v.rotate_left(16);
+        x = ((x >> 8) & 0x00ff_00ff) | ((x & 0x00ff_00ff) << 8);
+        x = ((x >> 4) & 0x0f0f_0f0f) | ((x & 0x0f0f_0f0f) << 4);
+        x = ((x >> 2) & 0x3333_3333) | ((x & 0x3333_3333) << 2);
+        *v = ((x >> 1) & 0x5555_5555) | ((x & 0x5555_5555) << 1);
+    }
     v
 }
 
@@ -192,7 +253,8 @@ mod tests {
         }
     }
 
-    /// Lanes compute the scalar bits: indices around powers of two, large ones, mixed lanes.
+    /// Lanes (four, and sixteen in arrays) compute the scalar bits: indices around powers of
+    /// two, large ones, mixed lanes.
     #[test]
     fn four_points_are_the_single_points() {
         let seeds = [(0u32, 0u32), (0xdead_beef, 0x1234_5678), (u32::MAX, 1)];
@@ -205,6 +267,11 @@ mod tests {
                 let (x, y) = points4(u32x4::from(lanes), sx, sy);
                 let (x, y) = (x.to_array(), y.to_array());
                 for k in 0..4 {
+                    assert_eq!((x[k], y[k]), point(lanes[k], sx, sy), "index {}", lanes[k]);
+                }
+                let lanes: [u32; 16] = std::array::from_fn(|k| first.wrapping_add(k as u32 * 5));
+                let (x, y) = points_lanes((lanes, second_dimensions(lanes)), sx, sy);
+                for k in 0..16 {
                     assert_eq!((x[k], y[k]), point(lanes[k], sx, sy), "index {}", lanes[k]);
                 }
             }

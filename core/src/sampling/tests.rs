@@ -64,8 +64,8 @@ fn every_prefix_is_stratified_in_every_dyadic_partition() {
     }
 }
 
-/// Four offsets at once are the four single offsets bit for bit, also at the end of the u32
-/// range (wrapping) and for the one-sample centre.
+/// Four offsets at once, and sixteen in arrays, are the single offsets bit for bit, also at
+/// the end of the u32 range (wrapping) and for the one-sample centre.
 #[test]
 fn four_offsets_are_the_single_offsets() {
     for spp in [1u32, 2, 3, 64, 96] {
@@ -80,6 +80,17 @@ fn four_offsets_are_the_single_offsets() {
                         (x.to_bits(), y.to_bits()),
                         (ex.to_bits(), ey.to_bits()),
                         "spp {spp} pixel {pixel} sample {first} + {k}"
+                    );
+                }
+                let lanes: [u32; 16] = std::array::from_fn(|k| first.wrapping_add(3 * k as u32));
+                let (xs, ys) = samples.offsets_lanes(&SampleRun::new(lanes));
+                for k in 0..16 {
+                    let (ex, ey) = samples.offset(lanes[k]);
+                    assert_eq!(
+                        (xs[k].to_bits(), ys[k].to_bits()),
+                        (ex.to_bits(), ey.to_bits()),
+                        "spp {spp} pixel {pixel} sample {} (sixteen lanes)",
+                        lanes[k]
                     );
                 }
             }

@@ -1,0 +1,80 @@
+//! Camera rays sixteen samples of a pixel at a time, in plain arrays: each lane does
+//! [`Camera::ray`]'s IEEE operations in its order (no FMA; square root and division correctly
+//! rounded; the f32 conversion to nearest), as loops the compiler turns into vector
+//! instructions of the calling function's instruction set (`avx.rs` compiles them for AVX-512
+//! at the kernel width `Sixteen`, eight f64 or sixteen u32 lanes a register, and for AVX2 at
+//! `Eight`). The part of the sample positions that is the same in every pixel is computed once
+//! per batch ([`SampleRun`]). Every ray is [`Camera::sample_ray`]'s bits.
+
+use super::Camera;
+use crate::sampling::{PixelSamples, SampleRun};
+use crate::triangle::Ray;
+use glam::Vec3;
+
+/// The samples of one pixel whose rays are made together.
+const LANES: usize = 16;
+
+impl Camera {
+    /// [`Camera::pixels_samples_rays`] with the rays of each run of [`LANES`] samples of a
+    /// pixel made together ([`Camera::rays_lanes`]); pixels' shorter runs and sample lists
+    /// shorter than [`LANES`] as `Camera::pixels_rays_in` makes them (`AVX` as there).
+    #[inline(always)]
+    pub(super) fn pixels_rays_lanes<const AVX: bool>(
+        &self,
+        pixels: &[u64],
+        (samples, spp): (&[u32], u32),
+        out: &mut Vec<Ray>,
+    ) {
+        if samples.len() < LANES {
+            self.pixels_rays_in::<AVX>(pixels, (samples, spp), out);
+            return;
+        }
+        out.reserve(pixels.len() * samples.len());
+        let (runs, rest) = samples.as_chunks::<LANES>();
+        // What the runs' sample positions share in every pixel, once.
+        let runs: Vec<SampleRun<LANES>> = runs.iter().map(|&run| SampleRun::new(run)).collect();
+        for &pixel in pixels {
+            let offsets = PixelSamples::of_frame(pixel, spp, self.frame);
+            let x = (pixel % self.columns) as f64;
+            let y = (pixel / self.columns) as f64;
+            for run in &runs {
+                let (mut px, mut py) = offsets.offsets_lanes(run);
+                for k in 0..LANES {
+                    // `x + ox` lane by lane (addition commutes bit for bit).
+                    px[k] += x;
+                    py[k] += y;
+                }
+                self.rays_lanes(px, py, out);
+            }
+            if !rest.is_empty() {
+                self.pixels_rays_in::<AVX>(&[pixel], (rest, spp), out);
+            }
+        }
+    }
+
+    /// Appends [`Camera::ray`] of `N` image positions, one per lane, in lane order.
+    #[inline(always)]
+    fn rays_lanes<const N: usize>(&self, px: [f64; N], py: [f64; N], out: &mut Vec<Ray>) {
+        let (f, r, u) = (self.forward, self.right, self.up);
+        let mut dir = [[0.0f32; N]; 3];
+        for k in 0..N {
+            // As `direction`: px·scale - x_edge and tan - py·scale, then
+            // forward + sx·right + sy·up axis by axis.
+            let sx = px[k] * self.pixel_scale - self.x_edge;
+            let sy = self.tan_half - py[k] * self.pixel_scale;
+            let dx = f.x + sx * r.x + sy * u.x;
+            let dy = f.y + sx * r.y + sy * u.y;
+            let dz = f.z + sx * r.z + sy * u.z;
+            let inverse = 1.0 / (dx * dx + dy * dy + dz * dz).sqrt();
+            dir[0][k] = (dx * inverse) as f32;
+            dir[1][k] = (dy * inverse) as f32;
+            dir[2][k] = (dz * inverse) as f32;
+        }
+        let origin = self.eye.as_vec3();
+        let rays: [Ray; N] = std::array::from_fn(|k| Ray {
+            origin,
+            dir: Vec3::new(dir[0][k], dir[1][k], dir[2][k]),
+        });
+        out.extend_from_slice(&rays);
+    }
+}
