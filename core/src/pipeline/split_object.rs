@@ -120,26 +120,19 @@ impl SplitObject {
         Ok(())
     }
 
-    /// The diffuse reflectance of leaf-order triangle `i`'s shading `s` at barycentrics `b`:
-    /// its material's, times its texture where it has one.
+    /// The texture of index `texture` (an index into the plan's textures).
     ///
     /// # Panics
-    /// If the triangle's texture was not attached (a loader's bug: every path that loads a
-    /// split attaches its textures before rendering).
+    /// If the texture was not attached (a loader's bug: every path that loads a split
+    /// attaches its textures before rendering).
     #[inline]
-    pub fn kd_at(&self, s: &TriangleShading, b: [f32; 3]) -> [f32; 3] {
-        match &s.texture {
-            None => s.kd,
-            Some(t) => {
-                let texture = self.textures.get(&t.texture).unwrap_or_else(|| {
-                    panic!(
-                        "split {}: texture {} is used but was not attached",
-                        self.split, t.texture
-                    )
-                });
-                t.kd_at(s.kd, texture, b)
-            }
-        }
+    pub fn texture(&self, texture: u32) -> &Texture {
+        self.textures.get(&texture).unwrap_or_else(|| {
+            panic!(
+                "split {}: texture {texture} is used but was not attached",
+                self.split
+            )
+        })
     }
 }
 

@@ -160,8 +160,8 @@ impl<S: Surfaces> HitSamples<'_, S> {
     /// group's end its last hit), all on the triangle `first` hit, and pushes their
     /// reflectances; whether the triangle needs the smooth lanes (vertex normals or a
     /// texture). The triangle's corners, normals and (untextured) reflectance go to every
-    /// lane at once: the values [`Self::fill_mixed`] writes lane by lane. `last` is
-    /// [`Self::shading_of`]'s.
+    /// lane at once, and a texture is looked up in lanes ([`crate::texture::TexturedCorners::kd_lanes`]): the
+    /// values [`Self::fill_mixed`] writes lane by lane. `last` is [`Self::shading_of`]'s.
     #[inline(always)]
     fn fill_one_triangle<const N: usize>(
         &self,
@@ -173,23 +173,20 @@ impl<S: Surfaces> HitSamples<'_, S> {
         let shading = self.shading_of(first, last);
         let normals = shading.normals.unwrap_or([Vec3::ZERO; 3]);
         lanes.set_triangle(self.bvh.hit_corners(first), &normals);
-        if shading.texture.is_none() {
-            for k in 0..N {
-                let s = lane_sample(group, k);
-                lanes.set_ray(k, &self.hit(s).b, &self.rays[s as usize].dir);
+        for k in 0..N {
+            let s = lane_sample(group, k);
+            lanes.set_ray(k, &self.hit(s).b, &self.rays[s as usize].dir);
+        }
+        match &shading.texture {
+            None => {
+                lanes.set_kd_all(shading.kd);
+                reflectances.extend(std::iter::repeat_n(shading.kd, group.len()));
             }
-            lanes.set_kd_all(shading.kd);
-            reflectances.extend(std::iter::repeat_n(shading.kd, group.len()));
-        } else {
-            for k in 0..N {
-                let s = lane_sample(group, k);
-                let h = self.hit(s);
-                let kd = self.surfaces.kd_on(shading, h.b);
-                lanes.set_ray(k, &h.b, &self.rays[s as usize].dir);
-                lanes.set_kd(k, kd);
-                if k < group.len() {
-                    reflectances.push(kd);
-                }
+            Some(t) => {
+                // The texture looked up in lanes, from the barycentrics just written.
+                let kd = t.kd_lanes(shading.kd, self.surfaces.texture(t), lanes.b());
+                lanes.set_kd_lanes(kd);
+                reflectances.extend((0..group.len()).map(|k| [kd[0][k], kd[1][k], kd[2][k]]));
             }
         }
         shading.normals.is_some() || shading.texture.is_some()

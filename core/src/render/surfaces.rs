@@ -8,6 +8,7 @@ use crate::bvh::{Bvh, ClosestHit};
 use crate::pipeline::SplitObject;
 use crate::scene::{Mesh, TriangleShading};
 use crate::shading::{LastFrame, SurfacePoint, surface_point_on};
+use crate::texture::{Texture, TexturedCorners};
 use crate::triangle::Ray;
 use glam::Vec3;
 
@@ -20,9 +21,18 @@ pub trait Surfaces {
     /// The hit triangle's shading data: its vertex normals, material reflectance and texture.
     fn shading(&self, hit: &ClosestHit) -> TriangleShading;
 
+    /// The texture a textured triangle's shading data (from [`Surfaces::shading`]) names.
+    fn texture(&self, corners: &TexturedCorners) -> &Texture;
+
     /// The reflectance at barycentrics `b` of a triangle whose shading data is `shading`
     /// (from [`Surfaces::shading`]): its material's, times its texture where it has one.
-    fn kd_on(&self, shading: &TriangleShading, b: [f32; 3]) -> [f32; 3];
+    #[inline]
+    fn kd_on(&self, shading: &TriangleShading, b: [f32; 3]) -> [f32; 3] {
+        match &shading.texture {
+            None => shading.kd,
+            Some(t) => t.kd_at(shading.kd, self.texture(t), b),
+        }
+    }
 
     /// The hit triangle's vertex normals, if it has them, and the reflectance at the hit,
     /// textured or not.
@@ -61,11 +71,8 @@ impl Surfaces for Mesh {
     }
 
     #[inline]
-    fn kd_on(&self, shading: &TriangleShading, b: [f32; 3]) -> [f32; 3] {
-        match &shading.texture {
-            None => shading.kd,
-            Some(t) => t.kd_at(shading.kd, &self.textures[t.texture as usize], b),
-        }
+    fn texture(&self, corners: &TexturedCorners) -> &Texture {
+        &self.textures[corners.texture as usize]
     }
 }
 
@@ -85,7 +92,7 @@ impl Surfaces for SplitObject {
     }
 
     #[inline]
-    fn kd_on(&self, shading: &TriangleShading, b: [f32; 3]) -> [f32; 3] {
-        self.kd_at(shading, b)
+    fn texture(&self, corners: &TexturedCorners) -> &Texture {
+        self.texture(corners.texture)
     }
 }

@@ -96,6 +96,18 @@ impl<const N: usize> HitLanes<N> {
         }
     }
 
+    /// Lane `k`'s reflectance is `kd[channel][k]`, for every lane.
+    #[inline(always)]
+    pub fn set_kd_lanes(&mut self, kd: [[f32; N]; 3]) {
+        self.kd = kd;
+    }
+
+    /// The lanes' barycentrics: `b()[c][k]` is hit k's weight of corner c.
+    #[inline(always)]
+    pub fn b(&self) -> &[[f32; N]; 3] {
+        &self.b
+    }
+
     /// Every lane's reflectance is `kd`.
     #[inline(always)]
     pub fn set_kd_all(&mut self, kd: [f32; 3]) {

@@ -70,13 +70,61 @@ impl Texture {
     /// texel (0, 0)'s corner of the grid, as 0 does.
     #[inline]
     pub fn sample(&self, uv: [f32; 2]) -> [f32; 3] {
+        let (x0, y0, fx, fy) = self.grid(uv);
+        let [a, b, c, d] = self.texels(srgb_to_linear_table(), x0, y0);
+        let mut out = [0.0f32; 3];
+        for (k, slot) in out.iter_mut().enumerate() {
+            *slot = bilinear((fx, fy), [a[k], b[k], c[k], d[k]]);
+        }
+        out
+    }
+
+    /// [`Texture::sample`] at `N` coordinates (`u[k]`, `v[k]`), one per lane: `out[channel][k]`.
+    /// The same operations per lane, in plain array loops that the compiler vectorizes for the
+    /// calling function's instruction set (the grid and the filter; the texels are read lane by
+    /// lane), so every lane is `sample`'s bits.
+    #[inline(always)]
+    pub fn sample_lanes<const N: usize>(&self, u: [f32; N], v: [f32; N]) -> [[f32; N]; 3] {
+        let (mut x0, mut y0, mut fx, mut fy) = ([0.0; N], [0.0; N], [0.0; N], [0.0; N]);
+        for k in 0..N {
+            (x0[k], y0[k], fx[k], fy[k]) = self.grid([u[k], v[k]]);
+        }
         let lut = srgb_to_linear_table();
+        let mut corners = [[[0.0f32; N]; 3]; 4];
+        for k in 0..N {
+            for (lanes, texel) in corners.iter_mut().zip(self.texels(lut, x0[k], y0[k])) {
+                for (lanes, value) in lanes.iter_mut().zip(texel) {
+                    lanes[k] = value;
+                }
+            }
+        }
+        let [a, b, c, d] = &corners;
+        let mut out = [[0.0f32; N]; 3];
+        for (channel, out) in out.iter_mut().enumerate() {
+            let (a, b, c, d) = (&a[channel], &b[channel], &c[channel], &d[channel]);
+            for k in 0..N {
+                out[k] = bilinear((fx[k], fy[k]), [a[k], b[k], c[k], d[k]]);
+            }
+        }
+        out
+    }
+
+    /// Where `uv` falls in the grid of texel centres: the grid cell's corner (x0, y0) (whole
+    /// numbers, not yet wrapped) and the fractions (fx, fy) across it.
+    #[inline(always)]
+    fn grid(&self, uv: [f32; 2]) -> (f32, f32, f32, f32) {
         let (w, h) = (self.width as f32, self.height as f32);
         let finite = |x: f32| if x.is_finite() { x } else { 0.0 };
         let x = finite(uv[0] * w - 0.5);
         let y = finite((1.0 - uv[1]) * h - 0.5);
         let (x0, y0) = (x.floor(), y.floor());
-        let (fx, fy) = (x - x0, y - y0);
+        (x0, y0, x - x0, y - y0)
+    }
+
+    /// The linear values (through `lut`, [`srgb_to_linear_table`]) of the four texels around
+    /// grid cell (x0, y0), wrapped: (x0, y0), (x0 + 1, y0), (x0, y0 + 1), (x0 + 1, y0 + 1).
+    #[inline(always)]
+    fn texels(&self, lut: &[f32; 256], x0: f32, y0: f32) -> [[f32; 3]; 4] {
         // `rem_euclid` divides: most coordinates are already in range, and a power-of-two
         // size wraps by a mask (the same value, in two's complement).
         let wrap = |i: f32, n: u32| {
@@ -112,16 +160,22 @@ impl Texture {
             [lut[r as usize], lut[g as usize], lut[b as usize]]
         };
         let (top, bottom) = (row(ya), row(yb));
-        let (a, b) = (texel(top, xa), texel(top, xb));
-        let (c, d) = (texel(bottom, xa), texel(bottom, xb));
-        let mut out = [0.0f32; 3];
-        for (k, slot) in out.iter_mut().enumerate() {
-            let top = (1.0 - fx) * a[k] + fx * b[k];
-            let bottom = (1.0 - fx) * c[k] + fx * d[k];
-            *slot = (1.0 - fy) * top + fy * bottom;
-        }
-        out
+        [
+            texel(top, xa),
+            texel(top, xb),
+            texel(bottom, xa),
+            texel(bottom, xb),
+        ]
     }
+}
+
+/// Bilinear filtering of one channel: `corners` at (0, 0), (1, 0), (0, 1), (1, 1) of the cell,
+/// at fractions `(fx, fy)` across it.
+#[inline(always)]
+fn bilinear((fx, fy): (f32, f32), [a, b, c, d]: [f32; 4]) -> f32 {
+    let top = (1.0 - fx) * a + fx * b;
+    let bottom = (1.0 - fx) * c + fx * d;
+    (1.0 - fy) * top + fy * bottom
 }
 
 /// A textured triangle's texture (an index into the scene's, or the plan's, textures) and its
@@ -148,6 +202,31 @@ impl TexturedCorners {
         ];
         let c = texture.sample(uv);
         [kd[0] * c[0], kd[1] * c[1], kd[2] * c[2]]
+    }
+
+    /// [`TexturedCorners::kd_at`] at `N` hits on this triangle, one per lane (`b[corner][k]`,
+    /// `out[channel][k]`): the same operations per lane ([`Texture::sample_lanes`]).
+    #[inline(always)]
+    pub fn kd_lanes<const N: usize>(
+        &self,
+        kd: [f32; 3],
+        texture: &Texture,
+        b: &[[f32; N]; 3],
+    ) -> [[f32; N]; 3] {
+        let [t0, t1, t2] = self.uv;
+        let (mut u, mut v) = ([0.0; N], [0.0; N]);
+        for k in 0..N {
+            u[k] = b[0][k] * t0[0] + b[1][k] * t1[0] + b[2][k] * t2[0];
+            v[k] = b[0][k] * t0[1] + b[1][k] * t1[1] + b[2][k] * t2[1];
+        }
+        let mut out = texture.sample_lanes(u, v);
+        for (out, kd) in out.iter_mut().zip(kd) {
+            for x in out.iter_mut() {
+                // `kd * c`, as `kd_at` multiplies (the product commutes bit for bit).
+                *x *= kd;
+            }
+        }
+        out
     }
 }
 

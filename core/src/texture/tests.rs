@@ -170,3 +170,47 @@ fn only_regular_files_are_read() {
         "the file does not exist"
     );
 }
+
+/// Sixteen lookups in lanes are the single lookups bit for bit: coordinates inside, on texel
+/// centres and edges, far outside on both sides, and non-finite; power-of-two sizes and
+/// others; and the reflectance at barycentrics, as `kd_at` gives it.
+#[test]
+fn lookups_in_lanes_are_the_single_lookups() {
+    let mut coordinates: Vec<f32> = vec![0.0, 0.5, 1.0, -0.25, 1e9, -1e9, -37.3];
+    coordinates.extend([f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 0.999_999_9]);
+    // A fixed scatter of the rest (a Weyl sequence over [-3, 4)).
+    coordinates.extend((0..53).map(|i| (i as f32 * 0.618_034).fract() * 7.0 - 3.0));
+    let uv: Vec<[f32; 2]> = (0..coordinates.len())
+        .map(|i| [coordinates[i], coordinates[(i * 7 + 3) % coordinates.len()]])
+        .collect();
+    for (w, h) in [(4, 2), (3, 5), (8, 1), (256, 64), (255, 37)] {
+        let t = ramp(w, h);
+        for lanes in uv.chunks_exact(16) {
+            let u: [f32; 16] = std::array::from_fn(|k| lanes[k][0]);
+            let v: [f32; 16] = std::array::from_fn(|k| lanes[k][1]);
+            let got = t.sample_lanes(u, v);
+            for (k, uv) in lanes.iter().enumerate() {
+                let expected = t.sample(*uv).map(f32::to_bits);
+                let got = [got[0][k], got[1][k], got[2][k]].map(f32::to_bits);
+                assert_eq!(got, expected, "{w}x{h} at {uv:?}");
+            }
+        }
+        let corners = TexturedCorners {
+            texture: 0,
+            uv: [[0.1, 0.9], [-2.5, 0.25], [3.0, 7.5]],
+        };
+        let kd = [0.25, 0.5, 0.9];
+        let b: [[f32; 16]; 3] =
+            [0, 1, 2].map(|c| std::array::from_fn(|k| ((k * 3 + c) as f32 * 0.381_966).fract()));
+        let got = corners.kd_lanes(kd, &t, &b);
+        for k in 0..16 {
+            let expected = corners.kd_at(kd, &t, [b[0][k], b[1][k], b[2][k]]);
+            let got = [got[0][k], got[1][k], got[2][k]];
+            assert_eq!(
+                got.map(f32::to_bits),
+                expected.map(f32::to_bits),
+                "{w}x{h} lane {k}"
+            );
+        }
+    }
+}
