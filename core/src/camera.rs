@@ -10,9 +10,10 @@
 //! [`Camera::sample_ray`] is the one camera-sample path: the monolithic renderer and CastMap
 //! both take their rays from it, so they trace the same rays bit for bit.
 //! [`Camera::pixels_rays`] gives pixels' sample rays with the same operations in lanes:
-//! sixteen samples of a pixel at a time in plain arrays (`lanes.rs`, compiled for AVX-512 or
-//! AVX2 where the kernel width is `Sixteen` or `Eight`, `avx.rs`), and shorter runs four at a
-//! time (`wide`'s f64x4, or one 256-bit register per coordinate with AVX2).
+//! sixteen samples of a pixel (or, below sixteen samples a pixel, sixteen (pixel, sample)
+//! pairs) at a time in plain arrays (`lanes.rs`, compiled for AVX-512 or AVX2 where the kernel
+//! width is `Sixteen` or `Eight`, `avx.rs`), and a pixel's shorter rest four at a time
+//! (`wide`'s f64x4, or one 256-bit register per coordinate with AVX2).
 
 #[cfg(target_arch = "x86_64")]
 mod avx;
@@ -148,9 +149,9 @@ impl Camera {
     /// [`Camera::sample_ray`]`(pixel, sample, spp)` for each pixel and each sample of
     /// `order.samples()`, with the per-pixel work (the pixel's coordinates and sample pattern)
     /// done once and the ray arithmetic in SIMD lanes: sixteen samples of a pixel at a time
-    /// (`lanes.rs`), the rest four at a time ([`Camera::rays4`], or `avx.rs` on AVX2 hosts),
-    /// and below four samples a pixel four consecutive (pixel, sample) pairs (one pixel's
-    /// samples would leave lanes idle).
+    /// (`lanes.rs`), the rest four at a time ([`Camera::rays4`], or `avx.rs` on AVX2 hosts);
+    /// below sixteen samples a pixel, sixteen consecutive (pixel, sample) pairs at a time (one
+    /// pixel's samples would leave lanes idle).
     #[inline]
     pub fn pixels_rays(&self, pixels: &[u64], order: &TraceOrder, out: &mut Vec<Ray>) {
         let samples = order.samples();
@@ -178,43 +179,6 @@ impl Camera {
         self.pixels_rays_lanes::<false>(pixels, samples, out);
     }
 
-    /// [`Camera::pixels_rays`], with each group's rays from `Camera::rays4_avx` when `AVX` (only
-    /// inside `Camera::pixels_rays_avx2`), else from [`Camera::rays4`].
-    #[inline(always)]
-    fn pixels_rays_in<const AVX: bool>(
-        &self,
-        pixels: &[u64],
-        (samples, spp): (&[u32], u32),
-        out: &mut Vec<Ray>,
-    ) {
-        if samples.len() >= 4 {
-            for &pixel in pixels {
-                self.pixel_rays_in::<AVX>(pixel, (samples, spp), out);
-            }
-            return;
-        }
-        out.reserve(pixels.len() * samples.len());
-        // Image positions of consecutive (pixel, sample) pairs, four at a time.
-        let (mut xs, mut ys, mut filled) = ([0.0f64; 4], [0.0f64; 4], 0);
-        for &pixel in pixels {
-            let offsets = PixelSamples::of_frame(pixel, spp, self.frame);
-            let x = (pixel % self.columns) as f64;
-            let y = (pixel / self.columns) as f64;
-            for &sample in samples {
-                let (ox, oy) = offsets.offset(sample);
-                (xs[filled], ys[filled]) = (x + ox, y + oy);
-                filled += 1;
-                if filled == 4 {
-                    out.extend(self.rays4_in::<AVX>(f64x4::from(xs), f64x4::from(ys)));
-                    filled = 0;
-                }
-            }
-        }
-        for k in 0..filled {
-            out.push(self.ray(xs[k], ys[k]));
-        }
-    }
-
     /// [`Camera::rays4`], in 256-bit registers when `AVX` (only inside an AVX2 function).
     #[inline(always)]
     fn rays4_in<const AVX: bool>(&self, px: f64x4, py: f64x4) -> [Ray; 4] {
@@ -228,8 +192,10 @@ impl Camera {
         self.rays4(px, py)
     }
 
-    /// The rays of one pixel's samples, as [`Camera::pixels_samples_rays`] gives them, four
-    /// samples at a time (`AVX` as there).
+    /// The rays of one pixel's samples `order` (of `spp`), as [`Camera::pixels_samples_rays`]
+    /// gives them: four samples at a time, each group's rays from `Camera::rays4_avx` when
+    /// `AVX` (only inside functions compiled for AVX2), else from [`Camera::rays4`]; then one
+    /// by one. (What a pixel's runs of sixteen, `lanes.rs`, leave.)
     #[inline(always)]
     fn pixel_rays_in<const AVX: bool>(
         &self,
@@ -360,7 +326,7 @@ mod tests {
         #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
         let mut paths: Vec<(&str, PixelsRays)> = vec![
             ("dispatched", Camera::pixels_samples_rays),
-            ("portable", Camera::pixels_rays_in::<false>),
+            ("portable", Camera::pixels_rays_lanes::<false>),
         ];
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
@@ -378,7 +344,6 @@ mod tests {
                 c.pixels_rays_avx512(pixels, samples, out)
             }));
         }
-        paths.push(("portable sixteen", Camera::pixels_rays_lanes::<false>));
         for frame in [0, 3] {
             let cam = Camera::new(&spec, 9, 4).unwrap().with_frame(frame);
             for (path, pixels_rays) in &paths {

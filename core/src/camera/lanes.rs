@@ -16,8 +16,9 @@ const LANES: usize = 16;
 
 impl Camera {
     /// [`Camera::pixels_samples_rays`] with the rays of each run of [`LANES`] samples of a
-    /// pixel made together ([`Camera::rays_lanes`]); pixels' shorter runs and sample lists
-    /// shorter than [`LANES`] as `Camera::pixels_rays_in` makes them (`AVX` as there).
+    /// pixel made together ([`Camera::rays_lanes`]), and a pixel's shorter rest as
+    /// `Camera::pixel_rays_in` makes it (`AVX` as there); below [`LANES`] samples a pixel,
+    /// [`LANES`] consecutive (pixel, sample) pairs together.
     #[inline(always)]
     pub(super) fn pixels_rays_lanes<const AVX: bool>(
         &self,
@@ -26,7 +27,7 @@ impl Camera {
         out: &mut Vec<Ray>,
     ) {
         if samples.len() < LANES {
-            self.pixels_rays_in::<AVX>(pixels, (samples, spp), out);
+            self.pairs_rays_lanes(pixels, (samples, spp), out);
             return;
         }
         out.reserve(pixels.len() * samples.len());
@@ -47,8 +48,39 @@ impl Camera {
                 self.rays_lanes(px, py, out);
             }
             if !rest.is_empty() {
-                self.pixels_rays_in::<AVX>(&[pixel], (rest, spp), out);
+                self.pixel_rays_in::<AVX>(pixel, (rest, spp), out);
             }
+        }
+    }
+
+    /// The rays of `samples` of each of `pixels`, pixel by pixel, made [`LANES`] consecutive
+    /// (pixel, sample) pairs at a time: the image positions lane by lane, then the rays in
+    /// lanes (a pixel's few samples alone would leave lanes idle). The last group's unused
+    /// lanes repeat its last position, and their rays are not kept.
+    #[inline(always)]
+    fn pairs_rays_lanes(&self, pixels: &[u64], (samples, spp): (&[u32], u32), out: &mut Vec<Ray>) {
+        out.reserve(pixels.len() * samples.len());
+        let (mut px, mut py, mut filled) = ([0.0f64; LANES], [0.0f64; LANES], 0);
+        for &pixel in pixels {
+            let offsets = PixelSamples::of_frame(pixel, spp, self.frame);
+            let x = (pixel % self.columns) as f64;
+            let y = (pixel / self.columns) as f64;
+            for &sample in samples {
+                let (ox, oy) = offsets.offset(sample);
+                (px[filled], py[filled]) = (x + ox, y + oy);
+                filled += 1;
+                if filled == LANES {
+                    self.rays_lanes(px, py, out);
+                    filled = 0;
+                }
+            }
+        }
+        if filled > 0 {
+            for k in filled..LANES {
+                (px[k], py[k]) = (px[filled - 1], py[filled - 1]);
+            }
+            self.rays_lanes(px, py, out);
+            out.truncate(out.len() - (LANES - filled));
         }
     }
 

@@ -51,6 +51,14 @@ impl PixelSamples {
     /// screen from frame to frame; frame 0's seeds are those of a still image.
     #[inline]
     pub fn of_frame(pixel: u64, spp: u32, frame: u32) -> Self {
+        if spp <= 1 {
+            // The pixel centre: no seeds needed.
+            return PixelSamples {
+                centre: true,
+                seed_x: 0,
+                seed_y: 0,
+            };
+        }
         let seed = hash64(pixel) ^ frame_salt(frame);
         PixelSamples {
             centre: spp <= 1,
