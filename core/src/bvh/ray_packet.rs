@@ -49,16 +49,15 @@ pub(super) const GROUPS: usize = RAY_PACKET / 4;
 
 /// A ray packet's box tester: its rays four lanes per group, for slab tests across rays, and
 /// the interval hull of their origins and inverse directions for the whole-packet test.
-pub(super) struct RayPacketTester {
-    origin: [[f32x4; 3]; GROUPS],
+pub(super) struct RayPacketTester<'a> {
+    /// The packet's rays (their origins are read from here, four lanes per group).
+    rays: &'a PacketRays,
     /// Per axis: the smallest and largest origin coordinate of the packet.
     origin_lo: [f32x4; 3],
     origin_hi: [f32x4; 3],
     /// Every ray has the same origin (`origin_lo == origin_hi`).
     one_origin: bool,
     inv_dir: [[f32x4; 3]; GROUPS],
-    /// All-ones lanes where the direction's sign bit is set (the near plane is the box's hi).
-    near_hi: [[f32x4; 3]; GROUPS],
     /// Per axis: the smallest and largest inverse direction of the packet.
     inv_lo: [f32x4; 3],
     inv_hi: [f32x4; 3],
@@ -69,16 +68,13 @@ pub(super) struct RayPacketTester {
     loose: [bool; 3],
 }
 
-impl RayPacketTester {
+impl<'a> RayPacketTester<'a> {
     /// `rays` holds the packet's rays, with finite origins and directions (places past the
     /// last ray repeat it, and are never active).
-    pub(super) fn new(rays: &PacketRays) -> Self {
+    pub(super) fn new(rays: &'a PacketRays) -> Self {
         let origin: [[f32x4; 3]; GROUPS] = each4(|g| each3(|a| rays.origin4(a, g)));
         // The same correctly rounded division as the single-ray testers (`Vec3::ONE / dir`).
         let inv_dir: [[f32x4; 3]; GROUPS] = each4(|g| each3(|a| f32x4::ONE / rays.dir4(a, g)));
-        // Directions are finite ([`is_finite`]), so 1/d is never zero or NaN: its sign bit is
-        // set exactly when it is below zero.
-        let near_hi = each4(|g| each3(|a| inv_dir[g][a].simd_lt(f32x4::ZERO)));
         // Lanes past the end repeat the last ray, so extremes and signs over all lanes are
         // those over the rays: no lane masks needed.
         let inf = f32x4::splat(f32::INFINITY);
@@ -105,12 +101,11 @@ impl RayPacketTester {
         let some_negative = each3(|a| inv_lo[a] < 0.0);
         let infinite = each3(|a| inv_lo[a] == -f32::INFINITY || inv_hi[a] == f32::INFINITY);
         RayPacketTester {
-            origin,
+            rays,
             origin_lo: each3(|a| f32x4::splat(origin_lo[a])),
             origin_hi: each3(|a| f32x4::splat(origin_hi[a])),
             one_origin: origin_lo == origin_hi,
             inv_dir,
-            near_hi,
             inv_lo: each3(|a| f32x4::splat(inv_lo[a])),
             inv_hi: each3(|a| f32x4::splat(inv_hi[a])),
             all_near_hi,
@@ -242,8 +237,10 @@ impl RayPacketTester {
             let mut t0 = f32x4::ZERO;
             let mut t1 = bound;
             for axis in 0..3 {
-                let near_hi = self.near_hi[g][axis];
-                let (o, inv) = (self.origin[g][axis], self.inv_dir[g][axis]);
+                let (o, inv) = (self.rays.origin4(axis, g), self.inv_dir[g][axis]);
+                // Directions are finite ([`is_finite`]), so 1/d is never zero or NaN: its sign
+                // bit is set exactly when it is below zero (the near plane is the box's hi).
+                let near_hi = inv.simd_lt(f32x4::ZERO);
                 let near = (near_hi.select(hi[axis], lo[axis]) - o) * inv;
                 let far = (near_hi.select(lo[axis], hi[axis]) - o) * inv * scale;
                 // As the single-ray test: a NaN never passes, so it changes nothing.
