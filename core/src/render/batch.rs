@@ -348,8 +348,16 @@ pub(super) fn shade_batch_timed<'s>(
         sums,
         colours,
     } = scratch;
+    // The samples with hits, in order: every sample written, the count advanced past hits
+    // only (no branch per sample).
     samples.clear();
-    samples.extend((0..hits.len() as u32).filter(|&s| hits[s as usize].is_some()));
+    samples.resize(hits.len(), 0);
+    let mut with_hits = 0;
+    for (s, hit) in hits.iter().enumerate() {
+        samples[with_hits] = s as u32;
+        with_hits += usize::from(hit.is_some());
+    }
+    samples.truncate(with_hits);
     tests.resize_with(lights.len(), LightTests::default);
     tests.iter_mut().for_each(LightTests::clear);
     reflectances.clear();
