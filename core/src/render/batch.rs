@@ -407,9 +407,12 @@ pub(super) fn shade_batch_timed<'s>(
     }
     colours.clear();
     colours.resize(hits.len(), lighting.background);
-    for (i, (&sample, &kd)) in samples.iter().zip(reflectances.iter()).enumerate() {
-        let sum = [sums[0][i], sums[1][i], sums[2][i]];
-        colours[sample as usize] = add_ambient(sum, kd, lighting.ambient);
+    // Slices taken once: indexing the vectors in the loop reloaded their pointers and checked
+    // every index.
+    let [red, green, blue] = sums;
+    let (colours, hit_samples) = (colours.as_mut_slice(), samples.iter().zip(&*reflectances));
+    for ((((&sample, &kd), &r), &g), &b) in hit_samples.zip(&*red).zip(&*green).zip(&*blue) {
+        colours[sample as usize] = add_ambient([r, g, b], kd, lighting.ambient);
     }
     timer.lap(Phase::Shading);
     colours
