@@ -18,7 +18,8 @@ impl Camera {
     /// [`Camera::pixels_samples_rays`] with the rays of each run of [`LANES`] samples of a
     /// pixel made together ([`Camera::rays_lanes`]), and a pixel's shorter rest as
     /// `Camera::pixel_rays_in` makes it (`AVX` as there); below [`LANES`] samples a pixel,
-    /// [`LANES`] consecutive (pixel, sample) pairs together.
+    /// [`LANES`] consecutive (pixel, sample) pairs together. For several pixels the runs'
+    /// shared part is made once; for one (the adaptive rounds' calls) on the way.
     #[inline(always)]
     pub(super) fn pixels_rays_lanes<const AVX: bool>(
         &self,
@@ -32,24 +33,42 @@ impl Camera {
         }
         out.reserve(pixels.len() * samples.len());
         let (runs, rest) = samples.as_chunks::<LANES>();
+        let run = |samples: &[u32; LANES]| SampleRun::new(*samples);
+        if let [pixel] = pixels {
+            self.pixel_runs_rays::<AVX>(*pixel, runs.iter().map(run), (rest, spp), out);
+            return;
+        }
         // What the runs' sample positions share in every pixel, once.
-        let runs: Vec<SampleRun<LANES>> = runs.iter().map(|&run| SampleRun::new(run)).collect();
+        let runs: Vec<SampleRun<LANES>> = runs.iter().map(run).collect();
         for &pixel in pixels {
-            let offsets = PixelSamples::of_frame(pixel, spp, self.frame);
-            let x = (pixel % self.columns) as f64;
-            let y = (pixel / self.columns) as f64;
-            for run in &runs {
-                let (mut px, mut py) = offsets.offsets_lanes(run);
-                for k in 0..LANES {
-                    // `x + ox` lane by lane (addition commutes bit for bit).
-                    px[k] += x;
-                    py[k] += y;
-                }
-                self.rays_lanes(px, py, out);
+            self.pixel_runs_rays::<AVX>(pixel, runs.iter().copied(), (rest, spp), out);
+        }
+    }
+
+    /// The rays of one pixel's samples: each of `runs` made together, then `rest` as
+    /// `Camera::pixel_rays_in` makes it.
+    #[inline(always)]
+    fn pixel_runs_rays<const AVX: bool>(
+        &self,
+        pixel: u64,
+        runs: impl Iterator<Item = SampleRun<LANES>>,
+        (rest, spp): (&[u32], u32),
+        out: &mut Vec<Ray>,
+    ) {
+        let offsets = PixelSamples::of_frame(pixel, spp, self.frame);
+        let x = (pixel % self.columns) as f64;
+        let y = (pixel / self.columns) as f64;
+        for run in runs {
+            let (mut px, mut py) = offsets.offsets_lanes(&run);
+            for k in 0..LANES {
+                // `x + ox` lane by lane (addition commutes bit for bit).
+                px[k] += x;
+                py[k] += y;
             }
-            if !rest.is_empty() {
-                self.pixel_rays_in::<AVX>(pixel, (rest, spp), out);
-            }
+            self.rays_lanes(px, py, out);
+        }
+        if !rest.is_empty() {
+            self.pixel_rays_in::<AVX>(pixel, (rest, spp), out);
         }
     }
 

@@ -120,13 +120,13 @@ impl SplitObject {
         Ok(())
     }
 
-    /// The texture of index `texture` (an index into the plan's textures).
+    /// The attached texture of index `texture` (an index into the plan's textures).
     ///
     /// # Panics
     /// If the texture was not attached (a loader's bug: every path that loads a split
     /// attaches its textures before rendering).
     #[inline]
-    pub fn texture(&self, texture: u32) -> &Texture {
+    pub fn attached_texture(&self, texture: u32) -> &Texture {
         self.textures.get(&texture).unwrap_or_else(|| {
             panic!(
                 "split {}: texture {texture} is used but was not attached",

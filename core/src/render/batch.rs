@@ -160,8 +160,9 @@ impl<S: Surfaces> HitSamples<'_, S> {
     /// group's end its last hit), all on the triangle `first` hit, and pushes their
     /// reflectances; whether the triangle needs the smooth lanes (vertex normals or a
     /// texture). The triangle's corners, normals and (untextured) reflectance go to every
-    /// lane at once, and a texture is looked up in lanes ([`crate::texture::TexturedCorners::kd_lanes`]): the
-    /// values [`Self::fill_mixed`] writes lane by lane. `last` is [`Self::shading_of`]'s.
+    /// lane at once, and a texture is looked up in lanes
+    /// ([`crate::texture::TexturedCorners::kd_lanes`]): the values [`Self::fill_mixed`]
+    /// writes lane by lane. `last` is [`Self::shading_of`]'s.
     #[inline(always)]
     fn fill_one_triangle<const N: usize>(
         &self,

@@ -93,6 +93,6 @@ impl Surfaces for SplitObject {
 
     #[inline]
     fn texture(&self, corners: &TexturedCorners) -> &Texture {
-        self.texture(corners.texture)
+        self.attached_texture(corners.texture)
     }
 }

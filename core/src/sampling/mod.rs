@@ -61,7 +61,7 @@ impl PixelSamples {
         }
         let seed = hash64(pixel) ^ frame_salt(frame);
         PixelSamples {
-            centre: spp <= 1,
+            centre: false,
             seed_x: seed as u32,
             seed_y: hash32((seed >> 32) as u32 ^ 0x68bc_21eb),
         }

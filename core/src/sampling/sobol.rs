@@ -52,6 +52,7 @@ pub(super) fn points4(index: u32x4, seed_x: u32, seed_y: u32) -> (u32x4, u32x4) 
 /// [`point`] of `N` indices, one per lane: the same wrapping operations per lane as plain
 /// array loops, which the compiler turns into vector instructions of the calling function's
 /// instruction set (sixteen lanes are one AVX-512 register).
+///
 /// `second` is [`second_dimensions`] of `index`: it depends on the indices only, so a caller
 /// that scrambles the same indices for many pixels computes it once.
 #[inline(always)]
