@@ -10,6 +10,7 @@ use super::Camera;
 use crate::sampling::{PixelSamples, SampleRun};
 use crate::triangle::Ray;
 use glam::Vec3;
+use std::borrow::Borrow;
 
 /// The samples of one pixel whose rays are made together.
 const LANES: usize = 16;
@@ -41,7 +42,7 @@ impl Camera {
         // What the runs' sample positions share in every pixel, once.
         let runs: Vec<SampleRun<LANES>> = runs.iter().map(run).collect();
         for &pixel in pixels {
-            self.pixel_runs_rays::<AVX>(pixel, runs.iter().copied(), (rest, spp), out);
+            self.pixel_runs_rays::<AVX>(pixel, &runs, (rest, spp), out);
         }
     }
 
@@ -51,7 +52,7 @@ impl Camera {
     fn pixel_runs_rays<const AVX: bool>(
         &self,
         pixel: u64,
-        runs: impl Iterator<Item = SampleRun<LANES>>,
+        runs: impl IntoIterator<Item = impl Borrow<SampleRun<LANES>>>,
         (rest, spp): (&[u32], u32),
         out: &mut Vec<Ray>,
     ) {
@@ -59,7 +60,7 @@ impl Camera {
         let x = (pixel % self.columns) as f64;
         let y = (pixel / self.columns) as f64;
         for run in runs {
-            let (mut px, mut py) = offsets.offsets_lanes(&run);
+            let (mut px, mut py) = offsets.offsets_lanes(run.borrow());
             for k in 0..LANES {
                 // `x + ox` lane by lane (addition commutes bit for bit).
                 px[k] += x;
