@@ -138,10 +138,15 @@ impl Camera {
     #[inline]
     pub fn sample_ray(&self, pixel: u64, sample: u32, spp: u32) -> Ray {
         let (ox, oy) = PixelSamples::of_frame(pixel, spp, self.frame).offset(sample);
-        // x < 2^32 and, for a pixel of the image, y < height: both convert to f64 exactly.
-        let x = (pixel % self.columns) as f64;
-        let y = (pixel / self.columns) as f64;
+        let (x, y) = self.pixel_xy(pixel);
         self.ray(x + ox, y + oy)
+    }
+
+    /// The column and row of pixel `pixel` (row-major index from the top-left), as f64: x <
+    /// 2^32 and, for a pixel of the image, y < height, so both convert exactly.
+    #[inline(always)]
+    fn pixel_xy(&self, pixel: u64) -> (f64, f64) {
+        ((pixel % self.columns) as f64, (pixel / self.columns) as f64)
     }
 
     /// Appends the rays of each of `pixels`' samples to `out`, pixel by pixel, each pixel's in
@@ -204,8 +209,7 @@ impl Camera {
         out: &mut Vec<Ray>,
     ) {
         let samples = PixelSamples::of_frame(pixel, spp, self.frame);
-        let x = (pixel % self.columns) as f64;
-        let y = (pixel / self.columns) as f64;
+        let (x, y) = self.pixel_xy(pixel);
         out.reserve(order.len());
         let (mut fours, rest) = order.as_chunks::<4>();
         while !fours.is_empty() {

@@ -57,8 +57,7 @@ impl Camera {
         out: &mut Vec<Ray>,
     ) {
         let offsets = PixelSamples::of_frame(pixel, spp, self.frame);
-        let x = (pixel % self.columns) as f64;
-        let y = (pixel / self.columns) as f64;
+        let (x, y) = self.pixel_xy(pixel);
         for run in runs {
             let (mut px, mut py) = offsets.offsets_lanes(run.borrow());
             for k in 0..LANES {
@@ -83,8 +82,7 @@ impl Camera {
         let (mut px, mut py, mut filled) = ([0.0f64; LANES], [0.0f64; LANES], 0);
         for &pixel in pixels {
             let offsets = PixelSamples::of_frame(pixel, spp, self.frame);
-            let x = (pixel % self.columns) as f64;
-            let y = (pixel / self.columns) as f64;
+            let (x, y) = self.pixel_xy(pixel);
             for &sample in samples {
                 let (ox, oy) = offsets.offset(sample);
                 (px[filled], py[filled]) = (x + ox, y + oy);

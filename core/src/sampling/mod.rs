@@ -18,7 +18,7 @@ mod trace_order;
 pub use pixel_sum::PixelSum;
 pub use trace_order::TraceOrder;
 
-use wide::{f64x4, i32x4, u32x4};
+use wide::{f64x4, u32x4};
 
 /// The offset in [0, 1)^2 inside pixel `pixel` (row-major index) of sample `sample` of `spp`:
 /// the pixel centre when `spp <= 1`, else the pixel's point `sample` of the sequence (the same
@@ -86,19 +86,11 @@ impl PixelSamples {
     }
 
     /// The offsets of the samples `samples` (one per lane), x and y in lanes: lane k holds
-    /// `self.offset(samples[k])`, computed as [`PixelSamples::offsets4`] does.
+    /// `self.offset(samples[k])`, computed as [`PixelSamples::offsets_lanes`] does.
     #[inline(always)]
     pub fn offsets_of(&self, samples: u32x4) -> (f64x4, f64x4) {
-        if self.centre {
-            return (f64x4::splat(0.5), f64x4::splat(0.5));
-        }
-        let (x, y) = sobol::points4(samples, self.seed_x, self.seed_y);
-        // The top 24 bits fit an i32, whose conversion to f64 is exact (as `f64::from`).
-        let unit = |h: u32x4| {
-            let h: i32x4 = wide::bytemuck::cast(h >> 8u32);
-            f64x4::from_i32x4(h) * f64x4::splat(UNIT)
-        };
-        (unit(x), unit(y))
+        let (x, y) = self.offsets_lanes(&SampleRun::new(samples.to_array()));
+        (f64x4::from(x), f64x4::from(y))
     }
 
     /// The offsets of the samples of `run`, x and y in `N` lanes of plain arrays: lane k holds

@@ -10,9 +10,7 @@
 //! well stratified: at a power of two exactly, in between as the union of such nets.
 //!
 //! Everything here is wrapping integer arithmetic and bit reversal, identical on every target;
-//! the four-lane versions perform the same operations per lane.
-
-use wide::u32x4;
+//! the versions in lanes perform the same operations per lane.
 
 /// Scrambled coordinates `(x, y)` of point `index`, as 32-bit binary fractions (bit 31 is
 /// 1/2), for the scrambling seeds `seed_x` and `seed_y`.
@@ -39,14 +37,6 @@ pub(super) fn cell_key(index: u32, levels: u32) -> u32 {
         key = key << 2 | ((index >> level) & 1) << 1 | ((y >> level) & 1);
     }
     key
-}
-
-/// [`point`] of four indices, one per lane.
-#[inline(always)]
-pub(super) fn points4(index: u32x4, seed_x: u32, seed_y: u32) -> (u32x4, u32x4) {
-    let x = reverse_bits4(laine_karras4(index, seed_x));
-    let y = reverse_bits4(laine_karras4(second_dimension_reversed4(index), seed_y));
-    (x, y)
 }
 
 /// [`point`] of `N` indices, one per lane: the same wrapping operations per lane as plain
@@ -107,30 +97,9 @@ const SECOND_DIMENSION_REVERSED: [u32; SMALL_INDICES] = {
     table
 };
 
-/// [`second_dimension_reversed`] of four indices: from the table when every index is in it,
-/// else the same columns, each added where the lane's bit is set, for as many bits as the
-/// largest index has.
-#[inline(always)]
-fn second_dimension_reversed4(index: u32x4) -> u32x4 {
-    let lanes = index.to_array();
-    let largest = lanes[0].max(lanes[1]).max(lanes[2].max(lanes[3]));
-    if (largest as usize) < SMALL_INDICES {
-        let t = &SECOND_DIMENSION_REVERSED;
-        let at = |k: usize| t[lanes[k] as usize % SMALL_INDICES];
-        return u32x4::from([at(0), at(1), at(2), at(3)]);
-    }
-    let (mut v, mut out) = (1u32, u32x4::splat(0));
-    for bit in 0..32 - largest.leading_zeros() {
-        // All ones where the lane's bit is set: 0 - 1 wraps to u32::MAX.
-        let set = u32x4::splat(0) - ((index >> bit) & u32x4::splat(1));
-        out ^= set & u32x4::splat(v);
-        v ^= v << 1;
-    }
-    out
-}
-
-/// The second Sobol dimension of each of `N` indices before scrambling (in reversed bit
-/// order), as [`second_dimension_reversed4`] computes it: what [`points_lanes`] takes.
+/// [`second_dimension_reversed`] of each of `N` indices, what [`points_lanes`] takes: from the
+/// table when every index is in it, else the same columns, each added where the lane's bit is
+/// set, for as many bits as the largest index has.
 #[inline(always)]
 pub(super) fn second_dimensions<const N: usize>(index: [u32; N]) -> [u32; N] {
     let largest = index.iter().fold(0, |a, &b| a.max(b));
@@ -166,18 +135,6 @@ fn laine_karras(mut v: u32, seed: u32) -> u32 {
     v
 }
 
-/// [`laine_karras`] of four values, one per lane.
-#[inline(always)]
-fn laine_karras4(mut v: u32x4, seed: u32) -> u32x4 {
-    let splat = u32x4::splat;
-    v += splat(seed);
-    v ^= v * splat(0x6c50_b47c);
-    v ^= v * splat(0xb82f_1e52);
-    v ^= v * splat(0xc7af_e638);
-    v ^= v * splat(0x8d22_f6e6);
-    v
-}
-
 /// [`laine_karras`] of `N` values, one per lane.
 #[inline(always)]
 fn laine_karras_lanes<const N: usize>(mut v: [u32; N], seed: u32) -> [u32; N] {
@@ -187,7 +144,7 @@ fn laine_karras_lanes<const N: usize>(mut v: [u32; N], seed: u32) -> [u32; N] {
     v
 }
 
-/// `u32::reverse_bits` of `N` values, as [`reverse_bits4`] swaps them.
+/// `u32::reverse_bits` of `N` values: swaps of halves, bytes, nibbles, pairs and bits.
 #[inline(always)]
 fn reverse_bits_lanes<const N: usize>(mut v: [u32; N]) -> [u32; N] {
     for v in &mut v {
@@ -198,17 +155,6 @@ fn reverse_bits_lanes<const N: usize>(mut v: [u32; N]) -> [u32; N] {
         *v = ((x >> 1) & 0x5555_5555) | ((x & 0x5555_5555) << 1);
     }
     v
-}
-
-/// `u32::reverse_bits` of four values: swaps of halves, bytes, nibbles, pairs and bits.
-#[inline(always)]
-fn reverse_bits4(mut v: u32x4) -> u32x4 {
-    let splat = u32x4::splat;
-    v = (v >> 16u32) | (v << 16u32);
-    v = ((v >> 8u32) & splat(0x00ff_00ff)) | ((v & splat(0x00ff_00ff)) << 8u32);
-    v = ((v >> 4u32) & splat(0x0f0f_0f0f)) | ((v & splat(0x0f0f_0f0f)) << 4u32);
-    v = ((v >> 2u32) & splat(0x3333_3333)) | ((v & splat(0x3333_3333)) << 2u32);
-    ((v >> 1u32) & splat(0x5555_5555)) | ((v & splat(0x5555_5555)) << 1u32)
 }
 
 #[cfg(test)]
@@ -254,10 +200,9 @@ mod tests {
         }
     }
 
-    /// Lanes (four, and sixteen in arrays) compute the scalar bits: indices around powers of
-    /// two, large ones, mixed lanes.
+    /// Lanes compute the scalar bits: indices around powers of two, large ones, mixed lanes.
     #[test]
-    fn four_points_are_the_single_points() {
+    fn points_in_lanes_are_the_single_points() {
         let seeds = [(0u32, 0u32), (0xdead_beef, 0x1234_5678), (u32::MAX, 1)];
         let mut starts: Vec<u32> = (0..300).collect();
         starts.extend((1..32).map(|k| (1u32 << k) - 2));
@@ -265,8 +210,7 @@ mod tests {
         for (sx, sy) in seeds {
             for &first in &starts {
                 let lanes = [0u32, 1, 2, 3].map(|k| first.wrapping_add(k * 7));
-                let (x, y) = points4(u32x4::from(lanes), sx, sy);
-                let (x, y) = (x.to_array(), y.to_array());
+                let (x, y) = points_lanes((lanes, second_dimensions(lanes)), sx, sy);
                 for k in 0..4 {
                     assert_eq!((x[k], y[k]), point(lanes[k], sx, sy), "index {}", lanes[k]);
                 }
