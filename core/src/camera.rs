@@ -12,8 +12,7 @@
 //! [`Camera::pixels_rays`] gives pixels' sample rays with the same operations in lanes:
 //! sixteen samples of a pixel (or, below sixteen samples a pixel, sixteen (pixel, sample)
 //! pairs) at a time in plain arrays (`lanes.rs`, compiled for AVX-512 or AVX2 where the kernel
-//! width is `Sixteen` or `Eight`, `avx.rs`), and a pixel's shorter rest four at a time
-//! (`wide`'s f64x4, or one 256-bit register per coordinate with AVX2).
+//! width is `Sixteen` or `Eight`, `avx.rs`).
 
 #[cfg(target_arch = "x86_64")]
 mod avx;
@@ -25,8 +24,7 @@ use crate::error::SceneError;
 use crate::sampling::{PixelSamples, TraceOrder};
 use crate::scene::CameraSpec;
 use crate::triangle::Ray;
-use glam::{DVec3, Vec3};
-use wide::{f64x4, u32x4};
+use glam::DVec3;
 
 /// A camera ready to generate rays for a `width` x `height` image.
 #[derive(Clone, Copy, Debug)]
@@ -154,9 +152,9 @@ impl Camera {
     /// [`Camera::sample_ray`]`(pixel, sample, spp)` for each pixel and each sample of
     /// `order.samples()`, with the per-pixel work (the pixel's coordinates and sample pattern)
     /// done once and the ray arithmetic in SIMD lanes: sixteen samples of a pixel at a time
-    /// (`lanes.rs`), the rest four at a time ([`Camera::rays4`], or `avx.rs` on AVX2 hosts);
-    /// below sixteen samples a pixel, sixteen consecutive (pixel, sample) pairs at a time (one
-    /// pixel's samples would leave lanes idle).
+    /// (`lanes.rs`, a shorter rest in sixteen lanes too); below sixteen samples a pixel,
+    /// sixteen consecutive (pixel, sample) pairs at a time (one pixel's samples would leave
+    /// lanes idle).
     #[inline]
     pub fn pixels_rays(&self, pixels: &[u64], order: &TraceOrder, out: &mut Vec<Ray>) {
         let samples = order.samples();
@@ -181,83 +179,7 @@ impl Camera {
             KernelWidth::Eight => return unsafe { self.pixels_rays_avx2(pixels, samples, out) },
             KernelWidth::Four => {}
         }
-        self.pixels_rays_lanes::<false>(pixels, samples, out);
-    }
-
-    /// [`Camera::rays4`], in 256-bit registers when `AVX` (only inside an AVX2 function).
-    #[inline(always)]
-    fn rays4_in<const AVX: bool>(&self, px: f64x4, py: f64x4) -> [Ray; 4] {
-        #[cfg(target_arch = "x86_64")]
-        if AVX {
-            // SAFETY: `AVX` is true only inside functions compiled for AVX2, which run only
-            // on hosts with it.
-            #[allow(unsafe_code)]
-            return unsafe { self.rays4_avx(px, py) };
-        }
-        self.rays4(px, py)
-    }
-
-    /// The rays of one pixel's samples `order` (of `spp`), as [`Camera::pixels_samples_rays`]
-    /// gives them: four samples at a time, each group's rays from `Camera::rays4_avx` when
-    /// `AVX` (only inside functions compiled for AVX2), else from [`Camera::rays4`]; then one
-    /// by one. (What a pixel's runs of sixteen, `lanes.rs`, leave.)
-    #[inline(always)]
-    fn pixel_rays_in<const AVX: bool>(
-        &self,
-        pixel: u64,
-        (order, spp): (&[u32], u32),
-        out: &mut Vec<Ray>,
-    ) {
-        let samples = PixelSamples::of_frame(pixel, spp, self.frame);
-        let (x, y) = self.pixel_xy(pixel);
-        out.reserve(order.len());
-        let (mut fours, rest) = order.as_chunks::<4>();
-        while !fours.is_empty() {
-            // Up to 16 samples in two passes, the image positions of all of them first: each
-            // pass's groups of four are independent, so their latency chains (the hash's
-            // multiplications, then the square root and division) overlap.
-            let groups = fours.len().min(4);
-            let mut positions = [(f64x4::ZERO, f64x4::ZERO); 4];
-            for (position, four) in positions.iter_mut().zip(&fours[..groups]) {
-                // `x + ox` lane by lane (addition commutes bit for bit).
-                let (ox, oy) = samples.offsets_of(u32x4::from(*four));
-                *position = (f64x4::splat(x) + ox, f64x4::splat(y) + oy);
-            }
-            for &(px, py) in &positions[..groups] {
-                out.extend(self.rays4_in::<AVX>(px, py));
-            }
-            fours = &fours[groups..];
-        }
-        for &sample in rest {
-            let (ox, oy) = samples.offset(sample);
-            out.push(self.ray(x + ox, y + oy));
-        }
-    }
-
-    /// [`Camera::ray`] of four image positions, one per lane: the same IEEE operations in the
-    /// same order on each lane (no FMA; division and square root are correctly rounded in
-    /// every SIMD instruction set), so each ray is the scalar ray bit for bit.
-    #[inline(always)]
-    fn rays4(&self, px: f64x4, py: f64x4) -> [Ray; 4] {
-        let splat = f64x4::splat;
-        // As `direction`: px·scale - x_edge and tan - py·scale.
-        let scale = splat(self.pixel_scale);
-        let sx = px * scale - splat(self.x_edge);
-        let sy = splat(self.tan_half) - py * scale;
-        let axis =
-            |a: usize| splat(self.forward[a]) + sx * splat(self.right[a]) + sy * splat(self.up[a]);
-        let (dx, dy, dz) = (axis(0), axis(1), axis(2));
-        let inverse = splat(1.0) / (dx * dx + dy * dy + dz * dz).sqrt();
-        let (dx, dy, dz) = (
-            (dx * inverse).to_array(),
-            (dy * inverse).to_array(),
-            (dz * inverse).to_array(),
-        );
-        let origin = self.eye.as_vec3();
-        std::array::from_fn(|k| Ray {
-            origin,
-            dir: Vec3::new(dx[k] as f32, dy[k] as f32, dz[k] as f32),
-        })
+        self.pixels_rays_lanes(pixels, samples, out);
     }
 }
 
@@ -311,10 +233,10 @@ mod tests {
     }
 
     /// Pixels' batch of rays is their sample rays one by one, bit for bit, pixel by pixel in
-    /// trace order, on every path: one sample (pixel centres), below four samples a pixel (lanes
-    /// across pixels, with a remainder of one to three rays), square and non-square strata, a
-    /// sample count past the strata grid; one pixel, several, none; a still camera and a frame
-    /// of an animation. The same for samples from the tail of a longer sequence (the adaptive
+    /// trace order, on every path: one sample (pixel centres), below sixteen samples a pixel
+    /// (lanes across pixels, the last group partly filled), runs of sixteen samples of a pixel
+    /// with and without a shorter rest (20, 35 and 64 samples); one pixel, several, none; a
+    /// still camera and a frame of an animation. The same for samples from the tail of a longer sequence (the adaptive
     /// sampler's second pass: samples `spp / 4..spp` of `spp`, and one sample alone).
     #[test]
     fn pixels_rays_are_the_sample_rays_in_order() {
@@ -330,7 +252,7 @@ mod tests {
         #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
         let mut paths: Vec<(&str, PixelsRays)> = vec![
             ("dispatched", Camera::pixels_samples_rays),
-            ("portable", Camera::pixels_rays_lanes::<false>),
+            ("portable", Camera::pixels_rays_lanes),
         ];
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {

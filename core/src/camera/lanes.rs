@@ -17,12 +17,13 @@ const LANES: usize = 16;
 
 impl Camera {
     /// [`Camera::pixels_samples_rays`] with the rays of each run of [`LANES`] samples of a
-    /// pixel made together ([`Camera::rays_lanes`]), and a pixel's shorter rest as
-    /// `Camera::pixel_rays_in` makes it (`AVX` as there); below [`LANES`] samples a pixel,
-    /// [`LANES`] consecutive (pixel, sample) pairs together. For several pixels the runs'
-    /// shared part is made once; for one (the adaptive rounds' calls) on the way.
+    /// pixel made together ([`Camera::rays_lanes`]); a pixel's shorter rest is one more run,
+    /// whose unused lanes repeat its last sample and whose rays there are not kept. Below
+    /// [`LANES`] samples a pixel, [`LANES`] consecutive (pixel, sample) pairs together. For
+    /// several pixels the runs' shared part is made once; for one (the adaptive rounds' calls)
+    /// on the way.
     #[inline(always)]
-    pub(super) fn pixels_rays_lanes<const AVX: bool>(
+    pub(super) fn pixels_rays_lanes(
         &self,
         pixels: &[u64],
         (samples, spp): (&[u32], u32),
@@ -33,27 +34,26 @@ impl Camera {
             return;
         }
         out.reserve(pixels.len() * samples.len());
-        let (runs, rest) = samples.as_chunks::<LANES>();
-        let run = |samples: &[u32; LANES]| SampleRun::new(*samples);
+        let (runs, unused) = sample_runs(samples);
         if let [pixel] = pixels {
-            self.pixel_runs_rays::<AVX>(*pixel, runs.iter().map(run), (rest, spp), out);
+            self.pixel_runs_rays(*pixel, runs, (unused, spp), out);
             return;
         }
         // What the runs' sample positions share in every pixel, once.
-        let runs: Vec<SampleRun<LANES>> = runs.iter().map(run).collect();
+        let runs: Vec<SampleRun<LANES>> = runs.collect();
         for &pixel in pixels {
-            self.pixel_runs_rays::<AVX>(pixel, &runs, (rest, spp), out);
+            self.pixel_runs_rays(pixel, &runs, (unused, spp), out);
         }
     }
 
-    /// The rays of one pixel's samples: each of `runs` made together, then `rest` as
-    /// `Camera::pixel_rays_in` makes it.
+    /// The rays of one pixel's samples, each of `runs` made together, without the last run's
+    /// `unused` lanes.
     #[inline(always)]
-    fn pixel_runs_rays<const AVX: bool>(
+    fn pixel_runs_rays(
         &self,
         pixel: u64,
         runs: impl IntoIterator<Item = impl Borrow<SampleRun<LANES>>>,
-        (rest, spp): (&[u32], u32),
+        (unused, spp): (usize, u32),
         out: &mut Vec<Ray>,
     ) {
         let offsets = PixelSamples::of_frame(pixel, spp, self.frame);
@@ -67,9 +67,7 @@ impl Camera {
             }
             self.rays_lanes(px, py, out);
         }
-        if !rest.is_empty() {
-            self.pixel_rays_in::<AVX>(pixel, (rest, spp), out);
-        }
+        out.truncate(out.len() - unused);
     }
 
     /// The rays of `samples` of each of `pixels`, pixel by pixel, made [`LANES`] consecutive
@@ -102,12 +100,12 @@ impl Camera {
         }
     }
 
-    /// Appends [`Camera::ray`] of `N` image positions, one per lane, in lane order.
+    /// Appends [`Camera::ray`] of [`LANES`] image positions, one per lane, in lane order.
     #[inline(always)]
-    fn rays_lanes<const N: usize>(&self, px: [f64; N], py: [f64; N], out: &mut Vec<Ray>) {
+    fn rays_lanes(&self, px: [f64; LANES], py: [f64; LANES], out: &mut Vec<Ray>) {
         let (f, r, u) = (self.forward, self.right, self.up);
-        let mut dir = [[0.0f32; N]; 3];
-        for k in 0..N {
+        let mut dir = [[0.0f32; LANES]; 3];
+        for k in 0..LANES {
             // As `direction`: px·scale - x_edge and tan - py·scale, then
             // forward + sx·right + sy·up axis by axis.
             let sx = px[k] * self.pixel_scale - self.x_edge;
@@ -121,10 +119,26 @@ impl Camera {
             dir[2][k] = (dz * inverse) as f32;
         }
         let origin = self.eye.as_vec3();
-        let rays: [Ray; N] = std::array::from_fn(|k| Ray {
+        let rays: [Ray; LANES] = std::array::from_fn(|k| Ray {
             origin,
             dir: Vec3::new(dir[0][k], dir[1][k], dir[2][k]),
         });
         out.extend_from_slice(&rays);
     }
+}
+
+/// `samples` in runs of [`LANES`] (made with [`SampleRun::new`]), the last one's unused lanes
+/// repeating its last sample, and how many lanes are unused.
+#[inline(always)]
+fn sample_runs(samples: &[u32]) -> (impl Iterator<Item = SampleRun<LANES>>, usize) {
+    let (runs, rest) = samples.as_chunks::<LANES>();
+    let (last, unused) = match rest {
+        [.., sample] => {
+            let mut lanes = [*sample; LANES];
+            lanes[..rest.len()].copy_from_slice(rest);
+            (Some(lanes), LANES - rest.len())
+        }
+        [] => (None, 0),
+    };
+    (runs.iter().copied().chain(last).map(SampleRun::new), unused)
 }

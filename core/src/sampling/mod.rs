@@ -18,8 +18,6 @@ mod trace_order;
 pub use pixel_sum::PixelSum;
 pub use trace_order::TraceOrder;
 
-use wide::{f64x4, u32x4};
-
 /// The offset in [0, 1)^2 inside pixel `pixel` (row-major index) of sample `sample` of `spp`:
 /// the pixel centre when `spp <= 1`, else the pixel's point `sample` of the sequence (the same
 /// for every `spp > 1`).
@@ -75,22 +73,6 @@ impl PixelSamples {
         }
         let (x, y) = sobol::point(sample, self.seed_x, self.seed_y);
         (unit_float(x), unit_float(y))
-    }
-
-    /// The offsets of samples `first..first + 4` (wrapping), x and y in lanes: lane k holds
-    /// `self.offset(first + k)`, the sequence's arithmetic in u32x4 lanes and the conversions
-    /// in f64x4 lanes (the same exact operations per lane).
-    #[inline(always)]
-    pub fn offsets4(&self, first: u32) -> (f64x4, f64x4) {
-        self.offsets_of(u32x4::splat(first) + u32x4::from([0, 1, 2, 3]))
-    }
-
-    /// The offsets of the samples `samples` (one per lane), x and y in lanes: lane k holds
-    /// `self.offset(samples[k])`, computed as [`PixelSamples::offsets_lanes`] does.
-    #[inline(always)]
-    pub fn offsets_of(&self, samples: u32x4) -> (f64x4, f64x4) {
-        let (x, y) = self.offsets_lanes(&SampleRun::new(samples.to_array()));
-        (f64x4::from(x), f64x4::from(y))
     }
 
     /// The offsets of the samples of `run`, x and y in `N` lanes of plain arrays: lane k holds

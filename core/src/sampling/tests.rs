@@ -4,8 +4,8 @@ use super::*;
 fn one_sample_is_the_pixel_centre() {
     assert_eq!(sample_offset(7, 0, 1), (0.5, 0.5));
     assert_eq!(sample_offset(7, 0, 0), (0.5, 0.5));
-    let (x, y) = PixelSamples::new(7, 1).offsets4(0);
-    assert_eq!((x.to_array(), y.to_array()), ([0.5; 4], [0.5; 4]));
+    let (x, y) = PixelSamples::new(7, 1).offsets_lanes(&SampleRun::new([0, 1, 2, 3]));
+    assert_eq!((x, y), ([0.5; 4], [0.5; 4]));
 }
 
 /// A sample's position does not depend on the pixel's sample count (above 1): the first n
@@ -64,17 +64,18 @@ fn every_prefix_is_stratified_in_every_dyadic_partition() {
     }
 }
 
-/// Four offsets at once, and sixteen in arrays, are the single offsets bit for bit, also at
-/// the end of the u32 range (wrapping) and for the one-sample centre.
+/// Four consecutive offsets in lanes, and sixteen spread ones, are the single offsets bit for
+/// bit, also at the end of the u32 range (wrapping) and for the one-sample centre.
 #[test]
-fn four_offsets_are_the_single_offsets() {
+fn offsets_in_lanes_are_the_single_offsets() {
     for spp in [1u32, 2, 3, 64, 96] {
         for pixel in [0u64, 1, 77, 12_345, u64::MAX] {
             let samples = PixelSamples::new(pixel, spp);
             let starts = (0..spp + 8).chain([1023, u32::MAX - 5, u32::MAX - 3, u32::MAX]);
             for first in starts {
-                let (xs, ys) = samples.offsets4(first);
-                for (k, (x, y)) in xs.to_array().into_iter().zip(ys.to_array()).enumerate() {
+                let four: [u32; 4] = std::array::from_fn(|k| first.wrapping_add(k as u32));
+                let (xs, ys) = samples.offsets_lanes(&SampleRun::new(four));
+                for (k, (x, y)) in xs.into_iter().zip(ys).enumerate() {
                     let (ex, ey) = samples.offset(first.wrapping_add(k as u32));
                     assert_eq!(
                         (x.to_bits(), y.to_bits()),
