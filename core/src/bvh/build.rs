@@ -283,22 +283,45 @@ struct Split {
 }
 
 /// Each ref's bin on each axis (lanes x, y, z), as the plain algorithm computes it:
-/// `((c - origin) * scale) as usize`, at most `BINS - 1`. The lanes truncate as `as` does
-/// (NaN to 0, saturating), and the products are never negative, since no centroid lies below
-/// `origin`, the least centroid.
+/// `((c - origin) * scale) as usize`, at most `BINS - 1`. The products are never negative,
+/// since no centroid lies below `origin`, the least centroid.
 struct Binner {
     origin: f32x4,
     scale: f32x4,
+    /// Some axis's scale is infinite (a positive extent too small for `BINS / extent`): its
+    /// products may be NaN or infinite, and are truncated as `as` does (NaN to 0,
+    /// saturating). Otherwise every product lies in [0, `BINS`] and a plain truncation gives
+    /// the same values.
+    saturate: bool,
 }
 
 impl Binner {
+    /// The binner of a node whose centroids lie in `bounds`, and the bounds' extent.
+    fn new(bounds: Box3) -> (Binner, f32x4) {
+        let extent = bounds.hi - bounds.lo;
+        // Along an axis without extent every centroid is at `origin`, and its product is
+        // 0 · ∞ = NaN, bin 0: a scale of 0 gives that bin with a product of 0.
+        let zero = extent.simd_eq(f32x4::ZERO);
+        let scale = zero.select(f32x4::ZERO, f32x4::splat(BINS as f32) / extent);
+        let infinite = scale.simd_eq(f32x4::splat(f32::INFINITY)).to_bitmask() & 0b111;
+        let binner = Binner {
+            origin: bounds.lo,
+            scale,
+            saturate: infinite != 0,
+        };
+        (binner, extent)
+    }
+
     /// The bins, each in `0..BINS`.
     #[inline(always)]
     fn bins(&self, c: f32x4) -> [usize; 4] {
-        let bins = ((c - self.origin) * self.scale)
-            .trunc_int()
-            .min(i32x4::splat(BINS as i32 - 1))
-            .to_array();
+        let product = (c - self.origin) * self.scale;
+        let whole = if self.saturate {
+            product.trunc_int()
+        } else {
+            product.fast_trunc_int()
+        };
+        let bins = whole.min(i32x4::splat(BINS as i32 - 1)).to_array();
         // The mask keeps what is already in range (no product is negative); it spares the
         // bounds checks of the bins' arrays.
         bins.map(|b| b as usize & (BINS - 1))
@@ -318,11 +341,8 @@ fn split(refs: &mut [Ref], centroid_bounds: Box3) -> Option<Split> {
             return None;
         }
     }
-    let extent = (centroid_bounds.hi - centroid_bounds.lo).to_array();
-    let binner = Binner {
-        origin: centroid_bounds.lo,
-        scale: f32x4::splat(BINS as f32) / (centroid_bounds.hi - centroid_bounds.lo),
-    };
+    let (binner, extent) = Binner::new(centroid_bounds);
+    let extent = extent.to_array();
     let mut bins = [[Box3::EMPTY; BINS]; 3];
     let mut counts = [[0u32; BINS]; 3];
     for r in refs.iter() {
