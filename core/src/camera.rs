@@ -236,8 +236,9 @@ mod tests {
     /// trace order, on every path: one sample (pixel centres), below sixteen samples a pixel
     /// (lanes across pixels, the last group partly filled), runs of sixteen samples of a pixel
     /// with and without a shorter rest (20, 35 and 64 samples); one pixel, several, none; a
-    /// still camera and a frame of an animation. The same for samples from the tail of a longer sequence (the adaptive
-    /// sampler's second pass: samples `spp / 4..spp` of `spp`, and one sample alone).
+    /// still camera and a frame of an animation. The same for samples from the tail of a
+    /// longer sequence (the adaptive sampler's second pass: samples `spp / 4..spp` of `spp`,
+    /// and one sample alone).
     #[test]
     fn pixels_rays_are_the_sample_rays_in_order() {
         let spec = CameraSpec {
