@@ -290,8 +290,8 @@ struct Binner {
     scale: f32x4,
     /// Some axis's scale is infinite (a positive extent too small for `BINS / extent`): its
     /// products may be NaN or infinite, and are truncated as `as` does (NaN to 0,
-    /// saturating). Otherwise every product lies in [0, `BINS`] and a plain truncation gives
-    /// the same values.
+    /// saturating). Otherwise every product lies in [0, `BINS`] (up to rounding, far below
+    /// 2^31) and a plain truncation gives the same values.
     saturate: bool,
 }
 
