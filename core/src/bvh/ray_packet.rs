@@ -6,10 +6,13 @@
 //! At each inner node one interval test ([`RayPacketTester`]) bounds what every ray of the
 //! packet can do with the four child boxes: a child no ray can enter is dropped for all of
 //! them, a child every active ray certainly enters keeps them all, and only the children in
-//! between are tested ray by ray (four rays per SIMD test). A single remaining ray goes on
-//! alone with the single-ray traversal; leaves test each triangle against four rays at once
-//! (kernel width `Four`), eight or sixteen (`Eight`, `Sixteen`; `dispatch.rs`) where that
-//! takes fewer tests (`leaf_lanes.rs`), and run the single-ray leaf test for the other rays.
+//! between are tested ray by ray (four rays per SIMD test): every such child in segment
+//! packets, leaf children only in closest-hit packets (an inner child takes all the active
+//! rays; [`RayPacketTester::enter_children`] says why that is exact). A single remaining ray
+//! goes on alone with the single-ray traversal; leaves test each triangle against four rays
+//! at once (kernel width `Four`), eight or sixteen (`Eight`, `Sixteen`; `dispatch.rs`) where
+//! that takes fewer tests (`leaf_lanes.rs`), and run the single-ray leaf test for the other
+//! rays.
 //! Packets with a non-finite origin or direction are traced ray by ray.
 //!
 //! Guarantee: [`Bvh::closest_hits`] gives every ray exactly what [`Bvh::closest_hit`] gives it.
@@ -176,8 +179,16 @@ impl<'a> RayPacketTester<'a> {
     /// test decides what it can; the single-ray test decides the rest ray by ray.
     /// `[bound_lo, bound_hi]` holds the bound of every active ray ([`bound_range`] of `bound`
     /// over these rays or more: a wider range only leaves more to the single-ray test).
+    ///
+    /// With `LEAVES_ONLY`, only leaf children get the single-ray test: an inner child the hull
+    /// test cannot rule out takes every active ray. A ray then tests a leaf's triangles only
+    /// if it enters the leaf's own box, and boxes nest (a child's box lies in its parent's,
+    /// and the slab test is monotonic in the planes), so it enters every ancestor's box too
+    /// with the same bound: the triangles each ray tests are those the single-ray traversal
+    /// reaches. On camera rays (a packet's rays are samples of one pixel or neighbours) the
+    /// per-ray tests of inner children cost more than the subtrees they rule out.
     #[inline(always)]
-    pub(super) fn enter_children(
+    pub(super) fn enter_children<const LEAVES_ONLY: bool>(
         &self,
         node: &Node4,
         active: u32,
@@ -187,7 +198,8 @@ impl<'a> RayPacketTester<'a> {
         let (some, all, mut entry) = self.test_hull(node, bound_lo, bound_hi);
         let mut enter = [0u32; 4];
         for slot in bits(some) {
-            if all & (1 << slot) != 0 {
+            let inner = node.child[slot] & LEAF == 0;
+            if all & (1 << slot) != 0 || (LEAVES_ONLY && inner) {
                 enter[slot] = active;
             } else {
                 (enter[slot], entry[slot]) = self.test_rays(node, slot, active, bound);
@@ -375,7 +387,7 @@ impl Bvh {
                 (bound, range) = hits.bounds(all_rays);
             } else if child & LEAF == 0 {
                 let node = &self.wide[child as usize];
-                let (enter, entry) = boxes.enter_children(node, active, &bound, range);
+                let (enter, entry) = boxes.enter_children::<true>(node, active, &bound, range);
                 if let Some(next) = descend(node, &enter, &entry, stack, &mut depth) {
                     (child, triangle4_count, active) = next;
                     continue;

@@ -157,7 +157,9 @@ impl Bvh {
                 }
             } else if child & LEAF == 0 {
                 let node = &self.wide[child as usize];
-                let (enter, entry) = boxes.enter_children(node, active, &bound, range);
+                // Every child tested ray by ray: a shadow packet's segments start at
+                // different points, and testing inner children only at the hull was 2% slower.
+                let (enter, entry) = boxes.enter_children::<false>(node, active, &bound, range);
                 if let Some(next) = descend(node, &enter, &entry, stack, &mut depth) {
                     (child, triangle4_count, active) = next;
                     continue;
