@@ -421,6 +421,20 @@ mod tests {
         }
     }
 
+    /// The same on the textured globe: flat textured floor, a textured sphere with vertex
+    /// normals, and groups of samples that straddle triangles of both (flat textured hits take
+    /// the flat lanes, with their reflectances looked up per hit).
+    #[test]
+    fn textured_rows_equal_sample_by_sample_tracing() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/globe/globe.json");
+        let scene = load_scene(std::path::Path::new(path)).expect("bundled globe");
+        assert_eq!(scene.mesh.textures.len(), 2, "the floor's and the sphere's");
+        let bvh = build_scene_bvh(&scene.mesh);
+        for (width, height, spp) in [(40, 24, 64), (37, 21, 3)] {
+            check_against_single_samples(&scene, &bvh, width, height, spp);
+        }
+    }
+
     fn check_against_single_samples(scene: &Scene, bvh: &Bvh, width: u32, height: u32, spp: u32) {
         let settings = RenderSettings {
             width,

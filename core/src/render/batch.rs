@@ -158,8 +158,8 @@ impl<S: Surfaces> HitSamples<'_, S> {
 
     /// Fills `lanes` with the hits of `group` (lane k: sample `group[k]`, lanes past the
     /// group's end its last hit), all on the triangle `first` hit, and pushes their
-    /// reflectances; whether the triangle needs the smooth lanes (vertex normals or a
-    /// texture). The triangle's corners, normals and (untextured) reflectance go to every
+    /// reflectances; whether the triangle needs the smooth lanes (it has vertex normals; a
+    /// texture only changes the reflectances). The triangle's corners, normals and (untextured) reflectance go to every
     /// lane at once, and a texture is looked up in lanes
     /// ([`crate::texture::TexturedCorners::kd_lanes`]): the values [`Self::fill_mixed`]
     /// writes lane by lane. `last` is [`Self::shading_of`]'s.
@@ -190,13 +190,13 @@ impl<S: Surfaces> HitSamples<'_, S> {
                 reflectances.extend((0..group.len()).map(|k| [kd[0][k], kd[1][k], kd[2][k]]));
             }
         }
-        shading.normals.is_some() || shading.texture.is_some()
+        shading.normals.is_some()
     }
 
     /// Fills `lanes` with the hits of `group` (lane k: sample `group[k]`, lanes past the
     /// group's end its last hit), hit by hit, and pushes their reflectances; whether a hit
-    /// needs the smooth lanes (vertex normals or a texture). The normals are written once a
-    /// hit of the group has them: zeros until then, and for flat triangles. `last` is
+    /// needs the smooth lanes (has vertex normals). The normals are written once a hit of the
+    /// group has them: zeros until then, and for flat triangles. `last` is
     /// [`Self::shading_of`]'s.
     #[inline(always)]
     fn fill_mixed<const N: usize>(
@@ -218,12 +218,18 @@ impl<S: Surfaces> HitSamples<'_, S> {
                     kd
                 }
                 None => {
-                    if !smooth {
-                        smooth = true;
-                        lanes.clear_normals();
-                    }
                     let shading = self.shading_of(h, last);
-                    lanes.set_normals(k, &shading.normals.unwrap_or([Vec3::ZERO; 3]));
+                    match &shading.normals {
+                        Some(normals) => {
+                            if !smooth {
+                                smooth = true;
+                                lanes.clear_normals();
+                            }
+                            lanes.set_normals(k, normals);
+                        }
+                        None if smooth => lanes.set_normals(k, &[Vec3::ZERO; 3]),
+                        None => {}
+                    }
                     self.surfaces.kd_on(shading, h.b)
                 }
             };
@@ -240,9 +246,9 @@ impl<S: Surfaces> HitSamples<'_, S> {
 
 /// Every hit sample's lights' tests, handed to `sink` in sample order (each sample's in light
 /// order), and its reflectance, pushed to `reflectances`: `N` hits shaded at once in lanes,
-/// their tests handed over light by light; when all are on flat, untextured triangles by the
-/// flat lanes, else with their vertex normals (zeros for a flat triangle) and their
-/// reflectances at the hits. A last group of fewer than `N` fills its lanes with its last
+/// their tests handed over light by light, each hit with its reflectance at the hit (textured
+/// or not); when all are on flat triangles by the flat lanes, else with their vertex normals
+/// (zeros for a flat triangle, which give the flat lanes' tests). A last group of fewer than `N` fills its lanes with its last
 /// hit, whose extra tests are dropped. A group whose hits are all on one triangle (most
 /// groups: a run of samples lies in one part of a pixel) takes the triangle's data once.
 /// The same tests every way and at every `N`.
@@ -263,8 +269,8 @@ fn hit_tests<const N: usize, S: Surfaces>(
         };
         let visit = |l: usize, tests: &TestLanes<N>| sink.lanes(group, l, tests);
         if smooth {
-            // Vertex normals or textures: the same tests, with each hit's normals (zeros for
-            // a flat triangle) and reflectance at the hit.
+            // Vertex normals: the same tests, with each hit's normals (zeros for a flat
+            // triangle).
             smooth_test_lanes(&lanes, input.lights, visit);
         } else {
             flat_test_lanes(&lanes, input.lights, visit);

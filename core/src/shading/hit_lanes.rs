@@ -1,10 +1,11 @@
 //! Hits shaded `N` at a time, one hit per lane ([`super::array_lanes`], vectorized for the
 //! calling code's instruction set; the renderer takes sixteen): their
 //! [`super::surface_point`]s and every light's [`super::shadow_test`], handed over light by
-//! light as lanes ([`TestLanes`]). [`flat_test_lanes`] takes hits on flat (no vertex normals),
-//! untextured triangles; [`smooth_test_lanes`] any hits, with their triangles' vertex normals
-//! (zeros for a flat one) and their reflectances at the hits (a texture is looked up per hit
-//! before): the shading normal and Hanika's shadow point (`smooth_lanes`) are lanes too. Each
+//! light as lanes ([`TestLanes`]). Both take each hit's reflectance at the hit (a texture is
+//! looked up per hit before). [`flat_test_lanes`] takes hits on flat triangles (no vertex
+//! normals); [`smooth_test_lanes`] any hits, with their triangles' vertex normals (zeros for a
+//! flat one, which give the flat lanes' tests): the shading normal and Hanika's shadow point
+//! (`smooth_lanes`) are lanes too. Each
 //! lane performs the scalar code's IEEE operations in its order (glam's `dot`, `cross` and
 //! `normalize_or_zero` spelled out; a point light's incidence in f64 as
 //! [`super::incidence`]), so each lane's test is the scalar test bit for bit, at every width.
@@ -362,7 +363,8 @@ fn shadow_rays<const N: usize>(light: &Light, origins: &Vec3s<N>) -> (Vec3s<N>, 
 }
 
 /// Every light's [`super::shadow_test`] at the [`super::surface_point`] of each of the `N`
-/// hits of `hits`, all on flat, untextured triangles (their normals are not read), handed to
+/// hits of `hits`, all on flat triangles (their normals are not read; each hit's `kd` is its
+/// reflectance at the hit, textured or not), handed to
 /// `visit(light, tests)` light by light, in light order: lane k of `tests` is hit k's test
 /// where its bit of `tests.lit` is set, exactly the test [`super::shadow_tests`] gives that
 /// surface point and light.
