@@ -225,7 +225,7 @@ impl<const N: usize> Vec3s<N> {
     #[inline(always)]
     fn normalize_or_zero(self) -> Self {
         let rcp = F32s::splat(1.0) / self.dot(self).sqrt();
-        let ok = rcp.gt(F32s::ZERO).and(rcp.lt(F32s::splat(f32::INFINITY)));
+        let ok = rcp.positive_finite();
         self.scale(rcp).keep(ok)
     }
 
