@@ -413,13 +413,20 @@ pub(super) fn shade_batch_timed<'s>(
         }
     }
     colours.clear();
-    colours.resize(hits.len(), lighting.background);
-    // Slices taken once: indexing the vectors in the loop reloaded their pointers and checked
-    // every index.
     let [red, green, blue] = sums;
-    let (colours, hit_samples) = (colours.as_mut_slice(), samples.iter().zip(&*reflectances));
-    for ((((&sample, &kd), &r), &g), &b) in hit_samples.zip(&*red).zip(&*green).zip(&*blue) {
-        colours[sample as usize] = add_ambient([r, g, b], kd, lighting.ambient);
+    let hit_colours = reflectances.iter().zip(&*red).zip(&*green).zip(&*blue);
+    let hit_colours =
+        hit_colours.map(|(((&kd, &r), &g), &b)| add_ambient([r, g, b], kd, lighting.ambient));
+    if samples.len() == hits.len() {
+        // Every sample hits (so hit k is sample k): the colours in order, no background.
+        colours.extend(hit_colours);
+    } else {
+        colours.resize(hits.len(), lighting.background);
+        // A slice taken once: indexing the vector in the loop reloaded its pointer.
+        let colours = colours.as_mut_slice();
+        for (&sample, colour) in samples.iter().zip(hit_colours) {
+            colours[sample as usize] = colour;
+        }
     }
     timer.lap(Phase::Shading);
     colours
