@@ -139,6 +139,24 @@ impl<S: Surfaces> HitSamples<'_, S> {
         self.hits[s as usize].as_ref().expect("samples with hits")
     }
 
+    /// The hits and rays of `group` when it is `N` consecutive samples (most groups where
+    /// every sample hits).
+    #[inline(always)]
+    fn run_of<const N: usize>(
+        &self,
+        group: &[u32],
+    ) -> Option<(&[Option<ClosestHit>; N], &[Ray; N])> {
+        let (&first, &last) = (group.first()?, group.last()?);
+        if group.len() != N || (last - first) as usize != N - 1 {
+            return None;
+        }
+        let range = first as usize..first as usize + N;
+        Some((
+            self.hits[range.clone()].try_into().ok()?,
+            self.rays[range].try_into().ok()?,
+        ))
+    }
+
     /// The shading data of `hit`'s triangle, from `last` (the last triangle's, which it then
     /// keeps) when it is the same triangle: consecutive samples mostly hit the same one.
     #[inline(always)]
@@ -174,9 +192,17 @@ impl<S: Surfaces> HitSamples<'_, S> {
         let shading = self.shading_of(first, last);
         let normals = shading.normals.unwrap_or([Vec3::ZERO; 3]);
         lanes.set_triangle(self.bvh.hit_corners(first), &normals);
-        for k in 0..N {
-            let s = lane_sample(group, k);
-            lanes.set_ray(k, &self.hit(s).b, &self.rays[s as usize].dir);
+        if let Some((hits, rays)) = self.run_of::<N>(group) {
+            // A run of consecutive samples: read in order, without looking each one up.
+            for (k, (hit, ray)) in hits.iter().zip(rays).enumerate() {
+                let hit = hit.as_ref().expect("samples with hits");
+                lanes.set_ray(k, &hit.b, &ray.dir);
+            }
+        } else {
+            for k in 0..N {
+                let s = lane_sample(group, k);
+                lanes.set_ray(k, &self.hit(s).b, &self.rays[s as usize].dir);
+            }
         }
         match &shading.texture {
             None => {
@@ -262,7 +288,12 @@ fn hit_tests<const N: usize, S: Surfaces>(
     let mut last = None;
     for group in input.samples.chunks(N) {
         let first = input.hit(group[0]);
-        let smooth = if group.iter().all(|&s| input.hit(s).index == first.index) {
+        let on_first = |hit: &ClosestHit| hit.index == first.index;
+        let one_triangle = match input.run_of::<N>(group) {
+            Some((hits, _)) => hits.iter().all(|h| h.as_ref().is_some_and(on_first)),
+            None => group.iter().all(|&s| on_first(input.hit(s))),
+        };
+        let smooth = if one_triangle {
             input.fill_one_triangle((group, first), &mut last, &mut lanes, reflectances)
         } else {
             input.fill_mixed(group, &mut last, &mut lanes, reflectances)
