@@ -12,8 +12,8 @@
 //! - `shadow-rays`: + make the shadow rays from the hits, allocate their results;
 //! - `shadow`: + trace the shadow rays;
 //! - `digest`: all of the above, then FNV-1a digests of the answers (not for counting); fails
-//!   unless the 16-ray packets give the single-ray answers;
-//! - `packets` (outside the chain): `setup` + the primary rays in 16-ray packets
+//!   unless the ray packets give the single-ray answers;
+//! - `packets` (outside the chain): `setup` + the primary rays in ray packets
 //!   ([`Bvh::closest_hits`]), so per primary ray in packets = (count(packets) - count(setup)) /
 //!   primary rays.
 //!
@@ -40,7 +40,7 @@ enum Mode {
     ShadowRays,
     Shadow,
     Digest,
-    /// Setup, then the primary rays in 16-ray packets (`Bvh::closest_hits`); not part of the
+    /// Setup, then the primary rays in ray packets (`Bvh::closest_hits`); not part of the
     /// chain above.
     Packets,
 }
@@ -137,7 +137,7 @@ fn run() -> Result<(), Box<dyn Error>> {
         let mut packet_hits = vec![None; primary.len()];
         trace_packets(&bvh, &primary, &mut packet_hits);
         if packet_hits != hits {
-            return Err("16-ray packets and single rays disagree".into());
+            return Err("ray packets and single rays disagree".into());
         }
         let mut primary_digest = Fnv1a64::new();
         for hit in &hits {

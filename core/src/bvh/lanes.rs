@@ -8,6 +8,7 @@
 //! NaN) and masks are whole lanes, so a lane computes the same bits at any width and on any
 //! machine. Code written once over [`Lanes`] therefore gives the same answers at every width.
 
+use super::ray_packet::RAY_PACKET;
 use std::ops::{Add, BitAnd, BitOr, BitXor, Div, Mul, Not, Sub};
 use wide::f32x4;
 
@@ -120,35 +121,35 @@ pub(super) trait RayGroupLanes: Lanes {
     const LANES: usize;
     /// Lanes from the first [`Self::LANES`] values of `x`.
     #[inline(always)]
-    fn load(x: &[f32; 16]) -> Self {
+    fn load(x: &[f32; RAY_PACKET]) -> Self {
         Self::load_at(x, 0)
     }
     /// The lanes, then zeros.
     #[cfg(test)]
     #[inline(always)]
-    fn store(self) -> [f32; 16] {
-        let mut out = [0.0f32; 16];
+    fn store(self) -> [f32; RAY_PACKET] {
+        let mut out = [0.0f32; RAY_PACKET];
         self.store_at(&mut out, 0);
         out
     }
     /// The lanes' bit patterns, then zeros.
     #[cfg(test)]
     #[inline(always)]
-    fn store_bits(self) -> [u32; 16] {
-        let mut out = [0u32; 16];
+    fn store_bits(self) -> [u32; RAY_PACKET] {
+        let mut out = [0u32; RAY_PACKET];
         self.store_bits_at(&mut out, 0);
         out
     }
     /// Lanes from `x[from..from + LANES]`. Panics unless `from + LANES <= 16`.
-    fn load_at(x: &[f32; 16], from: usize) -> Self;
+    fn load_at(x: &[f32; RAY_PACKET], from: usize) -> Self;
     /// Lanes holding the bit patterns of `x[from..from + LANES]`. Panics unless
     /// `from + LANES <= 16`.
-    fn load_bits_at(x: &[u32; 16], from: usize) -> Self;
+    fn load_bits_at(x: &[u32; RAY_PACKET], from: usize) -> Self;
     /// Writes the lanes to `x[from..from + LANES]`. Panics unless `from + LANES <= 16`.
-    fn store_at(self, x: &mut [f32; 16], from: usize);
+    fn store_at(self, x: &mut [f32; RAY_PACKET], from: usize);
     /// Writes the lanes' bit patterns to `x[from..from + LANES]`. Panics unless
     /// `from + LANES <= 16`.
-    fn store_bits_at(self, x: &mut [u32; 16], from: usize);
+    fn store_bits_at(self, x: &mut [u32; RAY_PACKET], from: usize);
     /// All ones in the lanes whose bit is set in `bits`.
     fn lane_mask(bits: u32) -> Self;
     /// Lanes (holding `u32` bit patterns) whose value is above `x`, unsigned.
@@ -177,24 +178,24 @@ impl RayGroupLanes for f32x4 {
     const LANES: usize = 4;
 
     #[inline(always)]
-    fn load_at(x: &[f32; 16], from: usize) -> Self {
+    fn load_at(x: &[f32; RAY_PACKET], from: usize) -> Self {
         let four: [f32; 4] = x[from..from + 4].try_into().expect("four lanes");
         f32x4::from(four)
     }
 
     #[inline(always)]
-    fn load_bits_at(x: &[u32; 16], from: usize) -> Self {
+    fn load_bits_at(x: &[u32; RAY_PACKET], from: usize) -> Self {
         let four: [u32; 4] = x[from..from + 4].try_into().expect("four lanes");
         wide::bytemuck::cast(four)
     }
 
     #[inline(always)]
-    fn store_at(self, x: &mut [f32; 16], from: usize) {
+    fn store_at(self, x: &mut [f32; RAY_PACKET], from: usize) {
         x[from..from + 4].copy_from_slice(&self.to_array());
     }
 
     #[inline(always)]
-    fn store_bits_at(self, x: &mut [u32; 16], from: usize) {
+    fn store_bits_at(self, x: &mut [u32; RAY_PACKET], from: usize) {
         let four: [u32; 4] = wide::bytemuck::cast(self);
         x[from..from + 4].copy_from_slice(&four);
     }
@@ -216,7 +217,7 @@ impl RayGroupLanes for f32x4 {
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code)]
 mod avx {
-    use super::{Lanes, RayGroupLanes};
+    use super::{Lanes, RAY_PACKET, RayGroupLanes};
     use std::arch::x86_64::*;
     use std::ops::{Add, BitAnd, BitOr, BitXor, Div, Mul, Not, Sub};
 
@@ -232,31 +233,43 @@ mod avx {
         const LANES: usize = 8;
 
         #[inline(always)]
-        fn load_at(x: &[f32; 16], from: usize) -> Self {
-            assert!(from <= 8, "eight lanes from {from} of 16");
+        fn load_at(x: &[f32; RAY_PACKET], from: usize) -> Self {
+            assert!(
+                from + 8 <= RAY_PACKET,
+                "eight lanes from {from} of {RAY_PACKET}"
+            );
             // SAFETY: AVX is available (see the type's contract); `x[from..]` holds at least 8
             // floats.
             F32x8(unsafe { _mm256_loadu_ps(x.as_ptr().add(from)) })
         }
 
         #[inline(always)]
-        fn load_bits_at(x: &[u32; 16], from: usize) -> Self {
-            assert!(from <= 8, "eight lanes from {from} of 16");
+        fn load_bits_at(x: &[u32; RAY_PACKET], from: usize) -> Self {
+            assert!(
+                from + 8 <= RAY_PACKET,
+                "eight lanes from {from} of {RAY_PACKET}"
+            );
             // SAFETY: AVX is available (see the type's contract); `x[from..]` holds at least 8
             // words.
             F32x8(unsafe { _mm256_castsi256_ps(_mm256_loadu_si256(x.as_ptr().add(from).cast())) })
         }
 
         #[inline(always)]
-        fn store_at(self, x: &mut [f32; 16], from: usize) {
-            assert!(from <= 8, "eight lanes from {from} of 16");
+        fn store_at(self, x: &mut [f32; RAY_PACKET], from: usize) {
+            assert!(
+                from + 8 <= RAY_PACKET,
+                "eight lanes from {from} of {RAY_PACKET}"
+            );
             // SAFETY: AVX is available; `x[from..]` holds at least 8 floats.
             unsafe { _mm256_storeu_ps(x.as_mut_ptr().add(from), self.0) };
         }
 
         #[inline(always)]
-        fn store_bits_at(self, x: &mut [u32; 16], from: usize) {
-            assert!(from <= 8, "eight lanes from {from} of 16");
+        fn store_bits_at(self, x: &mut [u32; RAY_PACKET], from: usize) {
+            assert!(
+                from + 8 <= RAY_PACKET,
+                "eight lanes from {from} of {RAY_PACKET}"
+            );
             // SAFETY: AVX is available; `x[from..]` holds at least 8 words.
             unsafe {
                 _mm256_storeu_si256(x.as_mut_ptr().add(from).cast(), _mm256_castps_si256(self.0))
@@ -377,7 +390,7 @@ mod avx {
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code)]
 mod avx512 {
-    use super::{Lanes, RayGroupLanes};
+    use super::{Lanes, RAY_PACKET, RayGroupLanes};
     use std::arch::x86_64::*;
     use std::ops::{Add, BitAnd, BitOr, BitXor, Div, Mul, Not, Sub};
 
@@ -425,31 +438,43 @@ mod avx512 {
         const LANES: usize = 16;
 
         #[inline(always)]
-        fn load_at(x: &[f32; 16], from: usize) -> Self {
-            assert_eq!(from, 0, "sixteen lanes of 16");
+        fn load_at(x: &[f32; RAY_PACKET], from: usize) -> Self {
+            assert!(
+                from + 16 <= RAY_PACKET,
+                "sixteen lanes from {from} of {RAY_PACKET}"
+            );
             // SAFETY: AVX-512F is available (see the type's contract); `x` holds 16 floats.
-            F32x16(unsafe { _mm512_loadu_ps(x.as_ptr()) })
+            F32x16(unsafe { _mm512_loadu_ps(x.as_ptr().add(from)) })
         }
 
         #[inline(always)]
-        fn load_bits_at(x: &[u32; 16], from: usize) -> Self {
-            assert_eq!(from, 0, "sixteen lanes of 16");
+        fn load_bits_at(x: &[u32; RAY_PACKET], from: usize) -> Self {
+            assert!(
+                from + 16 <= RAY_PACKET,
+                "sixteen lanes from {from} of {RAY_PACKET}"
+            );
             // SAFETY: AVX-512F is available (see the type's contract); `x` holds 16 words.
-            Self::from_bits(unsafe { _mm512_loadu_si512(x.as_ptr().cast()) })
+            Self::from_bits(unsafe { _mm512_loadu_si512(x.as_ptr().add(from).cast()) })
         }
 
         #[inline(always)]
-        fn store_at(self, x: &mut [f32; 16], from: usize) {
-            assert_eq!(from, 0, "sixteen lanes of 16");
+        fn store_at(self, x: &mut [f32; RAY_PACKET], from: usize) {
+            assert!(
+                from + 16 <= RAY_PACKET,
+                "sixteen lanes from {from} of {RAY_PACKET}"
+            );
             // SAFETY: AVX-512F is available; `x` holds 16 floats.
-            unsafe { _mm512_storeu_ps(x.as_mut_ptr(), self.0) };
+            unsafe { _mm512_storeu_ps(x.as_mut_ptr().add(from), self.0) };
         }
 
         #[inline(always)]
-        fn store_bits_at(self, x: &mut [u32; 16], from: usize) {
-            assert_eq!(from, 0, "sixteen lanes of 16");
+        fn store_bits_at(self, x: &mut [u32; RAY_PACKET], from: usize) {
+            assert!(
+                from + 16 <= RAY_PACKET,
+                "sixteen lanes from {from} of {RAY_PACKET}"
+            );
             // SAFETY: AVX-512F is available; `x` holds 16 words.
-            unsafe { _mm512_storeu_si512(x.as_mut_ptr().cast(), self.bits()) };
+            unsafe { _mm512_storeu_si512(x.as_mut_ptr().add(from).cast(), self.bits()) };
         }
 
         #[inline(always)]

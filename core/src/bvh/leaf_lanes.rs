@@ -152,7 +152,7 @@ pub(super) trait LeafLanes: RayGroupLanes {
         lanes: &RayLanes<Self>,
         active: u32,
         rays: &PacketRays,
-        t_max: (&[f32; 16], usize),
+        t_max: (&[f32; RAY_PACKET], usize),
     ) -> u32;
 }
 
@@ -183,7 +183,7 @@ macro_rules! leaf_lanes {
             lanes: &RayLanes<$lanes>,
             active: u32,
             rays: &PacketRays,
-            t_max: (&[f32; 16], usize),
+            t_max: (&[f32; RAY_PACKET], usize),
         ) -> u32 {
             occluded_in_leaf(bvh, leaf, lanes, active, rays, t_max)
         }
@@ -216,7 +216,7 @@ macro_rules! leaf_lanes {
                 lanes: &RayLanes<Self>,
                 active: u32,
                 rays: &PacketRays,
-                t_max: (&[f32; 16], usize),
+                t_max: (&[f32; RAY_PACKET], usize),
             ) -> u32 {
                 // SAFETY: the caller's contract (the host has the instruction set).
                 unsafe { $occluded(bvh, leaf, lanes, active, rays, t_max) }
@@ -266,7 +266,7 @@ impl<'r, L> PacketLanes<'r, L> {
     pub fn new(rays: &'r PacketRays) -> Self {
         PacketLanes {
             rays,
-            groups: [None, None, None, None],
+            groups: std::array::from_fn(|_| None),
         }
     }
 
@@ -417,11 +417,11 @@ impl<L: RayGroupLanes> BestLanes<L> {
     #[inline(always)]
     fn offer_one(&mut self, i: usize, h: TriangleHit, id: u32, place: u32) {
         let lane = |v: f32| {
-            let mut a = [0.0f32; 16];
+            let mut a = [0.0f32; RAY_PACKET];
             a[i] = v;
             L::load(&a)
         };
-        let mut t = [f32::INFINITY; 16];
+        let mut t = [f32::INFINITY; RAY_PACKET];
         t[i] = h.t;
         let b = [lane(h.b[0]), lane(h.b[1]), lane(h.b[2])];
         self.offer(1 << i, L::load(&t), b, id, place);
@@ -454,7 +454,7 @@ fn occluded_in_leaf<L: RayGroupLanes>(
     lanes: &RayLanes<L>,
     active: u32,
     rays: &PacketRays,
-    (packet_t_max, from): (&[f32; 16], usize),
+    (packet_t_max, from): (&[f32; RAY_PACKET], usize),
 ) -> u32 {
     count_leaf_test(L::LANES);
     let t_max = L::load_at(packet_t_max, from);
@@ -497,13 +497,13 @@ mod tests {
         outside: bool,
         /// The lanes' permutation, origins and shears.
         axes: [usize; 3],
-        origin: [[u32; 16]; 3],
-        shear: [[u32; 16]; 3],
+        origin: [[u32; RAY_PACKET]; 3],
+        shear: [[u32; RAY_PACKET]; 3],
         /// Closest-hit `exact` and `scalar`, t, barycentrics, any-hit `hit` and `unsure`.
         exact: u32,
         scalar: u32,
-        t: [f32; 16],
-        b: [[f32; 16]; 3],
+        t: [f32; RAY_PACKET],
+        b: [[f32; RAY_PACKET]; 3],
         hit: u32,
         unsure: u32,
     }
@@ -515,7 +515,7 @@ mod tests {
     fn verdicts<L: RayGroupLanes>(
         rays: &[Ray],
         p: &Triangle4,
-        t_max: &[f32; 16],
+        t_max: &[f32; RAY_PACKET],
     ) -> Option<Verdicts> {
         let mut packet_rays = PacketRays::EMPTY;
         packet_rays.fill(rays, |ray| ray);
@@ -531,8 +531,8 @@ mod tests {
                 shear: bits(lanes.shear),
                 exact: 0,
                 scalar: 0,
-                t: [f32::NAN; 16],
-                b: [[f32::NAN; 16]; 3],
+                t: [f32::NAN; RAY_PACKET],
+                b: [[f32::NAN; RAY_PACKET]; 3],
                 hit: 0,
                 unsure: 0,
             });
@@ -555,19 +555,19 @@ mod tests {
         })
     }
 
-    fn verdicts4(rays: &[Ray], p: &Triangle4, t_max: &[f32; 16]) -> Option<Verdicts> {
+    fn verdicts4(rays: &[Ray], p: &Triangle4, t_max: &[f32; RAY_PACKET]) -> Option<Verdicts> {
         verdicts::<f32x4>(rays, p, t_max)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn verdicts8(rays: &[Ray], p: &Triangle4, t_max: &[f32; 16]) -> Option<Verdicts> {
+    fn verdicts8(rays: &[Ray], p: &Triangle4, t_max: &[f32; RAY_PACKET]) -> Option<Verdicts> {
         verdicts::<F32x8>(rays, p, t_max)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
-    fn verdicts16(rays: &[Ray], p: &Triangle4, t_max: &[f32; 16]) -> Option<Verdicts> {
+    fn verdicts16(rays: &[Ray], p: &Triangle4, t_max: &[f32; RAY_PACKET]) -> Option<Verdicts> {
         verdicts::<F32x16>(rays, p, t_max)
     }
 
@@ -632,7 +632,7 @@ mod tests {
     fn lanes_agree_with_the_scalar_test(
         width: usize,
         groups: usize,
-        verdicts: impl Fn(&[Ray], &Triangle4, &[f32; 16]) -> Option<Verdicts>,
+        verdicts: impl Fn(&[Ray], &Triangle4, &[f32; RAY_PACKET]) -> Option<Verdicts>,
     ) {
         let mut rng = Rng(7);
         let (mut pairs, mut exact_hits, mut any_hits, mut mixed) = (0, 0, 0, 0);
@@ -670,7 +670,7 @@ mod tests {
                     // A group whose rays permute the axes differently stays 4-wide.
                     let pair = [rays[0], ray];
                     assert!(
-                        verdicts(&pair, &p, &[f32::INFINITY; 16]).is_none(),
+                        verdicts(&pair, &p, &[f32::INFINITY; RAY_PACKET]).is_none(),
                         "{pair:?}"
                     );
                     mixed += 1;
@@ -682,7 +682,7 @@ mod tests {
             if rays.is_empty() {
                 continue;
             }
-            let t_max: [f32; 16] = std::array::from_fn(|_| {
+            let t_max: [f32; RAY_PACKET] = std::array::from_fn(|_| {
                 [f32::INFINITY, rng.unit() * 4.0][(rng.next() % 2) as usize]
             });
             let v = verdicts(&rays, &p, &t_max).expect("the rays share their permutation");

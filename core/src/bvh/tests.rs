@@ -109,7 +109,7 @@ fn packets_give_single_ray_hits(
     single: &[Option<HitBits>],
     width: KernelWidth,
 ) {
-    for skip in [0, 1, 5, 15] {
+    for skip in [0, 1, 5, 15, 17, 31] {
         let rays = &rays[skip.min(rays.len())..];
         let mut out = vec![None; rays.len()];
         bvh.closest_hits(rays, &mut out);
@@ -135,7 +135,7 @@ fn packets_give_single_ray_hits(
 fn check_segment_packets_against_single_rays(bvh: &Bvh, segments: &[(Ray, f32)]) -> (usize, usize) {
     let single: Vec<bool> = segments.iter().map(|(r, t)| bvh.occluded(r, *t)).collect();
     let in_lanes = at_every_kernel_width(|width| {
-        for skip in [0, 1, 5, 15] {
+        for skip in [0, 1, 5, 15, 17, 31] {
             let segments = &segments[skip.min(segments.len())..];
             let expected = &single[skip.min(single.len())..];
             let mut out = vec![false; segments.len()];
@@ -306,8 +306,8 @@ fn packets_parallel_to_an_axis_give_single_ray_hits() {
         Vec3::new(0.3, 0.0, -1.0),
         Vec3::new(-0.2, 0.1, 0.0),
     ] {
-        // 16 rays per packet: a 4x4 grid of origins on whole and half units, the sign of each
-        // zero component alternating ray by ray.
+        // Groups of 16 rays (two a packet): a 4x4 grid of origins on whole and half units,
+        // the sign of each zero component alternating ray by ray.
         let rays: Vec<Ray> = (0..16 * 40)
             .map(|i| {
                 let (packet, k) = (i / 16, i % 16);

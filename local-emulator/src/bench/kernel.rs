@@ -6,10 +6,12 @@
 //! exactly as the renderer builds it ([`shadow_test`]), traced with [`Bvh::occluded`]. All rays
 //! and our answers go to a binary file that `bench/embree_harness.c` (compiled here at run time
 //! against `libembree3` when it is installed) traces with `rtcIntersect1`, `rtcIntersect16` and
-//! `rtcOccluded1` on a one-thread device. Our coherent path ([`Bvh::closest_hits`]) traces the
-//! same primary rays in packets of 16 consecutive rays (16 pixels of a row), exactly as the
-//! harness groups them for `rtcIntersect16`, and must return the single-ray answers; the
-//! shadow rays go through [`Bvh::occluded_many`] the same way. With
+//! `rtcOccluded1` on a one-thread device. The rays come in the renderer's tile order (4x4
+//! pixel tiles left to right in bands of four rows), so the harness's groups of 16 consecutive
+//! rays for `rtcIntersect16` are one tile each. Our coherent path ([`Bvh::closest_hits`])
+//! traces the same primary rays in its packets of [`RAY_PACKET`](hort_core::bvh::RAY_PACKET) consecutive rays (two tiles
+//! side by side) and must return the single-ray answers; the shadow rays go through
+//! [`Bvh::occluded_many`] the same way. With
 //! `--features obvhs-bench`, the crate obvhs runs on the same rays too (`obvhs_kernel.rs`).
 //! Timings are the best of `--repeats` passes; ratios compare numbers measured in the same run.
 //! A third table times the whole monolithic render at the same size, one sample per pixel, beside
@@ -25,6 +27,7 @@ use hort_core::pipeline::{SplitObject, decode_split, encode_split};
 use hort_core::render::{shading_of, surface_of};
 use hort_core::scene::{Scene, load_scene};
 use hort_core::shading::shadow_test;
+use hort_core::tiles::{BAND_ROWS, tile_order};
 use hort_core::triangle::Ray;
 use hort_core::worker_pool::available_cores;
 use std::io::Write;
@@ -73,9 +76,9 @@ struct SceneResult {
     triangles: usize,
     primary: usize,
     primary_s: f64,
-    /// Our coherent path: the same rays in packets of 16 consecutive rays (as Embree x16).
+    /// Our coherent path: the same rays in packets of [`RAY_PACKET`](hort_core::bvh::RAY_PACKET) consecutive rays.
     packets_s: f64,
-    /// The shadow rays in packets of 16 consecutive rays ([`Bvh::occluded_many`]).
+    /// The shadow rays in packets of [`RAY_PACKET`](hort_core::bvh::RAY_PACKET) consecutive rays ([`Bvh::occluded_many`]).
     shadow_packets_s: f64,
     primary_hits: usize,
     shadow: usize,
@@ -278,9 +281,17 @@ fn bench_scene(
         args.width,
         args.height,
     )?;
-    let primary: Vec<Ray> = (0..args.height)
-        .flat_map(|y| {
-            (0..args.width).map(move |x| camera.ray(f64::from(x) + 0.5, f64::from(y) + 0.5))
+    // Pixel centres in the renderer's tile order: bands of four rows, 4x4 tiles left to
+    // right, so 16 consecutive rays are one tile (Embree x16) and 32 two side by side (ours).
+    let (width, height) = (u64::from(args.width), u64::from(args.height));
+    let bands = (0..height)
+        .step_by(BAND_ROWS as usize)
+        .map(|y| y * width..(y + u64::from(BAND_ROWS)).min(height) * width);
+    let primary: Vec<Ray> = bands
+        .flat_map(|band| tile_order(band, args.width))
+        .map(|pixel| {
+            let (x, y) = (pixel % width, pixel / width);
+            camera.ray(x as f64 + 0.5, y as f64 + 0.5)
         })
         .collect();
     // Output buffers are allocated (and faulted in) before timing, as Embree's are.
@@ -477,7 +488,7 @@ fn ray_table(results: &[SceneResult], args: &KernelBenchArgs) -> Table {
             "Embree primary",
             "ratio",
             "Embree x16",
-            "ours x16",
+            "ours packets",
             "ratio x16",
             "Embree x16 coherent",
             "ratio x16 coherent",
@@ -487,7 +498,7 @@ fn ray_table(results: &[SceneResult], args: &KernelBenchArgs) -> Table {
             "ours shadow",
             "Embree shadow",
             "ratio",
-            "ours shadow x16",
+            "ours shadow packets",
             "same %",
         ],
     );
