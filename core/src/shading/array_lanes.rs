@@ -155,10 +155,11 @@ impl<const N: usize> F32s<N> {
     }
 
     /// Set where the lane is above zero and finite (`x > 0 && x < inf`), decided on the bits:
-    /// those of +0 to +inf less one are below `0x7f7f_ffff` exactly for the values between,
-    /// and a NaN or a negative lane's are above. Written as two float comparisons, the
-    /// compiler turned the pair into a class test that it then ran lane by lane in scalar
-    /// code (a quarter of the AVX-512 shading function's instructions).
+    /// those are exactly the lanes whose bits lie in `1..=0x7f7f_ffff`, so whose bits less one
+    /// (wrapping) are below `0x7f7f_ffff`; +0, +inf, NaNs and negative values all fall
+    /// outside. Written as two float comparisons, the compiler turned the pair into a class
+    /// test that it then ran lane by lane in scalar code (a quarter of the AVX-512 shading
+    /// function's instructions).
     #[inline(always)]
     pub fn positive_finite(self) -> Mask<N> {
         Mask(each(self.bits(), |b: u32| {

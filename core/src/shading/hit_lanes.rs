@@ -1,18 +1,18 @@
 //! Hits shaded `N` at a time, one hit per lane ([`super::array_lanes`], vectorized for the
-//! calling code's instruction set; the renderer takes sixteen): their
-//! [`super::surface_point`]s and every light's [`super::shadow_test`], handed over light by
-//! light as lanes ([`TestLanes`]). Both take each hit's reflectance at the hit (a texture is
-//! looked up per hit before). [`flat_test_lanes`] takes hits on flat triangles (no vertex
-//! normals); [`smooth_test_lanes`] any hits, with their triangles' vertex normals (zeros for a
-//! flat one, which give the flat lanes' tests): the shading normal and Hanika's shadow point
-//! (`smooth_lanes`) are lanes too. Each
-//! lane performs the scalar code's IEEE operations in its order (glam's `dot`, `cross` and
-//! `normalize_or_zero` spelled out; a point light's incidence in f64 as
-//! [`super::incidence`]), so each lane's test is the scalar test bit for bit, at every width.
-//! What branches per lane runs in lanes too: the rounding of the shadow origin away from the
-//! surface is integer arithmetic on the bits ([`F32s::round_away`]), and a light's side and
-//! incidence become lane masks. The tests leave in lanes too: the renderer stores a light's
-//! segments a coordinate at a time ([`crate::bvh::SegmentColumns::push_lanes`]).
+//! calling code's instruction set; the renderer takes sixteen): their [`super::surface_point`]s
+//! and every light's [`super::shadow_test`], handed over light by light as lanes
+//! ([`TestLanes`]). Both take each hit's reflectance at the hit (a texture is looked up per hit
+//! before). [`flat_test_lanes`] takes hits on flat triangles (no vertex normals);
+//! [`smooth_test_lanes`] any hits, with their triangles' vertex normals (zeros for a flat one,
+//! which give the flat lanes' tests): the shading normal and Hanika's shadow point
+//! (`smooth_lanes`) are lanes too. Each lane performs the scalar code's IEEE operations in its
+//! order (glam's `dot`, `cross` and `normalize_or_zero` spelled out; a point light's incidence
+//! in f64 as [`super::incidence`]), so each lane's test is the scalar test bit for bit, at
+//! every width. What branches per lane runs in lanes too: the rounding of the shadow origin
+//! away from the surface is integer arithmetic on the bits ([`F32s::round_away`]), and a
+//! light's side and incidence become lane masks. The tests leave in lanes too: the renderer
+//! stores a light's segments a coordinate at a time
+//! ([`crate::bvh::SegmentColumns::push_lanes`]).
 
 use super::array_lanes::{F32s, F64s, Mask, three};
 use super::lanes::point_incidence_lanes;
@@ -362,12 +362,11 @@ fn shadow_rays<const N: usize>(light: &Light, origins: &Vec3s<N>) -> (Vec3s<N>, 
     (dir, t_max)
 }
 
-/// Every light's [`super::shadow_test`] at the [`super::surface_point`] of each of the `N`
-/// hits of `hits`, all on flat triangles (their normals are not read; each hit's `kd` is its
-/// reflectance at the hit, textured or not), handed to
-/// `visit(light, tests)` light by light, in light order: lane k of `tests` is hit k's test
-/// where its bit of `tests.lit` is set, exactly the test [`super::shadow_tests`] gives that
-/// surface point and light.
+/// Every light's [`super::shadow_test`] at the [`super::surface_point`] of each of the `N` hits
+/// of `hits`, all on flat triangles (their normals are not read; each hit's `kd` is its
+/// reflectance at the hit, textured or not), handed to `visit(light, tests)` light by light, in
+/// light order: lane k of `tests` is hit k's test where its bit of `tests.lit` is set, exactly
+/// the test [`super::shadow_tests`] gives that surface point and light.
 #[inline(always)]
 pub fn flat_test_lanes<const N: usize>(
     hits: &HitLanes<N>,

@@ -1,21 +1,21 @@
 //! `hort bench kernel`: single-thread ray throughput of our BVH kernel against native Embree on
 //! the identical rays, plus BVH build and split-object load times.
 //!
-//! Per scene: one primary ray per pixel centre (exactly the renderer's camera rays), traced with
-//! [`Bvh::closest_hit`]; for each primary hit, the shadow ray towards the scene's first light
-//! exactly as the renderer builds it ([`shadow_test`]), traced with [`Bvh::occluded`]. All rays
-//! and our answers go to a binary file that `bench/embree_harness.c` (compiled here at run time
-//! against `libembree3` when it is installed) traces with `rtcIntersect1`, `rtcIntersect16` and
-//! `rtcOccluded1` on a one-thread device. The rays come in the renderer's tile order (4x4
-//! pixel tiles left to right in bands of four rows), so the harness's groups of 16 consecutive
-//! rays for `rtcIntersect16` are one tile each. Our coherent path ([`Bvh::closest_hits`])
-//! traces the same primary rays in its packets of [`RAY_PACKET`](hort_core::bvh::RAY_PACKET) consecutive rays (two tiles
-//! side by side) and must return the single-ray answers; the shadow rays go through
-//! [`Bvh::occluded_many`] the same way. With
-//! `--features obvhs-bench`, the crate obvhs runs on the same rays too (`obvhs_kernel.rs`).
-//! Timings are the best of `--repeats` passes; ratios compare numbers measured in the same run.
-//! A third table times the whole monolithic render at the same size, one sample per pixel, beside
-//! Embree on the rays it traces (`whole_render.rs`).
+//! Per scene: one primary ray per pixel centre (exactly the renderer's camera rays), traced
+//! with [`Bvh::closest_hit`]; for each primary hit, the shadow ray towards the scene's first
+//! light exactly as the renderer builds it ([`shadow_test`]), traced with [`Bvh::occluded`].
+//! All rays and our answers go to a binary file that `bench/embree_harness.c` (compiled here at
+//! run time against `libembree3` when it is installed) traces with `rtcIntersect1`,
+//! `rtcIntersect16` and `rtcOccluded1` on a one-thread device. The rays come in the renderer's
+//! tile order (4x4 pixel tiles left to right in bands of four rows), so the harness's groups of
+//! 16 consecutive rays for `rtcIntersect16` are one tile each. Our coherent path
+//! ([`Bvh::closest_hits`]) traces the same primary rays in its packets of
+//! [`RAY_PACKET`](hort_core::bvh::RAY_PACKET) consecutive rays (two tiles side by side) and
+//! must return the single-ray answers; the shadow rays go through [`Bvh::occluded_many`] the
+//! same way. With `--features obvhs-bench`, the crate obvhs runs on the same rays too
+//! (`obvhs_kernel.rs`). Timings are the best of `--repeats` passes; ratios compare numbers
+//! measured in the same run. A third table times the whole monolithic render at the same size,
+//! one sample per pixel, beside Embree on the rays it traces (`whole_render.rs`).
 
 use super::scenes::{bundled, generated};
 use super::table::{Table, f3};
@@ -76,9 +76,11 @@ struct SceneResult {
     triangles: usize,
     primary: usize,
     primary_s: f64,
-    /// Our coherent path: the same rays in packets of [`RAY_PACKET`](hort_core::bvh::RAY_PACKET) consecutive rays.
+    /// Our coherent path: the same rays in packets of
+    /// [`RAY_PACKET`](hort_core::bvh::RAY_PACKET) consecutive rays.
     packets_s: f64,
-    /// The shadow rays in packets of [`RAY_PACKET`](hort_core::bvh::RAY_PACKET) consecutive rays ([`Bvh::occluded_many`]).
+    /// The shadow rays in packets of [`RAY_PACKET`](hort_core::bvh::RAY_PACKET) consecutive
+    /// rays ([`Bvh::occluded_many`]).
     shadow_packets_s: f64,
     primary_hits: usize,
     shadow: usize,
