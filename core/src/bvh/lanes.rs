@@ -114,7 +114,8 @@ pub(super) use avx512::F32x16;
 
 /// Lanes that hold one ray of a packet's group each at the leaves (`leaf_lanes.rs`): four
 /// ([`f32x4`], every host), eight ([`F32x8`]) or sixteen ([`F32x16`]). Values move through
-/// arrays of sixteen, of which [`RayGroupLanes::LANES`] from a group's first ray are the lanes.
+/// a packet's arrays ([`RAY_PACKET`] places), of which [`RayGroupLanes::LANES`] from a group's
+/// first ray are the lanes.
 /// Only code compiled with the type's instruction set may make or use one (see each type).
 pub(super) trait RayGroupLanes: Lanes {
     /// Lanes, and rays of a group: 4, 8 or 16.
@@ -140,15 +141,15 @@ pub(super) trait RayGroupLanes: Lanes {
         self.store_bits_at(&mut out, 0);
         out
     }
-    /// Lanes from `x[from..from + LANES]`. Panics unless `from + LANES <= 16`.
+    /// Lanes from `x[from..from + LANES]`. Panics unless `from + LANES <= RAY_PACKET`.
     fn load_at(x: &[f32; RAY_PACKET], from: usize) -> Self;
     /// Lanes holding the bit patterns of `x[from..from + LANES]`. Panics unless
-    /// `from + LANES <= 16`.
+    /// `from + LANES <= RAY_PACKET`.
     fn load_bits_at(x: &[u32; RAY_PACKET], from: usize) -> Self;
-    /// Writes the lanes to `x[from..from + LANES]`. Panics unless `from + LANES <= 16`.
+    /// Writes the lanes to `x[from..from + LANES]`. Panics unless `from + LANES <= RAY_PACKET`.
     fn store_at(self, x: &mut [f32; RAY_PACKET], from: usize);
     /// Writes the lanes' bit patterns to `x[from..from + LANES]`. Panics unless
-    /// `from + LANES <= 16`.
+    /// `from + LANES <= RAY_PACKET`.
     fn store_bits_at(self, x: &mut [u32; RAY_PACKET], from: usize);
     /// All ones in the lanes whose bit is set in `bits`.
     fn lane_mask(bits: u32) -> Self;
@@ -443,7 +444,8 @@ mod avx512 {
                 from + 16 <= RAY_PACKET,
                 "sixteen lanes from {from} of {RAY_PACKET}"
             );
-            // SAFETY: AVX-512F is available (see the type's contract); `x` holds 16 floats.
+            // SAFETY: AVX-512F is available (see the type's contract); `x[from..]` holds at
+            // least 16 floats (asserted).
             F32x16(unsafe { _mm512_loadu_ps(x.as_ptr().add(from)) })
         }
 
@@ -453,7 +455,8 @@ mod avx512 {
                 from + 16 <= RAY_PACKET,
                 "sixteen lanes from {from} of {RAY_PACKET}"
             );
-            // SAFETY: AVX-512F is available (see the type's contract); `x` holds 16 words.
+            // SAFETY: AVX-512F is available (see the type's contract); `x[from..]` holds at
+            // least 16 words (asserted).
             Self::from_bits(unsafe { _mm512_loadu_si512(x.as_ptr().add(from).cast()) })
         }
 
@@ -463,7 +466,7 @@ mod avx512 {
                 from + 16 <= RAY_PACKET,
                 "sixteen lanes from {from} of {RAY_PACKET}"
             );
-            // SAFETY: AVX-512F is available; `x` holds 16 floats.
+            // SAFETY: AVX-512F is available; `x[from..]` holds at least 16 floats (asserted).
             unsafe { _mm512_storeu_ps(x.as_mut_ptr().add(from), self.0) };
         }
 
@@ -473,7 +476,7 @@ mod avx512 {
                 from + 16 <= RAY_PACKET,
                 "sixteen lanes from {from} of {RAY_PACKET}"
             );
-            // SAFETY: AVX-512F is available; `x` holds 16 words.
+            // SAFETY: AVX-512F is available; `x[from..]` holds at least 16 words (asserted).
             unsafe { _mm512_storeu_si512(x.as_mut_ptr().add(from).cast(), self.bits()) };
         }
 

@@ -1,6 +1,6 @@
 //! Leaves of ray packets (closest-hit and segment packets) a group of rays at a time: each
 //! triangle of the leaf is tested against up to four rays of the packet ([`f32x4`]: SSE4.1 on
-//! x86-64, NEON on aarch64, every host), eight (AVX2, [`F32x8`]) or all sixteen (AVX-512F,
+//! x86-64, NEON on aarch64, every host), eight (AVX2, [`F32x8`]) or sixteen (AVX-512F,
 //! [`F32x16`]), one per lane, where the 4-wide path tests each ray against the leaf's
 //! [`Triangle4`]s in turn (`dispatch.rs` picks the width: four lanes at kernel width `Four`,
 //! eight and sixteen at `Eight` and `Sixteen`). A leaf of n triangles in m `Triangle4`s then
@@ -253,9 +253,10 @@ leaf_lanes!(
     occluded_in_leaf16
 );
 
-/// A packet's groups of rays in lanes (four of four, two of eight, or one of sixteen), each
-/// made from the packet's rays when the group first meets a leaf in lanes (`None` inside: its
-/// rays permute the axes differently, so it stays 4-wide).
+/// A packet's groups of rays in lanes (of four, eight or sixteen rays: eight, four or two of
+/// them in a packet of [`RAY_PACKET`]), each made from the packet's rays when the group first
+/// meets a leaf in lanes (`None` inside: its rays permute the axes differently, so it stays
+/// 4-wide).
 pub(super) struct PacketLanes<'r, L> {
     rays: &'r PacketRays,
     groups: [Option<Option<RayLanes<L>>>; RAY_PACKET / 4],
