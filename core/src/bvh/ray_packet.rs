@@ -446,9 +446,9 @@ impl Bvh {
 
 impl Bvh {
     /// Every ray's closest hit from a finished packet's `hits` (`out[i]` for ray i), as
-    /// [`Bvh::closest_result`] gives it. Not inlined into the traversal: there its
-    /// sixteen iterations kept values on the stack and were a fifth of the traversal's time
-    /// on the Cornell box.
+    /// [`Bvh::closest_result`] gives it. Not inlined into the traversal: there its loop (one
+    /// iteration a ray) kept values on the stack and was a fifth of the traversal's time on
+    /// the Cornell box.
     #[inline(never)]
     fn packet_results(&self, hits: &PacketHits, out: &mut [Option<ClosestHit>]) {
         for (i, o) in out.iter_mut().enumerate() {

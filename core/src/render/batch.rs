@@ -125,6 +125,9 @@ struct HitSamples<'a, S> {
     samples: &'a [u32],
 }
 
+/// A group's hits and rays when it is `N` consecutive samples ([`HitSamples::run_of`]).
+type Run<'a, const N: usize> = Option<(&'a [Option<ClosestHit>; N], &'a [Ray; N])>;
+
 /// The sample in lane `k` of a group of 1 to `N` hit samples: lanes past the group's end
 /// repeat its last.
 #[inline(always)]
@@ -142,10 +145,7 @@ impl<S: Surfaces> HitSamples<'_, S> {
     /// The hits and rays of `group` when it is `N` consecutive samples (most groups where
     /// every sample hits).
     #[inline(always)]
-    fn run_of<const N: usize>(
-        &self,
-        group: &[u32],
-    ) -> Option<(&[Option<ClosestHit>; N], &[Ray; N])> {
+    fn run_of<const N: usize>(&self, group: &[u32]) -> Run<'_, N> {
         let (&first, &last) = (group.first()?, group.last()?);
         if group.len() != N || (last - first) as usize != N - 1 {
             return None;
@@ -180,11 +180,11 @@ impl<S: Surfaces> HitSamples<'_, S> {
     /// texture only changes the reflectances). The triangle's corners, normals and (untextured)
     /// reflectance go to every lane at once, and a texture is looked up in lanes
     /// ([`crate::texture::TexturedCorners::kd_lanes`]): the values [`Self::fill_mixed`] writes
-    /// lane by lane. `last` is [`Self::shading_of`]'s.
+    /// lane by lane. `run` is [`Self::run_of`]`(group)`; `last` is [`Self::shading_of`]'s.
     #[inline(always)]
     fn fill_one_triangle<const N: usize>(
         &self,
-        (group, first): (&[u32], &ClosestHit),
+        (group, first, run): (&[u32], &ClosestHit, Run<'_, N>),
         last: &mut Option<(u32, TriangleShading)>,
         lanes: &mut HitLanes<N>,
         reflectances: &mut Vec<[f32; 3]>,
@@ -192,7 +192,7 @@ impl<S: Surfaces> HitSamples<'_, S> {
         let shading = self.shading_of(first, last);
         let normals = shading.normals.unwrap_or([Vec3::ZERO; 3]);
         lanes.set_triangle(self.bvh.hit_corners(first), &normals);
-        if let Some((hits, rays)) = self.run_of::<N>(group) {
+        if let Some((hits, rays)) = run {
             // A run of consecutive samples: read in order, without looking each one up.
             for (k, (hit, ray)) in hits.iter().zip(rays).enumerate() {
                 let hit = hit.as_ref().expect("samples with hits");
@@ -289,12 +289,13 @@ fn hit_tests<const N: usize, S: Surfaces>(
     for group in input.samples.chunks(N) {
         let first = input.hit(group[0]);
         let on_first = |hit: &ClosestHit| hit.index == first.index;
-        let one_triangle = match input.run_of::<N>(group) {
+        let run = input.run_of::<N>(group);
+        let one_triangle = match run {
             Some((hits, _)) => hits.iter().all(|h| h.as_ref().is_some_and(on_first)),
             None => group.iter().all(|&s| on_first(input.hit(s))),
         };
         let smooth = if one_triangle {
-            input.fill_one_triangle((group, first), &mut last, &mut lanes, reflectances)
+            input.fill_one_triangle((group, first, run), &mut last, &mut lanes, reflectances)
         } else {
             input.fill_mixed(group, &mut last, &mut lanes, reflectances)
         };

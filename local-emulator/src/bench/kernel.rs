@@ -24,10 +24,10 @@ use anyhow::{Context, Result, bail};
 use hort_core::bvh::Bvh;
 use hort_core::camera::Camera;
 use hort_core::pipeline::{SplitObject, decode_split, encode_split};
-use hort_core::render::{shading_of, surface_of};
+use hort_core::render::{band_runs, shading_of, surface_of};
 use hort_core::scene::{Scene, load_scene};
 use hort_core::shading::shadow_test;
-use hort_core::tiles::{BAND_ROWS, tile_order};
+use hort_core::tiles::tile_order;
 use hort_core::triangle::Ray;
 use hort_core::worker_pool::available_cores;
 use std::io::Write;
@@ -285,11 +285,8 @@ fn bench_scene(
     )?;
     // Pixel centres in the renderer's tile order: bands of four rows, 4x4 tiles left to
     // right, so 16 consecutive rays are one tile (Embree x16) and 32 two side by side (ours).
-    let (width, height) = (u64::from(args.width), u64::from(args.height));
-    let bands = (0..height)
-        .step_by(BAND_ROWS as usize)
-        .map(|y| y * width..(y + u64::from(BAND_ROWS)).min(height) * width);
-    let primary: Vec<Ray> = bands
+    let width = u64::from(args.width);
+    let primary: Vec<Ray> = band_runs(0..width * u64::from(args.height), args.width)
         .flat_map(|band| tile_order(band, args.width))
         .map(|pixel| {
             let (x, y) = (pixel % width, pixel / width);
