@@ -37,6 +37,8 @@ pub(super) trait Lanes:
     fn bitmask(self) -> u32;
     /// Per lane `if self > other { self } else { other }` (so `other` when either is NaN).
     fn greater(self, other: Self) -> Self;
+    /// Per lane `if self < other { self } else { other }` (so `other` when either is NaN).
+    fn lesser(self, other: Self) -> Self;
 }
 
 /// [`Lanes::greater`] of 4 lanes: on x86-64 one `maxps`, which computes exactly this
@@ -105,6 +107,10 @@ impl Lanes for f32x4 {
     fn greater(self, other: Self) -> Self {
         greater4(self, other)
     }
+    #[inline(always)]
+    fn lesser(self, other: Self) -> Self {
+        lesser4(self, other)
+    }
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -155,6 +161,8 @@ pub(super) trait RayGroupLanes: Lanes {
     fn lane_mask(bits: u32) -> Self;
     /// Lanes (holding `u32` bit patterns) whose value is above `x`, unsigned.
     fn u32_above(self, x: u32) -> Self;
+    /// The least lane, when no lane is NaN (of a +0 and a -0, either).
+    fn lowest(self) -> f32;
 }
 
 /// `LANE_MASKS[bits]`: all ones in the four lanes whose bit is set (the ray packets' groups
@@ -211,6 +219,20 @@ impl RayGroupLanes for f32x4 {
         let lanes: wide::u32x4 = wide::bytemuck::cast(self);
         wide::bytemuck::cast(lanes.simd_gt(wide::u32x4::splat(x)))
     }
+
+    #[inline(always)]
+    fn lowest(self) -> f32 {
+        lowest4(self)
+    }
+}
+
+/// The smallest lane of `x` (no NaN lanes), in two vector steps: `f32::min`'s NaN handling
+/// made the scalar chain a measurable part of every packet's setup and inner node.
+#[inline(always)]
+pub(super) fn lowest4(x: f32x4) -> f32 {
+    // [min(x0, x2), _, min(x1, x3), _], then the least of its lanes 0 and 2.
+    let m = lesser4(x.unpack_lo(x), x.unpack_hi(x));
+    lesser4(m, m.unpack_hi(m)).to_array()[0]
 }
 
 // `std::arch`'s AVX intrinsics are unsafe to call outside code compiled for AVX; this module
@@ -306,6 +328,20 @@ mod avx {
                 _mm256_castsi256_ps(_mm256_cmpgt_epi32(lanes, x))
             })
         }
+
+        #[inline(always)]
+        fn lowest(self) -> f32 {
+            // SAFETY: AVX2 is available (the type's contract). `minps` keeps the least of
+            // every pair (no NaN lanes): halves, then quarters, then the last two lanes.
+            unsafe {
+                let m = _mm_min_ps(
+                    _mm256_castps256_ps128(self.0),
+                    _mm256_extractf128_ps::<1>(self.0),
+                );
+                let m = _mm_min_ps(m, _mm_movehl_ps(m, m));
+                _mm_cvtss_f32(_mm_min_ss(m, _mm_shuffle_ps::<1>(m, m)))
+            }
+        }
     }
 
     macro_rules! binary {
@@ -382,6 +418,12 @@ mod avx {
             // SAFETY: AVX is available (the type's contract). `maxps` gives the second
             // operand unless the first is greater: exactly `Lanes::greater`.
             F32x8(unsafe { _mm256_max_ps(self.0, other.0) })
+        }
+        #[inline(always)]
+        fn lesser(self, other: Self) -> Self {
+            // SAFETY: AVX is available (the type's contract). `minps` gives the second
+            // operand unless the first is less: exactly `Lanes::lesser`.
+            F32x8(unsafe { _mm256_min_ps(self.0, other.0) })
         }
     }
 }
@@ -490,6 +532,12 @@ mod avx512 {
             // SAFETY: AVX-512F is available (the type's contract); the compare is unsigned.
             lanes_of(unsafe { _mm512_cmpgt_epu32_mask(self.bits(), _mm512_set1_epi32(x as i32)) })
         }
+
+        #[inline(always)]
+        fn lowest(self) -> f32 {
+            // SAFETY: AVX-512F is available (the type's contract).
+            unsafe { _mm512_reduce_min_ps(self.0) }
+        }
     }
 
     macro_rules! arithmetic {
@@ -575,6 +623,12 @@ mod avx512 {
             // SAFETY: AVX-512F is available (the type's contract). `vmaxps` gives the second
             // operand unless the first is greater, as `maxps` does: exactly `Lanes::greater`.
             F32x16(unsafe { _mm512_max_ps(self.0, other.0) })
+        }
+        #[inline(always)]
+        fn lesser(self, other: Self) -> Self {
+            // SAFETY: AVX-512F is available (the type's contract). `vminps` gives the second
+            // operand unless the first is less: exactly `Lanes::lesser`.
+            F32x16(unsafe { _mm512_min_ps(self.0, other.0) })
         }
     }
 }

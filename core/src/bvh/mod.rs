@@ -33,6 +33,7 @@ mod hit_corners;
 mod lanes;
 mod leaf_lanes;
 mod node4;
+mod packet_boxes;
 mod packet_hits;
 mod packet_rays;
 mod parts;

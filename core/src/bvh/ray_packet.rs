@@ -6,9 +6,10 @@
 //! At each inner node one interval test ([`RayPacketTester`]) bounds what every ray of the
 //! packet can do with the four child boxes: a child no ray can enter is dropped for all of
 //! them, a child every active ray certainly enters keeps them all, and only the children in
-//! between are tested ray by ray (four rays per SIMD test): every such child in segment
-//! packets, leaf children only in closest-hit packets (an inner child takes all the active
-//! rays; [`RayPacketTester::enter_children`] says why that is exact). A single remaining ray
+//! between are tested ray by ray, four, eight or sixteen rays a test at the kernel width
+//! (`packet_boxes.rs`): every such child in segment packets, leaf children only in
+//! closest-hit packets (an inner child takes all the active rays;
+//! [`RayPacketTester::enter_children`] says why that is exact). A single remaining ray
 //! goes on alone with the single-ray traversal; leaves test each triangle against four rays
 //! at once (kernel width `Four`), eight or sixteen (`Eight`, `Sixteen`; `dispatch.rs`) where
 //! that takes fewer tests (`leaf_lanes.rs`), and run the single-ray leaf test for the other
@@ -29,9 +30,10 @@
 use super::dispatch::{KernelWidth, kernel_width};
 #[cfg(target_arch = "x86_64")]
 use super::lanes::{F32x8, F32x16};
-use super::lanes::{RayGroupLanes, greater4, lesser4};
+use super::lanes::{RayGroupLanes, greater4, lesser4, lowest4 as lowest};
 use super::leaf_lanes::{LeafLanes, PacketLanes};
 use super::node4::{LEAF, Node4};
+use super::packet_boxes::{self, BoxRays};
 use super::packet_hits::PacketHits;
 use super::packet_rays::PacketRays;
 use super::simd4::{BoxTester, each3, each4};
@@ -53,17 +55,19 @@ pub const RAY_PACKET: usize = 32;
 /// Groups of four rays (one SIMD register each) per packet.
 pub(super) const GROUPS: usize = RAY_PACKET / 4;
 
-/// A ray packet's box tester: its rays four lanes per group, for slab tests across rays, and
-/// the interval hull of their origins and inverse directions for the whole-packet test.
+/// A ray packet's box tester: its rays' origins and inverse directions coordinate by
+/// coordinate, for slab tests across rays, and the interval hull of their origins and inverse
+/// directions for the whole-packet test.
 pub(super) struct RayPacketTester<'a> {
-    /// The packet's rays (their origins are read from here, four lanes per group).
+    /// The packet's rays (their origins are read from here).
     rays: &'a PacketRays,
     /// Per axis: the smallest and largest origin coordinate of the packet.
     origin_lo: [f32x4; 3],
     origin_hi: [f32x4; 3],
     /// Every ray has the same origin (`origin_lo == origin_hi`).
     one_origin: bool,
-    inv_dir: [[f32x4; 3]; GROUPS],
+    /// Per axis, each ray's inverse direction (ray i at index i).
+    inv_dir: [[f32; RAY_PACKET]; 3],
     /// Per axis: the smallest and largest inverse direction of the packet.
     inv_lo: [f32x4; 3],
     inv_hi: [f32x4; 3],
@@ -97,6 +101,12 @@ impl<'a> RayPacketTester<'a> {
                 o_hi[a] = greater4(o, o_hi[a]);
             }
         }
+        let mut inv_columns = [[0.0f32; RAY_PACKET]; 3];
+        for (g, inv) in inv_dir.iter().enumerate() {
+            for (column, inv) in inv_columns.iter_mut().zip(inv) {
+                inv.store_at(column, 4 * g);
+            }
+        }
         let origin_lo = each3(|a| lowest(o_lo[a]));
         let origin_hi = each3(|a| -lowest(-o_hi[a]));
         let inv_lo = each3(|a| lowest(lo[a]));
@@ -112,7 +122,7 @@ impl<'a> RayPacketTester<'a> {
             origin_lo: each3(|a| f32x4::splat(origin_lo[a])),
             origin_hi: each3(|a| f32x4::splat(origin_hi[a])),
             one_origin: origin_lo == origin_hi,
-            inv_dir,
+            inv_dir: inv_columns,
             inv_lo: each3(|a| f32x4::splat(inv_lo[a])),
             inv_hi: each3(|a| f32x4::splat(inv_hi[a])),
             all_near_hi,
@@ -192,7 +202,7 @@ impl<'a> RayPacketTester<'a> {
     /// reaches. On camera rays (a packet's rays are samples of one pixel or neighbours) the
     /// per-ray tests of inner children cost more than the subtrees they rule out.
     #[inline(always)]
-    pub(super) fn enter_children<const LEAVES_ONLY: bool>(
+    pub(super) fn enter_children<const LEAVES_ONLY: bool, const WIDTH: usize>(
         &self,
         node: &Node4,
         active: u32,
@@ -206,7 +216,7 @@ impl<'a> RayPacketTester<'a> {
             if all & (1 << slot) != 0 || (LEAVES_ONLY && inner) {
                 enter[slot] = active;
             } else {
-                (enter[slot], entry[slot]) = self.test_rays(node, slot, active, bound);
+                (enter[slot], entry[slot]) = self.test_rays::<WIDTH>(node, slot, active, bound);
             }
         }
         (enter, entry)
@@ -216,7 +226,7 @@ impl<'a> RayPacketTester<'a> {
     /// bound (lane i of group i / 4 of `bound`), by the single-ray slab test, and the smallest
     /// entry distance among them (+inf when none).
     #[inline(always)]
-    fn test_rays(
+    fn test_rays<const WIDTH: usize>(
         &self,
         node: &Node4,
         slot: usize,
@@ -225,49 +235,32 @@ impl<'a> RayPacketTester<'a> {
     ) -> (u32, f32) {
         let lo = each3(|a| node.lo[a][slot]);
         let hi = each3(|a| node.hi[a][slot]);
-        self.rays_in_box(lo, hi, active, bound)
+        self.rays_in_box::<WIDTH>(lo, hi, active, bound)
     }
 
     /// The rays of `active` (bit i = ray i) that enter the box `lo..hi` at or before their
     /// bound (lane i of group i / 4 of `bound`), by the single-ray slab test (`SlabRay::entry`,
-    /// lane by lane: the same bits), and the smallest entry distance among them (+inf when
-    /// none).
+    /// lane by lane: the same bits) in lanes of the kernel width `WIDTH` (the traversal's),
+    /// and the smallest entry distance among them (+inf when none).
     #[inline(always)]
-    pub(super) fn rays_in_box(
+    pub(super) fn rays_in_box<const WIDTH: usize>(
         &self,
         lo: [f32; 3],
         hi: [f32; 3],
         active: u32,
         bound: &[f32x4; GROUPS],
     ) -> (u32, f32) {
-        let scale = f32x4::splat(FAR_SCALE);
-        let lo = each3(|a| f32x4::splat(lo[a]));
-        let hi = each3(|a| f32x4::splat(hi[a]));
-        let mut rays = 0;
-        let mut entry = f32x4::splat(f32::INFINITY);
-        for (g, &bound) in bound.iter().enumerate() {
-            let lanes = (active >> (4 * g)) & 0xf;
-            if lanes == 0 {
-                continue;
-            }
-            let mut t0 = f32x4::ZERO;
-            let mut t1 = bound;
-            for axis in 0..3 {
-                let (o, inv) = (self.rays.origin4(axis, g), self.inv_dir[g][axis]);
-                // Directions are finite ([`is_finite`]), so 1/d is never zero or NaN: its sign
-                // bit is set exactly when it is below zero (the near plane is the box's hi).
-                let near_hi = inv.simd_lt(f32x4::ZERO);
-                let near = (near_hi.select(hi[axis], lo[axis]) - o) * inv;
-                let far = (near_hi.select(lo[axis], hi[axis]) - o) * inv * scale;
-                // As the single-ray test: a NaN never passes, so it changes nothing.
-                t0 = greater4(near, t0);
-                t1 = lesser4(far, t1);
-            }
-            let hit = !t0.simd_gt(t1).to_bitmask() & lanes;
-            rays |= hit << (4 * g);
-            entry = (f32x4::lane_mask(hit) & t0.simd_lt(entry)).select(t0, entry);
+        let rays = BoxRays {
+            origin: &self.rays.origin,
+            inv_dir: &self.inv_dir,
+        };
+        let bound: &[f32; RAY_PACKET] = wide::bytemuck::cast_ref(bound);
+        // SAFETY: the packet traversals run at `WIDTH` only at that kernel width, so on hosts
+        // with AVX2 at 8 and AVX-512F at 16 (`dispatch.rs`).
+        #[allow(unsafe_code)]
+        unsafe {
+            packet_boxes::rays_in_box::<WIDTH>(rays, (lo, hi), active, bound)
         }
-        (rays, lowest(entry))
     }
 }
 
@@ -391,7 +384,8 @@ impl Bvh {
                 (bound, range) = hits.bounds(all_rays);
             } else if child & LEAF == 0 {
                 let node = &self.wide[child as usize];
-                let (enter, entry) = boxes.enter_children::<true>(node, active, &bound, range);
+                let (enter, entry) =
+                    boxes.enter_children::<true, WIDTH>(node, active, &bound, range);
                 if let Some(next) = descend(node, &enter, &entry, stack, &mut depth) {
                     (child, triangle4_count, active) = next;
                     continue;
@@ -510,15 +504,6 @@ fn rays_within(t: f32, bound: &[f32x4; GROUPS]) -> u32 {
         within |= t.simd_le(*bound).to_bitmask() << (4 * g);
     }
     within
-}
-
-/// The smallest lane of `x` (no NaN lanes), in two vector steps: `f32::min`'s NaN handling
-/// made the scalar chain a measurable part of every packet's setup and inner node.
-#[inline(always)]
-fn lowest(x: f32x4) -> f32 {
-    // [min(x0, x2), _, min(x1, x3), _], then the least of its lanes 0 and 2.
-    let m = lesser4(x.unpack_lo(x), x.unpack_hi(x));
-    lesser4(m, m.unpack_hi(m)).to_array()[0]
 }
 
 /// The culling bounds `t · CULL_MARGIN` of distances `t` (ray i's at `t[i]`), ray i in lane

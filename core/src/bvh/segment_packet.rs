@@ -130,7 +130,7 @@ impl Bvh {
         // tester's inverse directions (the same bits) where that test divides again per ray.
         let all_rays = first_bits(len);
         let (lo, hi) = (root.lo.to_array(), root.hi.to_array());
-        let (mut active, _) = boxes.rays_in_box(lo, hi, all_rays, &bound);
+        let (mut active, _) = boxes.rays_in_box::<WIDTH>(lo, hi, all_rays, &bound);
         if active == 0 {
             return;
         }
@@ -159,7 +159,8 @@ impl Bvh {
                 let node = &self.wide[child as usize];
                 // Every child tested ray by ray: a shadow packet's segments start at
                 // different points, and testing inner children only at the hull was 2% slower.
-                let (enter, entry) = boxes.enter_children::<false>(node, active, &bound, range);
+                let (enter, entry) =
+                    boxes.enter_children::<false, WIDTH>(node, active, &bound, range);
                 if let Some(next) = descend(node, &enter, &entry, stack, &mut depth) {
                     (child, triangle4_count, active) = next;
                     continue;
