@@ -4,13 +4,7 @@
 # Usage: bash eval/references.sh [extra mitsuba_refs.py flags]
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
-venv="${HORT_MITSUBA_VENV:-$root/target/mitsuba-venv}"
-if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c 'import mitsuba' 2>/dev/null; then
-    python3 -m venv "$venv"
-    "$venv/bin/pip" install --quiet "mitsuba==3.9.1" "drjit==1.5.0" "numpy>=1.26,<3"
-fi
-export HORT_MITSUBA_HOME="$venv/home"
-mkdir -p "$HORT_MITSUBA_HOME"
+source "$root/eval/mitsuba-venv.sh"
 cd "$root"
 exec "$venv/bin/python" eval/mitsuba_refs.py eval/references \
     scenes/bunny/bunny.json scenes/cornell/cornell.json scenes/teapot/teapot.json \
