@@ -4,7 +4,7 @@
 //! task of one split renders its span's pixels the same way ([`adaptive_run`]).
 
 use super::{AdaptiveCounts, AdaptiveSettings, Decision, decide, pixel_value};
-use crate::bvh::{Bvh, ClosestHit};
+use crate::bvh::{Bvh, ClosestHit, camera_packet};
 use crate::camera::Camera;
 use crate::error::SceneError;
 use crate::hits::Hit;
@@ -145,7 +145,7 @@ fn trace_samples(
         camera.pixels_samples_rays(batch, (ranks, max_spp), &mut rays);
         hits.clear();
         hits.resize(rays.len(), None);
-        bvh.closest_hits(&rays, &mut hits);
+        bvh.closest_hits_in_packets(&rays, &mut hits, camera_packet(ranks.len()));
         let batch = (rays.as_slice(), hits.as_slice());
         colours.extend_from_slice(shade_batch_lit((surfaces, bvh), lighting, batch, scratch));
         all_hits.extend_from_slice(&hits);

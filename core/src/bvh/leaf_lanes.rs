@@ -253,7 +253,7 @@ leaf_lanes!(
     occluded_in_leaf16
 );
 
-/// A packet's groups of rays in lanes (of four, eight or sixteen rays: eight, four or two of
+/// A packet's groups of rays in lanes (of four, eight or sixteen rays: sixteen, eight or four of
 /// them in a packet of [`RAY_PACKET`]), each made from the packet's rays when the group first
 /// meets a leaf in lanes (`None` inside: its rays permute the axes differently, so it stays
 /// 4-wide).
@@ -290,9 +290,9 @@ impl<L: LeafLanes> PacketLanes<'_, L> {
         &mut self,
         bvh: &Bvh,
         leaf: (usize, usize),
-        active: u32,
+        active: u64,
         mut test: impl FnMut(usize, u32, &RayLanes<L>),
-    ) -> u32 {
+    ) -> u64 {
         let mut rest = active;
         let all = first_bits(L::LANES);
         for (g, slot) in self
@@ -302,7 +302,7 @@ impl<L: LeafLanes> PacketLanes<'_, L> {
             .enumerate()
         {
             let from = g * L::LANES;
-            let group = (active >> from) & all;
+            let group = (active >> from) as u32 & all;
             if !pays_in_lanes(bvh, leaf, group, L::LANES) {
                 continue;
             }
@@ -319,7 +319,7 @@ impl<L: LeafLanes> PacketLanes<'_, L> {
                 continue;
             };
             test(from, group, lanes);
-            rest &= !(group << from);
+            rest &= !(u64::from(group) << from);
         }
         rest
     }

@@ -37,9 +37,9 @@ pub(super) struct BoxRays<'a> {
 pub(super) unsafe fn rays_in_box<const WIDTH: usize>(
     rays: BoxRays<'_>,
     corners: ([f32; 3], [f32; 3]),
-    active: u32,
+    active: u64,
     bound: &[f32; RAY_PACKET],
-) -> (u32, f32) {
+) -> (u64, f32) {
     match WIDTH {
         // SAFETY: the caller's contract.
         #[cfg(target_arch = "x86_64")]
@@ -57,9 +57,9 @@ pub(super) unsafe fn rays_in_box<const WIDTH: usize>(
 fn rays_in_box8(
     rays: BoxRays<'_>,
     corners: ([f32; 3], [f32; 3]),
-    active: u32,
+    active: u64,
     bound: &[f32; RAY_PACKET],
-) -> (u32, f32) {
+) -> (u64, f32) {
     rays_in_box_lanes::<F32x8>(rays, corners, active, bound)
 }
 
@@ -69,9 +69,9 @@ fn rays_in_box8(
 fn rays_in_box16(
     rays: BoxRays<'_>,
     corners: ([f32; 3], [f32; 3]),
-    active: u32,
+    active: u64,
     bound: &[f32; RAY_PACKET],
-) -> (u32, f32) {
+) -> (u64, f32) {
     rays_in_box_lanes::<F32x16>(rays, corners, active, bound)
 }
 
@@ -81,17 +81,17 @@ fn rays_in_box16(
 fn rays_in_box_lanes<L: RayGroupLanes>(
     rays: BoxRays<'_>,
     (lo, hi): ([f32; 3], [f32; 3]),
-    active: u32,
+    active: u64,
     bound: &[f32; RAY_PACKET],
-) -> (u32, f32) {
+) -> (u64, f32) {
     let scale = L::splat(FAR_SCALE);
     let zero = L::splat(0.0);
     let (lo, hi) = (lo.map(L::splat), hi.map(L::splat));
     let group_bits = (1u32 << L::LANES) - 1;
-    let mut entered = 0u32;
+    let mut entered = 0u64;
     let mut entry = L::splat(f32::INFINITY);
     for from in (0..RAY_PACKET).step_by(L::LANES) {
-        let lanes = (active >> from) & group_bits;
+        let lanes = (active >> from) as u32 & group_bits;
         if lanes == 0 {
             continue;
         }
@@ -110,7 +110,7 @@ fn rays_in_box_lanes<L: RayGroupLanes>(
             t1 = far.lesser(t1);
         }
         let hit = !t0.cmp_gt(t1).bitmask() & lanes;
-        entered |= hit << from;
+        entered |= u64::from(hit) << from;
         entry = (L::lane_mask(hit) & t0.cmp_lt(entry)).select(t0, entry);
     }
     (entered, entry.lowest())
@@ -183,12 +183,8 @@ mod tests {
                     _ => rng.unit() * 10.0,
                 };
             }
-            let active = if round % 3 == 0 {
-                u32::MAX
-            } else {
-                rng.next() as u32
-            };
-            let mut expected = (0u32, f32::INFINITY);
+            let active = if round % 3 == 0 { u64::MAX } else { rng.next() };
+            let mut expected = (0u64, f32::INFINITY);
             for i in 0..RAY_PACKET {
                 let o = [0, 1, 2].map(|a| origin[a][i]);
                 let inv = [0, 1, 2].map(|a| inv_dir[a][i]);

@@ -6,7 +6,7 @@
 //! [`super::traverse::ClosestSearch`] and take it back after, so every path offers hits to the
 //! same best hit by the same rule.
 
-use super::ray_packet::{GROUPS, RAY_PACKET, bound_range, culling_bounds};
+use super::ray_packet::{GROUPS, RAY_PACKET, bound_range, culling_bounds, groups_of};
 use super::traverse::BestHit;
 use wide::f32x4;
 
@@ -75,8 +75,8 @@ impl PacketHits {
     /// the smallest and largest bound among the rays of `rays`: what the hull test and the pop
     /// filter read.
     #[inline(always)]
-    pub fn bounds(&self, rays: u32) -> ([f32x4; GROUPS], (f32, f32)) {
-        let bound = culling_bounds(&self.t);
+    pub fn bounds(&self, rays: u64) -> ([f32x4; GROUPS], (f32, f32)) {
+        let bound = culling_bounds(&self.t, groups_of(rays));
         let range = bound_range(&bound, rays);
         (bound, range)
     }

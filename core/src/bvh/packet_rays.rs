@@ -11,9 +11,16 @@
 //! places are those over the rays.
 
 use super::lanes::RayGroupLanes;
-use super::ray_packet::{GROUPS, RAY_PACKET, is_finite};
+use super::ray_packet::{CLOSEST_PACKET, GROUPS, RAY_PACKET, is_finite};
 use crate::triangle::Ray;
 use wide::f32x4;
+
+/// The places of a packet of `len` rays that its readers may read: up to the end of the last
+/// group of sixteen that holds a ray (the widest leaf and box tests load sixteen places).
+#[inline(always)]
+pub(super) fn lanes_in_use(len: usize) -> usize {
+    len.div_ceil(16) * 16
+}
 
 /// 1..=[`RAY_PACKET`] rays, coordinate by coordinate.
 #[derive(Clone, Copy)]
@@ -31,40 +38,47 @@ impl PacketRays {
         dir: [[0.0; RAY_PACKET]; 3],
     };
 
-    /// Holds the rays `ray(&items[i])` of 1..=[`RAY_PACKET`] `items` (every place written), and
-    /// says whether every origin and direction is finite (`ray_packet::is_finite`).
+    /// Holds the rays `ray(&items[i])` of 1..=[`RAY_PACKET`] `items`, and says whether every
+    /// origin and direction is finite (`ray_packet::is_finite`). Places past the last ray
+    /// repeat it, up to the end of its group of sixteen places ([`lanes_in_use`]); the places
+    /// of groups past that are left as they were, and nothing reads them for these rays.
     #[inline(always)]
     pub fn fill<T>(&mut self, items: &[T], ray: impl Fn(&T) -> &Ray) -> bool {
-        match <&[T; RAY_PACKET]>::try_from(items) {
-            // A full packet (the common case) reads each ray at a fixed place.
-            Ok(full) => {
-                // 0 · x is a zero for finite x and NaN for an infinity or NaN, so the sum
-                // of these products over the packet is a zero exactly when all are finite.
-                let mut zeros = f32x4::ZERO;
-                for g in 0..GROUPS {
-                    let at = 4 * g;
-                    let four = [
-                        ray(&full[at]),
-                        ray(&full[at + 1]),
-                        ray(&full[at + 2]),
-                        ray(&full[at + 3]),
-                    ];
-                    zeros += self.put4(at, four);
-                }
-                zeros.simd_eq(f32x4::ZERO).all()
-            }
-            Err(_) => {
-                let last = items.len() - 1;
-                for i in 0..RAY_PACKET {
-                    let r = ray(&items[i.min(last)]);
-                    for a in 0..3 {
-                        self.origin[a][i] = r.origin[a];
-                        self.dir[a][i] = r.dir[a];
-                    }
-                }
-                items.iter().all(|item| is_finite(ray(item)))
+        // Full packets, and closest-hit packets of camera rays below 64 spp, read each ray at
+        // a fixed place.
+        if let Ok(full) = <&[T; RAY_PACKET]>::try_from(items) {
+            return self.fill_groups(full, ray);
+        }
+        if let Ok(closest) = <&[T; CLOSEST_PACKET]>::try_from(items) {
+            return self.fill_groups(closest, ray);
+        }
+        let last = items.len() - 1;
+        for i in 0..RAY_PACKET {
+            let r = ray(&items[i.min(last)]);
+            for a in 0..3 {
+                self.origin[a][i] = r.origin[a];
+                self.dir[a][i] = r.dir[a];
             }
         }
+        items.iter().all(|item| is_finite(ray(item)))
+    }
+
+    /// [`Self::fill`] of `N` rays, `N` a multiple of four: four at a time ([`Self::put4`]).
+    #[inline(always)]
+    fn fill_groups<T, const N: usize>(&mut self, items: &[T; N], ray: impl Fn(&T) -> &Ray) -> bool {
+        // 0 · x is a zero for finite x and NaN for an infinity or NaN, so the sum of these
+        // products over the packet is a zero exactly when all are finite.
+        let mut zeros = f32x4::ZERO;
+        for at in (0..N).step_by(4) {
+            let four = [
+                ray(&items[at]),
+                ray(&items[at + 1]),
+                ray(&items[at + 2]),
+                ray(&items[at + 3]),
+            ];
+            zeros += self.put4(at, four);
+        }
+        zeros.simd_eq(f32x4::ZERO).all()
     }
 
     /// Holds the 1..=[`RAY_PACKET`] rays whose coordinate `a` is `origin[a][i]` and `dir[a][i]`

@@ -35,7 +35,7 @@ use super::leaf_lanes::{LeafLanes, PacketLanes};
 use super::node4::{LEAF, Node4};
 use super::packet_boxes::{self, BoxRays};
 use super::packet_hits::PacketHits;
-use super::packet_rays::PacketRays;
+use super::packet_rays::{PacketRays, lanes_in_use};
 use super::simd4::{BoxTester, each3, each4};
 use super::traverse::{
     CULL_MARGIN, ClosestSearch, Entry, FAR_SCALE, ROOT, STACK, STACKS, defer_all_but_nearest,
@@ -45,13 +45,13 @@ use super::{Bvh, ClosestHit};
 use crate::triangle::Ray;
 use wide::f32x4;
 
-/// Rays per ray packet (closest-hit and segment packets alike): 32, two groups of sixteen
-/// lanes at the widest leaf tests. The renderer's packets are then half a pixel's samples at 64
-/// spp (two squares of sixteen), or two 4x4 tiles side by side at 1 spp; one packet test of a
-/// node and one setup serve twice the rays they did at 16 (whole renders 7-10% faster at 64
-/// spp, 5% at 1 spp on the 1M mesh, `bvh/README.md`). [`Bvh::closest_hits`] and
-/// [`Bvh::occluded_many`] cut their input into runs of this many consecutive rays.
-pub const RAY_PACKET: usize = 32;
+/// Rays a packet holds at most: 64, four groups of sixteen lanes at the widest leaf tests.
+/// Segment packets take 64 ([`Bvh::occluded_many`]), and so do closest-hit packets of camera
+/// rays at 64 spp and above ([`camera_packet`]: a whole pixel's samples); closest-hit packets
+/// of camera rays below that take [`CLOSEST_PACKET`]. One packet test of a node and one setup
+/// serve all of a packet's rays (at 64 spp 2-6% less time a sample than packets of 32,
+/// `bvh/README.md`, "Packets of 64 rays").
+pub const RAY_PACKET: usize = 64;
 /// Groups of four rays (one SIMD register each) per packet.
 pub(super) const GROUPS: usize = RAY_PACKET / 4;
 
@@ -79,32 +79,26 @@ pub(super) struct RayPacketTester<'a> {
 }
 
 impl<'a> RayPacketTester<'a> {
-    /// `rays` holds the packet's rays, with finite origins and directions (places past the
-    /// last ray repeat it, and are never active).
-    pub(super) fn new(rays: &'a PacketRays) -> Self {
-        let origin: [[f32x4; 3]; GROUPS] = std::array::from_fn(|g| each3(|a| rays.origin4(a, g)));
-        // The same correctly rounded division as the single-ray testers (`Vec3::ONE / dir`).
-        let inv_dir: [[f32x4; 3]; GROUPS] =
-            std::array::from_fn(|g| each3(|a| f32x4::ONE / rays.dir4(a, g)));
-        // Lanes past the end repeat the last ray, so extremes and signs over all lanes are
-        // those over the rays: no lane masks needed.
+    /// `rays` holds the packet's `len` rays, with finite origins and directions (places past
+    /// the last ray repeat it up to [`lanes_in_use`], and are never active).
+    pub(super) fn new(rays: &'a PacketRays, len: usize) -> Self {
+        // Lanes past the end repeat the last ray, so extremes and signs over the groups in use
+        // are those over the rays: no lane masks needed.
         let inf = f32x4::splat(f32::INFINITY);
         let (mut lo, mut hi) = ([inf; 3], [-inf; 3]);
         let (mut o_lo, mut o_hi) = ([inf; 3], [-inf; 3]);
-        for g in 0..GROUPS {
+        let mut inv_columns = [[0.0f32; RAY_PACKET]; 3];
+        for g in 0..lanes_in_use(len) / 4 {
             for a in 0..3 {
-                let x = inv_dir[g][a];
+                // The same correctly rounded division as the single-ray testers
+                // (`Vec3::ONE / dir`).
+                let x = f32x4::ONE / rays.dir4(a, g);
+                x.store_at(&mut inv_columns[a], 4 * g);
                 lo[a] = lesser4(x, lo[a]);
                 hi[a] = greater4(x, hi[a]);
-                let o = origin[g][a];
+                let o = rays.origin4(a, g);
                 o_lo[a] = lesser4(o, o_lo[a]);
                 o_hi[a] = greater4(o, o_hi[a]);
-            }
-        }
-        let mut inv_columns = [[0.0f32; RAY_PACKET]; 3];
-        for (g, inv) in inv_dir.iter().enumerate() {
-            for (column, inv) in inv_columns.iter_mut().zip(inv) {
-                inv.store_at(column, 4 * g);
             }
         }
         let origin_lo = each3(|a| lowest(o_lo[a]));
@@ -205,12 +199,12 @@ impl<'a> RayPacketTester<'a> {
     pub(super) fn enter_children<const LEAVES_ONLY: bool, const WIDTH: usize>(
         &self,
         node: &Node4,
-        active: u32,
+        active: u64,
         bound: &[f32x4; GROUPS],
         (bound_lo, bound_hi): (f32, f32),
-    ) -> ([u32; 4], [f32; 4]) {
+    ) -> ([u64; 4], [f32; 4]) {
         let (some, all, mut entry) = self.test_hull(node, bound_lo, bound_hi);
-        let mut enter = [0u32; 4];
+        let mut enter = [0u64; 4];
         for slot in bits(some) {
             let inner = node.child[slot] & LEAF == 0;
             if all & (1 << slot) != 0 || (LEAVES_ONLY && inner) {
@@ -230,9 +224,9 @@ impl<'a> RayPacketTester<'a> {
         &self,
         node: &Node4,
         slot: usize,
-        active: u32,
+        active: u64,
         bound: &[f32x4; GROUPS],
-    ) -> (u32, f32) {
+    ) -> (u64, f32) {
         let lo = each3(|a| node.lo[a][slot]);
         let hi = each3(|a| node.hi[a][slot]);
         self.rays_in_box::<WIDTH>(lo, hi, active, bound)
@@ -247,9 +241,9 @@ impl<'a> RayPacketTester<'a> {
         &self,
         lo: [f32; 3],
         hi: [f32; 3],
-        active: u32,
+        active: u64,
         bound: &[f32x4; GROUPS],
-    ) -> (u32, f32) {
+    ) -> (u64, f32) {
         let rays = BoxRays {
             origin: &self.rays.origin,
             inv_dir: &self.inv_dir,
@@ -271,7 +265,7 @@ pub(super) struct RayPacketEntry {
     pub child: u32,
     pub triangle4_count: u32,
     /// Bit i: ray i of the packet enters the child.
-    pub rays: u32,
+    pub rays: u64,
     pub t: f32,
 }
 
@@ -293,22 +287,61 @@ pub(super) fn is_finite(ray: &Ray) -> bool {
     ray.origin.is_finite() && ray.dir.is_finite()
 }
 
+/// Rays a closest-hit packet takes by default ([`Bvh::closest_hits`]): 32, two 4x4 tiles
+/// side by side at 1 spp. A packet of [`RAY_PACKET`] such rays (four tiles in a row) spans
+/// too much of the image: on the 1M mesh at 1 spp (1280x720) closest hits took 10% longer.
+pub const CLOSEST_PACKET: usize = 32;
+
+/// Rays per closest-hit packet for camera rays made `spp` samples of a pixel at a time, in
+/// trace order: a whole pixel's samples at 64 spp and above ([`RAY_PACKET`]: closest hits
+/// 4-6% faster than in packets of 32 on the bundled scenes and the 1M mesh), else
+/// [`CLOSEST_PACKET`].
+pub fn camera_packet(spp: usize) -> usize {
+    if spp >= RAY_PACKET {
+        RAY_PACKET
+    } else {
+        CLOSEST_PACKET
+    }
+}
+
 impl Bvh {
     /// The closest hit of every ray (`out[i]` for `rays[i]`), exactly as [`Bvh::closest_hit`]
-    /// gives it, traced in packets of [`RAY_PACKET`] consecutive rays: faster when neighbours in
-    /// `rays` are coherent (camera rays of neighbouring pixels, best with one origin). Panics if
-    /// the lengths differ.
+    /// gives it, traced in packets of [`CLOSEST_PACKET`] consecutive rays: faster when
+    /// neighbours in `rays` are coherent (camera rays of neighbouring pixels, best with one
+    /// origin). Panics if the lengths differ.
     pub fn closest_hits(&self, rays: &[Ray], out: &mut [Option<ClosestHit>]) {
+        self.closest_hits_in_packets(rays, out, CLOSEST_PACKET);
+    }
+
+    /// [`Bvh::closest_hits`] in packets of `packet` consecutive rays (1 to [`RAY_PACKET`];
+    /// [`camera_packet`] says how many for camera rays): the same answers at every length.
+    /// Panics if the lengths differ or `packet` is out of range.
+    pub fn closest_hits_in_packets(
+        &self,
+        rays: &[Ray],
+        out: &mut [Option<ClosestHit>],
+        packet: usize,
+    ) {
         assert_eq!(rays.len(), out.len(), "one output per ray");
+        assert!(
+            (1..=RAY_PACKET).contains(&packet),
+            "packets of 1 to {RAY_PACKET} rays, not {packet}"
+        );
         if self.wide.is_empty() {
             out.fill(None);
             return;
         }
         RAY_PACKET_STACKS.with_borrow_mut(|stack| {
             STACKS.with_borrow_mut(|ray_stack| match kernel_width() {
-                KernelWidth::Sixteen => self.closest_packets::<16>(rays, out, stack, ray_stack),
-                KernelWidth::Eight => self.closest_packets::<8>(rays, out, stack, ray_stack),
-                KernelWidth::Four => self.closest_packets::<4>(rays, out, stack, ray_stack),
+                KernelWidth::Sixteen => {
+                    self.closest_packets::<16>((rays, packet), out, stack, ray_stack)
+                }
+                KernelWidth::Eight => {
+                    self.closest_packets::<8>((rays, packet), out, stack, ray_stack)
+                }
+                KernelWidth::Four => {
+                    self.closest_packets::<4>((rays, packet), out, stack, ray_stack)
+                }
             })
         });
     }
@@ -322,13 +355,13 @@ impl Bvh {
     #[inline(always)]
     fn closest_packets<const WIDTH: usize>(
         &self,
-        rays: &[Ray],
+        (rays, packet): (&[Ray], usize),
         out: &mut [Option<ClosestHit>],
         stack: &mut [RayPacketEntry; STACK],
         ray_stack: &mut [Entry; STACK],
     ) {
         let mut packet_rays = PacketRays::EMPTY;
-        for (rays, out) in rays.chunks(RAY_PACKET).zip(out.chunks_mut(RAY_PACKET)) {
+        for (rays, out) in rays.chunks(packet).zip(out.chunks_mut(packet)) {
             if packet_rays.fill(rays, |ray| ray) {
                 self.trace_closest_packet::<WIDTH>(rays, &packet_rays, out, stack, ray_stack);
             } else {
@@ -350,7 +383,7 @@ impl Bvh {
         stack: &mut [RayPacketEntry; STACK],
         ray_stack: &mut [Entry; STACK],
     ) {
-        let boxes = RayPacketTester::new(packet_rays);
+        let boxes = RayPacketTester::new(packet_rays, rays.len());
         // A packet that misses every child of the root (background) needs no per-ray setup.
         let (some, _, _) = boxes.test_hull(&self.wide[0], f32::INFINITY, f32::INFINITY);
         if some == 0 {
@@ -363,7 +396,7 @@ impl Bvh {
         let mut searches: [Option<ClosestSearch>; RAY_PACKET] = [None; RAY_PACKET];
         // Each ray's culling bound in lanes and their range over the packet, remade only when
         // a bound can change (after leaves and single rays).
-        let all_rays = first_bits(rays.len());
+        let all_rays = first_rays(rays.len());
         let (mut bound, mut range) = hits.bounds(all_rays);
         let mut depth = 0usize;
         let (mut child, mut triangle4_count) = ROOT;
@@ -374,7 +407,7 @@ impl Bvh {
             (PacketLanes::new(packet_rays), PacketLanes::new(packet_rays));
         loop {
             if active.count_ones() <= 1 {
-                for i in bits(active) {
+                for i in ray_bits(active) {
                     let single = BoxTester::new(&rays[i]);
                     let search = searches[i].get_or_insert_with(|| ClosestSearch::new(&rays[i]));
                     hits.lend(i, &mut search.best);
@@ -411,7 +444,7 @@ impl Bvh {
                         closest_in_lanes::<f32x4>(self, lanes, leaf, active, rays, &mut hits)
                     }
                 };
-                for i in bits(rest) {
+                for i in ray_bits(rest) {
                     let search = searches[i].get_or_insert_with(|| ClosestSearch::new(&rays[i]));
                     hits.lend(i, &mut search.best);
                     self.closest_in_leaf(leaf.0, leaf.1, search);
@@ -428,7 +461,7 @@ impl Bvh {
                 }
                 depth -= 1;
                 let e = stack[depth];
-                let keep = e.rays & rays_within(e.t, &bound);
+                let keep = rays_within(e.t, &bound, e.rays);
                 if keep != 0 {
                     (child, triangle4_count, active) = (e.child, e.triangle4_count, keep);
                     break;
@@ -460,10 +493,10 @@ fn closest_in_lanes<L: LeafLanes>(
     bvh: &Bvh,
     packet_lanes: &mut PacketLanes<'_, L>,
     leaf: (usize, usize),
-    active: u32,
+    active: u64,
     rays: &[Ray],
     hits: &mut PacketHits,
-) -> u32 {
+) -> u64 {
     packet_lanes.by_groups(bvh, leaf, active, |from, group, lanes| {
         // SAFETY: four lanes need nothing beyond every host's instruction set; eight and
         // sixteen are reached only from `closest_packets::<8>` and `::<16>`, which run only at
@@ -482,9 +515,21 @@ pub(crate) fn first_bits(n: usize) -> u32 {
     ((1u64 << n) - 1) as u32
 }
 
+/// The mask of a packet's rays `0..n` (bits below `n`; `n` at most [`RAY_PACKET`]).
+#[inline(always)]
+pub(crate) fn first_rays(n: usize) -> u64 {
+    ((1u128 << n) - 1) as u64
+}
+
 /// The indices of the set bits of `mask`, lowest first.
 #[inline(always)]
-pub(crate) fn bits(mut mask: u32) -> impl Iterator<Item = usize> {
+pub(crate) fn bits(mask: u32) -> impl Iterator<Item = usize> {
+    ray_bits(u64::from(mask))
+}
+
+/// The indices of the set bits of `mask` (a packet's rays), lowest first.
+#[inline(always)]
+pub(crate) fn ray_bits(mut mask: u64) -> impl Iterator<Item = usize> {
     std::iter::from_fn(move || {
         (mask != 0).then(|| {
             let i = mask.trailing_zeros() as usize;
@@ -494,33 +539,46 @@ pub(crate) fn bits(mut mask: u32) -> impl Iterator<Item = usize> {
     })
 }
 
-/// The rays (bit i = ray i) whose bound (lane i % 4 of group i / 4) is at least `t`; false
-/// where either is NaN, as `t <= bound` is.
+/// How many groups of four rays hold the rays of `rays` (up to the group of its highest bit):
+/// the loops over a packet's groups stop there, so a packet of 32 in a structure of 64 pays
+/// for 32.
 #[inline(always)]
-fn rays_within(t: f32, bound: &[f32x4; GROUPS]) -> u32 {
+pub(super) fn groups_of(rays: u64) -> usize {
+    (64 - rays.leading_zeros() as usize).div_ceil(4)
+}
+
+/// The rays of `rays` (bit i = ray i) whose bound (lane i % 4 of group i / 4) is at least
+/// `t`; false where either is NaN, as `t <= bound` is.
+#[inline(always)]
+fn rays_within(t: f32, bound: &[f32x4; GROUPS], rays: u64) -> u64 {
     let t = f32x4::splat(t);
     let mut within = 0;
-    for (g, bound) in bound.iter().enumerate() {
-        within |= t.simd_le(*bound).to_bitmask() << (4 * g);
+    for (g, bound) in bound.iter().enumerate().take(groups_of(rays)) {
+        within |= u64::from(t.simd_le(*bound).to_bitmask()) << (4 * g);
     }
-    within
+    within & rays
 }
 
 /// The culling bounds `t · CULL_MARGIN` of distances `t` (ray i's at `t[i]`), ray i in lane
-/// i % 4 of group i / 4: the scalar product lane by lane, so the same bits.
+/// i % 4 of group i / 4, for the first `groups` groups (zeros after them): the scalar product
+/// lane by lane, so the same bits.
 #[inline(always)]
-pub(super) fn culling_bounds(t: &[f32; RAY_PACKET]) -> [f32x4; GROUPS] {
+pub(super) fn culling_bounds(t: &[f32; RAY_PACKET], groups: usize) -> [f32x4; GROUPS] {
     let margin = f32x4::splat(CULL_MARGIN);
-    std::array::from_fn(|g| f32x4::from(each4(|l| t[4 * g + l])) * margin)
+    let mut bound = [f32x4::ZERO; GROUPS];
+    for (g, bound) in bound.iter_mut().enumerate().take(groups) {
+        *bound = f32x4::from(each4(|l| t[4 * g + l])) * margin;
+    }
+    bound
 }
 
 /// The smallest and largest bound among the `active` rays.
 #[inline(always)]
-pub(super) fn bound_range(bound: &[f32x4; GROUPS], active: u32) -> (f32, f32) {
+pub(super) fn bound_range(bound: &[f32x4; GROUPS], active: u64) -> (f32, f32) {
     let mut lo = f32x4::splat(f32::INFINITY);
     let mut hi = f32x4::splat(f32::NEG_INFINITY);
-    for (g, b) in bound.iter().enumerate() {
-        let lanes = f32x4::lane_mask((active >> (4 * g)) & 0xf);
+    for (g, b) in bound.iter().enumerate().take(groups_of(active)) {
+        let lanes = f32x4::lane_mask(((active >> (4 * g)) & 0xf) as u32);
         lo = (lanes & b.simd_lt(lo)).select(*b, lo);
         hi = (lanes & b.simd_gt(hi)).select(*b, hi);
     }
@@ -533,11 +591,11 @@ pub(super) fn bound_range(bound: &[f32x4; GROUPS], active: u32) -> (f32, f32) {
 #[inline(always)]
 pub(super) fn descend(
     node: &Node4,
-    enter: &[u32; 4],
+    enter: &[u64; 4],
     entry: &[f32; 4],
     stack: &mut [RayPacketEntry; STACK],
     depth: &mut usize,
-) -> Option<(u32, u32, u32)> {
+) -> Option<(u32, u32, u64)> {
     let mut hit = [NO_ENTRY; 4];
     let mut n = 0;
     for slot in 0..4 {
@@ -573,6 +631,27 @@ mod lane_tests {
         assert_eq!(first_bits(32), u32::MAX);
     }
 
+    /// `first_rays(n)` has exactly the bits below `n`, up to a whole packet's 64, and
+    /// `groups_of` counts the groups of four up to the highest ray.
+    #[test]
+    fn packet_masks_count_their_rays_and_groups() {
+        assert_eq!(first_rays(0), 0);
+        assert_eq!(first_rays(1), 1);
+        assert_eq!(first_rays(CLOSEST_PACKET), u64::from(u32::MAX));
+        assert_eq!(first_rays(63), u64::MAX >> 1);
+        assert_eq!(first_rays(RAY_PACKET), u64::MAX);
+        assert_eq!(groups_of(0), 0);
+        assert_eq!(groups_of(1), 1);
+        assert_eq!(groups_of(0xf), 1);
+        assert_eq!(groups_of(0x10), 2);
+        assert_eq!(groups_of(1 << 33), 9);
+        assert_eq!(groups_of(u64::MAX), GROUPS);
+        assert_eq!(
+            ray_bits(1 << 63 | 1 << 40 | 2).collect::<Vec<_>>(),
+            [1, 40, 63]
+        );
+    }
+
     /// `lowest` is the least lane wherever it sits, infinities included, and
     /// `bound_range` the least and largest of the active lanes only.
     #[test]
@@ -600,6 +679,6 @@ mod lane_tests {
         // Rays 0, 2 and 13 only: 5, 9 and 3.5.
         assert_eq!(bound_range(&bound, 1 | 1 << 2 | 1 << 13), (3.5, 9.0));
         // And the rays past sixteen.
-        assert_eq!(bound_range(&bound, u32::MAX), (0.0625, 30.0));
+        assert_eq!(bound_range(&bound, u64::MAX), (0.0625, 30.0));
     }
 }

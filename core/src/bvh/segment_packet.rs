@@ -18,8 +18,8 @@ use super::leaf_lanes::{LeafLanes, PacketLanes};
 use super::node4::LEAF;
 use super::packet_rays::PacketRays;
 use super::ray_packet::{
-    RAY_PACKET, RAY_PACKET_STACKS, RayPacketEntry, RayPacketTester, bits, bound_range,
-    culling_bounds, descend, first_bits,
+    RAY_PACKET, RAY_PACKET_STACKS, RayPacketEntry, RayPacketTester, bound_range, culling_bounds,
+    descend, first_rays, groups_of, ray_bits,
 };
 use super::segment_columns::SegmentColumns;
 use super::simd4::BoxTester;
@@ -123,12 +123,12 @@ impl Bvh {
             }
             return;
         }
-        let boxes = RayPacketTester::new(packet_rays);
+        let boxes = RayPacketTester::new(packet_rays, len);
+        let all_rays = first_rays(len);
         // Each segment's t_max is in lanes' layout (0 past the packet's end: never active).
-        let bound = culling_bounds(t_max);
+        let bound = culling_bounds(t_max, groups_of(all_rays));
         // Rays still to trace: `occluded`'s root test (`segment_may_hit`) in lanes, with the
         // tester's inverse directions (the same bits) where that test divides again per ray.
-        let all_rays = first_bits(len);
         let (lo, hi) = (root.lo.to_array(), root.hi.to_array());
         let (mut active, _) = boxes.rays_in_box::<WIDTH>(lo, hi, all_rays, &bound);
         if active == 0 {
@@ -137,7 +137,7 @@ impl Bvh {
         let mut searches: [Option<ShadowSearch>; RAY_PACKET] = [None; RAY_PACKET];
         // Bounds never change, so their range over the packet holds for any active rays.
         let range = bound_range(&bound, active);
-        let mut blocked = 0u32;
+        let mut blocked = 0u64;
         let mut depth = 0usize;
         let (mut child, mut triangle4_count) = ROOT;
         let mut lanes4 = PacketLanes::new(packet_rays);
@@ -146,7 +146,7 @@ impl Bvh {
             (PacketLanes::new(packet_rays), PacketLanes::new(packet_rays));
         loop {
             if active.count_ones() <= 1 {
-                for i in bits(active) {
+                for i in ray_bits(active) {
                     let ray = packet_rays.ray(i);
                     let s = searches[i].get_or_insert_with(|| ShadowSearch::new(&ray, t_max[i]));
                     let single = BoxTester::new(&ray);
@@ -188,7 +188,7 @@ impl Bvh {
                         occluded_in_lanes::<f32x4>(self, lanes, leaf, active, t_max, &mut blocked)
                     }
                 };
-                for i in bits(active) {
+                for i in ray_bits(active) {
                     let s = searches[i]
                         .get_or_insert_with(|| ShadowSearch::new(&packet_rays.ray(i), t_max[i]));
                     if self.occluded_in_leaf(leaf.0, leaf.1, &s.prep, &s.tris, s.t_max) {
@@ -226,10 +226,10 @@ fn occluded_in_lanes<L: LeafLanes>(
     bvh: &Bvh,
     packet_lanes: &mut PacketLanes<'_, L>,
     leaf: (usize, usize),
-    active: u32,
+    active: u64,
     t_max: &[f32; RAY_PACKET],
-    blocked: &mut u32,
-) -> u32 {
+    blocked: &mut u64,
+) -> u64 {
     let rays = packet_lanes.rays();
     packet_lanes.by_groups(bvh, leaf, active, |from, group, lanes| {
         // SAFETY: four lanes need nothing beyond every host's instruction set; eight and
@@ -238,6 +238,6 @@ fn occluded_in_lanes<L: LeafLanes>(
         // (`dispatch.rs` offers `Sixteen` only where both are).
         #[allow(unsafe_code)]
         let hit = unsafe { L::occluded_in_leaf(bvh, leaf, lanes, group, rays, (t_max, from)) };
-        *blocked |= hit << from;
+        *blocked |= u64::from(hit) << from;
     })
 }

@@ -94,7 +94,8 @@ fn leaf_tests_in_lanes(width: KernelWidth) -> usize {
 }
 
 /// Closest-hit ray packets give every ray exactly the single-ray answer, for packets cut at
-/// every offset (full, partial and one-ray packets), at every kernel width.
+/// every offset (full, partial and one-ray packets) and of 32 (the default), 64 and 7 rays,
+/// at every kernel width.
 fn check_ray_packets_against_single_rays(bvh: &Bvh, rays: &[Ray]) -> usize {
     let single: Vec<_> = rays
         .iter()
@@ -109,10 +110,17 @@ fn packets_give_single_ray_hits(
     single: &[Option<HitBits>],
     width: KernelWidth,
 ) {
-    for skip in [0, 1, 5, 15, 17, 31] {
+    for (skip, packet) in [0, 1, 5, 15, 17, 31, 33, 63]
+        .into_iter()
+        .flat_map(|skip| [(skip, CLOSEST_PACKET), (skip, RAY_PACKET), (skip, 7)])
+    {
         let rays = &rays[skip.min(rays.len())..];
         let mut out = vec![None; rays.len()];
-        bvh.closest_hits(rays, &mut out);
+        if packet == CLOSEST_PACKET {
+            bvh.closest_hits(rays, &mut out);
+        } else {
+            bvh.closest_hits_in_packets(rays, &mut out, packet);
+        }
         for (k, (got, expected)) in out
             .iter()
             .zip(&single[skip.min(single.len())..])
@@ -121,7 +129,7 @@ fn packets_give_single_ray_hits(
             assert_eq!(
                 &got.as_ref().map(|h| hit_bits(bvh, h)),
                 expected,
-                "ray {} ({width:?})",
+                "ray {} ({width:?}, packets of {packet})",
                 k + skip
             );
         }
@@ -135,7 +143,7 @@ fn packets_give_single_ray_hits(
 fn check_segment_packets_against_single_rays(bvh: &Bvh, segments: &[(Ray, f32)]) -> (usize, usize) {
     let single: Vec<bool> = segments.iter().map(|(r, t)| bvh.occluded(r, *t)).collect();
     let in_lanes = at_every_kernel_width(|width| {
-        for skip in [0, 1, 5, 15, 17, 31] {
+        for skip in [0, 1, 5, 15, 17, 31, 33, 63] {
             let segments = &segments[skip.min(segments.len())..];
             let expected = &single[skip.min(single.len())..];
             let mut out = vec![false; segments.len()];

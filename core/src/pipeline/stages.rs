@@ -7,7 +7,7 @@ use super::query_order::QueryOrder;
 use super::records::{Occluded, PixelBlock, ShadowQuery, SurfaceHit};
 use super::split::SplitMode;
 use super::split_object::SplitObject;
-use crate::bvh::{ClosestHit, SegmentGroups, segment_may_hit};
+use crate::bvh::{ClosestHit, SegmentGroups, camera_packet, segment_may_hit};
 use crate::error::SceneError;
 use crate::hits::Hit;
 use crate::image::Image;
@@ -48,25 +48,32 @@ pub fn cast_map(
         let in_sample_order = (0..pixels.count())
             .flat_map(|p| (0..plan.spp).map(move |sample| (p, sample)))
             .map(|(p, sample)| p * spp + order.position(sample));
-        push_surface_hits(split, (&batch, &rays), &mut hits, &mut out, in_sample_order);
+        let packet = camera_packet(spp);
+        push_surface_hits(
+            split,
+            (&batch, &rays, packet),
+            &mut hits,
+            &mut out,
+            in_sample_order,
+        );
     }
     Ok(out)
 }
 
 /// Traces the camera rays `rays` of the samples `batch` ((pixel, sample), one per ray) against
-/// `split` as packets, and appends the split's nearest hit of each sample that hits it to `out`,
-/// taking the samples in the order of the indices `write_order` (into `batch`). `hits` is
-/// scratch space.
+/// `split` as packets of `packet` rays, and appends the split's nearest hit of each sample that
+/// hits it to `out`, taking the samples in the order of the indices `write_order` (into
+/// `batch`). `hits` is scratch space.
 pub(super) fn push_surface_hits(
     split: &SplitObject,
-    (batch, rays): (&[(u64, u32)], &[Ray]),
+    (batch, rays, packet): (&[(u64, u32)], &[Ray], usize),
     hits: &mut Vec<Option<ClosestHit>>,
     out: &mut Vec<SurfaceHit>,
     write_order: impl IntoIterator<Item = usize>,
 ) {
     // `closest_hits` writes every place: only a new length is filled.
     hits.resize(rays.len(), None);
-    split.bvh.closest_hits(rays, hits);
+    split.bvh.closest_hits_in_packets(rays, hits, packet);
     let mut last = LastFrame::default();
     for i in write_order {
         let Some(hit) = &hits[i] else {

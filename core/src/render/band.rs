@@ -6,7 +6,7 @@
 use super::RayCounts;
 use super::batch::{Lighting, ShadingScratch, shade_batch_timed};
 use super::surfaces::Surfaces;
-use crate::bvh::Bvh;
+use crate::bvh::{Bvh, camera_packet};
 use crate::camera::Camera;
 use crate::hits::Hit;
 use crate::phase_timer::{Phase, PhaseTimer};
@@ -94,7 +94,7 @@ pub fn render_run(
         // `closest_hits` writes every place: only a new length is filled.
         hits.resize(rays.len(), None);
         timer.lap(Phase::CameraRays);
-        bvh.closest_hits(&rays, &mut hits);
+        bvh.closest_hits_in_packets(&rays, &mut hits, camera_packet(samples));
         timer.lap(Phase::ClosestHits);
         let colours = shade_batch_timed(scene, lighting, (&rays, &hits), &mut scratch, timer);
         for ((&pixel, colours), hits) in batch

@@ -1,13 +1,13 @@
 //! The order a pixel's samples are traced in: square by square, so a ray packet's rays
-//! ([`crate::bvh::RAY_PACKET`], 32 neighbours in trace order) leave from as small a part of
+//! ([`crate::bvh::RAY_PACKET`], 64 neighbours in trace order) leave from as small a part of
 //! the pixel as the sample count allows. Tracing order never changes a bit of the image: a
 //! pixel is still the mean of its samples in sample order ([`TraceOrder::position`]).
 //!
 //! Why it pays: consecutive samples of the sequence are spread over the whole pixel (every
-//! aligned block of 16 is a net covering it), so at 64 samples a pixel's packets each spanned
-//! the pixel; in trace order each of its two covers half of it (two quarters). On a mesh with
-//! several triangles per pixel a packet then meets fewer leaves, and its shadow rays leave
-//! from closer points.
+//! aligned block of 16 is a net covering it), so at 256 samples a pixel's four packets each
+//! spanned the pixel; in trace order each covers one quarter. On a mesh with several
+//! triangles per pixel a packet then meets fewer leaves, and its shadow rays leave from closer
+//! points.
 
 use super::sobol::cell_key;
 

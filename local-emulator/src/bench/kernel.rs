@@ -10,9 +10,9 @@
 //! tile order (4x4 pixel tiles left to right in bands of four rows), so the harness's groups of
 //! 16 consecutive rays for `rtcIntersect16` are one tile each. Our coherent path
 //! ([`Bvh::closest_hits`]) traces the same primary rays in its packets of
-//! [`RAY_PACKET`](hort_core::bvh::RAY_PACKET) consecutive rays (two tiles side by side) and
-//! must return the single-ray answers; the shadow rays go through [`Bvh::occluded_many`] the
-//! same way. With `--features obvhs-bench`, the crate obvhs runs on the same rays too
+//! [`CLOSEST_PACKET`](hort_core::bvh::CLOSEST_PACKET) consecutive rays (two tiles side by
+//! side) and must return the single-ray answers; the shadow rays go through
+//! [`Bvh::occluded_many`], in packets of [`RAY_PACKET`](hort_core::bvh::RAY_PACKET). With `--features obvhs-bench`, the crate obvhs runs on the same rays too
 //! (`obvhs_kernel.rs`). Timings are the best of `--repeats` passes; ratios compare numbers
 //! measured in the same run. A third table times the whole monolithic render at the same size,
 //! one sample per pixel, beside Embree on the rays it traces (`whole_render.rs`).
@@ -77,7 +77,7 @@ struct SceneResult {
     primary: usize,
     primary_s: f64,
     /// Our coherent path: the same rays in packets of
-    /// [`RAY_PACKET`](hort_core::bvh::RAY_PACKET) consecutive rays.
+    /// [`CLOSEST_PACKET`](hort_core::bvh::CLOSEST_PACKET) consecutive rays.
     packets_s: f64,
     /// The shadow rays in packets of [`RAY_PACKET`](hort_core::bvh::RAY_PACKET) consecutive
     /// rays ([`Bvh::occluded_many`]).
