@@ -1,6 +1,6 @@
 //! A ray packet's per-ray box test ([`super::ray_packet::RayPacketTester::rays_in_box`]) in
 //! lanes of the kernel width: four rays a test everywhere, eight with AVX2 and sixteen with
-//! AVX-512F (`dispatch.rs`), so a packet of [`RAY_PACKET`] rays takes eight, four or two
+//! AVX-512F (`dispatch.rs`), so a packet of [`RAY_PACKET`] rays takes sixteen, eight or four
 //! tests. Segment packets run it at every inner child the interval test cannot decide, and
 //! on the 1M-triangle mesh they spend much of the shadow phase here.
 //!
