@@ -7,20 +7,13 @@
 //! load a group's coordinates with one vector load each.
 //!
 //! Guarantee: coordinate `a` of ray `i`'s origin is `origin[a][i]`, bit for bit, and so for the
-//! direction; places past the packet's last ray repeat it, so extremes and signs over all
-//! places are those over the rays.
+//! direction; places past the packet's last ray, up to the end of its group of four, repeat
+//! it, so extremes and signs over the groups holding rays are those over the rays.
 
 use super::lanes::RayGroupLanes;
 use super::ray_packet::{CLOSEST_PACKET, GROUPS, RAY_PACKET, is_finite};
 use crate::triangle::Ray;
 use wide::f32x4;
-
-/// The places of a packet of `len` rays that its readers may read: up to the end of the last
-/// group of sixteen that holds a ray (the widest leaf and box tests load sixteen places).
-#[inline(always)]
-pub(super) fn lanes_in_use(len: usize) -> usize {
-    len.div_ceil(16) * 16
-}
 
 /// 1..=[`RAY_PACKET`] rays, coordinate by coordinate.
 #[derive(Clone, Copy)]
@@ -40,8 +33,9 @@ impl PacketRays {
 
     /// Holds the rays `ray(&items[i])` of 1..=[`RAY_PACKET`] `items`, and says whether every
     /// origin and direction is finite (`ray_packet::is_finite`). Places past the last ray
-    /// repeat it, up to the end of its group of sixteen places ([`lanes_in_use`]); the places
-    /// of groups past that are left as they were, and nothing reads them for these rays.
+    /// repeat it to the end of the packet, except after [`CLOSEST_PACKET`] rays: those places
+    /// are left as they were, and nothing reads them for these rays (the loops over a packet's
+    /// groups stop at the last one holding a ray, `ray_packet::groups_of`).
     #[inline(always)]
     pub fn fill<T>(&mut self, items: &[T], ray: impl Fn(&T) -> &Ray) -> bool {
         // Full packets, and closest-hit packets of camera rays below 64 spp, read each ray at

@@ -35,7 +35,7 @@ use super::leaf_lanes::{LeafLanes, PacketLanes};
 use super::node4::{LEAF, Node4};
 use super::packet_boxes::{self, BoxRays};
 use super::packet_hits::PacketHits;
-use super::packet_rays::{PacketRays, lanes_in_use};
+use super::packet_rays::PacketRays;
 use super::simd4::{BoxTester, each3, each4};
 use super::traverse::{
     CULL_MARGIN, ClosestSearch, Entry, FAR_SCALE, ROOT, STACK, STACKS, defer_all_but_nearest,
@@ -80,7 +80,7 @@ pub(super) struct RayPacketTester<'a> {
 
 impl<'a> RayPacketTester<'a> {
     /// `rays` holds the packet's `len` rays, with finite origins and directions (places past
-    /// the last ray repeat it up to [`lanes_in_use`], and are never active).
+    /// the last ray in its group of four repeat it, and are never active).
     pub(super) fn new(rays: &'a PacketRays, len: usize) -> Self {
         // Lanes past the end repeat the last ray, so extremes and signs over the groups in use
         // are those over the rays: no lane masks needed.
@@ -88,7 +88,7 @@ impl<'a> RayPacketTester<'a> {
         let (mut lo, mut hi) = ([inf; 3], [-inf; 3]);
         let (mut o_lo, mut o_hi) = ([inf; 3], [-inf; 3]);
         let mut inv_columns = [[0.0f32; RAY_PACKET]; 3];
-        for g in 0..lanes_in_use(len) / 4 {
+        for g in 0..groups_of(first_rays(len)) {
             for a in 0..3 {
                 // The same correctly rounded division as the single-ray testers
                 // (`Vec3::ONE / dir`).
@@ -512,7 +512,7 @@ fn closest_in_lanes<L: LeafLanes>(
 /// The mask of lanes `0..n` (bits below `n`; `n` at most 32).
 #[inline(always)]
 pub(crate) fn first_bits(n: usize) -> u32 {
-    ((1u64 << n) - 1) as u32
+    first_rays(n) as u32
 }
 
 /// The mask of a packet's rays `0..n` (bits below `n`; `n` at most [`RAY_PACKET`]).

@@ -30,6 +30,7 @@ pub fn cast_map(
     let order = TraceOrder::new(plan.spp);
     let spp = plan.spp as usize;
     let pixels_per_batch = (BATCH / spp.max(1)).max(1) as u64;
+    let packet = camera_packet(spp);
     let mut out = Vec::new();
     let mut batch: Vec<(u64, u32)> = Vec::with_capacity(BATCH);
     let mut rays = Vec::with_capacity(BATCH);
@@ -48,7 +49,6 @@ pub fn cast_map(
         let in_sample_order = (0..pixels.count())
             .flat_map(|p| (0..plan.spp).map(move |sample| (p, sample)))
             .map(|(p, sample)| p * spp + order.position(sample));
-        let packet = camera_packet(spp);
         push_surface_hits(
             split,
             (&batch, &rays, packet),
