@@ -17,8 +17,10 @@ use glam::Vec3;
 pub(super) const LEAF: u32 = 1 << 31;
 
 /// Four child boxes (axis by axis, child by child) and what each child is. An unused slot has
-/// the box lo = hi = +inf, which no ray enters (its entry distance is +inf or its exit -inf),
-/// and is an empty leaf.
+/// the box lo = +inf, hi = -inf, which no ray with a finite origin enters, whatever its bound:
+/// on every axis its entry distance is +inf and its exit -inf (the near plane is +inf or -inf
+/// as the direction is positive or negative, zeros of both signs included). It is an empty
+/// leaf.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(64))]
 pub(super) struct Node4 {
@@ -62,7 +64,7 @@ impl Triangle4 {
 /// A node with four empty slots.
 pub(super) const UNUSED: Node4 = Node4 {
     lo: [[f32::INFINITY; 4]; 3],
-    hi: [[f32::INFINITY; 4]; 3],
+    hi: [[f32::NEG_INFINITY; 4]; 3],
     child: [LEAF; 4],
     triangle4_count: [0; 4],
 };

@@ -619,6 +619,65 @@ pub(super) fn descend(
 #[cfg(test)]
 mod lane_tests {
     use super::*;
+    use crate::bvh::dispatch::available_kernel_widths;
+    use crate::bvh::node4::UNUSED;
+    use crate::bvh::tests::Rng;
+    use glam::Vec3;
+
+    /// No ray enters an unused slot, even one that has hit nothing yet (bound +inf): not by
+    /// the single-ray test, not by the per-ray tests at any width this host has, in every
+    /// octant, with zero direction components of both signs (infinite inverses). (Until
+    /// 2026-12-07 the slot's box was lo = hi = +inf, which rays with no negative direction
+    /// component entered at bound +inf: a Cornell box packet sent three rays on to the
+    /// single-ray leaf path for nothing.)
+    #[test]
+    fn no_ray_enters_an_unused_slot() {
+        let mut rng = Rng(11);
+        let component = |rng: &mut Rng| match rng.next() % 6 {
+            0 => 0.0,
+            1 => -0.0,
+            2 => 1e-30,
+            _ => rng.unit() * 4.0 - 2.0,
+        };
+        for _ in 0..500 {
+            let mut rays = Vec::new();
+            for _ in 0..RAY_PACKET {
+                let origin = [0, 1, 2].map(|_| rng.unit() * 8.0 - 4.0);
+                let dir = Vec3::new(component(&mut rng), component(&mut rng), 0.5);
+                // Every octant, the z component's sign too.
+                let sign = [1.0, -1.0][(rng.next() % 2) as usize];
+                rays.push(Ray {
+                    origin: Vec3::from(origin),
+                    dir: dir * sign,
+                });
+            }
+            for bound in [f32::INFINITY, 1e30, 1.0] {
+                for ray in &rays {
+                    let (enter, _) = BoxTester::new(ray).test(&UNUSED, bound);
+                    assert_eq!(enter, 0, "{ray:?} at bound {bound}");
+                }
+                let mut packet = PacketRays::EMPTY;
+                assert!(packet.fill(&rays, |r| r));
+                let tester = RayPacketTester::new(&packet, rays.len());
+                let bounds = [f32x4::splat(bound); GROUPS];
+                for width in available_kernel_widths() {
+                    let range = (bound, bound);
+                    let (enter, _) = match width {
+                        KernelWidth::Four => {
+                            tester.enter_children::<false, 4>(&UNUSED, u64::MAX, &bounds, range)
+                        }
+                        KernelWidth::Eight => {
+                            tester.enter_children::<false, 8>(&UNUSED, u64::MAX, &bounds, range)
+                        }
+                        KernelWidth::Sixteen => {
+                            tester.enter_children::<false, 16>(&UNUSED, u64::MAX, &bounds, range)
+                        }
+                    };
+                    assert_eq!(enter, [0; 4], "{width:?} at bound {bound}");
+                }
+            }
+        }
+    }
 
     /// `first_bits(n)` has exactly the bits below `n`, from none to all 32.
     #[test]

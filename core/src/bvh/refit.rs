@@ -48,15 +48,16 @@ pub(super) fn pack_box(pack: &Triangle4) -> Aabb {
 
 /// Sets every child box of `wide` from `pack_boxes` (one per pack, [`pack_box`]'s): a leaf
 /// slot gets the union of its packs' boxes, an inner slot the union of its node's non-empty
-/// slots, an empty slot the box no ray enters (lo = hi = +inf). `wide` must be laid out as
-/// [`Bvh::from_parts`](super::Bvh::from_parts) checks (children after their parent, leaves
-/// inside `pack_boxes`): nodes are set from the last to the first, so every child is set
-/// before its parent reads it. Cost: one pass over the nodes and one over the pack boxes.
+/// slots, an empty slot the box no ray enters (lo = +inf, hi = -inf; `Node4` says why).
+/// `wide` must be laid out as [`Bvh::from_parts`](super::Bvh::from_parts) checks (children
+/// after their parent, leaves inside `pack_boxes`): nodes are set from the last to the first,
+/// so every child is set before its parent reads it. Cost: one pass over the nodes and one
+/// over the pack boxes.
 pub(super) fn refit(wide: &mut [Node4], pack_boxes: &[Aabb]) {
     for index in (0..wide.len()).rev() {
         let node = wide[index];
         let mut lo = [[f32::INFINITY; 4]; 3];
-        let mut hi = [[f32::INFINITY; 4]; 3];
+        let mut hi = [[f32::NEG_INFINITY; 4]; 3];
         for slot in 0..4 {
             let (child, count) = (node.child[slot], node.triangle4_count[slot] as usize);
             let bounds = if is_empty(child, count) {

@@ -641,7 +641,7 @@ fn every_child_box_is_the_smallest_box_of_its_triangles() {
             );
             match subtree_box(&bvh, index, slot) {
                 Some(expected) => assert_eq!(got, expected, "node {index} slot {slot}"),
-                None => assert_eq!(got, ([f32::INFINITY; 3], [f32::INFINITY; 3])),
+                None => assert_eq!(got, ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3])),
             }
         }
     }
