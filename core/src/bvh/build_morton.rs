@@ -10,13 +10,20 @@
 //!
 //! It gives the same tree for the same triangles on any machine and any thread count (it runs
 //! on one), and the same shape of output as the SAH builder: binary nodes root first, a node's
-//! two children side by side, leaves of at most `MAX_LEAF` triangles (deeper than `MAX_DEPTH`
-//! levels a run becomes one leaf), and the leaf order.
+//! two children side by side, leaves of at most [`MORTON_LEAF`] triangles (deeper than
+//! `MAX_DEPTH` levels a run becomes one leaf), and the leaf order.
 
-use super::build::{MAX_DEPTH, MAX_LEAF};
+use super::build::MAX_DEPTH;
 use super::{Aabb, Node};
 use crate::morton::morton_code;
 use glam::Vec3;
+
+/// Runs this short become leaves: two `Triangle4`s, where the SAH builder stops at one
+/// (`build::MAX_LEAF`). The preset serves one-shot renders of large scenes (fewer samples than
+/// four a triangle), where a node visit is likely a cache miss and the build's node count is
+/// paid once per render: on a 1M mesh at 1280x720, 1 spp, leaves of 8 made the whole render
+/// 0.93-0.96x the time of leaves of 4 (`bvh/README.md`, "Larger leaves").
+const MORTON_LEAF: usize = 8;
 
 /// Grid cells per axis: 10 bits each, a 30-bit code.
 const CELLS: f32 = 1024.0;
@@ -58,12 +65,12 @@ pub(super) fn binary_tree(triangles: &[[Vec3; 3]]) -> (Vec<Node>, Vec<u32>) {
     keys.sort_unstable();
     let codes: Vec<u32> = keys.iter().map(|k| (k >> 32) as u32).collect();
     let order: Vec<u32> = keys.iter().map(|&k| k as u32).collect();
-    let mut nodes = Vec::with_capacity(2 * n / MAX_LEAF as usize + 1);
+    let mut nodes = Vec::with_capacity(2 * n / MORTON_LEAF + 1);
     nodes.push(UNSET);
     // (node, start, end, depth), left child popped first.
     let mut stack = vec![(0usize, 0usize, n, 0usize)];
     while let Some((node, start, end, depth)) = stack.pop() {
-        if end - start <= MAX_LEAF as usize || depth + 1 >= MAX_DEPTH {
+        if end - start <= MORTON_LEAF || depth + 1 >= MAX_DEPTH {
             nodes[node].first = start as u32;
             nodes[node].count = (end - start) as u32;
             continue;
@@ -111,5 +118,31 @@ mod tests {
         assert_eq!(split_point(&[0b001, 0b010, 0b011, 0b100, 0b101]), 3);
         assert_eq!(split_point(&[0b100, 0b101, 0b110]), 2);
         assert_eq!(split_point(&[7, 8]), 1);
+    }
+
+    /// Runs of up to `MORTON_LEAF` triangles are leaves and longer runs are split: `MORTON_LEAF`
+    /// triangles make one leaf, one more makes a split, and a larger scene's leaves hold at most
+    /// `MORTON_LEAF`, some of them exactly that many.
+    #[test]
+    fn leaves_hold_up_to_morton_leaf_triangles() {
+        let triangle = |i: usize| {
+            let p = Vec3::new(i as f32 * 3.0, (i % 7) as f32, (i % 5) as f32);
+            [p, p + Vec3::X, p + Vec3::Y]
+        };
+        let scene = |n: usize| (0..n).map(triangle).collect::<Vec<_>>();
+        let (nodes, _) = binary_tree(&scene(MORTON_LEAF));
+        assert_eq!(nodes.len(), 1);
+        assert_eq!(nodes[0].count as usize, MORTON_LEAF);
+        let (nodes, _) = binary_tree(&scene(MORTON_LEAF + 1));
+        assert!(nodes.len() > 1 && nodes[0].count == 0, "split");
+        let (nodes, order) = binary_tree(&scene(5000));
+        let leaves: Vec<usize> = nodes
+            .iter()
+            .filter(|n| n.count > 0)
+            .map(|n| n.count as usize)
+            .collect();
+        assert_eq!(leaves.iter().sum::<usize>(), order.len());
+        assert!(leaves.iter().all(|&c| c <= MORTON_LEAF), "{leaves:?}");
+        assert!(leaves.contains(&MORTON_LEAF));
     }
 }
