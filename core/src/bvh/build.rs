@@ -1,5 +1,7 @@
 //! Binned SAH construction (Wald 2007): 16 bins per axis on centroid bounds; every node of at
-//! most [`MAX_LEAF`] triangles is a leaf (one 4-wide `Triangle4` test), larger ones are split.
+//! most [`MAX_LEAF`] triangles is a leaf (one 4-wide `Triangle4` test), or of at most
+//! [`LARGE_TREE_LEAF`] in trees of [`LARGE_TREE`] triangles or more ([`max_leaf`]); larger
+//! ones are split.
 //!
 //! What it builds is defined by the plain algorithm kept beside it for the tests
 //! (`build_reference.rs`): the same nodes, bit for bit, for any finite triangles (scenes are
@@ -19,8 +21,28 @@ use wide::{f32x4, i32x4};
 const BINS: usize = 16;
 /// How many triangles ahead of the collapse [`build`] fetches.
 const PREFETCH_AHEAD: usize = 16;
-/// Nodes this small become leaves; coincident centroids are split by index instead.
+/// Nodes this small become leaves (one `Triangle4` test) unless their box is mostly empty
+/// ([`mostly_empty`]); coincident centroids are split by index instead.
 pub(super) const MAX_LEAF: u32 = 4;
+/// Trees of this many triangles or more take leaves of up to [`LARGE_TREE_LEAF`] ([`max_leaf`]).
+pub(super) const LARGE_TREE: usize = 1 << 18;
+/// The largest leaf of a large tree: two `Triangle4` tests.
+pub(super) const LARGE_TREE_LEAF: u32 = 8;
+
+/// The largest leaf of a tree over `triangles` triangles: [`MAX_LEAF`], or [`LARGE_TREE_LEAF`]
+/// from [`LARGE_TREE`] triangles on. A large tree's nodes and `Triangle4`s (about 40 bytes a
+/// triangle) outgrow the caches, so a node visit is more likely a miss, and fewer nodes are a
+/// shorter build. Measured on generated meshes, one core (`bvh/README.md`, "Larger leaves"):
+/// leaves of 8 cost a 100k mesh 2-3% at 64 spp, left a 300k one level, and made the 1M mesh
+/// 2-3% faster at 64 spp, 7% at 1 spp, its build 18% shorter; the small bundled scenes lose
+/// 1-3% with them.
+pub(super) fn max_leaf(triangles: usize) -> u32 {
+    if triangles >= LARGE_TREE {
+        LARGE_TREE_LEAF
+    } else {
+        MAX_LEAF
+    }
+}
 /// Deepest level a node may have; deeper subtrees become (large) leaves. Traversal stacks hold
 /// one entry per level, so this bounds them (see `traverse::STACK`).
 pub(super) const MAX_DEPTH: usize = 60;
@@ -74,7 +96,7 @@ impl Box3 {
     }
 }
 
-/// Whether a node of at most [`MAX_LEAF`] triangles whose boxes have the volumes summing to
+/// Whether a leaf-sized node ([`max_leaf`]) whose triangles' boxes have the volumes summing to
 /// `filled` (in the node's order) is split anyway, its box of volume `node` being mostly empty:
 /// the triangles' boxes fill less than a sixteenth of it. Walls, floors and ceilings (flat,
 /// axis-aligned, far apart) pooled in one leaf make a box around a whole room, which every ray
@@ -118,6 +140,8 @@ struct Pending {
     end: usize,
     depth: usize,
     centroid_bounds: Box3,
+    /// The tree's largest leaf ([`max_leaf`]).
+    max_leaf: u32,
 }
 
 pub(super) fn build(triangles: Vec<[Vec3; 3]>, ids: Vec<u32>, threads: usize) -> Bvh {
@@ -137,6 +161,16 @@ pub(super) fn build(triangles: Vec<[Vec3; 3]>, ids: Vec<u32>, threads: usize) ->
 /// `order[t]` is the index in `triangles` of leaf-order triangle `t`. The same for any number
 /// of `threads` (at least 1 is used).
 pub(super) fn binary_tree(triangles: &[[Vec3; 3]], threads: usize) -> (Vec<Node>, Vec<u32>) {
+    binary_tree_with_leaves(triangles, threads, max_leaf(triangles.len()))
+}
+
+/// [`binary_tree`] with leaves of up to `max_leaf` triangles (the tests build both sizes at any
+/// size of tree).
+pub(super) fn binary_tree_with_leaves(
+    triangles: &[[Vec3; 3]],
+    threads: usize,
+    max_leaf: u32,
+) -> (Vec<Node>, Vec<u32>) {
     let n = triangles.len();
     if n == 0 {
         return (Vec::new(), Vec::new());
@@ -157,8 +191,9 @@ pub(super) fn binary_tree(triangles: &[[Vec3; 3]], threads: usize) -> (Vec<Node>
         end: n,
         depth: 0,
         centroid_bounds: refs.iter().fold(Box3::EMPTY, |b, r| b.grow(r.centroid())),
+        max_leaf,
     };
-    let mut nodes = Vec::with_capacity(2 * n / MAX_LEAF as usize + 1);
+    let mut nodes = Vec::with_capacity(2 * n / max_leaf as usize + 1);
     nodes.push(Node {
         bounds: root_box,
         first: 0,
@@ -193,7 +228,7 @@ fn grow(refs: &mut [Ref], offset: usize, root: Pending, nodes: &mut Vec<Node>, f
         let split = if p.depth + 1 >= MAX_DEPTH {
             None
         } else {
-            split(&mut refs[p.start..p.end], p.centroid_bounds)
+            split(&mut refs[p.start..p.end], p.centroid_bounds, p.max_leaf)
         };
         let Some(s) = split else {
             nodes[p.node].first = (offset + p.start) as u32;
@@ -217,6 +252,7 @@ fn grow(refs: &mut [Ref], offset: usize, root: Pending, nodes: &mut Vec<Node>, f
             end,
             depth: p.depth + 1,
             centroid_bounds: side.centroid_bounds,
+            max_leaf: p.max_leaf,
         };
         let (left_child, right_child) = (
             child(left, p.start, mid, s.left),
@@ -328,13 +364,15 @@ impl Binner {
     }
 }
 
-/// Partitions `refs` and returns the split, or `None` to make a leaf.
-fn split(refs: &mut [Ref], centroid_bounds: Box3) -> Option<Split> {
+/// Partitions `refs` and returns the split, or `None` to make a leaf (of at most `max_leaf`
+/// triangles, [`max_leaf`]).
+fn split(refs: &mut [Ref], centroid_bounds: Box3, max_leaf: u32) -> Option<Split> {
     let count = refs.len();
     // Up to MAX_LEAF triangles are one 4-wide Triangle4 test, cheaper than any split (measured:
     // about +10% primary and shadow rays/s on a 1M-triangle scene against an SAH leaf cost),
-    // unless the node's box is mostly empty ([`mostly_empty`]).
-    if count as u32 <= MAX_LEAF {
+    // unless the node's box is mostly empty ([`mostly_empty`]); in large trees up to
+    // LARGE_TREE_LEAF.
+    if count as u32 <= max_leaf {
         let node = refs.iter().fold(Box3::EMPTY, |a, r| a.union(r.0));
         let filled = refs.iter().fold(0.0, |sum, r| sum + r.0.volume());
         if !mostly_empty(filled, node.volume()) {
@@ -396,7 +434,7 @@ fn split(refs: &mut [Ref], centroid_bounds: Box3) -> Option<Split> {
         centroid_bounds: refs.iter().fold(Box3::EMPTY, |a, r| a.grow(r.centroid())),
     };
     let Some((_, axis, k)) = best else {
-        if count as u32 <= MAX_LEAF {
+        if count as u32 <= max_leaf {
             return None;
         }
         // All centroids coincide: split by index so leaves stay small.

@@ -2,19 +2,26 @@
 //! question, gathering from scene-order arrays. `build.rs` must build exactly these nodes.
 //!
 //! Binned SAH construction (Wald 2007): 16 bins per axis on centroid bounds; every node of at
-//! most [`MAX_LEAF`] triangles is a leaf (one 4-wide `Triangle4` test) unless its box is mostly
-//! empty (`build::mostly_empty`), larger ones are split.
+//! most `max_leaf` triangles (`build::max_leaf`: 4, one 4-wide `Triangle4` test, or 8 in large
+//! trees) is a leaf unless its box is mostly empty (`build::mostly_empty`), larger ones are
+//! split.
 
-use super::build::MAX_DEPTH;
+use super::build::{MAX_DEPTH, max_leaf};
 use super::{Aabb, Node};
 use glam::Vec3;
 
 const BINS: usize = 16;
-/// Nodes this small become leaves; coincident centroids are split by index instead.
-const MAX_LEAF: u32 = 4;
-
 /// The binary tree and leaf order, as `build::binary_tree` gives them.
 pub(super) fn binary_tree(triangles: &[[Vec3; 3]]) -> (Vec<Node>, Vec<u32>) {
+    binary_tree_with_leaves(triangles, max_leaf(triangles.len()))
+}
+
+/// [`binary_tree`] with leaves of up to `max_leaf` triangles (coincident centroids are split by
+/// index instead), as `build::binary_tree_with_leaves` gives them.
+pub(super) fn binary_tree_with_leaves(
+    triangles: &[[Vec3; 3]],
+    max_leaf: u32,
+) -> (Vec<Node>, Vec<u32>) {
     let n = triangles.len();
     if n == 0 {
         return (Vec::new(), Vec::new());
@@ -22,7 +29,7 @@ pub(super) fn binary_tree(triangles: &[[Vec3; 3]]) -> (Vec<Node>, Vec<u32>) {
     let boxes: Vec<Aabb> = triangles.iter().map(Aabb::of_triangle).collect();
     let centroids: Vec<Vec3> = boxes.iter().map(|b| (b.lo + b.hi) * 0.5).collect();
     let mut order: Vec<u32> = (0..n as u32).collect();
-    let mut nodes = Vec::with_capacity(2 * n / MAX_LEAF as usize + 1);
+    let mut nodes = Vec::with_capacity(2 * n / max_leaf as usize + 1);
     nodes.push(Node {
         bounds: Aabb::EMPTY,
         first: 0,
@@ -38,7 +45,7 @@ pub(super) fn binary_tree(triangles: &[[Vec3; 3]]) -> (Vec<Node>, Vec<u32>) {
         let split = if depth + 1 >= MAX_DEPTH {
             None
         } else {
-            choose_split(refs, &boxes, &centroids)
+            choose_split(refs, &boxes, &centroids, max_leaf)
         };
         match split {
             None => {
@@ -66,11 +73,17 @@ struct Bin {
 }
 
 /// Partitions `refs` and returns the split position, or `None` to make a leaf.
-fn choose_split(refs: &mut [u32], boxes: &[Aabb], centroids: &[Vec3]) -> Option<usize> {
+fn choose_split(
+    refs: &mut [u32],
+    boxes: &[Aabb],
+    centroids: &[Vec3],
+    max_leaf: u32,
+) -> Option<usize> {
     let count = refs.len();
-    // Up to MAX_LEAF triangles are one 4-wide Triangle4 test, cheaper than any split (measured:
-    // about +10% primary and shadow rays/s on a 1M-triangle scene against an SAH leaf cost).
-    if count as u32 <= MAX_LEAF {
+    // Up to max_leaf triangles are one or two 4-wide Triangle4 tests, cheaper than any split
+    // (measured: about +10% primary and shadow rays/s on a 1M-triangle scene against an SAH
+    // leaf cost).
+    if count as u32 <= max_leaf {
         let node = refs
             .iter()
             .fold(Aabb::EMPTY, |b, &i| b.union(boxes[i as usize]));
@@ -126,7 +139,7 @@ fn choose_split(refs: &mut [u32], boxes: &[Aabb], centroids: &[Vec3]) -> Option<
         }
     }
     let Some((_, axis, k)) = best else {
-        if count as u32 <= MAX_LEAF {
+        if count as u32 <= max_leaf {
             return None;
         }
         // All centroids coincide: split by index so leaves stay small.

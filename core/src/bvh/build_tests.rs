@@ -8,23 +8,26 @@ use super::{Node, build, build_reference};
 use glam::Vec3;
 
 /// Every node (box compared with `==`, so a zero's sign does not count) and the leaf order, on
-/// one thread and on two.
+/// one thread and on two, with the leaves of small trees and of large ones (`build::max_leaf`).
 fn check(name: &str, triangles: &[[Vec3; 3]]) {
-    let (want_nodes, want_order) = build_reference::binary_tree(triangles);
-    for threads in [1, 2] {
-        check_against(name, triangles, threads, &want_nodes, &want_order);
+    for max_leaf in [build::MAX_LEAF, build::LARGE_TREE_LEAF] {
+        let (want_nodes, want_order) =
+            build_reference::binary_tree_with_leaves(triangles, max_leaf);
+        for threads in [1, 2] {
+            let want = (&want_nodes[..], &want_order[..]);
+            check_against(name, triangles, (threads, max_leaf), want);
+        }
     }
 }
 
 fn check_against(
     name: &str,
     triangles: &[[Vec3; 3]],
-    threads: usize,
-    want_nodes: &[Node],
-    want_order: &[u32],
+    (threads, max_leaf): (usize, u32),
+    (want_nodes, want_order): (&[Node], &[u32]),
 ) {
-    let name = format!("{name}, {threads} threads");
-    let (nodes, order) = build::binary_tree(triangles, threads);
+    let name = format!("{name}, {threads} threads, leaves of {max_leaf}");
+    let (nodes, order) = build::binary_tree_with_leaves(triangles, threads, max_leaf);
     assert_eq!(nodes.len(), want_nodes.len(), "{name}: node count");
     for (i, (got, want)) in nodes.iter().zip(want_nodes).enumerate() {
         assert_eq!(got, want, "{name}: node {i}");
@@ -75,15 +78,24 @@ fn every_thread_count_builds_the_specified_tree() {
     let mut rng = Rng(9);
     let triangles = soup(&mut rng, 150_000, 100.0, 1.0);
     let (want_nodes, want_order) = build_reference::binary_tree(&triangles);
+    let max_leaf = build::max_leaf(triangles.len());
     for threads in [1, 2, 3, 4, 7, 16] {
-        check_against(
-            "soup of 150000",
-            &triangles,
-            threads,
-            &want_nodes,
-            &want_order,
-        );
+        let want = (&want_nodes[..], &want_order[..]);
+        check_against("soup of 150000", &triangles, (threads, max_leaf), want);
     }
+}
+
+/// Trees of `LARGE_TREE` triangles or more take the large leaves, smaller ones the small, and
+/// `binary_tree` builds with them: its leaves of a large soup hold more than `MAX_LEAF`.
+#[test]
+fn large_trees_take_large_leaves() {
+    assert_eq!(build::max_leaf(build::LARGE_TREE - 1), build::MAX_LEAF);
+    assert_eq!(build::max_leaf(build::LARGE_TREE), build::LARGE_TREE_LEAF);
+    let mut rng = Rng(5);
+    let triangles = soup(&mut rng, build::LARGE_TREE, 100.0, 0.5);
+    let (nodes, _) = build::binary_tree(&triangles, 2);
+    let largest = nodes.iter().map(|n| n.count).max();
+    assert_eq!(largest, Some(build::LARGE_TREE_LEAF));
 }
 
 #[test]
