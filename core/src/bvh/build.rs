@@ -43,6 +43,7 @@ pub(super) fn max_leaf(triangles: usize) -> u32 {
         MAX_LEAF
     }
 }
+
 /// Deepest level a node may have; deeper subtrees become (large) leaves. Traversal stacks hold
 /// one entry per level, so this bounds them (see `traverse::STACK`).
 pub(super) const MAX_DEPTH: usize = 60;

@@ -11,6 +11,7 @@ use super::{Aabb, Node};
 use glam::Vec3;
 
 const BINS: usize = 16;
+
 /// The binary tree and leaf order, as `build::binary_tree` gives them.
 pub(super) fn binary_tree(triangles: &[[Vec3; 3]]) -> (Vec<Node>, Vec<u32>) {
     binary_tree_with_leaves(triangles, max_leaf(triangles.len()))
