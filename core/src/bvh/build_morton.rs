@@ -13,18 +13,18 @@
 //! two children side by side, leaves of at most [`MORTON_LEAF`] triangles (deeper than
 //! `MAX_DEPTH` levels a run becomes one leaf), and the leaf order.
 
-use super::build::MAX_DEPTH;
+use super::build::{LARGE_TREE_LEAF, MAX_DEPTH};
 use super::{Aabb, Node};
 use crate::morton::morton_code;
 use glam::Vec3;
 
-/// Runs this short become leaves: two `Triangle4`s, as the SAH builder's in large trees
-/// (`build::max_leaf`; below `build::LARGE_TREE` triangles it stops at one). The preset serves
+/// Runs this short become leaves: two `Triangle4`s, the SAH builder's largest leaf in large
+/// trees (`build::max_leaf`; below `build::LARGE_TREE` triangles it stops at one). The preset serves
 /// one-shot renders of large scenes (fewer samples than four a triangle), where a node visit is
 /// likely a cache miss and the build's node count is paid once per render: on a 1M mesh at
 /// 1280x720, 1 spp, leaves of 8 made the whole render 0.93-0.96x the time of leaves of 4
 /// (`bvh/README.md`, "Larger leaves").
-const MORTON_LEAF: usize = 8;
+const MORTON_LEAF: usize = LARGE_TREE_LEAF as usize;
 
 /// Grid cells per axis: 10 bits each, a 30-bit code.
 const CELLS: f32 = 1024.0;

@@ -71,7 +71,7 @@ pub(super) fn push_surface_hits(
     out: &mut Vec<SurfaceHit>,
     write_order: impl IntoIterator<Item = usize>,
 ) {
-    // `closest_hits` writes every place: only a new length is filled.
+    // `closest_hits_in_packets` writes every place: only a new length is filled.
     hits.resize(rays.len(), None);
     split.bvh.closest_hits_in_packets(rays, hits, packet);
     let mut last = LastFrame::default();

@@ -91,7 +91,7 @@ pub fn render_run(
         batch.extend(order.by_ref().take(pixels_per_batch));
         rays.clear();
         view.camera.pixels_rays(&batch, trace_order, &mut rays);
-        // `closest_hits` writes every place: only a new length is filled.
+        // `closest_hits_in_packets` writes every place: only a new length is filled.
         hits.resize(rays.len(), None);
         timer.lap(Phase::CameraRays);
         bvh.closest_hits_in_packets(&rays, &mut hits, camera_packet(samples));

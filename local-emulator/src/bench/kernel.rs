@@ -13,8 +13,9 @@
 //! [`CLOSEST_PACKET`](hort_core::bvh::CLOSEST_PACKET) consecutive rays (two tiles side by
 //! side) and must return the single-ray answers; the shadow rays go through
 //! [`Bvh::occluded_many`], in packets of [`RAY_PACKET`](hort_core::bvh::RAY_PACKET). With
-//! `--features obvhs-bench`, the crate obvhs runs on the same rays too (`obvhs_kernel.rs`). Timings are the best of `--repeats` passes; ratios compare numbers
-//! measured in the same run. A third table times the whole monolithic render at the same size,
+//! `--features obvhs-bench`, the crate obvhs runs on the same rays too (`obvhs_kernel.rs`).
+//! Timings are the best of `--repeats` passes; ratios compare numbers measured in the same
+//! run. A third table times the whole monolithic render at the same size,
 //! one sample per pixel, beside Embree on the rays it traces (`whole_render.rs`).
 
 use super::scenes::{bundled, generated};
