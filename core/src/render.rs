@@ -16,7 +16,7 @@ pub use band::{Band, View, band_runs, render_run};
 pub use batch::Lighting;
 pub use surfaces::Surfaces;
 
-use crate::bvh::{BuildPreset, Bvh, ClosestHit};
+use crate::bvh::{BuildPreset, Bvh, ClosestHit, HitColumns};
 use crate::camera::Camera;
 use crate::error::SceneError;
 use crate::hits::Hit;
@@ -271,7 +271,9 @@ pub(crate) fn shade_batch<'s>(
     scratch: &'s mut ShadingScratch,
 ) -> &'s [[f32; 3]] {
     let lighting = lighting(scene, unoccludable);
-    shade_batch_lit((&scene.mesh, bvh), &lighting, batch, scratch)
+    let (rays, hits) = batch;
+    let hits = HitColumns::from_hits(hits);
+    shade_batch_lit((&scene.mesh, bvh), &lighting, (rays, &hits), scratch)
 }
 
 /// The radiance of every sample of a batch whose primary rays `rays` have the closest hits
@@ -287,7 +289,7 @@ pub(crate) fn shade_batch<'s>(
 pub(crate) fn shade_batch_lit<'s>(
     (surfaces, bvh): (&impl Surfaces, &Bvh),
     lighting: &Lighting,
-    (rays, hits): (&[Ray], &[Option<ClosestHit>]),
+    (rays, hits): (&[Ray], &HitColumns),
     scratch: &'s mut ShadingScratch,
 ) -> &'s [[f32; 3]] {
     shade_batch_timed(

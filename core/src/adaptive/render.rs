@@ -4,7 +4,7 @@
 //! task of one split renders its span's pixels the same way ([`adaptive_run`]).
 
 use super::{AdaptiveCounts, AdaptiveSettings, Decision, decide, pixel_value};
-use crate::bvh::{Bvh, ClosestHit, camera_packet};
+use crate::bvh::{Bvh, ClosestHit, HitColumns, camera_packet};
 use crate::camera::Camera;
 use crate::error::SceneError;
 use crate::hits::Hit;
@@ -138,17 +138,17 @@ fn trace_samples(
     let count = pixels.len() * ranks.len();
     let mut colours = Vec::with_capacity(count);
     let mut all_hits = Vec::with_capacity(count);
-    let (mut rays, mut hits) = (Vec::new(), Vec::new());
+    let (mut rays, mut hits) = (Vec::new(), HitColumns::default());
     let pixels_per_batch = (BATCH_SAMPLES / ranks.len().max(1)).max(1);
     for batch in pixels.chunks(pixels_per_batch) {
         rays.clear();
         camera.pixels_samples_rays(batch, (ranks, max_spp), &mut rays);
-        hits.clear();
-        hits.resize(rays.len(), None);
-        bvh.closest_hits_in_packets(&rays, &mut hits, camera_packet(ranks.len()));
-        let batch = (rays.as_slice(), hits.as_slice());
+        // `closest_hits_in_columns` writes every place: only a new length is filled.
+        hits.resize(rays.len());
+        bvh.closest_hits_in_columns(&rays, &mut hits, camera_packet(ranks.len()));
+        let batch = (rays.as_slice(), &hits);
         colours.extend_from_slice(shade_batch_lit((surfaces, bvh), lighting, batch, scratch));
-        all_hits.extend_from_slice(&hits);
+        all_hits.extend((0..hits.len()).map(|i| bvh.hit_in(&hits, i)));
     }
     (colours, all_hits)
 }

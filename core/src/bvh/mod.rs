@@ -29,6 +29,7 @@ mod build_reference;
 #[cfg(test)]
 mod build_tests;
 mod dispatch;
+mod hit_columns;
 mod hit_corners;
 mod lanes;
 mod leaf_lanes;
@@ -48,6 +49,7 @@ mod traverse;
 pub use dispatch::{
     KernelWidth, WIDTH_VARIABLE, available_kernel_widths, force_kernel_width, kernel_width,
 };
+pub use hit_columns::HitColumns;
 pub use hit_corners::CornerLanes;
 pub use parts::{BvhParts, BvhPartsError, NODE_BYTES, PartsLoader};
 pub use ray_packet::{CLOSEST_PACKET, RAY_PACKET, camera_packet};

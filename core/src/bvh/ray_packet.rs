@@ -28,6 +28,7 @@
 //! hit is unique (smaller t, then smaller id), so the visiting order cannot change it.
 
 use super::dispatch::{KernelWidth, kernel_width};
+use super::hit_columns::{ClosestOut, HitColumns};
 #[cfg(target_arch = "x86_64")]
 use super::lanes::{F32x8, F32x16};
 use super::lanes::{RayGroupLanes, greater4, lesser4, lowest4 as lowest};
@@ -323,24 +324,38 @@ impl Bvh {
         packet: usize,
     ) {
         assert_eq!(rays.len(), out.len(), "one output per ray");
+        self.closest_hits_to(rays, out, packet);
+    }
+
+    /// [`Bvh::closest_hits_in_packets`] into columns: ray i's answer is
+    /// [`Bvh::hit_in`]`(hits, i)`, the same at every length. Panics if the lengths differ or
+    /// `packet` is out of range.
+    pub fn closest_hits_in_columns(&self, rays: &[Ray], hits: &mut HitColumns, packet: usize) {
+        assert_eq!(rays.len(), hits.len(), "one output per ray");
+        self.closest_hits_to(rays, hits, packet);
+    }
+
+    /// The closest hit of every ray of `rays` into `out` (as many places), in packets of
+    /// `packet` rays.
+    fn closest_hits_to<O: ClosestOut + ?Sized>(&self, rays: &[Ray], out: &mut O, packet: usize) {
         assert!(
             (1..=RAY_PACKET).contains(&packet),
             "packets of 1 to {RAY_PACKET} rays, not {packet}"
         );
         if self.wide.is_empty() {
-            out.fill(None);
+            out.misses(0, rays.len());
             return;
         }
         RAY_PACKET_STACKS.with_borrow_mut(|stack| {
             STACKS.with_borrow_mut(|ray_stack| match kernel_width() {
                 KernelWidth::Sixteen => {
-                    self.closest_packets::<16>((rays, packet), out, stack, ray_stack)
+                    self.closest_packets::<16, O>((rays, packet), out, stack, ray_stack)
                 }
                 KernelWidth::Eight => {
-                    self.closest_packets::<8>((rays, packet), out, stack, ray_stack)
+                    self.closest_packets::<8, O>((rays, packet), out, stack, ray_stack)
                 }
                 KernelWidth::Four => {
-                    self.closest_packets::<4>((rays, packet), out, stack, ray_stack)
+                    self.closest_packets::<4, O>((rays, packet), out, stack, ray_stack)
                 }
             })
         });
@@ -353,33 +368,35 @@ impl Bvh {
     /// slower on the 1M mesh (AVX's `vblendvps` is two micro-operations where SSE4.1's
     /// `blendvps` is one).
     #[inline(always)]
-    fn closest_packets<const WIDTH: usize>(
+    fn closest_packets<const WIDTH: usize, O: ClosestOut + ?Sized>(
         &self,
         (rays, packet): (&[Ray], usize),
-        out: &mut [Option<ClosestHit>],
+        out: &mut O,
         stack: &mut [RayPacketEntry; STACK],
         ray_stack: &mut [Entry; STACK],
     ) {
         let mut packet_rays = PacketRays::EMPTY;
-        for (rays, out) in rays.chunks(packet).zip(out.chunks_mut(packet)) {
+        for (p, rays) in rays.chunks(packet).enumerate() {
+            let from = p * packet;
             if packet_rays.fill(rays, |ray| ray) {
-                self.trace_closest_packet::<WIDTH>(rays, &packet_rays, out, stack, ray_stack);
+                let out = (&mut *out, from);
+                self.trace_closest_packet::<WIDTH, O>(rays, &packet_rays, out, stack, ray_stack);
             } else {
-                for (ray, out) in rays.iter().zip(out) {
-                    *out = self.closest_hit_with(ray, ray_stack);
+                for (i, ray) in rays.iter().enumerate() {
+                    out.one(from + i, self.closest_hit_with(ray, ray_stack));
                 }
             }
         }
     }
 
     /// [`Bvh::closest_hits`] of one packet of 1..=[`RAY_PACKET`] finite rays, also held in
-    /// `packet_rays`.
+    /// `packet_rays`, into `out` from place `from`.
     #[inline(always)]
-    fn trace_closest_packet<const WIDTH: usize>(
+    fn trace_closest_packet<const WIDTH: usize, O: ClosestOut + ?Sized>(
         &self,
         rays: &[Ray],
         packet_rays: &PacketRays,
-        out: &mut [Option<ClosestHit>],
+        (out, from): (&mut O, usize),
         stack: &mut [RayPacketEntry; STACK],
         ray_stack: &mut [Entry; STACK],
     ) {
@@ -387,7 +404,7 @@ impl Bvh {
         // A packet that misses every child of the root (background) needs no per-ray setup.
         let (some, _, _) = boxes.test_hull(&self.wide[0], f32::INFINITY, f32::INFINITY);
         if some == 0 {
-            out.fill(None);
+            out.misses(from, rays.len());
             return;
         }
         // Every ray's best hit, in lanes' layout. The 4-wide path and single rays take theirs
@@ -456,7 +473,7 @@ impl Bvh {
             // whose bound is below the child's entry bound would fail its box test now.
             loop {
                 if depth == 0 {
-                    self.packet_results(&hits, out);
+                    out.packet(self, from, rays.len(), &hits);
                     return;
                 }
                 depth -= 1;
@@ -477,7 +494,7 @@ impl Bvh {
     /// iteration a ray) kept values on the stack and was a fifth of the traversal's time on
     /// the Cornell box.
     #[inline(never)]
-    fn packet_results(&self, hits: &PacketHits, out: &mut [Option<ClosestHit>]) {
+    pub(super) fn packet_results(&self, hits: &PacketHits, out: &mut [Option<ClosestHit>]) {
         for (i, o) in out.iter_mut().enumerate() {
             *o = self.closest_result(&hits.get(i));
         }

@@ -49,6 +49,18 @@ fn bvh_of(tris: &[[Vec3; 3]]) -> Bvh {
 /// A hit's id, t, barycentrics, leaf-order index and corners, as bits.
 type HitBits = (u32, u32, [u32; 3], u32, [[u32; 3]; 3]);
 
+/// A hit on `bvh`'s first triangle that no ray of the tests finds (its distance is negative):
+/// what columns hold before a call writes them.
+fn stale_hit(bvh: &Bvh) -> ClosestHit {
+    bvh.closest_result(&super::traverse::BestHit {
+        t: -1.0,
+        b: [0.5, 0.25, 0.25],
+        id: 7,
+        place: 0,
+    })
+    .expect("a finite distance is a hit")
+}
+
 fn hit_bits(bvh: &Bvh, h: &ClosestHit) -> HitBits {
     (
         h.id,
@@ -95,7 +107,8 @@ fn leaf_tests_in_lanes(width: KernelWidth) -> usize {
 
 /// Closest-hit ray packets give every ray exactly the single-ray answer, for packets cut at
 /// every offset (full, partial and one-ray packets) and of 32 (the default), 64 and 7 rays,
-/// at every kernel width.
+/// at every kernel width, whether the answers come as `Option<ClosestHit>`s or as columns
+/// ([`Bvh::closest_hits_in_columns`], read back through [`Bvh::hit_in`]).
 fn check_ray_packets_against_single_rays(bvh: &Bvh, rays: &[Ray]) -> usize {
     let single: Vec<_> = rays
         .iter()
@@ -121,6 +134,9 @@ fn packets_give_single_ray_hits(
         } else {
             bvh.closest_hits_in_packets(rays, &mut out, packet);
         }
+        // Columns start full of another answer, so every place must be written.
+        let mut columns = HitColumns::from_hits(&vec![Some(stale_hit(bvh)); rays.len()]);
+        bvh.closest_hits_in_columns(rays, &mut columns, packet);
         for (k, (got, expected)) in out
             .iter()
             .zip(&single[skip.min(single.len())..])
@@ -130,6 +146,12 @@ fn packets_give_single_ray_hits(
                 &got.as_ref().map(|h| hit_bits(bvh, h)),
                 expected,
                 "ray {} ({width:?}, packets of {packet})",
+                k + skip
+            );
+            assert_eq!(
+                &bvh.hit_in(&columns, k).as_ref().map(|h| hit_bits(bvh, h)),
+                expected,
+                "ray {} in columns ({width:?}, packets of {packet})",
                 k + skip
             );
         }

@@ -6,7 +6,7 @@
 use super::RayCounts;
 use super::batch::{Lighting, ShadingScratch, shade_batch_timed};
 use super::surfaces::Surfaces;
-use crate::bvh::{Bvh, camera_packet};
+use crate::bvh::{Bvh, HitColumns, camera_packet};
 use crate::camera::Camera;
 use crate::hits::Hit;
 use crate::phase_timer::{Phase, PhaseTimer};
@@ -82,7 +82,7 @@ pub fn render_run(
     let mut batch: Vec<u64> = Vec::with_capacity(pixels_per_batch);
     let mut order = order.peekable();
     let mut rays = Vec::new();
-    let mut hits = Vec::new();
+    let mut hits = HitColumns::default();
     let mut scratch = ShadingScratch::default();
     let trace_order = view.order;
     while order.peek().is_some() {
@@ -91,16 +91,17 @@ pub fn render_run(
         batch.extend(order.by_ref().take(pixels_per_batch));
         rays.clear();
         view.camera.pixels_rays(&batch, trace_order, &mut rays);
-        // `closest_hits_in_packets` writes every place: only a new length is filled.
-        hits.resize(rays.len(), None);
+        // `closest_hits_in_columns` writes every place: only a new length is filled.
+        hits.resize(rays.len());
         timer.lap(Phase::CameraRays);
-        bvh.closest_hits_in_packets(&rays, &mut hits, camera_packet(samples));
+        bvh.closest_hits_in_columns(&rays, &mut hits, camera_packet(samples));
         timer.lap(Phase::ClosestHits);
         let colours = shade_batch_timed(scene, lighting, (&rays, &hits), &mut scratch, timer);
-        for ((&pixel, colours), hits) in batch
+        for (((&pixel, colours), t), id) in batch
             .iter()
             .zip(colours.chunks(samples))
-            .zip(hits.chunks(samples))
+            .zip(hits.t().chunks(samples))
+            .zip(hits.id().chunks(samples))
         {
             let i = (pixel - first_pixel) as usize;
             // The mean in sample order, whatever the trace order.
@@ -109,16 +110,22 @@ pub fn render_run(
                 sum.add(colours[trace_order.position(sample)]);
             }
             // One primary ray per sample, and for a hit one shadow ray per light.
-            let hit_samples = hits.iter().filter(|hit| hit.is_some()).count() as u64;
+            // Hits have finite t: +inf means none was found.
+            let hit_samples = t.iter().filter(|&&t| t < f32::INFINITY).count() as u64;
             band.rays += RayCounts {
                 primary: u64::from(spp),
                 shadow: hit_samples * lighting.lights.len() as u64,
             };
             band.colours[i] = sum.mean(spp);
-            band.hits[i] = hits[trace_order.position(0)].map_or(Hit::MISS, |h| Hit {
-                triangle: h.id,
-                t: h.t,
-            });
+            let first = trace_order.position(0);
+            band.hits[i] = if t[first] < f32::INFINITY {
+                Hit {
+                    triangle: id[first],
+                    t: t[first],
+                }
+            } else {
+                Hit::MISS
+            };
         }
         timer.lap(Phase::Accumulation);
     }

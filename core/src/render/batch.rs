@@ -2,7 +2,9 @@
 //! by light, and each sample's radiance.
 
 use super::surfaces::Surfaces;
-use crate::bvh::{Bvh, ClosestHit, KernelWidth, SegmentColumns, bits, first_bits, kernel_width};
+use crate::bvh::{
+    Bvh, ClosestHit, HitColumns, KernelWidth, SegmentColumns, bits, first_bits, kernel_width,
+};
 use crate::phase_timer::{Phase, PhaseTimer};
 use crate::scene::{Light, TriangleShading};
 use crate::shading::{HitLanes, TestLanes, add_ambient, flat_test_lanes, smooth_test_lanes};
@@ -120,13 +122,14 @@ struct HitSamples<'a, S> {
     bvh: &'a Bvh,
     lights: &'a [Light],
     rays: &'a [Ray],
-    hits: &'a [Option<ClosestHit>],
+    hits: &'a HitColumns,
     /// The samples with hits, in sample order.
     samples: &'a [u32],
 }
 
-/// A group's hits and rays when it is `N` consecutive samples ([`HitSamples::run_of`]).
-type Run<'a, const N: usize> = Option<(&'a [Option<ClosestHit>; N], &'a [Ray; N])>;
+/// A group's hits' barycentrics (per corner) and rays when it is `N` consecutive samples
+/// ([`HitSamples::run_of`]), and their first sample.
+type Run<'a, const N: usize> = Option<([&'a [f32; N]; 3], &'a [Ray; N], usize)>;
 
 /// The sample in lane `k` of a group of 1 to `N` hit samples: lanes past the group's end
 /// repeat its last.
@@ -138,8 +141,10 @@ fn lane_sample(group: &[u32], k: usize) -> u32 {
 impl<S: Surfaces> HitSamples<'_, S> {
     /// Sample `s`'s hit.
     #[inline(always)]
-    fn hit(&self, s: u32) -> &ClosestHit {
-        self.hits[s as usize].as_ref().expect("samples with hits")
+    fn hit(&self, s: u32) -> ClosestHit {
+        self.bvh
+            .hit_in(self.hits, s as usize)
+            .expect("samples with hits")
     }
 
     /// The hits and rays of `group` when it is `N` consecutive samples (most groups where
@@ -151,9 +156,11 @@ impl<S: Surfaces> HitSamples<'_, S> {
             return None;
         }
         let range = first as usize..first as usize + N;
+        let b = |c| self.hits.b(c)[range.clone()].try_into().ok();
         Some((
-            self.hits[range.clone()].try_into().ok()?,
-            self.rays[range].try_into().ok()?,
+            [b(0)?, b(1)?, b(2)?],
+            self.rays[range.clone()].try_into().ok()?,
+            range.start,
         ))
     }
 
@@ -192,11 +199,11 @@ impl<S: Surfaces> HitSamples<'_, S> {
         let shading = self.shading_of(first, last);
         let normals = shading.normals.unwrap_or([Vec3::ZERO; 3]);
         lanes.set_triangle(self.bvh.hit_corners(first), &normals);
-        if let Some((hits, rays)) = run {
+        if let Some((b, rays, _)) = run {
             // A run of consecutive samples: read in order, without looking each one up.
-            for (k, (hit, ray)) in hits.iter().zip(rays).enumerate() {
-                let hit = hit.as_ref().expect("samples with hits");
-                lanes.set_ray(k, &hit.b, &ray.dir);
+            lanes.set_b_lanes(b);
+            for (k, ray) in rays.iter().enumerate() {
+                lanes.set_dir(k, &ray.dir);
             }
         } else {
             for k in 0..N {
@@ -235,7 +242,7 @@ impl<S: Surfaces> HitSamples<'_, S> {
         let mut smooth = false;
         for k in 0..N {
             let s = lane_sample(group, k);
-            let h = self.hit(s);
+            let h = &self.hit(s);
             let kd = match self.surfaces.flat_kd(h) {
                 Some(kd) => {
                     if smooth {
@@ -286,16 +293,22 @@ fn hit_tests<const N: usize, S: Surfaces>(
 ) {
     let mut lanes = HitLanes::<N>::default();
     let mut last = None;
+    let place = input.hits.place();
     for group in input.samples.chunks(N) {
         let first = input.hit(group[0]);
-        let on_first = |hit: &ClosestHit| hit.index == first.index;
+        // Hits on one triangle have one place (every sample of the group hits).
         let run = input.run_of::<N>(group);
         let one_triangle = match run {
-            Some((hits, _)) => hits.iter().all(|h| h.as_ref().is_some_and(on_first)),
-            None => group.iter().all(|&s| on_first(input.hit(s))),
+            Some((_, _, from)) => {
+                let places: &[u32; N] = place[from..from + N].try_into().expect("a run");
+                places.iter().all(|&p| p == places[0])
+            }
+            None => group
+                .iter()
+                .all(|&s| place[s as usize] == place[group[0] as usize]),
         };
         let smooth = if one_triangle {
-            input.fill_one_triangle((group, first, run), &mut last, &mut lanes, reflectances)
+            input.fill_one_triangle((group, &first, run), &mut last, &mut lanes, reflectances)
         } else {
             input.fill_mixed(group, &mut last, &mut lanes, reflectances)
         };
@@ -374,7 +387,7 @@ fn hit_tests_dispatched<S: Surfaces>(
 pub(super) fn shade_batch_timed<'s>(
     (surfaces, bvh): (&impl Surfaces, &Bvh),
     lighting: &Lighting,
-    (rays, hits): (&[Ray], &[Option<ClosestHit>]),
+    (rays, hits): (&[Ray], &HitColumns),
     scratch: &'s mut ShadingScratch,
     timer: &mut impl PhaseTimer,
 ) -> &'s [[f32; 3]] {
@@ -392,9 +405,10 @@ pub(super) fn shade_batch_timed<'s>(
     samples.clear();
     samples.resize(hits.len(), 0);
     let mut with_hits = 0;
-    for (s, hit) in hits.iter().enumerate() {
+    for (s, &t) in hits.t().iter().enumerate() {
         samples[with_hits] = s as u32;
-        with_hits += usize::from(hit.is_some());
+        // Hits have finite t: +inf means none was found.
+        with_hits += usize::from(t < f32::INFINITY);
     }
     samples.truncate(with_hits);
     tests.resize_with(lights.len(), LightTests::default);

@@ -89,6 +89,22 @@ impl<const N: usize> HitLanes<N> {
         }
     }
 
+    /// Lane `k`'s hit is along `dir`. Panics unless `k < N`.
+    #[inline(always)]
+    pub fn set_dir(&mut self, k: usize, dir: &Vec3) {
+        for c in 0..3 {
+            self.dir[c][k] = dir[c];
+        }
+    }
+
+    /// Every lane's barycentrics: `b[c][k]` is lane k's weight of corner c.
+    #[inline(always)]
+    pub fn set_b_lanes(&mut self, b: [&[f32; N]; 3]) {
+        for (lanes, b) in self.b.iter_mut().zip(b) {
+            *lanes = *b;
+        }
+    }
+
     /// Lane `k`'s reflectance at its hit is `kd`. Panics unless `k < N`.
     #[inline(always)]
     pub fn set_kd(&mut self, k: usize, kd: [f32; 3]) {
