@@ -416,10 +416,15 @@ mod tests {
         });
         scene.lights.push(first);
         let bvh = build_scene_bvh(&scene.mesh);
-        // 64 spp: rows of several batches; 1 and 3 spp: tiles across batches, and sizes that
-        // end in a partial tile and a partial band.
-        for (width, height, spp) in [(42, 6, 64), (37, 7, 1), (29, 5, 3)] {
-            check_against_single_samples(&scene, &bvh, width, height, spp);
+        // Without an ambient term (of either zero's sign; the renderer then skips the
+        // reflectances) and with one.
+        for ambient in [[0.0, -0.0, 0.0], [0.05, 0.02, 0.0]] {
+            scene.ambient = ambient;
+            // 64 spp: rows of several batches; 1 and 3 spp: tiles across batches, and sizes
+            // that end in a partial tile and a partial band.
+            for (width, height, spp) in [(42, 6, 64), (37, 7, 1), (29, 5, 3)] {
+                check_against_single_samples(&scene, &bvh, width, height, spp);
+            }
         }
     }
 
@@ -429,11 +434,15 @@ mod tests {
     #[test]
     fn textured_rows_equal_sample_by_sample_tracing() {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/globe/globe.json");
-        let scene = load_scene(std::path::Path::new(path)).expect("bundled globe");
+        let mut scene = load_scene(std::path::Path::new(path)).expect("bundled globe");
         assert_eq!(scene.mesh.textures.len(), 2, "the floor's and the sphere's");
         let bvh = build_scene_bvh(&scene.mesh);
-        for (width, height, spp) in [(40, 24, 64), (37, 21, 3)] {
-            check_against_single_samples(&scene, &bvh, width, height, spp);
+        // Without an ambient term and with one (which reads the textured reflectances).
+        for ambient in [[0.0; 3], [0.03, 0.05, 0.07]] {
+            scene.ambient = ambient;
+            for (width, height, spp) in [(40, 24, 64), (37, 21, 3)] {
+                check_against_single_samples(&scene, &bvh, width, height, spp);
+            }
         }
     }
 

@@ -85,6 +85,9 @@ pub fn render_run(
     let mut hits = HitColumns::default();
     let mut scratch = ShadingScratch::default();
     let trace_order = view.order;
+    // Where each sample is traced, and the batch's pixel means.
+    let positions: Vec<usize> = (0..spp).map(|s| trace_order.position(s)).collect();
+    let mut means = Vec::new();
     while order.peek().is_some() {
         timer.lap(Phase::Loop);
         batch.clear();
@@ -97,18 +100,14 @@ pub fn render_run(
         bvh.closest_hits_in_columns(&rays, &mut hits, camera_packet(samples));
         timer.lap(Phase::ClosestHits);
         let colours = shade_batch_timed(scene, lighting, (&rays, &hits), &mut scratch, timer);
-        for (((&pixel, colours), t), id) in batch
+        pixel_means(colours, &positions, &mut means);
+        for (((&pixel, &mean), t), id) in batch
             .iter()
-            .zip(colours.chunks(samples))
+            .zip(&means)
             .zip(hits.t().chunks(samples))
             .zip(hits.id().chunks(samples))
         {
             let i = (pixel - first_pixel) as usize;
-            // The mean in sample order, whatever the trace order.
-            let mut sum = PixelSum::default();
-            for sample in 0..spp {
-                sum.add(colours[trace_order.position(sample)]);
-            }
             // One primary ray per sample, and for a hit one shadow ray per light.
             // Hits have finite t: +inf means none was found.
             let hit_samples = t.iter().filter(|&&t| t < f32::INFINITY).count() as u64;
@@ -116,7 +115,7 @@ pub fn render_run(
                 primary: u64::from(spp),
                 shadow: hit_samples * lighting.lights.len() as u64,
             };
-            band.colours[i] = sum.mean(spp);
+            band.colours[i] = mean;
             let first = trace_order.position(0);
             band.hits[i] = if t[first] < f32::INFINITY {
                 Hit {
@@ -130,6 +129,37 @@ pub fn render_run(
         timer.lap(Phase::Accumulation);
     }
     band
+}
+
+/// Pixels whose sums [`pixel_means`] adds at once.
+const PIXELS_AT_ONCE: usize = 4;
+
+/// The mean of each pixel's radiances in `colours` (pixel by pixel, each pixel's samples in
+/// trace order; sample s at `positions[s]`), in sample order ([`PixelSum`]), whatever the trace
+/// order, into `means` (emptied first). The sums of [`PIXELS_AT_ONCE`] pixels are added sample
+/// by sample together, so their chains of dependent additions (one pixel's is as long as its
+/// sample count, per channel) overlap; each pixel's additions stay in its sample order, so
+/// each mean is the same bits.
+fn pixel_means(colours: &[[f32; 3]], positions: &[usize], means: &mut Vec<[f32; 3]>) {
+    let spp = positions.len();
+    means.clear();
+    let mut groups = colours.chunks_exact(spp * PIXELS_AT_ONCE);
+    for group in groups.by_ref() {
+        let mut sums = [PixelSum::default(); PIXELS_AT_ONCE];
+        for &position in positions {
+            for (j, sum) in sums.iter_mut().enumerate() {
+                sum.add(group[j * spp + position]);
+            }
+        }
+        means.extend(sums.map(|sum| sum.mean(spp as u32)));
+    }
+    for pixel in groups.remainder().chunks(spp) {
+        let mut sum = PixelSum::default();
+        for &position in positions {
+            sum.add(pixel[position]);
+        }
+        means.push(sum.mean(spp as u32));
+    }
 }
 
 #[cfg(test)]

@@ -125,6 +125,8 @@ struct HitSamples<'a, S> {
     hits: &'a HitColumns,
     /// The samples with hits, in sample order.
     samples: &'a [u32],
+    /// Whether the hits' reflectances are pushed (they are read only for an ambient term).
+    keep_reflectances: bool,
 }
 
 /// A group's hits' barycentrics (per corner) and rays when it is `N` consecutive samples
@@ -183,7 +185,7 @@ impl<S: Surfaces> HitSamples<'_, S> {
 
     /// Fills `lanes` with the hits of `group` (lane k: sample `group[k]`, lanes past the
     /// group's end its last hit), all on the triangle `first` hit, and pushes their
-    /// reflectances; whether the triangle needs the smooth lanes (it has vertex normals; a
+    /// reflectances (where [`HitSamples::keep_reflectances`]); whether the triangle needs the smooth lanes (it has vertex normals; a
     /// texture only changes the reflectances). The triangle's corners, normals and (untextured)
     /// reflectance go to every lane at once, and a texture is looked up in lanes
     /// ([`crate::texture::TexturedCorners::kd_lanes`]): the values [`Self::fill_mixed`] writes
@@ -214,20 +216,26 @@ impl<S: Surfaces> HitSamples<'_, S> {
         match &shading.texture {
             None => {
                 lanes.set_kd_all(shading.kd);
-                reflectances.extend(std::iter::repeat_n(shading.kd, group.len()));
+                if self.keep_reflectances {
+                    reflectances.extend(std::iter::repeat_n(shading.kd, group.len()));
+                }
             }
             Some(t) => {
                 // The texture looked up in lanes, from the barycentrics just written.
                 let kd = t.kd_lanes(shading.kd, self.surfaces.texture(t), lanes.b());
                 lanes.set_kd_lanes(kd);
-                reflectances.extend((0..group.len()).map(|k| [kd[0][k], kd[1][k], kd[2][k]]));
+                if self.keep_reflectances {
+                    let at = |k: usize| [kd[0][k], kd[1][k], kd[2][k]];
+                    reflectances.extend((0..group.len()).map(at));
+                }
             }
         }
         shading.normals.is_some()
     }
 
     /// Fills `lanes` with the hits of `group` (lane k: sample `group[k]`, lanes past the
-    /// group's end its last hit), hit by hit, and pushes their reflectances; whether a hit
+    /// group's end its last hit), hit by hit, and pushes their reflectances (where
+    /// [`HitSamples::keep_reflectances`]); whether a hit
     /// needs the smooth lanes (has vertex normals). The normals are written once a hit of the
     /// group has them: zeros until then, and for flat triangles. `last` is
     /// [`Self::shading_of`]'s.
@@ -269,7 +277,7 @@ impl<S: Surfaces> HitSamples<'_, S> {
             lanes.set_corners(k, self.bvh.hit_corners(h));
             lanes.set_ray(k, &h.b, &self.rays[s as usize].dir);
             lanes.set_kd(k, kd);
-            if k < group.len() {
+            if k < group.len() && self.keep_reflectances {
                 reflectances.push(kd);
             }
         }
@@ -278,7 +286,7 @@ impl<S: Surfaces> HitSamples<'_, S> {
 }
 
 /// Every hit sample's lights' tests, handed to `sink` in sample order (each sample's in light
-/// order), and its reflectance, pushed to `reflectances`: `N` hits shaded at once in lanes,
+/// order), and its reflectance, pushed to `reflectances` where the input keeps them: `N` hits shaded at once in lanes,
 /// their tests handed over light by light, each hit with its reflectance at the hit (textured
 /// or not); when all are on flat triangles by the flat lanes, else with their vertex normals
 /// (zeros for a flat triangle, which give the flat lanes' tests). A last group of fewer than
@@ -418,6 +426,8 @@ pub(super) fn shade_batch_timed<'s>(
         unoccludable: lighting.unoccludable,
         tests,
     };
+    // Without an ambient term a hit's colour is its lights' sum: its reflectance is not read.
+    let keep_reflectances = lighting.ambient != [0.0; 3];
     let input = HitSamples {
         surfaces,
         bvh,
@@ -425,6 +435,7 @@ pub(super) fn shade_batch_timed<'s>(
         rays,
         hits,
         samples,
+        keep_reflectances,
     };
     hit_tests_dispatched(&input, reflectances, &mut sink);
     timer.lap(Phase::Shading);
@@ -458,22 +469,49 @@ pub(super) fn shade_batch_timed<'s>(
             }
         }
     }
-    colours.clear();
     let [red, green, blue] = sums;
-    let hit_colours = reflectances.iter().zip(&*red).zip(&*green).zip(&*blue);
-    let hit_colours =
-        hit_colours.map(|(((&kd, &r), &g), &b)| add_ambient([r, g, b], kd, lighting.ambient));
-    if samples.len() == hits.len() {
+    let sums = red.iter().zip(&*green).zip(&*blue);
+    let sums = sums.map(|((&r, &g), &b)| [r, g, b]);
+    let place = (
+        &mut *colours,
+        samples.as_slice(),
+        hits.len(),
+        lighting.background,
+    );
+    if keep_reflectances {
+        let ambient = lighting.ambient;
+        let hit_colours = sums.zip(&*reflectances);
+        place_colours(
+            place,
+            hit_colours.map(|(sum, &kd)| add_ambient(sum, kd, ambient)),
+        );
+    } else {
+        // No ambient term: `sum + kd · 0` is `sum` (reflectances are finite and sums are never
+        // -0), so the sums are the colours.
+        place_colours(place, sums);
+    }
+    timer.lap(Phase::Shading);
+    colours
+}
+
+/// Puts the batch's colours in `colours` (emptied first), one per sample: the hit samples'
+/// `hit_colours`, in the order of `samples`, and `background` for the rest of the
+/// `sample_count`.
+#[inline(always)]
+fn place_colours(
+    (colours, samples, sample_count, background): (&mut Vec<[f32; 3]>, &[u32], usize, [f32; 3]),
+    hit_colours: impl Iterator<Item = [f32; 3]>,
+) {
+    colours.clear();
+    if samples.len() == sample_count {
         // Every sample hits (so hit k is sample k): the colours in order, no background.
         colours.extend(hit_colours);
     } else {
-        colours.resize(hits.len(), lighting.background);
+        colours.resize(sample_count, background);
         // A slice taken once: indexing the vector in the loop reloaded its pointer.
         let colours = colours.as_mut_slice();
         for (&sample, colour) in samples.iter().zip(hit_colours) {
             colours[sample as usize] = colour;
         }
     }
-    timer.lap(Phase::Shading);
-    colours
 }
