@@ -37,6 +37,7 @@ mod node4;
 mod packet_boxes;
 mod packet_hits;
 mod packet_rays;
+mod packet_setup;
 mod parts;
 mod ray_packet;
 mod refit;

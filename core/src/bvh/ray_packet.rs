@@ -37,6 +37,7 @@ use super::node4::{LEAF, Node4};
 use super::packet_boxes::{self, BoxRays};
 use super::packet_hits::PacketHits;
 use super::packet_rays::PacketRays;
+use super::packet_setup::{PacketSetup, packet_setup};
 use super::simd4::{BoxTester, each3, each4};
 use super::traverse::{
     CULL_MARGIN, ClosestSearch, Entry, FAR_SCALE, ROOT, STACK, STACKS, defer_all_but_nearest,
@@ -81,31 +82,32 @@ pub(super) struct RayPacketTester<'a> {
 
 impl<'a> RayPacketTester<'a> {
     /// `rays` holds the packet's `len` rays, with finite origins and directions (places past
-    /// the last ray in its group of four repeat it, and are never active).
-    pub(super) fn new(rays: &'a PacketRays, len: usize) -> Self {
-        // Lanes past the end repeat the last ray, so extremes and signs over the groups in use
-        // are those over the rays: no lane masks needed.
-        let inf = f32x4::splat(f32::INFINITY);
-        let (mut lo, mut hi) = ([inf; 3], [-inf; 3]);
-        let (mut o_lo, mut o_hi) = ([inf; 3], [-inf; 3]);
-        let mut inv_columns = [[0.0f32; RAY_PACKET]; 3];
-        for g in 0..groups_of(first_rays(len)) {
-            for a in 0..3 {
-                // The same correctly rounded division as the single-ray testers
-                // (`Vec3::ONE / dir`).
-                let x = f32x4::ONE / rays.dir4(a, g);
-                x.store_at(&mut inv_columns[a], 4 * g);
-                lo[a] = lesser4(x, lo[a]);
-                hi[a] = greater4(x, hi[a]);
-                let o = rays.origin4(a, g);
-                o_lo[a] = lesser4(o, o_lo[a]);
-                o_hi[a] = greater4(o, o_hi[a]);
-            }
-        }
-        let origin_lo = each3(|a| lowest(o_lo[a]));
-        let origin_hi = each3(|a| -lowest(-o_hi[a]));
-        let inv_lo = each3(|a| lowest(lo[a]));
-        let inv_hi = each3(|a| -lowest(-hi[a]));
+    /// the last ray in its group of four repeat it, and are never active); its setup is made
+    /// in lanes of the kernel width `WIDTH` (`packet_setup.rs`).
+    pub(super) fn new<const WIDTH: usize>(rays: &'a PacketRays, len: usize) -> Self {
+        let mut setup = PacketSetup {
+            inv_dir: [[0.0; RAY_PACKET]; 3],
+            origin_lo: [0.0; 3],
+            origin_hi: [0.0; 3],
+            inv_lo: [0.0; 3],
+            inv_hi: [0.0; 3],
+        };
+        // Places past the last ray, in the groups of four in use, repeat it: the extremes over
+        // them are those over the rays.
+        let places = 4 * groups_of(first_rays(len));
+        // SAFETY: the packet traversals run at `WIDTH` only at that kernel width, so on hosts
+        // with AVX2 at 8 and AVX-512F at 16 (`dispatch.rs`).
+        #[allow(unsafe_code)]
+        unsafe {
+            packet_setup::<WIDTH>(rays, places, &mut setup)
+        };
+        let PacketSetup {
+            inv_dir,
+            origin_lo,
+            origin_hi,
+            inv_lo,
+            inv_hi,
+        } = setup;
         // Signs and infinities from the extremes: inverse directions are never 0 or NaN, so
         // every one is below zero exactly when the largest is, and some is infinite exactly
         // when an extreme is.
@@ -117,7 +119,7 @@ impl<'a> RayPacketTester<'a> {
             origin_lo: each3(|a| f32x4::splat(origin_lo[a])),
             origin_hi: each3(|a| f32x4::splat(origin_hi[a])),
             one_origin: origin_lo == origin_hi,
-            inv_dir: inv_columns,
+            inv_dir,
             inv_lo: each3(|a| f32x4::splat(inv_lo[a])),
             inv_hi: each3(|a| f32x4::splat(inv_hi[a])),
             all_near_hi,
@@ -400,7 +402,7 @@ impl Bvh {
         stack: &mut [RayPacketEntry; STACK],
         ray_stack: &mut [Entry; STACK],
     ) {
-        let boxes = RayPacketTester::new(packet_rays, rays.len());
+        let boxes = RayPacketTester::new::<WIDTH>(packet_rays, rays.len());
         // A packet that misses every child of the root (background) needs no per-ray setup.
         let (some, _, _) = boxes.test_hull(&self.wide[0], f32::INFINITY, f32::INFINITY);
         if some == 0 {
@@ -675,20 +677,16 @@ mod lane_tests {
                 }
                 let mut packet = PacketRays::EMPTY;
                 assert!(packet.fill(&rays, |r| r));
-                let tester = RayPacketTester::new(&packet, rays.len());
                 let bounds = [f32x4::splat(bound); GROUPS];
                 for width in available_kernel_widths() {
-                    let range = (bound, bound);
+                    let (len, range) = (rays.len(), (bound, bound));
                     let (enter, _) = match width {
-                        KernelWidth::Four => {
-                            tester.enter_children::<false, 4>(&UNUSED, u64::MAX, &bounds, range)
-                        }
-                        KernelWidth::Eight => {
-                            tester.enter_children::<false, 8>(&UNUSED, u64::MAX, &bounds, range)
-                        }
-                        KernelWidth::Sixteen => {
-                            tester.enter_children::<false, 16>(&UNUSED, u64::MAX, &bounds, range)
-                        }
+                        KernelWidth::Four => RayPacketTester::new::<4>(&packet, len)
+                            .enter_children::<false, 4>(&UNUSED, u64::MAX, &bounds, range),
+                        KernelWidth::Eight => RayPacketTester::new::<8>(&packet, len)
+                            .enter_children::<false, 8>(&UNUSED, u64::MAX, &bounds, range),
+                        KernelWidth::Sixteen => RayPacketTester::new::<16>(&packet, len)
+                            .enter_children::<false, 16>(&UNUSED, u64::MAX, &bounds, range),
                     };
                     assert_eq!(enter, [0; 4], "{width:?} at bound {bound}");
                 }

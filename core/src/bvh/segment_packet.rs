@@ -123,7 +123,7 @@ impl Bvh {
             }
             return;
         }
-        let boxes = RayPacketTester::new(packet_rays, len);
+        let boxes = RayPacketTester::new::<WIDTH>(packet_rays, len);
         let all_rays = first_rays(len);
         // Each segment's t_max is in lanes' layout (0 past the packet's end: never active).
         let bound = culling_bounds(t_max, groups_of(all_rays));
