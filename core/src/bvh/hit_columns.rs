@@ -9,6 +9,7 @@
 //! [`Bvh::closest_hits_in_packets`] gives it, at every packet length and kernel width.
 
 use super::packet_hits::PacketHits;
+use super::packet_rays::copy_in_blocks;
 use super::ray_packet::RAY_PACKET;
 use super::traverse::BestHit;
 use super::{Bvh, ClosestHit};
@@ -124,17 +125,10 @@ impl HitColumns {
     }
 }
 
-/// Copies `src[..len]` to `to[..len]` sixteen values (64 bytes) at a time: copies the
-/// baseline instruction set makes inline, where a copy of a whole packet's 256 bytes was a
-/// call to `memcpy`.
+/// Copies `src[..len]` to `to[..len]`, in blocks ([`copy_in_blocks`]).
 #[inline(always)]
 fn copy_prefix<T: Copy>(to: &mut [T], src: &[T; RAY_PACKET], len: usize) {
-    let (to_blocks, to_rest) = to[..len].as_chunks_mut::<16>();
-    let (blocks, rest) = src[..len].as_chunks::<16>();
-    for (to, block) in to_blocks.iter_mut().zip(blocks) {
-        *to = *block;
-    }
-    to_rest.copy_from_slice(rest);
+    copy_in_blocks(&mut to[..len], &src[..len]);
 }
 
 /// Where a closest-hit traversal puts its answers: an `Option<ClosestHit>` per ray, or

@@ -4,7 +4,7 @@
 //! each coordinate with one copy, where segments kept as `(Ray, t_max)` pairs were pieced
 //! together from the lanes float by float and transposed back into lanes for every packet.
 
-use super::packet_rays::PacketRays;
+use super::packet_rays::{PacketRays, copy_in_blocks};
 use super::ray_packet::{RAY_PACKET, first_bits};
 use crate::triangle::Ray;
 use glam::Vec3;
@@ -100,13 +100,8 @@ impl SegmentColumns {
         t_max: &mut [f32; RAY_PACKET],
     ) -> bool {
         let len = range.len();
-        match <&[f32; RAY_PACKET]>::try_from(&self.t_max[range.clone()]) {
-            Ok(full) => *t_max = *full,
-            Err(_) => {
-                *t_max = [0.0; RAY_PACKET];
-                t_max[..len].copy_from_slice(&self.t_max[range.clone()]);
-            }
-        }
+        copy_in_blocks(&mut t_max[..len], &self.t_max[range.clone()]);
+        t_max[len..].fill(0.0);
         rays.fill_columns(
             [&self.origin[0], &self.origin[1], &self.origin[2]].map(|c| &c[range.clone()]),
             [&self.dir[0], &self.dir[1], &self.dir[2]].map(|c| &c[range.clone()]),
