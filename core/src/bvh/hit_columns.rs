@@ -3,7 +3,7 @@
 //! and the shading reads a run of hits' barycentrics with one vector load per corner. Where
 //! [`Bvh::closest_hits_in_packets`] writes an `Option<ClosestHit>` per ray, eight scalar stores
 //! (and the shading's eight scalar loads back), [`Bvh::closest_hits_in_columns`] writes a
-//! packet's answers as five copies.
+//! packet's answers as six copies and looks up each hit's leaf-order index.
 //!
 //! Guarantee: [`Bvh::hit_in`] gives, for every ray, exactly the `Option<ClosestHit>`
 //! [`Bvh::closest_hits_in_packets`] gives it, at every packet length and kernel width.
@@ -15,14 +15,15 @@ use super::traverse::BestHit;
 use super::{Bvh, ClosestHit};
 
 /// The closest hit of each ray of a batch (ray i at index i), field by field: its distance
-/// (`+inf` for a miss), barycentrics, scene-wide triangle id and place in the BVH (read through
-/// [`Bvh::hit_in`], which also derives the triangle's leaf-order index).
+/// (`+inf` for a miss), barycentrics, scene-wide triangle id, place in the BVH and leaf-order
+/// index (read whole through [`Bvh::hit_in`]).
 #[derive(Clone, Debug, Default)]
 pub struct HitColumns {
     t: Vec<f32>,
     b: [Vec<f32>; 3],
     id: Vec<u32>,
     place: Vec<u32>,
+    index: Vec<u32>,
 }
 
 impl HitColumns {
@@ -43,6 +44,7 @@ impl HitColumns {
         self.b.iter_mut().for_each(|b| b.resize(len, 0.0));
         self.id.resize(len, none.id);
         self.place.resize(len, none.place);
+        self.index.resize(len, 0);
     }
 
     /// The hits of `hits`, in order (what [`Bvh::closest_hits_in_columns`] writes for rays
@@ -103,6 +105,7 @@ impl HitColumns {
         }
         self.id[i] = best.id;
         self.place[i] = best.place;
+        self.index[i] = hit.map_or(0, |h| h.index);
     }
 
     /// Rays `from..from + len` hit nothing.
@@ -113,15 +116,22 @@ impl HitColumns {
     }
 
     /// Rays `from..from + len` (a packet's, `len` at most [`RAY_PACKET`]) have the packet's
-    /// hits `hits` (ray `from + i` in place i).
+    /// hits `hits` (ray `from + i` in place i), found by `bvh`.
     #[inline(always)]
-    fn set_packet(&mut self, from: usize, len: usize, hits: &PacketHits) {
+    fn set_packet(&mut self, bvh: &Bvh, from: usize, len: usize, hits: &PacketHits) {
         copy_prefix(&mut self.t[from..], &hits.t, len);
         for c in 0..3 {
             copy_prefix(&mut self.b[c][from..], &hits.b[c], len);
         }
         copy_prefix(&mut self.id[from..], &hits.id, len);
         copy_prefix(&mut self.place[from..], &hits.place, len);
+        // The leaf-order indices now, while the hits' `Triangle4`s are in the cache (the
+        // traversal has just tested them): shading reads them for hits on many triangles,
+        // where a big mesh's `Triangle4`s are cache misses by then. A miss's place is some
+        // `Triangle4`'s too, so every place is looked up.
+        for (index, &place) in self.index[from..from + len].iter_mut().zip(&hits.place) {
+            *index = bvh.leaf_index(place);
+        }
     }
 }
 
@@ -166,8 +176,8 @@ impl ClosestOut for HitColumns {
     }
 
     #[inline(always)]
-    fn packet(&mut self, _: &Bvh, from: usize, len: usize, hits: &PacketHits) {
-        self.set_packet(from, len, hits);
+    fn packet(&mut self, bvh: &Bvh, from: usize, len: usize, hits: &PacketHits) {
+        self.set_packet(bvh, from, len, hits);
     }
 
     #[inline(always)]
@@ -182,10 +192,12 @@ impl Bvh {
     /// Panics unless `i < hits.len()`.
     #[inline(always)]
     pub fn hit_in(&self, hits: &HitColumns, i: usize) -> Option<ClosestHit> {
-        self.closest_result(&BestHit {
+        // Hits have finite t: +inf means none was found.
+        hits.is_hit(i).then(|| ClosestHit {
+            id: hits.id[i],
             t: hits.t[i],
             b: [hits.b[0][i], hits.b[1][i], hits.b[2][i]],
-            id: hits.id[i],
+            index: hits.index[i],
             place: hits.place[i],
         })
     }

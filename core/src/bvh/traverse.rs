@@ -232,18 +232,20 @@ impl Bvh {
     #[inline(always)]
     pub(super) fn closest_result(&self, best: &BestHit) -> Option<ClosestHit> {
         // Hits have finite t: +inf means none was found.
-        (best.t < f32::INFINITY).then(|| {
-            let (k, lane) = ((best.place / 4) as usize, (best.place % 4) as usize);
-            let p = &self.triangles[k];
-            let index = p.first as usize + lane;
-            ClosestHit {
-                id: best.id,
-                t: best.t,
-                b: best.b,
-                index: index as u32,
-                place: best.place,
-            }
+        (best.t < f32::INFINITY).then(|| ClosestHit {
+            id: best.id,
+            t: best.t,
+            b: best.b,
+            index: self.leaf_index(best.place),
+            place: best.place,
         })
+    }
+
+    /// The leaf-order index of the triangle at `place` (its `Triangle4` times 4 plus its lane).
+    #[inline(always)]
+    pub(super) fn leaf_index(&self, place: u32) -> u32 {
+        let (k, lane) = ((place / 4) as usize, place % 4);
+        self.triangles[k].first + lane
     }
 
     /// Tests the `count` `Triangle4`s from `first` (one leaf) against the search's ray, keeping the
