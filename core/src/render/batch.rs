@@ -185,11 +185,12 @@ impl<S: Surfaces> HitSamples<'_, S> {
 
     /// Fills `lanes` with the hits of `group` (lane k: sample `group[k]`, lanes past the
     /// group's end its last hit), all on the triangle `first` hit, and pushes their
-    /// reflectances (where [`HitSamples::keep_reflectances`]); whether the triangle needs the smooth lanes (it has vertex normals; a
-    /// texture only changes the reflectances). The triangle's corners, normals and (untextured)
-    /// reflectance go to every lane at once, and a texture is looked up in lanes
-    /// ([`crate::texture::TexturedCorners::kd_lanes`]): the values [`Self::fill_mixed`] writes
-    /// lane by lane. `run` is [`Self::run_of`]`(group)`; `last` is [`Self::shading_of`]'s.
+    /// reflectances (where [`HitSamples::keep_reflectances`]); whether the triangle needs the
+    /// smooth lanes (it has vertex normals; a texture only changes the reflectances). The
+    /// triangle's corners, normals and (untextured) reflectance go to every lane at once, and a
+    /// texture is looked up in lanes ([`crate::texture::TexturedCorners::kd_lanes`]): the
+    /// values [`Self::fill_mixed`] writes lane by lane. `run` is [`Self::run_of`]`(group)`;
+    /// `last` is [`Self::shading_of`]'s.
     #[inline(always)]
     fn fill_one_triangle<const N: usize>(
         &self,
@@ -235,10 +236,9 @@ impl<S: Surfaces> HitSamples<'_, S> {
 
     /// Fills `lanes` with the hits of `group` (lane k: sample `group[k]`, lanes past the
     /// group's end its last hit), hit by hit, and pushes their reflectances (where
-    /// [`HitSamples::keep_reflectances`]); whether a hit
-    /// needs the smooth lanes (has vertex normals). The normals are written once a hit of the
-    /// group has them: zeros until then, and for flat triangles. `last` is
-    /// [`Self::shading_of`]'s.
+    /// [`HitSamples::keep_reflectances`]); whether a hit needs the smooth lanes (has vertex
+    /// normals). The normals are written once a hit of the group has them: zeros until then,
+    /// and for flat triangles. `last` is [`Self::shading_of`]'s.
     #[inline(always)]
     fn fill_mixed<const N: usize>(
         &self,
@@ -286,10 +286,11 @@ impl<S: Surfaces> HitSamples<'_, S> {
 }
 
 /// Every hit sample's lights' tests, handed to `sink` in sample order (each sample's in light
-/// order), and its reflectance, pushed to `reflectances` where the input keeps them: `N` hits shaded at once in lanes,
-/// their tests handed over light by light, each hit with its reflectance at the hit (textured
-/// or not); when all are on flat triangles by the flat lanes, else with their vertex normals
-/// (zeros for a flat triangle, which give the flat lanes' tests). A last group of fewer than
+/// order), and its reflectance, pushed to `reflectances` where the input keeps them: `N` hits
+/// shaded at once in lanes, their tests handed over light by light, each hit with its
+/// reflectance at the hit (textured or not); when all are on flat triangles by the flat lanes,
+/// else with their vertex normals (zeros for a flat triangle, which give the flat lanes'
+/// tests). A last group of fewer than
 /// `N` fills its lanes with its last hit, whose extra tests are dropped. A group whose hits are
 /// all on one triangle (most groups: a run of samples lies in one part of a pixel) takes the
 /// triangle's data once. The same tests every way and at every `N`.
