@@ -85,17 +85,6 @@ struct Seen {
 }
 
 impl Seen {
-    /// How many attempts numbered `attempt` of `state` have started (over all items).
-    fn started(&self, state: &str, attempt: u32) -> usize {
-        self.events
-            .iter()
-            .filter(|e| {
-                matches!(e, Event::TaskAttemptStarted { state: s, attempt: a, .. }
-                    if s == state && *a == attempt)
-            })
-            .count()
-    }
-
     /// True once attempt `attempt` of `state` for `item` has failed.
     fn attempt_failed(&self, state: &str, item: Option<usize>, attempt: u32) -> bool {
         self.events.iter().any(|e| {
@@ -389,6 +378,12 @@ impl TaskInvoker for Fake {
             Some(stage) => stage.to_owned(),
             None => "plan".to_owned(),
         };
+        // The call is recorded before the board sees it run, so a test that waits on the board
+        // finds the calls it waited for in `calls`, in order.
+        self.calls
+            .lock()
+            .unwrap()
+            .push((resource.to_owned(), stage.clone(), input.clone()));
         self.board.update(|s| {
             s.in_flight += 1;
             s.peak = s.peak.max(s.in_flight);
@@ -400,10 +395,6 @@ impl TaskInvoker for Fake {
             board: &self.board,
             stage: stage.clone(),
         };
-        self.calls
-            .lock()
-            .unwrap()
-            .push((resource.to_owned(), stage.clone(), input.clone()));
         match resource {
             "PlanFunctionArn" if lost_step => Ok(self.lost_step(&input)),
             "PlanFunctionArn" => {
@@ -723,13 +714,19 @@ fn bad_input_is_not_retried_and_fails_the_job_naming_the_state() {
 #[test]
 fn a_task_past_its_timeout_is_retried_while_the_zombie_holds_its_slot() {
     // Items time out after 20 s. The first attempt of each TraceMap item is a zombie: once both
-    // run, the clock moves past their deadlines (once, so no retry can time out), and they
-    // block until the run has returned.
+    // have called the function (two TraceMap calls at once: nothing can time out before), the
+    // clock moves past their deadlines (once, so no retry can time out), and they block until
+    // the run has returned. "Called", not "started": an attempt is started before its thread
+    // calls the function, so on a loaded machine the clock could otherwise move while one
+    // attempt's thread had not yet run, and its retry would call the function first. The
+    // zombies are told by the payload's attempt number, not by the order of calls, and wait for
+    // the peak, which stays reached (the count running now moves on once retries run).
     let moved = AtomicBool::new(false);
-    let fake = Fake::new(0, move |fake, stage, _, n| {
-        if stage == "trace-map" && n == 0 {
-            fake.board
-                .wait("both zombies run", |s| s.started(TRACE_TASK, 0) == 2);
+    let fake = Fake::new(0, move |fake, stage, e, _| {
+        if stage == "trace-map" && e["attempt"] == 0 {
+            fake.board.wait("both zombies run", |s| {
+                s.stages.get(stage).is_some_and(|&(_, peak)| peak >= 2)
+            });
             if !moved.swap(true, Ordering::SeqCst) {
                 fake.clock.advance(scaled(21.0));
             }
