@@ -66,12 +66,12 @@ fn tiny() -> Scene {
             }],
             texcoords: vec![[0.25, -0.0], [1e9, 0.5]],
             triangle_texcoords: vec![[0, 1, 0]],
-            textures: vec![std::sync::Arc::new(crate::texture::Texture {
-                name: "wood.png".into(),
-                width: 2,
-                height: 1,
-                texels: vec![1, 2, 3, 250, 251, 252],
-            })],
+            textures: vec![std::sync::Arc::new(crate::texture::Texture::new(
+                "wood.png".into(),
+                2,
+                1,
+                vec![1, 2, 3, 250, 251, 252],
+            ))],
         },
         camera: CameraSpec {
             eye: DVec3::new(0.0, 0.0, 5.0),

@@ -49,10 +49,5 @@ pub fn decode_texture(key: &str, bytes: &[u8]) -> Result<Texture, String> {
             texels.len()
         )));
     }
-    Ok(Texture {
-        name,
-        width,
-        height,
-        texels,
-    })
+    Ok(Texture::new(name, width, height, texels))
 }

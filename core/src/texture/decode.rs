@@ -34,12 +34,12 @@ pub fn decode_texture_image(bytes: &[u8], name: &str) -> Result<Texture, String>
     if width == 0 || height == 0 {
         return Err("the image has no texels".into());
     }
-    Ok(Texture {
-        name: name.to_string(),
+    Ok(Texture::new(
+        name.to_string(),
         width,
         height,
-        texels: rgb.into_raw(),
-    })
+        rgb.into_raw(),
+    ))
 }
 
 /// The largest texture file read: 1 GiB (a PNG or JPEG of the largest texture accepted is far

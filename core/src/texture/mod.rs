@@ -16,6 +16,7 @@
 
 mod codec;
 mod decode;
+mod linear;
 
 pub use codec::{decode_texture, encode_texture};
 pub use decode::{MAX_TEXTURE_SIDE, decode_texture_file, decode_texture_image};
@@ -23,7 +24,7 @@ pub use decode::{MAX_TEXTURE_SIDE, decode_texture_file, decode_texture_image};
 use std::sync::OnceLock;
 
 /// A decoded diffuse texture.
-#[derive(Clone, PartialEq, Eq)]
+#[derive(Clone)]
 pub struct Texture {
     /// The file it came from, as the material library names it (for messages).
     pub name: String,
@@ -33,7 +34,19 @@ pub struct Texture {
     pub height: u32,
     /// `width * height` sRGB texels, 3 bytes each (r, g, b), rows from the top.
     pub texels: Vec<u8>,
+    /// The texels decoded, made at the first lookup in lanes ([`linear`]).
+    linear: OnceLock<Option<Vec<[f32; 4]>>>,
 }
+
+/// Equal when the name, size and texels are (the decoded texels follow from them).
+impl PartialEq for Texture {
+    fn eq(&self, other: &Self) -> bool {
+        (&self.name, self.width, self.height, &self.texels)
+            == (&other.name, other.width, other.height, &other.texels)
+    }
+}
+
+impl Eq for Texture {}
 
 impl std::fmt::Debug for Texture {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -49,9 +62,22 @@ impl std::fmt::Debug for Texture {
 }
 
 impl Texture {
-    /// Bytes the texture holds in memory once decoded.
+    /// The texture `name` of `width` x `height` sRGB texels (`texels`: 3 bytes each, rows from
+    /// the top).
+    pub fn new(name: String, width: u32, height: u32, texels: Vec<u8>) -> Texture {
+        Texture {
+            name,
+            width,
+            height,
+            texels,
+            linear: OnceLock::new(),
+        }
+    }
+
+    /// Bytes the texture holds in memory once decoded and shaded: its texels, and the decoded
+    /// texels where a texture that small has them ([`linear`]).
     pub fn memory_bytes(&self) -> u64 {
-        self.texels.len() as u64
+        self.texels.len() as u64 + linear::bytes(self.width, self.height)
     }
 
     /// The content key: 16 hex digits of the FNV-1a 64 digest of the size and the texels (not
@@ -80,14 +106,18 @@ impl Texture {
     }
 
     /// [`Texture::sample`] at `N` coordinates (`u[k]`, `v[k]`), one per lane: `out[channel][k]`.
-    /// The same operations per lane, in plain array loops that the compiler vectorizes for the
-    /// calling function's instruction set (the grid and the filter; the texels are read lane by
-    /// lane), so every lane is `sample`'s bits.
+    /// The same operations per lane, so every lane is `sample`'s bits: the grid in a plain
+    /// array loop that the compiler vectorizes for the calling function's instruction set, then
+    /// lane by lane the filter over the texels decoded once ([`linear`]) where the texture has
+    /// them, else the texels read through the table and the filter in array loops.
     #[inline(always)]
     pub fn sample_lanes<const N: usize>(&self, u: [f32; N], v: [f32; N]) -> [[f32; N]; 3] {
         let (mut x0, mut y0, mut fx, mut fy) = ([0.0; N], [0.0; N], [0.0; N], [0.0; N]);
         for k in 0..N {
             (x0[k], y0[k], fx[k], fy[k]) = self.grid([u[k], v[k]]);
+        }
+        if let Some(linear) = self.linear_texels() {
+            return self.sample_lanes_linear(linear, (&x0, &y0), (&fx, &fy));
         }
         let lut = srgb_to_linear_table();
         let mut corners = [[[0.0f32; N]; 3]; 4];
@@ -121,10 +151,10 @@ impl Texture {
         (x0, y0, x - x0, y - y0)
     }
 
-    /// The linear values (through `lut`, [`srgb_to_linear_table`]) of the four texels around
-    /// grid cell (x0, y0), wrapped: (x0, y0), (x0 + 1, y0), (x0, y0 + 1), (x0 + 1, y0 + 1).
+    /// The columns and rows of the four texels around grid cell (x0, y0), wrapped: x0's column
+    /// and the next, y0's row and the next.
     #[inline(always)]
-    fn texels(&self, lut: &[f32; 256], x0: f32, y0: f32) -> [[f32; 3]; 4] {
+    fn wrapped(&self, x0: f32, y0: f32) -> [usize; 4] {
         // `rem_euclid` divides: most coordinates are already in range, and a power-of-two
         // size wraps by a mask (the same value, in two's complement).
         let wrap = |i: f32, n: u32| {
@@ -149,6 +179,14 @@ impl Texture {
         } else {
             ya + 1
         };
+        [xa, xb, ya, yb]
+    }
+
+    /// The linear values (through `lut`, [`srgb_to_linear_table`]) of the four texels around
+    /// grid cell (x0, y0), wrapped: (x0, y0), (x0 + 1, y0), (x0, y0 + 1), (x0 + 1, y0 + 1).
+    #[inline(always)]
+    fn texels(&self, lut: &[f32; 256], x0: f32, y0: f32) -> [[f32; 3]; 4] {
+        let [xa, xb, ya, yb] = self.wrapped(x0, y0);
         // Two rows, then three bytes a texel: six bounds checks, where indexing byte by byte
         // took twelve.
         let row_bytes = 3 * self.width as usize;

@@ -5,12 +5,7 @@ fn ramp(w: u32, h: u32) -> Texture {
     let texels = (0..h)
         .flat_map(|y| (0..w).flat_map(move |x| [x as u8, y as u8, 7]))
         .collect();
-    Texture {
-        name: "ramp.png".into(),
-        width: w,
-        height: h,
-        texels,
-    }
+    Texture::new("ramp.png".into(), w, h, texels)
 }
 
 #[test]
@@ -171,9 +166,12 @@ fn only_regular_files_are_read() {
     );
 }
 
-/// Sixteen lookups in lanes are the single lookups bit for bit: coordinates inside, on texel
-/// centres and edges, far outside on both sides, and non-finite; power-of-two sizes and
-/// others; and the reflectance at barycentrics, as `kd_at` gives it.
+/// Sixteen lookups in lanes are the single lookups bit for bit, over the decoded texels (small
+/// textures) and through the table (a texture of more than `linear::MAX_TEXELS`): coordinates
+/// inside, on texel centres and edges, far outside on both sides, and non-finite; every cell of
+/// the small textures (the last column and row wrap to the first), at fractions across it;
+/// power-of-two sizes and others, down to one texel; and the reflectance at barycentrics, as
+/// `kd_at` gives it.
 #[test]
 fn lookups_in_lanes_are_the_single_lookups() {
     let mut coordinates: Vec<f32> = vec![0.0, 0.5, 1.0, -0.25, 1e9, -1e9, -37.3];
@@ -183,9 +181,31 @@ fn lookups_in_lanes_are_the_single_lookups() {
     let uv: Vec<[f32; 2]> = (0..coordinates.len())
         .map(|i| [coordinates[i], coordinates[(i * 7 + 3) % coordinates.len()]])
         .collect();
-    for (w, h) in [(4, 2), (3, 5), (8, 1), (256, 64), (255, 37)] {
+    let sizes = [
+        (4, 2),
+        (3, 5),
+        (8, 1),
+        (1, 1),
+        (256, 64),
+        (255, 37),
+        (2049, 512),
+    ];
+    for (w, h) in sizes {
         let t = ramp(w, h);
-        for lanes in uv.chunks_exact(16) {
+        let small = u64::from(w * h) <= linear::MAX_TEXELS;
+        assert_eq!(t.linear_texels().is_some(), small, "{w}x{h}");
+        let decoded = if small { 16 * u64::from(w * h) } else { 0 };
+        assert_eq!(t.memory_bytes(), 3 * u64::from(w * h) + decoded);
+        // Every cell of a small texture, at a fraction across it.
+        let cells = if small { w * h } else { 0 };
+        let mut all = uv.clone();
+        all.extend((0..cells).map(|i| {
+            let (x, y) = ((i % w) as f32, (i / w) as f32);
+            let f = (i as f32 * 0.618_034).fract() * 0.9;
+            [(x + 0.5 + f) / w as f32, 1.0 - (y + 0.5 + f) / h as f32]
+        }));
+        all.resize(all.len().next_multiple_of(16), [0.25, 0.75]);
+        for lanes in all.chunks_exact(16) {
             let u: [f32; 16] = std::array::from_fn(|k| lanes[k][0]);
             let v: [f32; 16] = std::array::from_fn(|k| lanes[k][1]);
             let got = t.sample_lanes(u, v);

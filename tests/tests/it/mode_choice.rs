@@ -111,12 +111,12 @@ fn a_tiny_budget_runs_staged_with_the_fewest_splits_and_a_large_one_fused() {
 fn a_texture_too_large_for_the_budget_is_refused_before_any_work_naming_it() {
     let mut scene = load_scene(&hort_tests::scene_path("globe/globe.json")).unwrap();
     // A 4096 x 4096 texture is 48 MB decoded: over what 128 MB leaves beside the runtime.
-    let big = std::sync::Arc::new(hort_core::texture::Texture {
-        name: "huge.png".into(),
-        width: 4096,
-        height: 4096,
-        texels: vec![128; 3 * 4096 * 4096],
-    });
+    let big = std::sync::Arc::new(hort_core::texture::Texture::new(
+        "huge.png".into(),
+        4096,
+        4096,
+        vec![128; 3 * 4096 * 4096],
+    ));
     scene.mesh.textures[0] = big;
     let request = |memory_mb| automatic(32, 24, 2, memory_mb);
     let options = options("tex", 1);

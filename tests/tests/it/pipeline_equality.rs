@@ -289,12 +289,7 @@ fn tasks_read_textures_from_their_objects_checked_against_the_plan() {
     );
     assert!(errors.iter().all(|e| e.contains(&texture)), "{errors:?}");
 
-    let other = hort_core::texture::Texture {
-        name: "other.png".into(),
-        width: 1,
-        height: 1,
-        texels: vec![1, 2, 3],
-    };
+    let other = hort_core::texture::Texture::new("other.png".into(), 1, 1, vec![1, 2, 3]);
     store
         .put(&texture, &hort_core::texture::encode_texture(&other))
         .unwrap();

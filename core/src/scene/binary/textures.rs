@@ -108,12 +108,8 @@ pub(super) fn read_textures(r: &mut Reader<'_>, mesh: &mut Mesh) -> Result<(), S
                 &format!("textures[{i}].texels"),
             )?
             .to_vec();
-        mesh.textures.push(Arc::new(Texture {
-            name,
-            width,
-            height,
-            texels,
-        }));
+        mesh.textures
+            .push(Arc::new(Texture::new(name, width, height, texels)));
     }
     for (material, (at, texture)) in mesh.materials.iter_mut().zip(material_textures) {
         if let Some(t) = texture.filter(|&t| t as usize >= texture_count) {
