@@ -75,7 +75,7 @@ impl Texture {
     }
 
     /// Bytes the texture holds in memory once decoded and shaded: its texels, and the decoded
-    /// texels where a texture that small has them ([`linear`]).
+    /// texels where a texture that small has them (`texture/linear.rs`).
     pub fn memory_bytes(&self) -> u64 {
         self.texels.len() as u64 + linear::bytes(self.width, self.height)
     }
@@ -108,7 +108,7 @@ impl Texture {
     /// [`Texture::sample`] at `N` coordinates (`u[k]`, `v[k]`), one per lane: `out[channel][k]`.
     /// The same operations per lane, so every lane is `sample`'s bits: the grid in a plain
     /// array loop that the compiler vectorizes for the calling function's instruction set, then
-    /// lane by lane the filter over the texels decoded once ([`linear`]) where the texture has
+    /// lane by lane the filter over the texels decoded once (`texture/linear.rs`) where the texture has
     /// them, else the texels read through the table and the filter in array loops.
     #[inline(always)]
     pub fn sample_lanes<const N: usize>(&self, u: [f32; N], v: [f32; N]) -> [[f32; N]; 3] {
