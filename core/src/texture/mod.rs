@@ -107,9 +107,10 @@ impl Texture {
 
     /// [`Texture::sample`] at `N` coordinates (`u[k]`, `v[k]`), one per lane: `out[channel][k]`.
     /// The same operations per lane, so every lane is `sample`'s bits: the grid in a plain
-    /// array loop that the compiler vectorizes for the calling function's instruction set, then
-    /// lane by lane the filter over the texels decoded once (`texture/linear.rs`) where the texture has
-    /// them, else the texels read through the table and the filter in array loops.
+    /// array loop that the compiler vectorizes for the calling function's instruction set,
+    /// then lane by lane the filter over the texels decoded once (`texture/linear.rs`) where
+    /// the texture has them, else the texels read through the table and the filter in array
+    /// loops.
     #[inline(always)]
     pub fn sample_lanes<const N: usize>(&self, u: [f32; N], v: [f32; N]) -> [[f32; N]; 3] {
         let (mut x0, mut y0, mut fx, mut fy) = ([0.0; N], [0.0; N], [0.0; N], [0.0; N]);
