@@ -51,7 +51,8 @@ pub struct EvalArgs {
     /// The adaptive series' threshold on a pixel's standard error after the first pass.
     #[arg(long, default_value_t = 0.002)]
     pub adaptive_threshold: f64,
-    /// Timed runs per setting; the best counts.
+    /// Timed runs per setting; the best counts. The runs are taken in passes over every
+    /// setting of a scene, so a slow minute costs each setting at most one of them.
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=100))]
     pub runs: u32,
     /// Distributed series `NAME:SPLITS:SPANS` through the emulator (repeatable; one split runs

@@ -74,12 +74,36 @@ impl SceneUnderTest {
     }
 }
 
+/// Best of `runs` timings of each of `settings`, taken in `runs` passes over all of them (one
+/// run of each setting a pass), so that a slow minute of a shared machine costs each setting
+/// at most one of its runs rather than all of them. `run` renders one setting and returns its
+/// time in seconds and what it produced (the same every run: rendering is deterministic);
+/// returns each setting's best time and last product, in order.
+fn best_of_passes<S, T>(
+    settings: &[S],
+    runs: u32,
+    mut run: impl FnMut(&S) -> Result<(f64, T)>,
+) -> Result<Vec<(f64, T)>> {
+    let mut best: Vec<Option<(f64, T)>> = settings.iter().map(|_| None).collect();
+    for _ in 0..runs.max(1) {
+        for (setting, best) in settings.iter().zip(best.iter_mut()) {
+            let (seconds, product) = run(setting)?;
+            let fastest = best.as_ref().map_or(seconds, |(b, _)| b.min(seconds));
+            *best = Some((fastest, product));
+        }
+    }
+    Ok(best
+        .into_iter()
+        .map(|b| b.expect("at least one pass"))
+        .collect())
+}
+
 /// Our monolithic renderer on one thread at each of `spp`: the best render time of `runs`
-/// (rendering only, the BVH is built once), and the error of the image (the same bytes every
-/// run: rendering is deterministic).
+/// (rendering only, the BVH is built once; runs taken in passes over every count,
+/// [`best_of_passes`]), and the error of the image (the same bytes every run: rendering is
+/// deterministic).
 pub fn monolithic(scene: &SceneUnderTest, spp: &[u32], runs: u32) -> Result<Vec<Point>> {
-    let mut points = Vec::new();
-    for &n in spp {
+    let timed = best_of_passes(spp, runs, |&n| {
         let settings = RenderSettings {
             width: scene.width,
             height: scene.height,
@@ -87,14 +111,11 @@ pub fn monolithic(scene: &SceneUnderTest, spp: &[u32], runs: u32) -> Result<Vec<
             threads: 1,
             frame: Default::default(),
         };
-        let mut best = f64::INFINITY;
-        let mut image = None;
-        for _ in 0..runs {
-            let out = render(&scene.scene, &scene.bvh, settings)?;
-            best = best.min(out.render_seconds);
-            image = Some(out.image);
-        }
-        let image = image.context("no run")?;
+        let out = render(&scene.scene, &scene.bvh, settings)?;
+        Ok((out.render_seconds, out.image))
+    })?;
+    let mut points = Vec::new();
+    for (&n, (best, image)) in spp.iter().zip(timed) {
         let point = scene.point("ours", n, best, &image)?;
         eprintln!(
             "{} ours {n} spp: {best:.4} s, PSNR {:.2} dB",
@@ -114,8 +135,7 @@ pub fn adaptive(
     threshold: f64,
     runs: u32,
 ) -> Result<Vec<Point>> {
-    let mut points = Vec::new();
-    for &(base_spp, max_spp) in levels {
+    let timed = best_of_passes(levels, runs, |&(base_spp, max_spp)| {
         let settings = RenderSettings {
             width: scene.width,
             height: scene.height,
@@ -128,14 +148,11 @@ pub fn adaptive(
             max_spp,
             threshold,
         };
-        let mut best = f64::INFINITY;
-        let mut last = None;
-        for _ in 0..runs {
-            let (out, counts) = render_adaptive(&scene.scene, &scene.bvh, settings, adaptive)?;
-            best = best.min(out.render_seconds);
-            last = Some((out.image, counts));
-        }
-        let (image, counts) = last.context("no run")?;
+        let (out, counts) = render_adaptive(&scene.scene, &scene.bvh, settings, adaptive)?;
+        Ok((out.render_seconds, (out.image, counts)))
+    })?;
+    let mut points = Vec::new();
+    for (&(base_spp, max_spp), (best, (image, counts))) in levels.iter().zip(timed) {
         let point = scene.point(ADAPTIVE_METHOD, max_spp, best, &image)?;
         let pixels = u64::from(scene.width) * u64::from(scene.height);
         eprintln!(
@@ -214,4 +231,29 @@ pub fn distributed(
         }
     }
     Ok(points)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Runs go pass by pass over every setting, and each setting keeps its fastest time and
+    /// its last product.
+    #[test]
+    fn best_of_passes_takes_one_run_of_each_setting_a_pass() {
+        let mut calls = Vec::new();
+        let times = [[3.0, 1.0, 2.0], [5.0, 6.0, 4.0]];
+        let mut pass = [0usize; 2];
+        let out = best_of_passes(&[0usize, 1], 3, |&s| {
+            calls.push(s);
+            let t = times[s][pass[s]];
+            pass[s] += 1;
+            Ok((t, (s, pass[s])))
+        })
+        .unwrap();
+        assert_eq!(calls, [0, 1, 0, 1, 0, 1]);
+        assert_eq!(out, [(1.0, (0, 3)), (4.0, (1, 3))]);
+        let failed = best_of_passes(&[0], 2, |_| -> Result<(f64, ())> { bail!("no scene") });
+        assert_eq!(failed.unwrap_err().to_string(), "no scene");
+    }
 }
