@@ -1,13 +1,10 @@
 //! A texture's texels decoded once, for lookups in lanes.
 //!
 //! Through the sRGB table, one lookup's four texels are twelve byte reads and twelve table
-//! reads, lane by lane: at 64 spp that was 15% of a render of the bundled globe (its shading
-//! phase took 9.5 instead of 15.4 ns a sample with the lookups left out). Decoded once into
-//! four f32 a texel (red, green, blue, 0), a lane reads its four texels as four 16-byte loads
-//! and filters all three channels at once: the shading phase took 13.3-14.1 ns a sample where
-//! it took 14.6-15.9 (the globe at 320x180 and 64 spp, one pinned core, four alternating pairs
-//! on a Zen 4 VM). AVX-512 gathers of the bytes and the table were tried first and were no
-//! faster there.
+//! reads, lane by lane. Decoded once into four f32 a texel (red, green, blue, 0), a lane reads
+//! its four texels as four 16-byte loads and filters all three channels at once. The
+//! measurements (the globe's shading phase before and after, and AVX-512 gathers, tried and
+//! dropped) are in `docs/perf/time-per-sample.md`, "Decoded texels for lookups in lanes".
 //!
 //! The decoded texels cost 16 bytes a texel beside the texel's 3, so only textures of at most
 //! [`MAX_TEXELS`] have them (16 MB at most); larger ones are read through the table.
