@@ -138,8 +138,14 @@ pub fn surface_of(mesh: &Mesh, bvh: &Bvh, hit: &ClosestHit, ray: &Ray) -> Surfac
 #[inline]
 fn flat_kd(mesh: &Mesh, id: u32) -> Option<[f32; 3]> {
     let i = id as usize;
-    let flat = mesh.triangle_normals[i][0] == NO_NORMAL && mesh.texture_of(i).is_none();
-    flat.then(|| mesh.materials[mesh.triangle_materials[i] as usize].kd)
+    // A mesh without normals or without several materials answers without reading the
+    // triangle's entries: a hit's id is as scattered as the mesh is large.
+    let flat = (mesh.normals.is_empty() || mesh.triangle_normals[i][0] == NO_NORMAL)
+        && mesh.texture_of(i).is_none();
+    flat.then(|| match mesh.materials.as_slice() {
+        [only] => only.kd,
+        all => all[mesh.triangle_materials[i] as usize].kd,
+    })
 }
 
 /// Renders `scene` with one BVH over all its triangles.

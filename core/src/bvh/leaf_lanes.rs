@@ -52,15 +52,14 @@ fn count_leaf_test(lanes: usize) {
     let _ = lanes;
 }
 
-/// Whether testing the leaf of `count` `Triangle4`s from `first` in `lanes` lanes against the
-/// rays of `group` (bit i = lane i) takes fewer tests than the 4-wide path: one test per
-/// triangle of the leaf, a 16-lane one counted as two, against one per `Triangle4` per ray.
-/// (An 8-lane test costs more than a 4-wide one; weighting it so measured no better on the
-/// bundled scenes and a 1M mesh. Counting a 16-lane test as one was slower on the 1M mesh.)
+/// Whether testing a leaf of `count` `Triangle4`s holding `triangles` triangles in `lanes`
+/// lanes against the rays of `group` (bit i = lane i) takes fewer tests than the 4-wide path:
+/// one test per triangle of the leaf, a 16-lane one counted as two, against one per
+/// `Triangle4` per ray. (An 8-lane test costs more than a 4-wide one; weighting it so measured
+/// no better on the bundled scenes and a 1M mesh. Counting a 16-lane test as one was slower on
+/// the 1M mesh.)
 #[inline(always)]
-fn pays_in_lanes(bvh: &Bvh, (first, count): (usize, usize), group: u32, lanes: usize) -> bool {
-    let leaf = &bvh.triangles[first..first + count];
-    let triangles: usize = leaf.iter().map(|p| p.lanes as usize).sum();
+fn pays_in_lanes((count, triangles): (usize, usize), group: u32, lanes: usize) -> bool {
     group.count_ones() as usize * count * 8 > triangles * lanes
 }
 
@@ -295,6 +294,12 @@ impl<L: LeafLanes> PacketLanes<'_, L> {
     ) -> u64 {
         let mut rest = active;
         let all = first_bits(L::LANES);
+        // Counted once a leaf, not once a group: the `Triangle4`s' lane counts.
+        let (first, count) = leaf;
+        let triangles: usize = bvh.triangles[first..first + count]
+            .iter()
+            .map(|p| p.lanes as usize)
+            .sum();
         for (g, slot) in self
             .groups
             .iter_mut()
@@ -303,7 +308,7 @@ impl<L: LeafLanes> PacketLanes<'_, L> {
         {
             let from = g * L::LANES;
             let group = (active >> from) as u32 & all;
-            if !pays_in_lanes(bvh, leaf, group, L::LANES) {
+            if !pays_in_lanes((count, triangles), group, L::LANES) {
                 continue;
             }
             if slot.is_none() {
