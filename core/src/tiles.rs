@@ -1,12 +1,12 @@
 //! The order the monolithic renderer traces camera rays in: bands of [`BAND_ROWS`] image
 //! rows, each band tile by tile ([`TILE_WIDTH`] pixels wide, the band's height; tiles left to
-//! right, rows top to bottom in a tile). A closest-hit packet of camera rays below 64 spp is
-//! [`crate::bvh::CLOSEST_PACKET`] (32) consecutive rays, so below 16 samples per pixel it then
-//! covers squares of the image (two tiles side by side at 1 spp) rather than a strip of one
-//! row, and its rays stay together deeper in the BVH (at 1 spp, +20% closest-hit packet speed
-//! on a 1M-triangle mesh, a few per cent on small ones: `core/src/bvh/README.md`, "Packets of
-//! square tiles"). The order never changes a result: every ray's answer is exact, and the
-//! renderer puts each pixel where it belongs.
+//! right, rows top to bottom in a tile). A closest-hit packet of camera rays is
+//! [`crate::bvh::RAY_PACKET`] (64) consecutive rays ([`crate::bvh::camera_packet`]), so below
+//! 64 samples per pixel it covers squares of the image (one tile at 4 spp) rather than a strip
+//! of one row, and its rays stay together deeper in the BVH (measured with packets of 32 at 1
+//! spp: +20% closest-hit packet speed on a 1M-triangle mesh, a few per cent on small ones:
+//! `core/src/bvh/README.md`, "Packets of square tiles"). The order never changes a result:
+//! every ray's answer is exact, and the renderer puts each pixel where it belongs.
 
 use std::ops::Range;
 

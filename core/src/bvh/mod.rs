@@ -53,7 +53,7 @@ pub use dispatch::{
 pub use hit_columns::HitColumns;
 pub use hit_corners::CornerLanes;
 pub use parts::{BvhParts, BvhPartsError, NODE_BYTES, PartsLoader};
-pub use ray_packet::{CLOSEST_PACKET, RAY_PACKET, camera_packet};
+pub use ray_packet::{CLOSEST_PACKET, ClosestPackets, RAY_PACKET, camera_packet};
 pub(crate) use ray_packet::{bits, first_bits};
 pub use segment_columns::SegmentColumns;
 pub use segment_groups::SegmentGroups;

@@ -295,15 +295,39 @@ pub(super) fn is_finite(ray: &Ray) -> bool {
 /// too much of the image: on the 1M mesh at 1 spp (1280x720) closest hits took 10% longer.
 pub const CLOSEST_PACKET: usize = 32;
 
-/// Rays per closest-hit packet for camera rays made `spp` samples of a pixel at a time, in
-/// trace order: a whole pixel's samples at 64 spp and above ([`RAY_PACKET`]: closest hits
-/// 4-6% faster than in packets of 32 on the bundled scenes and the 1M mesh), else
-/// [`CLOSEST_PACKET`].
-pub fn camera_packet(spp: usize) -> usize {
-    if spp >= RAY_PACKET {
-        RAY_PACKET
-    } else {
-        CLOSEST_PACKET
+/// How consecutive rays are cut into closest-hit packets, and how a packet descends.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ClosestPackets {
+    /// Rays a packet takes: 1 to [`RAY_PACKET`].
+    pub rays: usize,
+    /// Whether an inner child the packet's interval test cannot decide is tested ray by ray
+    /// (`true`), or entered by every active ray (`false`: rays then meet the single-ray box
+    /// test only at leaves, `RayPacketTester::enter_children`). The per-ray tests cost more
+    /// than they rule out when a packet is one pixel's samples, and pay when its rays spread
+    /// over several pixels (`camera_packet`). The same answers either way.
+    pub inner_tests: bool,
+}
+
+impl ClosestPackets {
+    /// [`Bvh::closest_hits`]'s packets: [`CLOSEST_PACKET`] rays, tested ray by ray only at
+    /// leaves.
+    pub const DEFAULT: ClosestPackets = ClosestPackets {
+        rays: CLOSEST_PACKET,
+        inner_tests: false,
+    };
+}
+
+/// The closest-hit packets of camera rays made `spp` samples of a pixel at a time, in trace
+/// order: [`RAY_PACKET`] rays, a whole pixel's samples at 64 spp and above, several pixels'
+/// below that, where their inner children are tested ray by ray too. Measured
+/// (docs/perf/time-per-sample.md, "Camera packets below 64 spp"): at 4 and 16 spp, 64 rays
+/// with per-ray inner tests took 0.75-0.85x the closest-hit time of 32 rays with leaf tests
+/// only on the bundled scenes, 0.85-0.9x on the 1M mesh; at 64 spp per-ray inner tests
+/// made the 1M mesh's closest hits 5% slower.
+pub fn camera_packet(spp: usize) -> ClosestPackets {
+    ClosestPackets {
+        rays: RAY_PACKET,
+        inner_tests: spp < RAY_PACKET,
     }
 }
 
@@ -313,17 +337,17 @@ impl Bvh {
     /// neighbours in `rays` are coherent (camera rays of neighbouring pixels, best with one
     /// origin). Panics if the lengths differ.
     pub fn closest_hits(&self, rays: &[Ray], out: &mut [Option<ClosestHit>]) {
-        self.closest_hits_in_packets(rays, out, CLOSEST_PACKET);
+        self.closest_hits_in_packets(rays, out, ClosestPackets::DEFAULT);
     }
 
-    /// [`Bvh::closest_hits`] in packets of `packet` consecutive rays (1 to [`RAY_PACKET`];
-    /// [`camera_packet`] says how many for camera rays): the same answers at every length.
-    /// Panics if the lengths differ or `packet` is out of range.
+    /// [`Bvh::closest_hits`] in `packet`'s packets ([`camera_packet`] says which for camera
+    /// rays): the same answers at every length and either way of descending. Panics if the
+    /// lengths differ or the packets' length is out of range.
     pub fn closest_hits_in_packets(
         &self,
         rays: &[Ray],
         out: &mut [Option<ClosestHit>],
-        packet: usize,
+        packet: ClosestPackets,
     ) {
         assert_eq!(rays.len(), out.len(), "one output per ray");
         self.closest_hits_to(rays, out, packet);
@@ -331,18 +355,29 @@ impl Bvh {
 
     /// [`Bvh::closest_hits_in_packets`] into columns: ray i's answer is
     /// [`Bvh::hit_in`]`(hits, i)`, the same at every length. Panics if the lengths differ or
-    /// `packet` is out of range.
-    pub fn closest_hits_in_columns(&self, rays: &[Ray], hits: &mut HitColumns, packet: usize) {
+    /// the packets' length is out of range.
+    pub fn closest_hits_in_columns(
+        &self,
+        rays: &[Ray],
+        hits: &mut HitColumns,
+        packet: ClosestPackets,
+    ) {
         assert_eq!(rays.len(), hits.len(), "one output per ray");
         self.closest_hits_to(rays, hits, packet);
     }
 
-    /// The closest hit of every ray of `rays` into `out` (as many places), in packets of
-    /// `packet` rays.
-    fn closest_hits_to<O: ClosestOut + ?Sized>(&self, rays: &[Ray], out: &mut O, packet: usize) {
+    /// The closest hit of every ray of `rays` into `out` (as many places), in `packet`'s
+    /// packets.
+    fn closest_hits_to<O: ClosestOut + ?Sized>(
+        &self,
+        rays: &[Ray],
+        out: &mut O,
+        packet: ClosestPackets,
+    ) {
         assert!(
-            (1..=RAY_PACKET).contains(&packet),
-            "packets of 1 to {RAY_PACKET} rays, not {packet}"
+            (1..=RAY_PACKET).contains(&packet.rays),
+            "packets of 1 to {RAY_PACKET} rays, not {}",
+            packet.rays
         );
         if self.wide.is_empty() {
             out.misses(0, rays.len());
@@ -372,17 +407,18 @@ impl Bvh {
     #[inline(always)]
     fn closest_packets<const WIDTH: usize, O: ClosestOut + ?Sized>(
         &self,
-        (rays, packet): (&[Ray], usize),
+        (rays, packet): (&[Ray], ClosestPackets),
         out: &mut O,
         stack: &mut [RayPacketEntry; STACK],
         ray_stack: &mut [Entry; STACK],
     ) {
         let mut packet_rays = PacketRays::EMPTY;
-        for (p, rays) in rays.chunks(packet).enumerate() {
-            let from = p * packet;
+        for (p, rays) in rays.chunks(packet.rays).enumerate() {
+            let from = p * packet.rays;
             if packet_rays.fill(rays, |ray| ray) {
                 let out = (&mut *out, from);
-                self.trace_closest_packet::<WIDTH, O>(rays, &packet_rays, out, stack, ray_stack);
+                let packet_rays = (&packet_rays, packet.inner_tests);
+                self.trace_closest_packet::<WIDTH, O>(rays, packet_rays, out, stack, ray_stack);
             } else {
                 for (i, ray) in rays.iter().enumerate() {
                     out.one(from + i, self.closest_hit_with(ray, ray_stack));
@@ -392,12 +428,13 @@ impl Bvh {
     }
 
     /// [`Bvh::closest_hits`] of one packet of 1..=[`RAY_PACKET`] finite rays, also held in
-    /// `packet_rays`, into `out` from place `from`.
+    /// `packet_rays`, into `out` from place `from`, its inner children tested ray by ray where
+    /// `inner_tests` ([`ClosestPackets::inner_tests`]).
     #[inline(always)]
     fn trace_closest_packet<const WIDTH: usize, O: ClosestOut + ?Sized>(
         &self,
         rays: &[Ray],
-        packet_rays: &PacketRays,
+        (packet_rays, inner_tests): (&PacketRays, bool),
         (out, from): (&mut O, usize),
         stack: &mut [RayPacketEntry; STACK],
         ray_stack: &mut [Entry; STACK],
@@ -436,8 +473,11 @@ impl Bvh {
                 (bound, range) = hits.bounds(all_rays);
             } else if child & LEAF == 0 {
                 let node = &self.wide[child as usize];
-                let (enter, entry) =
-                    boxes.enter_children::<true, WIDTH>(node, active, &bound, range);
+                let (enter, entry) = if inner_tests {
+                    boxes.enter_children::<false, WIDTH>(node, active, &bound, range)
+                } else {
+                    boxes.enter_children::<true, WIDTH>(node, active, &bound, range)
+                };
                 if let Some(next) = descend(node, &enter, &entry, stack, &mut depth) {
                     (child, triangle4_count, active) = next;
                     continue;

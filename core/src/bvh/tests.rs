@@ -107,7 +107,8 @@ fn leaf_tests_in_lanes(width: KernelWidth) -> usize {
 
 /// Closest-hit ray packets give every ray exactly the single-ray answer, for packets cut at
 /// every offset (full, partial and one-ray packets) and of 32 (the default), 64 and 7 rays,
-/// at every kernel width, whether the answers come as `Option<ClosestHit>`s or as columns
+/// with inner children tested at the hull or ray by ray ([`ClosestPackets::inner_tests`]), at
+/// every kernel width, whether the answers come as `Option<ClosestHit>`s or as columns
 /// ([`Bvh::closest_hits_in_columns`], read back through [`Bvh::hit_in`]).
 fn check_ray_packets_against_single_rays(bvh: &Bvh, rays: &[Ray]) -> usize {
     let single: Vec<_> = rays
@@ -123,13 +124,16 @@ fn packets_give_single_ray_hits(
     single: &[Option<HitBits>],
     width: KernelWidth,
 ) {
+    let packets = [CLOSEST_PACKET, RAY_PACKET, 7]
+        .into_iter()
+        .flat_map(|rays| [false, true].map(|inner_tests| ClosestPackets { rays, inner_tests }));
     for (skip, packet) in [0, 1, 5, 15, 17, 31, 33, 63]
         .into_iter()
-        .flat_map(|skip| [(skip, CLOSEST_PACKET), (skip, RAY_PACKET), (skip, 7)])
+        .flat_map(|skip| packets.clone().map(move |packet| (skip, packet)))
     {
         let rays = &rays[skip.min(rays.len())..];
         let mut out = vec![None; rays.len()];
-        if packet == CLOSEST_PACKET {
+        if packet == ClosestPackets::DEFAULT {
             bvh.closest_hits(rays, &mut out);
         } else {
             bvh.closest_hits_in_packets(rays, &mut out, packet);
@@ -145,13 +149,13 @@ fn packets_give_single_ray_hits(
             assert_eq!(
                 &got.as_ref().map(|h| hit_bits(bvh, h)),
                 expected,
-                "ray {} ({width:?}, packets of {packet})",
+                "ray {} ({width:?}, {packet:?})",
                 k + skip
             );
             assert_eq!(
                 &bvh.hit_in(&columns, k).as_ref().map(|h| hit_bits(bvh, h)),
                 expected,
-                "ray {} in columns ({width:?}, packets of {packet})",
+                "ray {} in columns ({width:?}, {packet:?})",
                 k + skip
             );
         }

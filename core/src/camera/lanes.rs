@@ -7,7 +7,7 @@
 //! per batch ([`SampleRun`]). Every ray is [`Camera::sample_ray`]'s bits.
 
 use super::Camera;
-use crate::sampling::{PixelSamples, SampleRun};
+use crate::sampling::{PixelSamples, SamplePairs, SampleRun};
 use crate::triangle::Ray;
 use glam::Vec3;
 use std::borrow::Borrow;
@@ -71,33 +71,60 @@ impl Camera {
     }
 
     /// The rays of `samples` of each of `pixels`, pixel by pixel, made [`LANES`] consecutive
-    /// (pixel, sample) pairs at a time: the image positions lane by lane, then the rays in
-    /// lanes (a pixel's few samples alone would leave lanes idle). The last group's unused
-    /// lanes repeat its last position, and their rays are not kept.
+    /// (pixel, sample) pairs at a time: the image positions and their offsets in lanes
+    /// ([`SamplePairs`]), then the rays in lanes (a pixel's few samples alone would leave lanes
+    /// idle). The last group's unused lanes repeat its last pair, and their rays are not kept.
+    /// `samples` has fewer than [`LANES`] samples.
     #[inline(always)]
     fn pairs_rays_lanes(&self, pixels: &[u64], (samples, spp): (&[u32], u32), out: &mut Vec<Ray>) {
         out.reserve(pixels.len() * samples.len());
+        let Some(&last) = samples.last() else {
+            return;
+        };
+        // The samples' shared part (their second dimension), once.
+        let mut run = [last; LANES];
+        run[..samples.len()].copy_from_slice(samples);
+        let run = SampleRun::new(run);
+        let mut pairs = SamplePairs::<LANES>::default();
         let (mut px, mut py, mut filled) = ([0.0f64; LANES], [0.0f64; LANES], 0);
         for &pixel in pixels {
             let offsets = PixelSamples::of_frame(pixel, spp, self.frame);
             let (x, y) = self.pixel_xy(pixel);
-            for &sample in samples {
-                let (ox, oy) = offsets.offset(sample);
-                (px[filled], py[filled]) = (x + ox, y + oy);
+            for j in 0..samples.len() {
+                pairs.set(filled, &offsets, &run, j);
+                (px[filled], py[filled]) = (x, y);
                 filled += 1;
                 if filled == LANES {
-                    self.rays_lanes(px, py, out);
+                    self.pairs_rays(&pairs, (px, py), out);
                     filled = 0;
                 }
             }
         }
         if filled > 0 {
             for k in filled..LANES {
+                pairs.copy_lane(k, filled - 1);
                 (px[k], py[k]) = (px[filled - 1], py[filled - 1]);
             }
-            self.rays_lanes(px, py, out);
+            self.pairs_rays(&pairs, (px, py), out);
             out.truncate(out.len() - (LANES - filled));
         }
+    }
+
+    /// Appends the rays of `pairs` whose pixels' corners are `(x, y)`, lane by lane.
+    #[inline(always)]
+    fn pairs_rays(
+        &self,
+        pairs: &SamplePairs<LANES>,
+        (mut x, mut y): ([f64; LANES], [f64; LANES]),
+        out: &mut Vec<Ray>,
+    ) {
+        let (ox, oy) = pairs.offsets_lanes();
+        for k in 0..LANES {
+            // `x + ox` as `Camera::sample_ray` adds them.
+            x[k] += ox[k];
+            y[k] += oy[k];
+        }
+        self.rays_lanes(x, y, out);
     }
 
     /// Appends [`Camera::ray`] of [`LANES`] image positions, one per lane, in lane order.

@@ -18,7 +18,7 @@ use super::refine_list::RefineList;
 use super::split_object::SplitObject;
 use super::stages::{BATCH, push_surface_hits, sample_colour};
 use crate::adaptive::{AdaptiveCounts, AdaptiveSettings, Decision, decide};
-use crate::bvh::CLOSEST_PACKET;
+use crate::bvh::ClosestPackets;
 use crate::camera::Camera;
 use crate::hits::Hit;
 use crate::sampling::PixelSum;
@@ -59,7 +59,7 @@ pub fn cast_samples(
             ranks.extend(run.iter().map(|&(_, rank)| rank));
             camera.pixels_samples_rays(&[run[0].0], (&ranks, max_spp), &mut rays);
         }
-        let rays = (batch, rays.as_slice(), CLOSEST_PACKET);
+        let rays = (batch, rays.as_slice(), ClosestPackets::DEFAULT);
         push_surface_hits(split, rays, &mut hits, &mut out, 0..batch.len());
     }
     out

@@ -7,7 +7,7 @@ use super::query_order::QueryOrder;
 use super::records::{Occluded, PixelBlock, ShadowQuery, SurfaceHit};
 use super::split::SplitMode;
 use super::split_object::SplitObject;
-use crate::bvh::{ClosestHit, SegmentGroups, camera_packet, segment_may_hit};
+use crate::bvh::{ClosestHit, ClosestPackets, SegmentGroups, camera_packet, segment_may_hit};
 use crate::error::SceneError;
 use crate::hits::Hit;
 use crate::image::Image;
@@ -61,12 +61,12 @@ pub fn cast_map(
 }
 
 /// Traces the camera rays `rays` of the samples `batch` ((pixel, sample), one per ray) against
-/// `split` as packets of `packet` rays, and appends the split's nearest hit of each sample that
+/// `split` in `packet`'s packets, and appends the split's nearest hit of each sample that
 /// hits it to `out`, taking the samples in the order of the indices `write_order` (into
 /// `batch`). `hits` is scratch space.
 pub(super) fn push_surface_hits(
     split: &SplitObject,
-    (batch, rays, packet): (&[(u64, u32)], &[Ray], usize),
+    (batch, rays, packet): (&[(u64, u32)], &[Ray], ClosestPackets),
     hits: &mut Vec<Option<ClosestHit>>,
     out: &mut Vec<SurfaceHit>,
     write_order: impl IntoIterator<Item = usize>,

@@ -94,6 +94,77 @@ impl PixelSamples {
     }
 }
 
+/// `N` samples of any pixels, one per lane (a few samples each of neighbouring pixels), with
+/// what their offsets need: lane k's offset is `PixelSamples::offset` of its pixel and sample,
+/// with the same exact operations per lane ([`SamplePairs::offsets_lanes`]).
+#[derive(Clone, Copy, Debug)]
+pub struct SamplePairs<const N: usize> {
+    centre: bool,
+    samples: [u32; N],
+    second: [u32; N],
+    seed_x: [u32; N],
+    seed_y: [u32; N],
+}
+
+impl<const N: usize> Default for SamplePairs<N> {
+    fn default() -> Self {
+        SamplePairs {
+            centre: false,
+            samples: [0; N],
+            second: [0; N],
+            seed_x: [0; N],
+            seed_y: [0; N],
+        }
+    }
+}
+
+impl<const N: usize> SamplePairs<N> {
+    /// Lane `k` takes the sample in lane `j` of `run` of the pixel whose pattern is `pixel`.
+    /// Every lane's pattern must be of the same sample count (all pixel centres or none).
+    /// Panics unless `k < N` and `j < M`.
+    #[inline(always)]
+    pub fn set<const M: usize>(
+        &mut self,
+        k: usize,
+        pixel: &PixelSamples,
+        run: &SampleRun<M>,
+        j: usize,
+    ) {
+        self.centre = pixel.centre;
+        self.samples[k] = run.samples[j];
+        self.second[k] = run.second[j];
+        self.seed_x[k] = pixel.seed_x;
+        self.seed_y[k] = pixel.seed_y;
+    }
+
+    /// Lane `k` takes what lane `from` holds. Panics unless both are below `N`.
+    #[inline(always)]
+    pub fn copy_lane(&mut self, k: usize, from: usize) {
+        self.samples[k] = self.samples[from];
+        self.second[k] = self.second[from];
+        self.seed_x[k] = self.seed_x[from];
+        self.seed_y[k] = self.seed_y[from];
+    }
+
+    /// Each lane's offset, x and y in plain arrays ([`PixelSamples::offsets_lanes`]'s
+    /// operations, with each lane's own seeds).
+    #[inline(always)]
+    pub fn offsets_lanes(&self) -> ([f64; N], [f64; N]) {
+        if self.centre {
+            return ([0.5; N], [0.5; N]);
+        }
+        let (x, y) =
+            sobol::points_lanes_seeded((self.samples, self.second), (self.seed_x, self.seed_y));
+        let mut out = ([0.0; N], [0.0; N]);
+        for k in 0..N {
+            // As `PixelSamples::offsets_lanes`.
+            out.0[k] = f64::from((x[k] >> 8) as i32) * UNIT;
+            out.1[k] = f64::from((y[k] >> 8) as i32) * UNIT;
+        }
+        out
+    }
+}
+
 /// `N` sample indices with the part of their sequence points that is the same in every pixel
 /// (the second dimension before scrambling) computed once: what
 /// [`PixelSamples::offsets_lanes`] scrambles per pixel.

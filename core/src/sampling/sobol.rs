@@ -56,6 +56,21 @@ pub(super) fn points_lanes<const N: usize>(
     (x, y)
 }
 
+/// [`points_lanes`] with a seed per lane: lane k is [`point`]`(index[k], seed_x[k],
+/// seed_y[k])` (samples of different pixels side by side).
+#[inline(always)]
+pub(super) fn points_lanes_seeded<const N: usize>(
+    (index, second): ([u32; N], [u32; N]),
+    (seed_x, seed_y): ([u32; N], [u32; N]),
+) -> ([u32; N], [u32; N]) {
+    let (mut x, mut y) = (index, second);
+    for k in 0..N {
+        x[k] = laine_karras(x[k], seed_x[k]);
+        y[k] = laine_karras(y[k], seed_y[k]);
+    }
+    (reverse_bits_lanes(x), reverse_bits_lanes(y))
+}
+
 /// The second Sobol dimension of `index` in reversed bit order (bit 0 is 1/2). Its generator
 /// matrix is Pascal's triangle mod 2: column `k` is `v_k` with `v_0 = 1/2` and
 /// `v_(k+1) = v_k ^ (v_k >> 1)` as a fraction, that is `v_(k+1) = v_k ^ (v_k << 1)` reversed.
