@@ -321,9 +321,9 @@ impl ClosestPackets {
 /// order: [`RAY_PACKET`] rays, a whole pixel's samples at 64 spp and above, several pixels'
 /// below that, where their inner children are tested ray by ray too. Measured
 /// (docs/perf/time-per-sample.md, "Camera packets below 64 spp"): at 4 and 16 spp, 64 rays
-/// with per-ray inner tests took 0.75-0.85x the closest-hit time of 32 rays with leaf tests
-/// only on the bundled scenes, 0.85-0.9x on the 1M mesh; at 64 spp per-ray inner tests
-/// made the 1M mesh's closest hits 5% slower.
+/// with per-ray inner tests took 0.78-0.82x the closest-hit time of 32 rays with leaf tests
+/// only on the bundled scenes, 0.83-0.92x on the 1M mesh; at 64 spp per-ray inner tests
+/// made the 1M mesh's closest hits 5-15% slower.
 pub fn camera_packet(spp: usize) -> ClosestPackets {
     ClosestPackets {
         rays: RAY_PACKET,
