@@ -84,13 +84,7 @@ impl PixelSamples {
             return ([0.5; N], [0.5; N]);
         }
         let (x, y) = sobol::points_lanes((run.samples, run.second), self.seed_x, self.seed_y);
-        let mut out = ([0.0; N], [0.0; N]);
-        for k in 0..N {
-            // The top 24 bits fit an i32, whose conversion to f64 is exact (as `f64::from`).
-            out.0[k] = f64::from((x[k] >> 8) as i32) * UNIT;
-            out.1[k] = f64::from((y[k] >> 8) as i32) * UNIT;
-        }
-        out
+        unit_floats_lanes(x, y)
     }
 }
 
@@ -155,13 +149,7 @@ impl<const N: usize> SamplePairs<N> {
         }
         let (x, y) =
             sobol::points_lanes_seeded((self.samples, self.second), (self.seed_x, self.seed_y));
-        let mut out = ([0.0; N], [0.0; N]);
-        for k in 0..N {
-            // As `PixelSamples::offsets_lanes`.
-            out.0[k] = f64::from((x[k] >> 8) as i32) * UNIT;
-            out.1[k] = f64::from((y[k] >> 8) as i32) * UNIT;
-        }
-        out
+        unit_floats_lanes(x, y)
     }
 }
 
@@ -222,6 +210,18 @@ pub(crate) fn hash64(mut x: u64) -> u64 {
 /// The top 24 bits of a binary fraction as a float in [0, 1) (exactly representable).
 fn unit_float(h: u32) -> f64 {
     f64::from(h >> 8) * UNIT
+}
+
+/// [`unit_float`] of `N` x and `N` y fractions, lane by lane.
+#[inline(always)]
+fn unit_floats_lanes<const N: usize>(x: [u32; N], y: [u32; N]) -> ([f64; N], [f64; N]) {
+    let mut out = ([0.0; N], [0.0; N]);
+    for k in 0..N {
+        // The top 24 bits fit an i32, whose conversion to f64 is exact (as `f64::from`).
+        out.0[k] = f64::from((x[k] >> 8) as i32) * UNIT;
+        out.1[k] = f64::from((y[k] >> 8) as i32) * UNIT;
+    }
+    out
 }
 
 #[cfg(test)]

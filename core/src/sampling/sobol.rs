@@ -51,9 +51,7 @@ pub(super) fn points_lanes<const N: usize>(
     seed_x: u32,
     seed_y: u32,
 ) -> ([u32; N], [u32; N]) {
-    let x = reverse_bits_lanes(laine_karras_lanes(index, seed_x));
-    let y = reverse_bits_lanes(laine_karras_lanes(second, seed_y));
-    (x, y)
+    points_lanes_seeded((index, second), ([seed_x; N], [seed_y; N]))
 }
 
 /// [`points_lanes`] with a seed per lane: lane k is [`point`]`(index[k], seed_x[k],
@@ -63,12 +61,9 @@ pub(super) fn points_lanes_seeded<const N: usize>(
     (index, second): ([u32; N], [u32; N]),
     (seed_x, seed_y): ([u32; N], [u32; N]),
 ) -> ([u32; N], [u32; N]) {
-    let (mut x, mut y) = (index, second);
-    for k in 0..N {
-        x[k] = laine_karras(x[k], seed_x[k]);
-        y[k] = laine_karras(y[k], seed_y[k]);
-    }
-    (reverse_bits_lanes(x), reverse_bits_lanes(y))
+    let x = reverse_bits_lanes(laine_karras_lanes(index, seed_x));
+    let y = reverse_bits_lanes(laine_karras_lanes(second, seed_y));
+    (x, y)
 }
 
 /// The second Sobol dimension of `index` in reversed bit order (bit 0 is 1/2). Its generator
@@ -150,10 +145,10 @@ fn laine_karras(mut v: u32, seed: u32) -> u32 {
     v
 }
 
-/// [`laine_karras`] of `N` values, one per lane.
+/// [`laine_karras`] of `N` values, one per lane, each with its lane's seed.
 #[inline(always)]
-fn laine_karras_lanes<const N: usize>(mut v: [u32; N], seed: u32) -> [u32; N] {
-    for v in &mut v {
+fn laine_karras_lanes<const N: usize>(mut v: [u32; N], seed: [u32; N]) -> [u32; N] {
+    for (v, seed) in v.iter_mut().zip(seed) {
         *v = laine_karras(*v, seed);
     }
     v
